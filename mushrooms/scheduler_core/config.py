@@ -1,0 +1,181 @@
+"""Planning parameters: one small frozen dataclass a notebook can build by hand.
+
+Every default here is the documented default of the ``[scheduler]`` section
+of ``config.toml``; a test keeps the two in step.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+__all__ = ["PlanningConfig", "SlewModel"]
+
+
+@dataclass(frozen=True)
+class SlewModel:
+    """ZTF/P48 per-axis trapezoidal slew model (ztf_sim's drive parameters).
+
+    Each axis accelerates at a constant rate up to a maximum speed, cruises,
+    and decelerates at the same rate; the slew lasts as long as the slower
+    axis, plus a settle time.  The CCD readout of the previous exposure runs
+    during the slew, so the gap between two exposures is at least the
+    readout time.
+
+    Attributes
+    ----------
+    ha_accel_deg_s2, ha_vmax_deg_s : float
+        Hour-angle axis acceleration (deg s^-2) and top speed (deg s^-1).
+    dec_accel_deg_s2, dec_vmax_deg_s : float
+        Declination axis acceleration (deg s^-2) and top speed (deg s^-1).
+    settle_s : float
+        Settle time after any non-zero slew (s).
+    readout_s : float
+        CCD readout time (s); overlaps the slew.
+    """
+
+    ha_accel_deg_s2: float = 0.4
+    ha_vmax_deg_s: float = 2.5
+    dec_accel_deg_s2: float = 0.5
+    dec_vmax_deg_s: float = 3.0
+    settle_s: float = 1.0
+    readout_s: float = 8.0
+
+
+@dataclass(frozen=True)
+class PlanningConfig:
+    """Everything that shapes a plan, in astronomer's units.
+
+    Attributes
+    ----------
+    nside : int
+        Working HEALPix resolution (NESTED ordering) for coverage.
+    horizon_h : float
+        Planning horizon (hours) from the start time.
+    time_step_s : float
+        Step (s) of the time grid on which observability windows are found.
+    sun_alt_max_deg : float
+        Observing only while the Sun is below this altitude (deg).
+    airmass_max : float
+        Largest airmass (plane-parallel sec z) allowed.
+    ha_max_h : float
+        Largest |hour angle| (hours) the P48 mount reaches.
+    moon_sep_min_deg : float
+        Smallest Moon separation (deg) from a field centre.
+    dec_min_deg, dec_max_deg : float
+        Fields outside this declination band (deg) are never planned.
+    exposure_s : float
+        Exposure time per visit (s).
+    filters : tuple of str
+        The two filters, in observing order within a block.
+    cadence_s : float
+        Least time (s) between the two filters' visits of one field.
+    filter_change_s : float
+        Filter exchange time (s).
+    slew_estimate_s : float
+        Mean slew+readout overhead (s) the block MILP assumes before the
+        real order is known.
+    n_fields : int or None
+        Shortlist size after pruning; None sizes it from the horizon.
+    n_blocks_max : int
+        Most observing blocks in the MILP (b_max).
+    penalty : float
+        Objective penalty per field-block assignment (p).
+    block_gap_s : float
+        Extra time (s) inserted between blocks (g_i) on a first solve.
+    solver : str
+        Default scheduler: ``greedy``, ``milp`` or ``hybrid``.
+    milp_backend : str
+        ``auto`` (Gurobi if fully licensed, else HiGHS), ``highs`` or ``gurobi``.
+    time_limit_s : float
+        Wall-clock limit (s) of one MILP solve.
+    mip_gap : float
+        Relative optimality gap at which the solver may stop.
+    threads : int
+        Solver threads (0 lets the solver decide).
+    max_retries : int
+        Re-solves with a larger block gap when real slews push a field out
+        of its window.
+    slew : SlewModel
+        Telescope slew model.
+    """
+
+    nside: int = 256
+    horizon_h: float = 24.0
+    time_step_s: float = 300.0
+    sun_alt_max_deg: float = -12.0
+    airmass_max: float = 2.5
+    ha_max_h: float = 5.95
+    moon_sep_min_deg: float = 20.0
+    dec_min_deg: float = -31.0
+    dec_max_deg: float = 87.5
+    exposure_s: float = 300.0
+    filters: tuple[str, str] = ("g", "r")
+    cadence_s: float = 1800.0
+    filter_change_s: float = 120.0
+    slew_estimate_s: float = 10.0
+    n_fields: int | None = None
+    n_blocks_max: int = 6
+    penalty: float = 0.0
+    block_gap_s: float = 0.0
+    solver: str = "hybrid"
+    milp_backend: str = "auto"
+    time_limit_s: float = 30.0
+    mip_gap: float = 0.01
+    threads: int = 0
+    max_retries: int = 3
+    slew: SlewModel = field(default_factory=SlewModel)
+
+    def __post_init__(self) -> None:
+        problems = []
+        if self.nside < 1 or self.nside & (self.nside - 1):
+            problems.append(f"nside must be a power of 2, got {self.nside}")
+        if not 0 < self.horizon_h <= 24 * 7:
+            problems.append(f"horizon_h must be in (0, 168] h, got {self.horizon_h}")
+        for name in ("time_step_s", "exposure_s", "cadence_s", "time_limit_s"):
+            if getattr(self, name) <= 0:
+                problems.append(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.airmass_max < 1:
+            problems.append(f"airmass_max must be >= 1, got {self.airmass_max}")
+        if len(self.filters) != 2 or self.filters[0] == self.filters[1]:
+            problems.append(f"filters must be two different filters, got {self.filters!r}")
+        if self.solver not in ("greedy", "milp", "hybrid"):
+            problems.append(f"solver must be greedy, milp or hybrid, got {self.solver!r}")
+        if self.milp_backend not in ("auto", "highs", "gurobi"):
+            problems.append(f"milp_backend must be auto, highs or gurobi, got {self.milp_backend!r}")
+        if self.n_fields is not None and self.n_fields < 1:
+            problems.append(f"n_fields must be >= 1, got {self.n_fields}")
+        if self.n_blocks_max < 1:
+            problems.append(f"n_blocks_max must be >= 1, got {self.n_blocks_max}")
+        if problems:
+            raise ValueError("; ".join(problems))
+
+    @property
+    def horizon_s(self) -> float:
+        """Planning horizon in seconds."""
+        return self.horizon_h * 3600.0
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any]) -> "PlanningConfig":
+        """Build from a ``[scheduler]`` table; unknown keys are an error.
+
+        Parameters
+        ----------
+        values : mapping
+            Keys are attribute names; ``slew`` may be a nested table.
+        """
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"unknown [scheduler] key(s): {', '.join(unknown)}")
+        kwargs = dict(values)
+        if "slew" in kwargs and isinstance(kwargs["slew"], Mapping):
+            slew_known = {f.name for f in dataclasses.fields(SlewModel)}
+            bad = sorted(set(kwargs["slew"]) - slew_known)
+            if bad:
+                raise ValueError(f"unknown [scheduler.slew] key(s): {', '.join(bad)}")
+            kwargs["slew"] = SlewModel(**kwargs["slew"])
+        if "filters" in kwargs:
+            kwargs["filters"] = tuple(kwargs["filters"])
+        return cls(**kwargs)
