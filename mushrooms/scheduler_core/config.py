@@ -103,7 +103,7 @@ class PlanningConfig:
 
     nside: int = 256
     horizon_h: float = 24.0
-    time_step_s: float = 300.0
+    time_step_s: float = 120.0
     sun_alt_max_deg: float = -12.0
     airmass_max: float = 2.5
     ha_max_h: float = 5.95

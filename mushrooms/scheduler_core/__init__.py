@@ -1,0 +1,29 @@
+"""Pure scheduling library: sky map in, checked ZTF plan out.
+
+No Kafka, no daemon state, no globals: call it from a notebook::
+
+    from mushrooms.scheduler_core import read_skymap, make_plan, PlanningConfig
+    cfg = PlanningConfig(solver="greedy")
+    plan = make_plan(read_skymap("bayestar.multiorder.fits", nside=cfg.nside), cfg)
+    plan.to_document()
+"""
+
+from .checker import CheckReport, check_plan
+from .config import PlanningConfig, SlewModel
+from .errors import InputError, PlanCheckError, SkyMapError
+from .fields import FieldGrid, field_footprints, load_ztf_fields
+from .greedy import greedy_schedule
+from .plan import EventInfo, Observation, Plan, PlanMetrics, make_plan_id, to_trigger_queue
+from .planner import make_plan, run_scheduler
+from .prepare import prepare_problem
+from .problem import Footprints, PlanningProblem, ScheduleResult, Windows
+from .skymap import SkyMap, read_skymap
+from .visibility import observability_windows
+
+__all__ = [
+    "CheckReport", "check_plan", "PlanningConfig", "SlewModel", "InputError", "PlanCheckError",
+    "SkyMapError", "FieldGrid", "field_footprints", "load_ztf_fields", "greedy_schedule",
+    "EventInfo", "Observation", "Plan", "PlanMetrics", "make_plan_id", "to_trigger_queue",
+    "make_plan", "run_scheduler", "prepare_problem", "Footprints", "PlanningProblem",
+    "ScheduleResult", "Windows", "SkyMap", "read_skymap", "observability_windows",
+]

@@ -1,0 +1,147 @@
+"""One call from a sky map to a checked plan: ``make_plan``."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+
+from astropy.time import Time, TimeDelta
+
+from .checker import check_plan
+from .config import PlanningConfig
+from .errors import InputError, PlanCheckError
+from .greedy import greedy_schedule
+from .plan import EventInfo, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
+from .prepare import prepare_problem
+from .problem import PlanningProblem, ScheduleResult, StopCheck
+from .skymap import SkyMap
+
+__all__ = ["make_plan", "run_scheduler", "SOLVERS"]
+
+log = logging.getLogger(__name__)
+
+SOLVERS = ("greedy", "milp", "hybrid")
+
+
+def _coverage(problem: PlanningProblem, result: ScheduleResult) -> float:
+    return problem.footprints.coverage({o.field_id for o in result.observations}, problem.prob)
+
+
+def run_scheduler(problem: PlanningProblem, solver: str,
+                  should_stop: StopCheck | None = None) -> ScheduleResult:
+    """Run one scheduler (``greedy``, ``milp`` or ``hybrid``) on a problem.
+
+    The hybrid runs the greedy scheduler and the MILP and keeps whichever
+    covers more probability (the MILP on a tie); its ``solver`` says which
+    and ``details`` holds both coverages.
+    """
+    if solver == "greedy":
+        return greedy_schedule(problem, should_stop)
+    from .milp import milp_schedule  # the MILP stack is only imported when used
+
+    if solver == "milp":
+        return milp_schedule(problem, should_stop)
+    if solver == "hybrid":
+        greedy = greedy_schedule(problem, should_stop)
+        milp = milp_schedule(problem, should_stop)
+        cg, cm = _coverage(problem, greedy), _coverage(problem, milp)
+        best = milp if cm >= cg else greedy
+        details = dict(best.details)
+        details.update(hybrid_choice="milp" if best is milp else "greedy",
+                       coverage_greedy=cg, coverage_milp=cm,
+                       milp_status=milp.status, milp_gap=milp.mip_gap)
+        return dataclasses.replace(
+            best,
+            solver=f"hybrid({best.solver})",
+            mip_gap=milp.mip_gap,
+            runtime_s=greedy.runtime_s + milp.runtime_s,
+            details=details,
+        )
+    raise InputError(f"unknown solver {solver!r}; choose one of {', '.join(SOLVERS)}")
+
+
+def make_plan(
+    skymap: SkyMap,
+    config: PlanningConfig = PlanningConfig(),
+    start: Time | None = None,
+    solver: str | None = None,
+    event: EventInfo | None = None,
+    supersedes: str | None = None,
+    should_stop: StopCheck | None = None,
+) -> Plan:
+    """Plan ZTF follow-up of a sky map and check the plan.
+
+    Parameters
+    ----------
+    skymap : SkyMap
+        Sky map at ``config.nside``.
+    config : PlanningConfig
+        Planning parameters.
+    start : astropy.time.Time, optional
+        Horizon start; defaults to the sky map's event time.
+    solver : str, optional
+        ``greedy``, ``milp`` or ``hybrid``; defaults to ``config.solver``.
+    event : EventInfo, optional
+        The alert being answered (goes into the plan document).
+    supersedes : str, optional
+        plan_id of the plan this one replaces.
+    should_stop : callable, optional
+        Polled by the schedulers; True stops them early (the plan then holds
+        what was found so far).
+
+    Returns
+    -------
+    Plan
+        A plan that passed :func:`~.checker.check_plan`.
+
+    Raises
+    ------
+    InputError
+        No start time, or an unknown solver.
+    PlanCheckError
+        The plan failed the checker (a scheduler bug; never published).
+    """
+    t0 = time.perf_counter()
+    solver = solver or config.solver
+    if solver not in SOLVERS:
+        raise InputError(f"unknown solver {solver!r}; choose one of {', '.join(SOLVERS)}")
+    if start is None:
+        if skymap.event_time is None:
+            raise InputError("the sky map has no event time (DATE-OBS); give a start time")
+        start = skymap.event_time
+    start = Time(start, scale="utc")
+    event = event or EventInfo(skymap_sha256=skymap.sha256)
+    plan_id = make_plan_id(
+        skymap.sha256, iso_utc(start), dataclasses.asdict(config), solver, event.superevent_id,
+    )
+    problem = prepare_problem(skymap, config, start)
+    t_prep = time.perf_counter() - t0
+    result = run_scheduler(problem, solver, should_stop)
+    observations = sorted_observations(result.observations)
+    ids = {o.field_id for o in observations}
+    metrics = PlanMetrics(
+        coverage=round(problem.footprints.coverage(ids, skymap.prob), 6),
+        solver=result.solver,
+        status=result.status,
+        mip_gap=None if result.mip_gap is None else float(result.mip_gap),
+        runtime_s=round(time.perf_counter() - t0, 3),
+        n_fields=len(ids),
+        n_exposures=len(observations),
+    )
+    plan = Plan(
+        plan_id=plan_id,
+        start=start,
+        end=start + TimeDelta(config.horizon_s, format="sec"),
+        observations=observations,
+        metrics=metrics,
+        event=event,
+        supersedes=supersedes,
+    )
+    report = check_plan(plan, skymap, config)
+    log.info("plan %s: %s %s, %d fields, %d exposures, coverage %.4f (checker %.4f), prepare %.1f s, total %.1f s",
+             plan_id, result.solver, result.status, metrics.n_fields, metrics.n_exposures,
+             metrics.coverage, report.coverage, t_prep, time.perf_counter() - t0)
+    if not report.ok:
+        raise PlanCheckError(list(report.problems))
+    return plan

@@ -1,0 +1,148 @@
+"""When each ZTF field can be observed from Palomar over the planning horizon.
+
+Constraints (all in :class:`~.config.PlanningConfig`): Sun below
+``sun_alt_max_deg``; airmass (sec z) at most ``airmass_max``; |hour angle| at
+most ``ha_max_h``; the P48 mount's southern keep-out zones; Moon separation
+at least ``moon_sep_min_deg``.
+
+The Sun, the Moon and the local apparent sidereal time come from astropy on a
+time grid; field altitudes and hour angles then follow in closed form from
+the fields' apparent (true equator and equinox of date) coordinates, for all
+fields and grid times at once.  A window is a run of consecutive grid times
+at which every constraint holds: between two grid times the altitude, hour
+angle and Sun altitude are monotonic or convex enough that the constraints
+also hold in between, so windows are slightly conservative (by less than one
+grid step at each end), never optimistic.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from astropy import units as u
+from astropy.coordinates import TETE, AltAz, EarthLocation, SkyCoord, get_body
+from astropy.time import Time, TimeDelta
+
+from .config import PlanningConfig
+from .problem import Windows
+
+__all__ = ["site", "observability_windows", "mount_limits_ok", "PALOMAR"]
+
+#: P48 at Palomar (ztf_sim's coordinates): lat, lon (deg), height (m).
+PALOMAR = (33.35728, -116.85986, 1707.0)
+
+
+@functools.lru_cache(maxsize=1)
+def site() -> EarthLocation:
+    """The P48 telescope's location."""
+    lat, lon, height = PALOMAR
+    return EarthLocation.from_geodetic(lon=lon * u.deg, lat=lat * u.deg, height=height * u.m)
+
+
+def mount_limits_ok(ha_deg: np.ndarray, dec_deg: np.ndarray, ha_max_h: float) -> np.ndarray:
+    """P48 pointing limits: hour angle and the southern keep-out zones.
+
+    Parameters
+    ----------
+    ha_deg : numpy.ndarray
+        Hour angle (deg, wrapped to [-180, 180)).
+    dec_deg : numpy.ndarray
+        Declination (deg); broadcasts against ``ha_deg``.
+    ha_max_h : float
+        Largest |hour angle| (hours).
+
+    Returns
+    -------
+    numpy.ndarray
+        True where the mount can point.  Besides |HA| <= ha_max_h: rising
+        fields (HA < -17.6 deg) need Dec >= -22 deg, setting ones Dec >= -45
+        deg, and away from the meridian (|HA| > 3 deg) Dec >= -46 deg
+        (ZTF's queue limits as documented for ztf_sim).
+    """
+    ha = np.asarray(ha_deg, float)
+    dec = np.asarray(dec_deg, float)
+    ok = np.abs(ha) <= ha_max_h * 15.0
+    ok &= (ha >= -17.6) | (dec >= -22.0)
+    ok &= (ha <= -17.6) | (dec >= -45.0)
+    ok &= (np.abs(ha) <= 3.0) | (dec >= -46.0)
+    ok &= dec <= 87.5
+    return ok
+
+
+def _runs(ok: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(row, first, last) index of every run of True along axis 1."""
+    padded = np.zeros((ok.shape[0], ok.shape[1] + 2), dtype=np.int8)
+    padded[:, 1:-1] = ok
+    d = np.diff(padded, axis=1)
+    r0, c0 = np.nonzero(d == 1)
+    r1, c1 = np.nonzero(d == -1)
+    return r0, c0, c1 - 1  # nonzero() is row-major, so starts and ends pair up
+
+
+def observability_windows(
+    field_ids: np.ndarray,
+    ra_deg: np.ndarray,
+    dec_deg: np.ndarray,
+    start: Time,
+    config: PlanningConfig = PlanningConfig(),
+) -> Windows:
+    """Observability windows of fields over ``[start, start + horizon]``.
+
+    Parameters
+    ----------
+    field_ids : numpy.ndarray
+        Field IDs.
+    ra_deg, dec_deg : numpy.ndarray
+        Field centres (deg, ICRS).
+    start : astropy.time.Time
+        Horizon start (UTC).
+    config : PlanningConfig
+        Horizon, grid step and constraints.
+
+    Returns
+    -------
+    Windows
+        One row per window (s since ``start``); windows shorter than one
+        exposure are dropped.
+    """
+    field_ids = np.asarray(field_ids)
+    n_steps = int(np.floor(config.horizon_s / config.time_step_s)) + 1
+    offsets = np.arange(n_steps) * config.time_step_s
+    times = start + TimeDelta(offsets, format="sec")
+    loc = site()
+    lat = np.radians(loc.lat.deg)
+
+    # Sun and Moon: a few hundred astropy transforms, not one per field
+    frame = AltAz(obstime=times, location=loc)
+    sun_alt = get_body("sun", times, loc).transform_to(frame).alt.deg
+    moon = get_body("moon", times, loc)
+    lst = times.sidereal_time("apparent", longitude=loc.lon).deg
+
+    # Fields: apparent place of date (precession, nutation, aberration) once
+    mid = start + TimeDelta(config.horizon_s / 2, format="sec")
+    app = SkyCoord(ra=ra_deg * u.deg, dec=dec_deg * u.deg, frame="icrs").transform_to(TETE(obstime=mid))
+    ra_app = app.ra.deg[:, None]
+    dec_app = np.radians(app.dec.deg)[:, None]
+    ha = (lst[None, :] - ra_app + 180.0) % 360.0 - 180.0
+    sin_alt = np.sin(lat) * np.sin(dec_app) + np.cos(lat) * np.cos(dec_app) * np.cos(np.radians(ha))
+    with np.errstate(divide="ignore"):
+        airmass = np.where(sin_alt > 0, 1.0 / np.where(sin_alt > 0, sin_alt, 1.0), np.inf)
+
+    moon_ra = np.radians(moon.ra.deg)[None, :]
+    moon_dec = np.radians(moon.dec.deg)[None, :]
+    fra = np.radians(np.asarray(ra_deg, float))[:, None]
+    fdec = np.radians(np.asarray(dec_deg, float))[:, None]
+    cos_sep = np.sin(fdec) * np.sin(moon_dec) + np.cos(fdec) * np.cos(moon_dec) * np.cos(fra - moon_ra)
+    moon_sep = np.degrees(np.arccos(np.clip(cos_sep, -1, 1)))
+
+    ok = (sun_alt <= config.sun_alt_max_deg)[None, :]
+    ok = ok & (airmass <= config.airmass_max)
+    ok &= mount_limits_ok(ha, np.asarray(dec_deg, float)[:, None], config.ha_max_h)
+    ok &= moon_sep >= config.moon_sep_min_deg
+
+    rows, first, last = _runs(ok)
+    w_start = offsets[first]
+    w_end = offsets[last]
+    keep = (w_end - w_start) >= config.exposure_s
+    return Windows(field_ids=field_ids[rows[keep]], start=w_start[keep], end=w_end[keep])
