@@ -39,7 +39,7 @@ log = logging.getLogger(__name__)
 
 #: Radius (deg) of a circle around the boresight that holds the whole camera.
 FOOTPRINT_RADIUS_DEG = 5.3
-_CACHE_VERSION = 1
+_CACHE_VERSION = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,16 +129,19 @@ def deproject(x_deg: np.ndarray, y_deg: np.ndarray, ra0_deg: float, dec0_deg: fl
 
 
 def _inside_any_ccd(x: np.ndarray, y: np.ndarray, corners: np.ndarray) -> np.ndarray:
-    """Points (deg offsets) inside any of the convex CCD quadrilaterals."""
-    a = corners  # (16, 4, 2)
-    b = np.roll(corners, -1, axis=1)
-    ex = (b[..., 0] - a[..., 0])[None]  # (1, 16, 4)
-    ey = (b[..., 1] - a[..., 1])[None]
-    px = x[:, None, None] - a[None, ..., 0]
-    py = y[:, None, None] - a[None, ..., 1]
-    cross = ex * py - ey * px  # (m, 16, 4)
-    orient = np.sign(np.sum(a[..., 0] * b[..., 1] - b[..., 0] * a[..., 1], axis=1))[None, :, None]
-    return np.any(np.all(cross * orient >= 0, axis=2), axis=1)
+    """Points (deg offsets) inside any of the convex CCD quadrilaterals.
+
+    The CCDs are equal squares on a regular grid, so a point can only lie
+    on the CCD whose centre is nearest; only that quadrilateral is tested.
+    """
+    centres = corners.mean(axis=1)  # (16, 2)
+    d2 = (x[:, None] - centres[None, :, 0]) ** 2 + (y[:, None] - centres[None, :, 1]) ** 2
+    quad = corners[np.argmin(d2, axis=1)]  # (m, 4, 2)
+    a = quad
+    b = np.roll(quad, -1, axis=1)
+    cross = (b[..., 0] - a[..., 0]) * (y[:, None] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (x[:, None] - a[..., 0])
+    orient = np.sign(np.sum(a[..., 0] * b[..., 1] - b[..., 0] * a[..., 1], axis=1))[:, None]
+    return np.all(cross * orient >= 0, axis=1)
 
 
 def _compute_footprints(grid: FieldGrid, nside: int) -> Footprints:

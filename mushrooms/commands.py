@@ -1,0 +1,120 @@
+"""``mushrooms plan`` and ``mushrooms check``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import tempfile
+import time
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from .config import load_config
+
+log = logging.getLogger("mushrooms.plan")
+
+#: The bundled demo sky map (mock BNS MS181101ab, LVK user guide example).
+DEMO_SKYMAP = "data/MS181101ab_bayestar.multiorder.fits"
+
+
+def configure_astropy_offline() -> None:
+    """Never let astropy try to download Earth-orientation tables (no network)."""
+    from astropy.utils import iers
+
+    iers.conf.auto_download = False
+    iers.conf.auto_max_age = None
+
+
+def write_json_atomic(path: str | Path, obj: Any) -> None:
+    """Write JSON so that readers see the old file or the whole new one."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            json.dump(obj, fh, indent=1)
+            fh.write("\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def demo_skymap_path() -> str:
+    """Path of the bundled demo sky map."""
+    return str(resources.files("mushrooms.scheduler_core").joinpath(DEMO_SKYMAP))
+
+
+def plan_main(args: argparse.Namespace) -> int:
+    """Plan a sky map, check the plan, write it (and optionally a queue and a picture)."""
+    from .scheduler_core import make_plan, read_skymap, to_trigger_queue
+    from .scheduler_core.errors import InputError
+    from .scheduler_core.plan import parse_time
+
+    configure_astropy_offline()
+    t0 = time.perf_counter()
+    config = load_config(args.config)
+    cfg = config.scheduler
+    start = None
+    if args.start:
+        try:
+            start = parse_time(args.start)
+        except ValueError as exc:
+            raise InputError(f"--start: {exc}") from None
+    source = args.skymap or demo_skymap_path()
+    if not args.skymap:
+        log.info("no sky map given: planning the bundled demo map (mock BNS MS181101ab)")
+    skymap = read_skymap(source, nside=cfg.nside)
+    log.info("read %s: nside %d, 90%% area %.0f deg2, event time %s", source, skymap.nside,
+             skymap.credible_area(0.9), skymap.event_time.isot if skymap.event_time else "unknown")
+    plan = make_plan(skymap, cfg, start=start, solver=args.solver)
+    write_json_atomic(args.output, plan.to_document())
+    if args.queue:
+        write_json_atomic(args.queue, to_trigger_queue(plan))
+    if args.plot:
+        from .plotting import plot_plan
+
+        plot_plan(plan, skymap, args.plot)
+    m = plan.metrics
+    gap = "" if m.mip_gap is None else f", gap {m.mip_gap:.2%}"
+    print(f"{args.output}: {m.n_fields} fields, {m.n_exposures} exposures, coverage {m.coverage:.4f}, "
+          f"{m.solver} ({m.status}{gap}), checked, {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+def check_main(args: argparse.Namespace) -> int:
+    """Check a plan document against a sky map; exit 1 when it fails."""
+    from .scheduler_core import Plan, check_plan, read_skymap
+    from .scheduler_core.errors import InputError
+
+    configure_astropy_offline()
+    config = load_config(args.config)
+    try:
+        doc = json.loads(Path(args.plan).read_text())
+    except FileNotFoundError:
+        raise InputError(f"plan not found: {args.plan}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read plan {args.plan}: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{args.plan} is not JSON: {exc}") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{args.plan} is not a plan document (not a JSON object)")
+    try:
+        plan = Plan.from_document(doc)
+    except ValueError as exc:
+        raise InputError(f"{args.plan}: {exc}") from None
+    skymap = read_skymap(args.skymap, nside=config.scheduler.nside)
+    report = check_plan(plan, skymap, config.scheduler)
+    if report.ok:
+        print(f"{args.plan}: OK: {len(plan.observations)} exposures, coverage {report.coverage:.4f} "
+              f"(reported {report.reported_coverage})")
+        return 0
+    print(f"{args.plan}: FAILED with {sum(report.counts.values())} problem(s):")
+    for line in report.problems:
+        print(f"  {line}")
+    return 1
