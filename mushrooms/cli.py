@@ -21,6 +21,7 @@ EXIT_INTERNAL = 70
 
 # subcommand -> "module:function"; each function takes the parsed args and returns an exit code
 COMMANDS = {
+    "demo": "mushrooms.commands:demo_main",
     "plan": "mushrooms.commands:plan_main",
     "check": "mushrooms.commands:check_main",
     "replay": "mushrooms.daemon.replay:main",
@@ -43,6 +44,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     def common(sp: argparse.ArgumentParser) -> None:
         sp.add_argument("--config", metavar="FILE", help="config.toml (default: embedded defaults)")
+
+    sp = sub.add_parser("demo", help="plan the bundled mock BNS notice end to end (no credentials, no network)")
+    sp.add_argument("--out", metavar="DIR", default="mushrooms-demo", help="where the plan, its picture and the state go")
+    sp.add_argument("--solver", choices=["greedy", "milp", "hybrid"], help="scheduler (default from config: hybrid)")
+    common(sp)
 
     sp = sub.add_parser("plan", help="plan a ZTF night from a sky map")
     sp.add_argument("skymap", nargs="?", metavar="SKYMAP",

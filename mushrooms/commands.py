@@ -118,3 +118,68 @@ def check_main(args: argparse.Namespace) -> int:
     for line in report.problems:
         print(f"  {line}")
     return 1
+
+
+#: The bundled demo notice (mock BNS MS230425l, PRELIMINARY, ~570 deg2).
+DEMO_NOTICE = "data/demo/MS230425l-preliminary.json"
+
+
+def demo_main(args: argparse.Namespace) -> int:
+    """Replay the bundled mock notice through the daemon's own path, then draw the plan.
+
+    Writes the plan document, a picture of it and the SQLite state into
+    ``--out``; needs no credentials and no network.
+    """
+    import base64
+    import dataclasses
+
+    from .daemon.replay import main as replay_main
+    from .scheduler_core import Plan, read_skymap
+
+    configure_astropy_offline()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    notice = resources.files("mushrooms").joinpath(DEMO_NOTICE)
+    load_config(args.config)  # a bad config fails here, in one line
+    config_path = args.config
+    if args.solver:  # a one-off copy of the config with the chosen solver
+        override = out / "demo-config.toml"
+        base = Path(args.config).read_text() if args.config else ""
+        override.write_text(_with_solver(base, args.solver))
+        config_path = str(override)
+    replay_args = argparse.Namespace(
+        notices=[str(notice)], allow_mock=True, out=str(out / "outbox"),
+        state=str(out / "state.sqlite"), config=config_path,
+        command="replay", debug=False, log_level="INFO",
+    )
+    code = replay_main(replay_args)
+    plans = sorted((out / "outbox").glob("*.json"))
+    docs = [json.loads(p.read_text()) for p in plans]
+    docs = [d for d in docs if d.get("type") == "plan"]
+    if not docs:
+        print(f"demo: no plan was produced (replay exit status {code}); see the log above")
+        return 1
+    doc = docs[-1]
+    plan = Plan.from_document(doc)
+    payload = json.loads(Path(str(notice)).read_text())["event"]["skymap"]
+    skymap = read_skymap(base64.b64decode(payload), nside=load_config(config_path).scheduler.nside)
+    from .plotting import plot_plan
+
+    picture = out / "plan.png"
+    plot_plan(dataclasses.replace(plan), skymap, picture)
+    m = plan.metrics
+    print(f"demo: plan {plan.plan_id} for {plan.event.superevent_id}: {m.n_fields} fields, "
+          f"{m.n_exposures} exposures, coverage {m.coverage:.3f} ({m.solver}, {m.status}); "
+          f"plan in {out / 'outbox'}, picture {picture}")
+    return 0
+
+
+def _with_solver(toml_text: str, solver: str) -> str:
+    """TOML text with ``[scheduler] solver`` set (added or replaced)."""
+    import re
+
+    if re.search(r"(?m)^\[scheduler\]", toml_text):
+        if re.search(r"(?ms)^\[scheduler\][^\[]*^solver\s*=", toml_text):
+            return re.sub(r'(?ms)(^\[scheduler\][^\[]*?^)solver\s*=\s*"[^"]*"', rf'\1solver = "{solver}"', toml_text)
+        return re.sub(r"(?m)^\[scheduler\]\s*$", f'[scheduler]\nsolver = "{solver}"', toml_text, count=1)
+    return toml_text + f'\n[scheduler]\nsolver = "{solver}"\n'

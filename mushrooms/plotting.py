@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -21,10 +22,19 @@ def _outline(ra0: float, dec0: float) -> tuple[np.ndarray, np.ndarray]:
     n = 20
     xs = np.concatenate([np.linspace(xmin, xmax, n), np.full(n, xmax), np.linspace(xmax, xmin, n), np.full(n, xmin)])
     ys = np.concatenate([np.full(n, ymin), np.linspace(ymin, ymax, n), np.full(n, ymax), np.linspace(ymax, ymin, n)])
-    return deproject(xs, ys, ra0, dec0)
+    ra, dec = deproject(xs, ys, ra0, dec0)
+    # break the line where it crosses RA = 0h so it is not drawn across the sky
+    jump = np.flatnonzero(np.abs(np.diff(ra)) > 180.0) + 1
+    return np.insert(ra, jump, np.nan), np.insert(dec, jump, np.nan)
 
 
 def plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int = 120) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # ligo.skymap/reproject deprecation chatter
+        _plot_plan(plan, skymap, path, dpi)
+
+
+def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int) -> None:
     """Draw the sky map with the planned fields outlined and coloured by first visit.
 
     Two panels: the whole sky (Mollweide) and a zoom on the planned fields
@@ -56,8 +66,8 @@ def plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int = 120) -> N
     cmap = plt.get_cmap("viridis")
     grid = load_ztf_fields()
 
-    fig = plt.figure(figsize=(12, 5.5))
-    ax_sky = fig.add_axes([0.02, 0.12, 0.5, 0.8], projection="astro hours mollweide")
+    fig = plt.figure(figsize=(12, 6))
+    ax_sky = fig.add_axes([0.02, 0.16, 0.5, 0.76], projection="astro hours mollweide")
     # zoom centre: probability-weighted centre of the planned fields, else the map peak
     import healpy as hp
 
@@ -73,8 +83,11 @@ def plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int = 120) -> N
         radius = float(min(max(seps.max() + 6.0, 10.0), 80.0))
     else:
         radius = 20.0
-    ax_zoom = fig.add_axes([0.56, 0.12, 0.38, 0.8], projection="astro degrees zoom",
-                           center=f"{ra_c}d {dec_c}d", radius=f"{radius}d")
+    from astropy import units as u
+    from astropy.coordinates import SkyCoord
+
+    ax_zoom = fig.add_axes([0.58, 0.2, 0.36, 0.7], projection="astro degrees zoom",
+                           center=SkyCoord(ra_c * u.deg, dec_c * u.deg), radius=radius * u.deg)
     for ax in (ax_sky, ax_zoom):
         ax.imshow_hpx((skymap.prob, "ICRS"), nested=True, cmap="cylon")
         ax.grid(alpha=0.3)
@@ -82,11 +95,13 @@ def plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int = 120) -> N
             k = grid.index_of(np.array([fid]))[0]
             ra, dec = _outline(grid.ra[k], grid.dec[k])
             ax.plot(ra, dec, transform=ax.get_transform("world"), color=cmap(norm(t / 3600.0)), lw=1.0)
+    ax_zoom.coords[0].set_axislabel("RA")
+    ax_zoom.coords[1].set_axislabel("Dec")
     m = plan.metrics
     title = plan.event.superevent_id or skymap.object_id or Path(skymap.source).name
-    fig.suptitle(f"{title}: {m.n_fields} fields, {m.n_exposures} exposures, coverage {m.coverage:.3f} "
-                 f"({m.solver}); start {plan.start.isot[:16]} UTC")
-    cax = fig.add_axes([0.3, 0.06, 0.4, 0.025])
+    fig.text(0.5, 0.965, f"{title}: {m.n_fields} fields, {m.n_exposures} exposures, coverage {m.coverage:.3f} "
+                 f"({m.solver}); start {plan.start.isot[:16]} UTC", ha="center", fontsize=12)
+    cax = fig.add_axes([0.3, 0.1, 0.4, 0.025])
     sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
     fig.colorbar(sm, cax=cax, orientation="horizontal", label="first visit (hours after start)")
     fig.savefig(path, dpi=dpi)

@@ -11,6 +11,7 @@ import gzip
 import hashlib
 import io
 import logging
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -235,8 +236,6 @@ def read_skymap(source: str | Path | bytes, nside: int = 256) -> SkyMap:
         probability column, probabilities negative, not finite, or not
         summing to 1 within 2 %.
     """
-    from ligo.skymap.io import read_sky_map  # heavy import, keep it lazy
-
     if nside < 1 or nside & (nside - 1):
         raise SkyMapError(f"nside must be a power of 2, got {nside}")
     data, name = _read_bytes(source)
@@ -247,31 +246,46 @@ def read_skymap(source: str | Path | bytes, nside: int = 256) -> SkyMap:
     if not raw.startswith(b"SIMPLE  ="):
         raise SkyMapError(f"not a FITS file: {name}")
     try:
-        ordering, columns = _table_layout(raw)
-        if ordering == "NUNIQ":
-            table = read_sky_map(io.BytesIO(raw), moc=True)
-            meta = table.meta
-            if "PROBDENSITY" not in table.colnames:
-                raise SkyMapError(f"{name} has no PROBDENSITY column")
-            density = np.asarray(table["PROBDENSITY"], float)
-            _check_values(density, name)
-            layers = {c: np.asarray(table[c], float) for c in DIST_COLUMNS} if set(DIST_COLUMNS) <= set(table.colnames) else {}
-            prob, means = rasterize_moc(np.asarray(table["UNIQ"]), density, int(np.log2(nside)), layers)
-        else:
-            with_dist = set(DIST_COLUMNS) <= set(columns)
-            arrays, meta = read_sky_map(io.BytesIO(raw), nest=True, distances=with_dist)
-            if with_dist:
-                flat, layers = arrays[0], dict(zip(DIST_COLUMNS, arrays[1:]))
-            else:
-                flat, layers = arrays, {}
-            flat = np.asarray(flat, float)
-            _check_values(flat, name)
-            prob, means = regrade_nested(flat, nside, layers)
+        with warnings.catch_warnings():
+            # a truncated or odd file is reported below as one SkyMapError line
+            warnings.simplefilter("ignore")
+            prob, means, meta = _read_table(raw, name, nside)
     except SkyMapError:
         raise
     except Exception as exc:  # astropy/ligo raise many types for broken files
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise SkyMapError(f"unreadable FITS sky map {name}: {msg}") from None
+    return _finish(prob, means, meta, nside, sha, name)
+
+
+def _read_table(raw: bytes, name: str, nside: int) -> tuple[np.ndarray, dict[str, np.ndarray], dict]:
+    """Probability, distance layers and header of a FITS sky map at ``nside``."""
+    from ligo.skymap.io import read_sky_map  # heavy import, keep it lazy
+
+    ordering, columns = _table_layout(raw)
+    if ordering == "NUNIQ":
+        table = read_sky_map(io.BytesIO(raw), moc=True)
+        meta = table.meta
+        if "PROBDENSITY" not in table.colnames:
+            raise SkyMapError(f"{name} has no PROBDENSITY column")
+        density = np.asarray(table["PROBDENSITY"], float)
+        _check_values(density, name)
+        layers = {c: np.asarray(table[c], float) for c in DIST_COLUMNS} if set(DIST_COLUMNS) <= set(table.colnames) else {}
+        prob, means = rasterize_moc(np.asarray(table["UNIQ"]), density, int(np.log2(nside)), layers)
+    else:
+        with_dist = set(DIST_COLUMNS) <= set(columns)
+        arrays, meta = read_sky_map(io.BytesIO(raw), nest=True, distances=with_dist)
+        if with_dist:
+            flat, layers = arrays[0], dict(zip(DIST_COLUMNS, arrays[1:]))
+        else:
+            flat, layers = arrays, {}
+        flat = np.asarray(flat, float)
+        _check_values(flat, name)
+        prob, means = regrade_nested(flat, nside, layers)
+    return prob, means, meta
+
+
+def _finish(prob: np.ndarray, means: dict[str, np.ndarray], meta: dict, nside: int, sha: str, name: str) -> SkyMap:
     total = float(prob.sum())
     if not abs(total - 1.0) <= PROB_SUM_TOLERANCE:
         raise SkyMapError(f"{name}: probabilities sum to {total:.4g}, not 1 (±{PROB_SUM_TOLERANCE:g})")
