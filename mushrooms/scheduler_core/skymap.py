@@ -273,6 +273,8 @@ def _read_table(raw: bytes, name: str, nside: int) -> tuple[np.ndarray, dict[str
         layers = {c: np.asarray(table[c], float) for c in DIST_COLUMNS} if set(DIST_COLUMNS) <= set(table.colnames) else {}
         prob, means = rasterize_moc(np.asarray(table["UNIQ"]), density, int(np.log2(nside)), layers)
     else:
+        if "PROB" not in columns:
+            raise SkyMapError(f"{name} has no PROB column (columns: {', '.join(columns) or 'none'})")
         with_dist = set(DIST_COLUMNS) <= set(columns)
         arrays, meta = read_sky_map(io.BytesIO(raw), nest=True, distances=with_dist)
         if with_dist:

@@ -1,0 +1,115 @@
+"""The command line end to end: real processes, real files, plan invariants, bad input."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+DATA = Path(__file__).resolve().parent / "data"
+MAP = DATA / "skymaps" / "MS220722v_bayestar.multiorder.fits"
+
+
+def mushrooms(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "mushrooms.cli", *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def planned(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cli")
+    r = mushrooms("plan", str(MAP), "--solver", "greedy", "--start", "2022-07-23T02:00:00Z",
+                  "-o", str(out / "plan.json"), "--queue", str(out / "queue.json"), "--plot", str(out / "plan.png"))
+    assert r.returncode == 0, r.stderr
+    return out, r
+
+
+def test_plan_writes_a_checked_plan_queue_and_picture(planned):
+    out, r = planned
+    doc = json.loads((out / "plan.json").read_text())
+    assert doc["start"] == "2022-07-23T02:00:00.000Z"
+    assert doc["metrics"]["solver"] == "greedy" and doc["metrics"]["n_exposures"] == len(doc["observations"])
+    assert "checked" in r.stdout
+    queue = json.loads((out / "queue.json").read_text())
+    assert len(queue["targets"]) == len(doc["observations"])
+    png = (out / "plan.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20000
+
+
+def test_plan_invariants_hold_in_the_written_document(planned):
+    out, _ = planned
+    doc = json.loads((out / "plan.json").read_text())
+    obs = doc["observations"]
+    starts = [o["start"] for o in obs]
+    assert starts == sorted(starts)
+    assert all(doc["start"] <= s <= doc["end"] for s in starts)
+    by_field: dict[int, set[str]] = {}
+    for o in obs:
+        by_field.setdefault(o["field_id"], set()).add(o["filter"])
+    assert all(f == {"g", "r"} for f in by_field.values())
+
+
+def test_check_accepts_the_plan_and_rejects_a_tampered_one(planned, tmp_path):
+    out, _ = planned
+    r = mushrooms("check", str(out / "plan.json"), str(MAP))
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "OK" in r.stdout
+    doc = json.loads((out / "plan.json").read_text())
+    doc["observations"][1]["start"] = doc["observations"][0]["start"]  # two exposures at once
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    r = mushrooms("check", str(bad), str(MAP))
+    assert r.returncode == 1
+    assert "overlap" in r.stdout or "order" in r.stdout
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["plan", "/nonexistent/map.fits"], "sky map not found"),
+        (["plan", __file__], "not a FITS file"),
+        (["plan", str(MAP), "--start", "next tuesday"], "not an ISO-8601 UTC time"),
+        (["plan", str(MAP), "--config", "/nonexistent.toml"], "cannot read config"),
+        (["check", "/nonexistent/plan.json", str(MAP)], "plan not found"),
+        (["check", __file__, str(MAP)], "is not JSON"),
+    ],
+    ids=["missing-map", "not-fits", "bad-start", "missing-config", "missing-plan", "plan-not-json"],
+)
+def test_bad_input_gets_one_line_and_exit_2(args, message):
+    r = mushrooms(*args)
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    lines = [line for line in r.stderr.splitlines() if "error" in line]
+    assert len(lines) == 1 and message in lines[0], r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_truncated_and_unnormalised_maps_are_refused(tmp_path):
+    import healpy as hp
+    import numpy as np
+
+    truncated = tmp_path / "truncated.fits"
+    truncated.write_bytes(MAP.read_bytes()[:40000])
+    r = mushrooms("plan", str(truncated), "-o", str(tmp_path / "p.json"))
+    assert r.returncode == 2 and "unreadable FITS sky map" in r.stderr and "Traceback" not in r.stderr
+
+    half = tmp_path / "half.fits"
+    hp.write_map(half, np.full(hp.nside2npix(16), 0.5 / hp.nside2npix(16)), nest=True, dtype=np.float64,
+                 column_names=["PROB"])
+    r = mushrooms("plan", str(half), "--start", "2022-07-23T02:00:00", "-o", str(tmp_path / "p.json"))
+    assert r.returncode == 2 and "sum to 0.5" in r.stderr
+    assert not (tmp_path / "p.json").exists()
+
+    temperature = tmp_path / "cmb.fits"  # a HEALPix map, but not a probability map
+    hp.write_map(temperature, np.ones(hp.nside2npix(16)), nest=True, dtype=np.float64)
+    r = mushrooms("plan", str(temperature), "-o", str(tmp_path / "p.json"))
+    assert r.returncode == 2 and "has no PROB column" in r.stderr
+
+
+def test_bad_config_key_is_named(tmp_path):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("[scheduler]\nexposure = 30\n")
+    r = mushrooms("plan", str(MAP), "--config", str(cfg))
+    assert r.returncode == 2 and "unknown [scheduler] key(s): exposure" in r.stderr
