@@ -1,0 +1,64 @@
+"""config.toml documents exactly the built-in defaults; bad configs are refused clearly."""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from mushrooms.config import Config, ConfigError, load_config
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _flatten(obj, prefix=""):
+    out = {}
+    for f in dataclasses.fields(obj):
+        v = getattr(obj, f.name)
+        if dataclasses.is_dataclass(v):
+            out.update(_flatten(v, f"{prefix}{f.name}."))
+        else:
+            out[f"{prefix}{f.name}"] = list(v) if isinstance(v, tuple) else v
+    return out
+
+
+def test_config_toml_lists_every_key_with_its_default():
+    data = tomllib.loads((ROOT / "config.toml").read_text())
+    defaults = Config()
+    for section in ("scheduler", "policy", "daemon", "kafka", "outbound"):
+        expected = _flatten(getattr(defaults, section))
+        got = {}
+        for k, v in data[section].items():
+            if isinstance(v, dict):
+                got.update({f"{k}.{kk}": vv for kk, vv in v.items()})
+            else:
+                got[k] = v
+        optional_unset = {k for k, v in expected.items() if v is None}
+        assert set(got) == set(expected) - optional_unset, section
+        for k, v in got.items():
+            assert v == expected[k], f"[{section}] {k}: file {v!r} != default {expected[k]!r}"
+
+
+def test_config_toml_loads_to_the_defaults():
+    cfg = load_config(ROOT / "config.toml")
+    assert dataclasses.replace(cfg, source="x") == dataclasses.replace(Config(), source="x")
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("[schedular]\n", "unknown section"),
+        ("[scheduler]\nsolver = 'annealing'\n", "solver must be greedy, milp or hybrid"),
+        ("[scheduler]\nnside = 300\n", "power of 2"),
+        ("[policy]\nmin_has_ns = 'high'\n", "policy"),
+        ("[outbound]\nsink = 'email'\n", "sink must be directory or kafka"),
+        ("this is not toml", "not valid TOML"),
+    ],
+)
+def test_bad_configs_are_refused_with_a_reason(tmp_path, text, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        load_config(path)
