@@ -1,0 +1,582 @@
+"""The service's durable state: one SQLite file (WAL), schema-versioned.
+
+Tables
+------
+``notices``   every message received: sha256, size, origin, when; the raw bytes
+              for notices that need planning (a job re-reads its sky map from
+              them after a crash) and for rejected ones within the size cap.
+``decisions`` one row per notice: what was decided and why (``plan``,
+              ``rerun``, ``duplicate``, ``withdraw``, ``ignore``, ``rejected``).
+``events``    per superevent: last sky map accepted for planning, retracted flag.
+``jobs``      planning jobs: ``pending`` -> ``running`` -> ``done`` | ``failed``
+              | ``superseded`` | ``cancelled``, with the horizon start fixed at
+              accept time (so a re-run gives the same plan id).
+``plans``     plan documents (JSON) and whether they were withdrawn.
+``outbox``    messages to publish; ``published_at`` is set once the sink took
+              them.  Publication is at-least-once: a crash between publishing
+              and marking re-publishes the same message (same key).
+
+Crash safety: every state change that belongs together happens in one
+``BEGIN IMMEDIATE`` transaction (accept = notice + decision + event + job or
+withdrawal outbox row; finishing a job = plan + job status + outbox row).
+
+Threads: each thread gets its own connection; write transactions are also
+serialised by a process-wide lock, so the consumer thread and job threads can
+share one :class:`Store`.
+
+How the daemon uses it (see :class:`~mushrooms.daemon.pipeline.NoticePipeline`):
+``pipeline.accept`` records the decision durably, then the daemon commits the
+Kafka offset; at start it runs :meth:`Store.pending_jobs` again (accepted but
+not finished) and calls :meth:`~mushrooms.daemon.pipeline.NoticePipeline.flush_outbox`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import sqlite3
+import threading
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+from ..handlers.decisions import Decision, EventState
+
+__all__ = ["Store", "StoreError", "Job", "OutboxMessage", "NoticeRecord", "SCHEMA_VERSION"]
+
+log = logging.getLogger(__name__)
+
+SCHEMA_VERSION = 1
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS notices (
+    notice_id     INTEGER PRIMARY KEY AUTOINCREMENT,
+    received_at   TEXT NOT NULL,
+    origin        TEXT NOT NULL,
+    sha256        TEXT NOT NULL,
+    size          INTEGER NOT NULL,
+    superevent_id TEXT,
+    alert_type    TEXT,
+    time_created  TEXT,
+    raw           BLOB
+);
+CREATE INDEX IF NOT EXISTS notices_sha ON notices(sha256);
+CREATE TABLE IF NOT EXISTS decisions (
+    decision_id   INTEGER PRIMARY KEY AUTOINCREMENT,
+    notice_id     INTEGER NOT NULL REFERENCES notices(notice_id),
+    superevent_id TEXT,
+    alert_type    TEXT,
+    decision      TEXT NOT NULL,
+    reason        TEXT NOT NULL,
+    job_id        INTEGER,
+    created_at    TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS events (
+    superevent_id TEXT PRIMARY KEY,
+    skymap_sha256 TEXT,
+    retracted     INTEGER NOT NULL DEFAULT 0,
+    updated_at    TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS jobs (
+    job_id        INTEGER PRIMARY KEY AUTOINCREMENT,
+    notice_id     INTEGER NOT NULL REFERENCES notices(notice_id),
+    superevent_id TEXT NOT NULL,
+    alert_type    TEXT NOT NULL,
+    time_created  TEXT,
+    skymap_sha256 TEXT NOT NULL,
+    decision      TEXT NOT NULL,
+    start         TEXT NOT NULL,
+    supersedes    TEXT,
+    received_wall REAL NOT NULL,
+    status        TEXT NOT NULL,
+    attempts      INTEGER NOT NULL DEFAULT 0,
+    plan_id       TEXT,
+    coverage      REAL,
+    latency_s     REAL,
+    reason        TEXT,
+    created_at    TEXT NOT NULL,
+    finished_at   TEXT
+);
+CREATE INDEX IF NOT EXISTS jobs_status ON jobs(status);
+CREATE INDEX IF NOT EXISTS jobs_event ON jobs(superevent_id);
+CREATE TABLE IF NOT EXISTS plans (
+    plan_id       TEXT PRIMARY KEY,
+    superevent_id TEXT,
+    job_id        INTEGER,
+    created_at    TEXT NOT NULL,
+    seq           INTEGER NOT NULL,
+    withdrawn     INTEGER NOT NULL DEFAULT 0,
+    document      TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS plans_event ON plans(superevent_id);
+CREATE TABLE IF NOT EXISTS outbox (
+    outbox_id     INTEGER PRIMARY KEY AUTOINCREMENT,
+    key           TEXT NOT NULL,
+    kind          TEXT NOT NULL,
+    body          TEXT NOT NULL,
+    created_at    TEXT NOT NULL,
+    published_at  TEXT,
+    attempts      INTEGER NOT NULL DEFAULT 0,
+    last_error    TEXT
+);
+CREATE INDEX IF NOT EXISTS outbox_pending ON outbox(published_at);
+"""
+
+_OPEN = ("pending", "running")
+
+
+class StoreError(RuntimeError):
+    """The state file cannot be used (newer schema, not a database, ...)."""
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
+
+
+@dataclass(frozen=True)
+class Job:
+    """A planning job accepted but maybe not finished.
+
+    Attributes
+    ----------
+    job_id : int
+        Store id (stable across restarts).
+    notice_id : int
+        The notice whose sky map is planned (raw bytes kept in the store).
+    superevent_id, alert_type : str
+    time_created : str or None
+        The notice's ``time_created`` (ISO-8601 UTC).
+    skymap_sha256 : str
+    decision : str
+        ``plan`` or ``rerun``.
+    start : str
+        Horizon start (ISO-8601 UTC), fixed at accept time.
+    supersedes : str or None
+        Plan this job replaces (set when the job starts).
+    received_wall : float
+        Unix time (s) the notice was received: latency is measured from it.
+    attempts : int
+        Times the job was started (a crash leaves it ``running``).
+    status : str
+    """
+
+    job_id: int
+    notice_id: int
+    superevent_id: str
+    alert_type: str
+    time_created: str | None
+    skymap_sha256: str
+    decision: str
+    start: str
+    supersedes: str | None
+    received_wall: float
+    attempts: int
+    status: str
+
+
+@dataclass(frozen=True)
+class OutboxMessage:
+    """A message waiting in (or published from) the outbox."""
+
+    outbox_id: int
+    key: str
+    kind: str
+    message: dict[str, Any]
+    attempts: int
+    published_at: str | None
+
+
+@dataclass(frozen=True)
+class NoticeRecord:
+    """What is stored about one received message (before or without parsing)."""
+
+    origin: str
+    sha256: str
+    size: int
+    received_at: str
+    superevent_id: str | None = None
+    alert_type: str | None = None
+    time_created: str | None = None
+    raw: bytes | None = None
+
+
+class _TxLedger:
+    """Ledger view over one open transaction."""
+
+    def __init__(self, conn: sqlite3.Connection):
+        self.conn = conn
+
+    def event_state(self, superevent_id: str) -> EventState | None:
+        return _event_state(self.conn, superevent_id)
+
+
+def _event_state(conn: sqlite3.Connection, sid: str) -> EventState | None:
+    row = conn.execute("SELECT skymap_sha256, retracted FROM events WHERE superevent_id=?", (sid,)).fetchone()
+    if row is None:
+        return None
+    ids = tuple(r[0] for r in conn.execute(
+        "SELECT plan_id FROM plans WHERE superevent_id=? AND withdrawn=0 ORDER BY seq", (sid,)))
+    return EventState(sid, row[0], ids, bool(row[1]))
+
+
+def _job(row: sqlite3.Row) -> Job:
+    return Job(
+        job_id=row["job_id"], notice_id=row["notice_id"], superevent_id=row["superevent_id"],
+        alert_type=row["alert_type"], time_created=row["time_created"],
+        skymap_sha256=row["skymap_sha256"], decision=row["decision"], start=row["start"],
+        supersedes=row["supersedes"], received_wall=row["received_wall"],
+        attempts=row["attempts"], status=row["status"],
+    )
+
+
+class Store:
+    """SQLite state of the service; implements the handlers' ``Ledger``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The database file (created with its directory's permissions).
+    busy_timeout_s : float
+        How long (s) a connection waits for another process' lock.
+
+    Raises
+    ------
+    StoreError
+        The file is not a database or has a newer schema.
+    """
+
+    def __init__(self, path: str | Path, busy_timeout_s: float = 30.0):
+        self.path = Path(path)
+        self._busy_ms = int(busy_timeout_s * 1000)
+        self._local = threading.local()
+        self._lock = threading.RLock()
+        #: held while the outbox is being published, so that two pipelines on one store
+        #: (e.g. after a config reload) never publish the same rows at the same time
+        self.publish_lock = threading.Lock()
+        self._conns: list[sqlite3.Connection] = []
+        self._closed = False
+        conn = self._conn()
+        try:
+            version = conn.execute("PRAGMA user_version").fetchone()[0]
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"{self.path}: not a usable SQLite database ({exc})") from None
+        if version > SCHEMA_VERSION:
+            raise StoreError(f"{self.path}: schema version {version} is newer than this program's {SCHEMA_VERSION}")
+        if version < SCHEMA_VERSION:
+            with self._lock:
+                conn.executescript("BEGIN IMMEDIATE;" + _SCHEMA + f"PRAGMA user_version={SCHEMA_VERSION}; COMMIT;")
+
+    # ------------------------------------------------------------ connections
+    def _conn(self) -> sqlite3.Connection:
+        if self._closed:
+            raise StoreError("store is closed")
+        conn = getattr(self._local, "conn", None)
+        if conn is None:
+            conn = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False,
+                                   timeout=self._busy_ms / 1000)
+            conn.row_factory = sqlite3.Row
+            conn.execute(f"PRAGMA busy_timeout={self._busy_ms}")
+            try:
+                conn.execute("PRAGMA journal_mode=WAL")
+            except sqlite3.DatabaseError as exc:
+                conn.close()
+                raise StoreError(f"{self.path}: not a usable SQLite database ({exc})") from None
+            conn.execute("PRAGMA synchronous=FULL")
+            conn.execute("PRAGMA foreign_keys=ON")
+            self._local.conn = conn
+            with self._lock:
+                self._conns.append(conn)
+        return conn
+
+    @contextmanager
+    def _tx(self) -> Iterator[sqlite3.Connection]:
+        """One write transaction (BEGIN IMMEDIATE ... COMMIT, ROLLBACK on error)."""
+        conn = self._conn()
+        with self._lock:
+            if conn.in_transaction:  # nested use inside a transaction of this thread
+                yield conn
+                return
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                yield conn
+            except BaseException:
+                conn.execute("ROLLBACK")
+                raise
+            else:
+                conn.execute("COMMIT")
+
+    def close(self) -> None:
+        """Close every thread's connection (checkpointing the WAL)."""
+        with self._lock:
+            for c in self._conns:
+                try:
+                    c.close()
+                except sqlite3.Error:
+                    pass
+            self._conns.clear()
+            self._closed = True
+
+    # ------------------------------------------------------------ ledger
+    def event_state(self, superevent_id: str) -> EventState | None:
+        """State of a superevent (the handlers' ``Ledger`` protocol)."""
+        return _event_state(self._conn(), superevent_id)
+
+    # ------------------------------------------------------------ accept
+    def record_rejected(self, notice: NoticeRecord, reason: str) -> int:
+        """Record a notice that could not be parsed; returns its notice_id."""
+        with self._tx() as c:
+            nid = self._insert_notice(c, notice)
+            c.execute("INSERT INTO decisions(notice_id, superevent_id, alert_type, decision, reason, created_at)"
+                      " VALUES (?,?,?,?,?,?)",
+                      (nid, notice.superevent_id, notice.alert_type, "rejected", reason, _now()))
+        return nid
+
+    def record_decision(
+        self,
+        notice: NoticeRecord,
+        decide: Callable[[_TxLedger], Decision],
+        start: Callable[[Decision], str | None],
+        received_wall: float,
+        withdrawal: Callable[[Decision, int], dict[str, Any]] | None = None,
+    ) -> tuple[int, Decision, Job | None, list[int], str | None]:
+        """Read the superevent state, decide and record it, atomically.
+
+        Parameters
+        ----------
+        notice : NoticeRecord
+            The parsed notice (raw bytes are kept only when a job needs them).
+        decide : callable
+            ``decide(ledger) -> Decision`` run inside the transaction.
+        start : callable
+            Horizon start (ISO UTC) for a planning decision; None turns the
+            decision into ``rejected`` (nothing to plan from).
+        received_wall : float
+            Unix time (s) of receipt.
+        withdrawal : callable, optional
+            ``withdrawal(decision, notice_id) -> message`` for a ``withdraw``.
+
+        Returns
+        -------
+        notice_id, decision, job, cancelled_job_ids, outbox_key
+        """
+        with self._tx() as c:
+            decision = decide(_TxLedger(c))
+            job: Job | None = None
+            cancelled: list[int] = []
+            key: str | None = None
+            begin = start(decision) if decision.needs_plan else None
+            if decision.needs_plan and begin is None:
+                decision = Decision("rejected", decision.superevent_id, "no sky map bytes to plan from "
+                                    "(VOEvent sky maps are URLs; fetching is not supported)", decision.alert_type)
+            keep_raw = decision.needs_plan
+            nid = self._insert_notice(c, notice if keep_raw else _without_raw(notice))
+            now = _now()
+            sid = decision.superevent_id
+            if decision.needs_plan:
+                cancelled = [r[0] for r in c.execute(
+                    "SELECT job_id FROM jobs WHERE superevent_id=? AND status IN ('pending','running')", (sid,))]
+                c.execute("UPDATE jobs SET status='superseded', reason='newer sky map', finished_at=?"
+                          " WHERE superevent_id=? AND status IN ('pending','running')", (now, sid))
+                c.execute("INSERT INTO events(superevent_id, skymap_sha256, retracted, updated_at) VALUES (?,?,0,?)"
+                          " ON CONFLICT(superevent_id) DO UPDATE SET skymap_sha256=excluded.skymap_sha256,"
+                          " retracted=0, updated_at=excluded.updated_at", (sid, decision.skymap_sha256, now))
+                cur = c.execute(
+                    "INSERT INTO jobs(notice_id, superevent_id, alert_type, time_created, skymap_sha256, decision,"
+                    " start, supersedes, received_wall, status, created_at) VALUES (?,?,?,?,?,?,?,?,?,?,?)",
+                    (nid, sid, decision.alert_type, notice.time_created, decision.skymap_sha256,
+                     decision.action, begin, decision.supersedes, received_wall, "pending", now))
+                row = c.execute("SELECT * FROM jobs WHERE job_id=?", (cur.lastrowid,)).fetchone()
+                job = _job(row)
+            elif decision.action == "withdraw":
+                cancelled = [r[0] for r in c.execute(
+                    "SELECT job_id FROM jobs WHERE superevent_id=? AND status IN ('pending','running')", (sid,))]
+                c.execute("UPDATE jobs SET status='cancelled', reason='retracted', finished_at=?"
+                          " WHERE superevent_id=? AND status IN ('pending','running')", (now, sid))
+                c.execute("UPDATE plans SET withdrawn=1 WHERE superevent_id=?", (sid,))
+                c.execute("UPDATE events SET retracted=1, updated_at=? WHERE superevent_id=?", (now, sid))
+                if withdrawal is not None:
+                    msg = withdrawal(decision, nid)
+                    key = str(msg["withdrawal_id"])
+                    self._insert_outbox(c, key, "withdrawal", msg)
+            c.execute("INSERT INTO decisions(notice_id, superevent_id, alert_type, decision, reason, job_id,"
+                      " created_at) VALUES (?,?,?,?,?,?,?)",
+                      (nid, sid, decision.alert_type, decision.action, decision.reason,
+                       job.job_id if job else None, now))
+        return nid, decision, job, cancelled, key
+
+    @staticmethod
+    def _insert_notice(c: sqlite3.Connection, n: NoticeRecord) -> int:
+        cur = c.execute(
+            "INSERT INTO notices(received_at, origin, sha256, size, superevent_id, alert_type, time_created, raw)"
+            " VALUES (?,?,?,?,?,?,?,?)",
+            (n.received_at, n.origin, n.sha256, n.size, n.superevent_id, n.alert_type, n.time_created, n.raw))
+        return int(cur.lastrowid)
+
+    @staticmethod
+    def _insert_outbox(c: sqlite3.Connection, key: str, kind: str, message: dict[str, Any]) -> int:
+        cur = c.execute("INSERT INTO outbox(key, kind, body, created_at) VALUES (?,?,?,?)",
+                        (key, kind, json.dumps(message, sort_keys=False), _now()))
+        return int(cur.lastrowid)
+
+    # ------------------------------------------------------------ jobs
+    def pending_jobs(self) -> list[Job]:
+        """Jobs accepted but not finished (``pending``, or ``running`` when a crash interrupted them), oldest first.
+
+        Read-only.  At start the daemon runs these again (the newest per
+        superevent is enough: older ones are already ``superseded``).  A job
+        started too often (it crashed the process each time) is refused by
+        :meth:`start_job`.
+        """
+        rows = self._conn().execute(
+            "SELECT * FROM jobs WHERE status IN ('pending','running') ORDER BY job_id").fetchall()
+        return [_job(r) for r in rows]
+
+    def job(self, job_id: int) -> Job | None:
+        """One job by id."""
+        row = self._conn().execute("SELECT * FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+        return None if row is None else _job(row)
+
+    def start_job(self, job_id: int, max_attempts: int = 3) -> Job | None:
+        """Mark a job running (attempts + 1) and fix what it supersedes.
+
+        Returns None when the job is no longer runnable: superseded, cancelled
+        by a retraction, finished, or already started ``max_attempts`` times
+        without finishing (then it is marked ``failed``: it crashed the
+        process each time).  :meth:`job_status` tells which.
+        """
+        with self._tx() as c:
+            row = c.execute("SELECT * FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+            if row is None or row["status"] not in _OPEN:
+                return None
+            if row["attempts"] >= max_attempts:
+                c.execute("UPDATE jobs SET status='failed', reason=?, finished_at=? WHERE job_id=?",
+                          (f"gave up after {row['attempts']} unfinished attempts", _now(), job_id))
+                return None
+            prev = c.execute("SELECT plan_id FROM plans WHERE superevent_id=? AND withdrawn=0"
+                             " ORDER BY seq DESC LIMIT 1", (row["superevent_id"],)).fetchone()
+            supersedes = prev[0] if prev else None
+            c.execute("UPDATE jobs SET status='running', attempts=attempts+1, supersedes=? WHERE job_id=?",
+                      (supersedes, job_id))
+            row = c.execute("SELECT * FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+        return _job(row)
+
+    def job_status(self, job_id: int) -> str | None:
+        """``pending``, ``running``, ``done``, ``failed``, ``superseded``, ``cancelled`` (None: no such job)."""
+        row = self._conn().execute("SELECT status FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+        return None if row is None else str(row[0])
+
+    def describe_job(self, job_id: int) -> str:
+        """Status with its reason, e.g. ``superseded (newer sky map)``, for log lines."""
+        row = self._conn().execute("SELECT status, reason FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+        if row is None:
+            return "unknown job"
+        return str(row[0]) + (f" ({row[1]})" if row[1] and row[0] in ("failed", "superseded", "cancelled") else "")
+
+    def latest_planned_notice(self, superevent_id: str) -> tuple[int, bytes] | None:
+        """The newest notice of a superevent that was accepted for planning, with its raw bytes."""
+        row = self._conn().execute(
+            "SELECT n.notice_id, n.raw FROM jobs j JOIN notices n USING(notice_id) WHERE j.superevent_id=?"
+            " AND n.raw IS NOT NULL ORDER BY j.job_id DESC LIMIT 1", (superevent_id,)).fetchone()
+        return None if row is None else (int(row[0]), bytes(row[1]))
+
+    def notice_raw(self, notice_id: int) -> bytes | None:
+        """Raw bytes of a stored notice (kept for notices that need planning)."""
+        row = self._conn().execute("SELECT raw FROM notices WHERE notice_id=?", (notice_id,)).fetchone()
+        return None if row is None or row[0] is None else bytes(row[0])
+
+    def finish_job(self, job_id: int, plan_id: str, document: dict[str, Any],
+                   coverage: float, latency_s: float) -> int | None:
+        """Store the plan, close the job and queue the plan message, atomically.
+
+        Returns the outbox id, or None when the job was superseded or
+        cancelled while it ran (the plan is then dropped).
+        """
+        with self._tx() as c:
+            row = c.execute("SELECT status, superevent_id FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+            if row is None or row["status"] != "running":
+                return None
+            now = _now()
+            seq = c.execute("SELECT COALESCE(MAX(seq), 0) + 1 FROM plans").fetchone()[0]
+            c.execute("INSERT INTO plans(plan_id, superevent_id, job_id, created_at, seq, withdrawn, document)"
+                      " VALUES (?,?,?,?,?,0,?) ON CONFLICT(plan_id) DO UPDATE SET withdrawn=0, job_id=excluded.job_id,"
+                      " seq=excluded.seq, document=excluded.document",
+                      (plan_id, row["superevent_id"], job_id, now, seq, json.dumps(document)))
+            c.execute("UPDATE jobs SET status='done', plan_id=?, coverage=?, latency_s=?, reason=NULL, finished_at=?"
+                      " WHERE job_id=?", (plan_id, coverage, latency_s, now, job_id))
+            return self._insert_outbox(c, plan_id, "plan", document)
+
+    def fail_job(self, job_id: int, reason: str, retry_same_map: bool = False) -> None:
+        """Close a job that cannot produce a plan (bad sky map, checker, bug).
+
+        With ``retry_same_map`` (a failure on our side, not a bad map), the
+        superevent forgets the job's sky map, so the next notice carrying the
+        same map is planned again instead of being a ``duplicate``.
+        """
+        with self._tx() as c:
+            row = c.execute("SELECT superevent_id, skymap_sha256 FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+            c.execute("UPDATE jobs SET status='failed', reason=?, finished_at=? WHERE job_id=?"
+                      " AND status IN ('pending','running')", (reason, _now(), job_id))
+            if retry_same_map and row is not None:
+                c.execute("UPDATE events SET skymap_sha256=NULL, updated_at=? WHERE superevent_id=?"
+                          " AND skymap_sha256=?", (_now(), row[0], row[1]))
+
+    # ------------------------------------------------------------ outbox
+    def pending_outbox(self, limit: int = 1000) -> list[OutboxMessage]:
+        """Messages not yet published, oldest first."""
+        rows = self._conn().execute(
+            "SELECT * FROM outbox WHERE published_at IS NULL ORDER BY outbox_id LIMIT ?", (limit,)).fetchall()
+        return [OutboxMessage(r["outbox_id"], r["key"], r["kind"], json.loads(r["body"]), r["attempts"], None)
+                for r in rows]
+
+    def mark_published(self, outbox_id: int) -> None:
+        with self._tx() as c:
+            c.execute("UPDATE outbox SET published_at=?, attempts=attempts+1, last_error=NULL WHERE outbox_id=?",
+                      (_now(), outbox_id))
+
+    def mark_publish_failed(self, outbox_id: int, error: str) -> None:
+        with self._tx() as c:
+            c.execute("UPDATE outbox SET attempts=attempts+1, last_error=? WHERE outbox_id=?", (error[:500], outbox_id))
+
+    # ------------------------------------------------------------ inspection
+    def decisions(self) -> list[dict[str, Any]]:
+        """Every decision, oldest first (for tests and operators)."""
+        rows = self._conn().execute(
+            "SELECT d.*, n.origin, j.status AS job_status, j.plan_id FROM decisions d"
+            " JOIN notices n USING(notice_id) LEFT JOIN jobs j USING(job_id) ORDER BY decision_id").fetchall()
+        return [dict(r) for r in rows]
+
+    def plans(self, superevent_id: str | None = None) -> list[dict[str, Any]]:
+        """Stored plans (documents parsed), oldest first."""
+        q = "SELECT plan_id, superevent_id, job_id, created_at, withdrawn, document FROM plans"
+        args: tuple[Any, ...] = ()
+        if superevent_id is not None:
+            q += " WHERE superevent_id=?"
+            args = (superevent_id,)
+        rows = self._conn().execute(q + " ORDER BY seq", args).fetchall()
+        return [dict(r) | {"document": json.loads(r["document"])} for r in rows]
+
+    def counts(self) -> dict[str, int]:
+        """Row counts and open work (for the heartbeat)."""
+        c = self._conn()
+        out = {t: c.execute(f"SELECT COUNT(*) FROM {t}").fetchone()[0]
+               for t in ("notices", "decisions", "events", "jobs", "plans", "outbox")}
+        out["jobs_open"] = c.execute("SELECT COUNT(*) FROM jobs WHERE status IN ('pending','running')").fetchone()[0]
+        out["outbox_pending"] = c.execute("SELECT COUNT(*) FROM outbox WHERE published_at IS NULL").fetchone()[0]
+        return out
+
+
+def _without_raw(n: NoticeRecord) -> NoticeRecord:
+    return NoticeRecord(n.origin, n.sha256, n.size, n.received_at, n.superevent_id, n.alert_type,
+                        n.time_created, None)
+
+
+def sha256_hex(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def wall_time() -> float:
+    return time.time()

@@ -1,0 +1,171 @@
+"""What to do with an alert, given what we already did for its superevent.
+
+Pure logic: :func:`decide` reads the superevent's state through a small
+:class:`Ledger` protocol (the daemon's SQLite store implements it; tests can
+use :class:`MemoryLedger`) and returns a :class:`Decision`.  Recording the
+decision is the caller's job.
+
+State machine per superevent (keyed on ``superevent_id``):
+
+========================  ==========================  ==========
+state                     alert                       decision
+========================  ==========================  ==========
+unknown                   kept by the policy          ``plan``
+planned, map M            kept, map M                 ``duplicate``
+planned, map M            kept, map M' != M           ``rerun`` (supersedes the latest plan)
+retracted                 kept (e.g. a later INITIAL) ``plan`` (planned again)
+planned (not retracted)   RETRACTION                  ``withdraw`` (all the event's plans)
+unknown or retracted      RETRACTION                  ``ignore``
+any                       refused by the policy       ``ignore``
+========================  ==========================  ==========
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from .alert import Alert
+from .policy import Verdict
+
+__all__ = ["Decision", "EventState", "Ledger", "MemoryLedger", "decide", "ACTIONS"]
+
+ACTIONS = ("plan", "rerun", "duplicate", "withdraw", "ignore", "rejected")
+
+
+@dataclass(frozen=True)
+class EventState:
+    """What has been decided so far for one superevent.
+
+    Attributes
+    ----------
+    superevent_id : str
+    skymap_sha256 : str or None
+        SHA-256 of the last sky map accepted for planning.
+    plan_ids : tuple of str
+        Plans stored for the event that are not withdrawn, oldest first.
+    retracted : bool
+        A retraction was processed and no alert was planned since.
+    """
+
+    superevent_id: str
+    skymap_sha256: str | None = None
+    plan_ids: tuple[str, ...] = ()
+    retracted: bool = False
+
+    @property
+    def latest_plan_id(self) -> str | None:
+        return self.plan_ids[-1] if self.plan_ids else None
+
+
+class Ledger(Protocol):
+    """Read access to per-superevent state (implemented by the daemon's store)."""
+
+    def event_state(self, superevent_id: str) -> EventState | None:
+        """State of a superevent, or None if it was never planned or retracted."""
+        ...
+
+
+@dataclass
+class MemoryLedger:
+    """A dict-backed :class:`Ledger` (tests, notebooks)."""
+
+    events: dict[str, EventState] = field(default_factory=dict)
+
+    def event_state(self, superevent_id: str) -> EventState | None:
+        return self.events.get(superevent_id)
+
+    def apply(self, decision: "Decision", plan_id: str | None = None) -> None:
+        """Update the state as a store would after ``decision`` (and its plan)."""
+        sid = decision.superevent_id
+        st = self.events.get(sid, EventState(sid))
+        if decision.action in ("plan", "rerun"):
+            ids = st.plan_ids if not st.retracted else ()
+            if plan_id:
+                ids = ids + (plan_id,)
+            self.events[sid] = EventState(sid, decision.skymap_sha256, ids, False)
+        elif decision.action == "withdraw":
+            self.events[sid] = EventState(sid, st.skymap_sha256, (), True)
+
+
+@dataclass(frozen=True)
+class Decision:
+    """What to do with one alert.
+
+    Attributes
+    ----------
+    action : str
+        One of :data:`ACTIONS`.
+    superevent_id : str
+    reason : str
+        One line for the log and the store.
+    alert_type : str
+    skymap_sha256 : str or None
+        Map to plan (``plan``/``rerun``).
+    supersedes : str or None
+        Latest plan of the event when the decision was taken (``rerun``).
+    plan_ids : tuple of str
+        Plans to withdraw (``withdraw``); the event's live plans (``duplicate``).
+    """
+
+    action: str
+    superevent_id: str
+    reason: str
+    alert_type: str = ""
+    skymap_sha256: str | None = None
+    supersedes: str | None = None
+    plan_ids: tuple[str, ...] = ()
+
+    @property
+    def needs_plan(self) -> bool:
+        return self.action in ("plan", "rerun")
+
+
+def decide(alert: Alert, verdict: Verdict, ledger: Ledger) -> Decision:
+    """Decide what to do with a parsed alert.
+
+    Parameters
+    ----------
+    alert : Alert
+        The parsed notice.
+    verdict : Verdict
+        The policy's answer (:func:`~mushrooms.handlers.policy.evaluate`).
+    ledger : Ledger
+        Per-superevent state.
+
+    Returns
+    -------
+    Decision
+    """
+    sid = alert.superevent_id
+    base = dict(superevent_id=sid, alert_type=alert.alert_type)
+    if not verdict.keep:
+        return Decision("ignore", reason=verdict.reason, **base)
+    state = ledger.event_state(sid)
+    if alert.alert_type == "RETRACTION":
+        if state is None:
+            return Decision("ignore", reason="retraction of an event we never planned", **base)
+        if state.retracted:
+            return Decision("ignore", reason="event already retracted", **base)
+        n = len(state.plan_ids)
+        return Decision("withdraw", reason=f"retracted by LVK; withdrawing {n} plan(s)",
+                        plan_ids=state.plan_ids, **base)
+    sha = alert.skymap_sha256
+    if state is None:
+        return Decision("plan", reason=f"new event ({verdict.reason})", skymap_sha256=sha, **base)
+    if state.retracted:
+        return Decision("plan", reason=f"{alert.alert_type} after a retraction: planning again",
+                        skymap_sha256=sha, **base)
+    if state.skymap_sha256 is None and not state.plan_ids:
+        return Decision("plan", reason=f"earlier planning failed; planning again ({verdict.reason})",
+                        skymap_sha256=sha, **base)
+    if state.skymap_sha256 == sha:
+        return Decision("duplicate", reason=f"same sky map {str(sha)[:12]} as already planned",
+                        skymap_sha256=sha, plan_ids=state.plan_ids, **base)
+    return Decision(
+        "rerun",
+        reason=f"sky map changed {str(state.skymap_sha256)[:12]} -> {str(sha)[:12]}",
+        skymap_sha256=sha,
+        supersedes=state.latest_plan_id,
+        **base,
+    )
