@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Mapping
 
-__all__ = ["DaemonConfig", "KafkaConfig", "OutboundConfig"]
+__all__ = ["DaemonConfig", "KafkaConfig", "OutboundConfig", "RuntimePaths", "resolve_paths"]
 
 
 def _from_table(cls: type, table: Mapping[str, Any], name: str) -> Any:
@@ -36,13 +38,43 @@ class DaemonConfig:
     pid_file : str
         File holding the running daemon's pid (for SIGUSR1).
     heartbeat_s : float
-        Interval (s) of the heartbeat log line and systemd watchdog ping.
+        Interval (s) of the heartbeat log line and systemd status update.
+        The watchdog is pinged at half of systemd's ``WatchdogSec``.
+    max_jobs : int
+        Planning jobs (different superevents) that run at the same time.
+    job_deadline_s : float
+        A planning job still running this long (s) after it started is asked
+        to stop (the scheduler then returns its best plan so far).
+    quarantine_dir : str
+        Where a received message that cannot be stored after repeated
+        attempts is written (raw bytes) before its offset is committed, so
+        that nothing received is lost and one bad message never blocks the
+        stream.
+    accept_retries : int
+        Attempts to store a received message before it is quarantined.
+    stop_grace_s : float
+        After SIGTERM, running planning jobs may finish within this time (s);
+        a job still running then stays pending in the store and resumes at
+        the next start.  Keep it below the unit's ``TimeoutStopSec``.
     """
 
     state_path: str = "mushrooms-state.sqlite"
     trigger_dir: str = "mushrooms-triggers"
     pid_file: str = "mushrooms.pid"
     heartbeat_s: float = 30.0
+    max_jobs: int = 2
+    job_deadline_s: float = 300.0
+    quarantine_dir: str = "mushrooms-quarantine"
+    accept_retries: int = 3
+    stop_grace_s: float = 20.0
+
+    def __post_init__(self) -> None:
+        if self.max_jobs < 1:
+            raise ValueError(f"[daemon] max_jobs must be >= 1, got {self.max_jobs}")
+        if self.heartbeat_s <= 0 or self.job_deadline_s <= 0:
+            raise ValueError("[daemon] heartbeat_s and job_deadline_s must be > 0")
+        if self.accept_retries < 1:
+            raise ValueError(f"[daemon] accept_retries must be >= 1, got {self.accept_retries}")
 
     @classmethod
     def from_mapping(cls, table: Mapping[str, Any]) -> "DaemonConfig":
@@ -66,6 +98,20 @@ class KafkaConfig:
         (local broker for tests and development) instead of GCN.
     poll_timeout_s : float
         ``consume()`` timeout (s); keeps signals responsive.
+    assignment : str
+        ``group`` (default: subscribe, the broker balances partitions) or
+        ``manual`` (assign every partition of the topics and resume from the
+        group's committed offsets; no group join, so a restart after a crash
+        resumes at once; for a single consumer instance only).
+    session_timeout_s : float
+        Group session timeout (s): how soon a crashed member's partitions
+        are handed to the restarted process in ``group`` mode.
+    max_message_bytes : int
+        Largest notice (bytes) the consumer fetches (a notice with its
+        base64 sky map is 1-2 MB).
+    offset_reset : str
+        Where a group with no committed offset starts: ``earliest`` or
+        ``latest``.
     """
 
     topics: tuple[str, ...] = ("igwn.gwalert",)
@@ -73,6 +119,20 @@ class KafkaConfig:
     domain: str = "gcn.nasa.gov"
     bootstrap: str = ""
     poll_timeout_s: float = 1.0
+    assignment: str = "group"
+    session_timeout_s: float = 30.0
+    max_message_bytes: int = 16_000_000
+    offset_reset: str = "earliest"
+
+    def __post_init__(self) -> None:
+        if self.assignment not in ("group", "manual"):
+            raise ValueError(f"[kafka] assignment must be group or manual, got {self.assignment!r}")
+        if self.offset_reset not in ("earliest", "latest"):
+            raise ValueError(f"[kafka] offset_reset must be earliest or latest, got {self.offset_reset!r}")
+        if not self.topics:
+            raise ValueError("[kafka] topics must not be empty")
+        if not 0 < self.poll_timeout_s <= 10:
+            raise ValueError(f"[kafka] poll_timeout_s must be in (0, 10], got {self.poll_timeout_s}")
 
     @classmethod
     def from_mapping(cls, table: Mapping[str, Any]) -> "KafkaConfig":
@@ -95,6 +155,11 @@ class OutboundConfig:
         Broker of the Kafka sink (defaults to the input broker).
     retry_initial_s, retry_max_s : float
         Back-off (s) for failed publishes.
+    max_message_bytes : int
+        Largest plan message (bytes) the Kafka producer sends.
+    delivery_timeout_s : float
+        How long (s) the Kafka sink waits for the broker's acknowledgement
+        before the publish counts as failed (and is retried from the outbox).
     """
 
     sink: str = "directory"
@@ -103,6 +168,8 @@ class OutboundConfig:
     bootstrap: str = ""
     retry_initial_s: float = 2.0
     retry_max_s: float = 300.0
+    max_message_bytes: int = 16_000_000
+    delivery_timeout_s: float = 30.0
 
     def __post_init__(self) -> None:
         if self.sink not in ("directory", "kafka"):
@@ -111,3 +178,53 @@ class OutboundConfig:
     @classmethod
     def from_mapping(cls, table: Mapping[str, Any]) -> "OutboundConfig":
         return _from_table(cls, table, "outbound")
+
+
+@dataclass(frozen=True)
+class RuntimePaths:
+    """Absolute paths of the service's files, resolved once at start.
+
+    Attributes
+    ----------
+    state : Path
+        SQLite state file.
+    trigger_dir : Path
+        Drop directory of ``mushrooms trigger``.
+    pid_file : Path
+        Pid (and lock) file of the running daemon.
+    quarantine_dir : Path
+        Raw messages that could not be stored.
+    """
+
+    state: Path
+    trigger_dir: Path
+    pid_file: Path
+    quarantine_dir: Path
+
+
+def resolve_paths(daemon: DaemonConfig, environ: Mapping[str, str] | None = None) -> RuntimePaths:
+    """Resolve the ``[daemon]`` paths.
+
+    A relative ``state_path`` is taken from ``$STATE_DIRECTORY`` (set by
+    systemd's ``StateDirectory=``) when present, else from the working
+    directory.  Relative ``trigger_dir``, ``pid_file`` and ``quarantine_dir``
+    are taken from the state file's directory, so that ``mushrooms run
+    --state X`` and ``mushrooms trigger --state X`` always meet.
+    """
+    env = os.environ if environ is None else environ
+    state = Path(daemon.state_path).expanduser()
+    if not state.is_absolute():
+        base = env.get("STATE_DIRECTORY", "").split(":")[0]
+        state = (Path(base) if base else Path.cwd()) / state
+    home = state.parent
+
+    def near(p: str) -> Path:
+        q = Path(p).expanduser()
+        return q if q.is_absolute() else home / q
+
+    return RuntimePaths(
+        state=state,
+        trigger_dir=near(daemon.trigger_dir),
+        pid_file=near(daemon.pid_file),
+        quarantine_dir=near(daemon.quarantine_dir),
+    )

@@ -1,0 +1,91 @@
+"""GCN Kafka client credentials: from the environment or systemd credentials.
+
+Never from ``config.toml``.  Lookup order, first match wins:
+
+1. ``$CREDENTIALS_DIRECTORY/gcn_client_id`` and ``.../gcn_client_secret``
+   (systemd ``LoadCredential=``/``LoadCredentialEncrypted=``);
+2. ``$GCN_CLIENT_ID`` and ``$GCN_CLIENT_SECRET``.
+
+Id and secret may come from different places (the id is not secret and may
+sit in an ``Environment=`` line while the secret is a credential).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping
+
+from ..config import ConfigError
+
+__all__ = ["Credentials", "CredentialsError", "load_credentials"]
+
+
+class CredentialsError(ConfigError):
+    """GCN credentials are missing or unreadable."""
+
+
+@dataclass(frozen=True)
+class Credentials:
+    """GCN OIDC client credentials."""
+
+    client_id: str
+    client_secret: str
+    source: str
+
+    def __repr__(self) -> str:  # never print the secret
+        return f"Credentials(client_id={self.client_id!r}, client_secret='***', source={self.source!r})"
+
+
+def _read_credential(name: str, env: Mapping[str, str]) -> str | None:
+    directory = env.get("CREDENTIALS_DIRECTORY")
+    if not directory:
+        return None
+    path = Path(directory) / name
+    try:
+        value = path.read_text().strip()
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise CredentialsError(f"cannot read systemd credential {path}: {exc.strerror or exc}") from None
+    return value or None
+
+
+def load_credentials(environ: Mapping[str, str] | None = None) -> Credentials:
+    """Find the GCN client id and secret.
+
+    Parameters
+    ----------
+    environ : mapping, optional
+        Environment (default ``os.environ``).
+
+    Raises
+    ------
+    CredentialsError
+        With a one-line hint when either value is missing.
+    """
+    env = os.environ if environ is None else environ
+    sources = []
+    client_id = _read_credential("gcn_client_id", env)
+    if client_id:
+        sources.append("credential:gcn_client_id")
+    else:
+        client_id = env.get("GCN_CLIENT_ID", "").strip() or None
+        if client_id:
+            sources.append("env:GCN_CLIENT_ID")
+    secret = _read_credential("gcn_client_secret", env)
+    if secret:
+        sources.append("credential:gcn_client_secret")
+    else:
+        secret = env.get("GCN_CLIENT_SECRET", "").strip() or None
+        if secret:
+            sources.append("env:GCN_CLIENT_SECRET")
+    if not client_id or not secret:
+        missing = [n for n, v in (("client id", client_id), ("client secret", secret)) if not v]
+        raise CredentialsError(
+            f"GCN {' and '.join(missing)} not found: set GCN_CLIENT_ID/GCN_CLIENT_SECRET or "
+            "systemd credentials gcn_client_id/gcn_client_secret "
+            "(or use --bootstrap HOST:PORT for a local broker)"
+        )
+    return Credentials(client_id=client_id, client_secret=secret, source=", ".join(sources))

@@ -1,0 +1,448 @@
+"""``mushrooms run``: the long-running service.
+
+Main thread: consume one notice, store the decision (durable), start or
+supersede the superevent's planning job, then commit the offset; handle
+signals and triggers between polls.  Worker threads plan and publish
+(:mod:`.jobs`).  APScheduler runs deadlines, outbox retries, the heartbeat
+and the systemd watchdog ping.
+
+Signals: SIGTERM/SIGINT stop cleanly (the notice in hand is finished and
+committed, or left uncommitted; running jobs get a grace period and are
+otherwise resumed at the next start); SIGHUP reloads the configuration;
+SIGUSR1 picks up ``mushrooms trigger`` files.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import logging
+import os
+import signal
+import sys
+import threading
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Callable
+
+from apscheduler.schedulers.background import BackgroundScheduler
+
+from ..config import Config, ConfigError, load_config
+from .jobs import JobRunner, OutboxRetrier
+from .notify import Notifier, watchdog_interval_s
+from .settings import RuntimePaths, resolve_paths
+from .trigger import DaemonRunning, PidLock, dispatch, pending_triggers, read_trigger
+
+__all__ = ["main", "Service", "effective_config", "open_pipeline", "setup_logging"]
+
+log = logging.getLogger("mushrooms.daemon")
+
+TRIGGER_SCAN_S = 5.0  # triggers are also picked up without SIGUSR1, at this period (s)
+
+
+# ---------------------------------------------------------------- configuration
+def effective_config(args: argparse.Namespace) -> Config:
+    """Config file (or embedded defaults) with the command-line overrides.
+
+    ``--bootstrap`` selects the local plaintext broker for input (and for the
+    Kafka sink when it has no broker of its own); ``--outbox DIR`` selects the
+    directory sink; ``--state`` the SQLite file; ``--allow-mock`` accepts
+    mock and test events.
+    """
+    config = load_config(getattr(args, "config", None))
+    kafka, outbound, daemon, policy = config.kafka, config.outbound, config.daemon, config.policy
+    bootstrap = getattr(args, "bootstrap", None)
+    if bootstrap:
+        kafka = dataclasses.replace(kafka, bootstrap=bootstrap)
+        if outbound.sink == "kafka" and not outbound.bootstrap:
+            outbound = dataclasses.replace(outbound, bootstrap=bootstrap)
+    if outbound.sink == "kafka" and not outbound.bootstrap and kafka.bootstrap:
+        outbound = dataclasses.replace(outbound, bootstrap=kafka.bootstrap)
+    if getattr(args, "outbox", None):
+        outbound = dataclasses.replace(outbound, sink="directory", directory=args.outbox)
+    if getattr(args, "state", None):
+        daemon = dataclasses.replace(daemon, state_path=args.state)
+    if getattr(args, "allow_mock", False):
+        policy = _allow_mock(policy)
+    return dataclasses.replace(config, kafka=kafka, outbound=outbound, daemon=daemon, policy=policy)
+
+
+def _allow_mock(policy: Any) -> Any:
+    names = {f.name for f in dataclasses.fields(policy)}
+    for name in ("allow_mock", "accept_mock", "mock"):
+        if name in names:
+            return dataclasses.replace(policy, **{name: True})
+    raise ConfigError("--allow-mock: the [policy] section has no allow_mock setting")
+
+
+# ---------------------------------------------------------------- wiring
+def make_sink(config: Config) -> Any:
+    """The outbound sink of the configuration."""
+    out = config.outbound
+    if out.sink == "kafka":
+        from .kafka_sink import KafkaSink
+
+        return KafkaSink(out.bootstrap, out.topic, out.max_message_bytes, out.delivery_timeout_s)
+    from .sinks import DirectorySink
+
+    return DirectorySink(Path(out.directory))
+
+
+def open_store(path: Path) -> Any:
+    """Open (create) the SQLite state store."""
+    from . import store as store_mod
+
+    cls = getattr(store_mod, "Store", None) or getattr(store_mod, "StateStore")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return cls(path)
+
+
+def open_pipeline(config: Config, paths: RuntimePaths, sink: Any = None) -> tuple[Any, Callable[[], None]]:
+    """Store + sink + pipeline; returns the pipeline and a closer."""
+    from .pipeline import NoticePipeline
+
+    store = open_store(paths.state)
+    own_sink = sink is None
+    sink = make_sink(config) if own_sink else sink
+    pipeline = NoticePipeline(config, store, sink)
+
+    def close() -> None:
+        for obj in ((sink,) if own_sink else ()) + (store,):
+            fn = getattr(obj, "close", None)
+            if fn is not None:
+                try:
+                    fn()
+                except Exception:
+                    log.exception("event=close_failed what=%s", type(obj).__name__)
+
+    return pipeline, close
+
+
+# ---------------------------------------------------------------- logging
+class _JournalFormatter(logging.Formatter):
+    """One line per record; ``<N>`` syslog priority prefix under journald."""
+
+    PRIORITY = {logging.DEBUG: 7, logging.INFO: 6, logging.WARNING: 4, logging.ERROR: 3, logging.CRITICAL: 2}
+
+    def __init__(self, journald: bool) -> None:
+        fmt = "%(levelname)s %(name)s: %(message)s" if journald else \
+            "%(asctime)s %(levelname)s %(name)s: %(message)s"
+        super().__init__(fmt)
+        self.journald = journald
+
+    def format(self, record: logging.LogRecord) -> str:
+        text = super().format(record).replace("\n", " | ")
+        if self.journald:
+            return f"<{self.PRIORITY.get(record.levelno, 6)}>{text}"
+        return text
+
+
+def setup_logging(level: int | None = None) -> None:
+    """Structured one-line logs on stdout (journald adds time and unit)."""
+    root = logging.getLogger()
+    if level is not None:
+        root.setLevel(level)
+    for h in list(root.handlers):
+        root.removeHandler(h)
+    handler = logging.StreamHandler(sys.stdout)
+    handler.setFormatter(_JournalFormatter(journald=bool(os.environ.get("JOURNAL_STREAM"))))
+    root.addHandler(handler)
+    for noisy in ("apscheduler", "astropy"):
+        logging.getLogger(noisy).setLevel(logging.WARNING)
+
+
+# ---------------------------------------------------------------- the service
+class Service:
+    """The daemon: one instance per process.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The ``mushrooms run`` arguments (kept for SIGHUP reloads).
+    """
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.args = args
+        self.config = effective_config(args)
+        self.paths = resolve_paths(self.config.daemon)
+        self.notifier = Notifier()
+        self._stop = threading.Event()
+        self._reload = threading.Event()
+        self._triggers = threading.Event()
+        self._last_loop = time.monotonic()
+        self._started = time.monotonic()
+        self._counts = {"notices": 0, "triggers": 0, "jobs": 0, "quarantined": 0}
+        self.pipeline: Any = None
+        self.consumer: Any = None
+
+    # signals only set flags; the main loop acts between polls
+    def _on_signal(self, signum: int, frame: Any) -> None:
+        if signum in (signal.SIGTERM, signal.SIGINT):
+            if self._stop.is_set() and signum == signal.SIGINT:
+                raise KeyboardInterrupt
+            self._stop.set()
+        elif signum == signal.SIGHUP:
+            self._reload.set()
+        elif signum == signal.SIGUSR1:
+            self._triggers.set()
+
+    def run(self) -> int:
+        """Run until SIGTERM/SIGINT; returns the exit status."""
+        if not self.config.kafka.bootstrap:
+            from .credentials import load_credentials
+
+            load_credentials()  # fail fast, with one line, before touching any state
+        lock = PidLock(self.paths.pid_file)
+        try:
+            lock.acquire()
+        except DaemonRunning as exc:
+            log.error("event=start_refused reason=%r", str(exc))
+            return 1
+        for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGUSR1):
+            signal.signal(sig, self._on_signal)
+        self.paths.trigger_dir.mkdir(parents=True, exist_ok=True)
+        scheduler = self.scheduler = BackgroundScheduler(timezone="UTC")
+        scheduler.start()
+        close: Callable[[], None] = lambda: None
+        try:
+            self.pipeline, close = open_pipeline(self.config, self.paths)
+            self.outbox = OutboxRetrier(self._flush_outbox, scheduler,
+                                        self.config.outbound.retry_initial_s, self.config.outbound.retry_max_s)
+            self.jobs = JobRunner(self._run_job, scheduler, self.config.daemon.max_jobs,
+                                  self.config.daemon.job_deadline_s, on_done=self._job_done)
+            log.info("event=service_starting pid=%d config=%s state=%s sink=%s triggers=%s",
+                     os.getpid(), self.config.source, self.paths.state, self._sink_text(),
+                     self.paths.trigger_dir)
+            self.outbox.drain()  # what a crash left in the outbox goes out first
+            resumed = self.jobs.sync(self.pipeline.store.pending_jobs())
+            if resumed:
+                log.info("event=jobs_resumed count=%d", resumed)
+            self._scan_triggers()
+            from .consumer import NoticeConsumer
+
+            self.consumer = NoticeConsumer(self.config.kafka)
+            scheduler.add_job(self._heartbeat, "interval", seconds=self.config.daemon.heartbeat_s,
+                              id="heartbeat", misfire_grace_time=None, coalesce=True)
+            wd = watchdog_interval_s()
+            if wd:
+                scheduler.add_job(self._watchdog, "interval", seconds=wd, id="watchdog",
+                                  args=[wd], misfire_grace_time=None, coalesce=True)
+            self.notifier.ready(f"consuming {','.join(self.config.kafka.topics)}")
+            log.info("event=service_ready topics=%s watchdog_s=%s", ",".join(self.config.kafka.topics),
+                     f"{wd:.1f}" if wd else "-")
+            self._loop()
+            return 0
+        finally:
+            self.notifier.stopping()
+            log.info("event=service_stopping active_jobs=%s", ",".join(self._active()) or "-")
+            if hasattr(self, "jobs"):
+                finished = self.jobs.shutdown(self.config.daemon.stop_grace_s)
+                if not finished:
+                    log.warning("event=jobs_left_pending reason='still running at stop; resumed at next start'")
+            if self.consumer is not None:
+                self.consumer.close()
+            scheduler.shutdown(wait=False)
+            unfinished = hasattr(self, "jobs") and self.jobs.busy()
+            if not unfinished:
+                close()
+            lock.release()
+            log.info("event=service_stopped unfinished_jobs=%s", "yes" if unfinished else "no")
+            if unfinished:
+                # worker threads cannot be interrupted; everything is durable, so
+                # leave now as a crash would, and the next start resumes the job
+                logging.shutdown()
+                os._exit(0)
+
+    def _loop(self) -> None:
+        last_scan = time.monotonic()
+        while not self._stop.is_set():
+            self._last_loop = time.monotonic()
+            if self._reload.is_set():
+                self._reload.clear()
+                self._do_reload()
+            if self._triggers.is_set() or time.monotonic() - last_scan > TRIGGER_SCAN_S:
+                self._triggers.clear()
+                last_scan = time.monotonic()
+                self._scan_triggers()
+            received = self.consumer.poll()
+            if received is not None:
+                self._handle(received)
+
+    # ------------------------------------------------------------ notices
+    def _handle(self, received: Any) -> None:
+        decision = None
+        retries = self.config.daemon.accept_retries
+        for attempt in range(1, retries + 1):
+            try:
+                decision = self.pipeline.accept(received.value, received.origin,
+                                                received_at=datetime.fromtimestamp(received.received_at, timezone.utc))
+                break
+            except Exception as exc:
+                log.error("event=store_failed origin=%s attempt=%d/%d error=%r", received.origin,
+                          attempt, retries, f"{type(exc).__name__}: {exc}")
+                if attempt < retries and self._stop.wait(min(2.0 ** attempt, 10.0)):
+                    return  # stopping: leave it uncommitted, it is redelivered
+        else:
+            if not self._quarantine(received):
+                self.consumer.rewind(received)  # keep it: retried on the next poll
+                self._stop.wait(5.0)
+                return
+        self._counts["notices"] += 1
+        started = self._start_jobs(decision, received.received_at)
+        try:
+            self.consumer.commit(received)
+        except Exception as exc:  # e.g. partitions revoked by a rebalance: redelivery is harmless
+            log.warning("event=commit_failed origin=%s error=%r (the notice is stored; a redelivery is a duplicate)",
+                        received.origin, str(exc))
+        self._after_decision(decision)
+        log.info("event=notice origin=%s bytes=%d %s jobs_started=%d store_s=%.3f", received.origin,
+                 len(received.value), _decision_fields(decision), started, time.time() - received.received_at)
+
+    def _quarantine(self, received: Any) -> bool:
+        """Keep the raw bytes of a message that cannot be stored; True if kept."""
+        try:
+            qdir = self.paths.quarantine_dir
+            qdir.mkdir(parents=True, exist_ok=True)
+            name = received.origin.replace(":", "_").replace("/", "_") + ".bin"
+            tmp = qdir / f".{name}.tmp"
+            with open(tmp, "wb") as fh:
+                fh.write(received.value)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, qdir / name)
+        except OSError as exc:
+            log.critical("event=quarantine_failed origin=%s error=%r", received.origin, str(exc))
+            return False
+        self._counts["quarantined"] += 1
+        log.error("event=notice_quarantined origin=%s file=%s", received.origin, qdir / name)
+        return True
+
+    # ------------------------------------------------------------ triggers
+    def _scan_triggers(self) -> None:
+        for path in pending_triggers(self.paths.trigger_dir):
+            received_at = time.time()
+            try:
+                kind, payload = read_trigger(path)
+                decision = dispatch(self.pipeline, kind, payload, origin=f"trigger:{path.name}")
+            except Exception as exc:
+                log.error("event=trigger_rejected file=%s error=%r", path.name, f"{type(exc).__name__}: {exc}")
+                bad = path.with_name(f".{path.name}.rejected")
+                os.replace(path, bad)
+                continue
+            self._counts["triggers"] += 1
+            started = self._start_jobs(decision, received_at)
+            path.unlink(missing_ok=True)
+            self._after_decision(decision)
+            log.info("event=trigger file=%s kind=%s %s jobs_started=%d", path.name, kind,
+                     _decision_fields(decision), started)
+
+    # ------------------------------------------------------------ jobs and outbox
+    def _start_jobs(self, decision: Any, received_at: float) -> int:
+        """Start the decision's planning job (superseding the superevent's
+        running one) or stop a job the decision cancelled (retraction)."""
+        if decision is None:
+            return 0
+        job = getattr(decision, "job", None)
+        if job is not None:
+            return int(self.jobs.submit(job, received_at=received_at))
+        sid = getattr(decision, "superevent_id", None)
+        if sid and getattr(decision, "cancelled_jobs", ()):
+            self.jobs.cancel(sid, reason=str(getattr(decision, "action", "cancelled")))
+        return 0
+
+    def _after_decision(self, decision: Any) -> None:
+        """A withdrawal waits in the outbox: publish it now, off the consume loop."""
+        if getattr(decision, "withdrawal_id", None) or getattr(decision, "action", None) == "withdraw":
+            self.scheduler.add_job(self.outbox.drain, id=f"drain-{time.time_ns()}", misfire_grace_time=None)
+
+    def _run_job(self, job: Any, should_stop: Callable[[], bool]) -> Any:
+        # a stopping service does not cut plans short: they get a grace period,
+        # and a job still running at exit stays pending and resumes at the next start
+        return self.pipeline.run_job(job, should_stop)
+
+    def _job_done(self, job: Any, outcome: Any, info: dict[str, Any]) -> None:
+        self._counts["jobs"] += 1
+        self.outbox.drain()
+
+    def _flush_outbox(self) -> Any:
+        return self.pipeline.flush_outbox()
+
+    # ------------------------------------------------------------ timed work
+    def _heartbeat(self) -> None:
+        up = time.monotonic() - self._started
+        active = self._active()
+        status = (f"up {up / 3600:.1f} h, {self._counts['notices']} notices, {self._counts['jobs']} jobs done, "
+                  f"active: {','.join(active) or 'none'}")
+        self.notifier.status(status)
+        log.info("event=heartbeat uptime_s=%.0f notices=%d triggers=%d jobs_done=%d quarantined=%d active=%s "
+                 "loop_age_s=%.1f", up, self._counts["notices"], self._counts["triggers"], self._counts["jobs"],
+                 self._counts["quarantined"], ",".join(active) or "-", time.monotonic() - self._last_loop)
+
+    def _watchdog(self, interval_s: float) -> None:
+        age = time.monotonic() - self._last_loop
+        if age < max(2 * interval_s, 3 * self.config.kafka.poll_timeout_s):
+            self.notifier.watchdog()
+        else:
+            log.error("event=watchdog_withheld loop_age_s=%.1f", age)
+
+    def _do_reload(self) -> None:
+        self.notifier.reloading()
+        try:
+            new = effective_config(self.args)
+        except ConfigError as exc:
+            log.error("event=reload_failed error=%r (keeping the running configuration)", str(exc))
+            self.notifier.ready("reload failed; old configuration kept")
+            return
+        if resolve_paths(new.daemon) != self.paths:
+            log.warning("event=reload_partial reason='state, trigger and pid paths change only at restart'")
+            new = dataclasses.replace(new, daemon=dataclasses.replace(new.daemon, state_path=str(self.paths.state)))
+        from .pipeline import NoticePipeline
+
+        sink = self.pipeline.sink if new.outbound == self.config.outbound else make_sink(new)
+        self.pipeline = NoticePipeline(new, self.pipeline.store, sink)
+        if new.kafka != self.config.kafka:
+            from .consumer import NoticeConsumer
+
+            self.consumer.close()
+            self.consumer = NoticeConsumer(new.kafka)
+        if new.daemon.heartbeat_s != self.config.daemon.heartbeat_s:
+            self.scheduler.reschedule_job("heartbeat", trigger="interval", seconds=new.daemon.heartbeat_s)
+        self.config = new
+        self.notifier.ready("configuration reloaded")
+        log.info("event=config_reloaded source=%s", new.source)
+
+    def _active(self) -> list[str]:
+        return self.jobs.active() if hasattr(self, "jobs") else []
+
+    def _sink_text(self) -> str:
+        out = self.config.outbound
+        return f"kafka:{out.bootstrap}/{out.topic}" if out.sink == "kafka" else f"directory:{out.directory}"
+
+
+def _decision_fields(decision: Any) -> str:
+    if decision is None:
+        return "decision=quarantined"
+    fields = []
+    for name in ("superevent_id", "alert_type", "action", "kind", "reason", "plan_id"):
+        value = getattr(decision, name, None)
+        if value is None and isinstance(decision, dict):
+            value = decision.get(name)
+        if value is not None:
+            value = getattr(value, "value", value)
+            text = str(value)
+            fields.append(f"{'decision' if name in ('action', 'kind') else name}="
+                          + (repr(text) if " " in text or not text else text))
+    return " ".join(fields) or f"decision={decision!r}"
+
+
+def main(args: argparse.Namespace) -> int:
+    """Entry point of ``mushrooms run``."""
+    from ..commands import configure_astropy_offline
+
+    level = logging.getLogger().level or logging.INFO
+    setup_logging(level)
+    # Earth-orientation tables come from the installed astropy-iers-data
+    # package: a service must never stall on (or fail for) a download
+    configure_astropy_offline()
+    return Service(args).run()

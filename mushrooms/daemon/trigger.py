@@ -1,0 +1,254 @@
+"""Manual triggers: ``mushrooms trigger NOTICE.json | SKYMAP.fits | SUPEREVENT_ID``.
+
+With a daemon running (it holds an exclusive lock on its pid file), the
+target is written atomically into the daemon's trigger directory and the
+daemon is woken with SIGUSR1; it stores the trigger like a received notice
+and plans it.  Without a daemon the command does the job itself, with the
+same store and a directory sink.
+
+Trigger files: ``<time>-<pid>-<kind>.<ext>`` where kind is ``notice``
+(the notice bytes), ``skymap`` (the FITS bytes) or ``superevent`` (the id,
+UTF-8).  The daemon deletes a file only after its outcome is stored.
+"""
+
+from __future__ import annotations
+
+import argparse
+import fcntl
+import logging
+import os
+import re
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any, IO
+
+from ..scheduler_core.errors import InputError
+from .settings import RuntimePaths
+
+__all__ = [
+    "main", "PidLock", "daemon_pid", "classify", "write_trigger", "pending_triggers",
+    "read_trigger", "dispatch", "DaemonRunning",
+]
+
+log = logging.getLogger(__name__)
+
+SUPEREVENT_RE = re.compile(r"^[MTS][A-Z]?\d{6}[a-z]{1,3}$")
+KINDS = {"notice": "json", "skymap": "fits", "superevent": "txt"}
+
+
+class DaemonRunning(RuntimeError):
+    """Another daemon already holds the pid file lock."""
+
+
+class PidLock:
+    """The daemon's pid file, held with an exclusive ``flock`` while it runs.
+
+    A stale file left by a killed daemon is not locked, so it never blocks
+    a restart nor fools ``mushrooms trigger``.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self._fh: IO[str] | None = None
+
+    def acquire(self) -> None:
+        """Take the lock and write our pid; raises :class:`DaemonRunning`."""
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fh = open(self.path, "a+")
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            fh.seek(0)
+            other = fh.read().strip() or "?"
+            fh.close()
+            raise DaemonRunning(f"another mushrooms daemon runs (pid {other}, {self.path})") from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(f"{os.getpid()}\n")
+        fh.flush()
+        os.fsync(fh.fileno())
+        self._fh = fh
+
+    def release(self) -> None:
+        """Remove the pid file and drop the lock."""
+        if self._fh is None:
+            return
+        try:
+            self.path.unlink()
+        except FileNotFoundError:
+            pass
+        self._fh.close()
+        self._fh = None
+
+
+def daemon_pid(pid_file: Path) -> int | None:
+    """Pid of the running daemon, or None when no daemon holds the lock."""
+    try:
+        fh = open(pid_file)
+    except FileNotFoundError:
+        return None
+    with fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            text = fh.read().strip()
+            return int(text) if text.isdigit() else None
+        fcntl.flock(fh, fcntl.LOCK_UN)
+        return None
+
+
+def classify(target: str) -> tuple[str, bytes]:
+    """Tell a notice file, a sky map file and a superevent id apart.
+
+    Returns
+    -------
+    kind : str
+        ``notice``, ``skymap`` or ``superevent``.
+    payload : bytes
+        The file's bytes, or the id.
+
+    Raises
+    ------
+    InputError
+        When the target is none of the three.
+    """
+    path = Path(target)
+    if path.is_file():
+        data = path.read_bytes()
+        head = data[:80].lstrip()
+        if head.startswith(b"SIMPLE") or data[:2] == b"\x1f\x8b" or path.suffix.lower() in (".fits", ".fit", ".gz"):
+            return "skymap", data
+        if head.startswith(b"{") or data[:4] == b"Obj\x01" or path.suffix.lower() in (".json", ".avro"):
+            return "notice", data
+        raise InputError(f"{target}: neither a notice (JSON/Avro) nor a sky map (FITS)")
+    if SUPEREVENT_RE.match(target):
+        return "superevent", target.encode()
+    raise InputError(f"{target}: no such file, and not a superevent id (like S250101ab)")
+
+
+def write_trigger(trigger_dir: Path, kind: str, payload: bytes) -> Path:
+    """Write a trigger file atomically (temporary name, fsync, rename)."""
+    trigger_dir.mkdir(parents=True, exist_ok=True)
+    name = f"{time.time_ns():020d}-{os.getpid()}-{kind}.{KINDS[kind]}"
+    tmp = trigger_dir / f".{name}.tmp"
+    with open(tmp, "wb") as fh:
+        fh.write(payload)
+        fh.flush()
+        os.fsync(fh.fileno())
+    final = trigger_dir / name
+    os.replace(tmp, final)
+    dfd = os.open(trigger_dir, os.O_RDONLY)
+    try:
+        os.fsync(dfd)
+    finally:
+        os.close(dfd)
+    return final
+
+
+def pending_triggers(trigger_dir: Path) -> list[Path]:
+    """Trigger files waiting, oldest first (temporary files excluded)."""
+    if not trigger_dir.is_dir():
+        return []
+    return sorted(p for p in trigger_dir.iterdir()
+                  if p.is_file() and not p.name.startswith(".") and _kind_of(p) is not None)
+
+
+def _kind_of(path: Path) -> str | None:
+    stem = path.name.rsplit(".", 1)[0]
+    kind = stem.rsplit("-", 1)[-1]
+    return kind if kind in KINDS else None
+
+
+def read_trigger(path: Path) -> tuple[str, bytes]:
+    """Kind and payload of a trigger file."""
+    kind = _kind_of(path)
+    if kind is None:
+        raise InputError(f"{path.name}: not a trigger file")
+    return kind, path.read_bytes()
+
+
+def dispatch(pipeline: Any, kind: str, payload: bytes, origin: str) -> Any:
+    """Store a trigger through the pipeline; returns its Decision.
+
+    A notice goes through ``accept`` like one from Kafka.  A sky map and a
+    superevent id use the pipeline's manual entry points.
+    """
+    if kind == "notice":
+        return pipeline.accept(payload, origin)
+    if kind == "skymap":
+        return pipeline.accept_skymap(payload, origin)
+    if kind == "superevent":
+        return pipeline.rerun_superevent(payload.decode().strip(), origin)
+    raise InputError(f"unknown trigger kind {kind!r}")
+
+
+def main(args: argparse.Namespace) -> int:
+    """``mushrooms trigger``: hand work to the daemon, or do it here."""
+    from ..commands import configure_astropy_offline
+    from .service import effective_config, open_pipeline
+
+    configure_astropy_offline()
+
+    kind, payload = classify(args.target)
+    config = effective_config(args)
+    from .settings import resolve_paths
+
+    paths: RuntimePaths = resolve_paths(config.daemon)
+    pid = daemon_pid(paths.pid_file)
+    if pid is not None:
+        written = write_trigger(paths.trigger_dir, kind, payload)
+        try:
+            os.kill(pid, signal.SIGUSR1)
+        except ProcessLookupError:
+            pid = None  # died between the check and the signal: do it ourselves below
+            written.unlink(missing_ok=True)
+        else:
+            # wait a little for the daemon to take it, to report honestly
+            end = time.monotonic() + 15.0
+            while written.exists() and time.monotonic() < end:
+                time.sleep(0.1)
+            state = "accepted" if not written.exists() else "queued (the daemon will take it at its next scan)"
+            print(f"mushrooms trigger: {kind} {args.target} handed to the daemon (pid {pid}): {state}")
+            return 0
+    # no daemon: do the job here
+    pipeline, close = open_pipeline(config, paths)
+    try:
+        decision = dispatch(pipeline, kind, payload, origin=f"trigger:{kind}:{args.target}")
+        log.info("event=trigger_accepted kind=%s target=%s decision=%s", kind, args.target,
+                 _decision_text(decision))
+        if getattr(decision, "action", None) == "rejected":
+            print(f"mushrooms trigger: error: {args.target}: {getattr(decision, 'reason', 'rejected')}",
+                  file=sys.stderr)
+            return 2
+        from .jobs import describe_outcome
+
+        done, status = 0, 0
+        job = getattr(decision, "job", None)
+        if job is not None:  # only this trigger's job: leftovers wait for the daemon
+            outcome = pipeline.run_job(job, None)
+            info = describe_outcome(outcome)
+            log.info("event=job_done superevent_id=%s job=%s %s", job.superevent_id, job.job_id,
+                     " ".join(f"{k}={v}" for k, v in info.items()))
+            done = 1
+            status = {"rejected": 2, "failed": 1}.get(str(info.get("decision")), 0)
+            if status:
+                print(f"mushrooms trigger: error: {args.target}: job {info.get('decision')}: "
+                      f"{info.get('reason', '')}", file=sys.stderr)
+        pipeline.flush_outbox()
+        print(f"mushrooms trigger: no daemon running; {kind} {args.target}: "
+              f"{_decision_text(decision)}, {done} job(s) run here", file=sys.stdout)
+    finally:
+        close()
+    return status
+
+
+def _decision_text(decision: Any) -> str:
+    for name in ("action", "kind", "decision"):
+        value = getattr(decision, name, None)
+        if value is not None:
+            value = getattr(value, "value", value)
+            reason = getattr(decision, "reason", None)
+            return f"{value}" + (f" ({reason})" if reason else "")
+    return str(decision)

@@ -1,0 +1,238 @@
+"""Fixtures of the service tests: a real Kafka-protocol broker on loopback.
+
+librdkafka's mock cluster lives inside the client that creates it, so the
+fixture keeps that client (a Producer) alive for the whole session; the
+daemon under test, a separate process, connects to it over TCP on 127.0.0.1.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import confluent_kafka
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+SHARED_NOTICES = Path("/work/shared/data/notices")
+DATA = Path(__file__).resolve().parent / "data"
+BIG = 16_000_000
+
+
+def notice_path(name: str) -> Path:
+    """A sample notice: our copy in tests/daemon/data, else the shared archive."""
+    ours = REPO / "tests" / "data" / "notices"
+    for base in (DATA, ours / "json", ours / "live", SHARED_NOTICES / "json", SHARED_NOTICES / "live"):
+        p = base / name
+        if p.is_file():
+            return p
+    pytest.skip(f"sample notice {name} not available")
+
+
+def notice_bytes(name: str, superevent_id: str | None = None) -> bytes:
+    """Notice bytes; with ``superevent_id`` only that field is rewritten."""
+    raw = notice_path(name).read_bytes()
+    if superevent_id is None:
+        return raw
+    doc = json.loads(raw)
+    doc["superevent_id"] = superevent_id
+    return json.dumps(doc).encode()
+
+
+class Broker:
+    """The mock cluster and a producer bound to it."""
+
+    def __init__(self) -> None:
+        self._owner = confluent_kafka.Producer({
+            "test.mock.num.brokers": 1,
+            "message.max.bytes": BIG,
+            "log_level": 3,
+        })
+        md = self._owner.list_topics(timeout=10)
+        b = next(iter(md.brokers.values()))
+        self.bootstrap = f"{b.host}:{b.port}"
+        self.producer = confluent_kafka.Producer({
+            "bootstrap.servers": self.bootstrap, "message.max.bytes": BIG, "linger.ms": 0, "log_level": 3,
+        })
+
+    def produce(self, topic: str, value: bytes, key: bytes | None = None) -> tuple[int, int]:
+        """Produce and wait for the acknowledgement; returns (partition, offset)."""
+        where: list[tuple[int, int]] = []
+
+        def done(err: Any, msg: Any) -> None:
+            assert err is None, err
+            where.append((msg.partition(), msg.offset()))
+
+        self.producer.produce(topic, value=value, key=key, on_delivery=done)
+        assert self.producer.flush(30) == 0, "the mock broker did not take the message"
+        return where[0]
+
+    def committed(self, topic: str, group: str) -> dict[int, tuple[int, int]]:
+        """partition -> (committed offset of ``group``, high watermark)."""
+        c = confluent_kafka.Consumer({"bootstrap.servers": self.bootstrap, "group.id": group})
+        try:
+            parts = sorted(c.list_topics(topic, timeout=10).topics[topic].partitions)
+            tps = c.committed([confluent_kafka.TopicPartition(topic, p) for p in parts], timeout=10)
+            return {tp.partition: (tp.offset, c.get_watermark_offsets(tp, timeout=10)[1]) for tp in tps}
+        finally:
+            c.close()
+
+    def ensure_topic(self, topic: str) -> None:
+        """Create the topic (auto-creation through a metadata request)."""
+        for _ in range(50):
+            t = self.producer.list_topics(topic, timeout=10).topics.get(topic)
+            if t is not None and t.error is None and t.partitions:
+                return
+            time.sleep(0.1)
+        raise AssertionError(f"topic {topic} not created")
+
+    def reader(self, topic: str, group: str) -> "Reader":
+        return Reader(self.bootstrap, topic, group)
+
+
+class Reader:
+    """A plain consumer of the outbound topic (manual assignment, from the start)."""
+
+    def __init__(self, bootstrap: str, topic: str, group: str) -> None:
+        self.c = confluent_kafka.Consumer({
+            "bootstrap.servers": bootstrap, "group.id": group, "enable.auto.commit": False,
+            "auto.offset.reset": "earliest", "fetch.max.bytes": BIG, "max.partition.fetch.bytes": BIG,
+        })
+        md = self.c.list_topics(topic, timeout=10)
+        parts = sorted(md.topics[topic].partitions)
+        self.c.assign([confluent_kafka.TopicPartition(topic, p, confluent_kafka.OFFSET_BEGINNING) for p in parts])
+        self.messages: list[dict[str, Any]] = []
+
+    def wait_for(self, predicate: Callable[[list[dict[str, Any]]], bool], timeout_s: float,
+                 alive: Callable[[], None] | None = None) -> list[dict[str, Any]]:
+        end = time.monotonic() + timeout_s
+        while not predicate(self.messages):
+            if time.monotonic() > end:
+                raise AssertionError(f"timed out; got {summary(self.messages)}")
+            if alive is not None:
+                alive()
+            for m in self.c.consume(10, 0.5):
+                if m.error() is None:
+                    self.messages.append(json.loads(m.value()))
+        return self.messages
+
+    def close(self) -> None:
+        self.c.close()
+
+
+def summary(messages: list[dict[str, Any]]) -> list[tuple[Any, ...]]:
+    out = []
+    for m in messages:
+        ev = m.get("event") or {}
+        out.append((m.get("type"), ev.get("superevent_id") or m.get("superevent_id"), m.get("plan_id"),
+                    m.get("supersedes")))
+    return out
+
+
+@pytest.fixture(scope="session")
+def broker() -> Iterator[Broker]:
+    b = Broker()
+    yield b
+    b.producer.flush(5)
+
+
+TEST_CONFIG = """
+[scheduler]
+solver = "greedy"
+nside = 64
+
+[policy]
+allow_mock = true
+max_notice_age_s = 0
+max_event_age_s = 0
+
+[daemon]
+heartbeat_s = 2
+job_deadline_s = 600
+
+[kafka]
+topics = ["{topic}"]
+group_id = "{group}"
+assignment = "manual"
+poll_timeout_s = 0.5
+
+[outbound]
+sink = "kafka"
+topic = "{out_topic}"
+retry_initial_s = 0.5
+retry_max_s = 5
+"""
+
+
+def write_config(path: Path, topic: str, out_topic: str, group: str, extra: str = "") -> Path:
+    path.write_text(TEST_CONFIG.format(topic=topic, out_topic=out_topic, group=group) + extra)
+    return path
+
+
+class Daemon:
+    """``mushrooms run`` in a real subprocess; output goes to a log file."""
+
+    def __init__(self, workdir: Path, args: list[str], env: dict[str, str] | None = None) -> None:
+        self.workdir = workdir
+        self.log = workdir / f"daemon-{time.time_ns()}.log"
+        self.args = args
+        e = dict(os.environ)
+        e.pop("NOTIFY_SOCKET", None)
+        e.pop("WATCHDOG_USEC", None)
+        e.update(env or {})
+        self._fh = open(self.log, "wb")
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "mushrooms.cli", "run", *args],
+            cwd=workdir, stdout=self._fh, stderr=subprocess.STDOUT, env=e,
+        )
+
+    def text(self) -> str:
+        return self.log.read_text(errors="replace")
+
+    def alive(self) -> None:
+        if self.proc.poll() is not None:
+            raise AssertionError(f"daemon exited with {self.proc.returncode}:\n{self.text()[-4000:]}")
+
+    def wait_log(self, needle: str, timeout_s: float = 60.0, count: int = 1) -> str:
+        end = time.monotonic() + timeout_s
+        while True:
+            text = self.text()
+            if text.count(needle) >= count:
+                return text
+            self.alive()
+            if time.monotonic() > end:
+                raise AssertionError(f"{needle!r} not seen in the daemon log:\n{text[-4000:]}")
+            time.sleep(0.1)
+
+    def kill9(self) -> None:
+        self.proc.send_signal(signal.SIGKILL)
+        self.proc.wait(10)
+        self._fh.close()
+
+    def stop(self, sig: int = signal.SIGTERM, timeout_s: float = 60.0) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+            try:
+                self.proc.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(10)
+                raise AssertionError(f"daemon did not stop on {sig}:\n{self.text()[-4000:]}")
+        self._fh.close()
+        return self.proc.returncode
+
+
+@pytest.fixture
+def daemons() -> Iterator[list[Daemon]]:
+    started: list[Daemon] = []
+    yield started
+    for d in started:
+        if d.proc.poll() is None:
+            d.proc.kill()
+            d.proc.wait(10)

@@ -1,0 +1,132 @@
+"""``mushrooms trigger`` with a running daemon (trigger file + SIGUSR1) and
+without one (the command does the job itself); SIGHUP and SIGTERM."""
+
+from __future__ import annotations
+
+import json
+import signal
+import socket
+import threading
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from daemon_helpers import REPO, Daemon, notice_path, write_config
+
+FITS = REPO / "mushrooms" / "scheduler_core" / "data" / "MS181101ab_bayestar.multiorder.fits"
+
+
+def trigger(tmp_path: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "mushrooms.cli", "trigger", *args], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=300)
+
+
+def outbox_plans(outbox: Path) -> list[dict]:
+    docs = [json.loads(p.read_text()) for p in sorted(outbox.glob("*.json"))] if outbox.is_dir() else []
+    return [d for d in docs if d.get("type") == "plan"]
+
+
+def wait_plans(outbox: Path, n: int, daemon: Daemon, timeout_s: float = 240) -> list[dict]:
+    end = time.monotonic() + timeout_s
+    while len(outbox_plans(outbox)) < n:
+        daemon.alive()
+        assert time.monotonic() < end, f"no plan in {outbox}:\n{daemon.text()[-3000:]}"
+        time.sleep(0.2)
+    return outbox_plans(outbox)
+
+
+def test_trigger_without_a_daemon_does_the_job_itself(tmp_path: Path) -> None:
+    cfg = write_config(tmp_path / "config.toml", "unused", "unused", "unused")
+    state, outbox = tmp_path / "state.sqlite", tmp_path / "outbox"
+    common = ["--config", str(cfg), "--state", str(state), "--outbox", str(outbox)]
+
+    r = trigger(tmp_path, str(notice_path("MS181101ab-preliminary.json")), *common)
+    assert r.returncode == 0, r.stderr
+    assert "no daemon running" in r.stdout and "1 job(s) run here" in r.stdout
+    (first,) = outbox_plans(outbox)
+    assert first["event"]["superevent_id"] == "MS181101ab" and first["observations"]
+
+    # a known superevent id: planned again from now, superseding the first plan
+    r = trigger(tmp_path, "MS181101ab", *common)
+    assert r.returncode == 0, r.stderr
+    plans = {p["plan_id"]: p for p in outbox_plans(outbox)}
+    assert len(plans) == 2
+    (second,) = [p for p in plans.values() if p["plan_id"] != first["plan_id"]]
+    assert second["supersedes"] == first["plan_id"]
+
+    # a bare sky map
+    r = trigger(tmp_path, str(FITS), *common)
+    assert r.returncode == 0, r.stderr
+    bare = [p for p in outbox_plans(outbox) if p["event"]["superevent_id"] is None]
+    assert len(bare) == 1 and bare[0]["observations"]
+
+    # an unknown superevent and a missing file are input errors (exit 2, one line)
+    r = trigger(tmp_path, "S991231zz", *common)
+    assert r.returncode == 2 and "S991231zz" in r.stderr and "Traceback" not in r.stderr
+    r = trigger(tmp_path, str(tmp_path / "missing.json"), *common)
+    assert r.returncode == 2
+
+
+def test_trigger_hands_work_to_the_running_daemon_and_signals(broker, daemons, tmp_path: Path) -> None:
+    topic = f"quiet-{time.time_ns()}"
+    broker.ensure_topic(topic)
+    cfg = write_config(tmp_path / "config.toml", topic, "unused", f"g-{time.time_ns()}")
+    state, outbox = tmp_path / "state.sqlite", tmp_path / "outbox"
+    notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)  # stands in for systemd
+    notify.bind(str(tmp_path / "notify.sock"))
+    notify.settimeout(60)
+    d = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state),
+                          "--outbox", str(outbox)],
+               env={"NOTIFY_SOCKET": str(tmp_path / "notify.sock"), "WATCHDOG_USEC": "2000000"})
+    daemons.append(d)
+    seen: list[bytes] = []
+
+    def listen() -> None:
+        while True:
+            try:
+                seen.append(notify.recv(4096))
+            except OSError:
+                return
+
+    threading.Thread(target=listen, daemon=True).start()
+    d.wait_log("event=service_ready", 60)
+    end = time.monotonic() + 30
+    while b"WATCHDOG=1" not in seen and time.monotonic() < end:
+        time.sleep(0.1)
+    assert seen[0].startswith(b"READY=1\n") and b"WATCHDOG=1" in seen, seen
+    assert (tmp_path / "mushrooms.pid").read_text().strip() == str(d.proc.pid)
+
+    r = trigger(tmp_path, str(notice_path("MS181101ab-preliminary.json")), "--config", str(cfg),
+                "--state", str(state))
+    assert r.returncode == 0, r.stderr
+    assert f"handed to the daemon (pid {d.proc.pid}): accepted" in r.stdout
+    (plan,) = wait_plans(outbox, 1, d)
+    assert plan["event"]["superevent_id"] == "MS181101ab"
+    assert "event=trigger file=" in d.text() and "kind=notice" in d.text()
+    assert list((tmp_path / "mushrooms-triggers").iterdir()) == []
+
+    # a second daemon on the same state refuses to start
+    other = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state)])
+    assert other.proc.wait(60) == 1
+    assert "another mushrooms daemon runs" in other.text()
+
+    # SIGHUP reloads the configuration (here: a new heartbeat interval)
+    cfg.write_text(cfg.read_text().replace("heartbeat_s = 2", "heartbeat_s = 3"))
+    d.proc.send_signal(signal.SIGHUP)
+    d.wait_log("event=config_reloaded", 30)
+    # a broken file is refused and the running configuration kept
+    good = cfg.read_text()
+    cfg.write_text(good + "\n[nonsense]\n")
+    d.proc.send_signal(signal.SIGHUP)
+    d.wait_log("event=reload_failed", 30)
+    cfg.write_text(good)
+
+    # SIGTERM: clean stop, pid file removed
+    assert d.stop(signal.SIGTERM) == 0
+    text = d.text()
+    assert "event=service_stopped unfinished_jobs=no" in text
+    assert not (tmp_path / "mushrooms.pid").exists()
+    time.sleep(0.5)
+    notify.close()
+    assert b"RELOADING=1" in seen and b"STOPPING=1" in seen and seen.count(b"WATCHDOG=1") >= 1, seen
