@@ -1,0 +1,249 @@
+"""The real gwemopt as an optional baseline, run offline in its own interpreter.
+
+gwemopt (``pip install gwemopt``, GPL-3.0) pins other versions of numpy,
+astropy and ligo.skymap than ours, so it lives in a separate environment and
+runs in a subprocess: the interpreter comes from ``$MUSHROOMS_GWEMOPT_PYTHON``
+(or the caller).  Without it the baseline reports status ``unavailable``.
+
+What is run (gwemopt 0.4.2's own command line, ``gwemopt.run.run``; options
+read from its ``args.py``): telescope ``ZTF`` (its bundled ``ZTF.config``,
+tessellation ``ZTF.tess`` = the 1778 ZTF grid fields), MOC tiles with the
+CCD chip-gap footprint (``--doTiles --doChipGaps``), ``--doSchedule
+--scheduleType greedy`` (power-law time allocation), the two filters and
+exposure time of our configuration (``--filters g,r --exposuretimes
+300,300 --doSingleExposure --doAlternatingFilters``), the horizon
+``--gpstime <start> --Tobs 0,<horizon days>``, ``--nside`` and
+``--airmass`` of our configuration.  Astropy's IERS auto-download is turned
+off before gwemopt is imported, so nothing touches the network.
+
+Its output ``schedule_ZTF.dat`` (``field ra dec tobs[MJD, exposure start]
+limmag texp[s] prob airmass filter``) becomes our :class:`~.plan.Plan`;
+gwemopt merges consecutive slots of one field and filter into one longer
+exposure, which is kept as such (``exposure_s`` may be a multiple of ~310 s).
+gwemopt's own efficiency code is never used.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from astropy.time import Time, TimeDelta
+
+from .config import PlanningConfig
+from .plan import Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
+
+__all__ = ["GwemoptRun", "gwemopt_python", "run_gwemopt", "parse_schedule", "gwemopt_plan", "ENV_PYTHON"]
+
+#: Environment variable naming the interpreter of a gwemopt installation.
+ENV_PYTHON = "MUSHROOMS_GWEMOPT_PYTHON"
+
+#: Runs gwemopt's CLI offline (our own three lines, executed by gwemopt's interpreter).
+_LAUNCHER = (
+    "import sys\n"
+    "from astropy.utils import iers\n"
+    "iers.conf.auto_download = False\n"
+    "iers.conf.auto_max_age = None\n"
+    "from gwemopt.run import run\n"
+    "run(sys.argv[1:])\n"
+)
+
+
+@dataclass(frozen=True)
+class GwemoptRun:
+    """Outcome of one gwemopt run.
+
+    Attributes
+    ----------
+    status : str
+        ``ok``, ``unavailable``, ``failed`` or ``timeout``.
+    observations : tuple of Observation
+        Converted schedule (times in s since the horizon start).
+    runtime_s : float
+        Wall time of the subprocess (s).
+    message : str
+        One line: why it failed, or the command's tail.
+    """
+
+    status: str
+    observations: tuple[Observation, ...]
+    runtime_s: float
+    message: str = ""
+
+
+def gwemopt_python(explicit: str | None = None) -> str | None:
+    """The gwemopt interpreter: ``explicit``, else ``$MUSHROOMS_GWEMOPT_PYTHON``, else None."""
+    path = explicit or os.environ.get(ENV_PYTHON)
+    if not path:
+        return None
+    return path if Path(path).exists() else None
+
+
+def gwemopt_args(skymap_path: str | Path, start: Time, config: PlanningConfig, outdir: str | Path) -> list[str]:
+    """gwemopt 0.4.2 command-line options for one sky map and horizon."""
+    filters = ",".join(config.filters)
+    exps = ",".join(f"{config.exposure_s:g}" for _ in config.filters)
+    return [
+        "--telescopes", "ZTF",
+        "-e", str(skymap_path),
+        "-o", str(outdir),
+        "--gpstime", f"{Time(start, scale='utc').gps:.3f}",
+        "--Tobs", f"0,{config.horizon_h / 24.0:.6f}",
+        "--doTiles", "--tilesType", "moc",
+        "--doSchedule", "--scheduleType", "greedy", "--timeallocationType", "powerlaw",
+        "--doChipGaps",
+        "--filters", filters, "--exposuretimes", exps,
+        "--doSingleExposure", "--doAlternatingFilters",
+        "--nside", str(config.nside),
+        "--airmass", f"{config.airmass_max:g}",
+    ]
+
+
+#: gwemopt's ZTF.config ``overhead_per_exposure`` (s): its time slots are exposure + this.
+GWEMOPT_ZTF_OVERHEAD_S = 10.0
+
+
+def _snap_exposure(texp: np.ndarray, exposure_s: float, overhead_s: float) -> np.ndarray:
+    """Undo gwemopt's ``%d`` truncation of exposure times (299.99999 is written 299).
+
+    A merged run of k slots lasts ``k (exposure + overhead) - overhead``; a
+    written value at most 1 s below such a length is snapped to it.
+    """
+    slot = exposure_s + overhead_s
+    k = np.maximum(1, np.round((texp + overhead_s) / slot))
+    cand = k * slot - overhead_s
+    return np.where((cand - texp >= 0) & (cand - texp <= 1.0), cand, texp)
+
+
+def parse_schedule(text: str, start: Time, exposure_s: float | None = None,
+                   overhead_s: float = GWEMOPT_ZTF_OVERHEAD_S) -> tuple[Observation, ...]:
+    """Read gwemopt's ``schedule_<telescope>.dat`` into observations.
+
+    Parameters
+    ----------
+    text : str
+        File contents: ``field ra dec tobs limmag texp prob airmass filter``
+        per line, ``tobs`` the exposure start (MJD, UTC), ``texp`` in s
+        (written truncated to an integer).
+    start : astropy.time.Time
+        Horizon start; observation times become seconds since it.
+    exposure_s : float, optional
+        The requested exposure time (s); when given, truncated exposure
+        times are snapped back to whole slots (see :func:`_snap_exposure`).
+    overhead_s : float
+        gwemopt's overhead per exposure (s) for that snapping.
+
+    Returns
+    -------
+    tuple of Observation
+        In time order; ``block`` numbers runs of one filter.
+    """
+    rows = [ln.split() for ln in text.splitlines() if ln.strip() and not ln.startswith("#")]
+    if not rows:
+        return ()
+    fid = np.array([int(float(r[0])) for r in rows], dtype=np.int64)
+    ra = np.array([float(r[1]) for r in rows])
+    dec = np.array([float(r[2]) for r in rows])
+    mjd = np.array([float(r[3]) for r in rows])
+    texp = np.array([float(r[5]) for r in rows])
+    if exposure_s is not None:
+        texp = _snap_exposure(texp, float(exposure_s), overhead_s)
+    filt = [r[8] for r in rows]
+    t = (mjd - Time(start, scale="utc").mjd) * 86400.0
+    order = np.argsort(t, kind="stable")
+    obs = []
+    block, prev = -1, None
+    for k in order.tolist():
+        if filt[k] != prev:
+            block, prev = block + 1, filt[k]
+        obs.append(Observation(int(fid[k]), float(ra[k]), float(dec[k]), filt[k],
+                               float(round(t[k], 3)), float(texp[k]), block))
+    return sorted_observations(obs)
+
+
+def run_gwemopt(
+    skymap_path: str | Path,
+    start: Time,
+    config: PlanningConfig,
+    python: str | None = None,
+    timeout_s: float = 1800.0,
+    workdir: str | Path | None = None,
+) -> GwemoptRun:
+    """Run gwemopt offline on one sky map.
+
+    Parameters
+    ----------
+    skymap_path : str or pathlib.Path
+        Sky map FITS file (gwemopt reads it itself).
+    start : astropy.time.Time
+        Horizon start (UTC).
+    config : PlanningConfig
+        Filters, exposure time, horizon, nside and airmass are passed on.
+    python : str, optional
+        gwemopt's interpreter (default: :func:`gwemopt_python`).
+    timeout_s : float
+        Kill gwemopt after this many seconds.
+    workdir : str or pathlib.Path, optional
+        Where gwemopt writes (default: a temporary directory, removed).
+
+    Returns
+    -------
+    GwemoptRun
+    """
+    exe = gwemopt_python(python)
+    if exe is None:
+        return GwemoptRun("unavailable", (), 0.0, f"no gwemopt interpreter (set ${ENV_PYTHON})")
+    with tempfile.TemporaryDirectory(prefix="gwemopt-") as tmp:
+        out = Path(workdir) if workdir is not None else Path(tmp) / "out"
+        cmd = [exe, "-c", _LAUNCHER, *gwemopt_args(skymap_path, start, config, out)]
+        env = dict(os.environ, MPLBACKEND="Agg", PYTHONWARNINGS="ignore")
+        t0 = time.perf_counter()
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, env=env,
+                                  cwd=tmp, stdin=subprocess.DEVNULL)
+        except subprocess.TimeoutExpired:
+            return GwemoptRun("timeout", (), time.perf_counter() - t0, f"gwemopt exceeded {timeout_s:g} s")
+        runtime = time.perf_counter() - t0
+        sched = out / "schedule_ZTF.dat"
+        if proc.returncode != 0 or not sched.exists():
+            tail = (proc.stderr or proc.stdout or "").strip().splitlines()
+            why = tail[-1] if tail else f"exit status {proc.returncode}"
+            return GwemoptRun("failed", (), runtime, f"gwemopt exit {proc.returncode}: {why}"[:300])
+        obs = parse_schedule(sched.read_text(), start, config.exposure_s)
+    return GwemoptRun("ok", obs, runtime, "")
+
+
+def gwemopt_plan(run: GwemoptRun, start: Time, config: PlanningConfig, skymap_sha256: str,
+                 coverage: float) -> Plan:
+    """Wrap a gwemopt schedule as our :class:`~.plan.Plan` (for the checker).
+
+    Parameters
+    ----------
+    run : GwemoptRun
+        A successful run.
+    start : astropy.time.Time
+        Horizon start.
+    config : PlanningConfig
+        Gives the horizon.
+    skymap_sha256 : str
+        Sky map hash (for the plan id).
+    coverage : float
+        Probability covered (computed by the caller on our footprints).
+    """
+    ids = {o.field_id for o in run.observations}
+    metrics = PlanMetrics(coverage=round(float(coverage), 6), solver="gwemopt", status=run.status,
+                          mip_gap=None, runtime_s=round(run.runtime_s, 3), n_fields=len(ids),
+                          n_exposures=len(run.observations))
+    return Plan(
+        plan_id=make_plan_id(skymap_sha256, iso_utc(start), "gwemopt", sys.version_info[:2]),
+        start=Time(start, scale="utc"),
+        end=Time(start, scale="utc") + TimeDelta(config.horizon_s, format="sec"),
+        observations=run.observations,
+        metrics=metrics,
+    )

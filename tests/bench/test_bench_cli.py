@@ -1,0 +1,128 @@
+"""``mushrooms bench`` end to end on small inputs, the summary, gwemopt's schedule reader."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+
+import pytest
+from astropy.time import Time
+
+from mushrooms.bench import COLUMNS, best_of, read_csv, summarize
+from mushrooms.cli import main as cli_main
+from mushrooms.scheduler_core.gwemopt_baseline import parse_schedule, run_gwemopt
+from mushrooms.scheduler_core.config import PlanningConfig
+
+REQUIRED = ["skymap", "solver", "coverage", "efficiency_optimistic", "efficiency_conservative",
+            "n_exposures", "runtime_s", "status", "valid"]
+
+
+def test_bench_csv_on_one_small_map_with_greedy(tmp_path, data_dir, monkeypatch, capsys) -> None:
+    maps = tmp_path / "maps"
+    (maps / "sub").mkdir(parents=True)
+    shutil.copy(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", maps / "sub")
+    shutil.copy(data_dir / "skymaps" / "S200129m_cWB_RING.fits.gz", maps)  # no distance layers
+    (maps / "notes.txt").write_text("not a sky map")
+    monkeypatch.delenv("MUSHROOMS_GWEMOPT_PYTHON", raising=False)
+    monkeypatch.setenv("MUSHROOMS_PROGRESS", "0")
+    out = tmp_path / "results.csv"
+    rc = cli_main(["bench", str(maps), "--solvers", "greedy,gwemopt", "--injections", "2000",
+                   "-o", str(out), "--plots", str(tmp_path / "plots")])
+    assert rc == 0
+    with open(out, newline="") as fh:
+        header = next(csv.reader(fh))
+    assert header[:9] == REQUIRED
+    assert set(COLUMNS) <= set(header)
+    rows = read_csv(out)
+    assert [(r["skymap"].split("/")[-1], r["solver"]) for r in rows] == [
+        ("S200129m_cWB_RING.fits.gz", "greedy"), ("S200129m_cWB_RING.fits.gz", "gwemopt"),
+        ("MS220722v_bayestar.multiorder.fits", "greedy"), ("MS220722v_bayestar.multiorder.fits", "gwemopt"),
+    ]
+    by = {(r["skymap"].split("/")[-1].split("_")[0], r["solver"]): r for r in rows}
+    g = by[("MS220722v", "greedy")]
+    assert g["status"] == "greedy" and g["valid"] is True
+    assert 0.0 <= g["coverage"] <= 1.0 and g["n_exposures"] >= 0 and g["runtime_s"] > 0
+    assert abs(g["coverage"] - g["coverage_reported"]) < 2e-3
+    assert 0.0 <= g["efficiency_optimistic"] <= 1.0 and 0.0 <= g["efficiency_conservative"] <= 1.0
+    assert g["n_injections"] == 2000
+    cwb = by[("S200129m", "greedy")]
+    assert cwb["efficiency_optimistic"] is None and "no distance layers" in cwb["note"]
+    assert by[("MS220722v", "gwemopt")]["status"] == "unavailable"
+    text = capsys.readouterr().out
+    assert "greedy" in text and "cov mean" in text and "gwemopt: 2 map(s) without a plan" in text
+
+
+def test_bench_rejects_bad_input(tmp_path, capsys) -> None:
+    assert cli_main(["bench", str(tmp_path / "nope"), "-o", str(tmp_path / "r.csv")]) == 2
+    assert cli_main(["bench", str(tmp_path), "--solvers", "greedy,foo", "-o", str(tmp_path / "r.csv")]) == 2
+    assert cli_main(["bench", str(tmp_path), "--solvers", "greedy", "-o", str(tmp_path / "r.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "not a directory" in err and "unknown solver" in err and "no sky maps" in err
+
+
+def _r(m: str, s: str, cov: float, eff: float) -> dict:
+    return {"skymap": m, "solver": s, "coverage": cov, "efficiency_optimistic": eff,
+            "efficiency_conservative": eff / 2, "runtime_s": 1.0, "valid": True, "n_exposures": 10}
+
+
+def test_summary_counts_wins_and_builds_the_papers_hybrid() -> None:
+    rows = [
+        _r("a", "greedy", 0.5, 0.2), _r("a", "milp", 0.6, 0.1), _r("a", "gwemopt", 0.4, 0.3),
+        _r("b", "greedy", 0.5, 0.2), _r("b", "milp", 0.3, 0.1), _r("b", "gwemopt", 0.7, 0.3),
+        _r("c", "greedy", 0.5, 0.2), _r("c", "milp", 0.5, 0.2), _r("c", "gwemopt", 0.5, 0.2),
+    ]
+    hyb = {r["skymap"]: r for r in best_of(rows, "milp", "gwemopt")}
+    assert hyb["a"]["coverage"] == 0.6 and hyb["a"]["efficiency_optimistic"] == 0.1
+    assert hyb["b"]["coverage"] == 0.7 and hyb["b"]["efficiency_optimistic"] == 0.3
+    text = summarize(rows)
+    assert "milp vs greedy: coverage 1/1/1" in text
+    assert "milp vs gwemopt: coverage 1/1/1, eff_opti 0/2/1" in text
+    assert "best(milp,gwemopt)" in text
+
+
+SCHEDULE = """489 295.13032 4.55000 56143.29626 21.65000 299 0.25760 1.15073 g
+1535 293.39478 8.15000 56143.29985 21.65000 609 0.18784 1.12299 g
+489 295.13032 4.55000 56143.31000 21.65000 300 0.25760 1.15073 r
+"""
+
+
+def test_gwemopt_schedule_is_read_into_observations() -> None:
+    start = Time(56143.29626, format="mjd", scale="utc")
+    obs = parse_schedule(SCHEDULE, start, exposure_s=300.0)
+    assert [o.field_id for o in obs] == [489, 1535, 489]
+    assert [o.filter for o in obs] == ["g", "g", "r"]
+    assert [o.block for o in obs] == [0, 0, 1]
+    assert obs[0].start == pytest.approx(0.0, abs=1e-3)
+    assert obs[1].start == pytest.approx((56143.29985 - 56143.29626) * 86400, abs=1e-2)
+    # %d-truncated exposure times are snapped back to whole slots (300, 2*310-10)
+    assert [o.exposure_s for o in obs] == [300.0, 610.0, 300.0]
+    assert parse_schedule("", start) == ()
+
+
+def test_gwemopt_without_interpreter_is_unavailable(tmp_path, monkeypatch) -> None:
+    monkeypatch.delenv("MUSHROOMS_GWEMOPT_PYTHON", raising=False)
+    run = run_gwemopt(tmp_path / "x.fits", Time("2020-01-01T00:00:00"), PlanningConfig())
+    assert run.status == "unavailable" and "MUSHROOMS_GWEMOPT_PYTHON" in run.message
+    monkeypatch.setenv("MUSHROOMS_GWEMOPT_PYTHON", str(tmp_path / "no-python"))
+    assert run_gwemopt(tmp_path / "x.fits", Time("2020-01-01T00:00:00"), PlanningConfig()).status == "unavailable"
+
+
+@pytest.mark.slow
+def test_real_gwemopt_runs_offline_and_converts(data_dir) -> None:
+    """Needs MUSHROOMS_GWEMOPT_PYTHON (a venv with ``pip install gwemopt``); ~1 min."""
+    from mushrooms.scheduler_core import check_plan, read_skymap
+    from mushrooms.scheduler_core.gwemopt_baseline import gwemopt_plan, gwemopt_python
+
+    if gwemopt_python() is None:
+        pytest.skip("MUSHROOMS_GWEMOPT_PYTHON not set")
+    path = data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits"
+    sm = read_skymap(path)
+    cfg = PlanningConfig()
+    run = run_gwemopt(path, sm.event_time, cfg, timeout_s=900)
+    assert run.status == "ok", run.message
+    assert all(o.filter in ("g", "r") for o in run.observations)
+    assert all(0 <= o.start <= cfg.horizon_s for o in run.observations)
+    assert all(o.exposure_s % 310 == 300 for o in run.observations)
+    plan = gwemopt_plan(run, sm.event_time, cfg, sm.sha256, 0.0)
+    report = check_plan(plan, sm, cfg)
+    assert report.coverage >= 0.0
