@@ -143,25 +143,11 @@ def _fmt(x: Any, digits: int = 6) -> Any:
     return x
 
 
-def _plan_from_result(result: Any, problem: Any, skymap: Any, config: Any, start: Any) -> Any:
-    """A Plan from a ScheduleResult (as make_plan builds it, without raising)."""
-    from astropy.time import TimeDelta
+def _plan_from_result(result: Any, problem: Any, skymap: Any, solver: str) -> Any:
+    """A Plan from a ScheduleResult, as make_plan builds it but without raising on the checker."""
+    from .scheduler_core.planner import build_plan
 
-    from .scheduler_core.plan import Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
-
-    observations = sorted_observations(result.observations)
-    ids = {o.field_id for o in observations}
-    metrics = PlanMetrics(
-        coverage=round(problem.footprints.coverage(ids, skymap.prob), 6) if ids else 0.0,
-        solver=result.solver, status=result.status,
-        mip_gap=None if result.mip_gap is None else float(result.mip_gap),
-        runtime_s=round(float(result.runtime_s), 3), n_fields=len(ids), n_exposures=len(observations),
-    )
-    return Plan(
-        plan_id=make_plan_id(skymap.sha256, iso_utc(start), dataclasses.asdict(config), result.solver),
-        start=start, end=start + TimeDelta(config.horizon_s, format="sec"),
-        observations=observations, metrics=metrics,
-    )
+    return build_plan(problem, result, skymap, solver)
 
 
 def _score(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, injections: Any,
@@ -289,7 +275,7 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
                 rows.append(_row(name, solver, status="unavailable", valid=False, note=f"{exc}", **common))
                 continue
             solve_s = time.perf_counter() - t0
-            plan = _plan_from_result(result, problem, skymap, cfg, start)
+            plan = _plan_from_result(result, problem, skymap, solver)
             scores = _score(plan, skymap, settings, footprints, injections, lightcurves, merger)
             rows.append(_row(
                 name, solver, status=result.status, mip_gap=_fmt(result.mip_gap),

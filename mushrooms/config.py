@@ -2,7 +2,8 @@
 
 Sections: ``[scheduler]`` (:class:`~mushrooms.scheduler_core.PlanningConfig`),
 ``[policy]`` (:class:`~mushrooms.handlers.policy.PolicyConfig`),
-``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`).
+``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`);
+an optional ``[bench]`` table is read by ``mushrooms bench`` only.
 Secrets never come from here: see the README.
 """
 
@@ -45,7 +46,8 @@ class Config:
             "kafka": KafkaConfig,
             "outbound": OutboundConfig,
         }
-        unknown = sorted(set(data) - set(sections))
+        # [bench] belongs to `mushrooms bench`, which reads it itself
+        unknown = sorted(set(data) - set(sections) - {"bench"})
         if unknown:
             raise ConfigError(f"{source}: unknown section(s): {', '.join(unknown)}")
         kwargs: dict[str, Any] = {"source": source}

@@ -55,7 +55,7 @@ def block_size(config: PlanningConfig) -> int:
     The second-filter visit of a field comes one pass of the block plus a
     filter change after its first visit, so ``n (t_exp + t_slew) + t_filt >=
     cadence`` gives ``b_size = ceil((cadence − t_filt) / (t_exp + t_slew))``
-    (at least 1).
+    (at least 1).  A positive ``config.min_block_size`` replaces the rule.
 
     Parameters
     ----------
@@ -67,6 +67,8 @@ def block_size(config: PlanningConfig) -> int:
     -------
     int
     """
+    if config.min_block_size > 0:
+        return int(config.min_block_size)
     per_visit = config.exposure_s + config.slew_estimate_s
     return max(1, int(math.ceil((config.cadence_s - config.filter_change_s) / per_visit - 1e-9)))
 

@@ -80,6 +80,12 @@ class PlanningConfig:
         Shortlist size after pruning; None sizes it from the horizon.
     n_blocks_max : int
         Most observing blocks in the MILP (b_max).
+    min_block_size : int
+        Least number of fields in a MILP block.  0 (default) applies the
+        paper's rule, b_size = ceil((cadence - t_filt) / (t_exp + t_slew)),
+        so that no block waits for the cadence; a positive number overrides
+        it (1 lets short-lived fields into small blocks that wait for the
+        cadence: more coverage on some maps, harder models).
     penalty : float
         Objective penalty per field-block assignment (p).
     block_gap_s : float
@@ -117,6 +123,7 @@ class PlanningConfig:
     slew_estimate_s: float = 10.0
     n_fields: int | None = None
     n_blocks_max: int = 6
+    min_block_size: int = 0
     penalty: float = 0.0
     block_gap_s: float = 0.0
     solver: str = "hybrid"
@@ -146,6 +153,8 @@ class PlanningConfig:
             problems.append(f"milp_backend must be auto, highs or gurobi, got {self.milp_backend!r}")
         if self.n_fields is not None and self.n_fields < 1:
             problems.append(f"n_fields must be >= 1, got {self.n_fields}")
+        if self.min_block_size < 0:
+            problems.append(f"min_block_size must be >= 0, got {self.min_block_size}")
         if self.n_blocks_max < 1:
             problems.append(f"n_blocks_max must be >= 1, got {self.n_blocks_max}")
         if problems:

@@ -33,7 +33,7 @@ PLAN_KEYS = (
 )
 OBSERVATION_KEYS = ("field_id", "ra", "dec", "filter", "start", "exposure_s", "block")
 METRIC_KEYS = (
-    "coverage", "solver", "status", "mip_gap", "runtime_s",
+    "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
     "n_fields", "n_exposures", "latency_s",
 )
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
@@ -124,6 +124,9 @@ class PlanMetrics:
         Solver status (``optimal``, ``time_limit``, ``greedy``, ...).
     mip_gap : float or None
         Relative MIP gap at the end of the solve (None for greedy).
+    mip_bound : float or None
+        The MILP's best bound on its objective (covered probability minus
+        the field penalty): no block plan can do better (None for greedy).
     runtime_s : float
         Wall time of the planning (s).
     n_fields, n_exposures : int
@@ -140,6 +143,7 @@ class PlanMetrics:
     n_fields: int
     n_exposures: int
     latency_s: float | None = None
+    mip_bound: float | None = None
 
 
 def make_plan_id(*parts: Any) -> str:

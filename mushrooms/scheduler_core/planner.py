@@ -17,7 +17,7 @@ from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .skymap import SkyMap
 
-__all__ = ["make_plan", "run_scheduler", "SOLVERS"]
+__all__ = ["make_plan", "build_plan", "run_scheduler", "SOLVERS"]
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +50,8 @@ def run_scheduler(problem: PlanningProblem, solver: str,
         details = dict(best.details)
         details.update(hybrid_choice="milp" if best is milp else "greedy",
                        coverage_greedy=cg, coverage_milp=cm,
-                       milp_status=milp.status, milp_gap=milp.mip_gap)
+                       milp_status=milp.status, milp_gap=milp.mip_gap,
+                       milp_bound=milp.details.get("bound"))
         return dataclasses.replace(
             best,
             solver=f"hybrid({best.solver})",
@@ -112,24 +113,75 @@ def make_plan(
         start = skymap.event_time
     start = Time(start, scale="utc")
     event = event or EventInfo(skymap_sha256=skymap.sha256)
-    plan_id = make_plan_id(
-        skymap.sha256, iso_utc(start), dataclasses.asdict(config), solver, event.superevent_id,
-    )
     problem = prepare_problem(skymap, config, start)
     t_prep = time.perf_counter() - t0
     result = run_scheduler(problem, solver, should_stop)
+    plan = build_plan(problem, result, skymap, solver, event=event, supersedes=supersedes,
+                      runtime_s=time.perf_counter() - t0)
+    metrics = plan.metrics
+    report = check_plan(plan, skymap, config)
+    log.info("plan %s: %s %s, %d fields, %d exposures, coverage %.4f (checker %.4f), prepare %.1f s, total %.1f s",
+             plan.plan_id, result.solver, result.status, metrics.n_fields, metrics.n_exposures,
+             metrics.coverage, report.coverage, t_prep, time.perf_counter() - t0)
+    if not report.ok:
+        raise PlanCheckError(list(report.problems))
+    return plan
+
+
+def build_plan(
+    problem: PlanningProblem,
+    result: ScheduleResult,
+    skymap: SkyMap,
+    solver: str,
+    event: EventInfo | None = None,
+    supersedes: str | None = None,
+    runtime_s: float | None = None,
+) -> Plan:
+    """Turn a scheduler's result into a :class:`Plan` (not checked here).
+
+    Parameters
+    ----------
+    problem : PlanningProblem
+        The problem the scheduler solved (config, start, footprints).
+    result : ScheduleResult
+        The scheduler's output.
+    skymap : SkyMap
+        The sky map (its hash keys the plan id).
+    solver : str
+        The scheduler asked for (``greedy``, ``milp``, ``hybrid``).
+    event : EventInfo, optional
+        The alert answered.
+    supersedes : str, optional
+        plan_id of the plan replaced.
+    runtime_s : float, optional
+        Wall time to report (default: the scheduler's own).
+
+    Returns
+    -------
+    Plan
+        Its plan_id depends only on the sky map, start, configuration,
+        solver and superevent: the same inputs give the same id.
+    """
+    config = problem.config
+    start = problem.start
+    event = event or EventInfo(skymap_sha256=skymap.sha256)
     observations = sorted_observations(result.observations)
     ids = {o.field_id for o in observations}
+    bound = result.details.get("bound", result.details.get("milp_bound"))
     metrics = PlanMetrics(
         coverage=round(problem.footprints.coverage(ids, skymap.prob), 6),
         solver=result.solver,
         status=result.status,
         mip_gap=None if result.mip_gap is None else float(result.mip_gap),
-        runtime_s=round(time.perf_counter() - t0, 3),
+        mip_bound=None if bound is None else round(float(bound), 6),
+        runtime_s=round(result.runtime_s if runtime_s is None else runtime_s, 3),
         n_fields=len(ids),
         n_exposures=len(observations),
     )
-    plan = Plan(
+    plan_id = make_plan_id(
+        skymap.sha256, iso_utc(start), dataclasses.asdict(config), solver, event.superevent_id,
+    )
+    return Plan(
         plan_id=plan_id,
         start=start,
         end=start + TimeDelta(config.horizon_s, format="sec"),
@@ -138,10 +190,3 @@ def make_plan(
         event=event,
         supersedes=supersedes,
     )
-    report = check_plan(plan, skymap, config)
-    log.info("plan %s: %s %s, %d fields, %d exposures, coverage %.4f (checker %.4f), prepare %.1f s, total %.1f s",
-             plan_id, result.solver, result.status, metrics.n_fields, metrics.n_exposures,
-             metrics.coverage, report.coverage, t_prep, time.perf_counter() - t0)
-    if not report.ok:
-        raise PlanCheckError(list(report.problems))
-    return plan

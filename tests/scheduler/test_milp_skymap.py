@@ -45,3 +45,12 @@ def test_hybrid_covers_at_least_the_greedy(skymap_220722v, milp_config, greedy_p
     assert hybrid.metrics.solver.startswith("hybrid(")
     assert hybrid.metrics.status is not None
     assert check_plan(hybrid, skymap_220722v, milp_config).ok
+
+
+def test_milp_plan_reports_a_bound_no_smaller_than_its_coverage(milp_plan, milp_config):
+    m = milp_plan.metrics
+    assert m.mip_bound is not None
+    assert milp_config.penalty == 0.0  # then the objective is the covered probability
+    assert m.coverage <= m.mip_bound + 1e-6
+    doc = milp_plan.to_document()
+    assert doc["metrics"]["mip_bound"] == m.mip_bound
