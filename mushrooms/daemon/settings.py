@@ -2,25 +2,14 @@
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
+from ..scheduler_core.config import dataclass_from_table
+
 __all__ = ["DaemonConfig", "KafkaConfig", "OutboundConfig", "RuntimePaths", "resolve_paths"]
-
-
-def _from_table(cls: type, table: Mapping[str, Any], name: str) -> Any:
-    known = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(table) - known)
-    if unknown:
-        raise ValueError(f"unknown [{name}] key(s): {', '.join(unknown)}")
-    values = dict(table)
-    for f in dataclasses.fields(cls):
-        if f.name in values and isinstance(values[f.name], list):
-            values[f.name] = tuple(values[f.name])
-    return cls(**values)
 
 
 @dataclass(frozen=True)
@@ -78,7 +67,7 @@ class DaemonConfig:
 
     @classmethod
     def from_mapping(cls, table: Mapping[str, Any]) -> "DaemonConfig":
-        return _from_table(cls, table, "daemon")
+        return dataclass_from_table(cls, table, "daemon")
 
 
 @dataclass(frozen=True)
@@ -136,7 +125,7 @@ class KafkaConfig:
 
     @classmethod
     def from_mapping(cls, table: Mapping[str, Any]) -> "KafkaConfig":
-        return _from_table(cls, table, "kafka")
+        return dataclass_from_table(cls, table, "kafka")
 
 
 @dataclass(frozen=True)
@@ -177,7 +166,7 @@ class OutboundConfig:
 
     @classmethod
     def from_mapping(cls, table: Mapping[str, Any]) -> "OutboundConfig":
-        return _from_table(cls, table, "outbound")
+        return dataclass_from_table(cls, table, "outbound")
 
 
 @dataclass(frozen=True)

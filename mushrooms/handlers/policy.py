@@ -8,10 +8,11 @@ is :mod:`mushrooms.handlers.decisions`' business.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, Mapping
+
+from ..scheduler_core.config import dataclass_from_table
 
 if TYPE_CHECKING:  # pragma: no cover
     from .alert import Alert
@@ -126,15 +127,7 @@ class PolicyConfig:
         ValueError
             On an unknown key or a bad value, with one line naming it.
         """
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(table) - known)
-        if unknown:
-            raise ValueError(f"unknown [policy] key(s): {', '.join(unknown)}")
-        values = dict(table)
-        for f in dataclasses.fields(cls):
-            if f.name in values and isinstance(values[f.name], list):
-                values[f.name] = tuple(values[f.name])
-        return cls(**values)
+        return dataclass_from_table(cls, table, "policy")
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,34 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-__all__ = ["PlanningConfig", "SlewModel"]
+__all__ = ["PlanningConfig", "SlewModel", "dataclass_from_table"]
+
+
+def dataclass_from_table(cls: type, table: Mapping[str, Any], section: str) -> Any:
+    """Build a frozen config dataclass from a parsed TOML table.
+
+    Unknown keys are an error naming them; TOML arrays become tuples.
+
+    Parameters
+    ----------
+    cls : type
+        The dataclass.
+    table : mapping
+        The parsed ``[section]`` table.
+    section : str
+        Its name, for the error message.
+
+    Raises
+    ------
+    ValueError
+        ``unknown [section] key(s): ...``, or the dataclass's own check.
+    """
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(table) - known)
+    if unknown:
+        raise ValueError(f"unknown [{section}] key(s): {', '.join(unknown)}")
+    values = {k: tuple(v) if isinstance(v, list) else v for k, v in table.items()}
+    return cls(**values)
 
 
 @dataclass(frozen=True)
@@ -174,17 +201,7 @@ class PlanningConfig:
         values : mapping
             Keys are attribute names; ``slew`` may be a nested table.
         """
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"unknown [scheduler] key(s): {', '.join(unknown)}")
         kwargs = dict(values)
-        if "slew" in kwargs and isinstance(kwargs["slew"], Mapping):
-            slew_known = {f.name for f in dataclasses.fields(SlewModel)}
-            bad = sorted(set(kwargs["slew"]) - slew_known)
-            if bad:
-                raise ValueError(f"unknown [scheduler.slew] key(s): {', '.join(bad)}")
-            kwargs["slew"] = SlewModel(**kwargs["slew"])
-        if "filters" in kwargs:
-            kwargs["filters"] = tuple(kwargs["filters"])
-        return cls(**kwargs)
+        if isinstance(kwargs.get("slew"), Mapping):
+            kwargs["slew"] = dataclass_from_table(SlewModel, kwargs["slew"], "scheduler.slew")
+        return dataclass_from_table(cls, kwargs, "scheduler")
