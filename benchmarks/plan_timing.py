@@ -33,7 +33,7 @@ def stage_times(path: Path, solver: str) -> dict[str, float]:
 
     from mushrooms.scheduler_core import PlanningConfig, check_plan, read_skymap
     from mushrooms.scheduler_core.fields import field_footprints, load_ztf_fields
-    from mushrooms.scheduler_core.planner import make_plan, run_scheduler
+    from mushrooms.scheduler_core.planner import build_plan, run_scheduler
     from mushrooms.scheduler_core.prepare import prepare_problem
     from mushrooms.scheduler_core.visibility import observability_windows
 
@@ -53,9 +53,9 @@ def stage_times(path: Path, solver: str) -> dict[str, float]:
     out["visibility"] = time.perf_counter() - t
     problem = prepare_problem(sm, cfg, sm.event_time)
     t = time.perf_counter()
-    run_scheduler(problem, solver)
+    result = run_scheduler(problem, solver)
     out["schedule"] = time.perf_counter() - t
-    plan = make_plan(sm, cfg)
+    plan = build_plan(problem, result, sm, solver)
     t = time.perf_counter()
     report = check_plan(plan, sm, cfg)
     out["check"] = time.perf_counter() - t
