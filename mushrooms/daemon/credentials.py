@@ -1,6 +1,6 @@
-"""GCN Kafka client credentials: from the environment or systemd credentials.
+"""Kafka credentials: from the environment or systemd credentials.
 
-Never from ``config.toml``.  Lookup order, first match wins:
+Never from ``config.toml``.  GCN client id and secret, first match wins:
 
 1. ``$CREDENTIALS_DIRECTORY/gcn_client_id`` and ``.../gcn_client_secret``
    (systemd ``LoadCredential=``/``LoadCredentialEncrypted=``);
@@ -8,6 +8,10 @@ Never from ``config.toml``.  Lookup order, first match wins:
 
 Id and secret may come from different places (the id is not secret and may
 sit in an ``Environment=`` line while the secret is a credential).
+
+The outbound Kafka sink's SASL password (when ``[outbound] security_protocol``
+is ``sasl_*``): ``$CREDENTIALS_DIRECTORY/outbound_password``, else
+``$MUSHROOMS_OUTBOUND_PASSWORD``.
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ from typing import Mapping
 
 from ..config import ConfigError
 
-__all__ = ["Credentials", "CredentialsError", "load_credentials"]
+__all__ = ["Credentials", "CredentialsError", "load_credentials", "load_outbound_password"]
 
 
 class CredentialsError(ConfigError):
@@ -89,3 +93,34 @@ def load_credentials(environ: Mapping[str, str] | None = None) -> Credentials:
             "(or use --bootstrap HOST:PORT for a local broker)"
         )
     return Credentials(client_id=client_id, client_secret=secret, source=", ".join(sources))
+
+
+def load_outbound_password(environ: Mapping[str, str] | None = None) -> tuple[str, str]:
+    """Find the SASL password of the outbound Kafka sink.
+
+    Parameters
+    ----------
+    environ : mapping, optional
+        Environment (default ``os.environ``).
+
+    Returns
+    -------
+    password, source : str
+        The password and where it came from (for logs; never the value).
+
+    Raises
+    ------
+    CredentialsError
+        With a one-line hint when it is missing.
+    """
+    env = os.environ if environ is None else environ
+    password = _read_credential("outbound_password", env)
+    if password:
+        return password, "credential:outbound_password"
+    password = env.get("MUSHROOMS_OUTBOUND_PASSWORD", "").strip()
+    if password:
+        return password, "env:MUSHROOMS_OUTBOUND_PASSWORD"
+    raise CredentialsError(
+        "outbound Kafka SASL password not found: set MUSHROOMS_OUTBOUND_PASSWORD or the systemd "
+        "credential outbound_password (or set [outbound] security_protocol to plaintext/ssl)"
+    )

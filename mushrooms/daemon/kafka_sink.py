@@ -17,15 +17,52 @@ from typing import Any, Mapping
 
 import confluent_kafka
 
+from .credentials import CredentialsError, load_outbound_password
+from .settings import OutboundConfig
 from .sinks import SinkError
 
-__all__ = ["KafkaSink", "PublishError"]
+__all__ = ["KafkaSink", "PublishError", "sink_security"]
 
 log = logging.getLogger(__name__)
 
 
 class PublishError(SinkError):
     """The broker did not acknowledge a message in time."""
+
+
+def sink_security(config: OutboundConfig, environ: Mapping[str, str] | None = None) -> tuple[dict[str, str], str]:
+    """librdkafka security settings of the outbound producer.
+
+    Parameters
+    ----------
+    config : OutboundConfig
+        Uses ``security_protocol``, ``sasl_mechanism``, ``sasl_username``.
+    environ : mapping, optional
+        Environment for the password lookup (default ``os.environ``).
+
+    Returns
+    -------
+    settings : dict
+        ``security.protocol`` and, for ``sasl_*``, ``sasl.mechanism``,
+        ``sasl.username`` and ``sasl.password``.
+    description : str
+        One line for the log, without the password.
+
+    Raises
+    ------
+    CredentialsError
+        A ``sasl_*`` protocol without a user name or without a password.
+    """
+    protocol = config.security_protocol.lower()
+    settings = {"security.protocol": protocol}
+    if not protocol.startswith("sasl_"):
+        return settings, protocol
+    if not config.sasl_username:
+        raise CredentialsError(f"[outbound] security_protocol = {protocol!r} needs [outbound] sasl_username")
+    password, source = load_outbound_password(environ)
+    settings.update({"sasl.mechanism": config.sasl_mechanism.upper(), "sasl.username": config.sasl_username,
+                     "sasl.password": password})
+    return settings, f"{protocol} {config.sasl_mechanism.upper()} user {config.sasl_username} (password from {source})"
 
 
 class KafkaSink:

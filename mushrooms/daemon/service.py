@@ -81,9 +81,11 @@ def make_sink(config: Config) -> Any:
     """The outbound sink of the configuration."""
     out = config.outbound
     if out.sink == "kafka":
-        from .kafka_sink import KafkaSink
+        from .kafka_sink import KafkaSink, sink_security
 
-        return KafkaSink(out.bootstrap, out.topic, out.max_message_bytes, out.delivery_timeout_s)
+        security, described = sink_security(out)
+        log.info("event=outbound_kafka broker=%s topic=%s security=%r", out.bootstrap, out.topic, described)
+        return KafkaSink(out.bootstrap, out.topic, out.max_message_bytes, out.delivery_timeout_s, extra=security)
     from .sinks import DirectorySink
 
     return DirectorySink(Path(out.directory))
@@ -399,7 +401,12 @@ class Service:
             new = dataclasses.replace(new, daemon=dataclasses.replace(new.daemon, state_path=str(self.paths.state)))
         from .pipeline import NoticePipeline
 
-        sink = self.pipeline.sink if new.outbound == self.config.outbound else make_sink(new)
+        try:
+            sink = self.pipeline.sink if new.outbound == self.config.outbound else make_sink(new)
+        except Exception as exc:  # bad sink settings or missing password: keep running as before
+            log.error("event=reload_failed error=%r (keeping the running configuration)", str(exc))
+            self.notifier.ready("reload failed; old configuration kept")
+            return
         self.pipeline = NoticePipeline(new, self.pipeline.store, sink)
         if new.kafka != self.config.kafka:
             from .consumer import NoticeConsumer

@@ -128,6 +128,10 @@ class KafkaConfig:
         return dataclass_from_table(cls, table, "kafka")
 
 
+SECURITY_PROTOCOLS = ("plaintext", "ssl", "sasl_plaintext", "sasl_ssl")
+SASL_MECHANISMS = ("SCRAM-SHA-512", "SCRAM-SHA-256", "PLAIN")
+
+
 @dataclass(frozen=True)
 class OutboundConfig:
     """Where plans and withdrawals go.
@@ -149,6 +153,16 @@ class OutboundConfig:
     delivery_timeout_s : float
         How long (s) the Kafka sink waits for the broker's acknowledgement
         before the publish counts as failed (and is retried from the outbox).
+    security_protocol : str
+        Kafka sink's ``security.protocol``: ``plaintext`` (default), ``ssl``,
+        ``sasl_plaintext`` or ``sasl_ssl``.
+    sasl_mechanism : str
+        SASL mechanism for the ``sasl_*`` protocols (``SCRAM-SHA-512``,
+        ``SCRAM-SHA-256`` or ``PLAIN``).
+    sasl_username : str
+        SASL user name (not secret).  The password never comes from the
+        config: systemd credential ``outbound_password`` or the environment
+        variable ``MUSHROOMS_OUTBOUND_PASSWORD``.
     """
 
     sink: str = "directory"
@@ -159,10 +173,19 @@ class OutboundConfig:
     retry_max_s: float = 300.0
     max_message_bytes: int = 16_000_000
     delivery_timeout_s: float = 30.0
+    security_protocol: str = "plaintext"
+    sasl_mechanism: str = "SCRAM-SHA-512"
+    sasl_username: str = ""
 
     def __post_init__(self) -> None:
         if self.sink not in ("directory", "kafka"):
             raise ValueError(f"[outbound] sink must be directory or kafka, got {self.sink!r}")
+        if self.security_protocol.lower() not in SECURITY_PROTOCOLS:
+            raise ValueError(f"[outbound] security_protocol must be one of {', '.join(SECURITY_PROTOCOLS)}, "
+                             f"got {self.security_protocol!r}")
+        if self.sasl_mechanism.upper() not in SASL_MECHANISMS:
+            raise ValueError(f"[outbound] sasl_mechanism must be one of {', '.join(SASL_MECHANISMS)}, "
+                             f"got {self.sasl_mechanism!r}")
 
     @classmethod
     def from_mapping(cls, table: Mapping[str, Any]) -> "OutboundConfig":

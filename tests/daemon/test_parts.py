@@ -154,6 +154,56 @@ def test_kafka_sink_raises_when_the_broker_is_unreachable() -> None:
         sink.publish({"type": "withdrawal", "superevent_id": "S1"})
 
 
+def test_outbound_security_settings_and_password_lookup(tmp_path: Path) -> None:
+    from mushrooms.daemon.kafka_sink import sink_security
+
+    assert sink_security(OutboundConfig(sink="kafka"), {}) == ({"security.protocol": "plaintext"}, "plaintext")
+    assert sink_security(OutboundConfig(sink="kafka", security_protocol="SSL"), {})[0] == {"security.protocol": "ssl"}
+    sasl = OutboundConfig(sink="kafka", security_protocol="sasl_ssl", sasl_username="ztf-planner",
+                          sasl_mechanism="scram-sha-256")
+    conf, described = sink_security(sasl, {"MUSHROOMS_OUTBOUND_PASSWORD": "hunter2\n"})
+    assert conf == {"security.protocol": "sasl_ssl", "sasl.mechanism": "SCRAM-SHA-256",
+                    "sasl.username": "ztf-planner", "sasl.password": "hunter2"}
+    assert "hunter2" not in described and "env:MUSHROOMS_OUTBOUND_PASSWORD" in described
+    # a systemd credential wins over the environment
+    (tmp_path / "outbound_password").write_text("from-systemd\n")
+    conf, described = sink_security(sasl, {"CREDENTIALS_DIRECTORY": str(tmp_path),
+                                           "MUSHROOMS_OUTBOUND_PASSWORD": "hunter2"})
+    assert conf["sasl.password"] == "from-systemd" and "credential:outbound_password" in described
+    with pytest.raises(CredentialsError, match="MUSHROOMS_OUTBOUND_PASSWORD"):
+        sink_security(sasl, {})
+    with pytest.raises(CredentialsError, match="sasl_username"):
+        sink_security(OutboundConfig(sink="kafka", security_protocol="sasl_ssl"), {"MUSHROOMS_OUTBOUND_PASSWORD": "x"})
+    with pytest.raises(ValueError, match="security_protocol"):
+        OutboundConfig.from_mapping({"security_protocol": "tls"})
+    with pytest.raises(ValueError, match="sasl_mechanism"):
+        OutboundConfig.from_mapping({"sasl_mechanism": "GSSAPI"})
+
+
+def test_kafka_sink_really_authenticates_with_sasl(broker, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The mock broker speaks no SASL: a SASL sink must fail where a plaintext one succeeds."""
+    from mushrooms.config import load_config
+    from mushrooms.daemon.service import make_sink
+    import dataclasses
+
+    topic = f"sasl-{time.time_ns()}"
+    broker.ensure_topic(topic)
+    base = load_config(None)
+    plain = dataclasses.replace(base, outbound=dataclasses.replace(
+        base.outbound, sink="kafka", bootstrap=broker.bootstrap, topic=topic, delivery_timeout_s=20))
+    sink = make_sink(plain)
+    sink.publish({"type": "withdrawal", "superevent_id": "S1"})
+    sink.close()
+    monkeypatch.setenv("MUSHROOMS_OUTBOUND_PASSWORD", "secret")
+    monkeypatch.delenv("CREDENTIALS_DIRECTORY", raising=False)
+    sasl = dataclasses.replace(plain, outbound=dataclasses.replace(
+        plain.outbound, security_protocol="sasl_plaintext", sasl_mechanism="PLAIN", sasl_username="u",
+        delivery_timeout_s=3))
+    sink = make_sink(sasl)
+    with pytest.raises(PublishError):
+        sink.publish({"type": "withdrawal", "superevent_id": "S2"})
+
+
 @pytest.mark.parametrize("assignment", ["manual", "group"])
 def test_consumer_reads_a_1mb_notice_and_resumes_after_commit(broker, assignment: str) -> None:
     topic = f"in-{assignment}-{time.time_ns()}"
