@@ -56,6 +56,21 @@ def _read_credential(name: str, env: Mapping[str, str]) -> str | None:
     return value or None
 
 
+def _lookup(credential: str, variable: str, env: Mapping[str, str]) -> tuple[str | None, str | None]:
+    """One secret: the systemd credential ``credential``, else ``$variable``.
+
+    Returns the value and where it came from (``credential:NAME`` or
+    ``env:NAME``), or ``(None, None)``.
+    """
+    value = _read_credential(credential, env)
+    if value:
+        return value, f"credential:{credential}"
+    value = env.get(variable, "").strip()
+    if value:
+        return value, f"env:{variable}"
+    return None, None
+
+
 def load_credentials(environ: Mapping[str, str] | None = None) -> Credentials:
     """Find the GCN client id and secret.
 
@@ -70,21 +85,8 @@ def load_credentials(environ: Mapping[str, str] | None = None) -> Credentials:
         With a one-line hint when either value is missing.
     """
     env = os.environ if environ is None else environ
-    sources = []
-    client_id = _read_credential("gcn_client_id", env)
-    if client_id:
-        sources.append("credential:gcn_client_id")
-    else:
-        client_id = env.get("GCN_CLIENT_ID", "").strip() or None
-        if client_id:
-            sources.append("env:GCN_CLIENT_ID")
-    secret = _read_credential("gcn_client_secret", env)
-    if secret:
-        sources.append("credential:gcn_client_secret")
-    else:
-        secret = env.get("GCN_CLIENT_SECRET", "").strip() or None
-        if secret:
-            sources.append("env:GCN_CLIENT_SECRET")
+    client_id, id_source = _lookup("gcn_client_id", "GCN_CLIENT_ID", env)
+    secret, secret_source = _lookup("gcn_client_secret", "GCN_CLIENT_SECRET", env)
     if not client_id or not secret:
         missing = [n for n, v in (("client id", client_id), ("client secret", secret)) if not v]
         raise CredentialsError(
@@ -92,7 +94,7 @@ def load_credentials(environ: Mapping[str, str] | None = None) -> Credentials:
             "systemd credentials gcn_client_id/gcn_client_secret "
             "(or use --bootstrap HOST:PORT for a local broker)"
         )
-    return Credentials(client_id=client_id, client_secret=secret, source=", ".join(sources))
+    return Credentials(client_id=client_id, client_secret=secret, source=f"{id_source}, {secret_source}")
 
 
 def load_outbound_password(environ: Mapping[str, str] | None = None) -> tuple[str, str]:
@@ -114,12 +116,9 @@ def load_outbound_password(environ: Mapping[str, str] | None = None) -> tuple[st
         With a one-line hint when it is missing.
     """
     env = os.environ if environ is None else environ
-    password = _read_credential("outbound_password", env)
-    if password:
-        return password, "credential:outbound_password"
-    password = env.get("MUSHROOMS_OUTBOUND_PASSWORD", "").strip()
-    if password:
-        return password, "env:MUSHROOMS_OUTBOUND_PASSWORD"
+    password, source = _lookup("outbound_password", "MUSHROOMS_OUTBOUND_PASSWORD", env)
+    if password and source:
+        return password, source
     raise CredentialsError(
         "outbound Kafka SASL password not found: set MUSHROOMS_OUTBOUND_PASSWORD or the systemd "
         "credential outbound_password (or set [outbound] security_protocol to plaintext/ssl)"

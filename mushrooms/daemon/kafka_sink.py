@@ -60,9 +60,9 @@ def sink_security(config: OutboundConfig, environ: Mapping[str, str] | None = No
     if not config.sasl_username:
         raise CredentialsError(f"[outbound] security_protocol = {protocol!r} needs [outbound] sasl_username")
     password, source = load_outbound_password(environ)
-    settings.update({"sasl.mechanism": config.sasl_mechanism.upper(), "sasl.username": config.sasl_username,
-                     "sasl.password": password})
-    return settings, f"{protocol} {config.sasl_mechanism.upper()} user {config.sasl_username} (password from {source})"
+    mechanism = config.sasl_mechanism.upper()
+    settings.update({"sasl.mechanism": mechanism, "sasl.username": config.sasl_username, "sasl.password": password})
+    return settings, f"{protocol} {mechanism} user {config.sasl_username} (password from {source})"
 
 
 class KafkaSink:

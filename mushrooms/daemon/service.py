@@ -392,7 +392,8 @@ class Service:
         self.notifier.reloading()
         try:
             new = effective_config(self.args)
-        except ConfigError as exc:
+            sink = self.pipeline.sink if new.outbound == self.config.outbound else make_sink(new)
+        except Exception as exc:  # a bad file, bad sink settings, a missing password: keep running as before
             log.error("event=reload_failed error=%r (keeping the running configuration)", str(exc))
             self.notifier.ready("reload failed; old configuration kept")
             return
@@ -401,12 +402,6 @@ class Service:
             new = dataclasses.replace(new, daemon=dataclasses.replace(new.daemon, state_path=str(self.paths.state)))
         from .pipeline import NoticePipeline
 
-        try:
-            sink = self.pipeline.sink if new.outbound == self.config.outbound else make_sink(new)
-        except Exception as exc:  # bad sink settings or missing password: keep running as before
-            log.error("event=reload_failed error=%r (keeping the running configuration)", str(exc))
-            self.notifier.ready("reload failed; old configuration kept")
-            return
         self.pipeline = NoticePipeline(new, self.pipeline.store, sink)
         if new.kafka != self.config.kafka:
             from .consumer import NoticeConsumer
