@@ -2,7 +2,8 @@
 
 Sections: ``[scheduler]`` (:class:`~mushrooms.scheduler_core.PlanningConfig`),
 ``[policy]`` (:class:`~mushrooms.handlers.policy.PolicyConfig`),
-``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`);
+``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`),
+``[export]`` (:class:`~mushrooms.scheduler_core.exports.ExportConfig`);
 an optional ``[bench]`` table is read by ``mushrooms bench`` only.
 Secrets never come from here: see the README.
 """
@@ -17,6 +18,7 @@ from typing import Any, Mapping
 from .daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
 from .handlers.policy import PolicyConfig
 from .scheduler_core.config import PlanningConfig
+from .scheduler_core.exports import ExportConfig
 
 __all__ = ["Config", "ConfigError", "load_config"]
 
@@ -35,6 +37,7 @@ class Config:
     kafka: KafkaConfig = field(default_factory=KafkaConfig)
     outbound: OutboundConfig = field(default_factory=OutboundConfig)
     source: str = "<embedded defaults>"
+    export: ExportConfig = field(default_factory=ExportConfig)
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], source: str = "<mapping>") -> "Config":
@@ -45,6 +48,7 @@ class Config:
             "daemon": DaemonConfig,
             "kafka": KafkaConfig,
             "outbound": OutboundConfig,
+            "export": ExportConfig,
         }
         # [bench] belongs to `mushrooms bench`, which reads it itself
         unknown = sorted(set(data) - set(sections) - {"bench"})

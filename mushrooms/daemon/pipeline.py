@@ -329,12 +329,13 @@ class NoticePipeline:
         log.info("job superevent_id=%s job=%s decision=%s plan_id=%s coverage=%.4f latency_s=%.3f supersedes=%s "
                  "published=%s solver=%s", job.superevent_id, job.job_id, started.decision, plan.plan_id,
                  coverage, latency, plan.supersedes or "-", published, plan.metrics.solver)
-        return Outcome(started.decision, reason=f"{plan.metrics.n_fields} fields, {plan.metrics.n_exposures} exposures",
+        summary = getattr(plan, "summary", None) or f"{plan.metrics.n_fields} fields, {plan.metrics.n_exposures} exposures"
+        return Outcome(started.decision, reason=summary,
                        plan_id=plan.plan_id, coverage=coverage, latency_s=latency, supersedes=plan.supersedes,
                        published=published, **base)
 
     def _plan(self, job: Job, should_stop: Callable[[], bool] | None) -> Any:
-        from ..scheduler_core import EventInfo, make_plan, read_skymap
+        from ..scheduler_core import EventInfo, make_plan, not_observable, read_skymap
         from ..scheduler_core.plan import parse_time
 
         raw = self.store.notice_raw(job.notice_id)
@@ -356,7 +357,11 @@ class NoticePipeline:
                        supersedes=job.supersedes, should_stop=should_stop)
         if plan.supersedes == plan.plan_id:
             plan = plan.with_(supersedes=None)
-        return plan
+        # too little coverage: the answer published is the not_observable document, in the plan's place
+        answer = not_observable(plan, skymap, sched)
+        if answer is not None:
+            log.warning("job superevent_id=%s job=%s %s", job.superevent_id, job.job_id, answer.summary)
+        return answer or plan
 
     def _job_failed(self, job: Job, decision: str, reason: str, base: dict[str, Any]) -> Outcome:
         try:

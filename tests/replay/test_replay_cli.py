@@ -16,7 +16,7 @@ from replay_helpers import NOTICES, raw
 @pytest.fixture
 def fast_config(tmp_path):
     path = tmp_path / "config.toml"
-    path.write_text('[scheduler]\nsolver = "greedy"\nnside = 64\ntime_step_s = 600.0\n')
+    path.write_text('[scheduler]\nsolver = "greedy"\nnside = 64\ntime_step_s = 600.0\nmin_gain = 0.0\nmin_coverage = 0.0\n')
     return path
 
 
