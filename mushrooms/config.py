@@ -20,7 +20,10 @@ from .handlers.policy import PolicyConfig
 from .scheduler_core.config import PlanningConfig
 from .scheduler_core.exports import ExportConfig
 
-__all__ = ["Config", "ConfigError", "load_config"]
+__all__ = ["Config", "ConfigError", "load_config", "resolve_config_path", "CONFIG_ENV"]
+
+#: Environment variable naming the config file when ``--config`` is not given.
+CONFIG_ENV = "MUSHROOMS_CONFIG"
 
 
 class ConfigError(ValueError):
@@ -62,6 +65,34 @@ class Config:
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"{source}: {exc}") from None
         return cls(**kwargs)
+
+
+def resolve_config_path(given: str | Path | None, environ: Mapping[str, str] | None = None,
+                        cwd: Path | None = None) -> tuple[Path | None, str]:
+    """Which config file a command uses, by one rule, first match wins.
+
+    1. ``--config FILE`` when given;
+    2. else ``$MUSHROOMS_CONFIG`` when set and not empty;
+    3. else ``./config.toml`` when the working directory has one;
+    4. else the embedded defaults (None).
+
+    Returns
+    -------
+    path : pathlib.Path or None
+    why : str
+        Which rule chose it (for the log).
+    """
+    import os
+
+    env = os.environ if environ is None else environ
+    if given:
+        return Path(given), "--config"
+    if env.get(CONFIG_ENV, "").strip():
+        return Path(env[CONFIG_ENV].strip()), f"${CONFIG_ENV}"
+    local = (cwd or Path.cwd()) / "config.toml"
+    if local.is_file():
+        return local, "config.toml in the working directory"
+    return None, "no --config, no $MUSHROOMS_CONFIG, no ./config.toml"
 
 
 def load_config(path: str | Path | None = None) -> Config:
