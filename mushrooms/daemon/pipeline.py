@@ -449,6 +449,43 @@ class NoticePipeline:
                  decision.reason, f" job={job.job_id}" if job else "")
         return Accepted(decision.action, sid, decision.reason, nid, alert.alert_type, job, tuple(cancelled))
 
+    def force_plan(self, raw: bytes, origin: str, received_at: datetime | None = None) -> Accepted:
+        """Plan a notice past the policy and the duplicate check (``mushrooms trigger --force``).
+
+        The notice is stored like any other; the decision is ``rerun`` (it
+        supersedes the event's latest plan, if any) with the reason
+        ``forced by operator``.  A notice without a sky map is rejected.
+        """
+        wall = time.time()
+        now = _aware(received_at)
+        raw = bytes(raw)
+        sha = hashlib.sha256(raw).hexdigest()
+        record = NoticeRecord(origin=origin, sha256=sha, size=len(raw), received_at=iso_z(now))
+        try:
+            alert = parse_notice(raw, max_bytes=self.config.policy.max_notice_bytes)
+        except NoticeError as exc:
+            nid = self.store.record_rejected(record, str(exc))
+            return Accepted("rejected", None, str(exc), nid)
+        sid = alert.superevent_id
+        if alert.event is None or not alert.event.skymap:
+            reason = "forced, but the notice has no sky map to plan"
+            nid = self.store.record_rejected(dataclasses.replace(record, superevent_id=sid), reason)
+            return Accepted("rejected", sid, reason, nid, alert.alert_type)
+        record = dataclasses.replace(record, superevent_id=sid, alert_type=alert.alert_type,
+                                     time_created=iso_z(alert.time_created), raw=raw)
+
+        def dec(ledger: Any) -> Decision:
+            st = ledger.event_state(sid)
+            latest = st.latest_plan_id if st is not None else None
+            return Decision("rerun", sid, "forced by operator", alert.alert_type, alert.skymap_sha256,
+                            supersedes=latest)
+
+        nid, decision, job, cancelled, _ = self.store.record_decision(
+            record, dec, lambda d: self._plan_start(alert, now), received_wall=wall)
+        log.warning("trigger origin=%s superevent_id=%s decision=%s reason=%r%s", origin, sid, decision.action,
+                    decision.reason, f" job={job.job_id}" if job else "")
+        return Accepted(decision.action, sid, decision.reason, nid, alert.alert_type, job, tuple(cancelled))
+
     def accept_skymap(self, data: bytes, origin: str, received_at: datetime | None = None) -> Accepted:
         """Plan a bare sky map (``mushrooms trigger SKYMAP.fits``); no policy applies.
 
