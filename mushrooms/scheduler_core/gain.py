@@ -6,8 +6,8 @@ adds.  This rule is shared by every scheduler, in two places:
 * :func:`worth_a_visit` (used by :func:`~.prepare.prepare_problem`): a field
   whose whole footprint holds less than ``min_gain`` can never add that much,
   so it is not even a candidate;
-* :func:`drop_low_gain` (used by :func:`~.planner.make_plan` on every
-  scheduler's result): a field's *added probability* is the probability in its
+* :func:`drop_low_gain` (used by :func:`~.planner.build_plan` on every
+  scheduler's result, so by ``make_plan`` and the bench alike): a field's *added probability* is the probability in its
   footprint that no field observed before it (order of first visit) covers;
   fields adding less than ``min_gain`` to the fields kept before them are
   removed with both their visits (one pass in that order, so every field

@@ -121,10 +121,6 @@ def make_plan(
     problem = prepare_problem(skymap, config, start)
     t_prep = time.perf_counter() - t0
     result = run_scheduler(problem, solver, should_stop)
-    result = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain)  # every scheduler
-    if result.details["dropped_low_gain"]:
-        log.info("least gain %.2g: dropped %d field(s) adding less", config.min_gain,
-                 len(result.details["dropped_low_gain"]))
     plan = build_plan(problem, result, skymap, solver, event=event, supersedes=supersedes,
                       runtime_s=time.perf_counter() - t0)
     metrics = plan.metrics
@@ -147,6 +143,10 @@ def build_plan(
     runtime_s: float | None = None,
 ) -> Plan:
     """Turn a scheduler's result into a :class:`Plan` (not checked here).
+
+    Applies the least-gain rule (:func:`~.gain.drop_low_gain`) to every
+    scheduler's result, and fills in each observation's airmass and field
+    probability, the event time and sky-map name, and the configuration.
 
     Parameters
     ----------
@@ -173,6 +173,10 @@ def build_plan(
     """
     config = problem.config
     start = problem.start
+    result = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain)  # every scheduler
+    if result.details["dropped_low_gain"]:
+        log.info("least gain %.2g: dropped %d field(s) adding less", config.min_gain,
+                 len(result.details["dropped_low_gain"]))
     event = _with_map_details(event or EventInfo(skymap_sha256=skymap.sha256), skymap)
     observations = _with_airmass_and_probability(sorted_observations(result.observations), problem)
     ids = {o.field_id for o in observations}
