@@ -437,16 +437,22 @@ class NoticePipeline:
         record = dataclasses.replace(record, sha256=hashlib.sha256(raw).hexdigest(), size=len(raw),
                                      alert_type=alert.alert_type, time_created=iso_z(alert.time_created), raw=raw)
 
+        return self._record_rerun(record, alert, "manual rerun requested", origin, now, wall, logging.INFO)
+
+    def _record_rerun(self, record: NoticeRecord, alert: Alert, reason: str, origin: str, now: datetime,
+                      wall: float, level: int) -> Accepted:
+        """Store an operator's ``rerun`` of a notice: no policy, supersedes the event's latest plan."""
+        sid = alert.superevent_id
+
         def dec(ledger: Any) -> Decision:
             st = ledger.event_state(sid)
             latest = st.latest_plan_id if st is not None else None
-            return Decision("rerun", sid, "manual rerun requested", alert.alert_type, alert.skymap_sha256,
-                            supersedes=latest)
+            return Decision("rerun", sid, reason, alert.alert_type, alert.skymap_sha256, supersedes=latest)
 
         nid, decision, job, cancelled, _ = self.store.record_decision(
             record, dec, lambda d: self._plan_start(alert, now), received_wall=wall)
-        log.info("trigger origin=%s superevent_id=%s decision=%s reason=%r%s", origin, sid, decision.action,
-                 decision.reason, f" job={job.job_id}" if job else "")
+        log.log(level, "trigger origin=%s superevent_id=%s decision=%s reason=%r%s", origin, sid, decision.action,
+                decision.reason, f" job={job.job_id}" if job else "")
         return Accepted(decision.action, sid, decision.reason, nid, alert.alert_type, job, tuple(cancelled))
 
     def force_plan(self, raw: bytes, origin: str, received_at: datetime | None = None) -> Accepted:
@@ -473,18 +479,7 @@ class NoticePipeline:
             return Accepted("rejected", sid, reason, nid, alert.alert_type)
         record = dataclasses.replace(record, superevent_id=sid, alert_type=alert.alert_type,
                                      time_created=iso_z(alert.time_created), raw=raw)
-
-        def dec(ledger: Any) -> Decision:
-            st = ledger.event_state(sid)
-            latest = st.latest_plan_id if st is not None else None
-            return Decision("rerun", sid, "forced by operator", alert.alert_type, alert.skymap_sha256,
-                            supersedes=latest)
-
-        nid, decision, job, cancelled, _ = self.store.record_decision(
-            record, dec, lambda d: self._plan_start(alert, now), received_wall=wall)
-        log.warning("trigger origin=%s superevent_id=%s decision=%s reason=%r%s", origin, sid, decision.action,
-                    decision.reason, f" job={job.job_id}" if job else "")
-        return Accepted(decision.action, sid, decision.reason, nid, alert.alert_type, job, tuple(cancelled))
+        return self._record_rerun(record, alert, "forced by operator", origin, now, wall, logging.WARNING)
 
     def accept_skymap(self, data: bytes, origin: str, received_at: datetime | None = None) -> Accepted:
         """Plan a bare sky map (``mushrooms trigger SKYMAP.fits``); no policy applies.
