@@ -2,7 +2,7 @@
 
 Three panels; the two sky panels share one probability colour scale: the
 whole sky (Mollweide, with the Sun at the horizon start) and a zoom on the
-90 % credible region, both with the 50 % and 90 % credible contours and the fields
+probability the plan covers (on the 90 % credible region without a plan), both with the 50 % and 90 % credible contours and the fields
 outlined, the observing path drawn visit by visit in the colour of its filter;
 and a timeline of the horizon (day, twilight, night, each exposure by filter).
 """
@@ -77,19 +77,25 @@ def plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int = 120, answ
         _plot_plan(plan, skymap, path, dpi, answer)
 
 
-def _zoom_region(prob: np.ndarray, credible: np.ndarray, nside: int) -> tuple[float, float, float]:
-    """Centre (deg) and radius (deg) of the zoom: the 90 % credible region, at least 12 deg, at most 40 deg."""
+def _zoom_region(prob: np.ndarray, region: np.ndarray, nside: int) -> tuple[float, float, float]:
+    """Centre and radius (deg) of the zoom around a region's probability, at least 12 deg, at most 40 deg.
+
+    The centre is the region's probability-weighted mean direction; the radius
+    holds 90 % of the region's probability.
+    """
     import healpy as hp
 
-    inside = np.flatnonzero(credible <= 90.0)
+    inside = np.flatnonzero(region)
+    if inside.size == 0:
+        inside = np.array([int(np.argmax(prob))])
     vec = np.asarray(hp.pix2vec(nside, inside, nest=True)).T
-    centre = (vec * prob[inside, None]).sum(axis=0)
+    weight = prob[inside] if prob[inside].sum() > 0 else np.ones(inside.size)
+    centre = (vec * weight[:, None]).sum(axis=0)
     centre /= np.linalg.norm(centre)
     ra_c, dec_c = (float(np.squeeze(x)) for x in hp.vec2ang(centre, lonlat=True))
-    # radius holding 90 % of the credible region's probability around the centre
     sep = np.degrees(np.arccos(np.clip(vec @ centre, -1.0, 1.0)))
     order = np.argsort(sep)
-    cum = np.cumsum(prob[inside][order])
+    cum = np.cumsum(weight[order])
     r90 = float(sep[order][min(np.searchsorted(cum, 0.9 * cum[-1]), len(order) - 1)])
     return ra_c, dec_c, float(min(max(1.3 * r90 + 3.0, 12.0), 40.0))
 
@@ -145,7 +151,14 @@ def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int, answer: A
     fig = plt.figure(figsize=(13, 8.2))
     ax_sky = fig.add_axes([0.03, 0.36, 0.50, 0.52], projection="astro hours mollweide")
 
-    ra_c, dec_c, radius = _zoom_region(prob, credible, skymap.nside)
+    if first_visit:  # zoom on the probability the plan covers
+        from .scheduler_core.fields import field_footprints
+
+        covered = np.zeros(prob.size, dtype=bool)
+        covered[field_footprints(grid, skymap.nside).union(list(first_visit))] = True
+        ra_c, dec_c, radius = _zoom_region(prob, covered & (prob > 0), skymap.nside)
+    else:  # else on the 90 % credible region
+        ra_c, dec_c, radius = _zoom_region(prob, credible <= 90.0, skymap.nside)
     ax_zoom = fig.add_axes([0.60, 0.36, 0.33, 0.52], projection="astro degrees zoom",
                            center=SkyCoord(ra_c * u.deg, dec_c * u.deg), radius=radius * u.deg)
 
