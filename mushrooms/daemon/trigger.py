@@ -273,8 +273,8 @@ def _warn_if_retracted(pipeline: Any, kind: str, payload: bytes, force: bool) ->
     sid = _superevent_of(kind, payload)
     state = pipeline.store.event_state(sid) if sid else None
     if state is not None and state.retracted:
-        what = "planning it anyway (--force)" if force or kind == "superevent" else \
-            "the policy decides (a notice after a retraction may plan it again)"
+        what = ("planning it anyway (--force)" if force else "re-planning it as asked") \
+            if force or kind == "superevent" else "the policy decides (a notice after a retraction may plan it again)"
         log.warning("event=trigger_retracted superevent_id=%s: the event was retracted; %s", sid, what)
         print(f"mushrooms trigger: warning: {sid} was retracted; {what}", file=sys.stderr)
 
