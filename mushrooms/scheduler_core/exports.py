@@ -178,18 +178,18 @@ def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization
             "field_id": int(o.field_id),
             "exposure_time": int(round(o.exposure_s)),
             "filt": SKYPORTAL_FILTERS[o.filter],
-            "weight": float(o.probability) if o.probability is not None else 0.0,
+            "weight": round(float(o.probability), 6) if o.probability is not None else 0.0,
             "overhead_per_exposure": int(round(overhead)),
         })
-    tag = _tag(plan)
+    name = f"{plan.event.superevent_id}-{plan.plan_id}" if plan.event.superevent_id else plan.plan_id
     return {
         "dateobs": plan.event.event_time.rstrip("Z"),
         "localization_name": localization_name or plan.event.skymap_name or "healpix",
         "allocation_id": int(export.skyportal_allocation_id),
-        "plan_name": f"{tag}-{plan.plan_id}",
+        "plan_name": name,
         "status": export.skyportal_status,
         "payload": {
-            "queue_name": f"{tag}-{plan.plan_id}",
+            "queue_name": name,
             "program_id": export.program,
             "subprogram_name": export.subprogram_name,
             "start_date": _iso_space(plan.start),
