@@ -193,6 +193,10 @@ def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int, answer: A
     ax_zoom.coords[1].set_major_formatter("d")
     ax_zoom.coords[0].set_ticklabel(size=8, exclude_overlapping=True)
     ax_zoom.coords[1].set_ticklabel(size=8)
+    ax_zoom.coords[0].set_ticklabel_position("b")  # never on top, whatever the field's declination
+    ax_zoom.coords[1].set_ticklabel_position("l")
+    ax_zoom.coords[0].set_axislabel_position("b")
+    ax_zoom.coords[1].set_axislabel_position("l")
     ax_zoom.coords[0].set_axislabel("RA (deg)")
     ax_zoom.coords[1].set_axislabel("Dec (deg)")
 
