@@ -11,6 +11,32 @@ TESTS = Path(__file__).resolve().parent
 DATA = TESTS / "data"
 
 
+def _validated(method):
+    """Wrap a ``to_document`` so that every document tests produce is checked against the schema."""
+    import functools
+
+    from mushrooms.scheduler_core.schema import validate_document
+
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        doc = method(self, *args, **kwargs)
+        validate_document(doc)
+        return doc
+
+    wrapper.__wrapped_by_schema__ = True
+    return wrapper
+
+
+def _validate_every_document() -> None:
+    from mushrooms.scheduler_core.observability import NotObservable
+    from mushrooms.scheduler_core.plan import Plan
+
+    for cls, name in ((Plan, "to_document"), (NotObservable, "to_document")):
+        method = getattr(cls, name)
+        if not getattr(method, "__wrapped_by_schema__", False):
+            setattr(cls, name, _validated(method))
+
+
 def pytest_configure(config: pytest.Config) -> None:
     from astropy.utils import iers
 
@@ -19,6 +45,7 @@ def pytest_configure(config: pytest.Config) -> None:
     if "MUSHROOMS_CACHE_DIR" not in os.environ:
         cache = Path(config.rootpath) / ".pytest_cache" / "mushrooms-footprints"
         os.environ["MUSHROOMS_CACHE_DIR"] = str(cache)
+    _validate_every_document()  # every plan and not_observable document must follow the schema
 
 
 @pytest.fixture(scope="session")

@@ -71,7 +71,7 @@ def test_check_accepts_the_plan_and_rejects_a_tampered_one(planned, tmp_path):
     [
         (["plan", "/nonexistent/map.fits"], "sky map not found"),
         (["plan", __file__], "not a FITS file"),
-        (["plan", str(MAP), "--start", "next tuesday"], "not an ISO-8601 UTC time"),
+        (["plan", str(MAP), "--start", "next tuesday"], "not an ISO-8601 time"),
         (["plan", str(MAP), "--config", "/nonexistent.toml"], "cannot read config"),
         (["check", "/nonexistent/plan.json", str(MAP)], "plan not found"),
         (["check", __file__, str(MAP)], "is not JSON"),

@@ -337,12 +337,13 @@ class NoticePipeline:
         log.info("job superevent_id=%s job=%s decision=%s plan_id=%s coverage=%.4f latency_s=%.3f supersedes=%s "
                  "published=%s solver=%s", job.superevent_id, job.job_id, started.decision, plan.plan_id,
                  coverage, latency, plan.supersedes or "-", published, plan.metrics.solver)
-        return Outcome(started.decision, reason=f"{plan.metrics.n_fields} fields, {plan.metrics.n_exposures} exposures",
+        summary = getattr(plan, "summary", None) or f"{plan.metrics.n_fields} fields, {plan.metrics.n_exposures} exposures"
+        return Outcome(started.decision, reason=summary,
                        plan_id=plan.plan_id, coverage=coverage, latency_s=latency, supersedes=plan.supersedes,
                        published=published, **base)
 
     def _plan(self, job: Job, should_stop: Callable[[], bool] | None) -> Any:
-        from ..scheduler_core import EventInfo, make_plan, read_skymap
+        from ..scheduler_core import EventInfo, make_plan, not_observable, read_skymap
         from ..scheduler_core.plan import parse_time
 
         raw = self.store.notice_raw(job.notice_id)
@@ -369,7 +370,11 @@ class NoticePipeline:
                        supersedes=job.supersedes, should_stop=should_stop)
         if plan.supersedes == plan.plan_id:
             plan = plan.with_(supersedes=None)
-        return plan
+        # too little coverage: the answer published is the not_observable document, in the plan's place
+        answer = not_observable(plan, skymap, sched)
+        if answer is not None:
+            log.warning("job superevent_id=%s job=%s %s", job.superevent_id, job.job_id, answer.summary)
+        return answer or plan
 
     def _job_failed(self, job: Job, decision: str, reason: str, base: dict[str, Any]) -> Outcome:
         try:
@@ -445,20 +450,52 @@ class NoticePipeline:
         record = dataclasses.replace(record, sha256=hashlib.sha256(raw).hexdigest(), size=len(raw),
                                      alert_type=alert.alert_type, time_created=iso_z(alert.time_created), raw=raw)
 
+        return self._record_rerun(record, alert, "manual rerun requested", origin, now, wall, logging.INFO)
+
+    def _record_rerun(self, record: NoticeRecord, alert: Alert, reason: str, origin: str, now: datetime,
+                      wall: float, level: int) -> Accepted:
+        """Store an operator's ``rerun`` of a notice: no policy, supersedes the event's latest plan."""
+        sid = alert.superevent_id
         loc = choose_localization(alert, self.config.policy.use_combined_skymap)
         sha, kind = (loc.sha256, loc.kind) if loc is not None else (alert.skymap_sha256, "gw")
 
         def dec(ledger: Any) -> Decision:
             st = ledger.event_state(sid)
             latest = st.latest_plan_id if st is not None else None
-            return Decision("rerun", sid, f"manual rerun requested ({kind} map)", alert.alert_type, sha,
+            return Decision("rerun", sid, f"{reason} ({kind} map)", alert.alert_type, sha,
                             supersedes=latest, localization=kind)
 
         nid, decision, job, cancelled, _ = self.store.record_decision(
             record, dec, lambda d: self._plan_start(alert, now), received_wall=wall)
-        log.info("trigger origin=%s superevent_id=%s decision=%s reason=%r%s", origin, sid, decision.action,
-                 decision.reason, f" job={job.job_id}" if job else "")
+        log.log(level, "trigger origin=%s superevent_id=%s decision=%s reason=%r%s", origin, sid, decision.action,
+                decision.reason, f" job={job.job_id}" if job else "")
         return Accepted(decision.action, sid, decision.reason, nid, alert.alert_type, job, tuple(cancelled))
+
+    def force_plan(self, raw: bytes, origin: str, received_at: datetime | None = None) -> Accepted:
+        """Plan a notice past the policy and the duplicate check (``mushrooms trigger --force``).
+
+        The notice is stored like any other; the decision is ``rerun`` (it
+        supersedes the event's latest plan, if any) with the reason
+        ``forced by operator``.  A notice without a sky map is rejected.
+        """
+        wall = time.time()
+        now = _aware(received_at)
+        raw = bytes(raw)
+        sha = hashlib.sha256(raw).hexdigest()
+        record = NoticeRecord(origin=origin, sha256=sha, size=len(raw), received_at=iso_z(now))
+        try:
+            alert = parse_notice(raw, max_bytes=self.config.policy.max_notice_bytes)
+        except NoticeError as exc:
+            nid = self.store.record_rejected(record, str(exc))
+            return Accepted("rejected", None, str(exc), nid)
+        sid = alert.superevent_id
+        if alert.event is None or not alert.event.skymap:
+            reason = "forced, but the notice has no sky map to plan"
+            nid = self.store.record_rejected(dataclasses.replace(record, superevent_id=sid), reason)
+            return Accepted("rejected", sid, reason, nid, alert.alert_type)
+        record = dataclasses.replace(record, superevent_id=sid, alert_type=alert.alert_type,
+                                     time_created=iso_z(alert.time_created), raw=raw)
+        return self._record_rerun(record, alert, "forced by operator", origin, now, wall, logging.WARNING)
 
     def accept_skymap(self, data: bytes, origin: str, received_at: datetime | None = None) -> Accepted:
         """Plan a bare sky map (``mushrooms trigger SKYMAP.fits``); no policy applies.

@@ -36,7 +36,7 @@ _SAFE = re.compile(r"[^A-Za-z0-9._-]")
 
 
 def message_key(message: Mapping[str, Any]) -> str:
-    """Stable key of an outbound message: ``plan_id`` or ``withdrawal_id``.
+    """Stable key of an outbound message: ``plan_id`` (plans, not_observable answers) or ``withdrawal_id``.
 
     Raises
     ------
@@ -44,7 +44,7 @@ def message_key(message: Mapping[str, Any]) -> str:
         When the message has neither.
     """
     kind = message.get("type")
-    key = message.get("plan_id") if kind == "plan" else message.get("withdrawal_id")
+    key = message.get("plan_id") if kind in ("plan", "not_observable") else message.get("withdrawal_id")
     if not isinstance(key, str) or not key:
         raise SinkError(f"outbound message of type {kind!r} has no plan_id/withdrawal_id")
     return key

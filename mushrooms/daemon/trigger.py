@@ -197,6 +197,9 @@ def main(args: argparse.Namespace) -> int:
 
     paths: RuntimePaths = resolve_paths(config.daemon)
     pid = daemon_pid(paths.pid_file)
+    force = bool(getattr(args, "force", False))
+    if pid is not None and force:
+        raise InputError(f"--force plans here, but a daemon runs (pid {pid}); stop it, or trigger without --force")
     if pid is not None:
         written = write_trigger(paths.trigger_dir, kind, payload)
         try:
@@ -213,9 +216,15 @@ def main(args: argparse.Namespace) -> int:
             print(f"mushrooms trigger: {kind} {args.target} handed to the daemon (pid {pid}): {state}")
             return 0
     # no daemon: do the job here
+    outbox = config.outbound.directory if config.outbound.sink == "directory" else f"kafka:{config.outbound.topic}"
+    print(f"mushrooms trigger: no daemon running: planning here; state {paths.state}, outbox "
+          f"{Path(outbox).resolve() if config.outbound.sink == 'directory' else outbox}", file=sys.stderr)
     pipeline, close = open_pipeline(config, paths)
     try:
+        _warn_if_retracted(pipeline, kind, payload, force)
         decision = dispatch(pipeline, kind, payload, origin=f"trigger:{kind}:{args.target}")
+        if force:
+            decision = _forced(pipeline, decision, kind, payload, args.target)
         log.info("event=trigger_accepted kind=%s target=%s decision=%s", kind, args.target,
                  _decision_text(decision))
         if getattr(decision, "action", None) == "rejected":
@@ -224,7 +233,7 @@ def main(args: argparse.Namespace) -> int:
             return 2
         from .jobs import describe_outcome
 
-        done, status = 0, 0
+        done, status, info = 0, 0, {}
         job = getattr(decision, "job", None)
         if job is not None:  # only this trigger's job: leftovers wait for the daemon
             outcome = pipeline.run_job(job, None)
@@ -237,11 +246,59 @@ def main(args: argparse.Namespace) -> int:
                 print(f"mushrooms trigger: error: {args.target}: job {info.get('decision')}: "
                       f"{info.get('reason', '')}", file=sys.stderr)
         pipeline.flush_outbox()
+        result = f": {info.get('decision')}: {info.get('reason', '')}" if done else ""
         print(f"mushrooms trigger: no daemon running; {kind} {args.target}: "
-              f"{_decision_text(decision)}, {done} job(s) run here", file=sys.stdout)
+              f"{_decision_text(decision)}, {done} job(s) run here{result}", file=sys.stdout)
     finally:
         close()
     return status
+
+
+def _superevent_of(kind: str, payload: bytes) -> str | None:
+    """The superevent a trigger concerns (None for a bare sky map or an unreadable notice)."""
+    if kind == "superevent":
+        return payload.decode().strip()
+    if kind == "notice":
+        from ..handlers.alert import NoticeError, parse_notice
+
+        try:
+            return parse_notice(payload).superevent_id
+        except NoticeError:
+            return None
+    return None
+
+
+def _warn_if_retracted(pipeline: Any, kind: str, payload: bytes, force: bool) -> None:
+    """Warn (stderr and log) when the trigger concerns a retracted superevent."""
+    sid = _superevent_of(kind, payload)
+    state = pipeline.store.event_state(sid) if sid else None
+    if state is not None and state.retracted:
+        what = ("planning it anyway (--force)" if force else "re-planning it as asked") \
+            if force or kind == "superevent" else "the policy decides (a notice after a retraction may plan it again)"
+        log.warning("event=trigger_retracted superevent_id=%s: the event was retracted; %s", sid, what)
+        print(f"mushrooms trigger: warning: {sid} was retracted; {what}", file=sys.stderr)
+
+
+def _forced(pipeline: Any, decision: Any, kind: str, payload: bytes, target: str) -> Any:
+    """``--force``: when the policy did not plan a notice (ignored or duplicate), re-plan its superevent.
+
+    The re-plan uses the stored notice (the one just recorded, or the newest
+    planned one) and supersedes the event's latest plan; the policy's reason
+    is logged.
+    """
+    action = getattr(decision, "action", None)
+    if kind != "notice" or action in ("plan", "rerun", "rejected", "withdraw"):
+        return decision
+    if getattr(decision, "alert_type", None) == "RETRACTION":
+        print("mushrooms trigger: --force does not apply to a retraction (nothing to plan)", file=sys.stderr)
+        return decision
+    sid = getattr(decision, "superevent_id", None)
+    log.warning("event=trigger_forced superevent_id=%s target=%s policy_decision=%s policy_reason=%r: "
+                "planning anyway (--force)", sid, target, action, getattr(decision, "reason", ""))
+    print(f"mushrooms trigger: --force: the policy said {action} ({getattr(decision, 'reason', '')}); "
+          "planning anyway", file=sys.stderr)
+    forced = pipeline.force_plan(payload, origin=f"trigger:force:{target}")
+    return forced
 
 
 def _decision_text(decision: Any) -> str:

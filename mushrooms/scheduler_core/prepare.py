@@ -7,6 +7,7 @@ from astropy.time import Time
 
 from .config import PlanningConfig
 from .fields import field_footprints, load_ztf_fields
+from .gain import worth_a_visit
 from .problem import PlanningProblem
 from .skymap import SkyMap
 from .visibility import observability_windows
@@ -18,8 +19,8 @@ def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time) -> Plan
     """Candidate fields, footprints and windows for a sky map.
 
     Candidates are the grid fields inside the declination band that hold
-    some probability and can be observed for at least one exposure within
-    the horizon.
+    some probability, at least ``config.min_gain`` (see :mod:`.gain`), and
+    can be observed for at least one exposure within the horizon.
 
     Parameters
     ----------
@@ -39,7 +40,7 @@ def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time) -> Plan
     grid = load_ztf_fields()
     footprints = field_footprints(grid, config.nside)
     in_band = (grid.dec >= config.dec_min_deg) & (grid.dec <= config.dec_max_deg)
-    has_prob = footprints.field_probability(skymap.prob) > 0
+    has_prob = worth_a_visit(footprints, skymap.prob, config.min_gain)
     sel = in_band & has_prob
     windows = observability_windows(grid.ids[sel], grid.ra[sel], grid.dec[sel], start, config)
     observable = np.isin(grid.ids, windows.observable_fields()) & sel

@@ -146,6 +146,8 @@ TEST_CONFIG = """
 [scheduler]
 solver = "greedy"
 nside = 64
+min_gain = 0.0
+min_coverage = 0.0
 
 [policy]
 allow_mock = true
