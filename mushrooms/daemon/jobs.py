@@ -251,25 +251,28 @@ class JobRunner:
                         break
                     self._wake.wait()
                 entry.running = True
-                if entry.stage == OPTIMISE:
-                    self._optimising += 1
+                optimising = entry.stage == OPTIMISE
+                self._optimising += optimising
+            requeue = False
             try:
-                self._execute(entry)
+                requeue = self._execute(entry)
             finally:
                 with self._lock:
                     entry.running = False
-                    if entry.stage == OPTIMISE:
-                        self._optimising -= 1
+                    self._optimising -= optimising
+                    if requeue:
+                        self._queue.append(entry)
                     self._wake.notify_all()
 
     # -- execution --------------------------------------------------------
-    def _execute(self, entry: _Running) -> None:
+    def _execute(self, entry: _Running) -> bool:
+        """Run the entry's queued stage; True when its optimisation must be queued next."""
         stage = "first" if entry.stage == FIRST else "optimise"
         if entry.stop.is_set() and entry.stage == FIRST:
             log.info("event=job_skipped superevent_id=%s job=%s reason=%s",
                      entry.superevent_id, entry.key, entry.reason or "stopped")
             self._finish(entry, None, {"stopped": entry.reason or "stop"})
-            return
+            return False
         now = time.time()
         if entry.stage == FIRST:
             entry.started_at = now
@@ -299,19 +302,18 @@ class JobRunner:
                 with self._lock:
                     if not self._closed:
                         entry.stage, entry.work = OPTIMISE, outcome.run
-                        self._queue.append(entry)
-                        self._wake.notify()
-                        return
+                        return True
                 log.info("event=job_left_pending superevent_id=%s job=%s reason='stopping before the optimisation'",
                          entry.superevent_id, entry.key)
                 self._finish(entry, outcome.outcome, info)
-                return
+                return False
             info = describe_outcome(outcome)
         except Exception as exc:  # a failed job must never take the service down
             info = {"error": f"{type(exc).__name__}: {exc}"}
             log.exception("event=job_failed superevent_id=%s job=%s stage=%s error=%r",
                           entry.superevent_id, entry.key, stage, info["error"])
         self._finish(entry, outcome, info)
+        return False
 
     def _finish(self, entry: _Running, outcome: Any, info: dict[str, Any]) -> None:
         if entry.deadline is not None:
@@ -473,6 +475,17 @@ class OutboxDrain:
                 self._delay_s = min(self._delay_s * 2.0, self._max_s)
                 self._retry_at = time.monotonic() + delay
             log.warning("event=publish_failed error=%r retry_in_s=%.1f", error, delay)
+
+    @property
+    def retry_scheduled(self) -> bool:
+        """True while a failed publish waits for its back-off to pass."""
+        with self._cv:
+            return self._retry_at is not None
+
+    def idle(self) -> bool:
+        """Nothing waiting: no kick to serve and no retry scheduled."""
+        with self._cv:
+            return not self._pending and self._retry_at is None
 
     def close(self, timeout_s: float = 5.0) -> None:
         """Stop the drain thread (a publish in progress is finished, up to ``timeout_s``)."""

@@ -372,13 +372,10 @@ class NoticePipeline:
             return self._job_failed(started, "failed", f"internal error: {type(exc).__name__}: {exc}", base)
         if isinstance(work, Outcome):
             return work
-        first = work.outcome
-        if work.final:
-            return first
         if staged:
             from .jobs import Staged
 
-            return Staged(first, lambda stop: self._optimise(work, stop))
+            return Staged(work.outcome, lambda stop: self._optimise(work, stop))
         return self._optimise(work, should_stop)
 
     def _cancelled(self, job: Job, should_stop: Callable[[], bool] | None) -> bool:
