@@ -56,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--start", metavar="ISO_UTC", help="horizon start (default: the sky map's event time)")
     sp.add_argument("--solver", choices=["greedy", "milp", "hybrid"], help="scheduler (default from config: hybrid)")
     sp.add_argument("-o", "--output", metavar="FILE", default="plan.json", help="plan document to write (default plan.json)")
+    sp.add_argument("--deadline", metavar="SECONDS", type=float,
+                    help="write the best plan found by then: the greedy plan at once, the optimised one if it is "
+                         "ready and covers more (default: wait for the solver)")
     sp.add_argument("--queue", metavar="FILE", help="also write ZTF's trigger-queue JSON")
     sp.add_argument("--plot", metavar="FILE", help="also draw the plan on the sky map (PNG)")
     common(sp)

@@ -82,6 +82,16 @@ def _aware(t: datetime | None) -> datetime:
     return t.replace(tzinfo=timezone.utc) if t.tzinfo is None else t.astimezone(timezone.utc)
 
 
+def _age_s(iso: str | None) -> str:
+    """Seconds since an ISO-8601 UTC time (``-`` when unknown), for log lines."""
+    if not iso:
+        return "-"
+    try:
+        return f"{(datetime.now(timezone.utc) - datetime.fromisoformat(iso)).total_seconds():.3f}"
+    except ValueError:
+        return "-"
+
+
 def iso_z(t: datetime) -> str:
     """Timezone-aware datetime as ``YYYY-MM-DDTHH:MM:SS.mmmZ`` (UTC)."""
     return t.astimezone(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
@@ -562,8 +572,9 @@ class NoticePipeline:
                                 msg.key, msg.kind, msg.attempts + 1, type(exc).__name__, exc, len(pending) - i)
                     return len(pending) - i
                 self.store.mark_published(msg.outbox_id)
-                log.info("publish key=%s kind=%s superevent_id=%s ok", message_key(msg.message), msg.kind,
-                         msg.message.get("superevent_id") or (msg.message.get("event") or {}).get("superevent_id"))
+                log.info("publish key=%s kind=%s superevent_id=%s ok queued_s=%s", message_key(msg.message), msg.kind,
+                         msg.message.get("superevent_id") or (msg.message.get("event") or {}).get("superevent_id"),
+                         _age_s(msg.created_at))
             return 0
 
     # ------------------------------------------------------------ helpers

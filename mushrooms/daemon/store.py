@@ -197,6 +197,7 @@ class OutboxMessage:
     message: dict[str, Any]
     attempts: int
     published_at: str | None
+    created_at: str | None = None
 
 
 @dataclass(frozen=True)
@@ -621,8 +622,8 @@ class Store:
         """Messages not yet published, oldest first."""
         rows = self._conn().execute(
             "SELECT * FROM outbox WHERE published_at IS NULL ORDER BY outbox_id LIMIT ?", (limit,)).fetchall()
-        return [OutboxMessage(r["outbox_id"], r["key"], r["kind"], json.loads(r["body"]), r["attempts"], None)
-                for r in rows]
+        return [OutboxMessage(r["outbox_id"], r["key"], r["kind"], json.loads(r["body"]), r["attempts"], None,
+                              r["created_at"]) for r in rows]
 
     def mark_published(self, outbox_id: int) -> None:
         with self._tx() as c:
