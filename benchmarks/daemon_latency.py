@@ -88,8 +88,12 @@ def iso(t: datetime) -> str:
 
 
 def live_notices(n_maps: int) -> list[tuple[str, dict[str, Any]]]:
-    """(source name, notice template) for the shared notices, then notices with simulated maps."""
+    """(source name, notice template) for the shared CBC notices, then notices with simulated maps.
+
+    The shared Burst notice (S230528ay) is left out: the policy ignores it, so it has no plan to time.
+    """
     out = [(p.name, json.loads(p.read_text())) for p in TEMPLATES]
+    out = [(n, d) for n, d in out if (d.get("event") or {}).get("group") == "CBC"]
     base = json.loads(TEMPLATES[0].read_text())
     for p in SIMULATED[:n_maps]:
         doc = json.loads(json.dumps(base))
@@ -187,6 +191,8 @@ def pct(xs: list[float], q: float) -> float:
 def start_daemon(work: Path, broker: Broker, out_bootstrap: str | None = None) -> tuple[Daemon, str, str, float]:
     topic, out = f"gwalert-{time.time_ns()}", f"plans-{time.time_ns()}"
     broker.ensure_topic(topic)
+    if out_bootstrap is None:
+        broker.ensure_topic(out)
     cfg = work / "config.toml"
     cfg.write_text(CONFIG.format(topic=topic, group=f"mushrooms-{time.time_ns()}", out=out,
                                  out_bootstrap=f'bootstrap = "{out_bootstrap}"' if out_bootstrap else ""))

@@ -5,9 +5,23 @@
     raw bytes ─ accept ─► size cap ▸ parse ▸ policy ▸ decide ─► store (one transaction)
                                                                │
            run_job ◄─ Job (plan / rerun) ◄─────────────────────┘
-              │  sky map ▸ scheduler_core.make_plan (checked) ▸ store plan + outbox
+              │  sky map ▸ prepare (warm cache) ▸ greedy ▸ checker ▸ store revision 1 + outbox
+              │  configured solver ▸ checker ▸ revision 2 if better by supersede_min_gain, else plan_final
               ▼
-          flush_outbox ─► sink.publish (plan document / withdrawal)
+          flush_outbox ─► sink.publish (plan document / plan_final / withdrawal)
+
+Anytime plans
+-------------
+Every job publishes its fast (greedy) plan at once as revision 1
+(``revision: 1``, ``final: false`` unless the configured solver is greedy),
+then runs ``config.scheduler.solver`` with the job's ``should_stop``.  Its
+plan goes out as revision 2 (``supersedes`` = revision 1, ``final: true``)
+only when it covers at least ``[daemon] supersede_min_gain`` more;
+otherwise a small ``plan_final`` message (key ``<plan_id>-final``) says that
+revision 1 stands.  A newer sky map supersedes the job in the store at
+accept time; its stop flag then ends the job at the next stage boundary or
+scheduler poll, and the new job's revision 1 supersedes whatever the event
+last published.  A retraction withdraws every revision.
 
 How the daemon uses it
 ----------------------
@@ -15,20 +29,23 @@ How the daemon uses it
    durable (commit the Kafka offset after it).  Bad input never raises: it is
    a recorded ``rejected`` decision.  Only a failure to write the state
    (``sqlite3.Error``, :class:`~.store.StoreError`) raises.
-2. If ``acc.job`` is set, run ``pipeline.run_job(acc.job, should_stop)`` in a
-   worker (``acc.cancelled_jobs`` lists older jobs of the same superevent
-   that the store has just superseded or cancelled: stop them; their results
-   are discarded anyway).  Equivalently, submit the newest job per superevent
-   of ``pipeline.store.pending_jobs()``.
-3. After a withdrawal (``acc.action == "withdraw"``) or a failed publish,
-   call ``pipeline.flush_outbox()`` (it returns how many messages are still
-   pending).
+2. If ``acc.job`` is set, run ``pipeline.run_job(acc.job, should_stop,
+   staged=True)`` in a worker: it returns after revision 1 with a
+   :class:`~.jobs.Staged` whose ``run`` is the optimisation (the
+   :class:`~.jobs.JobRunner` queues it behind newer first plans).
+   ``acc.cancelled_jobs`` lists older jobs of the same superevent that the
+   store has just superseded or cancelled: stop them.
+3. With ``on_outbox`` (the daemon's :class:`~.jobs.OutboxDrain`) planning
+   threads never publish: they queue and kick the drain.  Without it
+   (replay, ``mushrooms trigger`` with no daemon) ``run_job`` publishes
+   inline and optimises inline.
 4. At start: ``flush_outbox()`` then ``run_job`` on ``store.pending_jobs()``
    (accepted but not finished; :meth:`NoticePipeline.resume` does both).
 
-Plan ids are stable: a job's horizon start is fixed at accept time, so a job
-re-run after a crash produces the same ``plan_id`` and the sink overwrites
-the same message.
+Plan ids are stable: a job's horizon start is fixed at accept time, and a
+plan id hashes the map, start, configuration, solver and superevent, so a
+job re-run after a crash produces the same ids; a revision the job already
+stored is not queued again (:meth:`~.store.Store.store_revision`).
 """
 
 from __future__ import annotations
@@ -402,23 +419,34 @@ class NoticePipeline:
                 raise _Cancelled(name)
 
         t0 = time.perf_counter()
+        took: dict[str, float] = {}
+
+        def lap(name: str) -> None:
+            took[name] = time.perf_counter() - t0 - sum(took.values())
+
         skymap_bytes, event = self._skymap_bytes(job)
         sched = self.config.scheduler
         stage("reading the sky map")
         skymap = read_skymap(skymap_bytes, nside=sched.nside)
+        lap("read")
         stage("preparing the problem")
         start = parse_time(job.start)
         problem = self._cache.prepare(skymap, sched, start) if self._cache is not None else \
             self._prepare(skymap, sched, start)
+        lap("prepare")
         t_prep = time.perf_counter() - t0
         stage("the fast scheduler")
         result = self._scheduler(problem, FIRST_SOLVER, lambda: self._cancelled(job, should_stop))
+        lap("greedy")
         stage("checking the fast plan")
         supersedes = job.supersedes
         plan = checked_plan(problem, result, skymap, FIRST_SOLVER, event=event, supersedes=supersedes,
                             runtime_s=time.perf_counter() - t0)
+        lap("check")
         if plan.supersedes == plan.plan_id:
             plan = plan.with_(supersedes=None)
+        log.info("job superevent_id=%s job=%s first_plan_stages %s", job.superevent_id, job.job_id,
+                 " ".join(f"{k}_s={v:.3f}" for k, v in took.items()))
         stage("storing the fast plan")
         final = sched.solver == FIRST_SOLVER
         work = _Work(job, skymap, problem, event, plan, t_prep)
