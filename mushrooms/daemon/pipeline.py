@@ -449,6 +449,10 @@ class NoticePipeline:
                  " ".join(f"{k}_s={v:.3f}" for k, v in took.items()))
         stage("storing the fast plan")
         final = sched.solver == FIRST_SOLVER
+        if dataclasses.is_dataclass(skymap) and getattr(skymap, "distmu", None) is not None:
+            # the optimisation needs the probability only: a burst of queued jobs must not hold
+            # three distance layers (3 x 6 MB at nside 256) each
+            skymap = dataclasses.replace(skymap, distmu=None, distsigma=None, distnorm=None)
         work = _Work(job, skymap, problem, event, plan, t_prep)
         outcome = self._publish_revision(work, plan, 1, final)
         if outcome.decision == "ignore" or final:

@@ -145,8 +145,8 @@ def test_a_first_plan_runs_before_the_optimisation_of_an_older_event(scheduler) 
     assert gate.log == [(1, "first"), (2, "first"), (1, "optimise"), (2, "optimise")]
 
 
-def test_an_optimisation_never_takes_the_last_free_worker(scheduler) -> None:
-    """Two workers, A optimising: B's and C's optimisations wait, their first plans do not."""
+def optimising_a(scheduler) -> tuple[Gate, JobRunner]:
+    """Two workers, staged jobs; job 1 (superevent A) has published its first plan and is optimising."""
     gate = Gate()
 
     def run(job, stop):
@@ -156,7 +156,13 @@ def test_an_optimisation_never_takes_the_last_free_worker(scheduler) -> None:
     runner = JobRunner(run, scheduler, max_jobs=2, deadline_s=600)
     runner.submit(Job(1, "A"))
     gate.open(1, "first")
-    gate.reached(1, "optimise")  # A optimises on one worker
+    gate.reached(1, "optimise")
+    return gate, runner
+
+
+def test_an_optimisation_never_takes_the_last_free_worker(scheduler) -> None:
+    """Two workers, A optimising: B's and C's optimisations wait, their first plans do not."""
+    gate, runner = optimising_a(scheduler)
     for j, sid in ((2, "B"), (3, "C")):
         gate.open(j, "first")
         runner.submit(Job(j, sid))
@@ -170,16 +176,7 @@ def test_an_optimisation_never_takes_the_last_free_worker(scheduler) -> None:
 
 
 def test_a_newer_map_during_the_optimisation_stops_it(scheduler) -> None:
-    gate = Gate()
-
-    def run(job, stop):
-        gate.run(job.job_id, "first", stop)
-        return Staged(None, lambda stop2: gate.run(job.job_id, "optimise", stop2))
-
-    runner = JobRunner(run, scheduler, max_jobs=2, deadline_s=600)
-    runner.submit(Job(1, "A"))
-    gate.open(1, "first")
-    gate.reached(1, "optimise")
+    gate, runner = optimising_a(scheduler)
     gate.open(2, "first")
     runner.submit(Job(2, "A"))  # a newer sky map for the same superevent
     wait(lambda: (1, "optimise:stopped") in gate.log and (2, "first") in gate.log)
