@@ -188,19 +188,29 @@ def pct(xs: list[float], q: float) -> float:
     return xs[k]
 
 
-def start_daemon(work: Path, broker: Broker, out_bootstrap: str | None = None) -> tuple[Daemon, str, str, float]:
-    topic, out = f"gwalert-{time.time_ns()}", f"plans-{time.time_ns()}"
-    broker.ensure_topic(topic)
+def start_daemon(work: Path, broker: Broker, out_bootstrap: str | None = None,
+                 n_topics: int = 1) -> tuple[Daemon, list[str], str, float]:
+    """The daemon on ``n_topics`` input topics.
+
+    librdkafka's mock broker keeps only about 5 MB per partition (older
+    messages are deleted: a consumer then skips to the new log start), and
+    an auto-created topic has 4 partitions; a burst of fifty 1 MB notices
+    is therefore spread over several input topics so that all stay readable.
+    """
+    stamp_ns = time.time_ns()
+    topics, out = [f"gwalert-{stamp_ns}-{k}" for k in range(n_topics)], f"plans-{stamp_ns}"
+    for topic in topics:
+        broker.ensure_topic(topic)
     if out_bootstrap is None:
         broker.ensure_topic(out)
     cfg = work / "config.toml"
-    cfg.write_text(CONFIG.format(topic=topic, group=f"mushrooms-{time.time_ns()}", out=out,
+    cfg.write_text(CONFIG.format(topic='", "'.join(topics), group=f"mushrooms-{time.time_ns()}", out=out,
                                  out_bootstrap=f'bootstrap = "{out_bootstrap}"' if out_bootstrap else ""))
     t0 = time.monotonic()
     d = Daemon(work, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(work / "state.sqlite")])
     d.wait_log("event=service_ready", 300)
     startup = time.monotonic() - t0
-    return d, topic, out, startup
+    return d, topics, out, startup
 
 
 def latencies(msgs: list[tuple[float, bytes | None, dict[str, Any]]], queued: dict[str, float],
@@ -234,7 +244,7 @@ def latencies(msgs: list[tuple[float, bytes | None, dict[str, Any]]], queued: di
 
 # ---------------------------------------------------------------- scenarios
 def sequential(broker: Broker, work: Path, n_maps: int, report: list[str]) -> None:
-    d, topic, out, startup = start_daemon(work, broker)
+    d, (topic,), out, startup = start_daemon(work, broker)
     reader = Outbound(broker.bootstrap, out)
     sids: dict[str, float] = {}
     names: dict[str, str] = {}
@@ -279,7 +289,7 @@ def _warm_line(text: str) -> str:
 
 
 def burst(broker: Broker, work: Path, n: int, report: list[str], final_wait_s: float) -> None:
-    d, topic, out, startup = start_daemon(work, broker)
+    d, topics, out, startup = start_daemon(work, broker, n_topics=max(1, n // 12 + 1))
     proc = psutil.Process(d.proc.pid)
     rss: list[float] = []
     sampling = threading.Event()
@@ -306,8 +316,8 @@ def burst(broker: Broker, work: Path, n: int, report: list[str], final_wait_s: f
         payloads.append((sid, stamp(doc, sid)))
     t0 = time.time()
     acked: dict[str, float] = {}
-    for sid, raw in payloads:
-        broker.producer.produce(topic, value=raw, key=sid.encode(),
+    for k, (sid, raw) in enumerate(payloads):
+        broker.producer.produce(topics[k % len(topics)], value=raw, key=sid.encode(),
                                 on_delivery=lambda err, msg, sid=sid: acked.__setitem__(sid, time.time()))
         broker.producer.poll(0)
     broker.producer.flush(30)
@@ -358,7 +368,7 @@ def broker_stop(broker: Broker, work: Path, report: list[str], stop_s: float = 6
     bp = subprocess.Popen([sys.executable, "-c", BROKER_PROC], stdout=subprocess.PIPE, text=True)
     try:
         out_bootstrap = bp.stdout.readline().strip()
-        d, topic, out, startup = start_daemon(work, broker, out_bootstrap)
+        d, (topic,), out, startup = start_daemon(work, broker, out_bootstrap)
         admin = confluent_kafka.Producer({"bootstrap.servers": out_bootstrap, "log_level": 3})
         for _ in range(50):
             t = admin.list_topics(out, timeout=10).topics.get(out)
