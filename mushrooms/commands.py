@@ -151,8 +151,8 @@ def check_main(args: argparse.Namespace) -> int:
     return 1
 
 
-#: The bundled demo notice (mock BNS MS230425l, PRELIMINARY, ~570 deg2).
-DEMO_NOTICE = "data/demo/MS230425l-preliminary.json"
+#: The bundled demo notice (mock BNS MS260605l, PRELIMINARY, H1/L1/V1, ~8 deg2).
+DEMO_NOTICE = "data/demo/MS260605l-preliminary.json"
 
 
 def demo_main(args: argparse.Namespace) -> int:

@@ -115,6 +115,21 @@ def test_bad_config_key_is_named(tmp_path):
     assert r.returncode == 2 and "unknown [scheduler] key(s): exposure" in r.stderr
 
 
+def test_demo_plans_the_bundled_notice_end_to_end(tmp_path):
+    """README command 1 (with the fast scheduler): the bundled notice through the service's path."""
+    r = mushrooms("demo", "--solver", "greedy", "--out", str(tmp_path / "d"))
+    assert r.returncode == 0, r.stderr
+    [plan_file] = list((tmp_path / "d" / "outbox").glob("mushrooms-*.json"))
+    doc = json.loads(plan_file.read_text())
+    assert doc["type"] == "plan" and doc["event"]["superevent_id"] == "MS260605l"
+    assert doc["event"]["localization"] == "gw" and doc["event"]["external_coinc"] is None
+    # an ~8 deg2 map observable in the horizon: the plan covers nearly all of it
+    assert doc["metrics"]["coverage"] > 0.99 and doc["observations"]
+    assert (tmp_path / "d" / "plan.png").read_bytes()[:4] == b"\x89PNG"
+    assert (tmp_path / "d" / "state.sqlite").is_file()
+    assert doc["plan_id"] in r.stdout
+
+
 def test_plan_with_a_deadline_writes_the_best_plan_found_by_then(tmp_path, planned):
     """A deadline that has passed before the optimiser starts: the greedy plan is written, as revision 1."""
     out, _ = planned

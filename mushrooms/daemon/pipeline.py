@@ -62,6 +62,7 @@ from typing import Any, Callable
 from ..config import Config
 from ..handlers.alert import Alert, NoticeError, parse_notice
 from ..handlers.decisions import Decision, decide
+from ..handlers.localization import choose_localization, coincidence_summary, skymap_for_sha
 from ..handlers.policy import evaluate
 from ..scheduler_core.errors import InputError, PlanCheckError
 from .sinks import Sink, message_key
@@ -307,9 +308,16 @@ class NoticePipeline:
                 "created": iso_z(datetime.now(timezone.utc)),
             }
 
+        localization = None
+        if verdict.keep and not alert.is_retraction:
+            localization = choose_localization(alert, policy.use_combined_skymap)
+            if localization is not None and localization.note and localization.kind == "gw" \
+                    and alert.external_coinc is not None:
+                log.warning("notice origin=%s superevent_id=%s: %s", origin, alert.superevent_id, localization.note)
+
         nid, decision, job, cancelled, key = self.store.record_decision(
             record,
-            lambda ledger: decide(alert, verdict, ledger),
+            lambda ledger: decide(alert, verdict, ledger, localization),
             lambda d: self._plan_start(alert, now),
             received_wall=wall,
             withdrawal=withdrawal,
@@ -562,9 +570,14 @@ class NoticePipeline:
             return raw, EventInfo(skymap_sha256=job.skymap_sha256)
         alert = parse_notice(raw)
         assert alert.event is not None
-        return alert.event.skymap, EventInfo(superevent_id=alert.superevent_id, alert_type=alert.alert_type,
-                                             time_created=iso_z(alert.time_created),
-                                             skymap_sha256=alert.event.skymap_sha256)
+        found = skymap_for_sha(alert, job.skymap_sha256)
+        if found is None:  # a job recorded before joint maps were told apart: the GW map
+            found = ("gw", alert.event.skymap)
+        kind, skymap_bytes = found
+        return skymap_bytes, EventInfo(superevent_id=alert.superevent_id, alert_type=alert.alert_type,
+                                       time_created=iso_z(alert.time_created),
+                                       skymap_sha256=hashlib.sha256(skymap_bytes).hexdigest(), localization=kind,
+                                       external_coinc=coincidence_summary(alert.external_coinc))
 
     @staticmethod
     def _prepare(skymap: Any, config: Any, start: Any) -> Any:
@@ -647,11 +660,14 @@ class NoticePipeline:
         record = dataclasses.replace(record, sha256=hashlib.sha256(raw).hexdigest(), size=len(raw),
                                      alert_type=alert.alert_type, time_created=iso_z(alert.time_created), raw=raw)
 
+        loc = choose_localization(alert, self.config.policy.use_combined_skymap)
+        sha, kind = (loc.sha256, loc.kind) if loc is not None else (alert.skymap_sha256, "gw")
+
         def dec(ledger: Any) -> Decision:
             st = ledger.event_state(sid)
             latest = st.latest_plan_id if st is not None else None
-            return Decision("rerun", sid, "manual rerun requested", alert.alert_type, alert.skymap_sha256,
-                            supersedes=latest)
+            return Decision("rerun", sid, f"manual rerun requested ({kind} map)", alert.alert_type, sha,
+                            supersedes=latest, localization=kind)
 
         nid, decision, job, cancelled, _ = self.store.record_decision(
             record, dec, lambda d: self._plan_start(alert, now), received_wall=wall)

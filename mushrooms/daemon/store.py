@@ -52,7 +52,13 @@ __all__ = ["Store", "StoreError", "Job", "OutboxMessage", "NoticeRecord", "SCHEM
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+
+#: Additive migrations: ``{version: statements}`` bring a state file of
+#: ``version - 1`` up to ``version`` (a new file gets :data:`_SCHEMA` at once).
+_MIGRATIONS: dict[int, tuple[str, ...]] = {
+    2: ("ALTER TABLE events ADD COLUMN localization TEXT",),  # gw | combined (issue 17)
+}
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS notices (
@@ -81,7 +87,8 @@ CREATE TABLE IF NOT EXISTS events (
     superevent_id TEXT PRIMARY KEY,
     skymap_sha256 TEXT,
     retracted     INTEGER NOT NULL DEFAULT 0,
-    updated_at    TEXT NOT NULL
+    updated_at    TEXT NOT NULL,
+    localization  TEXT
 );
 CREATE TABLE IF NOT EXISTS jobs (
     job_id        INTEGER PRIMARY KEY AUTOINCREMENT,
@@ -225,12 +232,13 @@ class _TxLedger:
 
 
 def _event_state(conn: sqlite3.Connection, sid: str) -> EventState | None:
-    row = conn.execute("SELECT skymap_sha256, retracted FROM events WHERE superevent_id=?", (sid,)).fetchone()
+    row = conn.execute("SELECT skymap_sha256, retracted, localization FROM events WHERE superevent_id=?",
+                       (sid,)).fetchone()
     if row is None:
         return None
     ids = tuple(r[0] for r in conn.execute(
         "SELECT plan_id FROM plans WHERE superevent_id=? AND withdrawn=0 ORDER BY seq", (sid,)))
-    return EventState(sid, row[0], ids, bool(row[1]))
+    return EventState(sid, row[0], ids, bool(row[1]), row[2])
 
 
 def _job(row: sqlite3.Row) -> Job:
@@ -276,9 +284,14 @@ class Store:
             raise StoreError(f"{self.path}: not a usable SQLite database ({exc})") from None
         if version > SCHEMA_VERSION:
             raise StoreError(f"{self.path}: schema version {version} is newer than this program's {SCHEMA_VERSION}")
-        if version < SCHEMA_VERSION:
+        if version == 0:
             with self._lock:
                 conn.executescript("BEGIN IMMEDIATE;" + _SCHEMA + f"PRAGMA user_version={SCHEMA_VERSION}; COMMIT;")
+        elif version < SCHEMA_VERSION:
+            steps = [sql for v in range(version + 1, SCHEMA_VERSION + 1) for sql in _MIGRATIONS[v]]
+            with self._lock:
+                conn.executescript("BEGIN IMMEDIATE;" + ";".join(steps) + f"; PRAGMA user_version={SCHEMA_VERSION}; COMMIT;")
+            log.info("state %s migrated from schema %d to %d", self.path, version, SCHEMA_VERSION)
         self._add_columns(conn)
 
     def _add_columns(self, conn: sqlite3.Connection) -> None:
@@ -404,9 +417,11 @@ class Store:
                     "SELECT job_id FROM jobs WHERE superevent_id=? AND status IN ('pending','running')", (sid,))]
                 c.execute("UPDATE jobs SET status='superseded', reason='newer sky map', finished_at=?"
                           " WHERE superevent_id=? AND status IN ('pending','running')", (now, sid))
-                c.execute("INSERT INTO events(superevent_id, skymap_sha256, retracted, updated_at) VALUES (?,?,0,?)"
-                          " ON CONFLICT(superevent_id) DO UPDATE SET skymap_sha256=excluded.skymap_sha256,"
-                          " retracted=0, updated_at=excluded.updated_at", (sid, decision.skymap_sha256, now))
+                c.execute("INSERT INTO events(superevent_id, skymap_sha256, retracted, updated_at, localization)"
+                          " VALUES (?,?,0,?,?) ON CONFLICT(superevent_id) DO UPDATE SET"
+                          " skymap_sha256=excluded.skymap_sha256, retracted=0, updated_at=excluded.updated_at,"
+                          " localization=excluded.localization", (sid, decision.skymap_sha256, now,
+                                                                   decision.localization))
                 cur = c.execute(
                     "INSERT INTO jobs(notice_id, superevent_id, alert_type, time_created, skymap_sha256, decision,"
                     " start, supersedes, received_wall, status, created_at) VALUES (?,?,?,?,?,?,?,?,?,?,?)",

@@ -77,6 +77,12 @@ class PolicyConfig:
         plan id.  ``event``: the merger time from the notice (deterministic
         replays of archived events).  ``created``: the notice's own
         ``time_created``.
+    use_combined_skymap : bool
+        Plan on the joint GW x external localisation
+        (``external_coinc.combined_skymap``, e.g. GW x Fermi-GBM) when the
+        notice carries one that decodes as a valid sky map; the GW map
+        otherwise.  Default True: the joint map is what an observer wants to
+        search first, and it is often much smaller.
     """
 
     allow_mock: bool = False
@@ -90,6 +96,7 @@ class PolicyConfig:
     max_event_age_s: float = 172800.0
     max_notice_bytes: int = 8_388_608
     plan_start: str = "received"
+    use_combined_skymap: bool = True
 
     def __post_init__(self) -> None:
         if self.plan_start not in PLAN_START_CHOICES:
@@ -107,7 +114,7 @@ class PolicyConfig:
         if isinstance(self.max_notice_bytes, bool) or not isinstance(self.max_notice_bytes, int) \
                 or self.max_notice_bytes < 1024:
             raise ValueError(f"[policy] max_notice_bytes must be an integer >= 1024, got {self.max_notice_bytes!r}")
-        for name in ("allow_mock", "require_significant"):
+        for name in ("allow_mock", "require_significant", "use_combined_skymap"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"[policy] {name} must be true or false, got {getattr(self, name)!r}")
         for name in ("groups", "alert_types"):

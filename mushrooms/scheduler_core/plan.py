@@ -102,12 +102,28 @@ class Observation:
 
 @dataclass(frozen=True)
 class EventInfo:
-    """What the plan answers; all None for a bare sky map."""
+    """What the plan answers; all None for a bare sky map.
+
+    Attributes
+    ----------
+    superevent_id, alert_type, time_created : str or None
+        The notice answered.
+    skymap_sha256 : str or None
+        SHA-256 of the sky map planned on.
+    localization : str or None
+        Which map that is: ``gw`` (the GW sky map) or ``combined`` (the
+        joint GW x external-trigger map of ``external_coinc``).
+    external_coinc : dict or None
+        The coincident external trigger (observatory, search, time
+        difference in s, coincidence FARs in Hz), when the notice has one.
+    """
 
     superevent_id: str | None = None
     alert_type: str | None = None
     time_created: str | None = None
     skymap_sha256: str | None = None
+    localization: str | None = None
+    external_coinc: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -273,7 +289,8 @@ class Plan:
             m = doc["metrics"]
             metrics = PlanMetrics(**{k: m.get(k) for k in METRIC_KEYS})
             ev = doc["event"] or {}
-            event = EventInfo(**{k: ev.get(k) for k in ("superevent_id", "alert_type", "time_created", "skymap_sha256")})
+            event = EventInfo(**{k: ev.get(k) for k in ("superevent_id", "alert_type", "time_created", "skymap_sha256",
+                                                        "localization", "external_coinc")})
             return cls(
                 plan_id=str(doc["plan_id"]), start=start, end=end,
                 observations=tuple(observations), metrics=metrics, event=event,

@@ -46,7 +46,10 @@ def _rows(state: Path, sql: str) -> list[tuple]:
 
 
 def _skymap_sha(raw: bytes) -> str:
-    return hashlib.sha256(base64.b64decode(json.loads(raw)["event"]["skymap"])).hexdigest()
+    """SHA-256 of the map the service plans on: the joint map of an external coincidence, else the GW map."""
+    d = json.loads(raw)
+    joint = (d.get("external_coinc") or {}).get("combined_skymap")
+    return hashlib.sha256(base64.b64decode(joint or d["event"]["skymap"])).hexdigest()
 
 
 def test_kill9_in_the_middle_of_a_job_then_restart_delivers_the_same_plan(broker, daemons, tmp_path: Path) -> None:

@@ -59,7 +59,7 @@ def test_retraction_then_later_initial_plans_again():
     assert [d.action for d in out] == ["plan", "withdraw", "plan"]
     assert "after a retraction" in out[2].reason
     assert out[2].supersedes is None
-    assert ledger.event_state("MS230425k") == EventState("MS230425k", out[2].skymap_sha256, ("plan-2",), False)
+    assert ledger.event_state("MS230425k") == EventState("MS230425k", out[2].skymap_sha256, ("plan-2",), False, "gw")
 
 
 def test_retractions_of_unknown_or_retracted_events_are_ignored():
