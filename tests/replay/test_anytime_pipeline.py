@@ -58,13 +58,6 @@ class HalfThenWhole:
         return dataclasses.replace(whole, solver="test-optimiser")
 
 
-@pytest.fixture
-def store(tmp_path):
-    s = Store(tmp_path / "state.sqlite")
-    yield s
-    s.close()
-
-
 def accept(p, rel, data=None, minutes=0.5):
     return p.accept(data if data is not None else raw(rel), f"test:{rel}", created(rel) + timedelta(minutes=minutes))
 
