@@ -190,7 +190,7 @@ def demo_main(args: argparse.Namespace) -> int:
     if not docs:
         print(f"demo: no plan was produced (replay exit status {code}); see the log above")
         return 1
-    doc = docs[-1]
+    doc = max(docs, key=lambda d: d.get("revision", 1))  # the optimised revision when one was published
     plan = Plan.from_document(doc)
     payload = json.loads(Path(str(notice)).read_text())["event"]["skymap"]
     skymap = read_skymap(base64.b64decode(payload), nside=load_config(config_path).scheduler.nside)
