@@ -62,6 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "(default: the sky map's event time)")
     sp.add_argument("--solver", choices=["greedy", "milp", "hybrid"], help="scheduler (default from config: hybrid)")
     sp.add_argument("-o", "--output", metavar="FILE", default="plan.json", help="plan document to write (default plan.json)")
+    sp.add_argument("--deadline", metavar="SECONDS", type=float,
+                    help="write the best plan found by then: the greedy plan at once, the optimised one if it is "
+                         "ready and covers more (default: wait for the solver)")
     sp.add_argument("--queue", metavar="FILE", help="also write ZTF's ToO trigger queue (program fields from [export])")
     sp.add_argument("--skyportal", metavar="FILE",
                     help="also write the body of SkyPortal's POST /api/observation_plan/manual")

@@ -161,7 +161,14 @@ def plan_main(args: argparse.Namespace) -> int:
              skymap.credible_area(0.9), skymap.event_time.isot if skymap.event_time else "unknown")
     if start is not None:
         warn_if_far_from_merger(start, skymap.event_time)
-    plan = make_plan(skymap, cfg, start=start, solver=args.solver)
+    deadline = getattr(args, "deadline", None)
+    if deadline is None:
+        from .scheduler_core.anytime import revision_document
+
+        plan = make_plan(skymap, cfg, start=start, solver=args.solver)
+        doc = revision_document(plan, 1, True)
+    else:
+        plan, doc = _plan_by_deadline(skymap, cfg, start, args.solver or cfg.solver, float(deadline), t0)
     answer = not_observable(plan, skymap, cfg)
     if answer is not None:
         write_json_atomic(args.output, answer.to_document())
@@ -177,7 +184,7 @@ def plan_main(args: argparse.Namespace) -> int:
 
             plot_plan(plan, skymap, args.plot, answer=answer)
         return 0
-    write_json_atomic(args.output, plan.to_document())
+    write_json_atomic(args.output, doc)
     if args.queue:
         write_json_atomic(args.queue, to_trigger_queue(plan, config.export))
     if getattr(args, "skyportal", None):
@@ -191,6 +198,30 @@ def plan_main(args: argparse.Namespace) -> int:
     print(f"{args.output}: {m.n_fields} fields, {m.n_exposures} exposures, coverage {m.coverage:.4f}, "
           f"{m.solver} ({m.status}{gap}), checked, {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def _plan_by_deadline(skymap: Any, cfg: Any, start: Any, solver: str, deadline_s: float,
+                      t0: float) -> tuple[Any, dict[str, Any]]:
+    """The best checked plan found ``deadline_s`` after ``t0`` (anytime: greedy first, then ``solver``)."""
+    from .scheduler_core.anytime import anytime_plans, revision_document
+    from .scheduler_core.errors import InputError
+    from .scheduler_core.prepare import prepare_problem
+
+    if deadline_s <= 0:
+        raise InputError(f"--deadline must be > 0 seconds, got {deadline_s:g}")
+    if start is None:
+        if skymap.event_time is None:
+            raise InputError("the sky map has no event time (DATE-OBS); give --start")
+        start = skymap.event_time
+    problem = prepare_problem(skymap, cfg, start)
+    best, revision = None, 0
+    for plan in anytime_plans(problem, skymap, solver, should_stop=lambda: time.perf_counter() - t0 > deadline_s):
+        if best is None or plan.metrics.coverage > best.metrics.coverage:
+            best, revision = plan, revision + 1
+            log.info("--deadline: %s plan covers %.4f at %.1f s", plan.metrics.solver, plan.metrics.coverage,
+                     time.perf_counter() - t0)
+    assert best is not None
+    return best, revision_document(best, revision, True)
 
 
 def check_main(args: argparse.Namespace) -> int:
@@ -280,7 +311,7 @@ def demo_main(args: argparse.Namespace) -> int:
     if not docs:
         print(f"demo: no plan was produced (replay exit status {code}); see the log above")
         return 1
-    doc = docs[-1]
+    doc = max(docs, key=lambda d: d.get("revision", 1))  # the optimised revision when one was published
     plan = Plan.from_document(doc)
     payload = json.loads(Path(str(notice)).read_text())["event"]["skymap"]
     skymap = read_skymap(base64.b64decode(payload), nside=load_config(config_path).scheduler.nside)

@@ -128,3 +128,18 @@ def test_demo_plans_the_bundled_notice_end_to_end(tmp_path):
     assert (tmp_path / "d" / "plan.png").read_bytes()[:4] == b"\x89PNG"
     assert (tmp_path / "d" / "state.sqlite").is_file()
     assert doc["plan_id"] in r.stdout
+
+
+def test_plan_with_a_deadline_writes_the_best_plan_found_by_then(tmp_path, planned):
+    """A deadline that has passed before the optimiser starts: the greedy plan is written, as revision 1."""
+    out, _ = planned
+    r = mushrooms("plan", str(MAP), "--solver", "hybrid", "--start", "2022-07-23T02:00:00Z",
+                  "--deadline", "0.001", "-o", str(tmp_path / "plan.json"))
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((tmp_path / "plan.json").read_text())
+    greedy = json.loads((out / "plan.json").read_text())
+    assert doc["metrics"]["solver"] == "greedy" and doc["revision"] == 1 and doc["final"] is True
+    assert [(o["field_id"], o["filter"], o["start"]) for o in doc["observations"]] == \
+        [(o["field_id"], o["filter"], o["start"]) for o in greedy["observations"]]
+    bad = mushrooms("plan", str(MAP), "--deadline", "-3", "-o", str(tmp_path / "x.json"))
+    assert bad.returncode == 2 and "--deadline" in bad.stderr and "Traceback" not in bad.stderr

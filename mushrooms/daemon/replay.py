@@ -88,6 +88,7 @@ def format_line(name: str, outcome: Outcome) -> str:
     lat = f"{outcome.latency_s:.2f}" if outcome.latency_s is not None else "-"
     extra = f" withdrawn={','.join(outcome.plan_ids) or '-'}" if outcome.decision == "withdraw" else ""
     sup = f" supersedes={outcome.supersedes}" if outcome.supersedes else ""
+    sup += f" revision={outcome.revision}" if outcome.revision else ""
     return (f"{name} {outcome.superevent_id or '-'} {outcome.alert_type or '-'} {outcome.decision} "
             f"plan_id={outcome.plan_id or '-'} coverage={cov} latency_s={lat}{sup}{extra} "
             f"reason={outcome.reason!r}")

@@ -29,7 +29,7 @@ from typing import Any, Callable
 from apscheduler.schedulers.background import BackgroundScheduler
 
 from ..config import Config, ConfigError, load_config
-from .jobs import JobRunner, OutboxRetrier
+from .jobs import JobRunner, OutboxDrain
 from .notify import Notifier, watchdog_interval_s
 from .settings import RuntimePaths, resolve_paths
 from .trigger import DaemonRunning, PidLock, dispatch, pending_triggers, read_trigger
@@ -39,6 +39,7 @@ __all__ = ["main", "Service", "effective_config", "open_pipeline", "setup_loggin
 log = logging.getLogger("mushrooms.daemon")
 
 TRIGGER_SCAN_S = 5.0  # triggers are also picked up without SIGUSR1, at this period (s)
+WARM_INTERVAL_S = 1800.0  # the coming night's visibility is computed ahead at this period (s)
 
 
 # ---------------------------------------------------------------- configuration
@@ -100,14 +101,19 @@ def open_store(path: Path) -> Any:
     return cls(path)
 
 
-def open_pipeline(config: Config, paths: RuntimePaths, sink: Any = None) -> tuple[Any, Callable[[], None]]:
-    """Store + sink + pipeline; returns the pipeline and a closer."""
+def open_pipeline(config: Config, paths: RuntimePaths, sink: Any = None, **pipeline_kw: Any
+                  ) -> tuple[Any, Callable[[], None]]:
+    """Store + sink + pipeline; returns the pipeline and a closer.
+
+    ``pipeline_kw`` go to :class:`~.pipeline.NoticePipeline` (the daemon's
+    ``sky_cache`` and ``on_outbox``).
+    """
     from .pipeline import NoticePipeline
 
     store = open_store(paths.state)
     own_sink = sink is None
     sink = make_sink(config) if own_sink else sink
-    pipeline = NoticePipeline(config, store, sink)
+    pipeline = NoticePipeline(config, store, sink, **pipeline_kw)
 
     def close() -> None:
         for obj in ((sink,) if own_sink else ()) + (store,):
@@ -208,15 +214,19 @@ class Service:
         scheduler.start()
         close: Callable[[], None] = lambda: None
         try:
-            self.pipeline, close = open_pipeline(self.config, self.paths)
-            self.outbox = OutboxRetrier(self._flush_outbox, scheduler,
-                                        self.config.outbound.retry_initial_s, self.config.outbound.retry_max_s)
+            self.outbox = OutboxDrain(self._flush_outbox, self.config.outbound.retry_initial_s,
+                                      self.config.outbound.retry_max_s)
+            self.sky_cache = self._warm_up()
+            self.pipeline, close = open_pipeline(self.config, self.paths, sky_cache=self.sky_cache,
+                                                 on_outbox=self.outbox.kick)
             self.jobs = JobRunner(self._run_job, scheduler, self.config.daemon.max_jobs,
                                   self.config.daemon.job_deadline_s, on_done=self._job_done)
             log.info("event=service_starting pid=%d config=%s state=%s sink=%s triggers=%s",
                      os.getpid(), self.config.source, self.paths.state, self._sink_text(),
                      self.paths.trigger_dir)
-            self.outbox.drain()  # what a crash left in the outbox goes out first
+            self.outbox.kick()  # what a crash left in the outbox goes out first
+            scheduler.add_job(self._rewarm, "interval", seconds=WARM_INTERVAL_S, id="warm",
+                              misfire_grace_time=None, coalesce=True)
             resumed = self.jobs.sync(self.pipeline.store.pending_jobs())
             if resumed:
                 log.info("event=jobs_resumed count=%d", resumed)
@@ -231,8 +241,8 @@ class Service:
                 scheduler.add_job(self._watchdog, "interval", seconds=wd, id="watchdog",
                                   args=[wd], misfire_grace_time=None, coalesce=True)
             self.notifier.ready(f"consuming {','.join(self.config.kafka.topics)}")
-            log.info("event=service_ready topics=%s watchdog_s=%s", ",".join(self.config.kafka.topics),
-                     f"{wd:.1f}" if wd else "-")
+            log.info("event=service_ready topics=%s watchdog_s=%s startup_s=%.2f", ",".join(self.config.kafka.topics),
+                     f"{wd:.1f}" if wd else "-", time.monotonic() - self._started)
             self._loop()
             return 0
         finally:
@@ -245,6 +255,8 @@ class Service:
             if self.consumer is not None:
                 self.consumer.close()
             scheduler.shutdown(wait=False)
+            if hasattr(self, "outbox"):
+                self.outbox.close()
             unfinished = hasattr(self, "jobs") and self.jobs.busy()
             if not unfinished:
                 close()
@@ -354,18 +366,52 @@ class Service:
         return 0
 
     def _after_decision(self, decision: Any) -> None:
-        """A withdrawal waits in the outbox: publish it now, off the consume loop."""
+        """A withdrawal waits in the outbox: the drain publishes it, off the consume loop."""
         if getattr(decision, "withdrawal_id", None) or getattr(decision, "action", None) == "withdraw":
-            self.scheduler.add_job(self.outbox.drain, id=f"drain-{time.time_ns()}", misfire_grace_time=None)
+            self.outbox.kick(now=True)
 
     def _run_job(self, job: Any, should_stop: Callable[[], bool]) -> Any:
         # a stopping service does not cut plans short: they get a grace period,
-        # and a job still running at exit stays pending and resumes at the next start
-        return self.pipeline.run_job(job, should_stop)
+        # and a job still running at exit stays pending and resumes at the next start;
+        # staged: the optimisation is queued behind newer events' first plans
+        return self.pipeline.run_job(job, should_stop, staged=True)
 
     def _job_done(self, job: Any, outcome: Any, info: dict[str, Any]) -> None:
         self._counts["jobs"] += 1
-        self.outbox.drain()
+
+    # ------------------------------------------------------------ warm state
+    def _warm_up(self) -> Any:
+        """Imports, grid, footprints and tonight's visibility, and one throw-away plan, before consuming."""
+        from .warm import SkyCache
+
+        t0 = time.perf_counter()
+        cache = SkyCache()
+        cache.warm(self.config.scheduler)
+        t_cache = time.perf_counter() - t0
+        try:  # the first alert must not pay for first calls (checker, greedy, MILP imports)
+            from ..commands import demo_skymap_path
+            from ..scheduler_core import read_skymap
+            from ..scheduler_core.anytime import FIRST_SOLVER, checked_plan
+            from ..scheduler_core.planner import run_scheduler
+
+            if self.config.scheduler.solver != FIRST_SOLVER:
+                from ..scheduler_core import milp  # noqa: F401
+            from astropy.time import Time
+
+            skymap = read_skymap(demo_skymap_path(), nside=self.config.scheduler.nside)
+            problem = cache.prepare(skymap, self.config.scheduler, Time.now())
+            checked_plan(problem, run_scheduler(problem, FIRST_SOLVER), skymap, FIRST_SOLVER)
+        except Exception as exc:  # warming is an optimisation, never a reason not to start
+            log.warning("event=warm_up_plan_failed error=%r", f"{type(exc).__name__}: {exc}")
+        log.info("event=warm_up cache_s=%.2f total_s=%.2f", t_cache, time.perf_counter() - t0)
+        return cache
+
+    def _rewarm(self) -> None:
+        """Compute the coming night's visibility before an alert needs it."""
+        try:
+            self.sky_cache.warm(self.config.scheduler)
+        except Exception:
+            log.exception("event=warm_failed")
 
     def _flush_outbox(self) -> Any:
         return self.pipeline.flush_outbox()
@@ -402,7 +448,8 @@ class Service:
             new = dataclasses.replace(new, daemon=dataclasses.replace(new.daemon, state_path=str(self.paths.state)))
         from .pipeline import NoticePipeline
 
-        self.pipeline = NoticePipeline(new, self.pipeline.store, sink)
+        self.pipeline = NoticePipeline(new, self.pipeline.store, sink, sky_cache=self.sky_cache,
+                                       on_outbox=self.outbox.kick)
         if new.kafka != self.config.kafka:
             from .consumer import NoticeConsumer
 

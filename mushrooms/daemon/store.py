@@ -11,7 +11,9 @@ Tables
 ``jobs``      planning jobs: ``pending`` -> ``running`` -> ``done`` | ``failed``
               | ``superseded`` | ``cancelled``, with the horizon start fixed at
               accept time (so a re-run gives the same plan id).
-``plans``     plan documents (JSON) and whether they were withdrawn.
+``plans``     plan documents (JSON) and whether they were withdrawn; a job's
+              revisions (1: the fast plan, 2: a better optimised one) and
+              whether the revision is ``final``.
 ``outbox``    messages to publish; ``published_at`` is set once the sink took
               them.  Publication is at-least-once: a crash between publishing
               and marking re-publishes the same message (same key).
@@ -133,6 +135,13 @@ CREATE TABLE IF NOT EXISTS outbox (
 CREATE INDEX IF NOT EXISTS outbox_pending ON outbox(published_at);
 """
 
+#: Columns added after schema version 1, as (table, column, declaration).  Added
+#: when missing at every open, so state files of any earlier release keep working.
+_ADDED_COLUMNS = (
+    ("plans", "revision", "INTEGER NOT NULL DEFAULT 1"),
+    ("plans", "final", "INTEGER NOT NULL DEFAULT 1"),
+)
+
 _OPEN = ("pending", "running")
 
 
@@ -195,6 +204,7 @@ class OutboxMessage:
     message: dict[str, Any]
     attempts: int
     published_at: str | None
+    created_at: str | None = None
 
 
 @dataclass(frozen=True)
@@ -282,6 +292,19 @@ class Store:
             with self._lock:
                 conn.executescript("BEGIN IMMEDIATE;" + ";".join(steps) + f"; PRAGMA user_version={SCHEMA_VERSION}; COMMIT;")
             log.info("state %s migrated from schema %d to %d", self.path, version, SCHEMA_VERSION)
+        self._add_columns(conn)
+
+    def _add_columns(self, conn: sqlite3.Connection) -> None:
+        """Add the columns of :data:`_ADDED_COLUMNS` that an older state file lacks."""
+        with self._lock:
+            for table, column, decl in _ADDED_COLUMNS:
+                have = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
+                if column not in have:
+                    try:
+                        conn.execute(f"ALTER TABLE {table} ADD COLUMN {column} {decl}")
+                    except sqlite3.OperationalError as exc:  # another process added it meanwhile
+                        if "duplicate column" not in str(exc):
+                            raise
 
     # ------------------------------------------------------------ connections
     def _conn(self) -> sqlite3.Connection:
@@ -472,7 +495,8 @@ class Store:
                           (f"gave up after {row['attempts']} unfinished attempts", _now(), job_id))
                 return None
             prev = c.execute("SELECT plan_id FROM plans WHERE superevent_id=? AND withdrawn=0"
-                             " ORDER BY seq DESC LIMIT 1", (row["superevent_id"],)).fetchone()
+                             " AND job_id IS NOT ? ORDER BY seq DESC LIMIT 1",
+                             (row["superevent_id"], job_id)).fetchone()
             supersedes = prev[0] if prev else None
             c.execute("UPDATE jobs SET status='running', attempts=attempts+1, supersedes=? WHERE job_id=?",
                       (supersedes, job_id))
@@ -508,21 +532,90 @@ class Store:
         """Store the plan, close the job and queue the plan message, atomically.
 
         Returns the outbox id, or None when the job was superseded or
-        cancelled while it ran (the plan is then dropped).
+        cancelled while it ran (the plan is then dropped).  Same as
+        :meth:`store_revision` with ``final=True``.
         """
+        return self.store_revision(job_id, plan_id, document, coverage, latency_s, final=True)
+
+    def store_revision(self, job_id: int, plan_id: str, document: dict[str, Any], coverage: float,
+                       latency_s: float, final: bool, revision: int | None = None) -> int | None:
+        """Store one revision of a running job's plan and queue its message, atomically.
+
+        A job publishes its fast plan as revision 1 and possibly a better
+        one as revision 2; the final revision also closes the job
+        (``done``).  Idempotent across a crash and restart: a revision this
+        job already stored (same ``plan_id``) is not queued again.
+
+        Parameters
+        ----------
+        job_id : int
+        plan_id : str
+        document : dict
+            The plan document (with its ``revision`` and ``final``).
+        coverage, latency_s : float
+        final : bool
+            No further revision follows: close the job.
+        revision : int, optional
+            Default ``document["revision"]``, else 1.
+
+        Returns
+        -------
+        int or None
+            The outbox id (the earlier one when already stored), or None when
+            the job was superseded or cancelled meanwhile (nothing stored).
+        """
+        revision = int(revision if revision is not None else document.get("revision", 1))
         with self._tx() as c:
             row = c.execute("SELECT status, superevent_id FROM jobs WHERE job_id=?", (job_id,)).fetchone()
             if row is None or row["status"] != "running":
                 return None
             now = _now()
-            seq = c.execute("SELECT COALESCE(MAX(seq), 0) + 1 FROM plans").fetchone()[0]
-            c.execute("INSERT INTO plans(plan_id, superevent_id, job_id, created_at, seq, withdrawn, document)"
-                      " VALUES (?,?,?,?,?,0,?) ON CONFLICT(plan_id) DO UPDATE SET withdrawn=0, job_id=excluded.job_id,"
-                      " seq=excluded.seq, document=excluded.document",
-                      (plan_id, row["superevent_id"], job_id, now, seq, json.dumps(document)))
-            c.execute("UPDATE jobs SET status='done', plan_id=?, coverage=?, latency_s=?, reason=NULL, finished_at=?"
-                      " WHERE job_id=?", (plan_id, coverage, latency_s, now, job_id))
-            return self._insert_outbox(c, plan_id, "plan", document)
+            mine = c.execute("SELECT 1 FROM plans WHERE plan_id=? AND job_id=?", (plan_id, job_id)).fetchone()
+            outbox_id = None
+            if mine is not None:
+                found = c.execute("SELECT outbox_id FROM outbox WHERE key=? AND kind='plan' ORDER BY outbox_id DESC"
+                                  " LIMIT 1", (plan_id,)).fetchone()
+                outbox_id = None if found is None else int(found[0])
+            if outbox_id is None:
+                seq = c.execute("SELECT COALESCE(MAX(seq), 0) + 1 FROM plans").fetchone()[0]
+                c.execute("INSERT INTO plans(plan_id, superevent_id, job_id, created_at, seq, withdrawn, document,"
+                          " revision, final) VALUES (?,?,?,?,?,0,?,?,?) ON CONFLICT(plan_id) DO UPDATE SET"
+                          " withdrawn=0, job_id=excluded.job_id, seq=excluded.seq, document=excluded.document,"
+                          " revision=excluded.revision, final=excluded.final",
+                          (plan_id, row["superevent_id"], job_id, now, seq, json.dumps(document), revision,
+                           int(final)))
+                outbox_id = self._insert_outbox(c, plan_id, "plan", document)
+            if final:
+                c.execute("UPDATE jobs SET status='done', plan_id=?, coverage=?, latency_s=?, reason=NULL,"
+                          " finished_at=? WHERE job_id=?", (plan_id, coverage, latency_s, now, job_id))
+            else:
+                c.execute("UPDATE jobs SET plan_id=?, coverage=?, latency_s=? WHERE job_id=?",
+                          (plan_id, coverage, latency_s, job_id))
+            return outbox_id
+
+    def close_job(self, job_id: int, key: str, message: dict[str, Any], reason: str) -> int | None:
+        """Close a running job whose last stored revision stands, and queue ``message`` (``plan_final``).
+
+        Returns the outbox id (the earlier one after a restart), or None when
+        the job is no longer running (superseded, cancelled: nothing queued).
+        """
+        with self._tx() as c:
+            row = c.execute("SELECT status FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+            if row is None or row["status"] != "running":
+                return None
+            c.execute("UPDATE plans SET final=1 WHERE job_id=?", (job_id,))
+            c.execute("UPDATE jobs SET status='done', reason=?, finished_at=? WHERE job_id=?",
+                      (reason[:500], _now(), job_id))
+            found = c.execute("SELECT outbox_id FROM outbox WHERE key=? ORDER BY outbox_id DESC LIMIT 1",
+                              (key,)).fetchone()
+            return int(found[0]) if found is not None else self._insert_outbox(c, key, "plan_final", message)
+
+    def job_plans(self, job_id: int) -> list[dict[str, Any]]:
+        """The revisions a job stored, oldest first (documents parsed)."""
+        rows = self._conn().execute(
+            "SELECT plan_id, revision, final, withdrawn, document FROM plans WHERE job_id=? ORDER BY seq",
+            (job_id,)).fetchall()
+        return [dict(r) | {"document": json.loads(r["document"])} for r in rows]
 
     def fail_job(self, job_id: int, reason: str, retry_same_map: bool = False) -> None:
         """Close a job that cannot produce a plan (bad sky map, checker, bug).
@@ -544,8 +637,8 @@ class Store:
         """Messages not yet published, oldest first."""
         rows = self._conn().execute(
             "SELECT * FROM outbox WHERE published_at IS NULL ORDER BY outbox_id LIMIT ?", (limit,)).fetchall()
-        return [OutboxMessage(r["outbox_id"], r["key"], r["kind"], json.loads(r["body"]), r["attempts"], None)
-                for r in rows]
+        return [OutboxMessage(r["outbox_id"], r["key"], r["kind"], json.loads(r["body"]), r["attempts"], None,
+                              r["created_at"]) for r in rows]
 
     def mark_published(self, outbox_id: int) -> None:
         with self._tx() as c:
@@ -566,7 +659,7 @@ class Store:
 
     def plans(self, superevent_id: str | None = None) -> list[dict[str, Any]]:
         """Stored plans (documents parsed), oldest first."""
-        q = "SELECT plan_id, superevent_id, job_id, created_at, withdrawn, document FROM plans"
+        q = "SELECT plan_id, superevent_id, job_id, created_at, withdrawn, revision, final, document FROM plans"
         args: tuple[Any, ...] = ()
         if superevent_id is not None:
             q += " WHERE superevent_id=?"
