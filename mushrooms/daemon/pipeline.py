@@ -350,7 +350,7 @@ class NoticePipeline:
             event = EventInfo(superevent_id=alert.superevent_id, alert_type=alert.alert_type,
                               time_created=iso_z(alert.time_created), skymap_sha256=alert.event.skymap_sha256)
         sched = self.config.scheduler
-        skymap = read_skymap(skymap_bytes, nside=sched.nside)
+        skymap = read_skymap(skymap_bytes, nside=sched.nside, max_bytes=self.config.policy.max_skymap_bytes)
         planner = self._planner or make_plan
         plan = planner(skymap, config=sched, start=parse_time(job.start), event=event,
                        supersedes=job.supersedes, should_stop=should_stop)

@@ -140,7 +140,7 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger) -> Decision:
     sid = alert.superevent_id
     base = dict(superevent_id=sid, alert_type=alert.alert_type)
     if not verdict.keep:
-        return Decision("ignore", reason=verdict.reason, **base)
+        return Decision("rejected" if verdict.reject else "ignore", reason=verdict.reason, **base)
     state = ledger.event_state(sid)
     if alert.alert_type == "RETRACTION":
         if state is None:
