@@ -352,8 +352,12 @@ class NoticePipeline:
         sched = self.config.scheduler
         skymap = read_skymap(skymap_bytes, nside=sched.nside, max_bytes=self.config.policy.max_skymap_bytes)
         planner = self._planner or make_plan
+        if job.fallback:  # the optimiser died too often on this job: the fast scheduler's plan still goes out
+            log.warning("job superevent_id=%s job=%s fallback=greedy reason='%d starts died'", job.superevent_id,
+                        job.job_id, job.attempts - 1)
         plan = planner(skymap, config=sched, start=parse_time(job.start), event=event,
-                       supersedes=job.supersedes, should_stop=should_stop)
+                       supersedes=job.supersedes, should_stop=should_stop,
+                       **({"solver": "greedy"} if job.fallback else {}))
         if plan.supersedes == plan.plan_id:
             plan = plan.with_(supersedes=None)
         return plan

@@ -45,6 +45,13 @@ class DaemonConfig:
         After SIGTERM, running planning jobs may finish within this time (s);
         a job still running then stays pending in the store and resumes at
         the next start.  Keep it below the unit's ``TimeoutStopSec``.
+    group_readable : bool
+        Create the state file 0640 and the service's directories 0750
+        (readable by the service's group, e.g. for backups or monitoring)
+        instead of 0600 and 0700.
+    rejected_raw_retention_s : float
+        How long (s) the first KiB of a rejected message is kept for
+        inspection; then only its SHA-256, size and decision remain.
     """
 
     state_path: str = "mushrooms-state.sqlite"
@@ -56,6 +63,8 @@ class DaemonConfig:
     quarantine_dir: str = "mushrooms-quarantine"
     accept_retries: int = 3
     stop_grace_s: float = 20.0
+    group_readable: bool = False
+    rejected_raw_retention_s: float = 2_592_000.0
 
     def __post_init__(self) -> None:
         if self.max_jobs < 1:

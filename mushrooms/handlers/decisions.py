@@ -12,6 +12,7 @@ state                     alert                       decision
 ========================  ==========================  ==========
 unknown                   kept by the policy          ``plan``
 planned, map M            kept, map M                 ``duplicate``
+accepted, map M, no plan  kept, map M                 ``plan`` (unless its job is still open)
 planned, map M            kept, map M' != M           ``rerun`` (supersedes the latest plan)
 retracted                 kept (e.g. a later INITIAL) ``plan`` (planned again)
 planned (not retracted)   RETRACTION                  ``withdraw`` (all the event's plans)
@@ -46,12 +47,15 @@ class EventState:
         Plans stored for the event that are not withdrawn, oldest first.
     retracted : bool
         A retraction was processed and no alert was planned since.
+    open_job : bool
+        A planning job of the event is pending or running.
     """
 
     superevent_id: str
     skymap_sha256: str | None = None
     plan_ids: tuple[str, ...] = ()
     retracted: bool = False
+    open_job: bool = False
 
     @property
     def latest_plan_id(self) -> str | None:
@@ -156,8 +160,9 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger) -> Decision:
     if state.retracted:
         return Decision("plan", reason=f"{alert.alert_type} after a retraction: planning again",
                         skymap_sha256=sha, **base)
-    if state.skymap_sha256 is None and not state.plan_ids:
-        return Decision("plan", reason=f"earlier planning failed; planning again ({verdict.reason})",
+    if not state.plan_ids and not state.open_job and (state.skymap_sha256 is None or state.skymap_sha256 == sha):
+        # degrade, never drop: no plan went out for this event and none is coming
+        return Decision("plan", reason=f"no plan published for this event yet; planning again ({verdict.reason})",
                         skymap_sha256=sha, **base)
     if state.skymap_sha256 == sha:
         return Decision("duplicate", reason=f"same sky map {str(sha)[:12]} as already planned",
