@@ -78,10 +78,11 @@ class PolicyConfig:
         replays of archived events).  ``created``: the notice's own
         ``time_created``.
     max_skymap_bytes : int
-        Largest size (bytes) a gzipped sky map may unpack to; beyond it the
-        map is rejected at once (a decompression bomb).  Default 268435456
-        (256 MiB: the largest real map known, a flat NSIDE 2048 map, is
-        201 MB; LVK's multi-order notice maps unpack to 1-5 MB).
+        Largest size (bytes) a gzipped sky map in a notice or trigger may
+        unpack to; beyond it the map is rejected as soon as the stream gets
+        there (a decompression bomb).  Default 67108864 (64 MiB: LVK's
+        multi-order notice maps are 1-5 MB; raise it to 268435456 to take
+        flat NSIDE 2048 maps, 201 MB, by ``mushrooms trigger``).
     max_clock_skew_s : float
         A notice whose ``time_created`` or merger time lies more than this
         (s) after the receipt clock is rejected: dated in the future, it is
@@ -99,7 +100,7 @@ class PolicyConfig:
     max_event_age_s: float = 172800.0
     max_notice_bytes: int = 8_388_608
     plan_start: str = "received"
-    max_skymap_bytes: int = 268_435_456
+    max_skymap_bytes: int = 67_108_864
     max_clock_skew_s: float = 300.0
 
     def __post_init__(self) -> None:

@@ -109,3 +109,49 @@ def utf16_voevent_with_entity() -> bytes:
     doc = ('<?xml version="1.0" encoding="UTF-16"?>\n<!DOCTYPE x [<!ENTITY g "CBC">]>'
            + body.replace('name="Group" ucd="meta.code" value="CBC"', 'name="Group" ucd="meta.code" value="&g;"'))
     return doc.encode("utf-16-le")
+
+
+def hostile_corpus() -> list[tuple[str, bytes]]:
+    """Malformed, hostile and odd messages (name, bytes): every one must get exactly one decision row."""
+    doc = base_doc()
+    ok = json.dumps(doc).encode()
+    out: list[tuple[str, bytes]] = [
+        ("empty", b""), ("spaces", b"   \n"), ("nul bytes", b"\0" * 100), ("binary", bytes(range(256)) * 4),
+        ("not utf-8", b'{"a": "\xff\xfe"}'), ("json list", b"[1,2,3]"), ("json number", b"42"),
+        ("truncated json", ok[: len(ok) // 2]), ("deep json", b"[" * 100_000 + b"]" * 100_000),
+        ("huge number", b'{"superevent_id": "S1", "x": ' + b"9" * 5000 + b"}"),
+        ("bom json", b"\xef\xbb\xbf" + ok), ("avro magic junk", b"Obj\x01" + bytes(500)),
+        ("xml junk", b"<not xml"), ("xml root", b"<?xml version='1.0'?><x/>"),
+        ("xml entity", b'<?xml version="1.0"?><!DOCTYPE x [<!ENTITY a "aaaa">]><x>&a;</x>'),
+        ("xml external", b'<?xml version="1.0"?><!DOCTYPE x [<!ENTITY e SYSTEM "file:///etc/passwd">]><x>&e;</x>'),
+        ("utf-16 voevent entity", utf16_voevent_with_entity()),
+        ("voevent", VOEVENT.read_bytes()),
+        ("oversize", b"{" + b" " * (8 * 1024 * 1024 + 10) + b"}"),
+    ]
+
+    def variant(name: str, change) -> None:
+        d = base_doc()
+        change(d)
+        out.append((name, json.dumps(d).encode()))
+
+    variant("no event", lambda d: d.pop("event"))
+    variant("event null", lambda d: d.update(event=None))
+    variant("bad id", lambda d: d.update(superevent_id="../../etc"))
+    variant("id surrogate", lambda d: d.update(superevent_id="S1\ud800"))
+    variant("group surrogate", lambda d: d["event"].update(group="CBC\ud800"))
+    variant("search newline", lambda d: d["event"].update(search="MDC\nevent=forged"))
+    variant("bad alert type", lambda d: d.update(alert_type="PWNED"))
+    variant("time 2200", lambda d: d["event"].update(time="2200-01-01T00:00:00Z"))
+    variant("time 9999", lambda d: d["event"].update(time="9999-12-31T23:59:59Z"))
+    variant("created 9999", lambda d: d.update(time_created="9999-12-31T23:59:59Z"))
+    variant("time overflow", lambda d: d["event"].update(time="9999-12-31T23:59:59-05:00"))
+    variant("time garbage", lambda d: d["event"].update(time="yesterday"))
+    variant("far nan", lambda d: d["event"].update(far="NaN"))
+    variant("far negative", lambda d: d["event"].update(far=-1))
+    variant("p > 1", lambda d: d["event"]["classification"].update(BNS=7))
+    variant("skymap not base64", lambda d: d["event"].update(skymap="!!!"))
+    variant("skymap not fits", lambda d: d["event"].update(skymap=base64.b64encode(b"hello").decode()))
+    variant("skymap broken gzip", lambda d: d["event"].update(skymap=base64.b64encode(broken_gzip()).decode()))
+    variant("skymap bad uniq", lambda d: d["event"].update(skymap=base64.b64encode(moc_with_uniq("duplicate")).decode()))
+    variant("retraction", lambda d: d.update(alert_type="RETRACTION", event=None))
+    return out
