@@ -11,7 +11,6 @@ import time
 import confluent_kafka
 import pytest
 
-from mushrooms.daemon.kafka_logging import BrokerHealth, RepeatFilter
 from mushrooms.daemon.pipeline import NoticePipeline
 from mushrooms.daemon.settings import KafkaConfig
 from mushrooms.daemon.sinks import MemorySink
@@ -43,6 +42,8 @@ def test_every_hostile_message_gets_exactly_one_decision_row(tmp_path) -> None:
 
 
 def test_repeats_of_one_kind_are_suppressed_and_counted() -> None:
+    from mushrooms.daemon.kafka_logging import RepeatFilter
+
     now = [0.0]
     f = RepeatFilter(window_s=60, clock=lambda: now[0])
 
@@ -96,6 +97,8 @@ def test_a_reachable_broker_is_reported_up() -> None:
 
 
 def test_health_follows_librdkafka_errors() -> None:
+    from mushrooms.daemon.kafka_logging import BrokerHealth
+
     h = BrokerHealth("test")
     assert h.describe() == "unknown"
     h.on_error(confluent_kafka.KafkaError(confluent_kafka.KafkaError._ALL_BROKERS_DOWN, "1/1 brokers are down"))
@@ -106,6 +109,8 @@ def test_health_follows_librdkafka_errors() -> None:
 
 @pytest.mark.parametrize("bad", ["not json", "{}"])
 def test_health_ignores_odd_statistics(bad: str) -> None:
+    from mushrooms.daemon.kafka_logging import BrokerHealth
+
     h = BrokerHealth("test")
     h.on_stats(bad)
     assert h.describe() in ("unknown", "down")
