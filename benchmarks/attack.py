@@ -100,9 +100,20 @@ def daemon_attack(work: Path, n_events: int) -> dict:
     broker = Broker()
     tag = str(time.time_ns())
     topic, out_topic, group = f"gwalert-{tag}", f"plans-{tag}", f"mushrooms-{tag}"
-    broker.ensure_topic(topic)
-    broker.ensure_topic(out_topic)
+    # the mock broker keeps only ~5 MB per partition (older messages are deleted, as a
+    # real broker's retention would after days): spread the 1.4 MB notices over 24
+    # input topics of 4 partitions each (the daemon consumes a list of topics)
+    topics = [f"{topic}-{k}" for k in range(24)]
+    for t in topics + [out_topic]:
+        broker.ensure_topic(t)
     cfg = write_config(work / "config.toml", topic, out_topic, group)
+    cfg.write_text(cfg.read_text().replace(f'topics = ["{topic}"]', "topics = " + json.dumps(topics)))
+    sent = [0]
+
+    def produce(raw: bytes, key: bytes) -> tuple[str, int, int]:
+        t = topics[sent[0] % len(topics)]
+        sent[0] += 1
+        return (t, *broker.produce(t, raw, key=key))
     state = work / "state.sqlite"
     args = ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state)]
     started: list[Daemon] = []
@@ -128,12 +139,13 @@ def daemon_attack(work: Path, n_events: int) -> dict:
     d = start()
     d.wait_log("event=service_starting", 120)
     kill(d, "at service_starting (before the consumer)")
-    d = start()
     corpus = hostile_corpus()
     corpus.append(("bomb 1 GiB", _daemon_bomb()))
+    where: set[tuple[str, int, int]] = set()  # (topic, partition, offset) of every message produced
     for name, raw in corpus:
-        broker.produce(topic, raw, key=name.encode()[:40])
+        where.add(produce(raw, name.encode()[:40]))
         produced += 1
+    d = start()
     d.wait_log("event=notice ", 240, count=5)
     kill(d, "while consuming the hostile corpus (5 notices stored)")
     d = start()
@@ -141,7 +153,7 @@ def daemon_attack(work: Path, n_events: int) -> dict:
     for i in range(n_events):
         sid = f"MS26{i // 26 % 10}{i % 10}01{chr(97 + i // 26 % 26)}{chr(97 + i % 26)}"
         raw = notice_with(sid)
-        broker.produce(topic, raw, key=sid.encode())
+        where.add(produce(raw, sid.encode()))
         produced += 1
         planned_ids.add(sid)
         if i == 2:
@@ -184,6 +196,10 @@ def daemon_attack(work: Path, n_events: int) -> dict:
     got = {(m.get("event") or {}).get("superevent_id") for m in msgs if m.get("type") == "plan"}
     per_notice = rows(state, "SELECT n.notice_id, COUNT(d.decision_id) FROM notices n LEFT JOIN decisions d"
                              " USING(notice_id) GROUP BY n.notice_id")
+    stored = set()
+    for (o,) in rows(state, "SELECT origin FROM notices WHERE origin LIKE 'kafka:%'"):
+        _, t, part, off = o.rsplit(":", 3)
+        stored.add((t, int(part), int(off)))
     per_offset = rows(state, "SELECT origin, COUNT(*) FROM notices WHERE origin LIKE 'kafka:%' GROUP BY origin")
     decisions = dict(rows(state, "SELECT decision, COUNT(*) FROM decisions GROUP BY decision"))
     # 4. a damaged state file: one line and exit 65, no restart loop
@@ -200,6 +216,7 @@ def daemon_attack(work: Path, n_events: int) -> dict:
         "notices_stored": len(per_notice),
         "decision_rows_per_notice": sorted({c for _, c in per_notice}),
         "offsets_seen": len(per_offset),
+        "messages_never_stored": sorted(where - stored),
         "redelivered_offsets": sum(1 for _, c in per_offset if c > 1),
         "decisions": decisions,
         "plans_lost": sorted(planned_ids - got),
