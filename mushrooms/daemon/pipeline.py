@@ -62,7 +62,7 @@ from typing import Any, Callable
 from ..config import Config
 from ..handlers.alert import Alert, NoticeError, parse_notice
 from ..handlers.decisions import Decision, decide
-from ..handlers.localization import choose_localization, coincidence_summary, skymap_for_sha
+from ..handlers.localization import check_skymap, choose_localization, coincidence_summary, skymap_for_sha
 from ..handlers.policy import evaluate
 from ..scheduler_core.errors import InputError, PlanCheckError
 from .sinks import Sink, message_key
@@ -310,7 +310,9 @@ class NoticePipeline:
 
         localization = None
         if verdict.keep and not alert.is_retraction:
-            localization = choose_localization(alert, policy.use_combined_skymap)
+            localization = choose_localization(
+                alert, policy.use_combined_skymap,
+                check=lambda data: check_skymap(data, max_bytes=policy.max_skymap_bytes))
             if localization is not None and localization.note and localization.kind == "gw" \
                     and alert.external_coinc is not None:
                 log.warning("notice origin=%s superevent_id=%s: %s", origin, alert.superevent_id, localization.note)
@@ -435,7 +437,7 @@ class NoticePipeline:
         skymap_bytes, event = self._skymap_bytes(job)
         sched = self.config.scheduler
         stage("reading the sky map")
-        skymap = read_skymap(skymap_bytes, nside=sched.nside)
+        skymap = read_skymap(skymap_bytes, nside=sched.nside, max_bytes=self.config.policy.max_skymap_bytes)
         lap("read")
         stage("preparing the problem")
         start = parse_time(job.start)
@@ -461,7 +463,10 @@ class NoticePipeline:
         log.info("job superevent_id=%s job=%s first_plan_stages %s", job.superevent_id, job.job_id,
                  " ".join(f"{k}_s={v:.3f}" for k, v in took.items()))
         stage("storing the fast plan")
-        final = sched.solver == FIRST_SOLVER
+        final = sched.solver == FIRST_SOLVER or job.fallback
+        if job.fallback:  # the optimiser died too often on this job: the fast scheduler's plan still goes out
+            log.warning("job superevent_id=%s job=%s fallback=greedy reason='%d starts died'", job.superevent_id,
+                        job.job_id, job.attempts - 1)
         if dataclasses.is_dataclass(skymap) and getattr(skymap, "distmu", None) is not None:
             # the optimisation needs the probability only: a burst of queued jobs must not hold
             # three distance layers (3 x 6 MB at nside 256) each

@@ -54,6 +54,13 @@ class DaemonConfig:
         noise, yet small enough that a real improvement (typically 0.01-0.05
         on the shared maps) always goes out.  Replacing a queued plan costs
         the observers a reload.
+    group_readable : bool
+        Create the state file 0640 and the service's directories 0750
+        (readable by the service's group, e.g. for backups or monitoring)
+        instead of 0600 and 0700.
+    rejected_raw_retention_s : float
+        How long (s) the first KiB of a rejected message is kept for
+        inspection; then only its SHA-256, size and decision remain.
     """
 
     state_path: str = "mushrooms-state.sqlite"
@@ -66,6 +73,8 @@ class DaemonConfig:
     accept_retries: int = 3
     stop_grace_s: float = 20.0
     supersede_min_gain: float = 0.005
+    group_readable: bool = False
+    rejected_raw_retention_s: float = 2_592_000.0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.supersede_min_gain <= 1.0:

@@ -12,6 +12,7 @@ state                     alert                       decision
 ========================  ==========================  ==========
 unknown                   kept by the policy          ``plan``
 planned, map M            kept, map M                 ``duplicate``
+accepted, map M, no plan  kept, map M                 ``plan`` (unless its job is still open)
 planned, map M            kept, map M' != M           ``rerun`` (supersedes the latest plan)
 retracted                 kept (e.g. a later INITIAL) ``plan`` (planned again)
 planned (not retracted)   RETRACTION                  ``withdraw`` (all the event's plans)
@@ -58,6 +59,8 @@ class EventState:
         A retraction was processed and no alert was planned since.
     localization : str or None
         ``gw`` or ``combined``: which localisation ``skymap_sha256`` is.
+    open_job : bool
+        A planning job of the event is pending or running.
     """
 
     superevent_id: str
@@ -65,6 +68,7 @@ class EventState:
     plan_ids: tuple[str, ...] = ()
     retracted: bool = False
     localization: str | None = None
+    open_job: bool = False
 
     @property
     def latest_plan_id(self) -> str | None:
@@ -161,7 +165,7 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger,
     sid = alert.superevent_id
     base = dict(superevent_id=sid, alert_type=alert.alert_type)
     if not verdict.keep:
-        return Decision("ignore", reason=verdict.reason, **base)
+        return Decision("rejected" if verdict.reject else "ignore", reason=verdict.reason, **base)
     state = ledger.event_state(sid)
     if alert.alert_type == "RETRACTION":
         if state is None:
@@ -183,8 +187,10 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger,
     if state.retracted:
         return Decision("plan", reason=f"{alert.alert_type} after a retraction: planning again; {where}",
                         skymap_sha256=sha, **base)
-    if state.skymap_sha256 is None and not state.plan_ids:
-        return Decision("plan", reason=f"earlier planning failed; planning again ({verdict.reason}); {where}",
+    if not state.plan_ids and not state.open_job and (state.skymap_sha256 is None or state.skymap_sha256 == sha):
+        # degrade, never drop: no plan went out for this event and none is coming
+        return Decision("plan", reason=f"no plan published for this event yet; planning again ({verdict.reason}); "
+                                       f"{where}",
                         skymap_sha256=sha, **base)
     if state.skymap_sha256 == sha:
         return Decision("duplicate", reason=f"same {kind} sky map {str(sha)[:12]} as already planned",

@@ -60,8 +60,16 @@ class Localization:
     joint_preferred: bool = True
 
 
-def check_skymap(data: bytes) -> None:
+def check_skymap(data: bytes, max_bytes: int | None = None) -> None:
     """Raise when ``data`` is not a usable sky map (the scheduler's own reader).
+
+    Parameters
+    ----------
+    data : bytes
+        FITS bytes, possibly gzipped.
+    max_bytes : int, optional
+        Largest unpacked size (bytes) accepted (``[policy] max_skymap_bytes``);
+        default the reader's own bound.
 
     Raises
     ------
@@ -70,7 +78,7 @@ def check_skymap(data: bytes) -> None:
     """
     from ..scheduler_core import read_skymap
 
-    read_skymap(data, nside=_CHECK_NSIDE)
+    read_skymap(data, nside=_CHECK_NSIDE, **({} if max_bytes is None else {"max_bytes": max_bytes}))
 
 
 def choose_localization(alert: Alert, use_combined: bool,

@@ -60,6 +60,7 @@ def test_a_gw_only_notice_plans_the_gw_map():
 @pytest.mark.parametrize("bad", [
     b"SIMPLE  =                    T" + b" " * 50,           # a FITS card and nothing else
     combined_bytes()[:20000],                                 # truncated
+    b"\x1f\x8b" + b"not really gzip at all",                 # broken gzip
 ])
 def test_an_unusable_joint_map_falls_back_to_the_gw_map_with_the_reason(bad):
     alert = with_combined(bad)
