@@ -203,24 +203,26 @@ def test_rejected_messages_keep_only_a_prefix_and_are_pruned(tmp_path: Path) -> 
 
 # ---------------------------------------------------------------- 8. retries after the store closed
 def test_no_outbox_retry_touches_the_store_once_it_is_closed(tmp_path: Path, caplog) -> None:
-    from apscheduler.schedulers.background import BackgroundScheduler
+    import time
 
-    from mushrooms.daemon.jobs import OutboxRetrier
+    from mushrooms.daemon.jobs import OutboxDrain
     from mushrooms.daemon.service import Service
 
     args = argparse.Namespace(config=None, bootstrap="127.0.0.1:9", outbox=str(tmp_path / "out"),
                               state=str(tmp_path / "s.sqlite"), allow_mock=True)
     svc = Service(args)
     svc.pipeline = _pipeline(tmp_path / "s.sqlite")
-    sched = BackgroundScheduler(timezone="UTC")
-    sched.start()
+    svc.outbox = OutboxDrain(svc._flush_outbox, 0.1, 1.0)
     try:
-        svc.outbox = OutboxRetrier(svc._flush_outbox, sched, 0.1, 1.0)
         svc._close_store(svc.pipeline.store.close)
-        assert svc.outbox.drain() is True
-        assert sched.get_jobs() == []
+        svc.outbox.kick(now=True)  # a publish attempt after the store is closed
+        deadline = time.monotonic() + 30.0
+        while svc.outbox.attempts < 1 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert svc.outbox.attempts >= 1
+        assert svc.outbox.failures == 0 and not svc.outbox.retry_scheduled
     finally:
-        sched.shutdown(wait=False)
+        svc.outbox.close()
     assert "publish_failed" not in caplog.text and "closed database" not in caplog.text
 
 

@@ -109,15 +109,12 @@ def test_a_manual_rerun_plans_the_joint_map(store):
 
 def test_a_state_file_of_schema_1_is_migrated_and_keeps_its_events(tmp_path):
     path = tmp_path / "old.sqlite"
-    conn = sqlite3.connect(path)
-    conn.executescript(
-        "CREATE TABLE events (superevent_id TEXT PRIMARY KEY, skymap_sha256 TEXT,"
-        " retracted INTEGER NOT NULL DEFAULT 0, updated_at TEXT NOT NULL);"
-        "INSERT INTO events VALUES ('S1', 'abc', 0, '2026-01-01T00:00:00');"
-        "CREATE TABLE plans (plan_id TEXT PRIMARY KEY, superevent_id TEXT, job_id INTEGER,"
-        " created_at TEXT NOT NULL, seq INTEGER NOT NULL, withdrawn INTEGER NOT NULL DEFAULT 0,"
-        " document TEXT NOT NULL);"
-        "PRAGMA user_version=1;")
+    Store(path).close()
+    conn = sqlite3.connect(path)  # turn it into a schema-1 file: no localization column
+    conn.executescript("ALTER TABLE events DROP COLUMN localization;"
+                       "INSERT INTO events(superevent_id, skymap_sha256, retracted, updated_at)"
+                       " VALUES ('S1', 'abc', 0, '2026-01-01T00:00:00');"
+                       "PRAGMA user_version=1;")
     conn.close()
     s = Store(path)
     try:
