@@ -294,13 +294,8 @@ def demo_main(args: argparse.Namespace) -> int:
     notice = resources.files("mushrooms").joinpath(DEMO_NOTICE)
     load_config(args.config)  # a bad config fails here, in one line
     config_path = args.config
-    if args.solver:  # a one-off copy of the config with the chosen solver
-        override = out / "demo-config.toml"
-        base = Path(args.config).read_text() if args.config else ""
-        override.write_text(_with_solver(base, args.solver))
-        config_path = str(override)
     replay_args = argparse.Namespace(
-        notices=[str(notice)], allow_mock=True, out=str(out / "outbox"),
+        notices=[str(notice)], allow_mock=True, solver=args.solver, out=str(out / "outbox"),
         state=str(out / "state.sqlite"), config=config_path,
         command="replay", debug=False, log_level="INFO",
     )
@@ -324,14 +319,3 @@ def demo_main(args: argparse.Namespace) -> int:
           f"{m.n_exposures} exposures, coverage {m.coverage:.3f} ({m.solver}, {m.status}); "
           f"plan in {out / 'outbox'}, picture {picture}")
     return 0
-
-
-def _with_solver(toml_text: str, solver: str) -> str:
-    """TOML text with ``[scheduler] solver`` set (added or replaced)."""
-    import re
-
-    if re.search(r"(?m)^\[scheduler\]", toml_text):
-        if re.search(r"(?ms)^\[scheduler\][^\[]*^solver\s*=", toml_text):
-            return re.sub(r'(?ms)(^\[scheduler\][^\[]*?^)solver\s*=\s*"[^"]*"', rf'\1solver = "{solver}"', toml_text)
-        return re.sub(r"(?m)^\[scheduler\]\s*$", f'[scheduler]\nsolver = "{solver}"', toml_text, count=1)
-    return toml_text + f'\n[scheduler]\nsolver = "{solver}"\n'

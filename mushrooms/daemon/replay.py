@@ -144,6 +144,8 @@ def main(args: argparse.Namespace) -> int:
     config: Config = load_config(getattr(args, "config", None))
     if getattr(args, "allow_mock", False):
         config = dataclasses.replace(config, policy=dataclasses.replace(config.policy, allow_mock=True))
+    if getattr(args, "solver", None):  # the demo's --solver: this run only
+        config = dataclasses.replace(config, scheduler=dataclasses.replace(config.scheduler, solver=args.solver))
     out_dir = Path(args.out)
     out_dir.mkdir(parents=True, exist_ok=True)
     if getattr(args, "state", None):
