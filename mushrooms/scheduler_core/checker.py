@@ -224,8 +224,8 @@ def slew_seconds(ra1_deg: np.ndarray, dec1_deg: np.ndarray, ra2_deg: np.ndarray,
     """P48 slew time (s), settle included, from one field centre to the next.
 
     Each equatorial axis ramps up at its acceleration ``a`` to its top speed
-    ``v``, cruises and ramps down again; ramping up and down takes ``v / a``
-    seconds and covers ``v^2 / a`` degrees.  A shorter move never reaches
+    ``v``, cruises and ramps down again at the same rate; the two ramps take
+    ``2 v / a`` seconds and cover ``v^2 / a`` degrees.  A shorter move never reaches
     ``v`` and takes ``2 sqrt(d / a)``.  The HA travel is the wrapped RA
     difference.  Both axes move at once: the slew lasts as long as the slower
     one, plus the settle time when anything moved (ztf_sim's
@@ -243,7 +243,7 @@ def slew_seconds(ra1_deg: np.ndarray, dec1_deg: np.ndarray, ra2_deg: np.ndarray,
     numpy.ndarray
     """
     def axis(d: np.ndarray, a: float, v: float) -> np.ndarray:
-        ramp_s, ramp_deg = v / a, v * v / a
+        ramp_s, ramp_deg = 2.0 * v / a, v * v / a
         return np.where(d > ramp_deg, ramp_s + (d - ramp_deg) / v, 2.0 * np.sqrt(d / a))
 
     d_ha = np.abs((np.asarray(ra2_deg, float) - ra1_deg + 540.0) % 360.0 - 180.0)
