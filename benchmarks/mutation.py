@@ -8,7 +8,8 @@ surviving mutant.
 
 Usage (from the repository root; run it niced on a shared machine)::
 
-    nice -n 10 .venv/bin/python benchmarks/mutation.py [--modules checker,slew,...] [--jobs 2] [--keep DIR] [--root DIR]
+    nice -n 10 .venv/bin/python benchmarks/mutation.py [--modules checker,slew,...] [--jobs 2] [--keep DIR]
+        [--functions check_plan,mount_reachable] [--sample N --seed S] [--root DIR]
 
 Each module is exercised only by the tests that are about it:
 
@@ -25,6 +26,8 @@ fields     tests/scheduler/test_fields.py
 from __future__ import annotations
 
 import argparse
+import fnmatch
+import random
 import re
 import shutil
 import subprocess
@@ -47,7 +50,8 @@ def _toml_list(items: list[str]) -> str:
     return "[" + ", ".join(f'"{x}"' for x in items) + "]"
 
 
-def run(modules: list[str], jobs: int, keep: Path | None, root: Path = ROOT) -> int:
+def run(modules: list[str], jobs: int, keep: Path | None, root: Path = ROOT, only: list[str] | None = None,
+        sample: int = 0, seed: int = 0) -> int:
     work = Path(keep) if keep else Path(tempfile.mkdtemp(prefix="mushrooms-mutation-"))
     work.mkdir(parents=True, exist_ok=True)
     for sub in ("mushrooms", "tests"):
@@ -65,11 +69,24 @@ def run(modules: list[str], jobs: int, keep: Path | None, root: Path = ROOT) -> 
     (work / "pyproject.toml").write_text(text)
     print(f"mutating {', '.join(modules)} in {work} with {', '.join(tests)}", flush=True)
     cmd = [sys.executable, "-m", "mutmut", "run", "--max-children", str(jobs)]
+    if sample or only:
+        # generate the mutants and the test map, run none, then pick the ones asked for
+        subprocess.call(cmd + ["no-such-mutant"], cwd=work)
+        names = [line.split(":")[0].strip() for line in _results(work).splitlines() if ":" in line]
+        if only:
+            names = [n for n in names if any(fnmatch.fnmatch(n, f"*.x_{f}__mutmut_*") for f in only)]
+        if sample and sample < len(names):
+            names = sorted(random.Random(seed).sample(names, sample))
+        print(f"running {len(names)} mutants", flush=True)
+        cmd += names
     code = subprocess.call(cmd, cwd=work)
-    results = subprocess.run([sys.executable, "-m", "mutmut", "results", "--all", "true"], cwd=work,
-                             capture_output=True, text=True).stdout
-    report(results, work)
+    report(_results(work), work)
     return code
+
+
+def _results(work: Path) -> str:
+    return subprocess.run([sys.executable, "-m", "mutmut", "results", "--all", "true"], cwd=work,
+                          capture_output=True, text=True).stdout
 
 
 def report(results: str, work: Path) -> None:
@@ -101,6 +118,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--modules", default="checker,slew,visibility,fields")
     ap.add_argument("--jobs", type=int, default=2, help="parallel mutant runs (default 2)")
     ap.add_argument("--keep", type=Path, help="work directory to use and keep (default: a temporary one)")
+    ap.add_argument("--functions", help="only mutants of these functions (comma-separated names or globs)")
+    ap.add_argument("--sample", type=int, default=0, help="run a seeded random sample of this many mutants")
+    ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--root", type=Path, default=ROOT,
                     help="source tree to mutate (default: this one; e.g. an exported older commit)")
     args = ap.parse_args(argv)
@@ -109,7 +129,8 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         print(f"unknown module(s): {', '.join(unknown)}; choose from {', '.join(TESTS)}", file=sys.stderr)
         return 2
-    return run(modules, args.jobs, args.keep, args.root)
+    only = [f.strip() for f in args.functions.split(",") if f.strip()] if args.functions else None
+    return run(modules, args.jobs, args.keep, args.root, only, args.sample, args.seed)
 
 
 if __name__ == "__main__":
