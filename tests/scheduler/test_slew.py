@@ -43,3 +43,13 @@ def test_matrix_is_symmetric_with_zero_diagonal():
     dec = np.array([0.0, 40.0, -20.0])
     s = slew_matrix(ra, dec)
     assert np.allclose(s, s.T) and np.all(np.diag(s) == 0) and np.all(s[~np.eye(3, dtype=bool)] >= 8.0)
+
+
+def test_a_tiny_slew_still_settles_and_the_model_passed_is_used():
+    m = SlewModel()
+    # 0.05 deg in HA takes 2 sqrt(0.05 / 0.4) = 0.71 s of motion, then the 1 s settle
+    assert slew_time(10.0, 0.0, 10.05, 0.0, m) == pytest.approx(2 * np.sqrt(0.05 / 0.4) + 1.0)
+    slow = SlewModel(ha_accel_deg_s2=0.1, ha_vmax_deg_s=1.0, settle_s=3.0, readout_s=20.0)
+    assert overhead_time(0, 0, 30, 0, slow) == pytest.approx(30 / 1.0 + 1.0 / 0.1 + 3.0)
+    assert overhead_time(0, 0, 0.1, 0, slow) == pytest.approx(20.0)
+    assert slew_matrix(np.array([0.0, 30.0]), np.array([0.0, 0.0]), slow)[0, 1] == pytest.approx(43.0)
