@@ -352,3 +352,14 @@ def test_many_problems_are_counted_but_listed_only_up_to_the_limit(flat_map):
     report = check_plan(plan_of(o), flat_map, CFG)
     assert report.counts["overlap"] == MAX_LISTED + 5
     assert sum(line.startswith("overlap:") for line in report.problems) == MAX_LISTED
+
+
+def test_an_empty_plan_is_valid_unless_it_claims_coverage(flat_map):
+    m = PlanMetrics(coverage=0.0, solver="hand", status="hand", mip_gap=None, runtime_s=0.0, n_fields=0,
+                    n_exposures=0)
+    report = check_plan(plan_of([], metrics=m), flat_map, CFG)
+    assert report.ok is True and report.problems == () and report.counts == {}
+    assert report.coverage == 0.0 and report.reported_coverage == 0.0
+    report = check_plan(plan_of([], metrics=dataclasses.replace(m, coverage=0.1)), flat_map, CFG)
+    assert report.ok is False and report.counts == {"coverage": 1}
+    assert report.coverage == 0.0 and report.reported_coverage == 0.1
