@@ -193,6 +193,10 @@ def test_overlapping_exposures_are_refused(flat_map):
     o[1] = dataclasses.replace(o[1], start=o[0].start + 299.0)
     report = check_plan(plan_of(o), flat_map, CFG)
     assert report.counts == {"overlap": 1}
+    assert report.problems == ("overlap: field 1685 g starts 1.0 s before field 687 g ends",)
+    for gap in (0.0, 0.5):  # back to back is no overlap, but leaves no time to read out and slew
+        o[1] = dataclasses.replace(o[1], start=o[0].end + gap)
+        assert check_plan(plan_of(o), flat_map, CFG).counts == {"slew": 1}
 
 
 def test_slew_readout_and_filter_change_set_the_least_gap(flat_map):
@@ -242,16 +246,23 @@ def test_exposure_outside_the_horizon_is_refused(flat_map):
     assert check_plan(plan_of(control_obs(), hours=end / 3600), flat_map, CFG).ok
     report = check_plan(plan_of(control_obs(), hours=(end - 1) / 3600), flat_map, CFG)
     assert report.counts == {"horizon": 1}
+    for before, ok in ((1.0, False), (0.001, True), (0.0, True)):  # the first exposure starts at -before
+        early = plan_of(control_obs(), start=NEW_MOON + TimeDelta(T0 + before, format="sec"))
+        shifted = [dataclasses.replace(x, start=x.start - T0 - before) for x in control_obs()]
+        report = check_plan(early.with_(observations=tuple(shifted)), flat_map, CFG)
+        assert report.ok == ok and (ok or report.counts == {"horizon": 1})
+    assert report.problems == () and shifted[0].start == 0.0
     early = plan_of(control_obs(), start=NEW_MOON + TimeDelta(T0 + 1, format="sec"))
     shifted = [dataclasses.replace(x, start=x.start - T0 - 1) for x in control_obs()]
     report = check_plan(early.with_(observations=tuple(shifted)), flat_map, CFG)
-    assert report.counts == {"horizon": 1} and "-1-299 s" in report.problems[0]
+    assert report.problems == ("horizon: field 687 g at -1-299 s is outside the horizon 0-86400 s",)
 
 
 def test_out_of_order_exposures_are_refused(flat_map):
     o = control_obs()
     report = check_plan(plan_of([o[1], o[0]] + o[2:]), flat_map, CFG)
     assert "order" in kinds(report)
+    assert "order: exposure 1 (field 687) starts before exposure 0" in report.problems
 
 
 # ----------------------------------------------------------------- fields, filters, coverage
@@ -280,6 +291,8 @@ def test_wrong_filter_or_exposure_is_refused(flat_map):
     o = control_obs()
     o[1] = dataclasses.replace(o[1], exposure_s=0.0)
     assert check_plan(plan_of(o), flat_map, CFG).counts == {"exposure": 1}
+    o[1] = dataclasses.replace(o[1], exposure_s=0.5)  # short, but an exposure
+    assert check_plan(plan_of(o), flat_map, CFG).ok
 
 
 def _unit_pixel(nside, ra0, dec0, x, y):
