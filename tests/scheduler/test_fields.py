@@ -65,8 +65,36 @@ def test_footprints_are_cached_on_disk(tmp_path, monkeypatch):
     files = list(tmp_path.glob("footprints-*.npz"))
     assert len(files) == 1
     monkeypatch.setattr(fields, "_memory_cache", {})
+
+    def recompute(*args):
+        raise AssertionError("the disk cache was not read")
+
+    monkeypatch.setattr(fields, "_compute_footprints", recompute)
     b = field_footprints(sub, 64)
     assert np.array_equal(a.indices, b.indices) and np.array_equal(a.indptr, b.indptr)
+    assert np.array_equal(a.field_ids, b.field_ids) and b.nside == 64
+
+
+def test_cache_directory_follows_the_environment(monkeypatch, tmp_path):
+    import mushrooms.scheduler_core.fields as fields
+
+    for var in ("MUSHROOMS_CACHE_DIR", "CACHE_DIRECTORY", "XDG_CACHE_HOME"):
+        monkeypatch.delenv(var, raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path))
+    assert fields._cache_dir() == tmp_path / ".cache" / "mushrooms"
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert fields._cache_dir() == tmp_path / "xdg" / "mushrooms"
+    monkeypatch.setenv("CACHE_DIRECTORY", f"{tmp_path}/systemd:{tmp_path}/other")  # systemd's list
+    assert fields._cache_dir() == tmp_path / "systemd"
+    monkeypatch.setenv("MUSHROOMS_CACHE_DIR", str(tmp_path / "ours"))
+    assert fields._cache_dir() == tmp_path / "ours"
+
+
+def test_index_of_does_not_assume_sorted_ids():
+    g = load_ztf_fields()
+    rev = type(g)(g.ids[::-1].copy(), g.ra[::-1].copy(), g.dec[::-1].copy())
+    rows = rev.index_of(np.array([400, 1, 1897, 5000]))
+    assert rev.ids[rows[:3]].tolist() == [400, 1, 1897] and rows[3] == -1
 
 
 # ---------------------------------------------------------------- outside references
