@@ -49,10 +49,10 @@ def plan_of(observations, start=NEW_MOON, hours=24.0, metrics=None):
                 observations=tuple(observations), metrics=metrics)
 
 
-def control_obs():
+def control_obs(later=0.0):
     """Two fields near the zenith, g then r, 1860 s apart; every gap >= its overhead."""
-    return [obs(F687, "g", T0), obs(F1685, "g", T0 + 360),
-            obs(F687, "r", T0 + 1860), obs(F1685, "r", T0 + 2220)]
+    t = T0 + later
+    return [obs(F687, "g", t), obs(F1685, "g", t + 360), obs(F687, "r", t + 1860), obs(F1685, "r", t + 2220)]
 
 
 @pytest.fixture(scope="module")
@@ -77,9 +77,17 @@ def truth(plan):
     alt = c.transform_to(frame).alt.deg
     sun = get_body("sun", times, P48).transform_to(frame).alt.deg
     moon = get_body("moon", times, P48).separation(c, origin_mismatch="ignore").deg
-    ha = (times.sidereal_time("apparent", longitude=P48.lon).deg - c.transform_to(TETE(obstime=times)).ra.deg
-          + 180) % 360 - 180
-    return sun, 1 / np.sin(np.radians(alt)), np.abs(ha) / 15, moon
+    return sun, 1 / np.sin(np.radians(alt)), np.abs(truth_ha(plan)) / 15, moon
+
+
+def truth_ha(plan):
+    """Signed apparent hour angle (deg) at start, middle and end of each exposure."""
+    o = plan.observations
+    t_rel = np.concatenate([[x.start for x in o], [x.start + x.exposure_s / 2 for x in o], [x.end for x in o]])
+    times = plan.start + TimeDelta(t_rel, format="sec")
+    c = SkyCoord(ra=np.tile([x.ra for x in o], 3) * u.deg, dec=np.tile([x.dec for x in o], 3) * u.deg)
+    return (times.sidereal_time("apparent", longitude=P48.lon).deg - c.transform_to(TETE(obstime=times)).ra.deg
+            + 180) % 360 - 180
 
 
 def test_the_hand_built_control_breaks_no_rule(flat_map):
@@ -141,16 +149,22 @@ def test_field_near_the_moon_is_refused(flat_map):
     assert report.counts == {"window": 2} and all("Moon" in line for line in report.problems)
 
 
-@pytest.mark.parametrize("rule", ["sun", "airmass", "ha", "moon"])
+@pytest.mark.parametrize("rule", ["sun", "airmass", "ha_east", "ha_west", "moon"])
 def test_each_limit_holds_to_its_tolerance_and_no_further(flat_map, rule):
     """The configured limit is put just inside, then just beyond, the control plan's worst value."""
-    plan = plan_of(control_obs(), start=FULL_MOON)
+    # at 08:00 UTC both fields are still east of the meridian; 2.5 h later both are west of it
+    plan = plan_of(control_obs(later=9000.0 if rule == "ha_west" else 0.0), start=FULL_MOON)
     sun, airmass, ha_h, moon = truth(plan)
-    worst = {"sun": sun.max(), "airmass": airmass.max(), "ha": ha_h.max(), "moon": moon.min()}[rule]
+    signed_ha = ha_h * np.sign(truth_ha(plan))
+    assert rule != "ha_east" or signed_ha.max() < 0
+    assert rule != "ha_west" or signed_ha.min() > 0
+    worst = {"sun": sun.max(), "airmass": airmass.max(), "ha_east": ha_h.max(), "ha_west": ha_h.max(),
+             "moon": moon.min()}[rule]
     key, inside, beyond = {
         "sun": ("sun_alt_max_deg", worst - 0.03, worst - 0.08),  # tolerance 0.05 deg
         "airmass": ("airmass_max", worst - 0.008, worst - 0.015),  # tolerance 0.01
-        "ha": ("ha_max_h", worst - 0.004, worst - 0.007),  # tolerance 0.005 h
+        "ha_east": ("ha_max_h", worst - 0.004, worst - 0.007),  # tolerance 0.005 h
+        "ha_west": ("ha_max_h", worst - 0.004, worst - 0.007),
         "moon": ("moon_sep_min_deg", worst + 0.08, worst + 0.13),  # tolerance 0.1 deg
     }[rule]
     assert check_plan(plan, flat_map, dataclasses.replace(CFG, **{key: inside})).ok
