@@ -240,6 +240,8 @@ def test_checker_slew_arithmetic_is_the_published_trapezoid():
     t = slew_seconds(np.array([0.0, 359.0, 10.0, 5.0]), np.array([0.0, 0.0, 0.0, 5.0]),
                      np.array([20.0, 1.0, 10.0, 5.0]), np.array([0.0, 0.0, -30.0, 5.0]), m)
     assert t == pytest.approx([20 / 2.5 + 2.5 / 0.4 + 1, 2 * np.sqrt(2 / 0.4) + 1, 30 / 3 + 3 / 0.5 + 1, 0.0])
+    # a 0.05 deg move takes 0.71 s and still settles
+    assert slew_seconds(10.0, 0.0, 10.05, 0.0, m) == pytest.approx(2 * np.sqrt(0.05 / 0.4) + 1.0)
     slow = dataclasses.replace(m, dec_vmax_deg_s=1.0, settle_s=2.0)
     assert slew_seconds(0.0, 0.0, 0.0, 5.0, slow) == pytest.approx(5 / 1.0 + 1.0 / 0.5 + 2.0)
 
