@@ -43,7 +43,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
     def common(sp: argparse.ArgumentParser) -> None:
-        sp.add_argument("--config", metavar="FILE", help="config.toml (default: embedded defaults)")
+        sp.add_argument("--config", metavar="FILE",
+                        help="config file; default $MUSHROOMS_CONFIG, else ./config.toml, else embedded defaults")
+        # the global options are accepted after the subcommand too (SUPPRESS keeps the global value)
+        sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+        sp.add_argument("--log-level", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
 
     sp = sub.add_parser("demo", help="plan the bundled mock BNS notice end to end (no credentials, no network)")
     sp.add_argument("--out", metavar="DIR", default="mushrooms-demo", help="where the plan, its picture and the state go")
@@ -53,10 +57,17 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("plan", help="plan a ZTF night from a sky map")
     sp.add_argument("skymap", nargs="?", metavar="SKYMAP",
                     help="sky map FITS (multi-order or flat HEALPix); default: the bundled demo map")
-    sp.add_argument("--start", metavar="ISO_UTC", help="horizon start (default: the sky map's event time)")
+    sp.add_argument("--start", metavar="TIME",
+                    help="horizon start: ISO-8601 (Z or +hh:mm offset; no offset means UTC) or MJD "
+                         "(default: the sky map's event time)")
     sp.add_argument("--solver", choices=["greedy", "milp", "hybrid"], help="scheduler (default from config: hybrid)")
     sp.add_argument("-o", "--output", metavar="FILE", default="plan.json", help="plan document to write (default plan.json)")
-    sp.add_argument("--queue", metavar="FILE", help="also write ZTF's trigger-queue JSON")
+    sp.add_argument("--deadline", metavar="SECONDS", type=float,
+                    help="write the best plan found by then: the greedy plan at once, the optimised one if it is "
+                         "ready and covers more (default: wait for the solver)")
+    sp.add_argument("--queue", metavar="FILE", help="also write ZTF's ToO trigger queue (program fields from [export])")
+    sp.add_argument("--skyportal", metavar="FILE",
+                    help="also write the body of SkyPortal's POST /api/observation_plan/manual")
     sp.add_argument("--plot", metavar="FILE", help="also draw the plan on the sky map (PNG)")
     common(sp)
 
@@ -84,6 +95,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--state", metavar="FILE", help="SQLite state file (overrides config)")
     sp.add_argument("--outbox", metavar="DIR", help="directory sink when no daemon runs")
     sp.add_argument("--allow-mock", action="store_true", help="accept mock (MS) and test (TS) events")
+    sp.add_argument("--force", action="store_true",
+                    help="plan even when the policy would not (old, insignificant, duplicate, retracted); "
+                         "logged with the policy's reason; needs no daemon running")
     common(sp)
 
     sp = sub.add_parser("bench", help="benchmark schedulers over a directory of sky maps")
@@ -100,6 +114,21 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def quiet_time_warnings() -> None:
+    """No ERFA/IERS chatter: far-off times are reported once, in one line, by the command."""
+    import warnings
+
+    warnings.filterwarnings("ignore", message=r".*dubious year.*")
+    warnings.filterwarnings("ignore", message=r".*polar motions for times.*")
+    warnings.filterwarnings("ignore", message=r".*outside of range covered by IERS table.*")
+    warnings.filterwarnings("ignore", message=r".*IERS.*")
+    try:
+        from erfa import ErfaWarning
+    except ImportError:  # pragma: no cover - astropy always brings pyerfa
+        return
+    warnings.filterwarnings("ignore", category=ErfaWarning)
+
+
 def _resolve(spec: str) -> Callable[[argparse.Namespace], int]:
     module, func = spec.split(":")
     return getattr(importlib.import_module(module), func)
@@ -112,16 +141,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.command:
         parser.print_help()
         return EXIT_INPUT
-    level = logging.DEBUG if args.debug else getattr(logging, str(args.log_level).upper(), logging.INFO)
+    level = logging.DEBUG if args.debug else getattr(logging, str(args.log_level).upper(), None)
+    if not isinstance(level, int):
+        print(f"mushrooms {args.command}: error: --log-level {args.log_level!r}: expected DEBUG, INFO, WARNING "
+              "or ERROR", file=sys.stderr)
+        return EXIT_INPUT
     logging.basicConfig(
         level=level,
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
         stream=sys.stderr,
     )
-    from .config import ConfigError
+    quiet_time_warnings()
+    from .config import ConfigError, resolve_config_path
     from .scheduler_core.errors import InputError
 
     try:
+        if hasattr(args, "config"):
+            given = args.config
+            path, why = resolve_config_path(given)
+            args.config, args.config_explicit = (str(path) if path else None), bool(given)
+            logging.getLogger("mushrooms.config").info("config: %s (%s)", path or "embedded defaults", why)
         return int(_resolve(COMMANDS[args.command])(args) or 0)
     except (InputError, ConfigError) as exc:
         print(f"mushrooms {args.command}: error: {exc}", file=sys.stderr)

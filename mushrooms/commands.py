@@ -50,32 +50,145 @@ def demo_skymap_path() -> str:
     return str(resources.files("mushrooms.scheduler_core").joinpath(DEMO_SKYMAP))
 
 
-def plan_main(args: argparse.Namespace) -> int:
-    """Plan a sky map, check the plan, write it (and optionally a queue and a picture)."""
-    from .scheduler_core import make_plan, read_skymap, to_trigger_queue
+def check_output_path(path: str | Path, what: str) -> Path:
+    """Refuse, before any work, an output file that could not be written.
+
+    The directory must exist (it is not created silently) and accept a new
+    file; the path must not be a directory.
+
+    Raises
+    ------
+    InputError
+        One line naming the option and the reason.
+    """
     from .scheduler_core.errors import InputError
-    from .scheduler_core.plan import parse_time
+
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    if p.is_dir():
+        raise InputError(f"{what} {path}: is a directory")
+    if not parent.is_dir():
+        raise InputError(f"{what} {path}: directory {parent} does not exist")
+    try:
+        fd, probe = tempfile.mkstemp(dir=parent, prefix=f".{p.name}.", suffix=".probe")
+    except OSError as exc:
+        raise InputError(f"{what} {path}: cannot write in {parent}: {exc.strerror or exc}") from None
+    os.close(fd)
+    os.unlink(probe)
+    return p
+
+
+#: A start this far (days) from the merger is reported: the kilonova is then faint or not yet there.
+FAR_FROM_MERGER_DAYS = 3.0
+
+
+def parse_start(text: str) -> Any:
+    """``--start``: ISO-8601 (``Z``, ``+hh:mm`` offsets; no offset means UTC) or an MJD number.
+
+    Raises
+    ------
+    InputError
+        When it is neither.
+    """
+    from datetime import datetime, timezone
+
+    from astropy.time import Time
+
+    from .scheduler_core.errors import InputError
+
+    value = text.strip()
+    try:
+        mjd = float(value)
+    except ValueError:
+        pass
+    else:
+        if not 0.0 < mjd < 200000.0:
+            raise InputError(f"--start {text}: an MJD must be a positive day number (e.g. 60000.5)")
+        return Time(mjd, format="mjd", scale="utc")
+    try:
+        t = datetime.fromisoformat(value[:-1] + "+00:00" if value[-1:] in "Zz" else value)
+    except ValueError:
+        raise InputError(f"--start {text!r}: not an ISO-8601 time (2026-05-01T03:00:00Z, "
+                         "2026-05-01T05:00:00+02:00) nor an MJD (61161.125)") from None
+    t = t.replace(tzinfo=timezone.utc) if t.tzinfo is None else t.astimezone(timezone.utc)
+    return Time(t.replace(tzinfo=None), scale="utc")
+
+
+def warn_if_far_from_merger(start: Any, event_time: Any) -> None:
+    """One warning line when the horizon starts far from the merger (or outside Earth-orientation tables)."""
+    if event_time is not None:
+        days = float((start - event_time).to_value("day"))
+        if abs(days) > FAR_FROM_MERGER_DAYS:
+            span = f"{abs(days) / 365.25:.1f} years" if abs(days) > 365.25 else f"{abs(days):.1f} days"
+            log.warning("--start %s is %s %s the merger (%s): planning anyway", start.isot[:19], span,
+                        "after" if days > 0 else "before", event_time.isot[:19])
+    from astropy.utils import iers
+
+    table = iers.earth_orientation_table.get()
+    if not table["MJD"][0].value <= start.mjd <= table["MJD"][-1].value + 366:
+        log.warning("--start %s is outside the Earth-orientation tables: pointing is approximate",
+                    start.isot[:19])
+
+
+def plan_main(args: argparse.Namespace) -> int:
+    """Plan a sky map, check the plan, write it (and optionally a queue, a SkyPortal payload and a picture).
+
+    When the plan covers less than ``min_coverage`` the document written is
+    a ``not_observable`` answer; no queue nor SkyPortal file is written.
+    """
+    from .scheduler_core import make_plan, not_observable, read_skymap, to_skyportal, to_trigger_queue
 
     configure_astropy_offline()
     t0 = time.perf_counter()
     config = load_config(args.config)
     cfg = config.scheduler
-    start = None
-    if args.start:
-        try:
-            start = parse_time(args.start)
-        except ValueError as exc:
-            raise InputError(f"--start: {exc}") from None
+    outputs = {"-o/--output": args.output, "--queue": args.queue, "--skyportal": getattr(args, "skyportal", None),
+               "--plot": args.plot}
+    for what, path in outputs.items():  # before any work
+        if path:
+            check_output_path(path, what)
+    if getattr(args, "skyportal", None) and config.export.skyportal_allocation_id is None:
+        from .scheduler_core.errors import InputError
+
+        raise InputError("--skyportal needs [export] skyportal_allocation_id in the config "
+                         "(the SkyPortal allocation of ZTF)")
+    start = parse_start(args.start) if args.start else None
     source = args.skymap or demo_skymap_path()
     if not args.skymap:
         log.info("no sky map given: planning the bundled demo map (mock BNS MS181101ab)")
     skymap = read_skymap(source, nside=cfg.nside)
     log.info("read %s: nside %d, 90%% area %.0f deg2, event time %s", source, skymap.nside,
              skymap.credible_area(0.9), skymap.event_time.isot if skymap.event_time else "unknown")
-    plan = make_plan(skymap, cfg, start=start, solver=args.solver)
-    write_json_atomic(args.output, plan.to_document())
+    if start is not None:
+        warn_if_far_from_merger(start, skymap.event_time)
+    deadline = getattr(args, "deadline", None)
+    if deadline is None:
+        from .scheduler_core.anytime import revision_document
+
+        plan = make_plan(skymap, cfg, start=start, solver=args.solver)
+        doc = revision_document(plan, 1, True)
+    else:
+        plan, doc = _plan_by_deadline(skymap, cfg, start, args.solver or cfg.solver, float(deadline), t0)
+    answer = not_observable(plan, skymap, cfg)
+    if answer is not None:
+        write_json_atomic(args.output, answer.to_document())
+        print(f"{args.output}: NOT OBSERVABLE: best coverage {plan.metrics.coverage:.4f} < min_coverage "
+              f"{cfg.min_coverage:g}, {time.perf_counter() - t0:.1f} s")
+        for line in answer.sentences:
+            print(f"  {line}")
+        for what in ("--queue", "--skyportal"):
+            if outputs[what]:
+                print(f"{outputs[what]}: not written ({what}): nothing to observe")
+        if args.plot:
+            from .plotting import plot_plan
+
+            plot_plan(plan, skymap, args.plot, answer=answer)
+        return 0
+    write_json_atomic(args.output, doc)
     if args.queue:
-        write_json_atomic(args.queue, to_trigger_queue(plan))
+        write_json_atomic(args.queue, to_trigger_queue(plan, config.export))
+    if getattr(args, "skyportal", None):
+        write_json_atomic(args.skyportal, to_skyportal(plan, config.export))
     if args.plot:
         from .plotting import plot_plan
 
@@ -87,9 +200,36 @@ def plan_main(args: argparse.Namespace) -> int:
     return 0
 
 
+def _plan_by_deadline(skymap: Any, cfg: Any, start: Any, solver: str, deadline_s: float,
+                      t0: float) -> tuple[Any, dict[str, Any]]:
+    """The best checked plan found ``deadline_s`` after ``t0`` (anytime: greedy first, then ``solver``)."""
+    from .scheduler_core.anytime import anytime_plans, revision_document
+    from .scheduler_core.errors import InputError
+    from .scheduler_core.prepare import prepare_problem
+
+    if deadline_s <= 0:
+        raise InputError(f"--deadline must be > 0 seconds, got {deadline_s:g}")
+    if start is None:
+        if skymap.event_time is None:
+            raise InputError("the sky map has no event time (DATE-OBS); give --start")
+        start = skymap.event_time
+    problem = prepare_problem(skymap, cfg, start)
+    best, revision = None, 0
+    for plan in anytime_plans(problem, skymap, solver, should_stop=lambda: time.perf_counter() - t0 > deadline_s):
+        if best is None or plan.metrics.coverage > best.metrics.coverage:
+            best, revision = plan, revision + 1
+            log.info("--deadline: %s plan covers %.4f at %.1f s", plan.metrics.solver, plan.metrics.coverage,
+                     time.perf_counter() - t0)
+    assert best is not None
+    return best, revision_document(best, revision, True)
+
+
 def check_main(args: argparse.Namespace) -> int:
-    """Check a plan document against a sky map; exit 1 when it fails."""
-    from .scheduler_core import Plan, check_plan, read_skymap
+    """Check a plan document against a sky map; exit 1 when it fails.
+
+    The plan's embedded ``config`` is used unless ``--config`` is given.
+    """
+    from .scheduler_core import Plan, PlanningConfig, check_plan, read_skymap
     from .scheduler_core.errors import InputError
 
     configure_astropy_offline()
@@ -104,12 +244,24 @@ def check_main(args: argparse.Namespace) -> int:
         raise InputError(f"{args.plan} is not JSON: {exc}") from None
     if not isinstance(doc, dict):
         raise InputError(f"{args.plan} is not a plan document (not a JSON object)")
+    if doc.get("type") == "not_observable":
+        print(f"{args.plan}: a not_observable answer, no plan to check: {'; '.join(doc.get('reasons', []))}")
+        return 0
     try:
         plan = Plan.from_document(doc)
     except ValueError as exc:
         raise InputError(f"{args.plan}: {exc}") from None
-    skymap = read_skymap(args.skymap, nside=config.scheduler.nside)
-    report = check_plan(plan, skymap, config.scheduler)
+    planning = config.scheduler
+    if isinstance(doc.get("config"), dict) and not getattr(args, "config_explicit", False):
+        try:
+            planning = PlanningConfig.from_mapping(doc["config"])
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{args.plan}: embedded config: {exc}") from None
+        log.info("checking with the plan's embedded configuration (give --config to override)")
+    elif isinstance(doc.get("config"), dict):
+        log.info("checking with %s, not the plan's embedded configuration", args.config)
+    skymap = read_skymap(args.skymap, nside=planning.nside)
+    report = check_plan(plan, skymap, planning)
     if report.ok:
         print(f"{args.plan}: OK: {len(plan.observations)} exposures, coverage {report.coverage:.4f} "
               f"(reported {report.reported_coverage})")
@@ -120,8 +272,8 @@ def check_main(args: argparse.Namespace) -> int:
     return 1
 
 
-#: The bundled demo notice (mock BNS MS230425l, PRELIMINARY, ~570 deg2).
-DEMO_NOTICE = "data/demo/MS230425l-preliminary.json"
+#: The bundled demo notice (mock BNS MS260605l, PRELIMINARY, H1/L1/V1, ~8 deg2).
+DEMO_NOTICE = "data/demo/MS260605l-preliminary.json"
 
 
 def demo_main(args: argparse.Namespace) -> int:
@@ -159,7 +311,7 @@ def demo_main(args: argparse.Namespace) -> int:
     if not docs:
         print(f"demo: no plan was produced (replay exit status {code}); see the log above")
         return 1
-    doc = docs[-1]
+    doc = max(docs, key=lambda d: d.get("revision", 1))  # the optimised revision when one was published
     plan = Plan.from_document(doc)
     payload = json.loads(Path(str(notice)).read_text())["event"]["skymap"]
     skymap = read_skymap(base64.b64decode(payload), nside=load_config(config_path).scheduler.nside)

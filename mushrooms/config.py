@@ -2,7 +2,8 @@
 
 Sections: ``[scheduler]`` (:class:`~mushrooms.scheduler_core.PlanningConfig`),
 ``[policy]`` (:class:`~mushrooms.handlers.policy.PolicyConfig`),
-``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`);
+``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`),
+``[export]`` (:class:`~mushrooms.scheduler_core.exports.ExportConfig`);
 an optional ``[bench]`` table is read by ``mushrooms bench`` only.
 Secrets never come from here: see the README.
 """
@@ -17,8 +18,12 @@ from typing import Any, Mapping
 from .daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
 from .handlers.policy import PolicyConfig
 from .scheduler_core.config import PlanningConfig
+from .scheduler_core.exports import ExportConfig
 
-__all__ = ["Config", "ConfigError", "load_config"]
+__all__ = ["Config", "ConfigError", "load_config", "resolve_config_path", "CONFIG_ENV"]
+
+#: Environment variable naming the config file when ``--config`` is not given.
+CONFIG_ENV = "MUSHROOMS_CONFIG"
 
 
 class ConfigError(ValueError):
@@ -35,6 +40,7 @@ class Config:
     kafka: KafkaConfig = field(default_factory=KafkaConfig)
     outbound: OutboundConfig = field(default_factory=OutboundConfig)
     source: str = "<embedded defaults>"
+    export: ExportConfig = field(default_factory=ExportConfig)
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], source: str = "<mapping>") -> "Config":
@@ -45,6 +51,7 @@ class Config:
             "daemon": DaemonConfig,
             "kafka": KafkaConfig,
             "outbound": OutboundConfig,
+            "export": ExportConfig,
         }
         # [bench] belongs to `mushrooms bench`, which reads it itself
         unknown = sorted(set(data) - set(sections) - {"bench"})
@@ -58,6 +65,34 @@ class Config:
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"{source}: {exc}") from None
         return cls(**kwargs)
+
+
+def resolve_config_path(given: str | Path | None, environ: Mapping[str, str] | None = None,
+                        cwd: Path | None = None) -> tuple[Path | None, str]:
+    """Which config file a command uses, by one rule, first match wins.
+
+    1. ``--config FILE`` when given;
+    2. else ``$MUSHROOMS_CONFIG`` when set and not empty;
+    3. else ``./config.toml`` when the working directory has one;
+    4. else the embedded defaults (None).
+
+    Returns
+    -------
+    path : pathlib.Path or None
+    why : str
+        Which rule chose it (for the log).
+    """
+    import os
+
+    env = os.environ if environ is None else environ
+    if given:
+        return Path(given), "--config"
+    if env.get(CONFIG_ENV, "").strip():
+        return Path(env[CONFIG_ENV].strip()), f"${CONFIG_ENV}"
+    local = (cwd or Path.cwd()) / "config.toml"
+    if local.is_file():
+        return local, "config.toml in the working directory"
+    return None, "no --config, no $MUSHROOMS_CONFIG, no ./config.toml"
 
 
 def load_config(path: str | Path | None = None) -> Config:

@@ -1,9 +1,17 @@
-"""A picture of a plan: planned fields outlined on the sky map, coloured by time."""
+"""A picture of a plan: the sky map, the planned fields and path, and the night's timeline.
+
+Three panels; the two sky panels share one probability colour scale: the
+whole sky (Mollweide, with the Sun at the horizon start) and a zoom on the
+probability the plan covers (on the 90 % credible region without a plan), both with the 50 % and 90 % credible contours and the fields
+outlined, the observing path drawn visit by visit in the colour of its filter;
+and a timeline of the horizon (day, twilight, night, each exposure by filter).
+"""
 
 from __future__ import annotations
 
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -11,7 +19,10 @@ from .scheduler_core.fields import ccd_corners, deproject, load_ztf_fields
 from .scheduler_core.plan import Plan
 from .scheduler_core.skymap import SkyMap
 
-__all__ = ["plot_plan"]
+__all__ = ["plot_plan", "FILTER_COLOURS", "plot_title"]
+
+#: Colours of ZTF's filters (path and timeline).
+FILTER_COLOURS = {"g": "#1a9e2f", "r": "#d62728", "i": "#8c564b"}
 
 
 def _outline(ra0: float, dec0: float) -> tuple[np.ndarray, np.ndarray]:
@@ -28,81 +39,223 @@ def _outline(ra0: float, dec0: float) -> tuple[np.ndarray, np.ndarray]:
     return np.insert(ra, jump, np.nan), np.insert(dec, jump, np.nan)
 
 
-def plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int = 120) -> None:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # ligo.skymap/reproject deprecation chatter
-        _plot_plan(plan, skymap, path, dpi)
+def filters_of(plan: Plan) -> list[str]:
+    """The plan's filters in order of first use (the configured ones for an empty plan)."""
+    return list(dict.fromkeys(o.filter for o in plan.observations)) or \
+        list((plan.config or {}).get("filters", ["g", "r"]))
 
 
-def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int) -> None:
-    """Draw the sky map with the planned fields outlined and coloured by first visit.
+def plot_title(plan: Plan, skymap: SkyMap) -> str:
+    """Superevent id, else the map's OBJECT (when it is a real id), else the map's file name."""
+    obj = (skymap.object_id or "").strip()
+    if obj in ("", "0", "None", "UNKNOWN"):
+        obj = ""
+    name = plan.event.superevent_id or obj or plan.event.skymap_name
+    if not name:
+        name = "sky map" if skymap.source.startswith("<") else Path(skymap.source).name
+    return name
 
-    Two panels: the whole sky (Mollweide) and a zoom on the planned fields
-    and the 90 % credible region.
+
+def plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int = 120, answer: Any = None) -> None:
+    """Draw the plan on its sky map and the night's timeline; write a PNG.
 
     Parameters
     ----------
     plan : Plan
-        The plan.
+        The plan (for a not_observable answer: the plan it replaced).
     skymap : SkyMap
         Its sky map.
     path : str or pathlib.Path
         PNG file to write.
     dpi : int
         Resolution.
+    answer : NotObservable, optional
+        When given, the title says "not observable" and the reasons are listed.
     """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # ligo.skymap/reproject deprecation chatter
+        _plot_plan(plan, skymap, path, dpi, answer)
+
+
+def _zoom_region(prob: np.ndarray, region: np.ndarray, nside: int) -> tuple[float, float, float]:
+    """Centre and radius (deg) of the zoom around a region's probability, at least 12 deg, at most 40 deg.
+
+    The centre is the region's probability-weighted mean direction; the radius
+    holds 90 % of the region's probability.
+    """
+    import healpy as hp
+
+    inside = np.flatnonzero(region)
+    if inside.size == 0:
+        inside = np.array([int(np.argmax(prob))])
+    vec = np.asarray(hp.pix2vec(nside, inside, nest=True)).T
+    weight = prob[inside] if prob[inside].sum() > 0 else np.ones(inside.size)
+    centre = (vec * weight[:, None]).sum(axis=0)
+    centre /= np.linalg.norm(centre)
+    ra_c, dec_c = (float(np.squeeze(x)) for x in hp.vec2ang(centre, lonlat=True))
+    sep = np.degrees(np.arccos(np.clip(vec @ centre, -1.0, 1.0)))
+    order = np.argsort(sep)
+    cum = np.cumsum(weight[order])
+    r90 = float(sep[order][min(np.searchsorted(cum, 0.9 * cum[-1]), len(order) - 1)])
+    return ra_c, dec_c, float(min(max(1.3 * r90 + 3.0, 12.0), 40.0))
+
+
+def _sun_altitude(plan: Plan, step_s: float = 300.0) -> tuple[np.ndarray, np.ndarray, Any]:
+    """Hours since start, the Sun's altitude (deg) at Palomar, and the Sun at the start."""
+    from astropy.coordinates import AltAz, get_body
+    from astropy.time import TimeDelta
+
+    from .scheduler_core.visibility import site
+
+    span = float((plan.end - plan.start).to_value("s"))
+    offsets = np.arange(0.0, span + step_s, step_s)
+    times = plan.start + TimeDelta(offsets, format="sec")
+    sun = get_body("sun", times, site())
+    alt = sun.transform_to(AltAz(obstime=times, location=site())).alt.deg
+    return offsets / 3600.0, alt, sun[0]
+
+
+def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int, answer: Any) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
-    import ligo.skymap.plot  # noqa: F401  (registers the astro projections)
-    from matplotlib import pyplot as plt
-    from matplotlib.colors import Normalize
-
-    first_visit: dict[int, float] = {}
-    for o in plan.observations:
-        first_visit.setdefault(o.field_id, o.start)
-    hours = np.array(list(first_visit.values())) / 3600.0
-    norm = Normalize(vmin=0.0, vmax=max(float(hours.max()) if hours.size else 1.0, 1e-3))
-    cmap = plt.get_cmap("viridis")
-    grid = load_ztf_fields()
-
-    fig = plt.figure(figsize=(12, 6))
-    ax_sky = fig.add_axes([0.02, 0.16, 0.5, 0.76], projection="astro hours mollweide")
-    # zoom centre: probability-weighted centre of the planned fields, else the map peak
     import healpy as hp
-
-    peak = int(np.argmax(skymap.prob))
-    ra_c, dec_c = hp.pix2ang(skymap.nside, peak, nest=True, lonlat=True)
-    if first_visit:
-        rows = grid.index_of(np.array(list(first_visit)))
-        vec = hp.ang2vec(grid.ra[rows], grid.dec[rows], lonlat=True).mean(axis=0)
-        ra_c, dec_c = hp.vec2ang(vec / np.linalg.norm(vec), lonlat=True)
-        ra_c, dec_c = float(np.squeeze(ra_c)), float(np.squeeze(dec_c))
-        seps = np.degrees(np.arccos(np.clip(hp.ang2vec(grid.ra[rows], grid.dec[rows], lonlat=True)
-                                            @ hp.ang2vec(ra_c, dec_c, lonlat=True), -1, 1)))
-        radius = float(min(max(seps.max() + 6.0, 10.0), 80.0))
-    else:
-        radius = 20.0
+    import ligo.skymap.plot  # noqa: F401  (registers the astro projections)
     from astropy import units as u
     from astropy.coordinates import SkyCoord
+    from ligo.skymap.postprocess import find_greedy_credible_levels
+    from matplotlib import pyplot as plt
+    from matplotlib.colors import Normalize
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
-    ax_zoom = fig.add_axes([0.58, 0.2, 0.36, 0.7], projection="astro degrees zoom",
+    grid = load_ztf_fields()
+    obs = plan.observations
+    first_visit: dict[int, float] = {}
+    for o in obs:
+        first_visit.setdefault(o.field_id, o.start)
+
+    # one colour scale for both sky panels: probability per deg2 (the all-sky panel at a coarser resolution)
+    prob = skymap.prob
+    coarse_nside = min(skymap.nside, 64)
+    coarse = hp.ud_grade(prob, coarse_nside, order_in="NESTED", order_out="NESTED", power=-2)
+    layers = {
+        "sky": (coarse / hp.nside2pixarea(coarse_nside, degrees=True), 100.0 * find_greedy_credible_levels(coarse)),
+        "zoom": (prob / hp.nside2pixarea(skymap.nside, degrees=True), 100.0 * find_greedy_credible_levels(prob)),
+    }
+    credible = layers["zoom"][1]
+    norm = Normalize(vmin=0.0, vmax=float(layers["zoom"][0].max()))
+    hours, sun_alt, sun0 = _sun_altitude(plan)
+    sun_limit = float((plan.config or {}).get("sun_alt_max_deg", -12.0))
+
+    fig = plt.figure(figsize=(13, 8.2))
+    ax_sky = fig.add_axes([0.03, 0.36, 0.50, 0.52], projection="astro hours mollweide")
+
+    if first_visit:  # zoom on the probability the plan covers
+        from .scheduler_core.fields import field_footprints
+
+        covered = np.zeros(prob.size, dtype=bool)
+        covered[field_footprints(grid, skymap.nside).union(list(first_visit))] = True
+        ra_c, dec_c, radius = _zoom_region(prob, covered & (prob > 0), skymap.nside)
+    else:  # else on the 90 % credible region
+        ra_c, dec_c, radius = _zoom_region(prob, credible <= 90.0, skymap.nside)
+    ax_zoom = fig.add_axes([0.60, 0.36, 0.33, 0.52], projection="astro degrees zoom",
                            center=SkyCoord(ra_c * u.deg, dec_c * u.deg), radius=radius * u.deg)
-    for ax in (ax_sky, ax_zoom):
-        ax.imshow_hpx((skymap.prob, "ICRS"), nested=True, cmap="cylon")
+
+    image = None
+    for ax, layer in ((ax_sky, "sky"), (ax_zoom, "zoom")):
+        density, levels = layers[layer]
+        image = ax.imshow_hpx((density, "ICRS"), nested=True, cmap="cylon", vmin=norm.vmin, vmax=norm.vmax)
+        ax.contour_hpx((levels, "ICRS"), nested=True, levels=[50.0, 90.0], colors="black",
+                       linewidths=[1.1, 0.9], linestyles=["solid", "dashed"])
         ax.grid(alpha=0.3)
-        for fid, t in first_visit.items():
+        world = ax.get_transform("world")
+        for fid in first_visit:
             k = grid.index_of(np.array([fid]))[0]
             ra, dec = _outline(grid.ra[k], grid.dec[k])
-            ax.plot(ra, dec, transform=ax.get_transform("world"), color=cmap(norm(t / 3600.0)), lw=1.0)
-    ax_zoom.coords[0].set_axislabel("RA")
-    ax_zoom.coords[1].set_axislabel("Dec")
+            ax.plot(ra, dec, transform=world, color="#3b6fd6", lw=0.9, alpha=0.9)
+        # the observing path: a segment into each visit, in the colour of the visit's filter
+        for a, b in zip(obs[:-1], obs[1:]):
+            if a.block != b.block or abs(a.ra - b.ra) > 180.0:
+                continue  # within a block only (blocks are hours apart), never across RA = 0h
+            ls = "-" if b.filter == obs[0].filter else (0, (3, 2))
+            ax.plot([a.ra, b.ra], [a.dec, b.dec], transform=world, color=FILTER_COLOURS.get(b.filter, "k"),
+                    lw=1.3, ls=ls)
+        if obs:
+            ax.plot([obs[0].ra], [obs[0].dec], transform=world, marker="o", ms=6, mfc="none", mec="k", mew=1.5)
+    ax_sky.plot([sun0.ra.deg], [sun0.dec.deg], transform=ax_sky.get_transform("world"), marker="*", ms=14,
+                color="gold", mec="k", mew=0.8, ls="none")
+    ax_sky.coords[0].set_ticklabel(size=8)
+    ax_sky.coords[1].set_ticklabel(size=8)
+    ax_zoom.coords[0].set_ticks(number=5)
+    ax_zoom.coords[1].set_ticks(number=5)
+    ax_zoom.coords[0].set_major_formatter("d")
+    ax_zoom.coords[1].set_major_formatter("d")
+    ax_zoom.coords[0].set_ticklabel(size=8, exclude_overlapping=True)
+    ax_zoom.coords[1].set_ticklabel(size=8)
+    ax_zoom.coords[0].set_ticklabel_position("b")  # never on top, whatever the field's declination
+    ax_zoom.coords[1].set_ticklabel_position("l")
+    ax_zoom.coords[0].set_axislabel_position("b")
+    ax_zoom.coords[1].set_axislabel_position("l")
+    ax_zoom.coords[0].set_axislabel("RA (deg)")
+    ax_zoom.coords[1].set_axislabel("Dec (deg)")
+
+    cax = fig.add_axes([0.945, 0.40, 0.012, 0.44])
+    exponent = int(np.floor(np.log10(norm.vmax))) if norm.vmax > 0 else 0
+    from matplotlib.ticker import FuncFormatter
+
+    cb = fig.colorbar(image, cax=cax, format=FuncFormatter(lambda v, _: f"{v / 10.0 ** exponent:.1f}"))
+    cb.set_label(f"probability per deg² (×10$^{{{exponent}}}$)", fontsize=9)
+    cb.ax.tick_params(labelsize=8)
+    legend = [Line2D([], [], color="k", lw=1.1, label="50 % credible"),
+              Line2D([], [], color="k", ls="--", lw=0.9, label="90 % credible")]
+    if first_visit:
+        legend.append(Line2D([], [], color="#3b6fd6", lw=0.9, label="planned field"))
+    legend += [Line2D([], [], color=FILTER_COLOURS[f], lw=1.3, ls="-" if i == 0 else (0, (3, 2)),
+                      label=f"path to the {f} visits")
+               for i, f in enumerate(dict.fromkeys(o.filter for o in obs))]
+    legend += [Line2D([], [], color="gold", marker="*", ms=10, mec="k", ls="none", label="Sun at start")]
+    ax_sky.legend(handles=legend, loc="upper left", bbox_to_anchor=(0.0, -0.02), ncol=3, fontsize=8,
+                  frameon=False)
+
+    # timeline of the horizon: day / twilight / night, and every exposure by filter
+    ax_t = fig.add_axes([0.06, 0.07, 0.87, 0.15])
+    night = sun_alt <= sun_limit
+    twilight = (sun_alt < 0) & ~night
+    dt = float(hours[1] - hours[0]) if hours.size > 1 else 1.0
+    for mask, colour in ((twilight, "#b8c4d6"), (night, "#56607a")):
+        ax_t.broken_barh([(h - dt / 2, dt) for h in hours[mask]], (0.4, len(filters_of(plan)) + 0.2),
+                         color=colour, lw=0)
+    filters = filters_of(plan)
+    for row, f in enumerate(filters):
+        bars = [(o.start / 3600.0, o.exposure_s / 3600.0) for o in obs if o.filter == f]
+        ax_t.broken_barh(bars, (row + 0.6, 0.8), color=FILTER_COLOURS.get(f, "k"))
+    ax_t.set_ylim(0.4, len(filters) + 0.6)
+    ax_t.set_yticks([r + 1 for r in range(len(filters))], [f"{f} exposures" for f in filters], fontsize=8)
+    span_h = hours[-1]
+    ax_t.set_xlim(0, span_h)
+    step = 1 if span_h <= 12 else 2 if span_h <= 30 else 6
+    ticks = np.arange(0, span_h + 1e-9, step)
+    labels = [(plan.start + t * u.hour).utc.isot[11:16] for t in ticks]
+    ax_t.set_xticks(ticks, [f"{int(t)} h\n{lab}" for t, lab in zip(ticks, labels)], fontsize=8)
+    ax_t.set_xlabel(f"hours after {plan.start.utc.isot[:16]} UTC (and UTC clock time)", fontsize=9)
+    handles = [Patch(color="#b8c4d6", label="twilight"), Patch(color="#56607a", label=f"night (Sun < {sun_limit:g}°)")]
+    handles += [Patch(color=FILTER_COLOURS.get(f, "k"), label=f"{f}") for f in filters if any(o.filter == f for o in obs)]
+    ax_t.legend(handles=handles, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=len(handles), fontsize=8,
+                frameon=False)
+
     m = plan.metrics
-    title = plan.event.superevent_id or skymap.object_id or Path(skymap.source).name
-    fig.text(0.5, 0.965, f"{title}: {m.n_fields} fields, {m.n_exposures} exposures, coverage {m.coverage:.3f} "
-                 f"({m.solver}); start {plan.start.isot[:16]} UTC", ha="center", fontsize=12)
-    cax = fig.add_axes([0.3, 0.1, 0.4, 0.025])
-    sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
-    fig.colorbar(sm, cax=cax, orientation="horizontal", label="first visit (hours after start)")
+    title = plot_title(plan, skymap)
+    if answer is not None:
+        head = f"{title}: NOT OBSERVABLE by ZTF from {plan.start.utc.isot[:16]} UTC " \
+               f"(best coverage {m.coverage:.4f} < {answer.min_coverage:g})"
+        fig.text(0.5, 0.955, head, ha="center", fontsize=12, color="#a00000")
+        fig.text(0.5, 0.925, "; ".join(answer.sentences[:2]), ha="center", fontsize=8.5, wrap=True)
+    else:
+        fig.text(0.5, 0.955, f"{title}: {m.n_fields} fields, {m.n_exposures} exposures, coverage {m.coverage:.3f} "
+                             f"({m.solver}); start {plan.start.utc.isot[:16]} UTC", ha="center", fontsize=12)
+        area = float((credible <= 90.0).sum()) * hp.nside2pixarea(skymap.nside, degrees=True)
+        fig.text(0.5, 0.925, f"90 % credible area {area:.0f} deg²; fields outlined, path in filter colours "
+                             "(circle: first visit)", ha="center", fontsize=9)
     fig.savefig(path, dpi=dpi)
     plt.close(fig)

@@ -14,6 +14,32 @@ DATA = TESTS / "data"
 _CACHE_KEY = pytest.StashKey[Path]()
 
 
+def _validated(method):
+    """Wrap a ``to_document`` so that every document tests produce is checked against the schema."""
+    import functools
+
+    from mushrooms.scheduler_core.schema import validate_document
+
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        doc = method(self, *args, **kwargs)
+        validate_document(doc)
+        return doc
+
+    wrapper.__wrapped_by_schema__ = True
+    return wrapper
+
+
+def _validate_every_document() -> None:
+    from mushrooms.scheduler_core.observability import NotObservable
+    from mushrooms.scheduler_core.plan import Plan
+
+    for cls, name in ((Plan, "to_document"), (NotObservable, "to_document")):
+        method = getattr(cls, name)
+        if not getattr(method, "__wrapped_by_schema__", False):
+            setattr(cls, name, _validated(method))
+
+
 def pytest_configure(config: pytest.Config) -> None:
     from astropy.utils import iers
 
@@ -24,6 +50,7 @@ def pytest_configure(config: pytest.Config) -> None:
     cache = Path(tempfile.mkdtemp(prefix="mushrooms-footprints-"))
     config.stash[_CACHE_KEY] = cache
     os.environ["MUSHROOMS_CACHE_DIR"] = str(cache)
+    _validate_every_document()  # every plan and not_observable document must follow the schema
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

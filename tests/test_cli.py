@@ -71,7 +71,7 @@ def test_check_accepts_the_plan_and_rejects_a_tampered_one(planned, tmp_path):
     [
         (["plan", "/nonexistent/map.fits"], "sky map not found"),
         (["plan", __file__], "not a FITS file"),
-        (["plan", str(MAP), "--start", "next tuesday"], "not an ISO-8601 UTC time"),
+        (["plan", str(MAP), "--start", "next tuesday"], "not an ISO-8601 time"),
         (["plan", str(MAP), "--config", "/nonexistent.toml"], "cannot read config"),
         (["check", "/nonexistent/plan.json", str(MAP)], "plan not found"),
         (["check", __file__, str(MAP)], "is not JSON"),
@@ -113,3 +113,33 @@ def test_bad_config_key_is_named(tmp_path):
     cfg.write_text("[scheduler]\nexposure = 30\n")
     r = mushrooms("plan", str(MAP), "--config", str(cfg))
     assert r.returncode == 2 and "unknown [scheduler] key(s): exposure" in r.stderr
+
+
+def test_demo_plans_the_bundled_notice_end_to_end(tmp_path):
+    """README command 1 (with the fast scheduler): the bundled notice through the service's path."""
+    r = mushrooms("demo", "--solver", "greedy", "--out", str(tmp_path / "d"))
+    assert r.returncode == 0, r.stderr
+    [plan_file] = list((tmp_path / "d" / "outbox").glob("mushrooms-*.json"))
+    doc = json.loads(plan_file.read_text())
+    assert doc["type"] == "plan" and doc["event"]["superevent_id"] == "MS260605l"
+    assert doc["event"]["localization"] == "gw" and doc["event"]["external_coinc"] is None
+    # an ~8 deg2 map observable in the horizon: the plan covers nearly all of it
+    assert doc["metrics"]["coverage"] > 0.99 and doc["observations"]
+    assert (tmp_path / "d" / "plan.png").read_bytes()[:4] == b"\x89PNG"
+    assert (tmp_path / "d" / "state.sqlite").is_file()
+    assert doc["plan_id"] in r.stdout
+
+
+def test_plan_with_a_deadline_writes_the_best_plan_found_by_then(tmp_path, planned):
+    """A deadline that has passed before the optimiser starts: the greedy plan is written, as revision 1."""
+    out, _ = planned
+    r = mushrooms("plan", str(MAP), "--solver", "hybrid", "--start", "2022-07-23T02:00:00Z",
+                  "--deadline", "0.001", "-o", str(tmp_path / "plan.json"))
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((tmp_path / "plan.json").read_text())
+    greedy = json.loads((out / "plan.json").read_text())
+    assert doc["metrics"]["solver"] == "greedy" and doc["revision"] == 1 and doc["final"] is True
+    assert [(o["field_id"], o["filter"], o["start"]) for o in doc["observations"]] == \
+        [(o["field_id"], o["filter"], o["start"]) for o in greedy["observations"]]
+    bad = mushrooms("plan", str(MAP), "--deadline", "-3", "-o", str(tmp_path / "x.json"))
+    assert bad.returncode == 2 and "--deadline" in bad.stderr and "Traceback" not in bad.stderr

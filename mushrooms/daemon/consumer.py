@@ -17,6 +17,7 @@ import confluent_kafka
 import gcn_kafka
 
 from .credentials import Credentials, load_credentials
+from .kafka_logging import BrokerHealth, client_settings
 from .settings import KafkaConfig
 
 __all__ = ["Received", "NoticeConsumer", "consumer_config"]
@@ -79,7 +80,9 @@ class NoticeConsumer:
 
     def __init__(self, config: KafkaConfig, credentials: Credentials | None = None) -> None:
         self.config = config
-        conf = consumer_config(config)
+        #: whether the input cluster answers (heartbeat, systemd status)
+        self.health = BrokerHealth("consumer")
+        conf = consumer_config(config) | client_settings(self.health, stats_interval_s=5.0)
         if config.bootstrap:
             self._consumer = gcn_kafka.Consumer(config=conf)
             where = f"{config.bootstrap} (plaintext, no credentials)"
@@ -132,6 +135,7 @@ class NoticeConsumer:
             if err.fatal():
                 raise RuntimeError(f"fatal Kafka error: {err}")
             return None
+        self.health.on_message()
         value = msg.value() or b""
         return Received(
             value=value,

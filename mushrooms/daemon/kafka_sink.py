@@ -18,6 +18,7 @@ from typing import Any, Mapping
 import confluent_kafka
 
 from .credentials import CredentialsError, load_outbound_password
+from .kafka_logging import kafka_logger
 from .settings import OutboundConfig
 from .sinks import SinkError
 
@@ -108,6 +109,7 @@ class KafkaSink:
             "client.id": "mushrooms-sink",
         }
         conf.update(extra or {})
+        conf.setdefault("logger", kafka_logger())  # librdkafka's lines into Python logging, repeats rate-limited
         self._producer = confluent_kafka.Producer(conf)
         self._lock = threading.Lock()
 

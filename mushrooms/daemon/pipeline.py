@@ -5,9 +5,23 @@
     raw bytes ─ accept ─► size cap ▸ parse ▸ policy ▸ decide ─► store (one transaction)
                                                                │
            run_job ◄─ Job (plan / rerun) ◄─────────────────────┘
-              │  sky map ▸ scheduler_core.make_plan (checked) ▸ store plan + outbox
+              │  sky map ▸ prepare (warm cache) ▸ greedy ▸ checker ▸ store revision 1 + outbox
+              │  configured solver ▸ checker ▸ revision 2 if better by supersede_min_gain, else plan_final
               ▼
-          flush_outbox ─► sink.publish (plan document / withdrawal)
+          flush_outbox ─► sink.publish (plan document / plan_final / withdrawal)
+
+Anytime plans
+-------------
+Every job publishes its fast (greedy) plan at once as revision 1
+(``revision: 1``, ``final: false`` unless the configured solver is greedy),
+then runs ``config.scheduler.solver`` with the job's ``should_stop``.  Its
+plan goes out as revision 2 (``supersedes`` = revision 1, ``final: true``)
+only when it covers at least ``[daemon] supersede_min_gain`` more;
+otherwise a small ``plan_final`` message (key ``<plan_id>-final``) says that
+revision 1 stands.  A newer sky map supersedes the job in the store at
+accept time; its stop flag then ends the job at the next stage boundary or
+scheduler poll, and the new job's revision 1 supersedes whatever the event
+last published.  A retraction withdraws every revision.
 
 How the daemon uses it
 ----------------------
@@ -15,20 +29,23 @@ How the daemon uses it
    durable (commit the Kafka offset after it).  Bad input never raises: it is
    a recorded ``rejected`` decision.  Only a failure to write the state
    (``sqlite3.Error``, :class:`~.store.StoreError`) raises.
-2. If ``acc.job`` is set, run ``pipeline.run_job(acc.job, should_stop)`` in a
-   worker (``acc.cancelled_jobs`` lists older jobs of the same superevent
-   that the store has just superseded or cancelled: stop them; their results
-   are discarded anyway).  Equivalently, submit the newest job per superevent
-   of ``pipeline.store.pending_jobs()``.
-3. After a withdrawal (``acc.action == "withdraw"``) or a failed publish,
-   call ``pipeline.flush_outbox()`` (it returns how many messages are still
-   pending).
+2. If ``acc.job`` is set, run ``pipeline.run_job(acc.job, should_stop,
+   staged=True)`` in a worker: it returns after revision 1 with a
+   :class:`~.jobs.Staged` whose ``run`` is the optimisation (the
+   :class:`~.jobs.JobRunner` queues it behind newer first plans).
+   ``acc.cancelled_jobs`` lists older jobs of the same superevent that the
+   store has just superseded or cancelled: stop them.
+3. With ``on_outbox`` (the daemon's :class:`~.jobs.OutboxDrain`) planning
+   threads never publish: they queue and kick the drain.  Without it
+   (replay, ``mushrooms trigger`` with no daemon) ``run_job`` publishes
+   inline and optimises inline.
 4. At start: ``flush_outbox()`` then ``run_job`` on ``store.pending_jobs()``
    (accepted but not finished; :meth:`NoticePipeline.resume` does both).
 
-Plan ids are stable: a job's horizon start is fixed at accept time, so a job
-re-run after a crash produces the same ``plan_id`` and the sink overwrites
-the same message.
+Plan ids are stable: a job's horizon start is fixed at accept time, and a
+plan id hashes the map, start, configuration, solver and superevent, so a
+job re-run after a crash produces the same ids; a revision the job already
+stored is not queued again (:meth:`~.store.Store.store_revision`).
 """
 
 from __future__ import annotations
@@ -45,12 +62,30 @@ from typing import Any, Callable
 from ..config import Config
 from ..handlers.alert import Alert, NoticeError, parse_notice
 from ..handlers.decisions import Decision, decide
+from ..handlers.localization import check_skymap, choose_localization, coincidence_summary, skymap_for_sha
 from ..handlers.policy import evaluate
 from ..scheduler_core.errors import InputError, PlanCheckError
 from .sinks import Sink, message_key
 from .store import Job, NoticeRecord, Store
 
 __all__ = ["NoticePipeline", "Accepted", "Outcome", "iso_z"]
+
+
+class _Cancelled(Exception):
+    """The job was superseded or retracted; the message names the stage it stopped before."""
+
+
+@dataclass
+class _Work:
+    """A job between its first plan and its optimisation (kept in memory only)."""
+
+    job: Job
+    skymap: Any
+    problem: Any
+    event: Any
+    first: Any
+    prepare_s: float
+    outcome: "Outcome | None" = None
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +98,16 @@ def _aware(t: datetime | None) -> datetime:
     if t is None:
         return datetime.now(timezone.utc)
     return t.replace(tzinfo=timezone.utc) if t.tzinfo is None else t.astimezone(timezone.utc)
+
+
+def _age_s(iso: str | None) -> str:
+    """Seconds since an ISO-8601 UTC time (``-`` when unknown), for log lines."""
+    if not iso:
+        return "-"
+    try:
+        return f"{(datetime.now(timezone.utc) - datetime.fromisoformat(iso)).total_seconds():.3f}"
+    except ValueError:
+        return "-"
 
 
 def iso_z(t: datetime) -> str:
@@ -96,6 +141,10 @@ class Outcome:
         The outbound message (plan or withdrawal) was accepted by the sink.
     notice_id, job_id : int or None
         Store ids.
+    revision : int or None
+        Which revision of the job's plan ``plan_id`` is (1: the fast plan).
+    final : bool
+        No further revision of this job will follow.
     """
 
     decision: str
@@ -110,6 +159,8 @@ class Outcome:
     published: bool = False
     notice_id: int | None = None
     job_id: int | None = None
+    revision: int | None = None
+    final: bool = False
 
     @property
     def action(self) -> str:
@@ -173,15 +224,27 @@ class NoticePipeline:
     sink : Sink
         Outbound messages.
     planner : callable, optional
-        ``make_plan``-compatible function (default
-        :func:`mushrooms.scheduler_core.make_plan`).
+        ``run_scheduler``-compatible function ``(problem, solver,
+        should_stop) -> ScheduleResult`` (default
+        :func:`mushrooms.scheduler_core.planner.run_scheduler`).
+    sky_cache : SkyCache, optional
+        The daemon's warm grid, footprints and per-night visibility
+        (:mod:`.warm`); without it every job computes its own.
+    on_outbox : callable, optional
+        Called (instead of publishing in the planning thread) whenever a
+        message was queued in the outbox: the daemon's outbox drain.
     """
 
-    def __init__(self, config: Config, store: Store, sink: Sink, planner: Planner | None = None):
+    def __init__(self, config: Config, store: Store, sink: Sink, planner: Planner | None = None,
+                 sky_cache: Any = None, on_outbox: Callable[[], None] | None = None):
         self.config = config
         self.store = store
         self.sink = sink
-        self._planner = planner
+        if planner is None:
+            from ..scheduler_core.planner import run_scheduler as planner
+        self._scheduler = planner
+        self._cache = sky_cache
+        self._on_outbox = on_outbox
         self._flush_lock = getattr(store, "publish_lock", None) or threading.Lock()
 
     # ------------------------------------------------------------ accept
@@ -245,9 +308,18 @@ class NoticePipeline:
                 "created": iso_z(datetime.now(timezone.utc)),
             }
 
+        localization = None
+        if verdict.keep and not alert.is_retraction:
+            localization = choose_localization(
+                alert, policy.use_combined_skymap,
+                check=lambda data: check_skymap(data, max_bytes=policy.max_skymap_bytes))
+            if localization is not None and localization.note and localization.kind == "gw" \
+                    and alert.external_coinc is not None:
+                log.warning("notice origin=%s superevent_id=%s: %s", origin, alert.superevent_id, localization.note)
+
         nid, decision, job, cancelled, key = self.store.record_decision(
             record,
-            lambda ledger: decide(alert, verdict, ledger),
+            lambda ledger: decide(alert, verdict, ledger, localization),
             lambda d: self._plan_start(alert, now),
             received_wall=wall,
             withdrawal=withdrawal,
@@ -278,20 +350,38 @@ class NoticePipeline:
         return iso_z(max(now, ev.time))
 
     # ------------------------------------------------------------ jobs
-    def run_job(self, job: Job, should_stop: Callable[[], bool] | None = None) -> Outcome:
-        """Plan one accepted job, store the plan and publish it.
+    def run_job(self, job: Job, should_stop: Callable[[], bool] | None = None,
+                staged: bool = False) -> "Outcome | Staged":
+        """Plan one accepted job: publish a first plan at once, then optimise.
+
+        The fast scheduler's plan is checked, stored and queued as revision
+        1; then ``config.scheduler.solver`` optimises within what
+        ``should_stop`` allows, and its plan is published as revision 2
+        (superseding revision 1) only when it covers more by
+        ``[daemon] supersede_min_gain``; otherwise a ``plan_final`` message
+        says that revision 1 stands.  A job whose solver is the fast one is
+        done after revision 1 (``final: true``).
 
         Parameters
         ----------
         job : Job
             From :meth:`accept` or :meth:`Store.pending_jobs`.
         should_stop : callable, optional
-            Polled by the scheduler; True makes it return its best plan so far.
+            Polled at every stage and by the schedulers.  When it is True
+            and the store says the job was superseded or cancelled, the job
+            ends at the next stage (nothing stored); otherwise (the job's
+            deadline) the fast plan is still completed and the optimiser
+            returns its best plan so far.
+        staged : bool
+            Return a :class:`~.jobs.Staged` after revision 1 (the
+            optimisation is then run by whoever calls its ``run``: the
+            daemon queues it behind newer events' first plans) instead of
+            optimising here.
 
         Returns
         -------
-        Outcome
-            ``plan``/``rerun`` with plan_id, coverage and latency;
+        Outcome or Staged
+            ``plan``/``rerun`` with plan_id, coverage, latency, revision;
             ``ignore`` when the job was superseded or withdrawn meanwhile;
             ``rejected`` for an unusable sky map; ``failed`` for a plan the
             checker refused or an internal error (logged with a traceback).
@@ -307,7 +397,9 @@ class NoticePipeline:
                      reason)
             return Outcome(decision, reason=reason, **base)
         try:
-            plan = self._plan(started, should_stop)
+            work = self._first_plan(started, should_stop)
+        except _Cancelled as exc:
+            return self._dropped(started, f"stopped before {exc}", base)
         except (NoticeError, InputError) as exc:  # SkyMapError is an InputError
             return self._job_failed(started, "rejected", str(exc), base)
         except PlanCheckError as exc:
@@ -315,48 +407,198 @@ class NoticePipeline:
         except Exception as exc:
             log.exception("job superevent_id=%s job=%s decision=failed internal error", job.superevent_id, job.job_id)
             return self._job_failed(started, "failed", f"internal error: {type(exc).__name__}: {exc}", base)
-        latency = round(time.time() - started.received_wall, 3)
-        plan = plan.with_(metrics=dataclasses.replace(plan.metrics, latency_s=latency))
-        doc = plan.to_document()
-        coverage = float(plan.metrics.coverage)
-        outbox_id = self.store.finish_job(started.job_id, plan.plan_id, doc, coverage, latency)
-        if outbox_id is None:
-            reason = f"plan {plan.plan_id} dropped: job {self.store.describe_job(started.job_id)} while planning"
-            log.info("job superevent_id=%s job=%s decision=ignore reason=%r", job.superevent_id, job.job_id, reason)
-            return Outcome("ignore", reason=reason, plan_id=plan.plan_id, **base)
-        self.flush_outbox()
-        published = self._published(outbox_id)
-        log.info("job superevent_id=%s job=%s decision=%s plan_id=%s coverage=%.4f latency_s=%.3f supersedes=%s "
-                 "published=%s solver=%s", job.superevent_id, job.job_id, started.decision, plan.plan_id,
-                 coverage, latency, plan.supersedes or "-", published, plan.metrics.solver)
-        return Outcome(started.decision, reason=f"{plan.metrics.n_fields} fields, {plan.metrics.n_exposures} exposures",
-                       plan_id=plan.plan_id, coverage=coverage, latency_s=latency, supersedes=plan.supersedes,
-                       published=published, **base)
+        if isinstance(work, Outcome):
+            return work
+        if staged:
+            from .jobs import Staged
 
-    def _plan(self, job: Job, should_stop: Callable[[], bool] | None) -> Any:
-        from ..scheduler_core import EventInfo, make_plan, read_skymap
+            return Staged(work.outcome, lambda stop: self._optimise(work, stop))
+        return self._optimise(work, should_stop)
+
+    def _cancelled(self, job: Job, should_stop: Callable[[], bool] | None) -> bool:
+        """Stop requested and the store no longer has the job running (superseded, retracted)."""
+        return bool(should_stop is not None and should_stop()) and self.store.job_status(job.job_id) != "running"
+
+    def _first_plan(self, job: Job, should_stop: Callable[[], bool] | None) -> "_Work | Outcome":
+        from ..scheduler_core import not_observable, read_skymap
+        from ..scheduler_core.anytime import FIRST_SOLVER, checked_plan
         from ..scheduler_core.plan import parse_time
+
+        def stage(name: str) -> None:
+            if self._cancelled(job, should_stop):
+                raise _Cancelled(name)
+
+        t0 = time.perf_counter()
+        took: dict[str, float] = {}
+
+        def lap(name: str) -> None:
+            took[name] = time.perf_counter() - t0 - sum(took.values())
+
+        skymap_bytes, event = self._skymap_bytes(job)
+        sched = self.config.scheduler
+        stage("reading the sky map")
+        skymap = read_skymap(skymap_bytes, nside=sched.nside, max_bytes=self.config.policy.max_skymap_bytes)
+        lap("read")
+        stage("preparing the problem")
+        start = parse_time(job.start)
+        problem = self._cache.prepare(skymap, sched, start) if self._cache is not None else \
+            self._prepare(skymap, sched, start)
+        lap("prepare")
+        t_prep = time.perf_counter() - t0
+        stage("the fast scheduler")
+        result = self._scheduler(problem, FIRST_SOLVER, lambda: self._cancelled(job, should_stop))
+        lap("greedy")
+        stage("checking the fast plan")
+        supersedes = job.supersedes
+        plan = checked_plan(problem, result, skymap, FIRST_SOLVER, event=event, supersedes=supersedes,
+                            runtime_s=time.perf_counter() - t0)
+        lap("check")
+        if plan.supersedes == plan.plan_id:
+            plan = plan.with_(supersedes=None)
+        # too little coverage: the answer published is the not_observable document, in the plan's place
+        answer = not_observable(plan, skymap, sched)
+        if answer is not None:
+            log.warning("job superevent_id=%s job=%s %s", job.superevent_id, job.job_id, answer.summary)
+            plan = answer
+        log.info("job superevent_id=%s job=%s first_plan_stages %s", job.superevent_id, job.job_id,
+                 " ".join(f"{k}_s={v:.3f}" for k, v in took.items()))
+        stage("storing the fast plan")
+        final = sched.solver == FIRST_SOLVER or job.fallback
+        if job.fallback:  # the optimiser died too often on this job: the fast scheduler's plan still goes out
+            log.warning("job superevent_id=%s job=%s fallback=greedy reason='%d starts died'", job.superevent_id,
+                        job.job_id, job.attempts - 1)
+        if dataclasses.is_dataclass(skymap) and getattr(skymap, "distmu", None) is not None:
+            # the optimisation needs the probability only: a burst of queued jobs must not hold
+            # three distance layers (3 x 6 MB at nside 256) each
+            skymap = dataclasses.replace(skymap, distmu=None, distsigma=None, distnorm=None)
+        work = _Work(job, skymap, problem, event, plan, t_prep)
+        outcome = self._publish_revision(work, plan, 1, final)
+        if outcome.decision == "ignore" or final:
+            return outcome
+        work.outcome = outcome
+        return work
+
+    def _optimise(self, work: "_Work", should_stop: Callable[[], bool] | None) -> Outcome:
+        """Run the configured solver; publish revision 2 if better by the margin, else ``plan_final``."""
+        from ..scheduler_core import not_observable
+        from ..scheduler_core.anytime import checked_plan, is_better
+
+        job, first = work.job, work.first
+        base = dict(superevent_id=job.superevent_id, alert_type=job.alert_type, job_id=job.job_id,
+                    notice_id=job.notice_id)
+        solver = self.config.scheduler.solver
+        if self.store.job_status(job.job_id) != "running" or self._cancelled(job, should_stop):
+            return self._dropped(job, "optimisation not started", base)
+        t0 = time.perf_counter()
+        why = ""
+        try:
+            result = self._scheduler(work.problem, solver, should_stop)
+            if self._cancelled(job, should_stop):
+                return self._dropped(job, f"optimisation ({solver}) stopped", base)
+            better = checked_plan(work.problem, result, work.skymap, solver, event=work.event,
+                                  supersedes=first.plan_id, runtime_s=time.perf_counter() - t0)
+        except PlanCheckError as exc:  # revision 1 stands; the optimiser's plan is never published
+            log.error("job superevent_id=%s job=%s optimised plan refused by the checker: %s", job.superevent_id,
+                      job.job_id, exc)
+            better, why = None, f"the {solver} plan failed the checker"
+        except Exception as exc:
+            log.exception("job superevent_id=%s job=%s optimisation failed", job.superevent_id, job.job_id)
+            better, why = None, f"the {solver} optimisation failed: {type(exc).__name__}: {exc}"
+        gain = self.config.daemon.supersede_min_gain
+        if better is not None and not_observable(better, work.skymap, self.config.scheduler) is not None:
+            better, why = None, (f"{solver} covered {better.metrics.coverage:.4f}: still below min_coverage "
+                                 f"{self.config.scheduler.min_coverage:g}")
+        if better is not None and better.plan_id != first.plan_id and is_better(better, first, gain):
+            return self._publish_revision(work, better, 2, True)
+        if better is not None:
+            why = (f"{solver} covered {better.metrics.coverage:.4f} against {first.metrics.coverage:.4f}: "
+                   f"less than supersede_min_gain {gain:g} more")
+        return self._close_with_first(work, why)
+
+    def _publish_revision(self, work: "_Work", plan: Any, revision: int, final: bool) -> Outcome:
+        """Store one revision (and queue it), then have it published."""
+        from ..scheduler_core.anytime import revision_document
+
+        job = work.job
+        base = dict(superevent_id=job.superevent_id, alert_type=job.alert_type, job_id=job.job_id,
+                    notice_id=job.notice_id)
+        latency = round(time.time() - job.received_wall, 3)
+        plan = plan.with_(metrics=dataclasses.replace(plan.metrics, latency_s=latency))
+        doc = revision_document(plan, revision, final)
+        coverage = float(plan.metrics.coverage)
+        outbox_id = self.store.store_revision(job.job_id, plan.plan_id, doc, coverage, latency, final, revision)
+        if outbox_id is None:
+            return self._dropped(job, f"plan {plan.plan_id} (revision {revision}) dropped", base, plan.plan_id)
+        published = self._hand_over(outbox_id)
+        log.info("job superevent_id=%s job=%s decision=%s plan_id=%s revision=%d final=%s coverage=%.4f "
+                 "latency_s=%.3f supersedes=%s published=%s solver=%s", job.superevent_id, job.job_id,
+                 job.decision, plan.plan_id, revision, str(final).lower(), coverage, latency,
+                 plan.supersedes or "-", published, plan.metrics.solver)
+        summary = getattr(plan, "summary", None) or f"{plan.metrics.n_fields} fields, {plan.metrics.n_exposures} exposures"
+        return Outcome(job.decision, reason=summary,
+                       plan_id=plan.plan_id, coverage=coverage, latency_s=latency, supersedes=plan.supersedes,
+                       published=published, revision=revision, final=final, **base)
+
+    def _close_with_first(self, work: "_Work", why: str) -> Outcome:
+        job, first = work.job, work.first
+        base = dict(superevent_id=job.superevent_id, alert_type=job.alert_type, job_id=job.job_id,
+                    notice_id=job.notice_id)
+        message = {
+            "type": "plan_final",
+            "plan_id": first.plan_id,
+            "revision": 1,
+            "final": True,
+            "superevent_id": job.superevent_id,
+            "reason": why,
+            "created": iso_z(datetime.now(timezone.utc)),
+        }
+        outbox_id = self.store.close_job(job.job_id, f"{first.plan_id}-final", message, why)
+        if outbox_id is None:
+            return self._dropped(job, "optimisation finished", base, first.plan_id)
+        published = self._hand_over(outbox_id)
+        log.info("job superevent_id=%s job=%s decision=%s plan_id=%s revision=1 final=true reason=%r published=%s",
+                 job.superevent_id, job.job_id, job.decision, first.plan_id, why, published)
+        return Outcome(job.decision, reason=why, plan_id=first.plan_id, coverage=float(first.metrics.coverage),
+                       latency_s=work.outcome.latency_s if work.outcome else None, supersedes=first.supersedes,
+                       published=published, revision=1, final=True, **base)
+
+    def _dropped(self, job: Job, what: str, base: dict[str, Any], plan_id: str | None = None) -> Outcome:
+        reason = f"{what}: job {self.store.describe_job(job.job_id)}"
+        log.info("job superevent_id=%s job=%s decision=ignore reason=%r", job.superevent_id, job.job_id, reason)
+        return Outcome("ignore", reason=reason, plan_id=plan_id, **base)
+
+    def _hand_over(self, outbox_id: int) -> bool:
+        """Have the outbox published: by the daemon's drain (``on_outbox``), else here."""
+        if self._on_outbox is not None:
+            self._on_outbox()
+            return False
+        self.flush_outbox()
+        return self._published(outbox_id)
+
+    def _skymap_bytes(self, job: Job) -> tuple[bytes, Any]:
+        from ..scheduler_core import EventInfo
 
         raw = self.store.notice_raw(job.notice_id)
         if raw is None:
             raise RuntimeError(f"notice {job.notice_id} of job {job.job_id} has no stored bytes")
         if raw.startswith(_FITS_MAGIC):  # a bare sky map handed in by ``mushrooms trigger``
-            skymap_bytes = raw
-            event = EventInfo(skymap_sha256=job.skymap_sha256)
-        else:
-            alert = parse_notice(raw)
-            assert alert.event is not None
-            skymap_bytes = alert.event.skymap
-            event = EventInfo(superevent_id=alert.superevent_id, alert_type=alert.alert_type,
-                              time_created=iso_z(alert.time_created), skymap_sha256=alert.event.skymap_sha256)
-        sched = self.config.scheduler
-        skymap = read_skymap(skymap_bytes, nside=sched.nside)
-        planner = self._planner or make_plan
-        plan = planner(skymap, config=sched, start=parse_time(job.start), event=event,
-                       supersedes=job.supersedes, should_stop=should_stop)
-        if plan.supersedes == plan.plan_id:
-            plan = plan.with_(supersedes=None)
-        return plan
+            return raw, EventInfo(skymap_sha256=job.skymap_sha256)
+        alert = parse_notice(raw)
+        assert alert.event is not None
+        found = skymap_for_sha(alert, job.skymap_sha256)
+        if found is None:  # a job recorded before joint maps were told apart: the GW map
+            found = ("gw", alert.event.skymap)
+        kind, skymap_bytes = found
+        return skymap_bytes, EventInfo(superevent_id=alert.superevent_id, alert_type=alert.alert_type,
+                                       time_created=iso_z(alert.time_created),
+                                       skymap_sha256=hashlib.sha256(skymap_bytes).hexdigest(), localization=kind,
+                                       external_coinc=coincidence_summary(alert.external_coinc))
+
+    @staticmethod
+    def _prepare(skymap: Any, config: Any, start: Any) -> Any:
+        from ..scheduler_core.prepare import prepare_problem
+
+        return prepare_problem(skymap, config, start)
 
     def _job_failed(self, job: Job, decision: str, reason: str, base: dict[str, Any]) -> Outcome:
         try:
@@ -390,8 +632,9 @@ class NoticePipeline:
                                 msg.key, msg.kind, msg.attempts + 1, type(exc).__name__, exc, len(pending) - i)
                     return len(pending) - i
                 self.store.mark_published(msg.outbox_id)
-                log.info("publish key=%s kind=%s superevent_id=%s ok", message_key(msg.message), msg.kind,
-                         msg.message.get("superevent_id") or (msg.message.get("event") or {}).get("superevent_id"))
+                log.info("publish key=%s kind=%s superevent_id=%s ok queued_s=%s", message_key(msg.message), msg.kind,
+                         msg.message.get("superevent_id") or (msg.message.get("event") or {}).get("superevent_id"),
+                         _age_s(msg.created_at))
             return 0
 
     # ------------------------------------------------------------ helpers
@@ -432,17 +675,52 @@ class NoticePipeline:
         record = dataclasses.replace(record, sha256=hashlib.sha256(raw).hexdigest(), size=len(raw),
                                      alert_type=alert.alert_type, time_created=iso_z(alert.time_created), raw=raw)
 
+        return self._record_rerun(record, alert, "manual rerun requested", origin, now, wall, logging.INFO)
+
+    def _record_rerun(self, record: NoticeRecord, alert: Alert, reason: str, origin: str, now: datetime,
+                      wall: float, level: int) -> Accepted:
+        """Store an operator's ``rerun`` of a notice: no policy, supersedes the event's latest plan."""
+        sid = alert.superevent_id
+        loc = choose_localization(alert, self.config.policy.use_combined_skymap)
+        sha, kind = (loc.sha256, loc.kind) if loc is not None else (alert.skymap_sha256, "gw")
+
         def dec(ledger: Any) -> Decision:
             st = ledger.event_state(sid)
             latest = st.latest_plan_id if st is not None else None
-            return Decision("rerun", sid, "manual rerun requested", alert.alert_type, alert.skymap_sha256,
-                            supersedes=latest)
+            return Decision("rerun", sid, f"{reason} ({kind} map)", alert.alert_type, sha,
+                            supersedes=latest, localization=kind)
 
         nid, decision, job, cancelled, _ = self.store.record_decision(
             record, dec, lambda d: self._plan_start(alert, now), received_wall=wall)
-        log.info("trigger origin=%s superevent_id=%s decision=%s reason=%r%s", origin, sid, decision.action,
-                 decision.reason, f" job={job.job_id}" if job else "")
+        log.log(level, "trigger origin=%s superevent_id=%s decision=%s reason=%r%s", origin, sid, decision.action,
+                decision.reason, f" job={job.job_id}" if job else "")
         return Accepted(decision.action, sid, decision.reason, nid, alert.alert_type, job, tuple(cancelled))
+
+    def force_plan(self, raw: bytes, origin: str, received_at: datetime | None = None) -> Accepted:
+        """Plan a notice past the policy and the duplicate check (``mushrooms trigger --force``).
+
+        The notice is stored like any other; the decision is ``rerun`` (it
+        supersedes the event's latest plan, if any) with the reason
+        ``forced by operator``.  A notice without a sky map is rejected.
+        """
+        wall = time.time()
+        now = _aware(received_at)
+        raw = bytes(raw)
+        sha = hashlib.sha256(raw).hexdigest()
+        record = NoticeRecord(origin=origin, sha256=sha, size=len(raw), received_at=iso_z(now))
+        try:
+            alert = parse_notice(raw, max_bytes=self.config.policy.max_notice_bytes)
+        except NoticeError as exc:
+            nid = self.store.record_rejected(record, str(exc))
+            return Accepted("rejected", None, str(exc), nid)
+        sid = alert.superevent_id
+        if alert.event is None or not alert.event.skymap:
+            reason = "forced, but the notice has no sky map to plan"
+            nid = self.store.record_rejected(dataclasses.replace(record, superevent_id=sid), reason)
+            return Accepted("rejected", sid, reason, nid, alert.alert_type)
+        record = dataclasses.replace(record, superevent_id=sid, alert_type=alert.alert_type,
+                                     time_created=iso_z(alert.time_created), raw=raw)
+        return self._record_rerun(record, alert, "forced by operator", origin, now, wall, logging.WARNING)
 
     def accept_skymap(self, data: bytes, origin: str, received_at: datetime | None = None) -> Accepted:
         """Plan a bare sky map (``mushrooms trigger SKYMAP.fits``); no policy applies.

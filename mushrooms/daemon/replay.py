@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import logging
+import os
 import sys
 from datetime import datetime
 from pathlib import Path
@@ -87,6 +88,7 @@ def format_line(name: str, outcome: Outcome) -> str:
     lat = f"{outcome.latency_s:.2f}" if outcome.latency_s is not None else "-"
     extra = f" withdrawn={','.join(outcome.plan_ids) or '-'}" if outcome.decision == "withdraw" else ""
     sup = f" supersedes={outcome.supersedes}" if outcome.supersedes else ""
+    sup += f" revision={outcome.revision}" if outcome.revision else ""
     return (f"{name} {outcome.superevent_id or '-'} {outcome.alert_type or '-'} {outcome.decision} "
             f"plan_id={outcome.plan_id or '-'} coverage={cov} latency_s={lat}{sup}{extra} "
             f"reason={outcome.reason!r}")
@@ -129,11 +131,16 @@ def main(args: argparse.Namespace) -> int:
     """Entry point of ``mushrooms replay``.
 
     Returns 0 when every notice was processed (rejected and ignored notices
-    included), 1 when some failed on our side (plan checker, internal error).
+    included), 1 when some failed on our side (plan checker, internal error),
+    2 when an input is missing or unreadable, or a directory holds no notice
+    (the others are still replayed).
     """
     from ..commands import configure_astropy_offline
 
     configure_astropy_offline()
+    missing = [p for p in map(Path, args.notices) if not p.exists()]
+    empty = [p for p in map(Path, args.notices) if p.is_dir() and not collect_notices([p])]
+    unreadable = [p for p in collect_notices(args.notices) if p.exists() and not os.access(p, os.R_OK)]
     config: Config = load_config(getattr(args, "config", None))
     if getattr(args, "allow_mock", False):
         config = dataclasses.replace(config, policy=dataclasses.replace(config.policy, allow_mock=True))
@@ -157,4 +164,14 @@ def main(args: argparse.Namespace) -> int:
         counts[oc.decision] = counts.get(oc.decision, 0) + 1
     log.info("replay done: %d notice(s): %s; output in %s; state %s", len(results),
              ", ".join(f"{k}={v}" for k, v in sorted(counts.items())) or "none", out_dir, state)
+    print(f"mushrooms replay: {len(results)} notice(s); outbox {out_dir.resolve()}; state {state.resolve()}",
+          file=sys.stderr)
+    bad = [f"{p}: no such file or directory" for p in missing] + \
+          [f"{p}: no notice files (*.json, *.avro, *.xml) in this directory" for p in empty] + \
+          [f"{p}: unreadable" for p in unreadable] + \
+          [f"{p}: {oc.reason}" for p, oc in results if oc.reason.startswith("cannot read") and p not in missing]
+    for line in dict.fromkeys(bad):
+        print(f"mushrooms replay: error: {line}", file=sys.stderr)
+    if bad:
+        return 2
     return 1 if counts.get("failed") else 0

@@ -29,16 +29,31 @@ from typing import Any, Callable
 from apscheduler.schedulers.background import BackgroundScheduler
 
 from ..config import Config, ConfigError, load_config
-from .jobs import JobRunner, OutboxRetrier
+from .jobs import JobRunner, OutboxDrain
 from .notify import Notifier, watchdog_interval_s
 from .settings import RuntimePaths, resolve_paths
 from .trigger import DaemonRunning, PidLock, dispatch, pending_triggers, read_trigger
 
-__all__ = ["main", "Service", "effective_config", "open_pipeline", "setup_logging"]
+__all__ = ["main", "Service", "effective_config", "open_pipeline", "setup_logging", "EXIT_STATE", "private_dir"]
 
 log = logging.getLogger("mushrooms.daemon")
 
 TRIGGER_SCAN_S = 5.0  # triggers are also picked up without SIGUSR1, at this period (s)
+WARM_INTERVAL_S = 1800.0  # the coming night's visibility is computed ahead at this period (s)
+PRUNE_EVERY_S = 3600.0  # how often the raw bytes of old rejected messages are pruned (s)
+
+#: Exit status when the state file is unusable (empty, damaged, newer schema):
+#: sysexits' EX_DATAERR; the unit's RestartPreventExitStatus= lists it, since a
+#: restart cannot repair the file and would only loop.
+EXIT_STATE = 65
+
+
+def private_dir(path: Path, group_readable: bool = False) -> Path:
+    """Create a directory (and parents) 0700, or 0750 when group readable; an existing one is left as is."""
+    if not path.is_dir():
+        path.mkdir(parents=True, exist_ok=True)
+        path.chmod(0o750 if group_readable else 0o700)
+    return path
 
 
 # ---------------------------------------------------------------- configuration
@@ -91,23 +106,27 @@ def make_sink(config: Config) -> Any:
     return DirectorySink(Path(out.directory))
 
 
-def open_store(path: Path) -> Any:
-    """Open (create) the SQLite state store."""
-    from . import store as store_mod
+def open_store(path: Path, group_readable: bool = False) -> Any:
+    """Open (create, 0600 in a 0700 directory) the SQLite state store."""
+    from .store import Store
 
-    cls = getattr(store_mod, "Store", None) or getattr(store_mod, "StateStore")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return cls(path)
+    private_dir(path.parent, group_readable)
+    return Store(path, group_readable=group_readable)
 
 
-def open_pipeline(config: Config, paths: RuntimePaths, sink: Any = None) -> tuple[Any, Callable[[], None]]:
-    """Store + sink + pipeline; returns the pipeline and a closer."""
+def open_pipeline(config: Config, paths: RuntimePaths, sink: Any = None, **pipeline_kw: Any
+                  ) -> tuple[Any, Callable[[], None]]:
+    """Store + sink + pipeline; returns the pipeline and a closer.
+
+    ``pipeline_kw`` go to :class:`~.pipeline.NoticePipeline` (the daemon's
+    ``sky_cache`` and ``on_outbox``).
+    """
     from .pipeline import NoticePipeline
 
-    store = open_store(paths.state)
+    store = open_store(paths.state, config.daemon.group_readable)
     own_sink = sink is None
     sink = make_sink(config) if own_sink else sink
-    pipeline = NoticePipeline(config, store, sink)
+    pipeline = NoticePipeline(config, store, sink, **pipeline_kw)
 
     def close() -> None:
         for obj in ((sink,) if own_sink else ()) + (store,):
@@ -177,6 +196,8 @@ class Service:
         self._counts = {"notices": 0, "triggers": 0, "jobs": 0, "quarantined": 0}
         self.pipeline: Any = None
         self.consumer: Any = None
+        self._closing = threading.Event()  # set once the store is being closed: no more retries touch it
+        self._last_prune = 0.0
 
     # signals only set flags; the main loop acts between polls
     def _on_signal(self, signum: int, frame: Any) -> None:
@@ -201,22 +222,42 @@ class Service:
         except DaemonRunning as exc:
             log.error("event=start_refused reason=%r", str(exc))
             return 1
+        from .store import StateInUse, StoreError, lock_state
+
         for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGUSR1):
             signal.signal(sig, self._on_signal)
-        self.paths.trigger_dir.mkdir(parents=True, exist_ok=True)
+        private_dir(self.paths.trigger_dir, self.config.daemon.group_readable)
         scheduler = self.scheduler = BackgroundScheduler(timezone="UTC")
         scheduler.start()
         close: Callable[[], None] = lambda: None
+        state_lock: Any = None
         try:
-            self.pipeline, close = open_pipeline(self.config, self.paths)
-            self.outbox = OutboxRetrier(self._flush_outbox, scheduler,
-                                        self.config.outbound.retry_initial_s, self.config.outbound.retry_max_s)
+            from .warm import SkyCache
+
+            self.sky_cache = SkyCache()
+            self.outbox = OutboxDrain(self._flush_outbox, self.config.outbound.retry_initial_s,
+                                      self.config.outbound.retry_max_s)
+            try:
+                self.pipeline, close = open_pipeline(self.config, self.paths, sky_cache=self.sky_cache,
+                                                     on_outbox=self.outbox.kick)
+            except StoreError as exc:  # empty, damaged, newer: one line, and a status Restart= does not loop on
+                log.error("event=start_refused reason=%r", str(exc))
+                return EXIT_STATE
+            try:  # one daemon per state file, whatever its pid file says
+                state_lock = lock_state(self.paths.state)
+            except StateInUse as exc:
+                log.error("event=start_refused reason=%r", str(exc))
+                return 1
+            self._prune_raw()
+            self._warm_up(self.sky_cache)  # only once the state file is ours: a refused start is quick
             self.jobs = JobRunner(self._run_job, scheduler, self.config.daemon.max_jobs,
                                   self.config.daemon.job_deadline_s, on_done=self._job_done)
             log.info("event=service_starting pid=%d config=%s state=%s sink=%s triggers=%s",
                      os.getpid(), self.config.source, self.paths.state, self._sink_text(),
                      self.paths.trigger_dir)
-            self.outbox.drain()  # what a crash left in the outbox goes out first
+            self.outbox.kick()  # what a crash left in the outbox goes out first
+            scheduler.add_job(self._rewarm, "interval", seconds=WARM_INTERVAL_S, id="warm",
+                              misfire_grace_time=None, coalesce=True)
             resumed = self.jobs.sync(self.pipeline.store.pending_jobs())
             if resumed:
                 log.info("event=jobs_resumed count=%d", resumed)
@@ -231,8 +272,8 @@ class Service:
                 scheduler.add_job(self._watchdog, "interval", seconds=wd, id="watchdog",
                                   args=[wd], misfire_grace_time=None, coalesce=True)
             self.notifier.ready(f"consuming {','.join(self.config.kafka.topics)}")
-            log.info("event=service_ready topics=%s watchdog_s=%s", ",".join(self.config.kafka.topics),
-                     f"{wd:.1f}" if wd else "-")
+            log.info("event=service_ready topics=%s watchdog_s=%s startup_s=%.2f", ",".join(self.config.kafka.topics),
+                     f"{wd:.1f}" if wd else "-", time.monotonic() - self._started)
             self._loop()
             return 0
         finally:
@@ -245,9 +286,15 @@ class Service:
             if self.consumer is not None:
                 self.consumer.close()
             scheduler.shutdown(wait=False)
+            if hasattr(self, "outbox"):
+                self.outbox.close()
             unfinished = hasattr(self, "jobs") and self.jobs.busy()
+            if self.pipeline is not None and state_lock is not None:
+                self._give_back_unfinished()
             if not unfinished:
-                close()
+                self._close_store(close)
+            if state_lock is not None:
+                state_lock.release()
             lock.release()
             log.info("event=service_stopped unfinished_jobs=%s", "yes" if unfinished else "no")
             if unfinished:
@@ -304,11 +351,11 @@ class Service:
     def _quarantine(self, received: Any) -> bool:
         """Keep the raw bytes of a message that cannot be stored; True if kept."""
         try:
-            qdir = self.paths.quarantine_dir
-            qdir.mkdir(parents=True, exist_ok=True)
+            qdir = private_dir(self.paths.quarantine_dir, self.config.daemon.group_readable)
             name = received.origin.replace(":", "_").replace("/", "_") + ".bin"
             tmp = qdir / f".{name}.tmp"
-            with open(tmp, "wb") as fh:
+            mode = 0o640 if self.config.daemon.group_readable else 0o600
+            with open(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, mode), "wb") as fh:
                 fh.write(received.value)
                 fh.flush()
                 os.fsync(fh.fileno())
@@ -354,32 +401,104 @@ class Service:
         return 0
 
     def _after_decision(self, decision: Any) -> None:
-        """A withdrawal waits in the outbox: publish it now, off the consume loop."""
+        """A withdrawal waits in the outbox: the drain publishes it, off the consume loop."""
         if getattr(decision, "withdrawal_id", None) or getattr(decision, "action", None) == "withdraw":
-            self.scheduler.add_job(self.outbox.drain, id=f"drain-{time.time_ns()}", misfire_grace_time=None)
+            self.outbox.kick(now=True)
 
     def _run_job(self, job: Any, should_stop: Callable[[], bool]) -> Any:
         # a stopping service does not cut plans short: they get a grace period,
-        # and a job still running at exit stays pending and resumes at the next start
-        return self.pipeline.run_job(job, should_stop)
+        # and a job still running at exit stays pending and resumes at the next start;
+        # staged: the optimisation is queued behind newer events' first plans
+        return self.pipeline.run_job(job, should_stop, staged=True)
 
     def _job_done(self, job: Any, outcome: Any, info: dict[str, Any]) -> None:
         self._counts["jobs"] += 1
-        self.outbox.drain()
+
+    # ------------------------------------------------------------ warm state
+    def _warm_up(self, cache: Any) -> Any:
+        """Imports, grid, footprints and tonight's visibility, and one throw-away plan, before consuming."""
+        t0 = time.perf_counter()
+        cache.warm(self.config.scheduler)
+        t_cache = time.perf_counter() - t0
+        try:  # the first alert must not pay for first calls (checker, greedy, MILP imports)
+            from ..commands import demo_skymap_path
+            from ..scheduler_core import read_skymap
+            from ..scheduler_core.anytime import FIRST_SOLVER, checked_plan
+            from ..scheduler_core.planner import run_scheduler
+
+            if self.config.scheduler.solver != FIRST_SOLVER:
+                from ..scheduler_core import milp  # noqa: F401
+            from astropy.time import Time
+
+            skymap = read_skymap(demo_skymap_path(), nside=self.config.scheduler.nside)
+            problem = cache.prepare(skymap, self.config.scheduler, Time.now())
+            checked_plan(problem, run_scheduler(problem, FIRST_SOLVER), skymap, FIRST_SOLVER)
+        except Exception as exc:  # warming is an optimisation, never a reason not to start
+            log.warning("event=warm_up_plan_failed error=%r", f"{type(exc).__name__}: {exc}")
+        log.info("event=warm_up cache_s=%.2f total_s=%.2f", t_cache, time.perf_counter() - t0)
+        return cache
+
+    def _rewarm(self) -> None:
+        """Compute the coming night's visibility before an alert needs it."""
+        try:
+            self.sky_cache.warm(self.config.scheduler)
+        except Exception:
+            log.exception("event=warm_failed")
 
     def _flush_outbox(self) -> Any:
+        if self._closing.is_set():  # a retry that fires during shutdown: the next start publishes it
+            return 0
         return self.pipeline.flush_outbox()
+
+    def _close_store(self, close: Callable[[], None]) -> None:
+        """Close sink and store once no publish is running; later retries do nothing."""
+        self._closing.set()
+        store = getattr(self.pipeline, "store", None)
+        publishing = getattr(store, "publish_lock", None)
+        took = publishing.acquire(timeout=self.config.outbound.delivery_timeout_s + 5.0) if publishing else False
+        try:
+            close()
+        finally:
+            if took:
+                publishing.release()
+
+    def _give_back_unfinished(self) -> None:
+        """A clean stop: jobs still running are not starts that died (they resume, uncounted)."""
+        try:
+            released = self.pipeline.store.release_unfinished()
+        except Exception as exc:
+            log.warning("event=release_failed error=%r", f"{type(exc).__name__}: {exc}")
+            return
+        if released:
+            log.info("event=jobs_released jobs=%s reason='clean stop; resumed at the next start'",
+                     ",".join(map(str, released)))
+
+    def _prune_raw(self) -> None:
+        """Forget the raw bytes of rejected messages older than the retention period."""
+        self._last_prune = time.monotonic()
+        try:
+            n = self.pipeline.store.prune_raw(self.config.daemon.rejected_raw_retention_s)
+        except Exception as exc:
+            log.warning("event=prune_failed error=%r", f"{type(exc).__name__}: {exc}")
+            return
+        if n:
+            log.info("event=raw_pruned notices=%d retention_s=%.0f", n, self.config.daemon.rejected_raw_retention_s)
 
     # ------------------------------------------------------------ timed work
     def _heartbeat(self) -> None:
         up = time.monotonic() - self._started
         active = self._active()
-        status = (f"up {up / 3600:.1f} h, {self._counts['notices']} notices, {self._counts['jobs']} jobs done, "
+        health = getattr(self.consumer, "health", None)
+        status = (f"{health.status_text() + ', ' if health else ''}up {up / 3600:.1f} h, "
+                  f"{self._counts['notices']} notices, {self._counts['jobs']} jobs done, "
                   f"active: {','.join(active) or 'none'}")
         self.notifier.status(status)
-        log.info("event=heartbeat uptime_s=%.0f notices=%d triggers=%d jobs_done=%d quarantined=%d active=%s "
-                 "loop_age_s=%.1f", up, self._counts["notices"], self._counts["triggers"], self._counts["jobs"],
-                 self._counts["quarantined"], ",".join(active) or "-", time.monotonic() - self._last_loop)
+        log.info("event=heartbeat uptime_s=%.0f broker=%s notices=%d triggers=%d jobs_done=%d quarantined=%d "
+                 "active=%s loop_age_s=%.1f", up, health.describe() if health else "-", self._counts["notices"],
+                 self._counts["triggers"], self._counts["jobs"], self._counts["quarantined"],
+                 ",".join(active) or "-", time.monotonic() - self._last_loop)
+        if time.monotonic() - self._last_prune > PRUNE_EVERY_S:
+            self._prune_raw()
 
     def _watchdog(self, interval_s: float) -> None:
         age = time.monotonic() - self._last_loop
@@ -402,7 +521,8 @@ class Service:
             new = dataclasses.replace(new, daemon=dataclasses.replace(new.daemon, state_path=str(self.paths.state)))
         from .pipeline import NoticePipeline
 
-        self.pipeline = NoticePipeline(new, self.pipeline.store, sink)
+        self.pipeline = NoticePipeline(new, self.pipeline.store, sink, sky_cache=self.sky_cache,
+                                       on_outbox=self.outbox.kick)
         if new.kafka != self.config.kafka:
             from .consumer import NoticeConsumer
 

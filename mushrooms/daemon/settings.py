@@ -45,6 +45,22 @@ class DaemonConfig:
         After SIGTERM, running planning jobs may finish within this time (s);
         a job still running then stays pending in the store and resumes at
         the next start.  Keep it below the unit's ``TimeoutStopSec``.
+    supersede_min_gain : float
+        Every job publishes the fast (greedy) plan at once as revision 1; the
+        configured solver's plan replaces it (revision 2) only when it covers
+        at least this much more probability (absolute, 0-1).  Default 0.005:
+        more than twice the 0.002 by which the plan checker's and the
+        schedulers' footprints may disagree, so a replacement is never
+        noise, yet small enough that a real improvement (typically 0.01-0.05
+        on the shared maps) always goes out.  Replacing a queued plan costs
+        the observers a reload.
+    group_readable : bool
+        Create the state file 0640 and the service's directories 0750
+        (readable by the service's group, e.g. for backups or monitoring)
+        instead of 0600 and 0700.
+    rejected_raw_retention_s : float
+        How long (s) the first KiB of a rejected message is kept for
+        inspection; then only its SHA-256, size and decision remain.
     """
 
     state_path: str = "mushrooms-state.sqlite"
@@ -56,8 +72,13 @@ class DaemonConfig:
     quarantine_dir: str = "mushrooms-quarantine"
     accept_retries: int = 3
     stop_grace_s: float = 20.0
+    supersede_min_gain: float = 0.005
+    group_readable: bool = False
+    rejected_raw_retention_s: float = 2_592_000.0
 
     def __post_init__(self) -> None:
+        if not 0.0 <= self.supersede_min_gain <= 1.0:
+            raise ValueError(f"[daemon] supersede_min_gain must be within 0-1, got {self.supersede_min_gain}")
         if self.max_jobs < 1:
             raise ValueError(f"[daemon] max_jobs must be >= 1, got {self.max_jobs}")
         if self.heartbeat_s <= 0 or self.job_deadline_s <= 0:

@@ -4,14 +4,17 @@ Tables
 ------
 ``notices``   every message received: sha256, size, origin, when; the raw bytes
               for notices that need planning (a job re-reads its sky map from
-              them after a crash) and for rejected ones within the size cap.
+              them after a crash); of a rejected one only the first KiB, and
+              only for a retention period (:meth:`Store.prune_raw`).
 ``decisions`` one row per notice: what was decided and why (``plan``,
               ``rerun``, ``duplicate``, ``withdraw``, ``ignore``, ``rejected``).
 ``events``    per superevent: last sky map accepted for planning, retracted flag.
 ``jobs``      planning jobs: ``pending`` -> ``running`` -> ``done`` | ``failed``
               | ``superseded`` | ``cancelled``, with the horizon start fixed at
               accept time (so a re-run gives the same plan id).
-``plans``     plan documents (JSON) and whether they were withdrawn.
+``plans``     plan documents (JSON) and whether they were withdrawn; a job's
+              revisions (1: the fast plan, 2: a better optimised one) and
+              whether the revision is ``final``.
 ``outbox``    messages to publish; ``published_at`` is set once the sink took
               them.  Publication is at-least-once: a crash between publishing
               and marking re-publishes the same message (same key).
@@ -19,6 +22,13 @@ Tables
 Crash safety: every state change that belongs together happens in one
 ``BEGIN IMMEDIATE`` transaction (accept = notice + decision + event + job or
 withdrawal outbox row; finishing a job = plan + job status + outbox row).
+
+Integrity: an existing file must be a SQLite database that passes
+``PRAGMA quick_check`` (an empty or damaged file is refused with one line,
+never silently replaced); a new file is created 0600 (0640 when group
+readable).  One daemon per state file: :func:`lock_state` holds an exclusive
+``flock`` on the database file itself (SQLite's own locks are POSIX record
+locks, which ``flock`` does not touch).
 
 Threads: each thread gets its own connection; write transactions are also
 serialised by a process-wide lock, so the consumer thread and job threads can
@@ -32,9 +42,12 @@ not finished) and calls :meth:`~mushrooms.daemon.pipeline.NoticePipeline.flush_o
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import hashlib
 import json
 import logging
+import os
 import sqlite3
 import threading
 import time
@@ -45,12 +58,20 @@ from pathlib import Path
 from typing import Any, Callable, Iterator
 
 from ..handlers.decisions import Decision, EventState
+from ..handlers.text import storable
 
-__all__ = ["Store", "StoreError", "Job", "OutboxMessage", "NoticeRecord", "SCHEMA_VERSION"]
+__all__ = ["Store", "StoreError", "StateInUse", "StateLock", "lock_state", "Job", "OutboxMessage", "NoticeRecord",
+           "SCHEMA_VERSION", "RAW_PREFIX_BYTES"]
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+
+#: Additive migrations: ``{version: statements}`` bring a state file of
+#: ``version - 1`` up to ``version`` (a new file gets :data:`_SCHEMA` at once).
+_MIGRATIONS: dict[int, tuple[str, ...]] = {
+    2: ("ALTER TABLE events ADD COLUMN localization TEXT",),  # gw | combined (issue 17)
+}
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS notices (
@@ -79,7 +100,8 @@ CREATE TABLE IF NOT EXISTS events (
     superevent_id TEXT PRIMARY KEY,
     skymap_sha256 TEXT,
     retracted     INTEGER NOT NULL DEFAULT 0,
-    updated_at    TEXT NOT NULL
+    updated_at    TEXT NOT NULL,
+    localization  TEXT
 );
 CREATE TABLE IF NOT EXISTS jobs (
     job_id        INTEGER PRIMARY KEY AUTOINCREMENT,
@@ -126,11 +148,86 @@ CREATE TABLE IF NOT EXISTS outbox (
 CREATE INDEX IF NOT EXISTS outbox_pending ON outbox(published_at);
 """
 
+#: Columns added after schema version 1, as (table, column, declaration).  Added
+#: when missing at every open, so state files of any earlier release keep working.
+_ADDED_COLUMNS = (
+    ("plans", "revision", "INTEGER NOT NULL DEFAULT 1"),
+    ("plans", "final", "INTEGER NOT NULL DEFAULT 1"),
+)
+
 _OPEN = ("pending", "running")
+
+#: Bytes kept of a rejected message (with its SHA-256 and size): enough to see what it was.
+RAW_PREFIX_BYTES = 1024
+
+#: Starts of a job that died with the fast scheduler after the optimiser's ``max_attempts``.
+FALLBACK_ATTEMPTS = 2
 
 
 class StoreError(RuntimeError):
-    """The state file cannot be used (newer schema, not a database, ...)."""
+    """The state file cannot be used (newer schema, not a database, empty, damaged ...)."""
+
+
+class StateInUse(StoreError):
+    """Another process holds the state file's lock (a second daemon)."""
+
+
+class StateLock:
+    """An exclusive ``flock`` on the state database file, held while a daemon runs."""
+
+    def __init__(self, path: Path, fd: int) -> None:
+        self.path = path
+        self._fd: int | None = fd
+
+    def release(self) -> None:
+        """Drop the lock (closing our descriptor of the file)."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+
+def lock_state(path: str | Path) -> StateLock:
+    """Take the single-instance lock of a state file, whatever the pid file.
+
+    Call it after :class:`Store` has opened (or created) the file, and keep
+    the returned lock until the store is closed.
+
+    Raises
+    ------
+    StateInUse
+        Another process holds it (its pid in the message when known).
+    StoreError
+        The file cannot be opened.
+    """
+    p = Path(path)
+    try:
+        fd = os.open(p, os.O_RDWR | os.O_NOFOLLOW | os.O_CLOEXEC)
+    except OSError as exc:
+        raise StoreError(f"{p}: cannot open the state file to lock it ({exc.strerror or exc})") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        os.close(fd)
+        if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
+            raise StoreError(f"{p}: cannot lock the state file ({exc.strerror or exc})") from None
+        raise StateInUse(f"state file {p} is in use by another mushrooms daemon{_holder(p)}") from None
+    return StateLock(p, fd)
+
+
+def _holder(path: Path) -> str:
+    """`` (pid N)`` of the process holding ``path``'s flock, from /proc/locks, or ``""``."""
+    try:
+        st = path.stat()
+        with open("/proc/locks") as fh:
+            for line in fh:
+                f = line.split()
+                if len(f) >= 6 and f[1] == "FLOCK" and f[5].endswith(f":{st.st_ino}"):
+                    dev = f[5].split(":")
+                    if int(dev[0], 16) == os.major(st.st_dev) and int(dev[1], 16) == os.minor(st.st_dev):
+                        return f" (pid {f[4]})"
+    except (OSError, ValueError, IndexError):
+        pass
+    return ""
 
 
 def _now() -> str:
@@ -160,8 +257,12 @@ class Job:
     received_wall : float
         Unix time (s) the notice was received: latency is measured from it.
     attempts : int
-        Times the job was started (a crash leaves it ``running``).
+        Starts that died (a crash or kill leaves the job ``running``; a
+        clean stop gives the start back, :meth:`Store.release_unfinished`).
     status : str
+    fallback : bool
+        Set by :meth:`Store.start_job` when the optimiser died too often:
+        this run uses the fast scheduler only (degrade, never drop).
     """
 
     job_id: int
@@ -176,6 +277,7 @@ class Job:
     received_wall: float
     attempts: int
     status: str
+    fallback: bool = False
 
 
 @dataclass(frozen=True)
@@ -188,6 +290,7 @@ class OutboxMessage:
     message: dict[str, Any]
     attempts: int
     published_at: str | None
+    created_at: str | None = None
 
 
 @dataclass(frozen=True)
@@ -215,21 +318,24 @@ class _TxLedger:
 
 
 def _event_state(conn: sqlite3.Connection, sid: str) -> EventState | None:
-    row = conn.execute("SELECT skymap_sha256, retracted FROM events WHERE superevent_id=?", (sid,)).fetchone()
+    row = conn.execute("SELECT skymap_sha256, retracted, localization FROM events WHERE superevent_id=?",
+                       (sid,)).fetchone()
     if row is None:
         return None
     ids = tuple(r[0] for r in conn.execute(
         "SELECT plan_id FROM plans WHERE superevent_id=? AND withdrawn=0 ORDER BY seq", (sid,)))
-    return EventState(sid, row[0], ids, bool(row[1]))
+    open_job = conn.execute("SELECT EXISTS(SELECT 1 FROM jobs WHERE superevent_id=? AND status IN"
+                            " ('pending','running'))", (sid,)).fetchone()[0]
+    return EventState(sid, row[0], ids, bool(row[1]), localization=row[2], open_job=bool(open_job))
 
 
-def _job(row: sqlite3.Row) -> Job:
+def _job(row: sqlite3.Row, fallback: bool = False) -> Job:
     return Job(
         job_id=row["job_id"], notice_id=row["notice_id"], superevent_id=row["superevent_id"],
         alert_type=row["alert_type"], time_created=row["time_created"],
         skymap_sha256=row["skymap_sha256"], decision=row["decision"], start=row["start"],
         supersedes=row["supersedes"], received_wall=row["received_wall"],
-        attempts=row["attempts"], status=row["status"],
+        attempts=row["attempts"], status=row["status"], fallback=fallback,
     )
 
 
@@ -239,18 +345,24 @@ class Store:
     Parameters
     ----------
     path : str or Path
-        The database file (created with its directory's permissions).
+        The database file.  A new one is created 0600 (SQLite gives its
+        ``-wal`` and ``-shm`` files the same mode); an existing one must be
+        a database that passes ``PRAGMA quick_check``.
     busy_timeout_s : float
         How long (s) a connection waits for another process' lock.
+    group_readable : bool
+        Create a new file 0640 instead of 0600.
 
     Raises
     ------
     StoreError
-        The file is not a database or has a newer schema.
+        The file is empty, not a database, damaged, a symbolic link, or has
+        a newer schema.
     """
 
-    def __init__(self, path: str | Path, busy_timeout_s: float = 30.0):
+    def __init__(self, path: str | Path, busy_timeout_s: float = 30.0, group_readable: bool = False):
         self.path = Path(path)
+        _create_or_check_file(self.path, 0o640 if group_readable else 0o600)
         self._busy_ms = int(busy_timeout_s * 1000)
         self._local = threading.local()
         self._lock = threading.RLock()
@@ -259,21 +371,47 @@ class Store:
         self.publish_lock = threading.Lock()
         self._conns: list[sqlite3.Connection] = []
         self._closed = False
+        self._started: set[int] = set()  # jobs this process started and has not finished
         conn = self._conn()
         try:
             version = conn.execute("PRAGMA user_version").fetchone()[0]
+            problems = [r[0] for r in conn.execute("PRAGMA quick_check(5)")]
         except sqlite3.DatabaseError as exc:
+            self.close()
             raise StoreError(f"{self.path}: not a usable SQLite database ({exc})") from None
+        if problems != ["ok"]:
+            self.close()
+            raise StoreError(f"{self.path}: damaged SQLite database, PRAGMA quick_check says: "
+                             + storable("; ".join(map(str, problems)), 300)
+                             + " (restore it from a backup or move it aside)")
         if version > SCHEMA_VERSION:
             raise StoreError(f"{self.path}: schema version {version} is newer than this program's {SCHEMA_VERSION}")
-        if version < SCHEMA_VERSION:
+        if version == 0:
             with self._lock:
                 conn.executescript("BEGIN IMMEDIATE;" + _SCHEMA + f"PRAGMA user_version={SCHEMA_VERSION}; COMMIT;")
+        elif version < SCHEMA_VERSION:
+            steps = [sql for v in range(version + 1, SCHEMA_VERSION + 1) for sql in _MIGRATIONS[v]]
+            with self._lock:
+                conn.executescript("BEGIN IMMEDIATE;" + ";".join(steps) + f"; PRAGMA user_version={SCHEMA_VERSION}; COMMIT;")
+            log.info("state %s migrated from schema %d to %d", self.path, version, SCHEMA_VERSION)
+        self._add_columns(conn)
+
+    def _add_columns(self, conn: sqlite3.Connection) -> None:
+        """Add the columns of :data:`_ADDED_COLUMNS` that an older state file lacks."""
+        with self._lock:
+            for table, column, decl in _ADDED_COLUMNS:
+                have = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
+                if column not in have:
+                    try:
+                        conn.execute(f"ALTER TABLE {table} ADD COLUMN {column} {decl}")
+                    except sqlite3.OperationalError as exc:  # another process added it meanwhile
+                        if "duplicate column" not in str(exc):
+                            raise
 
     # ------------------------------------------------------------ connections
     def _conn(self) -> sqlite3.Connection:
         if self._closed:
-            raise StoreError("store is closed")
+            raise StoreError(f"{self.path}: store is closed")
         conn = getattr(self._local, "conn", None)
         if conn is None:
             conn = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False,
@@ -312,13 +450,18 @@ class Store:
     def close(self) -> None:
         """Close every thread's connection (checkpointing the WAL)."""
         with self._lock:
+            self._closed = True
             for c in self._conns:
                 try:
                     c.close()
                 except sqlite3.Error:
                     pass
             self._conns.clear()
-            self._closed = True
+
+    @property
+    def closed(self) -> bool:
+        """True once :meth:`close` ran (every call then raises :class:`StoreError`)."""
+        return self._closed
 
     # ------------------------------------------------------------ ledger
     def event_state(self, superevent_id: str) -> EventState | None:
@@ -327,13 +470,36 @@ class Store:
 
     # ------------------------------------------------------------ accept
     def record_rejected(self, notice: NoticeRecord, reason: str) -> int:
-        """Record a notice that could not be parsed; returns its notice_id."""
+        """Record a notice that could not be parsed; returns its notice_id.
+
+        Of its raw bytes only the first :data:`RAW_PREFIX_BYTES` are kept
+        (its SHA-256 and size say the rest), until :meth:`prune_raw`.
+        """
+        if notice.raw is not None and len(notice.raw) > RAW_PREFIX_BYTES:
+            notice = NoticeRecord(notice.origin, notice.sha256, notice.size, notice.received_at,
+                                  notice.superevent_id, notice.alert_type, notice.time_created,
+                                  notice.raw[:RAW_PREFIX_BYTES])
         with self._tx() as c:
             nid = self._insert_notice(c, notice)
             c.execute("INSERT INTO decisions(notice_id, superevent_id, alert_type, decision, reason, created_at)"
                       " VALUES (?,?,?,?,?,?)",
-                      (nid, notice.superevent_id, notice.alert_type, "rejected", reason, _now()))
+                      (nid, _opt(notice.superevent_id), _opt(notice.alert_type), "rejected", storable(reason),
+                       _now()))
         return nid
+
+    def prune_raw(self, older_than_s: float) -> int:
+        """Forget the raw bytes of rejected messages decided more than ``older_than_s`` (s) ago.
+
+        Raw bytes that a job plans from are never pruned.  Returns how many
+        notices lost theirs.
+        """
+        cutoff = datetime.fromtimestamp(time.time() - older_than_s, timezone.utc).isoformat(timespec="milliseconds")
+        with self._tx() as c:
+            cur = c.execute(
+                "UPDATE notices SET raw=NULL WHERE raw IS NOT NULL AND notice_id IN"
+                " (SELECT notice_id FROM decisions WHERE decision='rejected' AND created_at<=?)"
+                " AND notice_id NOT IN (SELECT notice_id FROM jobs)", (cutoff,))
+            return int(cur.rowcount)
 
     def record_decision(
         self,
@@ -381,9 +547,11 @@ class Store:
                     "SELECT job_id FROM jobs WHERE superevent_id=? AND status IN ('pending','running')", (sid,))]
                 c.execute("UPDATE jobs SET status='superseded', reason='newer sky map', finished_at=?"
                           " WHERE superevent_id=? AND status IN ('pending','running')", (now, sid))
-                c.execute("INSERT INTO events(superevent_id, skymap_sha256, retracted, updated_at) VALUES (?,?,0,?)"
-                          " ON CONFLICT(superevent_id) DO UPDATE SET skymap_sha256=excluded.skymap_sha256,"
-                          " retracted=0, updated_at=excluded.updated_at", (sid, decision.skymap_sha256, now))
+                c.execute("INSERT INTO events(superevent_id, skymap_sha256, retracted, updated_at, localization)"
+                          " VALUES (?,?,0,?,?) ON CONFLICT(superevent_id) DO UPDATE SET"
+                          " skymap_sha256=excluded.skymap_sha256, retracted=0, updated_at=excluded.updated_at,"
+                          " localization=excluded.localization", (sid, decision.skymap_sha256, now,
+                                                                   decision.localization))
                 cur = c.execute(
                     "INSERT INTO jobs(notice_id, superevent_id, alert_type, time_created, skymap_sha256, decision,"
                     " start, supersedes, received_wall, status, created_at) VALUES (?,?,?,?,?,?,?,?,?,?,?)",
@@ -404,7 +572,7 @@ class Store:
                     self._insert_outbox(c, key, "withdrawal", msg)
             c.execute("INSERT INTO decisions(notice_id, superevent_id, alert_type, decision, reason, job_id,"
                       " created_at) VALUES (?,?,?,?,?,?,?)",
-                      (nid, sid, decision.alert_type, decision.action, decision.reason,
+                      (nid, _opt(sid), _opt(decision.alert_type), decision.action, storable(decision.reason),
                        job.job_id if job else None, now))
         return nid, decision, job, cancelled, key
 
@@ -413,7 +581,8 @@ class Store:
         cur = c.execute(
             "INSERT INTO notices(received_at, origin, sha256, size, superevent_id, alert_type, time_created, raw)"
             " VALUES (?,?,?,?,?,?,?,?)",
-            (n.received_at, n.origin, n.sha256, n.size, n.superevent_id, n.alert_type, n.time_created, n.raw))
+            (n.received_at, storable(n.origin), n.sha256, n.size, _opt(n.superevent_id), _opt(n.alert_type),
+             _opt(n.time_created), n.raw))
         return int(cur.lastrowid)
 
     @staticmethod
@@ -443,26 +612,50 @@ class Store:
     def start_job(self, job_id: int, max_attempts: int = 3) -> Job | None:
         """Mark a job running (attempts + 1) and fix what it supersedes.
 
+        Degrade, never drop: a job whose starts died ``max_attempts`` times
+        (it crashed the process each time) comes back with ``fallback`` set,
+        to be planned by the fast scheduler alone, for up to
+        :data:`FALLBACK_ATTEMPTS` more starts.  Only then is it marked
+        ``failed``; its event then has no plan, so the next notice for it is
+        planned again (see :func:`~mushrooms.handlers.decisions.decide`).
+
         Returns None when the job is no longer runnable: superseded, cancelled
-        by a retraction, finished, or already started ``max_attempts`` times
-        without finishing (then it is marked ``failed``: it crashed the
-        process each time).  :meth:`job_status` tells which.
+        by a retraction, finished, or given up.  :meth:`job_status` tells which.
         """
         with self._tx() as c:
             row = c.execute("SELECT * FROM jobs WHERE job_id=?", (job_id,)).fetchone()
             if row is None or row["status"] not in _OPEN:
                 return None
-            if row["attempts"] >= max_attempts:
+            if row["attempts"] >= max_attempts + FALLBACK_ATTEMPTS:
                 c.execute("UPDATE jobs SET status='failed', reason=?, finished_at=? WHERE job_id=?",
-                          (f"gave up after {row['attempts']} unfinished attempts", _now(), job_id))
+                          (f"gave up after {row['attempts']} unfinished attempts (the last "
+                           f"{FALLBACK_ATTEMPTS} with the fast scheduler)", _now(), job_id))
                 return None
+            fallback = row["attempts"] >= max_attempts
             prev = c.execute("SELECT plan_id FROM plans WHERE superevent_id=? AND withdrawn=0"
-                             " ORDER BY seq DESC LIMIT 1", (row["superevent_id"],)).fetchone()
+                             " AND job_id IS NOT ? ORDER BY seq DESC LIMIT 1",
+                             (row["superevent_id"], job_id)).fetchone()
             supersedes = prev[0] if prev else None
             c.execute("UPDATE jobs SET status='running', attempts=attempts+1, supersedes=? WHERE job_id=?",
                       (supersedes, job_id))
             row = c.execute("SELECT * FROM jobs WHERE job_id=?", (job_id,)).fetchone()
-        return _job(row)
+            self._started.add(job_id)
+        return _job(row, fallback=fallback)
+
+    def release_unfinished(self) -> list[int]:
+        """At a clean stop: give back the starts of jobs this process left running.
+
+        They become ``pending`` with the start not counted (only starts that
+        died count towards giving up) and run again at the next start.
+        Returns their ids.
+        """
+        with self._tx() as c:
+            ids = sorted(self._started)
+            released = [j for j in ids if c.execute(
+                "UPDATE jobs SET status='pending', attempts=MAX(attempts-1, 0) WHERE job_id=? AND status='running'",
+                (j,)).rowcount]
+            self._started.clear()
+        return released
 
     def job_status(self, job_id: int) -> str | None:
         """``pending``, ``running``, ``done``, ``failed``, ``superseded``, ``cancelled`` (None: no such job)."""
@@ -493,21 +686,92 @@ class Store:
         """Store the plan, close the job and queue the plan message, atomically.
 
         Returns the outbox id, or None when the job was superseded or
-        cancelled while it ran (the plan is then dropped).
+        cancelled while it ran (the plan is then dropped).  Same as
+        :meth:`store_revision` with ``final=True``.
         """
+        return self.store_revision(job_id, plan_id, document, coverage, latency_s, final=True)
+
+    def store_revision(self, job_id: int, plan_id: str, document: dict[str, Any], coverage: float,
+                       latency_s: float, final: bool, revision: int | None = None) -> int | None:
+        """Store one revision of a running job's plan and queue its message, atomically.
+
+        A job publishes its fast plan as revision 1 and possibly a better
+        one as revision 2; the final revision also closes the job
+        (``done``).  Idempotent across a crash and restart: a revision this
+        job already stored (same ``plan_id``) is not queued again.
+
+        Parameters
+        ----------
+        job_id : int
+        plan_id : str
+        document : dict
+            The plan document (with its ``revision`` and ``final``).
+        coverage, latency_s : float
+        final : bool
+            No further revision follows: close the job.
+        revision : int, optional
+            Default ``document["revision"]``, else 1.
+
+        Returns
+        -------
+        int or None
+            The outbox id (the earlier one when already stored), or None when
+            the job was superseded or cancelled meanwhile (nothing stored).
+        """
+        revision = int(revision if revision is not None else document.get("revision", 1))
         with self._tx() as c:
             row = c.execute("SELECT status, superevent_id FROM jobs WHERE job_id=?", (job_id,)).fetchone()
             if row is None or row["status"] != "running":
                 return None
             now = _now()
-            seq = c.execute("SELECT COALESCE(MAX(seq), 0) + 1 FROM plans").fetchone()[0]
-            c.execute("INSERT INTO plans(plan_id, superevent_id, job_id, created_at, seq, withdrawn, document)"
-                      " VALUES (?,?,?,?,?,0,?) ON CONFLICT(plan_id) DO UPDATE SET withdrawn=0, job_id=excluded.job_id,"
-                      " seq=excluded.seq, document=excluded.document",
-                      (plan_id, row["superevent_id"], job_id, now, seq, json.dumps(document)))
-            c.execute("UPDATE jobs SET status='done', plan_id=?, coverage=?, latency_s=?, reason=NULL, finished_at=?"
-                      " WHERE job_id=?", (plan_id, coverage, latency_s, now, job_id))
-            return self._insert_outbox(c, plan_id, "plan", document)
+            mine = c.execute("SELECT 1 FROM plans WHERE plan_id=? AND job_id=?", (plan_id, job_id)).fetchone()
+            outbox_id = None
+            if mine is not None:
+                found = c.execute("SELECT outbox_id FROM outbox WHERE key=? AND kind='plan' ORDER BY outbox_id DESC"
+                                  " LIMIT 1", (plan_id,)).fetchone()
+                outbox_id = None if found is None else int(found[0])
+            if outbox_id is None:
+                seq = c.execute("SELECT COALESCE(MAX(seq), 0) + 1 FROM plans").fetchone()[0]
+                c.execute("INSERT INTO plans(plan_id, superevent_id, job_id, created_at, seq, withdrawn, document,"
+                          " revision, final) VALUES (?,?,?,?,?,0,?,?,?) ON CONFLICT(plan_id) DO UPDATE SET"
+                          " withdrawn=0, job_id=excluded.job_id, seq=excluded.seq, document=excluded.document,"
+                          " revision=excluded.revision, final=excluded.final",
+                          (plan_id, row["superevent_id"], job_id, now, seq, json.dumps(document), revision,
+                           int(final)))
+                outbox_id = self._insert_outbox(c, plan_id, "plan", document)
+            if final:
+                c.execute("UPDATE jobs SET status='done', plan_id=?, coverage=?, latency_s=?, reason=NULL,"
+                          " finished_at=? WHERE job_id=?", (plan_id, coverage, latency_s, now, job_id))
+                self._started.discard(job_id)
+            else:
+                c.execute("UPDATE jobs SET plan_id=?, coverage=?, latency_s=? WHERE job_id=?",
+                          (plan_id, coverage, latency_s, job_id))
+            return outbox_id
+
+    def close_job(self, job_id: int, key: str, message: dict[str, Any], reason: str) -> int | None:
+        """Close a running job whose last stored revision stands, and queue ``message`` (``plan_final``).
+
+        Returns the outbox id (the earlier one after a restart), or None when
+        the job is no longer running (superseded, cancelled: nothing queued).
+        """
+        with self._tx() as c:
+            row = c.execute("SELECT status FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+            if row is None or row["status"] != "running":
+                return None
+            c.execute("UPDATE plans SET final=1 WHERE job_id=?", (job_id,))
+            c.execute("UPDATE jobs SET status='done', reason=?, finished_at=? WHERE job_id=?",
+                      (reason[:500], _now(), job_id))
+            self._started.discard(job_id)
+            found = c.execute("SELECT outbox_id FROM outbox WHERE key=? ORDER BY outbox_id DESC LIMIT 1",
+                              (key,)).fetchone()
+            return int(found[0]) if found is not None else self._insert_outbox(c, key, "plan_final", message)
+
+    def job_plans(self, job_id: int) -> list[dict[str, Any]]:
+        """The revisions a job stored, oldest first (documents parsed)."""
+        rows = self._conn().execute(
+            "SELECT plan_id, revision, final, withdrawn, document FROM plans WHERE job_id=? ORDER BY seq",
+            (job_id,)).fetchall()
+        return [dict(r) | {"document": json.loads(r["document"])} for r in rows]
 
     def fail_job(self, job_id: int, reason: str, retry_same_map: bool = False) -> None:
         """Close a job that cannot produce a plan (bad sky map, checker, bug).
@@ -519,7 +783,8 @@ class Store:
         with self._tx() as c:
             row = c.execute("SELECT superevent_id, skymap_sha256 FROM jobs WHERE job_id=?", (job_id,)).fetchone()
             c.execute("UPDATE jobs SET status='failed', reason=?, finished_at=? WHERE job_id=?"
-                      " AND status IN ('pending','running')", (reason, _now(), job_id))
+                      " AND status IN ('pending','running')", (storable(reason, 2000), _now(), job_id))
+            self._started.discard(job_id)
             if retry_same_map and row is not None:
                 c.execute("UPDATE events SET skymap_sha256=NULL, updated_at=? WHERE superevent_id=?"
                           " AND skymap_sha256=?", (_now(), row[0], row[1]))
@@ -529,8 +794,8 @@ class Store:
         """Messages not yet published, oldest first."""
         rows = self._conn().execute(
             "SELECT * FROM outbox WHERE published_at IS NULL ORDER BY outbox_id LIMIT ?", (limit,)).fetchall()
-        return [OutboxMessage(r["outbox_id"], r["key"], r["kind"], json.loads(r["body"]), r["attempts"], None)
-                for r in rows]
+        return [OutboxMessage(r["outbox_id"], r["key"], r["kind"], json.loads(r["body"]), r["attempts"], None,
+                              r["created_at"]) for r in rows]
 
     def mark_published(self, outbox_id: int) -> None:
         with self._tx() as c:
@@ -539,7 +804,8 @@ class Store:
 
     def mark_publish_failed(self, outbox_id: int, error: str) -> None:
         with self._tx() as c:
-            c.execute("UPDATE outbox SET attempts=attempts+1, last_error=? WHERE outbox_id=?", (error[:500], outbox_id))
+            c.execute("UPDATE outbox SET attempts=attempts+1, last_error=? WHERE outbox_id=?",
+                      (storable(error, 500), outbox_id))
 
     # ------------------------------------------------------------ inspection
     def decisions(self) -> list[dict[str, Any]]:
@@ -551,7 +817,7 @@ class Store:
 
     def plans(self, superevent_id: str | None = None) -> list[dict[str, Any]]:
         """Stored plans (documents parsed), oldest first."""
-        q = "SELECT plan_id, superevent_id, job_id, created_at, withdrawn, document FROM plans"
+        q = "SELECT plan_id, superevent_id, job_id, created_at, withdrawn, revision, final, document FROM plans"
         args: tuple[Any, ...] = ()
         if superevent_id is not None:
             q += " WHERE superevent_id=?"
@@ -567,6 +833,27 @@ class Store:
         out["jobs_open"] = c.execute("SELECT COUNT(*) FROM jobs WHERE status IN ('pending','running')").fetchone()[0]
         out["outbox_pending"] = c.execute("SELECT COUNT(*) FROM outbox WHERE published_at IS NULL").fetchone()[0]
         return out
+
+
+def _opt(text: str | None) -> str | None:
+    return None if text is None else storable(text)
+
+
+def _create_or_check_file(path: Path, mode: int) -> None:
+    """Create a missing state file with ``mode``; refuse an existing empty one or a link."""
+    if path.is_symlink():
+        raise StoreError(f"{path}: the state file is a symbolic link; give the real path")
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, mode)
+    except FileExistsError:
+        if path.is_file() and path.stat().st_size == 0:
+            raise StoreError(f"{path}: the state file exists but is empty (0 bytes); refusing to start "
+                             "from nothing: restore it, or remove it to start a new history") from None
+        return
+    except OSError as exc:
+        raise StoreError(f"{path}: cannot create the state file ({exc.strerror or exc})") from None
+    os.fchmod(fd, mode)  # whatever the umask
+    os.close(fd)
 
 
 def _without_raw(n: NoticeRecord) -> NoticeRecord:

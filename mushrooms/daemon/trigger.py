@@ -9,16 +9,22 @@ same store and a directory sink.
 Trigger files: ``<time>-<pid>-<kind>.<ext>`` where kind is ``notice``
 (the notice bytes), ``skymap`` (the FITS bytes) or ``superevent`` (the id,
 UTF-8).  The daemon deletes a file only after its outcome is stored.
+
+No symbolic link is ever followed (a link planted in the trigger directory
+would otherwise put a protected file's bytes into the state), nor anything
+but a regular file read; the directory is created 0700 and the files 0600.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import fcntl
 import logging
 import os
 import re
 import signal
+import stat
 import sys
 import time
 from pathlib import Path
@@ -36,6 +42,31 @@ log = logging.getLogger(__name__)
 
 SUPEREVENT_RE = re.compile(r"^[MTS][A-Z]?\d{6}[a-z]{1,3}$")
 KINDS = {"notice": "json", "skymap": "fits", "superevent": "txt"}
+#: Largest trigger file read (bytes): a sky map is at most 4 x the 8 MiB notice limit.
+MAX_TRIGGER_BYTES = 64 * 1024 * 1024
+
+
+def read_regular_file(path: Path, max_bytes: int = MAX_TRIGGER_BYTES) -> bytes:
+    """A regular file's bytes, never through a symbolic link nor from a FIFO or device.
+
+    Raises
+    ------
+    InputError
+        A symbolic link, not a regular file, larger than ``max_bytes``, or unreadable.
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise InputError(f"{path}: is a symbolic link; give the file itself") from None
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise InputError(f"{path}: not a regular file")
+        if st.st_size > max_bytes:
+            raise InputError(f"{path}: {st.st_size} bytes is more than the {max_bytes}-byte trigger limit")
+        return fh.read(max_bytes + 1)[:max_bytes]
 
 
 class DaemonRunning(RuntimeError):
@@ -115,8 +146,10 @@ def classify(target: str) -> tuple[str, bytes]:
         When the target is none of the three.
     """
     path = Path(target)
+    if path.is_symlink():
+        raise InputError(f"{target}: is a symbolic link; give the file itself")
     if path.is_file():
-        data = path.read_bytes()
+        data = read_regular_file(path)
         head = data[:80].lstrip()
         if head.startswith(b"SIMPLE") or data[:2] == b"\x1f\x8b" or path.suffix.lower() in (".fits", ".fit", ".gz"):
             return "skymap", data
@@ -128,12 +161,15 @@ def classify(target: str) -> tuple[str, bytes]:
     raise InputError(f"{target}: no such file, and not a superevent id (like S250101ab)")
 
 
-def write_trigger(trigger_dir: Path, kind: str, payload: bytes) -> Path:
-    """Write a trigger file atomically (temporary name, fsync, rename)."""
-    trigger_dir.mkdir(parents=True, exist_ok=True)
+def write_trigger(trigger_dir: Path, kind: str, payload: bytes, group_readable: bool = False) -> Path:
+    """Write a trigger file atomically (temporary name, fsync, rename), 0600 (0640 group readable)."""
+    if not trigger_dir.is_dir():
+        trigger_dir.mkdir(parents=True, exist_ok=True)
+        trigger_dir.chmod(0o750 if group_readable else 0o700)
     name = f"{time.time_ns():020d}-{os.getpid()}-{kind}.{KINDS[kind]}"
     tmp = trigger_dir / f".{name}.tmp"
-    with open(tmp, "wb") as fh:
+    mode = 0o640 if group_readable else 0o600
+    with open(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, mode), "wb") as fh:
         fh.write(payload)
         fh.flush()
         os.fsync(fh.fileno())
@@ -148,11 +184,27 @@ def write_trigger(trigger_dir: Path, kind: str, payload: bytes) -> Path:
 
 
 def pending_triggers(trigger_dir: Path) -> list[Path]:
-    """Trigger files waiting, oldest first (temporary files excluded)."""
+    """Trigger files waiting, oldest first (temporary files excluded).
+
+    Only regular files count.  A symbolic link, FIFO or anything else with
+    a trigger's name is renamed ``.NAME.refused`` (never opened) and
+    logged once.
+    """
     if not trigger_dir.is_dir():
         return []
-    return sorted(p for p in trigger_dir.iterdir()
-                  if p.is_file() and not p.name.startswith(".") and _kind_of(p) is not None)
+    found = []
+    for p in trigger_dir.iterdir():
+        if p.name.startswith(".") or _kind_of(p) is None:
+            continue
+        if stat.S_ISREG(p.lstat().st_mode):
+            found.append(p)
+            continue
+        log.warning("event=trigger_refused file=%s reason='not a regular file (symbolic link, FIFO, ...)'", p.name)
+        try:
+            os.replace(p, p.with_name(f".{p.name}.refused"))
+        except OSError:
+            pass
+    return sorted(found)
 
 
 def _kind_of(path: Path) -> str | None:
@@ -166,7 +218,7 @@ def read_trigger(path: Path) -> tuple[str, bytes]:
     kind = _kind_of(path)
     if kind is None:
         raise InputError(f"{path.name}: not a trigger file")
-    return kind, path.read_bytes()
+    return kind, read_regular_file(path)
 
 
 def dispatch(pipeline: Any, kind: str, payload: bytes, origin: str) -> Any:
@@ -197,8 +249,11 @@ def main(args: argparse.Namespace) -> int:
 
     paths: RuntimePaths = resolve_paths(config.daemon)
     pid = daemon_pid(paths.pid_file)
+    force = bool(getattr(args, "force", False))
+    if pid is not None and force:
+        raise InputError(f"--force plans here, but a daemon runs (pid {pid}); stop it, or trigger without --force")
     if pid is not None:
-        written = write_trigger(paths.trigger_dir, kind, payload)
+        written = write_trigger(paths.trigger_dir, kind, payload, config.daemon.group_readable)
         try:
             os.kill(pid, signal.SIGUSR1)
         except ProcessLookupError:
@@ -213,9 +268,15 @@ def main(args: argparse.Namespace) -> int:
             print(f"mushrooms trigger: {kind} {args.target} handed to the daemon (pid {pid}): {state}")
             return 0
     # no daemon: do the job here
+    outbox = config.outbound.directory if config.outbound.sink == "directory" else f"kafka:{config.outbound.topic}"
+    print(f"mushrooms trigger: no daemon running: planning here; state {paths.state}, outbox "
+          f"{Path(outbox).resolve() if config.outbound.sink == 'directory' else outbox}", file=sys.stderr)
     pipeline, close = open_pipeline(config, paths)
     try:
+        _warn_if_retracted(pipeline, kind, payload, force)
         decision = dispatch(pipeline, kind, payload, origin=f"trigger:{kind}:{args.target}")
+        if force:
+            decision = _forced(pipeline, decision, kind, payload, args.target)
         log.info("event=trigger_accepted kind=%s target=%s decision=%s", kind, args.target,
                  _decision_text(decision))
         if getattr(decision, "action", None) == "rejected":
@@ -224,7 +285,7 @@ def main(args: argparse.Namespace) -> int:
             return 2
         from .jobs import describe_outcome
 
-        done, status = 0, 0
+        done, status, info = 0, 0, {}
         job = getattr(decision, "job", None)
         if job is not None:  # only this trigger's job: leftovers wait for the daemon
             outcome = pipeline.run_job(job, None)
@@ -237,11 +298,59 @@ def main(args: argparse.Namespace) -> int:
                 print(f"mushrooms trigger: error: {args.target}: job {info.get('decision')}: "
                       f"{info.get('reason', '')}", file=sys.stderr)
         pipeline.flush_outbox()
+        result = f": {info.get('decision')}: {info.get('reason', '')}" if done else ""
         print(f"mushrooms trigger: no daemon running; {kind} {args.target}: "
-              f"{_decision_text(decision)}, {done} job(s) run here", file=sys.stdout)
+              f"{_decision_text(decision)}, {done} job(s) run here{result}", file=sys.stdout)
     finally:
         close()
     return status
+
+
+def _superevent_of(kind: str, payload: bytes) -> str | None:
+    """The superevent a trigger concerns (None for a bare sky map or an unreadable notice)."""
+    if kind == "superevent":
+        return payload.decode().strip()
+    if kind == "notice":
+        from ..handlers.alert import NoticeError, parse_notice
+
+        try:
+            return parse_notice(payload).superevent_id
+        except NoticeError:
+            return None
+    return None
+
+
+def _warn_if_retracted(pipeline: Any, kind: str, payload: bytes, force: bool) -> None:
+    """Warn (stderr and log) when the trigger concerns a retracted superevent."""
+    sid = _superevent_of(kind, payload)
+    state = pipeline.store.event_state(sid) if sid else None
+    if state is not None and state.retracted:
+        what = ("planning it anyway (--force)" if force else "re-planning it as asked") \
+            if force or kind == "superevent" else "the policy decides (a notice after a retraction may plan it again)"
+        log.warning("event=trigger_retracted superevent_id=%s: the event was retracted; %s", sid, what)
+        print(f"mushrooms trigger: warning: {sid} was retracted; {what}", file=sys.stderr)
+
+
+def _forced(pipeline: Any, decision: Any, kind: str, payload: bytes, target: str) -> Any:
+    """``--force``: when the policy did not plan a notice (ignored or duplicate), re-plan its superevent.
+
+    The re-plan uses the stored notice (the one just recorded, or the newest
+    planned one) and supersedes the event's latest plan; the policy's reason
+    is logged.
+    """
+    action = getattr(decision, "action", None)
+    if kind != "notice" or action in ("plan", "rerun", "rejected", "withdraw"):
+        return decision
+    if getattr(decision, "alert_type", None) == "RETRACTION":
+        print("mushrooms trigger: --force does not apply to a retraction (nothing to plan)", file=sys.stderr)
+        return decision
+    sid = getattr(decision, "superevent_id", None)
+    log.warning("event=trigger_forced superevent_id=%s target=%s policy_decision=%s policy_reason=%r: "
+                "planning anyway (--force)", sid, target, action, getattr(decision, "reason", ""))
+    print(f"mushrooms trigger: --force: the policy said {action} ({getattr(decision, 'reason', '')}); "
+          "planning anyway", file=sys.stderr)
+    forced = pipeline.force_plan(payload, origin=f"trigger:force:{target}")
+    return forced
 
 
 def _decision_text(decision: Any) -> str:

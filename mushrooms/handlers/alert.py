@@ -17,6 +17,7 @@ from datetime import datetime, timezone
 from typing import Any, Mapping
 
 from ..scheduler_core.errors import InputError
+from .text import storable
 
 __all__ = [
     "Alert",
@@ -204,7 +205,7 @@ def _str(obj: Mapping[str, Any], key: str, where: str) -> str:
     v = _need(obj, key, where)
     if not isinstance(v, str):
         raise NoticeError(f"{where}.{key} must be a string, got {type(v).__name__}")
-    return v
+    return storable(v)
 
 
 def _num(v: Any, name: str, optional: bool = False) -> float | None:
@@ -227,6 +228,7 @@ def _prob_map(v: Any, name: str) -> dict[str, float]:
     for k, x in v.items():
         if not isinstance(k, str):
             raise NoticeError(f"{name} keys must be strings")
+        k = storable(k)
         p = _num(x, f"{name}.{k}")
         assert p is not None
         if not 0.0 <= p <= 1.0 + 1e-9:
@@ -299,7 +301,7 @@ def _from_record(rec: Any, raw_bytes: bool, fmt: str) -> Alert:
         time_created=time_created,
         event=event,
         external_coinc=external,
-        urls={str(k): str(v) for k, v in urls.items()},
+        urls={storable(k): storable(v) for k, v in urls.items()},
         format=fmt,
     )
 
@@ -322,7 +324,7 @@ def _event(ev: Any, raw_bytes: bool) -> EventDetails:
         time=parse_time(_need(ev, "time", "event"), "event.time"),
         far=far,
         significant=significant,
-        instruments=tuple(instruments),
+        instruments=tuple(storable(i) for i in instruments),
         group=_str(ev, "group", "event"),
         pipeline=_str(ev, "pipeline", "event"),
         search=_str(ev, "search", "event"),
@@ -396,13 +398,17 @@ _VOE_TYPES = {
 
 
 def _parse_voevent(data: bytes) -> Alert:
-    from xml.etree import ElementTree as ET
+    from xml.etree.ElementTree import ParseError
 
-    if b"<!DOCTYPE" in data or b"<!ENTITY" in data:
-        raise NoticeError("VOEvent with a DOCTYPE/ENTITY declaration is refused")
-    try:
-        root = ET.fromstring(data)
-    except ET.ParseError as exc:
+    import defusedxml
+    from defusedxml.ElementTree import fromstring
+
+    try:  # no DTD, no entities, no external references, whatever the encoding
+        root = fromstring(data, forbid_dtd=True, forbid_entities=True, forbid_external=True)
+    except defusedxml.DefusedXmlException as exc:
+        raise NoticeError(f"VOEvent with a DOCTYPE, entity or external reference is refused "
+                          f"({type(exc).__name__})") from None
+    except ParseError as exc:
         raise NoticeError(f"notice is not well-formed XML ({exc})") from None
     if not root.tag.endswith("VOEvent"):
         raise NoticeError(f"XML root is {root.tag!r}, not a VOEvent")
@@ -413,7 +419,7 @@ def _parse_voevent(data: bytes) -> Alert:
         raise NoticeError("VOEvent has no What section")
     for el in what.iter():
         if el.tag.endswith("Param") and "name" in el.attrib:
-            params.setdefault(el.attrib["name"], el.attrib.get("value", ""))
+            params.setdefault(el.attrib["name"], storable(el.attrib.get("value", "")))
     for g in what:
         if g.tag.endswith("Group"):
             key = g.attrib.get("type") or g.attrib.get("name") or ""

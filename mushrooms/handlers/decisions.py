@@ -12,12 +12,22 @@ state                     alert                       decision
 ========================  ==========================  ==========
 unknown                   kept by the policy          ``plan``
 planned, map M            kept, map M                 ``duplicate``
+accepted, map M, no plan  kept, map M                 ``plan`` (unless its job is still open)
 planned, map M            kept, map M' != M           ``rerun`` (supersedes the latest plan)
 retracted                 kept (e.g. a later INITIAL) ``plan`` (planned again)
 planned (not retracted)   RETRACTION                  ``withdraw`` (all the event's plans)
 unknown or retracted      RETRACTION                  ``ignore``
 any                       refused by the policy       ``ignore``
+planned on a joint map    kept, GW map only           ``duplicate`` (the joint map stands)
 ========================  ==========================  ==========
+
+"Map" is the localisation chosen for planning
+(:func:`~mushrooms.handlers.localization.choose_localization`): the joint GW x
+external map when the notice has a usable one, else the GW map.  A notice
+that brings a new joint map is a new sky map (``rerun``).  Once an event is
+planned on a joint map, a later notice with only a GW map (no coincidence in
+it, or a joint map that does not decode) does not silently replace it: the
+joint plan stands and the reason says so; a retraction still withdraws it.
 """
 
 from __future__ import annotations
@@ -26,6 +36,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from .alert import Alert
+from .localization import COMBINED, GW, Localization
 from .policy import Verdict
 
 __all__ = ["Decision", "EventState", "Ledger", "MemoryLedger", "decide", "ACTIONS"]
@@ -46,12 +57,18 @@ class EventState:
         Plans stored for the event that are not withdrawn, oldest first.
     retracted : bool
         A retraction was processed and no alert was planned since.
+    localization : str or None
+        ``gw`` or ``combined``: which localisation ``skymap_sha256`` is.
+    open_job : bool
+        A planning job of the event is pending or running.
     """
 
     superevent_id: str
     skymap_sha256: str | None = None
     plan_ids: tuple[str, ...] = ()
     retracted: bool = False
+    localization: str | None = None
+    open_job: bool = False
 
     @property
     def latest_plan_id(self) -> str | None:
@@ -83,9 +100,9 @@ class MemoryLedger:
             ids = st.plan_ids if not st.retracted else ()
             if plan_id:
                 ids = ids + (plan_id,)
-            self.events[sid] = EventState(sid, decision.skymap_sha256, ids, False)
+            self.events[sid] = EventState(sid, decision.skymap_sha256, ids, False, decision.localization)
         elif decision.action == "withdraw":
-            self.events[sid] = EventState(sid, st.skymap_sha256, (), True)
+            self.events[sid] = EventState(sid, st.skymap_sha256, (), True, st.localization)
 
 
 @dataclass(frozen=True)
@@ -106,6 +123,8 @@ class Decision:
         Latest plan of the event when the decision was taken (``rerun``).
     plan_ids : tuple of str
         Plans to withdraw (``withdraw``); the event's live plans (``duplicate``).
+    localization : str or None
+        ``gw`` or ``combined``: which of the notice's maps ``skymap_sha256`` is.
     """
 
     action: str
@@ -115,13 +134,15 @@ class Decision:
     skymap_sha256: str | None = None
     supersedes: str | None = None
     plan_ids: tuple[str, ...] = ()
+    localization: str | None = None
 
     @property
     def needs_plan(self) -> bool:
         return self.action in ("plan", "rerun")
 
 
-def decide(alert: Alert, verdict: Verdict, ledger: Ledger) -> Decision:
+def decide(alert: Alert, verdict: Verdict, ledger: Ledger,
+           localization: Localization | None = None) -> Decision:
     """Decide what to do with a parsed alert.
 
     Parameters
@@ -132,6 +153,10 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger) -> Decision:
         The policy's answer (:func:`~mushrooms.handlers.policy.evaluate`).
     ledger : Ledger
         Per-superevent state.
+    localization : Localization, optional
+        The map chosen for planning
+        (:func:`~mushrooms.handlers.localization.choose_localization`);
+        default the notice's GW map.
 
     Returns
     -------
@@ -140,7 +165,7 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger) -> Decision:
     sid = alert.superevent_id
     base = dict(superevent_id=sid, alert_type=alert.alert_type)
     if not verdict.keep:
-        return Decision("ignore", reason=verdict.reason, **base)
+        return Decision("rejected" if verdict.reject else "ignore", reason=verdict.reason, **base)
     state = ledger.event_state(sid)
     if alert.alert_type == "RETRACTION":
         if state is None:
@@ -150,21 +175,36 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger) -> Decision:
         n = len(state.plan_ids)
         return Decision("withdraw", reason=f"retracted by LVK; withdrawing {n} plan(s)",
                         plan_ids=state.plan_ids, **base)
-    sha = alert.skymap_sha256
+    if localization is None:
+        sha, kind, note, keep_joint = alert.skymap_sha256, GW, "", True
+    else:
+        sha, kind, note = localization.sha256, localization.kind, localization.note
+        keep_joint = localization.joint_preferred
+    base["localization"] = kind
+    where = f"{kind} map" + (f"; {note}" if note else "")
     if state is None:
-        return Decision("plan", reason=f"new event ({verdict.reason})", skymap_sha256=sha, **base)
+        return Decision("plan", reason=f"new event ({verdict.reason}); {where}", skymap_sha256=sha, **base)
     if state.retracted:
-        return Decision("plan", reason=f"{alert.alert_type} after a retraction: planning again",
+        return Decision("plan", reason=f"{alert.alert_type} after a retraction: planning again; {where}",
                         skymap_sha256=sha, **base)
-    if state.skymap_sha256 is None and not state.plan_ids:
-        return Decision("plan", reason=f"earlier planning failed; planning again ({verdict.reason})",
+    if not state.plan_ids and not state.open_job and (state.skymap_sha256 is None or state.skymap_sha256 == sha):
+        # degrade, never drop: no plan went out for this event and none is coming
+        return Decision("plan", reason=f"no plan published for this event yet; planning again ({verdict.reason}); "
+                                       f"{where}",
                         skymap_sha256=sha, **base)
     if state.skymap_sha256 == sha:
-        return Decision("duplicate", reason=f"same sky map {str(sha)[:12]} as already planned",
+        return Decision("duplicate", reason=f"same {kind} sky map {str(sha)[:12]} as already planned",
                         skymap_sha256=sha, plan_ids=state.plan_ids, **base)
+    if state.localization == COMBINED and kind == GW and keep_joint and state.plan_ids:
+        return Decision("duplicate",
+                        reason=(f"keeping the joint localisation {str(state.skymap_sha256)[:12]}: this "
+                                f"{alert.alert_type} brings only a GW map {str(sha)[:12]}"
+                                + (f" ({note})" if note else " (no external coincidence in it)")),
+                        skymap_sha256=state.skymap_sha256, plan_ids=state.plan_ids,
+                        **{**base, "localization": COMBINED})
     return Decision(
         "rerun",
-        reason=f"sky map changed {str(state.skymap_sha256)[:12]} -> {str(sha)[:12]}",
+        reason=f"sky map changed {str(state.skymap_sha256)[:12]} -> {str(sha)[:12]} ({where})",
         skymap_sha256=sha,
         supersedes=state.latest_plan_id,
         **base,

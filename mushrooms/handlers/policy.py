@@ -77,6 +77,22 @@ class PolicyConfig:
         plan id.  ``event``: the merger time from the notice (deterministic
         replays of archived events).  ``created``: the notice's own
         ``time_created``.
+    use_combined_skymap : bool
+        Plan on the joint GW x external localisation
+        (``external_coinc.combined_skymap``, e.g. GW x Fermi-GBM) when the
+        notice carries one that decodes as a valid sky map; the GW map
+        otherwise.  Default True: the joint map is what an observer wants to
+        search first, and it is often much smaller.
+    max_skymap_bytes : int
+        Largest size (bytes) a gzipped sky map in a notice or trigger may
+        unpack to; beyond it the map is rejected as soon as the stream gets
+        there (a decompression bomb).  Default 67108864 (64 MiB: LVK's
+        multi-order notice maps are 1-5 MB; raise it to 268435456 to take
+        flat NSIDE 2048 maps, 201 MB, by ``mushrooms trigger``).
+    max_clock_skew_s : float
+        A notice whose ``time_created`` or merger time lies more than this
+        (s) after the receipt clock is rejected: dated in the future, it is
+        broken or hostile.  Default 300 s.
     """
 
     allow_mock: bool = False
@@ -90,6 +106,9 @@ class PolicyConfig:
     max_event_age_s: float = 172800.0
     max_notice_bytes: int = 8_388_608
     plan_start: str = "received"
+    use_combined_skymap: bool = True
+    max_skymap_bytes: int = 67_108_864
+    max_clock_skew_s: float = 300.0
 
     def __post_init__(self) -> None:
         if self.plan_start not in PLAN_START_CHOICES:
@@ -100,14 +119,19 @@ class PolicyConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
                 raise ValueError(f"[policy] {name} must be a probability in [0, 1], got {v!r}")
-        for name in ("max_far_hz", "max_notice_age_s", "max_event_age_s"):
+        for name in ("max_far_hz", "max_notice_age_s", "max_event_age_s", "max_clock_skew_s"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)):
                 raise ValueError(f"[policy] {name} must be a number, got {v!r}")
         if isinstance(self.max_notice_bytes, bool) or not isinstance(self.max_notice_bytes, int) \
                 or self.max_notice_bytes < 1024:
             raise ValueError(f"[policy] max_notice_bytes must be an integer >= 1024, got {self.max_notice_bytes!r}")
-        for name in ("allow_mock", "require_significant"):
+        if isinstance(self.max_skymap_bytes, bool) or not isinstance(self.max_skymap_bytes, int) \
+                or self.max_skymap_bytes < 2880:
+            raise ValueError(f"[policy] max_skymap_bytes must be an integer >= 2880, got {self.max_skymap_bytes!r}")
+        if self.max_clock_skew_s < 0:
+            raise ValueError(f"[policy] max_clock_skew_s must be >= 0, got {self.max_clock_skew_s!r}")
+        for name in ("allow_mock", "require_significant", "use_combined_skymap"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"[policy] {name} must be true or false, got {getattr(self, name)!r}")
         for name in ("groups", "alert_types"):
@@ -140,10 +164,14 @@ class Verdict:
         True when the alert passes every cut.
     reason : str
         Short human-readable reason (why kept, or the first cut that failed).
+    reject : bool
+        The alert is not merely out of scope but invalid (e.g. dated in the
+        future): it is recorded as ``rejected``, not ``ignore``.
     """
 
     keep: bool
     reason: str
+    reject: bool = False
 
 
 def superevent_kind(superevent_id: str) -> str:
@@ -159,6 +187,19 @@ def superevent_kind(superevent_id: str) -> str:
 
 def _seconds_between(later: datetime, earlier: datetime) -> float:
     return (later - earlier).total_seconds()
+
+
+def _in_the_future(alert: "Alert", now: datetime, skew_s: float) -> str | None:
+    """Why the notice or its event is dated after ``now`` + ``skew_s``, or None."""
+    times = [("notice time_created", alert.time_created)]
+    if alert.event is not None and alert.event.time is not None:
+        times.append(("event time", alert.event.time))
+    for what, t in times:
+        ahead = _seconds_between(t, now)
+        if ahead > skew_s:
+            return (f"{what} {t.isoformat()} is {ahead:.0f} s in the future "
+                    f"(max_clock_skew_s {skew_s:.0f})")
+    return None
 
 
 def evaluate(alert: "Alert", config: PolicyConfig, now: datetime | None = None) -> Verdict:
@@ -179,6 +220,9 @@ def evaluate(alert: "Alert", config: PolicyConfig, now: datetime | None = None) 
     Verdict
     """
     now = now or datetime.now(timezone.utc)
+    future = _in_the_future(alert, now, config.max_clock_skew_s)
+    if future:
+        return Verdict(False, future, reject=True)
     kind = superevent_kind(alert.superevent_id)
     if kind == "unknown":
         return Verdict(False, f"unrecognised superevent id prefix {alert.superevent_id!r}")

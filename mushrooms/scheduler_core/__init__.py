@@ -13,7 +13,9 @@ from .config import PlanningConfig, SlewModel
 from .errors import InputError, PlanCheckError, SkyMapError
 from .fields import FieldGrid, field_footprints, load_ztf_fields
 from .greedy import greedy_schedule
-from .plan import EventInfo, Observation, Plan, PlanMetrics, make_plan_id, to_trigger_queue
+from .exports import ExportConfig, to_skyportal, to_trigger_queue
+from .observability import NotObservable, not_observable
+from .plan import EventInfo, Observation, Plan, PlanMetrics, make_plan_id
 from .planner import make_plan, run_scheduler
 from .prepare import prepare_problem
 from .problem import Footprints, PlanningProblem, ScheduleResult, Windows
@@ -26,4 +28,5 @@ __all__ = [
     "EventInfo", "Observation", "Plan", "PlanMetrics", "make_plan_id", "to_trigger_queue",
     "make_plan", "run_scheduler", "prepare_problem", "Footprints", "PlanningProblem",
     "ScheduleResult", "Windows", "SkyMap", "read_skymap", "observability_windows",
+    "ExportConfig", "to_skyportal", "NotObservable", "not_observable",
 ]

@@ -7,10 +7,15 @@ of ``config.toml``; a test keeps the two in step.
 from __future__ import annotations
 
 import dataclasses
+import types
+import typing
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-__all__ = ["PlanningConfig", "SlewModel", "dataclass_from_table"]
+__all__ = ["PlanningConfig", "SlewModel", "dataclass_from_table", "ZTF_FILTERS"]
+
+#: The filters of the ZTF camera (its filter exchanger holds g, r and i).
+ZTF_FILTERS = ("g", "r", "i")
 
 
 def dataclass_from_table(cls: type, table: Mapping[str, Any], section: str) -> Any:
@@ -36,8 +41,52 @@ def dataclass_from_table(cls: type, table: Mapping[str, Any], section: str) -> A
     unknown = sorted(set(table) - known)
     if unknown:
         raise ValueError(f"unknown [{section}] key(s): {', '.join(unknown)}")
+    hints = typing.get_type_hints(cls)
+    for key, value in table.items():
+        expected = _type_name(hints[key])
+        if expected is not None and not _has_type(value, hints[key]):
+            raise ValueError(f"[{section}] {key} = {value!r}: expected {expected}, got {_toml_type(value)}")
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in table.items()}
     return cls(**values)
+
+
+def _toml_type(value: Any) -> str:
+    """The TOML name of a parsed value's type."""
+    names = {bool: "boolean", int: "integer", float: "float", str: "string", list: "array", dict: "table"}
+    return names.get(type(value), type(value).__name__)
+
+
+def _has_type(value: Any, hint: Any) -> bool:
+    """True when a parsed TOML value fits a dataclass field's annotation."""
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        return any(_has_type(value, h) for h in typing.get_args(hint))
+    if hint is type(None):
+        return value is None
+    if hint is bool:
+        return isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if hint is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if hint is str:
+        return isinstance(value, str)
+    if origin is tuple:
+        args = [a for a in typing.get_args(hint) if a is not Ellipsis]
+        return isinstance(value, (list, tuple)) and all(_has_type(v, args[0]) for v in value) if args else True
+    return True  # nested tables and anything else: the dataclass checks it
+
+
+def _type_name(hint: Any) -> str | None:
+    """Readable name of an annotation for error messages (None: not checked here)."""
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        names = [_type_name(h) for h in typing.get_args(hint) if h is not type(None)]
+        return None if None in names else " or ".join(n for n in names if n)
+    if origin is tuple:
+        args = [a for a in typing.get_args(hint) if a is not Ellipsis]
+        return f"an array of {_type_name(args[0])}s" if args else "an array"
+    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string"}.get(hint)
 
 
 @dataclass(frozen=True)
@@ -143,6 +192,13 @@ class PlanningConfig:
         of its window.
     slew : SlewModel
         Telescope slew model.
+    min_gain : float
+        Least probability a field must add to the plan (beyond the fields
+        observed before it) to be planned; fields below it are left out,
+        whichever scheduler chose them.  0 keeps every field.
+    min_coverage : float
+        Least coverage of a plan worth publishing; below it the answer is a
+        ``not_observable`` document with the reasons.  0 publishes any plan.
     """
 
     nside: int = 256
@@ -171,6 +227,8 @@ class PlanningConfig:
     threads: int = 0
     max_retries: int = 3
     slew: SlewModel = field(default_factory=SlewModel)
+    min_gain: float = 0.001
+    min_coverage: float = 0.01
 
     def __post_init__(self) -> None:
         problems = []
@@ -185,6 +243,9 @@ class PlanningConfig:
             problems.append(f"airmass_max must be >= 1, got {self.airmass_max}")
         if len(self.filters) != 2 or self.filters[0] == self.filters[1]:
             problems.append(f"filters must be two different filters, got {self.filters!r}")
+        unknown_filters = [f for f in self.filters if f not in ZTF_FILTERS]
+        if unknown_filters:
+            problems.append(f"filters must be ZTF filters ({', '.join(ZTF_FILTERS)}), got {self.filters!r}")
         if self.solver not in ("greedy", "milp", "hybrid"):
             problems.append(f"solver must be greedy, milp or hybrid, got {self.solver!r}")
         if self.milp_backend not in ("auto", "highs", "gurobi"):
@@ -195,6 +256,9 @@ class PlanningConfig:
             problems.append(f"min_block_size must be >= 0, got {self.min_block_size}")
         if self.n_blocks_max < 1:
             problems.append(f"n_blocks_max must be >= 1, got {self.n_blocks_max}")
+        for name in ("min_gain", "min_coverage"):
+            if not 0.0 <= getattr(self, name) < 1.0:
+                problems.append(f"{name} must be in [0, 1), got {getattr(self, name)}")
         if problems:
             raise ValueError("; ".join(problems))
 

@@ -1,4 +1,4 @@
-"""The observing plan: dataclasses, the JSON plan document, ZTF queue export.
+"""The observing plan: dataclasses and the JSON plan document (exports: :mod:`.exports`).
 
 Times inside the library are seconds (float) since the plan's ``start``;
 the document carries ISO-8601 UTC strings.
@@ -21,7 +21,6 @@ __all__ = [
     "Plan",
     "make_plan_id",
     "iso_utc",
-    "to_trigger_queue",
     "PLAN_KEYS",
     "OBSERVATION_KEYS",
     "METRIC_KEYS",
@@ -32,6 +31,8 @@ PLAN_KEYS = (
     "supersedes", "observations", "metrics",
 )
 OBSERVATION_KEYS = ("field_id", "ra", "dec", "filter", "start", "exposure_s", "block")
+EVENT_KEYS = ("superevent_id", "alert_type", "time_created", "skymap_sha256", "localization", "external_coinc",
+              "event_time", "skymap_name")
 METRIC_KEYS = (
     "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
     "n_fields", "n_exposures", "latency_s",
@@ -84,6 +85,10 @@ class Observation:
         Exposure time (s).
     block : int
         Observing block index (0-based).
+    airmass : float or None
+        Airmass (sec z) at mid-exposure.
+    probability : float or None
+        Sky-map probability inside the field's footprint (0-1).
     """
 
     field_id: int
@@ -93,6 +98,8 @@ class Observation:
     start: float
     exposure_s: float
     block: int
+    airmass: float | None = None
+    probability: float | None = None
 
     @property
     def end(self) -> float:
@@ -102,12 +109,34 @@ class Observation:
 
 @dataclass(frozen=True)
 class EventInfo:
-    """What the plan answers; all None for a bare sky map."""
+    """What the plan answers; all None for a bare sky map.
+
+    Attributes
+    ----------
+    superevent_id, alert_type, time_created : str or None
+        From the notice (``time_created`` ISO UTC).
+    skymap_sha256 : str or None
+        SHA-256 of the sky map planned on.
+    localization : str or None
+        Which map that is: ``gw`` (the GW sky map) or ``combined`` (the
+        joint GW x external-trigger map of ``external_coinc``).
+    external_coinc : dict or None
+        The coincident external trigger (observatory, search, time
+        difference in s, coincidence FARs in Hz), when the notice has one.
+    event_time : str or None
+        Merger time (ISO UTC), from the sky map's header.
+    skymap_name : str or None
+        The sky map's file name (SkyPortal's localization name), when known.
+    """
 
     superevent_id: str | None = None
     alert_type: str | None = None
     time_created: str | None = None
     skymap_sha256: str | None = None
+    localization: str | None = None
+    external_coinc: dict[str, Any] | None = None
+    event_time: str | None = None
+    skymap_name: str | None = None
 
 
 @dataclass(frozen=True)
@@ -185,6 +214,9 @@ class Plan:
         When the plan was made.
     telescope : str
         Always ``"ZTF"``.
+    config : dict or None
+        The ``[scheduler]`` configuration the plan was made with (a
+        ``PlanningConfig`` as a dict); ``mushrooms check`` uses it.
     """
 
     plan_id: str
@@ -196,6 +228,7 @@ class Plan:
     supersedes: str | None = None
     created: Time = field(default_factory=Time.now)
     telescope: str = "ZTF"
+    config: dict[str, Any] | None = None
 
     def with_(self, **changes: Any) -> "Plan":
         """Copy with some attributes replaced."""
@@ -211,8 +244,9 @@ class Plan:
         return list(dict.fromkeys(o.field_id for o in self.observations))
 
     def to_document(self) -> dict[str, Any]:
-        """The plan document of DESIGN.md as a JSON-ready dict."""
+        """The plan document (docs/plan-format.md) as a JSON-ready dict."""
         starts = self.absolute_time([o.start for o in self.observations]) if self.observations else []
+        ends = self.absolute_time([o.end for o in self.observations]) if self.observations else []
         obs = [
             {
                 "field_id": int(o.field_id),
@@ -220,12 +254,15 @@ class Plan:
                 "dec": round(float(o.dec), 6),
                 "filter": o.filter,
                 "start": iso_utc(t),
+                "end": iso_utc(t_end),
                 "exposure_s": float(o.exposure_s),
                 "block": int(o.block),
+                "airmass": None if o.airmass is None else round(float(o.airmass), 4),
+                "probability": None if o.probability is None else round(float(o.probability), 6),
             }
-            for o, t in zip(self.observations, starts)
+            for o, t, t_end in zip(self.observations, starts, ends)
         ]
-        return {
+        doc = {
             "type": "plan",
             "plan_id": self.plan_id,
             "created": iso_utc(self.created),
@@ -237,6 +274,9 @@ class Plan:
             "observations": obs,
             "metrics": asdict(self.metrics),
         }
+        if self.config is not None:
+            doc["config"] = self.config
+        return doc
 
     def to_json(self, indent: int | None = 1) -> str:
         """The plan document as JSON text."""
@@ -268,65 +308,22 @@ class Plan:
                         field_id=int(o["field_id"]), ra=float(o["ra"]), dec=float(o["dec"]),
                         filter=str(o["filter"]), start=float(t),
                         exposure_s=float(o["exposure_s"]), block=int(o["block"]),
+                        airmass=None if o.get("airmass") is None else float(o["airmass"]),
+                        probability=None if o.get("probability") is None else float(o["probability"]),
                     )
                 )
             m = doc["metrics"]
             metrics = PlanMetrics(**{k: m.get(k) for k in METRIC_KEYS})
             ev = doc["event"] or {}
-            event = EventInfo(**{k: ev.get(k) for k in ("superevent_id", "alert_type", "time_created", "skymap_sha256")})
+            event = EventInfo(**{k: ev.get(k) for k in EVENT_KEYS})
             return cls(
                 plan_id=str(doc["plan_id"]), start=start, end=end,
                 observations=tuple(observations), metrics=metrics, event=event,
                 supersedes=doc["supersedes"], created=parse_time(doc["created"]),
-                telescope=str(doc["telescope"]),
+                telescope=str(doc["telescope"]), config=doc.get("config"),
             )
         except (TypeError, KeyError, AttributeError) as exc:
             raise ValueError(f"malformed plan document: {exc}") from None
-
-
-def to_trigger_queue(
-    plan: Plan,
-    program_pi: str = "Kulkarni",
-    subprogram_name: str = "GW",
-    queue_name: str | None = None,
-) -> dict[str, Any]:
-    """Export a plan in ZTF's trigger-queue format (as SkyPortal submits it).
-
-    Parameters
-    ----------
-    plan : Plan
-        The plan to export.
-    program_pi, subprogram_name : str
-        ZTF program fields copied into every target.
-    queue_name : str, optional
-        Defaults to ``ToO_<superevent or plan id>``.
-
-    Returns
-    -------
-    dict
-        ``{queue_name, queue_type: "list", validity_window_mjd, targets}``.
-    """
-    tag = plan.event.superevent_id or plan.plan_id
-    name = queue_name or f"ToO_{tag}"
-    targets = [
-        {
-            "request_id": i + 1,
-            "field_id": int(o.field_id),
-            "ra": float(o.ra),
-            "dec": float(o.dec),
-            "filter_id": FILTER_IDS[o.filter],
-            "exposure_time": float(o.exposure_s),
-            "program_pi": program_pi,
-            "subprogram_name": subprogram_name,
-        }
-        for i, o in enumerate(plan.observations)
-    ]
-    return {
-        "queue_name": name,
-        "queue_type": "list",
-        "validity_window_mjd": [float(plan.start.mjd), float(plan.end.mjd)],
-        "targets": targets,
-    }
 
 
 def sorted_observations(observations: Sequence[Observation]) -> tuple[Observation, ...]:

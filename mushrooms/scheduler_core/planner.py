@@ -3,16 +3,21 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
 import time
+from pathlib import Path
+
+import numpy as np
 
 from astropy.time import Time, TimeDelta
 
 from .checker import check_plan
 from .config import PlanningConfig
 from .errors import InputError, PlanCheckError
+from .gain import drop_low_gain
 from .greedy import greedy_schedule
-from .plan import EventInfo, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
+from .plan import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .skymap import SkyMap
@@ -139,6 +144,10 @@ def build_plan(
 ) -> Plan:
     """Turn a scheduler's result into a :class:`Plan` (not checked here).
 
+    Applies the least-gain rule (:func:`~.gain.drop_low_gain`) to every
+    scheduler's result, and fills in each observation's airmass and field
+    probability, the event time and sky-map name, and the configuration.
+
     Parameters
     ----------
     problem : PlanningProblem
@@ -164,8 +173,12 @@ def build_plan(
     """
     config = problem.config
     start = problem.start
-    event = event or EventInfo(skymap_sha256=skymap.sha256)
-    observations = sorted_observations(result.observations)
+    result = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain)  # every scheduler
+    if result.details["dropped_low_gain"]:
+        log.info("least gain %.2g: dropped %d field(s) adding less", config.min_gain,
+                 len(result.details["dropped_low_gain"]))
+    event = _with_map_details(event or EventInfo(skymap_sha256=skymap.sha256), skymap)
+    observations = _with_airmass_and_probability(sorted_observations(result.observations), problem)
     ids = {o.field_id for o in observations}
     bound = result.details.get("bound", result.details.get("milp_bound"))
     metrics = PlanMetrics(
@@ -189,4 +202,35 @@ def build_plan(
         metrics=metrics,
         event=event,
         supersedes=supersedes,
+        config=json.loads(json.dumps(dataclasses.asdict(config))),  # JSON types (tuples become lists)
     )
+
+
+def _with_map_details(event: EventInfo, skymap: SkyMap) -> EventInfo:
+    """The event with the merger time and sky-map name filled in from the map."""
+    name = None if skymap.source.startswith("<") else Path(skymap.source).name
+    return dataclasses.replace(
+        event,
+        event_time=event.event_time or (iso_utc(skymap.event_time) if skymap.event_time is not None else None),
+        skymap_name=event.skymap_name or name,
+    )
+
+
+def _with_airmass_and_probability(observations: tuple[Observation, ...],
+                                  problem: PlanningProblem) -> tuple[Observation, ...]:
+    """Observations with their mid-exposure airmass and their field's probability."""
+    if not observations:
+        return observations
+    from astropy import units as u
+    from astropy.coordinates import AltAz, SkyCoord
+
+    from .visibility import site
+
+    mid = problem.start + TimeDelta([o.start + o.exposure_s / 2 for o in observations], format="sec")
+    coords = SkyCoord([o.ra for o in observations] * u.deg, [o.dec for o in observations] * u.deg)
+    alt = coords.transform_to(AltAz(obstime=mid, location=site())).alt.deg
+    airmass = 1.0 / np.sin(np.radians(np.maximum(alt, 1e-3)))
+    field_prob = dict(zip(problem.footprints.field_ids.tolist(),
+                          problem.footprints.field_probability(problem.prob).tolist()))
+    return tuple(dataclasses.replace(o, airmass=float(x), probability=field_prob.get(o.field_id))
+                 for o, x in zip(observations, airmass))

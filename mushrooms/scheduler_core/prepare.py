@@ -6,20 +6,29 @@ import numpy as np
 from astropy.time import Time
 
 from .config import PlanningConfig
-from .fields import field_footprints, load_ztf_fields
-from .problem import PlanningProblem
+from .fields import FieldGrid, field_footprints, load_ztf_fields
+from .gain import worth_a_visit
+from .problem import Footprints, PlanningProblem, Windows
 from .skymap import SkyMap
 from .visibility import observability_windows
 
 __all__ = ["prepare_problem"]
 
 
-def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time) -> PlanningProblem:
+def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGrid | None = None,
+                    footprints: Footprints | None = None, windows: Windows | None = None) -> PlanningProblem:
     """Candidate fields, footprints and windows for a sky map.
 
     Candidates are the grid fields inside the declination band that hold
-    some probability and can be observed for at least one exposure within
-    the horizon.
+    some probability, at least ``config.min_gain`` (see :mod:`.gain`), and
+    can be observed for at least one exposure within the horizon.
+
+    The pieces that do not depend on the sky map may be passed in, computed
+    once and reused (the daemon keeps them per night): ``grid``,
+    ``footprints`` (of the whole grid at ``config.nside``, rows in grid
+    order) and ``windows`` (of at least the grid's in-band fields over
+    ``[start, start + horizon]``, s since ``start``, e.g. from
+    :func:`~.visibility.windows_from_mask`).  Omitted pieces are computed.
 
     Parameters
     ----------
@@ -29,6 +38,13 @@ def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time) -> Plan
         Planning parameters.
     start : astropy.time.Time
         Horizon start (UTC).
+    grid : FieldGrid, optional
+        The ZTF field grid (default :func:`~.fields.load_ztf_fields`).
+    footprints : Footprints, optional
+        Footprints of every grid field (default :func:`~.fields.field_footprints`).
+    windows : Windows, optional
+        Precomputed windows over the horizon; rows of fields that are not
+        candidates are ignored.
 
     Returns
     -------
@@ -36,12 +52,18 @@ def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time) -> Plan
     """
     if skymap.nside != config.nside:
         raise ValueError(f"sky map nside {skymap.nside} differs from config nside {config.nside}")
-    grid = load_ztf_fields()
-    footprints = field_footprints(grid, config.nside)
+    grid = grid if grid is not None else load_ztf_fields()
+    footprints = footprints if footprints is not None else field_footprints(grid, config.nside)
+    if footprints.nside != config.nside or not np.array_equal(footprints.field_ids, grid.ids):
+        raise ValueError("footprints must cover the whole grid, in grid order, at config.nside")
     in_band = (grid.dec >= config.dec_min_deg) & (grid.dec <= config.dec_max_deg)
-    has_prob = footprints.field_probability(skymap.prob) > 0
+    has_prob = worth_a_visit(footprints, skymap.prob, config.min_gain)
     sel = in_band & has_prob
-    windows = observability_windows(grid.ids[sel], grid.ra[sel], grid.dec[sel], start, config)
+    if windows is None:
+        windows = observability_windows(grid.ids[sel], grid.ra[sel], grid.dec[sel], start, config)
+    else:
+        keep = np.isin(windows.field_ids, grid.ids[sel])
+        windows = Windows(windows.field_ids[keep], windows.start[keep], windows.end[keep])
     observable = np.isin(grid.ids, windows.observable_fields()) & sel
     ids = grid.ids[observable]
     return PlanningProblem(

@@ -12,6 +12,7 @@ import hashlib
 import io
 import logging
 import warnings
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,6 +27,14 @@ log = logging.getLogger(__name__)
 
 #: How far from 1 the total probability of an input map may be.
 PROB_SUM_TOLERANCE = 0.02
+
+#: Largest unpacked FITS (bytes) a gzipped sky map may grow to: 256 MiB, above
+#: the largest real map we know (201 MB, a flat NSIDE 2048 map; LVK's
+#: multi-order notice maps unpack to 1-5 MB).  A gzip bomb stops here.
+MAX_SKYMAP_BYTES = 256 * 1024 * 1024
+
+#: HEALPix's deepest order (NUNIQ indices beyond it are invalid).
+MAX_ORDER = 29
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,10 +85,42 @@ class SkyMap:
 
 
 def _uniq_to_order_ipix(uniq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    uniq = np.asarray(uniq, dtype=np.int64)
-    order = (np.floor(np.log2(uniq)).astype(np.int64) - 2) // 2
-    ipix = uniq - 4 * (np.int64(1) << (2 * order))
-    return order, ipix
+    from ligo.skymap.moc import uniq2nest
+
+    order, ipix = uniq2nest(np.asarray(uniq, dtype=np.int64))
+    return order.astype(np.int64), ipix
+
+
+def check_uniq(uniq: np.ndarray) -> None:
+    """Refuse NUNIQ indices that do not describe a multi-order HEALPix map.
+
+    Each index must decode (ligo.skymap's :func:`~ligo.skymap.moc.uniq2order`)
+    to an order in 0..29, and no two pixels may cover the same sky (a
+    duplicate, or a pixel and one of its ancestors).
+
+    Raises
+    ------
+    SkyMapError
+        Naming the first problem found.
+    """
+    from ligo.skymap.moc import uniq2nest
+
+    uniq = np.asarray(uniq)
+    if uniq.ndim != 1 or uniq.size == 0 or not np.issubdtype(uniq.dtype, np.integer):
+        raise SkyMapError("UNIQ column must be a non-empty list of integers")
+    order, ipix = uniq2nest(uniq.astype(np.int64))
+    bad = (order < 0) | (order > MAX_ORDER)
+    if np.any(bad):
+        raise SkyMapError(f"UNIQ value {int(uniq[np.argmax(bad)])} is not a HEALPix NUNIQ index (order 0-{MAX_ORDER})")
+    shift = 2 * (MAX_ORDER - order.astype(np.int64))
+    first = ipix << shift  # the range of deepest-order pixels each pixel covers
+    last = ((ipix + 1) << shift) - 1
+    by_start = np.argsort(first, kind="stable")
+    overlap = first[by_start][1:] <= last[by_start][:-1]
+    if np.any(overlap):
+        i = int(np.argmax(overlap))
+        a, b = uniq[by_start[i]], uniq[by_start[i + 1]]
+        raise SkyMapError(f"UNIQ values {int(a)} and {int(b)} cover the same sky (duplicate or nested pixels)")
 
 
 def rasterize_moc(uniq: np.ndarray, probdensity: np.ndarray, order: int,
@@ -200,6 +241,27 @@ def _check_values(values: np.ndarray, name: str) -> None:
         raise SkyMapError(f"{name}: probabilities must be finite and non-negative")
 
 
+def _gunzip(data: bytes, name: str, max_bytes: int) -> bytes:
+    """Unpack a gzip stream, refusing to grow beyond ``max_bytes``."""
+    out = bytearray()
+    try:
+        with gzip.GzipFile(fileobj=io.BytesIO(data)) as fh:
+            while chunk := fh.read(1 << 20):
+                out += chunk
+                if len(out) > max_bytes:
+                    raise SkyMapError(f"gzipped sky map {name} unpacks to more than {_mib(max_bytes)} "
+                                      f"(from {len(data)} bytes): refused")
+                if len(out) >= 2880 and not out.startswith(b"SIMPLE  ="):
+                    break  # not FITS: said below without unpacking the rest
+    except (OSError, EOFError, zlib.error) as exc:  # BadGzipFile is an OSError
+        raise SkyMapError(f"broken gzip in sky map {name}: {exc}") from None
+    return bytes(out)
+
+
+def _mib(n: int) -> str:
+    return f"{n / 2**20:g} MiB"
+
+
 def _read_bytes(source: str | Path | bytes) -> tuple[bytes, str]:
     if isinstance(source, (bytes, bytearray, memoryview)):
         return bytes(source), "<bytes>"
@@ -214,7 +276,7 @@ def _read_bytes(source: str | Path | bytes) -> tuple[bytes, str]:
         raise SkyMapError(f"cannot read sky map {path}: {exc.strerror or exc}") from None
 
 
-def read_skymap(source: str | Path | bytes, nside: int = 256) -> SkyMap:
+def read_skymap(source: str | Path | bytes, nside: int = 256, max_bytes: int = MAX_SKYMAP_BYTES) -> SkyMap:
     """Read a sky map and bring it to a working NESTED resolution.
 
     Parameters
@@ -224,6 +286,10 @@ def read_skymap(source: str | Path | bytes, nside: int = 256) -> SkyMap:
         NESTED or RING) or the file's bytes (e.g. a decoded notice payload).
     nside : int
         Working resolution (power of 2).
+    max_bytes : int
+        Largest size (bytes) a gzipped map may unpack to; the stream is
+        unpacked chunk by chunk and refused as soon as it grows beyond
+        this (a decompression bomb costs at most ``max_bytes`` of memory).
 
     Returns
     -------
@@ -232,9 +298,10 @@ def read_skymap(source: str | Path | bytes, nside: int = 256) -> SkyMap:
     Raises
     ------
     SkyMapError
-        One line saying why: missing, empty, truncated or non-FITS file, no
-        probability column, probabilities negative, not finite, or not
-        summing to 1 within 2 %.
+        One line saying why: missing, empty, truncated or non-FITS file,
+        broken gzip or one unpacking beyond ``max_bytes``, invalid NUNIQ
+        indices, no probability column, probabilities negative, not finite,
+        or not summing to 1 within 2 %.
     """
     if nside < 1 or nside & (nside - 1):
         raise SkyMapError(f"nside must be a power of 2, got {nside}")
@@ -242,7 +309,7 @@ def read_skymap(source: str | Path | bytes, nside: int = 256) -> SkyMap:
     if not data:
         raise SkyMapError(f"sky map is empty: {name}")
     sha = hashlib.sha256(data).hexdigest()
-    raw = gzip.decompress(data) if data[:2] == b"\x1f\x8b" else data
+    raw = _gunzip(data, name, max_bytes) if data[:2] == b"\x1f\x8b" else data
     if not raw.startswith(b"SIMPLE  ="):
         raise SkyMapError(f"not a FITS file: {name}")
     try:
@@ -268,6 +335,10 @@ def _read_table(raw: bytes, name: str, nside: int) -> tuple[np.ndarray, dict[str
         meta = table.meta
         if "PROBDENSITY" not in table.colnames:
             raise SkyMapError(f"{name} has no PROBDENSITY column")
+        try:
+            check_uniq(np.asarray(table["UNIQ"]))
+        except SkyMapError as exc:
+            raise SkyMapError(f"{name}: {exc}") from None
         density = np.asarray(table["PROBDENSITY"], float)
         _check_values(density, name)
         layers = {c: np.asarray(table[c], float) for c in DIST_COLUMNS} if set(DIST_COLUMNS) <= set(table.colnames) else {}

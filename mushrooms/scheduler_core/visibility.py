@@ -27,7 +27,7 @@ from astropy.time import Time, TimeDelta
 from .config import PlanningConfig
 from .problem import Windows
 
-__all__ = ["site", "observability_windows", "mount_limits_ok", "PALOMAR"]
+__all__ = ["site", "observability_windows", "observing_conditions", "windows_from_mask", "mount_limits_ok", "PALOMAR"]
 
 #: P48 at Palomar (ztf_sim's coordinates): lat, lon (deg), height (m).
 PALOMAR = (33.35728, -116.85986, 1707.0)
@@ -80,6 +80,101 @@ def _runs(ok: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return r0, c0, c1 - 1  # nonzero() is row-major, so starts and ends pair up
 
 
+def observing_conditions(
+    ra_deg: np.ndarray,
+    dec_deg: np.ndarray,
+    times: Time,
+    config: PlanningConfig = PlanningConfig(),
+    apparent_epoch: Time | None = None,
+) -> np.ndarray:
+    """Where every observing constraint holds, for fields x grid times.
+
+    A pure function of the field centres and the times: the daemon calls it
+    once per night for the whole ZTF grid and reuses the result for every
+    alert of that night (see :func:`windows_from_mask`).
+
+    Parameters
+    ----------
+    ra_deg, dec_deg : numpy.ndarray
+        (n,) field centres (deg, ICRS).
+    times : astropy.time.Time
+        (m,) grid times (UTC).
+    config : PlanningConfig
+        Constraints (Sun, airmass, hour angle and keep-outs, Moon).
+    apparent_epoch : astropy.time.Time, optional
+        Epoch of the apparent (true equator and equinox of date) field
+        places; default the middle of ``times``.  Over a day the places
+        move by well under an arcsecond.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, m) bool: True where the field can be observed at that time.
+    """
+    loc = site()
+    lat = np.radians(loc.lat.deg)
+    ra_deg = np.asarray(ra_deg, float)
+    dec_deg = np.asarray(dec_deg, float)
+
+    # Sun and Moon: a few hundred astropy transforms, not one per field
+    frame = AltAz(obstime=times, location=loc)
+    sun_alt = get_body("sun", times, loc).transform_to(frame).alt.deg
+    moon = get_body("moon", times, loc)
+    lst = times.sidereal_time("apparent", longitude=loc.lon).deg
+
+    # Fields: apparent place of date (precession, nutation, aberration) once
+    if apparent_epoch is None:
+        apparent_epoch = times[0] + (times[-1] - times[0]) * 0.5
+    app = SkyCoord(ra=ra_deg * u.deg, dec=dec_deg * u.deg, frame="icrs").transform_to(TETE(obstime=apparent_epoch))
+    ra_app = app.ra.deg[:, None]
+    dec_app = np.radians(app.dec.deg)[:, None]
+    ha = (lst[None, :] - ra_app + 180.0) % 360.0 - 180.0
+    sin_alt = np.sin(lat) * np.sin(dec_app) + np.cos(lat) * np.cos(dec_app) * np.cos(np.radians(ha))
+    with np.errstate(divide="ignore"):
+        airmass = np.where(sin_alt > 0, 1.0 / np.where(sin_alt > 0, sin_alt, 1.0), np.inf)
+
+    moon_ra = np.radians(moon.ra.deg)[None, :]
+    moon_dec = np.radians(moon.dec.deg)[None, :]
+    fra = np.radians(ra_deg)[:, None]
+    fdec = np.radians(dec_deg)[:, None]
+    cos_sep = np.sin(fdec) * np.sin(moon_dec) + np.cos(fdec) * np.cos(moon_dec) * np.cos(fra - moon_ra)
+    moon_sep = np.degrees(np.arccos(np.clip(cos_sep, -1, 1)))
+
+    ok = (sun_alt <= config.sun_alt_max_deg)[None, :]
+    ok = ok & (airmass <= config.airmass_max)
+    ok &= mount_limits_ok(ha, dec_deg[:, None], config.ha_max_h)
+    ok &= moon_sep >= config.moon_sep_min_deg
+    return ok
+
+
+def windows_from_mask(field_ids: np.ndarray, ok: np.ndarray, offsets_s: np.ndarray, exposure_s: float) -> Windows:
+    """Windows from an observability mask on a time grid.
+
+    Parameters
+    ----------
+    field_ids : numpy.ndarray
+        (n,) field IDs, the rows of ``ok``.
+    ok : numpy.ndarray
+        (n, m) bool from :func:`observing_conditions`.
+    offsets_s : numpy.ndarray
+        (m,) grid times (s since the horizon start), increasing.
+    exposure_s : float
+        Windows shorter than this (s) are dropped.
+
+    Returns
+    -------
+    Windows
+        One row per run of consecutive True grid times.
+    """
+    field_ids = np.asarray(field_ids)
+    offsets_s = np.asarray(offsets_s, float)
+    rows, first, last = _runs(ok)
+    w_start = offsets_s[first]
+    w_end = offsets_s[last]
+    keep = (w_end - w_start) >= exposure_s
+    return Windows(field_ids=field_ids[rows[keep]], start=w_start[keep], end=w_end[keep])
+
+
 def observability_windows(
     field_ids: np.ndarray,
     ra_deg: np.ndarray,
@@ -106,43 +201,9 @@ def observability_windows(
         One row per window (s since ``start``); windows shorter than one
         exposure are dropped.
     """
-    field_ids = np.asarray(field_ids)
     n_steps = int(np.floor(config.horizon_s / config.time_step_s)) + 1
     offsets = np.arange(n_steps) * config.time_step_s
     times = start + TimeDelta(offsets, format="sec")
-    loc = site()
-    lat = np.radians(loc.lat.deg)
-
-    # Sun and Moon: a few hundred astropy transforms, not one per field
-    frame = AltAz(obstime=times, location=loc)
-    sun_alt = get_body("sun", times, loc).transform_to(frame).alt.deg
-    moon = get_body("moon", times, loc)
-    lst = times.sidereal_time("apparent", longitude=loc.lon).deg
-
-    # Fields: apparent place of date (precession, nutation, aberration) once
     mid = start + TimeDelta(config.horizon_s / 2, format="sec")
-    app = SkyCoord(ra=ra_deg * u.deg, dec=dec_deg * u.deg, frame="icrs").transform_to(TETE(obstime=mid))
-    ra_app = app.ra.deg[:, None]
-    dec_app = np.radians(app.dec.deg)[:, None]
-    ha = (lst[None, :] - ra_app + 180.0) % 360.0 - 180.0
-    sin_alt = np.sin(lat) * np.sin(dec_app) + np.cos(lat) * np.cos(dec_app) * np.cos(np.radians(ha))
-    with np.errstate(divide="ignore"):
-        airmass = np.where(sin_alt > 0, 1.0 / np.where(sin_alt > 0, sin_alt, 1.0), np.inf)
-
-    moon_ra = np.radians(moon.ra.deg)[None, :]
-    moon_dec = np.radians(moon.dec.deg)[None, :]
-    fra = np.radians(np.asarray(ra_deg, float))[:, None]
-    fdec = np.radians(np.asarray(dec_deg, float))[:, None]
-    cos_sep = np.sin(fdec) * np.sin(moon_dec) + np.cos(fdec) * np.cos(moon_dec) * np.cos(fra - moon_ra)
-    moon_sep = np.degrees(np.arccos(np.clip(cos_sep, -1, 1)))
-
-    ok = (sun_alt <= config.sun_alt_max_deg)[None, :]
-    ok = ok & (airmass <= config.airmass_max)
-    ok &= mount_limits_ok(ha, np.asarray(dec_deg, float)[:, None], config.ha_max_h)
-    ok &= moon_sep >= config.moon_sep_min_deg
-
-    rows, first, last = _runs(ok)
-    w_start = offsets[first]
-    w_end = offsets[last]
-    keep = (w_end - w_start) >= config.exposure_s
-    return Windows(field_ids=field_ids[rows[keep]], start=w_start[keep], end=w_end[keep])
+    ok = observing_conditions(ra_deg, dec_deg, times, config, apparent_epoch=mid)
+    return windows_from_mask(field_ids, ok, offsets, config.exposure_s)

@@ -146,6 +146,8 @@ TEST_CONFIG = """
 [scheduler]
 solver = "greedy"
 nside = 64
+min_gain = 0.0
+min_coverage = 0.0
 
 [policy]
 allow_mock = true
@@ -178,17 +180,26 @@ def write_config(path: Path, topic: str, out_topic: str, group: str, extra: str 
 class Daemon:
     """``mushrooms run`` in a real subprocess; output goes to a log file."""
 
-    def __init__(self, workdir: Path, args: list[str], env: dict[str, str] | None = None) -> None:
+    def __init__(self, workdir: Path, args: list[str], env: dict[str, str] | None = None,
+                 gate: Path | None = None) -> None:
+        """``gate``: run through ``gated_run.py`` (jobs wait while ``gate/hold`` exists)."""
         self.workdir = workdir
+        self.gate = gate
         self.log = workdir / f"daemon-{time.time_ns()}.log"
         self.args = args
         e = dict(os.environ)
         e.pop("NOTIFY_SOCKET", None)
         e.pop("WATCHDOG_USEC", None)
         e.update(env or {})
+        if gate is not None:
+            gate.mkdir(parents=True, exist_ok=True)
+            e["MUSHROOMS_TEST_GATE"] = str(gate)
+            cmd = [sys.executable, str(Path(__file__).with_name("gated_run.py")), *args]
+        else:
+            cmd = [sys.executable, "-m", "mushrooms.cli", "run", *args]
         self._fh = open(self.log, "wb")
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "mushrooms.cli", "run", *args],
+            cmd,
             cwd=workdir, stdout=self._fh, stderr=subprocess.STDOUT, env=e,
         )
 
@@ -209,6 +220,26 @@ class Daemon:
             if time.monotonic() > end:
                 raise AssertionError(f"{needle!r} not seen in the daemon log:\n{text[-4000:]}")
             time.sleep(0.1)
+
+    def hold(self) -> None:
+        """From now on planning jobs wait in front of their schedulers."""
+        assert self.gate is not None
+        (self.gate / "hold").touch()
+
+    def release(self) -> None:
+        """Let held jobs go on."""
+        assert self.gate is not None
+        (self.gate / "hold").unlink(missing_ok=True)
+
+    def wait_held(self, superevent_id: str, timeout_s: float = 120.0) -> None:
+        """Wait until a job of the superevent is held in front of a scheduler."""
+        assert self.gate is not None
+        end = time.monotonic() + timeout_s
+        while not list(self.gate.glob(f"entered-{superevent_id}-*")):
+            self.alive()
+            if time.monotonic() > end:
+                raise AssertionError(f"no job of {superevent_id} reached the gate:\n{self.text()[-4000:]}")
+            time.sleep(0.05)
 
     def kill9(self) -> None:
         self.proc.send_signal(signal.SIGKILL)

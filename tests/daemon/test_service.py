@@ -1,6 +1,11 @@
 """``mushrooms run`` end to end: a real daemon process, the real mock Kafka
 broker on loopback, real SQLite state, real sky maps and the greedy solver.
 
+Whatever must happen "while a job is planning" happens while the job is
+held by the test gate (``gated_run.py``: the job waits in front of its
+scheduler until the test removes the hold), never in a race with a real
+solve time.
+
 The "updated sky map" of the supersede test is the mock event MS230425l's
 preliminary notice (a different BAYESTAR map) with only its
 ``superevent_id`` rewritten to MS181101ab.
@@ -19,6 +24,14 @@ from pathlib import Path
 from daemon_helpers import Daemon, notice_bytes, summary, write_config
 
 
+def _held_gate(tmp_path: Path) -> Path:
+    """A gate directory whose hold is already on (jobs wait from the first one)."""
+    gate = tmp_path / "gate"
+    gate.mkdir(exist_ok=True)
+    (gate / "hold").touch()
+    return gate
+
+
 def _uniq(name: str) -> str:
     return f"{name}-{time.time_ns()}"
 
@@ -33,7 +46,10 @@ def _rows(state: Path, sql: str) -> list[tuple]:
 
 
 def _skymap_sha(raw: bytes) -> str:
-    return hashlib.sha256(base64.b64decode(json.loads(raw)["event"]["skymap"])).hexdigest()
+    """SHA-256 of the map the service plans on: the joint map of an external coincidence, else the GW map."""
+    d = json.loads(raw)
+    joint = (d.get("external_coinc") or {}).get("combined_skymap")
+    return hashlib.sha256(base64.b64decode(joint or d["event"]["skymap"])).hexdigest()
 
 
 def test_kill9_in_the_middle_of_a_job_then_restart_delivers_the_same_plan(broker, daemons, tmp_path: Path) -> None:
@@ -47,11 +63,11 @@ def test_kill9_in_the_middle_of_a_job_then_restart_delivers_the_same_plan(broker
     produced = [broker.produce(topic, b"{not a notice", key=b"junk"),  # bad input never stops the service
                 broker.produce(topic, raw_a, key=b"MS181101ab")]
 
-    d1 = Daemon(tmp_path, args)
+    d1 = Daemon(tmp_path, args, gate=_held_gate(tmp_path))
     daemons.append(d1)
-    d1.wait_log("event=job_started superevent_id=MS181101ab", 120)
+    d1.wait_held("MS181101ab")  # the job is in the middle of planning
     d1.kill9()
-    assert "event=job_done" not in d1.text(), "the job finished before the kill: not a mid-job crash"
+    assert "event=job_done" not in d1.text()
     assert "decision=rejected" in d1.text()
     assert _rows(state, "SELECT superevent_id, status FROM jobs") == [("MS181101ab", "running")]
     assert _rows(state, "SELECT count(*) FROM outbox") == [(0,)]
@@ -110,16 +126,19 @@ def test_updated_skymap_supersedes_the_running_job_and_retraction_withdraws(brok
     broker.ensure_topic(out)
     cfg = write_config(tmp_path / "config.toml", topic, out, group)
     state = tmp_path / "state.sqlite"
-    d = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state)])
+    d = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state)],
+               gate=_held_gate(tmp_path))
     daemons.append(d)
     d.wait_log("event=service_ready", 60)
     first = notice_bytes("MS181101ab-preliminary.json")
     updated = notice_bytes("MS230425l-preliminary.json", superevent_id="MS181101ab")
     assert _skymap_sha(first) != _skymap_sha(updated)
     broker.produce(topic, first, key=b"MS181101ab")
-    d.wait_log("event=job_started superevent_id=MS181101ab job=1", 120)
+    d.wait_held("MS181101ab")  # job 1 is planning
     broker.produce(topic, updated, key=b"MS181101ab")
     d.wait_log("event=job_superseded superevent_id=MS181101ab job=1 by_job=2", 60)
+    d.wait_log("event=job_done superevent_id=MS181101ab job=1", 60)  # the stop ends job 1 although still held
+    d.release()
     reader = broker.reader(out, _uniq("reader"))
     try:
         msgs = reader.wait_for(lambda ms: _plans(ms, "MS181101ab"), 300, alive=d.alive)
@@ -152,13 +171,14 @@ def test_sigterm_during_a_job_leaves_it_pending_and_the_restart_finishes_it(brok
     state = tmp_path / "state.sqlite"
     args = ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state)]
     broker.produce(topic, notice_bytes("MS181101ab-preliminary.json"), key=b"MS181101ab")
-    d1 = Daemon(tmp_path, args)
+    d1 = Daemon(tmp_path, args, gate=_held_gate(tmp_path))
     daemons.append(d1)
-    d1.wait_log("event=job_started superevent_id=MS181101ab", 120)
+    d1.wait_held("MS181101ab")  # the job is planning when SIGTERM arrives
     assert d1.stop(signal.SIGTERM) == 0
     text = d1.text()
     assert "event=service_stopped unfinished_jobs=yes" in text and "event=job_done" not in text
-    assert _rows(state, "SELECT status FROM jobs") == [("running",)]
+    # a clean stop is not a start that died: the job is pending again, its start not counted
+    assert _rows(state, "SELECT status, attempts FROM jobs") == [("pending", 0)]
     for part, (committed, high) in broker.committed(topic, group).items():  # the notice itself was committed
         assert committed == high or (high == 0 and committed < 0)
 

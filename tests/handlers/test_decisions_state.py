@@ -59,7 +59,7 @@ def test_retraction_then_later_initial_plans_again():
     assert [d.action for d in out] == ["plan", "withdraw", "plan"]
     assert "after a retraction" in out[2].reason
     assert out[2].supersedes is None
-    assert ledger.event_state("MS230425k") == EventState("MS230425k", out[2].skymap_sha256, ("plan-2",), False)
+    assert ledger.event_state("MS230425k") == EventState("MS230425k", out[2].skymap_sha256, ("plan-2",), False, "gw")
 
 
 def test_retractions_of_unknown_or_retracted_events_are_ignored():
@@ -86,5 +86,5 @@ def test_failed_planning_is_retried_with_the_same_map():
     a = parse_notice(notice_bytes("json/MS181101ab-initial.json"))
     ledger = MemoryLedger({"MS181101ab": EventState("MS181101ab", None, (), False)})
     d = decide(a, Verdict(True, "ok"), ledger)
-    assert d.action == "plan" and "earlier planning failed" in d.reason
+    assert d.action == "plan" and "planning again" in d.reason
     assert base64.b64decode(notice_dict("json/MS181101ab-initial.json")["event"]["skymap"])[:6] == b"SIMPLE"

@@ -46,7 +46,7 @@ def test_from_mapping_rejects_unknown_keys_and_bad_values():
         PolicyConfig.from_mapping({"plan_start": "tomorrow"})
     with pytest.raises(ValueError, match="unknown alert type"):
         PolicyConfig.from_mapping({"alert_types": ["FINAL"]})
-    with pytest.raises(ValueError, match="true or false"):
+    with pytest.raises(ValueError, match=r"\[policy\] allow_mock = 'yes': expected a boolean, got string"):
         PolicyConfig.from_mapping({"allow_mock": "yes"})
 
 

@@ -14,8 +14,9 @@ from mushrooms.scheduler_core import PlanningConfig
 
 NOTICES = Path(__file__).resolve().parents[1] / "data" / "notices"
 
-#: greedy at a coarse resolution and time step: each plan takes one to two seconds
-FAST = Config(scheduler=PlanningConfig(solver="greedy", nside=64, time_step_s=600.0),
+#: greedy at a coarse resolution and time step: each plan takes one to two seconds; these mock
+#: events (MS181101ab is ~22 deg from the Sun) get a plan however little it covers (min_coverage 0)
+FAST = Config(scheduler=PlanningConfig(solver="greedy", nside=64, time_step_s=600.0, min_gain=0.0, min_coverage=0.0),
               policy=PolicyConfig(allow_mock=True))
 
 

@@ -245,15 +245,15 @@ def test_newer_map_while_planning_supersedes_the_old_job(store):
 
     calls = []
 
-    def planner(*args, **kwargs):
-        from mushrooms.scheduler_core import make_plan
+    def planner(problem, solver, should_stop=None):
+        from mushrooms.scheduler_core.planner import run_scheduler
 
-        calls.append(kwargs["event"].skymap_sha256)
+        calls.append(solver)
         if len(calls) == 1:  # a newer sky map arrives while the first job is running
             other = json.loads(raw("live/MS230425k-preliminary.json"))["event"]["skymap"]
             rel = "json/MS181101ab-update.json"
             p.accept(mutated(rel, skymap=other), "k:2", created(rel))
-        return make_plan(*args, **kwargs)
+        return run_scheduler(problem, solver, should_stop)
 
     p = pipe(store, sink, planner=planner)
     rel = "json/MS181101ab-preliminary.json"
@@ -267,7 +267,7 @@ def test_newer_map_while_planning_supersedes_the_old_job(store):
 
 
 def test_internal_planner_error_is_failed_and_the_same_map_is_retried(store):
-    def broken(*args, **kwargs):
+    def broken(problem, solver, should_stop=None):
         raise ZeroDivisionError("bug")
 
     p = pipe(store, planner=broken)

@@ -16,7 +16,7 @@ from replay_helpers import NOTICES, raw
 @pytest.fixture
 def fast_config(tmp_path):
     path = tmp_path / "config.toml"
-    path.write_text('[scheduler]\nsolver = "greedy"\nnside = 64\ntime_step_s = 600.0\n')
+    path.write_text('[scheduler]\nsolver = "greedy"\nnside = 64\ntime_step_s = 600.0\nmin_gain = 0.0\nmin_coverage = 0.0\n')
     return path
 
 
@@ -32,18 +32,25 @@ def test_replay_lvk_json_directory(tmp_path, fast_config, capsys):
     assert [line.split()[0] for line in lines] == [  # time order; INITIAL before UPDATEs created the same second
         "MS181101ab-earlywarning.json", "MS181101ab-preliminary.json", "MS181101ab-initial.json",
         "MS181101ab-ext-update.json", "MS181101ab-update.json", "MS181101ab-retraction.json"]
-    assert [line.split()[3] for line in lines] == ["plan", "duplicate", "duplicate", "duplicate", "duplicate",
+    # the Fermi coincidence UPDATE moves the plan onto the joint map; the GW-only UPDATE keeps it there
+    assert [line.split()[3] for line in lines] == ["plan", "duplicate", "duplicate", "rerun", "duplicate",
                                                    "withdraw"]
     plan_id = lines[0].split()[4].removeprefix("plan_id=")
+    joint_id = lines[3].split()[4].removeprefix("plan_id=")
     assert "coverage=" in lines[0] and "latency_s=" in lines[0]
     files = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
-    assert len(files) == 2 and f"{plan_id}.json" in files
+    assert len(files) == 3 and {f"{plan_id}.json", f"{joint_id}.json"} <= set(files)
     plan = json.loads((out / f"{plan_id}.json").read_text())
     assert plan["type"] == "plan" and plan["event"]["alert_type"] == "EARLYWARNING"
+    assert plan["event"]["localization"] == "gw" and plan["event"]["external_coinc"] is None
+    joint = json.loads((out / f"{joint_id}.json").read_text())
+    assert joint["supersedes"] == plan_id and joint["event"]["localization"] == "combined"
+    assert joint["event"]["skymap_sha256"].startswith("1e087b1837bd")
+    assert joint["event"]["external_coinc"]["observatory"] == "Fermi"
     [wfile] = [f for f in files if f.startswith("withdrawal-")]
     w = json.loads((out / wfile).read_text())
     assert set(w) >= {"type", "superevent_id", "plan_ids", "reason", "created"}
-    assert w["type"] == "withdrawal" and w["plan_ids"] == [plan_id]
+    assert w["type"] == "withdrawal" and w["plan_ids"] == [plan_id, joint_id]
 
 
 def test_replay_without_allow_mock_ignores_mocks(tmp_path, fast_config, capsys):
@@ -70,7 +77,7 @@ def test_replay_mixed_live_notices_with_bad_files(tmp_path, fast_config, capsys)
     state = tmp_path / "state.sqlite"
     rc = cli_main(["replay", str(src), str(tmp_path / "missing.json"), "--allow-mock", "--out", str(tmp_path / "o"),
                    "--config", str(fast_config), "--state", str(state)])
-    assert rc == 0
+    assert rc == 2  # missing.json is missing: non-zero, yet every other file was replayed
     lines = lines_of(capsys)
     by_name = {line.split()[0]: line.split()[3] for line in lines}
     assert len(lines) == 8

