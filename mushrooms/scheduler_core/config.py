@@ -99,16 +99,25 @@ class SlewModel:
     during the slew, so the gap between two exposures is at least the
     readout time.
 
+    Sources of the defaults: ztf_sim (``ZwickyTransientFacility/ztf_sim``,
+    ``ztf_sim/constants.py`` at commit c5ab409, 2026-02): ``P48_slew_pars``
+    (HA and Dec from the Telescope Drive Performance Assessment v1.2),
+    ``SETTLE_TIME = 1 s`` and ``READOUT_TIME = 8 s``.  Other published values
+    differ: gwemopt's ``ZTF.config`` has ``readout 10`` s, and older ztf_sim
+    commits had 10 s readout and 2 s settle.
+
     Attributes
     ----------
     ha_accel_deg_s2, ha_vmax_deg_s : float
-        Hour-angle axis acceleration (deg s^-2) and top speed (deg s^-1).
+        Hour-angle axis acceleration (deg s^-2) and top speed (deg s^-1);
+        ztf_sim: 0.4 and 2.5.
     dec_accel_deg_s2, dec_vmax_deg_s : float
-        Declination axis acceleration (deg s^-2) and top speed (deg s^-1).
+        Declination axis acceleration (deg s^-2) and top speed (deg s^-1);
+        ztf_sim: 0.5 and 3.0.
     settle_s : float
-        Settle time after any non-zero slew (s).
+        Settle time after any non-zero slew (s); ztf_sim ``SETTLE_TIME``.
     readout_s : float
-        CCD readout time (s); overlaps the slew.
+        CCD readout time (s); overlaps the slew; ztf_sim ``READOUT_TIME``.
     """
 
     ha_accel_deg_s2: float = 0.4
@@ -148,7 +157,9 @@ class PlanningConfig:
     cadence_s : float
         Least time (s) between the two filters' visits of one field.
     filter_change_s : float
-        Filter exchange time (s).
+        Filter exchange time (s).  The default 120 s is the MUSHROOMS
+        paper's 2-minute filter exchange; ztf_sim's ``FILTER_CHANGE_TIME``
+        is 135 s and gwemopt's ZTF config has 60 s.
     slew_estimate_s : float
         Mean slew+readout overhead (s) the block MILP assumes before the
         real order is known.

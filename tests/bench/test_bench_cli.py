@@ -41,8 +41,10 @@ def test_bench_csv_on_one_small_map_with_greedy(tmp_path, data_dir, monkeypatch,
     by = {(r["skymap"].split("/")[-1].split("_")[0], r["solver"]): r for r in rows}
     g = by[("MS220722v", "greedy")]
     assert g["status"] == "greedy" and g["valid"] is True
-    assert 0.0 <= g["coverage"] <= 1.0 and g["n_exposures"] >= 0 and g["runtime_s"] > 0
-    assert abs(g["coverage"] - g["coverage_reported"]) < 2e-3
+    assert 0.0 < g["coverage"] <= 1.0 and g["runtime_s"] > 0
+    assert g["n_exposures"] > 0 and g["n_exposures"] % 2 == 0  # every field in both filters
+    # the checker's recomputation (great-circle CCD edges) against the scheduler's footprints
+    assert abs(g["coverage"] - g["coverage_reported"]) < 2e-4
     assert 0.0 <= g["efficiency_optimistic"] <= 1.0 and 0.0 <= g["efficiency_conservative"] <= 1.0
     assert g["n_injections"] == 2000
     cwb = by[("S200129m", "greedy")]

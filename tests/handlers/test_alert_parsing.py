@@ -163,6 +163,16 @@ def test_oversized_payload_is_refused_before_decoding():
         parse_notice(big, max_bytes=8_388_608)
 
 
+def test_size_limit_holds_at_the_limit_and_refuses_one_byte_over():
+    notice = (NOTICES / "json" / "MS181101ab-preliminary.json").read_bytes()
+    limit = len(notice) + 100
+    at_limit = notice + b" " * (limit - len(notice))  # trailing blanks keep the JSON valid
+    assert len(at_limit) == limit
+    assert parse_notice(at_limit, max_bytes=limit).superevent_id == "MS181101ab"
+    with pytest.raises(NoticeError, match=f"notice of {limit + 1} bytes exceeds the {limit}-byte limit"):
+        parse_notice(at_limit + b" ", max_bytes=limit)
+
+
 def test_deeply_nested_json_is_rejected():
     with pytest.raises(NoticeError):
         parse_notice(b"[" * 100000 + b"]" * 100000)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import dataclasses
 import json
 import logging
 from datetime import timedelta
@@ -55,7 +56,7 @@ def test_plan_then_duplicate_then_withdraw(store, tmp_path):
     assert store.plans()[0]["withdrawn"] == 1
 
 
-def test_changed_sky_map_reruns_and_supersedes(store):
+def test_changed_sky_map_reruns_and_supersedes(store, tmp_path):
     sink = MemorySink()
     p = pipe(store, sink)
     first = handle(p, "json/MS181101ab-preliminary.json")
@@ -64,6 +65,35 @@ def test_changed_sky_map_reruns_and_supersedes(store):
     assert second.decision == "rerun" and second.supersedes == first.plan_id != second.plan_id
     assert [m["supersedes"] for m in sink.messages] == [None, first.plan_id]
     assert store.event_state("MS181101ab").plan_ids == (first.plan_id, second.plan_id)
+    # the superseding plan is the new map's plan: what a fresh service plans for that notice
+    fresh = Store(tmp_path / "fresh.sqlite")
+    fresh_sink = MemorySink()
+    pipe(fresh, fresh_sink).handle(mutated("json/MS181101ab-update.json", skymap=other_map), "x",
+                                   created("json/MS181101ab-update.json") + timedelta(minutes=0.5))
+    fresh.close()
+    old, new = sink.messages
+    assert observations(new) == observations(fresh_sink.messages[0]) != observations(old)
+
+
+def test_a_plan_the_checker_refuses_is_never_published(store, monkeypatch):
+    """A scheduler bug (overlapping exposures) is caught by the checker: job failed, outbox empty."""
+    import mushrooms.scheduler_core.planner as planner
+
+    real = planner.run_scheduler
+
+    def overlapping(problem, solver, should_stop=None):
+        result = real(problem, solver, should_stop)
+        o = list(result.observations)
+        o[1] = dataclasses.replace(o[1], start=o[0].start + 10.0)
+        return dataclasses.replace(result, observations=tuple(o))
+
+    monkeypatch.setattr(planner, "run_scheduler", overlapping)
+    sink = MemorySink()
+    out = handle(pipe(store, sink), "json/MS181101ab-preliminary.json")
+    assert out.decision == "failed" and out.reason.startswith("plan failed the checker: overlap:")
+    assert sink.messages == [] and store.pending_outbox() == [] and store.plans() == []
+    assert [d["decision"] for d in store.decisions()][-1:] == ["plan"]  # accepted, then the job failed
+    assert store.describe_job(out.job_id).startswith("failed")
 
 
 def test_retraction_then_later_initial_is_planned_again(store):
@@ -162,7 +192,12 @@ def test_bad_input_is_one_rejected_outcome_and_one_log_line(store, caplog, case)
     assert nxt.decision == "ignore" and "never planned" in nxt.reason
 
 
-def test_crash_after_accept_resumes_with_the_same_plan_id(tmp_path):
+def observations(doc):
+    """What a plan asks the telescope to do: (field, filter, start) of every exposure."""
+    return [(o["field_id"], o["filter"], o["start"]) for o in doc["observations"]]
+
+
+def test_crash_after_accept_resumes_with_the_same_plan(tmp_path):
     rel = "json/MS181101ab-preliminary.json"
     s1 = Store(tmp_path / "a.sqlite")
     acc = pipe(s1).accept(raw(rel), "kafka:igwn.gwalert:0:7", created(rel))
@@ -174,9 +209,12 @@ def test_crash_after_accept_resumes_with_the_same_plan_id(tmp_path):
     assert resumed.decision == "plan" and resumed.published
     assert pipe(s2, sink).resume() == []  # nothing left
     s2.close()
-    fresh = Store(tmp_path / "b.sqlite")  # the same notice elsewhere gives the same id
-    assert pipe(fresh).handle(raw(rel), "x", created(rel)).plan_id == resumed.plan_id
+    fresh = Store(tmp_path / "b.sqlite")  # the same notice elsewhere gives the same plan
+    fresh_sink = MemorySink()
+    assert pipe(fresh, fresh_sink).handle(raw(rel), "x", created(rel)).plan_id == resumed.plan_id
     fresh.close()
+    [after_crash], [uninterrupted] = sink.messages, fresh_sink.messages
+    assert observations(after_crash) and observations(after_crash) == observations(uninterrupted)
 
 
 def test_sink_failure_keeps_the_message_in_the_outbox(store):

@@ -18,12 +18,44 @@ def _visits(plan):
     return by_field
 
 
-def test_greedy_plan_passes_the_checker(greedy_plan, skymap_220722v, greedy_config):
-    report = check_plan(greedy_plan, skymap_220722v, greedy_config)
+def test_unchecked_greedy_schedule_passes_the_checker(skymap_220722v, greedy_plan, greedy_config):
+    """The scheduler's own output, before make_plan's check, passes it (not true by construction)."""
+    from mushrooms.scheduler_core import prepare_problem
+    from mushrooms.scheduler_core.greedy import greedy_schedule
+    from mushrooms.scheduler_core.planner import build_plan
+
+    problem = prepare_problem(skymap_220722v, greedy_config, greedy_plan.start)
+    plan = build_plan(problem, greedy_schedule(problem), skymap_220722v, "greedy")
+    report = check_plan(plan, skymap_220722v, greedy_config)
     assert report.ok, report.problems
-    assert report.coverage == pytest.approx(greedy_plan.metrics.coverage, abs=2e-3)
-    assert greedy_plan.metrics.coverage > 0.05
-    assert greedy_plan.metrics.n_exposures == 2 * greedy_plan.metrics.n_fields
+    # the checker's footprints (great-circle CCD edges) and the schedulers' (projected plane) agree
+    assert report.coverage == pytest.approx(plan.metrics.coverage, abs=2e-4)
+    assert plan.metrics.n_exposures == 2 * plan.metrics.n_fields == len(plan.observations)
+
+
+def test_a_plan_failing_the_checker_is_refused_by_make_plan(monkeypatch, skymap_220722v, greedy_config):
+    import dataclasses
+
+    import mushrooms.scheduler_core.planner as planner
+    from mushrooms.scheduler_core.errors import PlanCheckError
+
+    real = planner.run_scheduler
+
+    def late_second_filter(problem, solver, should_stop=None):  # r visits 10 s short of the cadence
+        result = real(problem, solver, should_stop)
+        first = {}
+        for o in result.observations:
+            first.setdefault(o.field_id, o)
+        moved = tuple(dataclasses.replace(o, start=first[o.field_id].start + problem.config.cadence_s - 10.0)
+                      if o.filter == "r" and o.field_id == result.observations[0].field_id else o
+                      for o in result.observations)
+        return dataclasses.replace(result, observations=moved)
+
+    monkeypatch.setattr(planner, "run_scheduler", late_second_filter)
+    with pytest.raises(PlanCheckError) as info:
+        make_plan(skymap_220722v, greedy_config)
+    assert any(p.startswith("cadence: field ") and "1790 s apart" in p for p in info.value.problems)
+    assert str(info.value).startswith("plan failed the checker: ")
 
 
 def test_every_field_in_g_then_r_at_least_the_cadence_apart(greedy_plan, greedy_config):
@@ -60,8 +92,9 @@ def test_greedy_picks_the_most_probable_field_first(greedy_plan, skymap_220722v)
     assert first.field_id == best
 
 
-def test_same_inputs_give_the_same_plan_id(skymap_220722v, greedy_plan, greedy_config):
+def test_same_inputs_give_the_same_plan(skymap_220722v, greedy_plan, greedy_config):
     again = make_plan(skymap_220722v, greedy_config)
     assert again.plan_id == greedy_plan.plan_id
+    assert again.observations == greedy_plan.observations and len(again.observations) > 0
     other = make_plan(skymap_220722v, PlanningConfig(solver="greedy", exposure_s=240.0))
     assert other.plan_id != greedy_plan.plan_id

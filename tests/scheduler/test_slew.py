@@ -10,11 +10,15 @@ from mushrooms.scheduler_core.slew import axis_time, overhead_time, slew_matrix,
 
 
 def test_axis_time_trapezoid_and_triangle():
-    # HA axis: 0.4 deg/s2, 2.5 deg/s: top speed reached after 6.25 deg of travel
+    # HA axis: 0.4 deg/s2, 2.5 deg/s: top speed after 6.25 s and 7.8 deg; the ramps down and up take 15.6 deg
     assert axis_time(1.0, 0.4, 2.5) == pytest.approx(2 * np.sqrt(1 / 0.4))
     assert axis_time(20.0, 0.4, 2.5) == pytest.approx(20 / 2.5 + 2.5 / 0.4)
+    # the switch to cruising is at d = v^2 / a = 15.625 deg, not earlier: 5 and 14 deg are still triangles
+    assert axis_time(5.0, 0.4, 2.5) == pytest.approx(2 * np.sqrt(5.0 / 0.4))
+    assert axis_time(14.0, 0.4, 2.5) == pytest.approx(2 * np.sqrt(14.0 / 0.4))
+    assert axis_time(16.0, 0.4, 2.5) == pytest.approx(16.0 / 2.5 + 2.5 / 0.4)
     # continuous at the switch
-    assert axis_time(6.25 - 1e-9, 0.4, 2.5) == pytest.approx(axis_time(6.25 + 1e-9, 0.4, 2.5), rel=1e-6)
+    assert axis_time(15.625 - 1e-9, 0.4, 2.5) == pytest.approx(axis_time(15.625 + 1e-9, 0.4, 2.5), rel=1e-6)
 
 
 def test_slew_is_the_slower_axis_plus_settle_and_wraps_in_ra():
@@ -39,3 +43,13 @@ def test_matrix_is_symmetric_with_zero_diagonal():
     dec = np.array([0.0, 40.0, -20.0])
     s = slew_matrix(ra, dec)
     assert np.allclose(s, s.T) and np.all(np.diag(s) == 0) and np.all(s[~np.eye(3, dtype=bool)] >= 8.0)
+
+
+def test_a_tiny_slew_still_settles_and_the_model_passed_is_used():
+    m = SlewModel()
+    # 0.05 deg in HA takes 2 sqrt(0.05 / 0.4) = 0.71 s of motion, then the 1 s settle
+    assert slew_time(10.0, 0.0, 10.05, 0.0, m) == pytest.approx(2 * np.sqrt(0.05 / 0.4) + 1.0)
+    slow = SlewModel(ha_accel_deg_s2=0.1, ha_vmax_deg_s=1.0, settle_s=3.0, readout_s=20.0)
+    assert overhead_time(0, 0, 30, 0, slow) == pytest.approx(30 / 1.0 + 1.0 / 0.1 + 3.0)
+    assert overhead_time(0, 0, 0.1, 0, slow) == pytest.approx(20.0)
+    assert slew_matrix(np.array([0.0, 30.0]), np.array([0.0, 0.0]), slow)[0, 1] == pytest.approx(43.0)
