@@ -17,7 +17,6 @@ pieces to :func:`~mushrooms.scheduler_core.prepare.prepare_problem`.
 from __future__ import annotations
 
 import logging
-import math
 import threading
 import time
 from collections import OrderedDict
@@ -26,13 +25,13 @@ from typing import Any
 import numpy as np
 from astropy.time import Time, TimeDelta
 
+from ..scheduler_core.visibility import GRID_ANCHOR as NIGHT_ANCHOR
+from ..scheduler_core.visibility import NIGHT_S, night_steps
+
 __all__ = ["SkyCache", "NIGHT_S", "NIGHT_ANCHOR"]
 
 log = logging.getLogger(__name__)
 
-NIGHT_S = 86400.0
-#: Local mean noon at Palomar (lon -116.86 deg) on 2000-01-01: nights start here, every 24 h.
-NIGHT_ANCHOR = Time("2000-01-01T19:47:26.4", scale="utc")
 
 
 def _visibility_key(config: Any) -> tuple[float, ...]:
@@ -90,12 +89,12 @@ class SkyCache:
                 mask = self._nights.get(key)
             if mask is not None:
                 return mask
-            from ..scheduler_core.visibility import observing_conditions
+            from ..scheduler_core.visibility import grid_times, night_epoch, observing_conditions
 
             t0 = time.perf_counter()
-            j = self._night_steps(config.time_step_s, night)
-            times = NIGHT_ANCHOR + TimeDelta(j * config.time_step_s, format="sec")
-            mask = observing_conditions(self.grid.ra, self.grid.dec, times, config)
+            j = night_steps(config.time_step_s, night)
+            mask = observing_conditions(self.grid.ra, self.grid.dec, grid_times(j, config.time_step_s), config,
+                                        apparent_epoch=night_epoch(night))
             mask.setflags(write=False)
             with self._lock:
                 self.misses += 1
@@ -107,13 +106,6 @@ class SkyCache:
                      (NIGHT_ANCHOR + TimeDelta(night * NIGHT_S, format="sec")).isot[:10], mask.shape[0],
                      mask.shape[1], time.perf_counter() - t0)
             return mask
-
-    @staticmethod
-    def _night_steps(step_s: float, night: int) -> np.ndarray:
-        """Grid indices j (times ``NIGHT_ANCHOR + j * step``) of one night."""
-        j0 = math.ceil(night * NIGHT_S / step_s - 1e-9)
-        j1 = math.ceil((night + 1) * NIGHT_S / step_s - 1e-9)
-        return np.arange(j0, j1, dtype=np.int64)
 
     def windows(self, start: Time, config: Any) -> Any:
         """Windows of every grid field over ``[start, start + horizon]`` (s since ``start``).
@@ -129,23 +121,14 @@ class SkyCache:
         -------
         Windows
         """
-        from ..scheduler_core.visibility import windows_from_mask
+        from ..scheduler_core.visibility import windows_on_grid
 
         step = float(config.time_step_s)
-        t_start = float((start - NIGHT_ANCHOR).sec)
-        j_first = math.ceil(t_start / step - 1e-9)
-        j_last = math.floor((t_start + config.horizon_s) / step + 1e-9)
-        n_first = math.floor(j_first * step / NIGHT_S)
-        n_last = math.floor(j_last * step / NIGHT_S)
-        parts, js = [], []
-        for night in range(n_first, n_last + 1):
-            j = self._night_steps(step, night)
-            sel = (j >= j_first) & (j <= j_last)
-            parts.append(self._night_mask(config, night)[:, sel])
-            js.append(j[sel])
-        ok = np.concatenate(parts, axis=1)
-        offsets = np.concatenate(js) * step - t_start
-        return windows_from_mask(self.grid.ids, ok, offsets, config.exposure_s)
+
+        def conditions(night: int, j: np.ndarray) -> np.ndarray:
+            return self._night_mask(config, night)[:, j - night_steps(step, night)[0]]
+
+        return windows_on_grid(self.grid.ids, start, config, conditions)
 
     # ------------------------------------------------------------ whole problem
     def prepare(self, skymap: Any, config: Any, start: Time) -> Any:

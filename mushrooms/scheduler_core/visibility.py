@@ -13,11 +13,20 @@ at which every constraint holds: between two grid times the altitude, hour
 angle and Sun altitude are monotonic or convex enough that the constraints
 also hold in between, so windows are slightly conservative (by less than one
 grid step at each end), never optimistic.
+
+The grid times are whole steps from a fixed epoch, :data:`GRID_ANCHOR` (local
+mean noon at Palomar), and the apparent places of each *night* (the 24 h from
+one local noon to the next) are taken at that night's middle.  So the
+windows of a field do not depend on when the horizon starts or on which
+other fields are computed with it: a cache of the whole grid per night (the
+daemon's) gives exactly the windows computed here for one alert, and the
+same inputs give the same plan whichever path made it.
 """
 
 from __future__ import annotations
 
 import functools
+from typing import Callable
 
 import numpy as np
 from astropy import units as u
@@ -27,7 +36,14 @@ from astropy.time import Time, TimeDelta
 from .config import PlanningConfig
 from .problem import Windows
 
-__all__ = ["site", "observability_windows", "observing_conditions", "windows_from_mask", "mount_limits_ok", "PALOMAR"]
+__all__ = ["site", "observability_windows", "observing_conditions", "windows_from_mask", "mount_limits_ok", "PALOMAR",
+           "GRID_ANCHOR", "NIGHT_S", "night_steps", "night_epoch", "grid_times", "windows_on_grid"]
+
+#: Local mean noon at Palomar (lon -116.86 deg) on 2000-01-01: grid times are this plus whole
+#: time steps, and nights run from one such noon to the next.
+GRID_ANCHOR = Time("2000-01-01T19:47:26.4", scale="utc")
+#: Length of a night block (s).
+NIGHT_S = 86400.0
 
 #: P48 at Palomar (ztf_sim's coordinates): lat, lon (deg), height (m).
 PALOMAR = (33.35728, -116.85986, 1707.0)
@@ -175,6 +191,69 @@ def windows_from_mask(field_ids: np.ndarray, ok: np.ndarray, offsets_s: np.ndarr
     return Windows(field_ids=field_ids[rows[keep]], start=w_start[keep], end=w_end[keep])
 
 
+def night_steps(step_s: float, night: int) -> np.ndarray:
+    """Grid indices j (times ``GRID_ANCHOR + j * step_s``) that fall in one night.
+
+    Parameters
+    ----------
+    step_s : float
+        Grid step (s).
+    night : int
+        Nights since :data:`GRID_ANCHOR` (night 0 starts at it).
+    """
+    j0 = int(np.ceil(night * NIGHT_S / step_s - 1e-9))
+    j1 = int(np.ceil((night + 1) * NIGHT_S / step_s - 1e-9))
+    return np.arange(j0, j1, dtype=np.int64)
+
+
+def night_epoch(night: int) -> Time:
+    """The middle of a night: the epoch of its apparent places."""
+    return GRID_ANCHOR + TimeDelta((night + 0.5) * NIGHT_S, format="sec")
+
+
+def grid_times(j: np.ndarray, step_s: float) -> Time:
+    """The UTC times of grid indices ``j``."""
+    return GRID_ANCHOR + TimeDelta(np.asarray(j, dtype=np.int64) * step_s, format="sec")
+
+
+def windows_on_grid(field_ids: np.ndarray, start: Time, config: PlanningConfig,
+                    conditions: Callable[[int, np.ndarray], np.ndarray]) -> Windows:
+    """Windows over ``[start, start + horizon]`` from observability on the anchored grid.
+
+    Parameters
+    ----------
+    field_ids : numpy.ndarray
+        (n,) field IDs.
+    start : astropy.time.Time
+        Horizon start (UTC).
+    config : PlanningConfig
+        Horizon, grid step and exposure.
+    conditions : callable
+        ``conditions(night, j) -> (n, len(j))`` bool: every constraint at the
+        grid indices ``j`` of that night (apparent places at
+        :func:`night_epoch`).
+
+    Returns
+    -------
+    Windows
+        Times in s since ``start``.
+    """
+    step = float(config.time_step_s)
+    t_start = float((start - GRID_ANCHOR).sec)
+    j_first = int(np.ceil(t_start / step - 1e-9))
+    j_last = int(np.floor((t_start + config.horizon_s) / step + 1e-9))
+    parts, js = [], []
+    for night in range(int(np.floor(j_first * step / NIGHT_S)), int(np.floor(j_last * step / NIGHT_S)) + 1):
+        j = night_steps(step, night)
+        j = j[(j >= j_first) & (j <= j_last)]
+        if j.size:
+            parts.append(conditions(night, j))
+            js.append(j)
+    ok = np.concatenate(parts, axis=1)
+    offsets = np.concatenate(js) * step - t_start
+    return windows_from_mask(field_ids, ok, offsets, config.exposure_s)
+
+
 def observability_windows(
     field_ids: np.ndarray,
     ra_deg: np.ndarray,
@@ -201,9 +280,8 @@ def observability_windows(
         One row per window (s since ``start``); windows shorter than one
         exposure are dropped.
     """
-    n_steps = int(np.floor(config.horizon_s / config.time_step_s)) + 1
-    offsets = np.arange(n_steps) * config.time_step_s
-    times = start + TimeDelta(offsets, format="sec")
-    mid = start + TimeDelta(config.horizon_s / 2, format="sec")
-    ok = observing_conditions(ra_deg, dec_deg, times, config, apparent_epoch=mid)
-    return windows_from_mask(field_ids, ok, offsets, config.exposure_s)
+    def conditions(night: int, j: np.ndarray) -> np.ndarray:
+        return observing_conditions(ra_deg, dec_deg, grid_times(j, config.time_step_s), config,
+                                    apparent_epoch=night_epoch(night))
+
+    return windows_on_grid(np.asarray(field_ids), start, config, conditions)

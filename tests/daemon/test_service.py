@@ -110,6 +110,9 @@ def test_kill9_in_the_middle_of_a_job_then_restart_delivers_the_same_plan(broker
     expected = make_plan(read_skymap(fits, nside=conf.nside), conf, start=parse_time(start),
                          event=EventInfo(superevent_id="MS181101ab"))
     assert expected.plan_id == plan_a["plan_id"]
+    # and the same observations, not only the same id (the daemon's cached visibility is the direct one)
+    assert [(o["field_id"], o["filter"], o["start"]) for o in expected.to_document()["observations"]] == [
+        (o["field_id"], o["filter"], o["start"]) for o in plan_a["observations"]]
 
     # no notice skipped: every produced message is stored and every offset committed
     origins = {r[0] for r in _rows(state, "SELECT origin FROM notices")}
