@@ -93,6 +93,10 @@ class BenchSettings:
         gwemopt's interpreter (else ``$MUSHROOMS_GWEMOPT_PYTHON``).
     gwemopt_timeout_s : float
         Time limit of one gwemopt run (s).
+    gwemopt_cache_dir : str or None
+        Directory of cached raw gwemopt schedules (keyed on the sky map's
+        bytes and the options passed; format in
+        :mod:`~mushrooms.scheduler_core.gwemopt_baseline`); None = no cache.
     """
 
     config: Any
@@ -105,6 +109,7 @@ class BenchSettings:
     fixed_distance_mpc: float | None = None
     gwemopt_python: str | None = None
     gwemopt_timeout_s: float = 1800.0
+    gwemopt_cache_dir: str | None = None
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any], **base: Any) -> "BenchSettings":
@@ -252,7 +257,7 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
         try:
             if solver == "gwemopt":
                 run = run_gwemopt(path, start, cfg, python=settings.gwemopt_python,
-                                  timeout_s=settings.gwemopt_timeout_s)
+                                  timeout_s=settings.gwemopt_timeout_s, cache_dir=settings.gwemopt_cache_dir)
                 if run.status != "ok":
                     rows.append(_row(name, solver, status=run.status, valid=False, runtime_s=_fmt(run.runtime_s, 3),
                                      note="; ".join(filter(None, [note, run.message])), **common))

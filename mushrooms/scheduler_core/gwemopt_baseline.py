@@ -21,10 +21,23 @@ limmag texp[s] prob airmass filter``) becomes our :class:`~.plan.Plan`;
 gwemopt merges consecutive slots of one field and filter into one longer
 exposure, which is kept as such (``exposure_s`` may be a multiple of ~310 s).
 gwemopt's own efficiency code is never used.
+
+Cache of raw schedules (``cache_dir``): gwemopt takes ~90 s per map, so its
+raw output can be kept on disk and reused by later benchmarks.  One entry is
+two files named by :func:`cache_key` (sha256 of the sky map file's bytes and
+of the gwemopt options other than the input and output paths, i.e. horizon
+start, horizon length, filters, exposure, nside, airmass and the fixed
+options above): ``<key>.dat`` is gwemopt's ``schedule_ZTF.dat`` verbatim and
+``<key>.json`` holds ``{"skymap", "skymap_sha256", "args", "runtime_s",
+"status", "message", "created"}``.  Only successful runs are cached; an
+entry is written atomically (temporary name, then rename), so concurrent
+benchmarks may share one directory.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import subprocess
 import sys
@@ -39,7 +52,8 @@ from astropy.time import Time, TimeDelta
 from .config import PlanningConfig
 from .plan import Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 
-__all__ = ["GwemoptRun", "gwemopt_python", "run_gwemopt", "parse_schedule", "gwemopt_plan", "ENV_PYTHON"]
+__all__ = ["GwemoptRun", "gwemopt_python", "run_gwemopt", "parse_schedule", "gwemopt_plan", "cache_key",
+           "ENV_PYTHON"]
 
 #: Environment variable naming the interpreter of a gwemopt installation.
 ENV_PYTHON = "MUSHROOMS_GWEMOPT_PYTHON"
@@ -103,6 +117,44 @@ def gwemopt_args(skymap_path: str | Path, start: Time, config: PlanningConfig, o
         "--nside", str(config.nside),
         "--airmass", f"{config.airmass_max:g}",
     ]
+
+
+def _portable_args(args: list[str]) -> list[str]:
+    """The options without the input sky map and output directory (they name local paths)."""
+    out, skip = [], False
+    for a in args:
+        if skip:
+            skip = False
+            continue
+        if a in ("-e", "-o"):
+            skip = True
+            continue
+        out.append(a)
+    return out
+
+
+def cache_key(skymap_path: str | Path, start: Time, config: PlanningConfig) -> str:
+    """Cache key of one gwemopt run: sha256 of the map bytes and of its portable options (hex, 64 chars)."""
+    h = hashlib.sha256()
+    h.update(hashlib.sha256(Path(skymap_path).read_bytes()).hexdigest().encode())
+    h.update(json.dumps(_portable_args(gwemopt_args(skymap_path, start, config, "out"))).encode())
+    return h.hexdigest()
+
+
+def _cache_read(cache_dir: Path, key: str) -> tuple[str, dict] | None:
+    dat, meta = cache_dir / f"{key}.dat", cache_dir / f"{key}.json"
+    try:
+        return dat.read_text(), json.loads(meta.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _cache_write(cache_dir: Path, key: str, text: str, meta: dict) -> None:
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    for suffix, body in ((".dat", text), (".json", json.dumps(meta, indent=1, sort_keys=True))):
+        tmp = cache_dir / f".{key}{suffix}.{os.getpid()}.tmp"
+        tmp.write_text(body)
+        os.replace(tmp, cache_dir / f"{key}{suffix}")
 
 
 #: gwemopt's ZTF.config ``overhead_per_exposure`` (s): its time slots are exposure + this.
@@ -174,6 +226,7 @@ def run_gwemopt(
     python: str | None = None,
     timeout_s: float = 1800.0,
     workdir: str | Path | None = None,
+    cache_dir: str | Path | None = None,
 ) -> GwemoptRun:
     """Run gwemopt offline on one sky map.
 
@@ -191,11 +244,24 @@ def run_gwemopt(
         Kill gwemopt after this many seconds.
     workdir : str or pathlib.Path, optional
         Where gwemopt writes (default: a temporary directory, removed).
+    cache_dir : str or pathlib.Path, optional
+        Directory of cached raw schedules (see the module notes): a hit is
+        returned without running gwemopt (``runtime_s`` is that of the
+        original run), a successful run is stored.
 
     Returns
     -------
     GwemoptRun
     """
+    key = None
+    if cache_dir is not None:
+        cache_dir = Path(cache_dir)
+        key = cache_key(skymap_path, start, config)
+        hit = _cache_read(cache_dir, key)
+        if hit is not None:
+            text, meta = hit
+            return GwemoptRun("ok", parse_schedule(text, start, config.exposure_s),
+                              float(meta.get("runtime_s", 0.0)), "cached")
     exe = gwemopt_python(python)
     if exe is None:
         return GwemoptRun("unavailable", (), 0.0, f"no gwemopt interpreter (set ${ENV_PYTHON})")
@@ -215,7 +281,15 @@ def run_gwemopt(
             tail = (proc.stderr or proc.stdout or "").strip().splitlines()
             why = tail[-1] if tail else f"exit status {proc.returncode}"
             return GwemoptRun("failed", (), runtime, f"gwemopt exit {proc.returncode}: {why}"[:300])
-        obs = parse_schedule(sched.read_text(), start, config.exposure_s)
+        text = sched.read_text()
+        obs = parse_schedule(text, start, config.exposure_s)
+        if cache_dir is not None and key is not None:
+            args = _portable_args(gwemopt_args(skymap_path, start, config, out))
+            _cache_write(cache_dir, key, text, {
+                "skymap": Path(skymap_path).name,
+                "skymap_sha256": hashlib.sha256(Path(skymap_path).read_bytes()).hexdigest(),
+                "args": args, "runtime_s": round(runtime, 3), "status": "ok", "message": "",
+                "created": Time.now().isot + "Z"})
     return GwemoptRun("ok", obs, runtime, "")
 
 
