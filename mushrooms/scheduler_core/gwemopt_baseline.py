@@ -52,7 +52,8 @@ from astropy.time import Time, TimeDelta
 from .config import PlanningConfig
 from .plan import Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 
-__all__ = ["GwemoptRun", "gwemopt_python", "run_gwemopt", "parse_schedule", "gwemopt_plan", "cache_key",
+__all__ = ["GwemoptRun", "gwemopt_python", "run_gwemopt", "parse_schedule", "gwemopt_plan", "cache_key", "Repair",
+           "repair_observations",
            "ENV_PYTHON"]
 
 #: Environment variable naming the interpreter of a gwemopt installation.
@@ -321,3 +322,120 @@ def gwemopt_plan(run: GwemoptRun, start: Time, config: PlanningConfig, skymap_sh
         observations=run.observations,
         metrics=metrics,
     )
+
+
+@dataclass(frozen=True)
+class Repair:
+    """What :func:`repair_observations` removed or moved.
+
+    Attributes
+    ----------
+    observations : tuple of Observation
+        The repaired schedule, in time order.
+    counts : dict
+        Exposures dropped per reason (``filter``, ``field``, ``horizon``,
+        ``overlap``, ``window``, ``unpaired``) and ``delayed`` (exposures
+        moved later by at most one overhead to respect the slew time).
+    """
+
+    observations: tuple[Observation, ...]
+    counts: dict
+
+
+def repair_observations(observations, problem) -> Repair:
+    """A baseline's schedule with every exposure that breaks a rule removed.
+
+    Rules, in this order (the plan checker's, on the problem's windows):
+
+    1. ``filter``: only the configured filters;
+    2. ``field``: only candidate fields of the problem (fields without
+       probability or outside the declination band add nothing);
+    3. ``horizon``: inside the planning horizon;
+    4. ``window``: the whole exposure inside one window of its field
+       (Sun, airmass, hour angle and mount keep-out limits, Moon);
+    5. ``overlap``: in time order, an exposure starting before the previous
+       kept one ends is dropped; one that starts after it but too soon for
+       the slew/readout/filter change is delayed to the earliest allowed
+       start (``delayed``) and dropped if that leaves its window;
+    6. ``unpaired``: per field, one exposure in each filter the cadence
+       apart is kept (the earliest such pair), with any other exposure that
+       stays the cadence away from every kept one of the other filter; a
+       field without such a pair loses all its exposures.
+
+    Removing exposures only lengthens the gaps between the others, so the
+    result passes the same rules again.
+
+    Parameters
+    ----------
+    observations : sequence of Observation
+        The schedule (times in s since the horizon start).
+    problem : PlanningProblem
+        Windows, candidate fields and configuration.
+
+    Returns
+    -------
+    Repair
+    """
+    from .slew import overhead_time
+
+    cfg = problem.config
+    counts = {k: 0 for k in ("filter", "field", "horizon", "window", "overlap", "unpaired", "delayed")}
+    w = problem.windows
+    candidates = set(int(f) for f in problem.field_ids)
+
+    def in_window(o: Observation, t: float) -> bool:
+        return w.contains(o.field_id, t, t + o.exposure_s)
+
+    kept = []
+    for o in sorted(observations, key=lambda ob: ob.start):
+        if o.filter not in cfg.filters:
+            counts["filter"] += 1
+        elif o.field_id not in candidates:
+            counts["field"] += 1
+        elif o.start < 0 or o.end > problem.horizon_s:
+            counts["horizon"] += 1
+        elif not in_window(o, o.start):
+            counts["window"] += 1
+        else:
+            kept.append(o)
+    timed: list[Observation] = []
+    for o in kept:
+        if timed:
+            p = timed[-1]
+            if o.start < p.end:
+                counts["overlap"] += 1
+                continue
+            need = float(overhead_time(p.ra, p.dec, o.ra, o.dec, cfg.slew,
+                                       cfg.filter_change_s if p.filter != o.filter else 0.0))
+            if o.start < p.end + need:
+                t = p.end + need
+                if not in_window(o, t) or t + o.exposure_s > problem.horizon_s:
+                    counts["overlap"] += 1
+                    continue
+                o = Observation(o.field_id, o.ra, o.dec, o.filter, float(t), o.exposure_s, o.block)
+                counts["delayed"] += 1
+        timed.append(o)
+    f1, f2 = cfg.filters
+    by_field: dict[int, list[Observation]] = {}
+    for o in timed:
+        by_field.setdefault(o.field_id, []).append(o)
+    final: list[Observation] = []
+    for fid, obs in by_field.items():
+        a = [o for o in obs if o.filter == f1]
+        b = [o for o in obs if o.filter == f2]
+        pairs = [(max(x.start, y.start), x, y) for x in a for y in b if abs(x.start - y.start) >= cfg.cadence_s - 1e-3]
+        if not pairs:
+            counts["unpaired"] += len(obs)
+            continue
+        _, x, y = min(pairs, key=lambda p: p[0])
+        keep = [x, y]
+        for o in sorted(obs, key=lambda ob: ob.start):
+            if o is x or o is y:
+                continue
+            other = [k for k in keep if k.filter != o.filter]
+            if all(abs(o.start - k.start) >= cfg.cadence_s - 1e-3 for k in other):
+                keep.append(o)
+            else:
+                counts["unpaired"] += 1
+        final += keep
+    return Repair(sorted_observations(final), counts)
