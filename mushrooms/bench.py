@@ -561,8 +561,14 @@ def summarize(rows: Sequence[Mapping[str, Any]], eff_keys: Sequence[str] = ("opt
     lines.append("")
     lines.append("A vs B: maps where A wins/loses/ties against B "
                  "(coverage tie <= 1e-4; efficiency tie <= 1e-3):")
-    for i, base in enumerate(names):
-        for s in names[i + 1:]:
+    baselines = ("greedy", "gwemopt", "gwemopt-repaired")
+
+    def rank(name: str) -> int:  # the lower rank of a pair is the base it is compared with
+        return baselines.index(name) if name in baselines else len(baselines) + names.index(name)
+
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            base, s = sorted((a, b), key=rank)
             parts = [f"coverage {'%d/%d/%d' % _wins(all_rows, s, base, 'coverage', TIE_COVERAGE)}"]
             for k in eff_keys:
                 parts.append(f"eff_{k[:4]} {'%d/%d/%d' % _wins(all_rows, s, base, f'efficiency_{k}', TIE_EFFICIENCY)}")

@@ -113,3 +113,11 @@ def test_bad_config_key_is_named(tmp_path):
     cfg.write_text("[scheduler]\nexposure = 30\n")
     r = mushrooms("plan", str(MAP), "--config", str(cfg))
     assert r.returncode == 2 and "unknown [scheduler] key(s): exposure" in r.stderr
+
+
+def test_cli_solver_choices_are_the_schedulers_names() -> None:
+    from mushrooms.cli import SOLVER_CHOICES
+    from mushrooms.scheduler_core.config import SOLVER_NAMES
+    from mushrooms.scheduler_core.planner import SOLVERS
+
+    assert tuple(SOLVER_CHOICES) == SOLVER_NAMES == SOLVERS
