@@ -103,6 +103,9 @@ class BenchSettings:
         Directory of cached raw gwemopt schedules (keyed on the sky map's
         bytes and the options passed; format in
         :mod:`~mushrooms.scheduler_core.gwemopt_baseline`); None = no cache.
+    gwemopt_cache_only : bool
+        With a cache: never run gwemopt, a map not in the cache gets the
+        row status ``not_cached`` (score cached schedules quickly).
     """
 
     config: Any
@@ -116,6 +119,7 @@ class BenchSettings:
     gwemopt_python: str | None = None
     gwemopt_timeout_s: float = 1800.0
     gwemopt_cache_dir: str | None = None
+    gwemopt_cache_only: bool = False
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any], **base: Any) -> "BenchSettings":
@@ -274,7 +278,8 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
             if solver in ("gwemopt", "gwemopt-repaired"):
                 if gw_run is None:
                     gw_run = run_gwemopt(path, start, cfg, python=settings.gwemopt_python,
-                                         timeout_s=settings.gwemopt_timeout_s, cache_dir=settings.gwemopt_cache_dir)
+                                         timeout_s=settings.gwemopt_timeout_s, cache_dir=settings.gwemopt_cache_dir,
+                                         cache_only=settings.gwemopt_cache_only)
                 run = gw_run
                 if run.status != "ok":
                     rows.append(_row(name, solver, status=run.status, valid=False, runtime_s=_fmt(run.runtime_s, 3),

@@ -77,7 +77,7 @@ class GwemoptRun:
     Attributes
     ----------
     status : str
-        ``ok``, ``unavailable``, ``failed`` or ``timeout``.
+        ``ok``, ``unavailable``, ``failed``, ``timeout`` or ``not_cached``.
     observations : tuple of Observation
         Converted schedule (times in s since the horizon start).
     runtime_s : float
@@ -228,6 +228,7 @@ def run_gwemopt(
     timeout_s: float = 1800.0,
     workdir: str | Path | None = None,
     cache_dir: str | Path | None = None,
+    cache_only: bool = False,
 ) -> GwemoptRun:
     """Run gwemopt offline on one sky map.
 
@@ -249,6 +250,8 @@ def run_gwemopt(
         Directory of cached raw schedules (see the module notes): a hit is
         returned without running gwemopt (``runtime_s`` is that of the
         original run), a successful run is stored.
+    cache_only : bool
+        With ``cache_dir``: never run gwemopt; a miss is status ``not_cached``.
 
     Returns
     -------
@@ -263,6 +266,8 @@ def run_gwemopt(
             text, meta = hit
             return GwemoptRun("ok", parse_schedule(text, start, config.exposure_s),
                               float(meta.get("runtime_s", 0.0)), "cached")
+        if cache_only:
+            return GwemoptRun("not_cached", (), 0.0, f"not in the gwemopt cache {cache_dir}")
     exe = gwemopt_python(python)
     if exe is None:
         return GwemoptRun("unavailable", (), 0.0, f"no gwemopt interpreter (set ${ENV_PYTHON})")
