@@ -15,7 +15,7 @@ exposure at a time with at least the readout between two.  Hence
 
 The bound is an upper bound on the optimum of the maximum coverage problem
 ``max Σ w_c y_c`` s.t. ``y_c <= Σ_{f ∋ c} z_f``, ``Σ_f z_f <= K`` over the
-pairable fields (U4).  By default it is the *online bound* of the greedy
+pairable fields (U0).  By default it is the *online bound* (U4) of the greedy
 algorithm (Leskovec et al. 2007, from submodularity): for every greedy
 prefix S_i, ``OPT <= f(S_i) + Σ (the K largest marginal gains given S_i)``;
 the least over a dozen prefixes is taken, and it is at most the probability
@@ -122,7 +122,7 @@ N_CHECKPOINTS = 12
 
 
 def _online_bound(footprints, prob: np.ndarray, K: int) -> float:
-    """min over greedy prefixes S_i of f(S_i) + the K largest marginal gains given S_i."""
+    """(U4) min over greedy prefixes S_i of f(S_i) + the K largest marginal gains given S_i."""
     from .prune import greedy_max_coverage
 
     picked = greedy_max_coverage(footprints, prob, K)
