@@ -43,7 +43,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .cells import merge_cells
-from .problem import PlanningProblem
+from .problem import PlanningProblem, union_intervals
 from .solvers import MilpModel, solve_milp
 
 __all__ = ["UpperBound", "pairable_rows", "max_fields", "coverage_upper_bound"]
@@ -106,12 +106,8 @@ def max_fields(problem: PlanningProblem, rows: np.ndarray) -> int:
     sel = np.isin(fid, problem.field_ids[rows]) & (b - a >= cfg.exposure_s)
     if not sel.any():
         return 0
-    a, b = a[sel], b[sel]
-    order = np.argsort(a)
-    a, b = a[order], b[order]
-    reach = np.maximum.accumulate(b)
-    new = np.concatenate([[True], a[1:] > reach[:-1]])
-    seg = np.maximum.reduceat(b, np.flatnonzero(new)) - a[new]
+    starts, ends = union_intervals(a[sel], b[sel])
+    seg = ends - starts
     r = cfg.slew.readout_s
     n_exp = np.floor((seg + r) / (cfg.exposure_s + r) + 1e-9).sum()
     return int(n_exp // 2)

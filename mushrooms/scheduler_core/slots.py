@@ -39,7 +39,7 @@ import scipy.sparse as sp
 
 from .cells import Cells, merge_cells
 from .config import PlanningConfig
-from .problem import PlanningProblem
+from .problem import PlanningProblem, union_intervals
 from .solvers import MilpModel
 
 __all__ = ["SlotGrid", "SlotInstance", "SlotModel", "block_length_s", "second_pass_delay_s",
@@ -124,18 +124,8 @@ def observable_segments(problem: PlanningProblem, rows: np.ndarray | None = None
     """
     w = problem.windows
     sel = np.ones(w.field_ids.size, bool) if rows is None else np.isin(w.field_ids, problem.field_ids[rows])
-    a = np.clip(w.start[sel], 0.0, problem.horizon_s)
-    b = np.clip(w.end[sel], 0.0, problem.horizon_s)
-    keep = b > a
-    a, b = a[keep], b[keep]
-    if a.size == 0:
-        return []
-    order = np.argsort(a)
-    a, b = a[order], b[order]
-    reach = np.maximum.accumulate(b)
-    new = np.concatenate([[True], a[1:] > reach[:-1]])
-    starts = a[new]
-    ends = np.maximum.reduceat(b, np.flatnonzero(new))
+    starts, ends = union_intervals(np.clip(w.start[sel], 0.0, problem.horizon_s),
+                                   np.clip(w.end[sel], 0.0, problem.horizon_s))
     return [(float(s), float(e)) for s, e in zip(starts, ends)]
 
 
