@@ -164,3 +164,26 @@ def test_post_processing_drops_a_field_pushed_out_of_its_window():
     assert dropped == [2]
     assert {o.field_id for o in obs} == {1}
     assert check_observations(problem, obs) == []
+
+
+def test_slot_portfolio_stops_when_asked(monkeypatch):
+    import mushrooms.scheduler_core.slot_schedule as ss
+
+    problem = random_problem(1, config=tiny_config(n_blocks_max=3, penalty=0.0, n_fields=None, horizon_h=2.0,
+                                                   slot_positions=(1, 2, 3)))
+    greedy = greedy_schedule(problem)
+    stopped = slot_schedule(problem, should_stop=lambda: True, start=greedy)
+    assert stopped.status == "interrupted" and stopped.details["grids"] == [] and not stopped.observations
+    # asked to stop once the first grid is solved: the later grids are never solved
+    solved: list = []
+    real = ss.solve_milp
+
+    def counting(*args, **kwargs):
+        solved.append(real(*args, **kwargs))
+        return solved[-1]
+
+    monkeypatch.setattr(ss, "solve_milp", counting)
+    result = slot_schedule(problem, should_stop=lambda: bool(solved), start=greedy)
+    assert len(result.details["grids"]) == 1 < len(slot_portfolio(problem, slot_rows(problem)))
+    assert result.status == "interrupted" and result.observations
+    assert check_observations(problem, result.observations) == []
