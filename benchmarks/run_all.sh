@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Reproduce the issue-6 benchmark table: every scheduler on every shared sky map.
 #
-#   benchmarks/run_all.sh                      # greedy,milp,hybrid,gwemopt on ../shared/data/skymaps
+#   benchmarks/run_all.sh                      # greedy,slots,blocks,hybrid,gwemopt(-repaired) on ../shared/data/skymaps
 #   SOLVERS=greedy,gwemopt JOBS=2 benchmarks/run_all.sh
 #
 # gwemopt runs in its own virtual environment (never in .venv); point
@@ -10,7 +10,7 @@ set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 PY=${PYTHON:-$ROOT/.venv/bin/python}
 MAPS=${MAPS:-$ROOT/../shared/data/skymaps}
-SOLVERS=${SOLVERS:-greedy,milp,hybrid,gwemopt}
+SOLVERS=${SOLVERS:-greedy,slots,blocks,hybrid,gwemopt,gwemopt-repaired}
 JOBS=${JOBS:-2}
 INJECTIONS=${INJECTIONS:-10000}
 OUT=${OUT:-$ROOT/benchmarks/results}

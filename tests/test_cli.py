@@ -143,3 +143,11 @@ def test_plan_with_a_deadline_writes_the_best_plan_found_by_then(tmp_path, plann
         [(o["field_id"], o["filter"], o["start"]) for o in greedy["observations"]]
     bad = mushrooms("plan", str(MAP), "--deadline", "-3", "-o", str(tmp_path / "x.json"))
     assert bad.returncode == 2 and "--deadline" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_cli_solver_choices_are_the_schedulers_names() -> None:
+    from mushrooms.cli import SOLVER_CHOICES
+    from mushrooms.scheduler_core.config import SOLVER_NAMES
+    from mushrooms.scheduler_core.planner import SOLVERS
+
+    assert tuple(SOLVER_CHOICES) == SOLVER_NAMES == SOLVERS

@@ -1,5 +1,8 @@
 """The block-division MILP (paper appendix A, with the fixes of DESIGN.md).
 
+Equations B0-B11 of ``docs/design/milp.md`` (B1-B7 in the appendix's order);
+each constraint block below carries its number.
+
 Times are seconds since the horizon start.  A *candidate* is one
 (shortlisted field, observability window) pair: a field with two windows
 over the horizon has two candidates, and at most one of them is used.
@@ -236,7 +239,7 @@ class _Rows:
 
 
 def build_block_model(candidates: Candidates, cells: Cells, n_fields: int, params: BlockParams) -> BlockModel:
-    """Assemble the block-division MILP.
+    """Assemble the block-division MILP (equations B0-B11 of ``docs/design/milp.md``).
 
     Parameters
     ----------
@@ -270,48 +273,49 @@ def build_block_model(candidates: Candidates, cells: Cells, n_fields: int, param
     ts, te = np.asarray(candidates.start, float), np.asarray(candidates.end, float)
     rows = _Rows()
 
-    # x_j - Σ_{i, k of j} B[i, k] = 0
+    # (B8) each field at most once: x_j - Σ_{i, k of j} B[i, k] = 0
     rows.add(F, [(np.arange(F), ox + np.arange(F), 1.0),
                  (candidates.field[cand], colB, -1.0)], 0.0, 0.0)
-    # y_c - Σ_{j ∋ c} x_j <= 0
+    # (B4) cell coverage: y_c - Σ_{j ∋ c} x_j <= 0
     cell_of = np.repeat(np.arange(C), np.diff(cells.indptr))
     rows.add(C, [(np.arange(C), oy + np.arange(C), 1.0),
                  (cell_of, ox + cells.fields, -1.0)], -np.inf, 0.0)
-    # B[i, k] - U[i] <= 0
+    # (B2) a block with an observation is used: B[i, k] - U[i] <= 0
     rows.add(nb * K, [(np.arange(nb * K), colB, 1.0), (np.arange(nb * K), oU + blk, -1.0)], -np.inf, 0.0)
-    # Σ_k B[i, k] - b_size U[i] >= 0
+    # (B1) least block size: Σ_k B[i, k] - b_size U[i] >= 0
     rows.add(nb, [(blk, colB, 1.0), (np.arange(nb), oU + np.arange(nb), -float(b_eff))], 0.0, np.inf)
-    # U[i] - U[i-1] <= 0
+    # (B3) unused blocks last: U[i] - U[i-1] <= 0
     if nb > 1:
         rows.add(nb - 1, [(np.arange(nb - 1), oU + np.arange(1, nb), 1.0),
                           (np.arange(nb - 1), oU + np.arange(nb - 1), -1.0)], -np.inf, 0.0)
-    # d[i] - 2 s n_i - (t_filt + e_i) U_i >= 0 ;  d[i] - s n_i - (cadence + e_i) U_i >= 0
+    # (B9) duration: d[i] - 2 s n_i - (t_filt + e_i) U_i >= 0 ;  d[i] - s n_i - (cadence + e_i) U_i >= 0
     extra = np.asarray(params.extra, float)
     rows.add(nb, [(np.arange(nb), od + np.arange(nb), 1.0), (blk, colB, -2.0 * s),
                   (np.arange(nb), oU + np.arange(nb), -(params.filter_change_s + extra))], 0.0, np.inf)
     rows.add(nb, [(np.arange(nb), od + np.arange(nb), 1.0), (blk, colB, -s),
                   (np.arange(nb), oU + np.arange(nb), -(params.cadence_s + extra))], 0.0, np.inf)
-    # t[i] - T_s[k] B[i, k] >= 0
+    # (B6) start inside every member's window: t[i] - T_s[k] B[i, k] >= 0
     rows.add(nb * K, [(np.arange(nb * K), ot + blk, 1.0), (np.arange(nb * K), colB, -ts[cand])], 0.0, np.inf)
-    # t[i] + d[i] + (H - T_e[k]) B[i, k] <= H
+    # (B5) end inside every member's window: t[i] + d[i] + (H - T_e[k]) B[i, k] <= H
     rows.add(nb * K, [(np.arange(nb * K), ot + blk, 1.0), (np.arange(nb * K), od + blk, 1.0),
                       (np.arange(nb * K), colB, H - te[cand])], -np.inf, H)
-    # t[i] - t[i-1] - d[i-1] - (t_filt + g_{i-1}) U_i >= 0
+    # (B7) after the previous block ends: t[i] - t[i-1] - d[i-1] - (t_filt + g_{i-1}) U_i >= 0
     if nb > 1:
         i = np.arange(1, nb)
         r = np.arange(nb - 1)
         rows.add(nb - 1, [(r, ot + i, 1.0), (r, ot + i - 1, -1.0), (r, od + i - 1, -1.0),
                           (r, oU + i, -(params.filter_change_s + np.asarray(params.gaps, float)))], 0.0, np.inf)
-    # Σ_i d[i] <= time during which some candidate is observable (blocks are disjoint
+    # (B10) Σ_i d[i] <= time during which some candidate is observable (blocks are disjoint
     # and each lies inside a window): a valid cut the big-M rows alone do not give
     if K:
         rows.add(1, [(np.zeros(nb, np.int64), od + np.arange(nb), 1.0)], -np.inf,
                  _union_length(ts, te))
-    # t[i] + d[i] <= H
+    # (B11) horizon: t[i] + d[i] <= H
     rows.add(nb, [(np.arange(nb), ot + np.arange(nb), 1.0), (np.arange(nb), od + np.arange(nb), 1.0)],
              -np.inf, H)
 
     A, lo, hi = rows.matrix(n_cols)
+    # (B0) objective: Σ w_c y_c - p Σ B[i, k]
     c = np.zeros(n_cols)
     c[oB:ox] = -params.penalty
     c[oy:oU] = cells.weight

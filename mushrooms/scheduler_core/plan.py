@@ -35,7 +35,7 @@ EVENT_KEYS = ("superevent_id", "alert_type", "time_created", "skymap_sha256", "l
               "event_time", "skymap_name")
 METRIC_KEYS = (
     "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
-    "n_fields", "n_exposures", "latency_s",
+    "n_fields", "n_exposures", "latency_s", "upper_bound",
 )
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
 
@@ -162,6 +162,9 @@ class PlanMetrics:
         Distinct fields and exposures in the plan.
     latency_s : float or None
         Alert receipt to plan published (s), filled in by the service.
+    upper_bound : float or None
+        Certified upper bound on the coverage any rule-abiding plan of this
+        problem reaches (:mod:`.bound`; None when not computed, e.g. greedy).
     """
 
     coverage: float
@@ -173,6 +176,7 @@ class PlanMetrics:
     n_exposures: int
     latency_s: float | None = None
     mip_bound: float | None = None
+    upper_bound: float | None = None
 
 
 def make_plan_id(*parts: Any) -> str:

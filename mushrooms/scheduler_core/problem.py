@@ -18,7 +18,7 @@ from astropy.time import Time
 from .config import PlanningConfig
 from .plan import Observation
 
-__all__ = ["Footprints", "Windows", "PlanningProblem", "ScheduleResult", "StopCheck"]
+__all__ = ["Footprints", "Windows", "PlanningProblem", "ScheduleResult", "StopCheck", "union_intervals"]
 
 #: A callable the scheduler polls; True means "stop now, return what you have".
 StopCheck = Callable[[], bool]
@@ -64,7 +64,12 @@ class Footprints:
             return np.zeros(0, dtype=np.int64)
         rows = np.flatnonzero(np.isin(self.field_ids, ids))
         parts = [self.indices[self.indptr[k]:self.indptr[k + 1]] for k in rows]
-        return np.unique(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.int64)
+        if not parts:
+            return np.zeros(0, dtype=np.int64)
+        # a mask over the sphere is much faster than np.unique on ~1e6 indices
+        mask = np.zeros(12 * self.nside * self.nside, dtype=bool)
+        mask[np.concatenate(parts)] = True
+        return np.flatnonzero(mask)
 
     def coverage(self, field_ids: Any, prob: np.ndarray) -> float:
         """Probability inside the union of the given fields' footprints."""
@@ -87,6 +92,23 @@ class Footprints:
         indptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
         indices = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
         return Footprints(self.nside, ids, indptr, indices)
+
+
+def union_intervals(start: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Disjoint (start, end) intervals covering the union of the given ones, in time order.
+
+    Intervals with ``end <= start`` are ignored; touching ones merge.
+    """
+    start, end = np.asarray(start, float), np.asarray(end, float)
+    keep = end > start
+    a, b = start[keep], end[keep]
+    if a.size == 0:
+        return np.zeros(0), np.zeros(0)
+    order = np.argsort(a, kind="stable")
+    a, b = a[order], b[order]
+    reach = np.maximum.accumulate(b)
+    new = np.concatenate([[True], a[1:] > reach[:-1]])
+    return a[new], np.maximum.reduceat(b, np.flatnonzero(new))
 
 
 @dataclass(frozen=True)
