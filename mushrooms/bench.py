@@ -417,12 +417,12 @@ def run_bench(paths: Sequence[str | Path], settings: BenchSettings, jobs: int = 
 def write_csv(rows: Iterable[Mapping[str, Any]], path: str | Path) -> None:
     """Write rows with the :data:`COLUMNS` header (atomic replace).
 
-    Efficiency columns of extra light curves (``efficiency_<name>``) follow
-    the required ones.
+    Efficiency columns of extra light curves and the paired differences
+    (``efficiency_<name>...``) follow the nine required columns.
     """
     rows = list(rows)
     extra = [k for k in dict.fromkeys(k for r in rows for k in r) if k.startswith("efficiency_") and k not in COLUMNS]
-    columns = list(COLUMNS[:5]) + extra + list(COLUMNS[5:])
+    columns = list(COLUMNS[:9]) + extra + list(COLUMNS[9:])
     path = Path(path)
     if path.parent and not path.parent.exists():
         path.parent.mkdir(parents=True, exist_ok=True)

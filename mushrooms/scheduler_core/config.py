@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Mapping
+
+from .lightcurves import PAPER_LIGHTCURVES
 
 __all__ = ["PlanningConfig", "SlewModel", "dataclass_from_table"]
 
@@ -132,6 +135,9 @@ class PlanningConfig:
         of its window.
     slew : SlewModel
         Telescope slew model.
+    detection_lightcurve : str
+        Kilonova model (``optimistic``, ``conservative``, ``nsbh`` or a
+        light-curve file) of the plans' ``expected_detections`` metric.
     """
 
     nside: int = 256
@@ -160,6 +166,7 @@ class PlanningConfig:
     threads: int = 0
     max_retries: int = 3
     slew: SlewModel = field(default_factory=SlewModel)
+    detection_lightcurve: str = "conservative"
 
     def __post_init__(self) -> None:
         problems = []
@@ -184,6 +191,9 @@ class PlanningConfig:
             problems.append(f"min_block_size must be >= 0, got {self.min_block_size}")
         if self.n_blocks_max < 1:
             problems.append(f"n_blocks_max must be >= 1, got {self.n_blocks_max}")
+        if self.detection_lightcurve not in PAPER_LIGHTCURVES and not Path(self.detection_lightcurve).is_file():
+            problems.append(f"detection_lightcurve must be {', '.join(PAPER_LIGHTCURVES)} or a light-curve file, "
+                            f"got {self.detection_lightcurve!r}")
         if problems:
             raise ValueError("; ".join(problems))
 

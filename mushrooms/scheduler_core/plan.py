@@ -35,6 +35,7 @@ OBSERVATION_KEYS = ("field_id", "ra", "dec", "filter", "start", "exposure_s", "b
 METRIC_KEYS = (
     "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
     "n_fields", "n_exposures", "latency_s",
+    "expected_detections",
 )
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
 
@@ -133,6 +134,11 @@ class PlanMetrics:
         Distinct fields and exposures in the plan.
     latency_s : float or None
         Alert receipt to plan published (s), filled in by the service.
+    expected_detections : float or None
+        Probability that the plan detects a kilonova of the configured light
+        curve (``detection_lightcurve``), from the sky map's distance
+        posterior and each exposure's depth (:mod:`.detection`, equation
+        X1); None without distance layers.
     """
 
     coverage: float
@@ -144,6 +150,7 @@ class PlanMetrics:
     n_exposures: int
     latency_s: float | None = None
     mip_bound: float | None = None
+    expected_detections: float | None = None
 
 
 def make_plan_id(*parts: Any) -> str:

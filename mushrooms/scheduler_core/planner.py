@@ -181,7 +181,7 @@ def build_plan(
     plan_id = make_plan_id(
         skymap.sha256, iso_utc(start), dataclasses.asdict(config), solver, event.superevent_id,
     )
-    return Plan(
+    plan = Plan(
         plan_id=plan_id,
         start=start,
         end=start + TimeDelta(config.horizon_s, format="sec"),
@@ -190,3 +190,16 @@ def build_plan(
         event=event,
         supersedes=supersedes,
     )
+    return plan.with_(metrics=dataclasses.replace(
+        metrics, expected_detections=_expected_detections(plan, problem, skymap)))
+
+
+def _expected_detections(plan: Plan, problem: PlanningProblem, skymap: SkyMap) -> float | None:
+    """metrics.expected_detections for the configured light curve (None without distance layers)."""
+    from .detection import expected_detections
+    from .kilonova import load_kilonova
+
+    if not skymap.has_distance or skymap.event_time is None:
+        return None
+    e = expected_detections(plan, skymap, problem.footprints, load_kilonova(problem.config.detection_lightcurve))
+    return None if e is None else round(e, 6)
