@@ -70,6 +70,8 @@ __all__ = [
 #: ZTF's published median 5-sigma depths (AB mag) of a 30 s exposure.
 ZTF_MEDIAN_DEPTH_30S: Mapping[str, float] = {"g": 20.8, "r": 20.6, "i": 19.9}
 
+#: Step (s) of the Sun and Moon ephemeris grid that :func:`sky_conditions` interpolates.
+EPHEMERIS_STEP_S = 600.0
 #: K&S eq. 3 constant (airmass of a thin layer at height ~ 10 km).
 _KS_AIRMASS = 0.96
 #: Sun colours (AB) relative to V, for the colour of moonlight (Willmer 2018).
@@ -124,46 +126,65 @@ def sky_conditions(ra_deg: np.ndarray, dec_deg: np.ndarray, times: Time) -> SkyC
     -------
     SkyConditions
         Arrays of the broadcast shape.  The Sun and the Moon come from
-        astropy once per distinct time; field altitudes follow in closed form
-        from the local apparent sidereal time and the fields' apparent place
-        (as in :mod:`.visibility`), so a whole field-by-slot grid costs one
-        astropy call per time, not per pointing.
+        astropy at the distinct times, or on a grid of
+        :data:`EPHEMERIS_STEP_S` over their span when that is coarser,
+        linearly interpolated (the Moon moves 0.14 deg in 10 min);
+        field altitudes follow in closed form from the local apparent
+        sidereal time and the fields' apparent place (as in
+        :mod:`.visibility`), so a whole field-by-slot grid costs a few
+        astropy calls, not one per pointing.
     """
     ra = np.asarray(ra_deg, float)
     dec = np.asarray(dec_deg, float)
     jd = np.asarray(times.utc.jd, float)
-    uniq, inv = np.unique(jd.ravel(), return_inverse=True)
-    inv = inv.reshape(jd.shape)
-    tu = Time(uniq, format="jd", scale="utc")
     loc = site()
-    frame = AltAz(obstime=tu, location=loc)
-    sun = get_body("sun", tu, loc)
-    moon = get_body("moon", tu, loc)
-    sun_alt = sun.transform_to(frame).alt.deg
-    moon_alt = moon.transform_to(frame).alt.deg
+    # Sun and Moon on a grid of at most EPHEMERIS_STEP_S, linearly interpolated:
+    # astropy's cost grows with the number of times, not with the pointings
+    lo, hi = float(jd.min()), float(jd.max())
+    n_grid = max(2, int(np.ceil((hi - lo) * 86400.0 / EPHEMERIS_STEP_S)) + 1)
+    grid = np.unique(jd)
+    if grid.size > n_grid:
+        grid = np.linspace(lo, hi, n_grid)
+    elif grid.size == 1:
+        grid = np.array([lo, lo + 1e-6])
+    tg = Time(grid, format="jd", scale="utc")
+    frame = AltAz(obstime=tg, location=loc)
+    sun = get_body("sun", tg, loc)
+    moon = get_body("moon", tg, loc)
     elong = sun.separation(moon).rad
     d_sun = sun.distance.to_value(u.km)
     d_moon = moon.distance.to_value(u.km)
-    phase = np.abs(np.degrees(np.arctan2(d_sun * np.sin(elong), d_moon - d_sun * np.cos(elong))))
-    lst = tu.sidereal_time("apparent", longitude=loc.lon).deg
-    mid = Time(np.median(uniq), format="jd", scale="utc")
+    phase_g = np.abs(np.degrees(np.arctan2(d_sun * np.sin(elong), d_moon - d_sun * np.cos(elong))))
+    mra_g, mdec_g = np.radians(moon.ra.deg), np.radians(moon.dec.deg)
+    moon_xyz = [np.cos(mdec_g) * np.cos(mra_g), np.cos(mdec_g) * np.sin(mra_g), np.sin(mdec_g)]
+
+    def at(values: np.ndarray) -> np.ndarray:
+        return np.interp(jd, grid, values)
+
+    sun_alt = at(sun.transform_to(frame).alt.deg)
+    moon_alt = at(moon.transform_to(frame).alt.deg)
+    phase = at(phase_g)
+    mx, my, mz = (at(c) for c in moon_xyz)
+    # local apparent sidereal time advances at the sidereal rate from the first grid time
+    lst0 = float(tg[0].sidereal_time("apparent", longitude=loc.lon).deg)
+    lst = lst0 + 360.98564736629 * (jd - grid[0])
+    mid = Time(0.5 * (lo + hi), format="jd", scale="utc")
     flat_ra, flat_dec = np.broadcast_arrays(ra, dec)
     app = SkyCoord(ra=flat_ra.ravel() * u.deg, dec=flat_dec.ravel() * u.deg, frame="icrs").transform_to(TETE(obstime=mid))
     ra_app = app.ra.deg.reshape(flat_ra.shape)
     dec_app = np.radians(app.dec.deg.reshape(flat_ra.shape))
     lat = np.radians(loc.lat.deg)
-    ha = np.radians(lst[inv] - ra_app)
+    ha = np.radians(lst - ra_app)
     sin_alt = np.sin(lat) * np.sin(dec_app) + np.cos(lat) * np.cos(dec_app) * np.cos(ha)
     airmass = np.where(sin_alt > 1e-3, 1.0 / np.maximum(sin_alt, 1e-3), np.inf)
-    mra = np.radians(moon.ra.deg)[inv]
-    mdec = np.radians(moon.dec.deg)[inv]
     fra, fdec = np.radians(ra), np.radians(dec)
-    cos_sep = np.sin(fdec) * np.sin(mdec) + np.cos(fdec) * np.cos(mdec) * np.cos(fra - mra)
+    norm = np.sqrt(mx ** 2 + my ** 2 + mz ** 2)
+    cos_sep = (np.cos(fdec) * np.cos(fra) * mx + np.cos(fdec) * np.sin(fra) * my + np.sin(fdec) * mz) / norm
     sep = np.degrees(np.arccos(np.clip(cos_sep, -1.0, 1.0)))
     shape = np.broadcast_shapes(ra.shape, dec.shape, jd.shape)
-    return SkyConditions(airmass=np.broadcast_to(airmass, shape), moon_alt_deg=np.broadcast_to(moon_alt[inv], shape),
-                         moon_sep_deg=np.broadcast_to(sep, shape), moon_phase_deg=np.broadcast_to(phase[inv], shape),
-                         sun_alt_deg=np.broadcast_to(sun_alt[inv], shape))
+    return SkyConditions(airmass=np.broadcast_to(airmass, shape), moon_alt_deg=np.broadcast_to(moon_alt, shape),
+                         moon_sep_deg=np.broadcast_to(sep, shape), moon_phase_deg=np.broadcast_to(phase, shape),
+                         sun_alt_deg=np.broadcast_to(sun_alt, shape))
 
 
 @dataclass(frozen=True)
