@@ -60,6 +60,8 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 SOLVERS = ("greedy", "milp", "hybrid", "gwemopt")
+#: ``<solver>+detection``: the detection objective started from that solver's coverage plan.
+DETECTION_SUFFIX = "+detection"
 
 #: CSV columns, in order (the first nine are the issue's required ones).
 COLUMNS = (
@@ -287,8 +289,9 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
 
     rows: list[dict[str, Any]] = []
     hits: dict[str, dict[str, np.ndarray]] = {}
+    results: dict[str, tuple[Any, float]] = {}  # coverage results, reused by "<solver>+detection"
     problem, prepare_s, prep_error = None, 0.0, ""
-    if any(s in ("greedy", "milp", "hybrid") for s in settings.solvers):
+    if any(s.split(DETECTION_SUFFIX[0])[0] in ("greedy", "milp", "hybrid") for s in settings.solvers):
         t0 = time.perf_counter()
         try:
             problem = prepare_problem(skymap, cfg, start)
@@ -316,14 +319,25 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
             if problem is None:
                 rows.append(_row(name, solver, status=prep_error or "prepare_error", valid=False, note=note, **common))
                 continue
+            base, _, objective = solver.partition(DETECTION_SUFFIX[0])
             t0 = time.perf_counter()
             try:
-                result = run_scheduler(problem, solver)
+                if objective:  # the detection stage, started from the coverage plan of the same scheduler
+                    from .scheduler_core.detection_slots import detection_stage
+
+                    if base not in results:
+                        results[base] = (run_scheduler(problem, base), time.perf_counter() - t0)
+                    t1 = time.perf_counter()
+                    result = detection_stage(problem, skymap, results[base][0])
+                    solve_s = results[base][1] + time.perf_counter() - t1
+                else:
+                    result = run_scheduler(problem, solver)
+                    solve_s = time.perf_counter() - t0
+                    results[solver] = (result, solve_s)
             except ImportError as exc:
                 rows.append(_row(name, solver, status="unavailable", valid=False, note=f"{exc}", **common))
                 continue
-            solve_s = time.perf_counter() - t0
-            plan = _plan_from_result(result, problem, skymap, solver)
+            plan = _plan_from_result(result, problem, skymap, base)
             scores, hits[solver] = _score(plan, skymap, settings, footprints, injections, lightcurves, merger)
             rows.append(_row(
                 name, solver, status=result.status, mip_gap=_fmt(result.mip_gap),
@@ -750,7 +764,8 @@ def _load_settings(args: Any) -> BenchSettings:
     else:
         config = Config().scheduler
     solvers = tuple(s.strip() for s in str(args.solvers).split(",") if s.strip())
-    bad = [s for s in solvers if s not in SOLVERS]
+    bad = [s for s in solvers if s not in SOLVERS and not (
+        s.endswith(DETECTION_SUFFIX) and s[:-len(DETECTION_SUFFIX)] in SOLVERS and not s.startswith("gwemopt"))]
     if bad or not solvers:
         raise InputError(f"unknown solver(s) {', '.join(bad) or '(none)'}; choose from {', '.join(SOLVERS)}")
     if args.injections < 1:
