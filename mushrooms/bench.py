@@ -2,9 +2,12 @@
 
 For each sky map (``*.fits``, ``*.fits.gz`` found recursively) the problem is
 prepared once (same horizon, fields, footprints and windows for every
-solver), each requested scheduler runs (``greedy``, ``milp``, ``hybrid``
-through :func:`~mushrooms.scheduler_core.planner.run_scheduler`; ``gwemopt``
-through :mod:`~mushrooms.scheduler_core.gwemopt_baseline`), every plan goes
+solver), each requested scheduler runs (``greedy``, ``slots``, ``blocks``
+(alias ``milp``), ``hybrid`` through
+:func:`~mushrooms.scheduler_core.planner.run_scheduler`; ``gwemopt`` through
+:mod:`~mushrooms.scheduler_core.gwemopt_baseline`, and ``gwemopt-repaired``:
+the same gwemopt schedule with every rule-breaking exposure removed by
+:func:`~mushrooms.scheduler_core.gwemopt_baseline.repair_observations`), every plan goes
 through the independent plan checker, and the detection efficiency of each
 plan is computed with the SAME injections (seeded from the map's hash) for
 three kilonova models (optimistic and conservative BNS, NSBH).
@@ -59,7 +62,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-SOLVERS = ("greedy", "milp", "hybrid", "gwemopt")
+SOLVERS = ("greedy", "slots", "blocks", "hybrid", "milp", "gwemopt", "gwemopt-repaired")
+#: Solvers run through run_scheduler (the others are gwemopt's rows).
+OURS = ("greedy", "slots", "blocks", "hybrid", "milp")
 #: ``<solver>+detection``: the detection objective started from that solver's coverage plan.
 DETECTION_SUFFIX = "+detection"
 
@@ -70,6 +75,7 @@ COLUMNS = (
     "coverage_reported", "n_fields", "schedule_length_s", "first_exposure_s", "mip_gap",
     "prepare_s", "solve_s", "solver_detail", "n_problems", "first_problem",
     "area90_deg2", "distmean_mpc", "n_injections", "distance_source", "start", "note",
+    "bound", "coverage_over_bound",
     "expected_detections",
 )
 
@@ -107,6 +113,10 @@ class BenchSettings:
         gwemopt's interpreter (else ``$MUSHROOMS_GWEMOPT_PYTHON``).
     gwemopt_timeout_s : float
         Time limit of one gwemopt run (s).
+    gwemopt_cache_dir : str or None
+        Directory of cached raw gwemopt schedules (keyed on the sky map's
+        bytes and the options passed; format in
+        :mod:`~mushrooms.scheduler_core.gwemopt_baseline`); None = no cache.
     legacy_scoring : bool
         Also score every plan as the first release did (``efficiency_<lc>_v1``).
     reference_solver : str or None
@@ -115,7 +125,7 @@ class BenchSettings:
     """
 
     config: Any
-    solvers: tuple[str, ...] = ("greedy", "milp", "hybrid")
+    solvers: tuple[str, ...] = ("greedy", "slots", "blocks", "hybrid")
     start_iso: str | None = None
     n_injections: int = 10_000
     lightcurves: Mapping[str, str] = field(default_factory=lambda: {
@@ -124,6 +134,7 @@ class BenchSettings:
     fixed_distance_mpc: float | None = None
     gwemopt_python: str | None = None
     gwemopt_timeout_s: float = 1800.0
+    gwemopt_cache_dir: str | None = None
     legacy_scoring: bool = True
     reference_solver: str | None = None
 
@@ -250,7 +261,8 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
     from .scheduler_core.efficiency import draw_injections
     from .scheduler_core.errors import InputError
     from .scheduler_core.fields import field_footprints, load_ztf_fields
-    from .scheduler_core.gwemopt_baseline import gwemopt_plan, run_gwemopt
+    from .scheduler_core.bound import coverage_upper_bound
+    from .scheduler_core.gwemopt_baseline import gwemopt_plan, repair_observations, run_gwemopt
     from .scheduler_core.lightcurves import load_lightcurve
     from .scheduler_core.plan import parse_time
     from .scheduler_core.planner import run_scheduler
@@ -291,30 +303,55 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
     hits: dict[str, dict[str, np.ndarray]] = {}
     results: dict[str, tuple[Any, float]] = {}  # coverage results, reused by "<solver>+detection"
     problem, prepare_s, prep_error = None, 0.0, ""
-    if any(s.split(DETECTION_SUFFIX[0])[0] in ("greedy", "milp", "hybrid") for s in settings.solvers):
-        t0 = time.perf_counter()
-        try:
-            problem = prepare_problem(skymap, cfg, start)
-        except Exception as exc:  # reported per solver
-            prep_error = f"prepare_error: {type(exc).__name__}: {exc}"
-        prepare_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    try:  # every row needs it: ours to plan, gwemopt's for the repair and the bound
+        problem = prepare_problem(skymap, cfg, start)
+    except Exception as exc:  # reported per solver
+        prep_error = f"prepare_error: {type(exc).__name__}: {exc}"
+    prepare_s = time.perf_counter() - t0
+    bound = coverage_upper_bound(problem).value if problem is not None else None
+    if bound is not None:
+        common.update(bound=_fmt(bound))
 
+    def with_bound(scores: dict[str, Any]) -> dict[str, Any]:
+        cov = _num(scores.get("coverage"))
+        if bound is not None and cov is not None and bound > 0:
+            scores["coverage_over_bound"] = _fmt(cov / bound, 4)
+        return scores
+
+    gw_run = None
     for solver in settings.solvers:
         try:
-            if solver == "gwemopt":
-                run = run_gwemopt(path, start, cfg, python=settings.gwemopt_python,
-                                  timeout_s=settings.gwemopt_timeout_s)
+            if solver in ("gwemopt", "gwemopt-repaired"):
+                if gw_run is None:
+                    gw_run = run_gwemopt(path, start, cfg, python=settings.gwemopt_python,
+                                         timeout_s=settings.gwemopt_timeout_s, cache_dir=settings.gwemopt_cache_dir)
+                run = gw_run
                 if run.status != "ok":
                     rows.append(_row(name, solver, status=run.status, valid=False, runtime_s=_fmt(run.runtime_s, 3),
                                      note="; ".join(filter(None, [note, run.message])), **common))
                     continue
+                detail = "gwemopt greedy --doChipGaps" + (" (cached)" if run.message == "cached" else "")
+                extra_note = ""
+                if solver == "gwemopt-repaired":
+                    if problem is None:
+                        rows.append(_row(name, solver, status=prep_error or "prepare_error", valid=False,
+                                         note=note, **common))
+                        continue
+                    fixed = repair_observations(run.observations, problem)
+                    run = dataclasses.replace(run, observations=fixed.observations)
+                    detail += "; repaired"
+                    extra_note = "repair: " + ", ".join(f"{k} {v}" for k, v in fixed.counts.items() if v)
                 ids = {o.field_id for o in run.observations}
                 cov = footprints.coverage(ids, skymap.prob) if ids else 0.0
                 plan = gwemopt_plan(run, start, cfg, skymap.sha256, cov)
+                if solver == "gwemopt-repaired":
+                    plan = dataclasses.replace(plan, metrics=dataclasses.replace(plan.metrics, solver=solver))
                 scores, hits[solver] = _score(plan, skymap, settings, footprints, injections, lightcurves, merger)
+                scores = with_bound(scores)
                 rows.append(_row(name, solver, status=run.status, runtime_s=_fmt(run.runtime_s, 3),
-                                 solve_s=_fmt(run.runtime_s, 3), solver_detail="gwemopt greedy --doChipGaps",
-                                 note=note, **scores, **common))
+                                 solve_s=_fmt(run.runtime_s, 3), solver_detail=detail,
+                                 note="; ".join(filter(None, [note, extra_note])), **scores, **common))
                 continue
             if problem is None:
                 rows.append(_row(name, solver, status=prep_error or "prepare_error", valid=False, note=note, **common))
@@ -339,6 +376,7 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
                 continue
             plan = _plan_from_result(result, problem, skymap, base)
             scores, hits[solver] = _score(plan, skymap, settings, footprints, injections, lightcurves, merger)
+            scores = with_bound(scores)
             rows.append(_row(
                 name, solver, status=result.status, mip_gap=_fmt(result.mip_gap),
                 runtime_s=_fmt(prepare_s + solve_s, 3), prepare_s=_fmt(prepare_s, 3), solve_s=_fmt(solve_s, 3),
@@ -595,16 +633,17 @@ def summarize(rows: Sequence[Mapping[str, Any]],
     rows = list(rows)
     solvers = [s for s in dict.fromkeys(str(r["solver"]) for r in rows)]
     extra = []
-    if "milp" in solvers and "gwemopt" in solvers:
-        extra = best_of(rows, "milp", "gwemopt")
+    block_name = next((b for b in ("blocks", "milp") if b in solvers), None)
+    if block_name and "gwemopt" in solvers:
+        extra = best_of(rows, block_name, "gwemopt")
     all_rows = rows + extra
-    names = solvers + (["best(milp,gwemopt)"] if extra else [])
+    names = solvers + ([f"best({block_name},gwemopt)"] if extra else [])
     n_maps = len(_by_map(rows))
     lines = [f"maps: {n_maps}; coverage = probability in the planned fields (checker); "
              f"efficiency = detected/injected; times in s (wall clock)"]
     head = (f"{'solver':<20}{'n':>4}{'valid':>6}{'cov mean':>10}{'cov med':>9}"
             + "".join(f"{'eff ' + k[:4] + ' mean':>15}" for k in eff_keys)
-            + f"{'n_exp mean':>11}{'time med':>10}{'time mean':>10}")
+            + f"{'n_exp mean':>11}{'time med':>10}{'time mean':>10}{'cov/bound':>10}{'c/b med':>9}")
     lines += [head, "-" * len(head)]
     for s in names:
         rs = [r for r in all_rows if r["solver"] == s and _scored(r)]
@@ -616,11 +655,13 @@ def summarize(rows: Sequence[Mapping[str, Any]],
         rt = [x for x in (_num(r.get("runtime_s")) for r in rs) if x is not None]
         nexp = [x for x in (_num(r.get("n_exposures")) for r in rs) if x is not None]
         valid = sum(1 for r in rs if r.get("valid") in (True, "True"))
+        cb = [x for x in (_num(r.get("coverage_over_bound")) for r in rs) if x is not None]
         lines.append(
             f"{s:<20}{len(rs):>4}{valid:>6}{_stat(cov, np.mean):>10}{_stat(cov, np.median):>9}"
             + "".join(f"{_stat(e, np.mean):>15}" for e in effs)
             + f"{_stat(nexp, np.mean)[:-2] if nexp else '-':>11}{_stat(rt, np.median)[:-2] if rt else '-':>10}"
             + f"{_stat(rt, np.mean)[:-2] if rt else '-':>10}"
+            + f"{_stat(cb, np.mean):>10}{_stat(cb, np.median):>9}"
         )
     missing = {}
     for r in rows:
@@ -632,13 +673,10 @@ def summarize(rows: Sequence[Mapping[str, Any]],
             counts[x] = counts.get(x, 0) + 1
         lines.append(f"  {s}: {len(sts)} map(s) without a plan: " + ", ".join(f"{k} x{v}" for k, v in counts.items()))
     lines.append("")
-    lines.append("wins/losses/ties per map (coverage tie <= 1e-4; efficiency tie <= 1e-3):")
-    for base in ("greedy", "gwemopt"):
-        if base not in solvers:
-            continue
-        for s in names:
-            if s == base:
-                continue
+    lines.append("A vs B: maps where A wins/loses/ties against B "
+                 "(coverage tie <= 1e-4; efficiency tie <= 1e-3):")
+    for i, base in enumerate(names):
+        for s in names[i + 1:]:
             parts = [f"coverage {'%d/%d/%d' % _wins(all_rows, s, base, 'coverage', TIE_COVERAGE)}"]
             for k in eff_keys:
                 parts.append(f"eff_{k[:4]} {'%d/%d/%d' % _wins(all_rows, s, base, f'efficiency_{k}', TIE_EFFICIENCY)}")
@@ -672,8 +710,8 @@ def summarize(rows: Sequence[Mapping[str, Any]],
 def make_plots(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> list[Path]:
     """Paper-style figures (PNG, Agg backend).
 
-    ``coverage_scatter.png``: per-map coverage of MUSHROOMS (milp, else
-    hybrid, else greedy) against the baseline (gwemopt, else greedy), with
+    ``coverage_scatter.png``: per-map coverage of MUSHROOMS (hybrid, else
+    slots, blocks, greedy) against the baseline (gwemopt, else greedy), with
     y = x.  ``efficiency_vs_area.png``: percent improvement in efficiency of
     best-of(MUSHROOMS, baseline) over the baseline against the 90 % area.
 
@@ -690,7 +728,7 @@ def make_plots(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> list
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     solvers = set(str(r["solver"]) for r in rows if _scored(r))
-    ours = next((s for s in ("milp", "hybrid", "greedy") if s in solvers), None)
+    ours = next((s for s in ("hybrid", "slots", "blocks", "milp", "greedy") if s in solvers), None)
     base = next((s for s in ("gwemopt", "greedy") if s in solvers and s != ours), None)
     if ours is None or base is None:
         return []
@@ -765,9 +803,10 @@ def _load_settings(args: Any) -> BenchSettings:
         config = Config().scheduler
     solvers = tuple(s.strip() for s in str(args.solvers).split(",") if s.strip())
     bad = [s for s in solvers if s not in SOLVERS and not (
-        s.endswith(DETECTION_SUFFIX) and s[:-len(DETECTION_SUFFIX)] in SOLVERS and not s.startswith("gwemopt"))]
+        s.endswith(DETECTION_SUFFIX) and s[:-len(DETECTION_SUFFIX)] in OURS)]
     if bad or not solvers:
-        raise InputError(f"unknown solver(s) {', '.join(bad) or '(none)'}; choose from {', '.join(SOLVERS)}")
+        raise InputError(f"unknown solver(s) {', '.join(bad) or '(none)'}; choose from {', '.join(SOLVERS)} "
+                         f"(ours also as <solver>{DETECTION_SUFFIX})")
     if args.injections < 1:
         raise InputError(f"--injections must be >= 1, got {args.injections}")
     if args.jobs < 1:

@@ -14,6 +14,10 @@ from typing import Callable, Sequence
 
 from . import __version__
 
+#: ``--solver`` names (scheduler_core.config.SOLVER_NAMES, kept here so ``--help`` imports nothing heavy;
+#: tests/test_cli.py keeps the two equal).
+SOLVER_CHOICES = ["greedy", "slots", "blocks", "hybrid", "milp"]
+
 __all__ = ["main", "build_parser"]
 
 EXIT_INPUT = 2
@@ -47,14 +51,18 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = sub.add_parser("demo", help="plan the bundled mock BNS notice end to end (no credentials, no network)")
     sp.add_argument("--out", metavar="DIR", default="mushrooms-demo", help="where the plan, its picture and the state go")
-    sp.add_argument("--solver", choices=["greedy", "milp", "hybrid"], help="scheduler (default from config: hybrid)")
+    sp.add_argument("--solver", choices=SOLVER_CHOICES,
+                    help="scheduler: greedy | slots | blocks (the paper's block MILP; milp = blocks) | hybrid "
+                         "(default from config: hybrid)")
     common(sp)
 
     sp = sub.add_parser("plan", help="plan a ZTF night from a sky map")
     sp.add_argument("skymap", nargs="?", metavar="SKYMAP",
                     help="sky map FITS (multi-order or flat HEALPix); default: the bundled demo map")
     sp.add_argument("--start", metavar="ISO_UTC", help="horizon start (default: the sky map's event time)")
-    sp.add_argument("--solver", choices=["greedy", "milp", "hybrid"], help="scheduler (default from config: hybrid)")
+    sp.add_argument("--solver", choices=SOLVER_CHOICES,
+                    help="scheduler: greedy | slots | blocks (the paper's block MILP; milp = blocks) | hybrid "
+                         "(default from config: hybrid)")
     sp.add_argument("-o", "--output", metavar="FILE", default="plan.json", help="plan document to write (default plan.json)")
     sp.add_argument("--queue", metavar="FILE", help="also write ZTF's trigger-queue JSON")
     sp.add_argument("--plot", metavar="FILE", help="also draw the plan on the sky map (PNG)")
@@ -91,7 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
     g = sp.add_mutually_exclusive_group()
     g.add_argument("--start-from-event", action="store_true", help="start each plan at its map's event time (default)")
     g.add_argument("--start", metavar="ISO_UTC", help="one start time for every map")
-    sp.add_argument("--solvers", default="greedy,milp,hybrid", help="comma list of greedy,milp,hybrid,gwemopt")
+    sp.add_argument("--solvers", default="greedy,slots,blocks,hybrid",
+                    help="comma list of greedy,slots,blocks,hybrid,milp,gwemopt,gwemopt-repaired")
     sp.add_argument("--jobs", type=int, default=1, metavar="N", help="maps in parallel processes")
     sp.add_argument("--injections", type=int, default=10000, metavar="N", help="kilonova injections per map")
     sp.add_argument("--plots", metavar="DIR", help="write the summary figures here")

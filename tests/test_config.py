@@ -50,7 +50,7 @@ def test_config_toml_loads_to_the_defaults():
     "text, message",
     [
         ("[schedular]\n", "unknown section"),
-        ("[scheduler]\nsolver = 'annealing'\n", "solver must be greedy, milp or hybrid"),
+        ("[scheduler]\nsolver = 'annealing'\n", "solver must be one of greedy, slots, blocks, hybrid, milp"),
         ("[scheduler]\nnside = 300\n", "power of 2"),
         ("[policy]\nmin_has_ns = 'high'\n", "policy"),
         ("[outbound]\nsink = 'email'\n", "sink must be directory or kafka"),

@@ -62,6 +62,47 @@ def _pixel_field_pairs(footprints: Footprints, prob: np.ndarray) -> tuple[np.nda
     return pix[keep], rows[keep]
 
 
+def _unique_pixels(pix: np.ndarray, npix: int) -> tuple[np.ndarray, np.ndarray]:
+    """Sorted distinct pixels and each entry's index among them (a mask: faster than np.unique)."""
+    mask = np.zeros(npix, bool)
+    mask[pix] = True
+    upix = np.flatnonzero(mask)
+    index = np.cumsum(mask) - 1
+    return upix, index[pix]
+
+
+def _unique_rows(bits: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct rows of a bitset matrix and each row's group, sorted like ``np.unique(axis=0)``.
+
+    A random 64-bit key per column word is mixed into one hash per row; rows
+    are grouped by hash and the grouping is then verified bit for bit
+    against each group's first row, so the result is exact (on a hash
+    collision, never seen in practice, it falls back to ``np.unique``).
+    """
+    rng = np.random.default_rng(0x5EED)
+    mult = rng.integers(1, 2**63 - 1, size=bits.shape[1], dtype=np.uint64) | np.uint64(1)
+    with np.errstate(over="ignore"):
+        h = np.zeros(bits.shape[0], np.uint64)
+        for w in range(bits.shape[1]):  # loop over words (n_fields / 64), not pixels
+            x = bits[:, w] * mult[w]
+            h ^= x ^ (x >> np.uint64(29))
+            h *= np.uint64(0x9E3779B97F4A7C15)
+    order = np.argsort(h, kind="stable")
+    new = np.concatenate([[True], h[order][1:] != h[order][:-1]])
+    first = order[new]
+    group = np.empty(h.size, np.int64)
+    group[order] = np.cumsum(new) - 1
+    if not np.array_equal(bits, bits[first[group]]):
+        keys, group = np.unique(bits, axis=0, return_inverse=True)
+        return keys, group.ravel()
+    keys = bits[first]
+    # same order as np.unique(axis=0): lexicographic over the words
+    order = np.lexsort(keys.T[::-1])
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return keys[order], rank[group]
+
+
 def merge_cells(footprints: Footprints, prob: np.ndarray) -> Cells:
     """Merge pixels covered by exactly the same fields into weighted cells.
 
@@ -82,13 +123,12 @@ def merge_cells(footprints: Footprints, prob: np.ndarray) -> Cells:
     n_fields = len(footprints.field_ids)
     if pix.size == 0:
         return Cells(np.zeros(0), np.zeros(1, np.int64), np.zeros(0, np.int64), 0)
-    upix, pix_idx = np.unique(pix, return_inverse=True)
+    upix, pix_idx = _unique_pixels(pix, prob.size)
     n_words = (n_fields + 63) // 64
     bits = np.zeros((upix.size, n_words), dtype=np.uint64)
     # each (pixel, field) pair occurs once, so adding the bits is an OR
     np.add.at(bits, (pix_idx, rows // 64), np.left_shift(np.uint64(1), (rows % 64).astype(np.uint64)))
-    keys, cell_of_pixel = np.unique(bits, axis=0, return_inverse=True)
-    cell_of_pixel = cell_of_pixel.ravel()
+    keys, cell_of_pixel = _unique_rows(bits)
     weight = np.bincount(cell_of_pixel, weights=prob[upix], minlength=len(keys))
     # decode the bitsets: bit b of word w is field 64 w + b
     shifts = np.arange(64, dtype=np.uint64)

@@ -13,7 +13,10 @@ from typing import Any, Mapping
 
 from .lightcurves import PAPER_LIGHTCURVES
 
-__all__ = ["PlanningConfig", "SlewModel", "dataclass_from_table"]
+__all__ = ["PlanningConfig", "SlewModel", "dataclass_from_table", "SOLVER_NAMES"]
+
+#: Scheduler names; ``milp`` is the old name of ``blocks`` (kept for old configs).
+SOLVER_NAMES = ("greedy", "slots", "blocks", "hybrid", "milp")
 
 
 def dataclass_from_table(cls: type, table: Mapping[str, Any], section: str) -> Any:
@@ -121,11 +124,19 @@ class PlanningConfig:
     block_gap_s : float
         Extra time (s) inserted between blocks (g_i) on a first solve.
     solver : str
-        Default scheduler: ``greedy``, ``milp`` or ``hybrid``.
+        Default scheduler: ``greedy``, ``slots`` (slot-assignment MILP
+        portfolio), ``blocks`` (the paper's block MILP; ``milp`` is an
+        alias) or ``hybrid`` (best of greedy, slots and, when time is left,
+        blocks).
     milp_backend : str
         ``auto`` (Gurobi if fully licensed, else HiGHS), ``highs`` or ``gurobi``.
     time_limit_s : float
-        Wall-clock limit (s) of one MILP solve.
+        Wall-clock budget (s) of the optimisation in one plan: ``slots``
+        shares it over its grids; ``blocks`` gives it to its first solve
+        (a re-solve gets a third); ``hybrid`` gives it to the slot
+        portfolio and the time left (if at least ``MIN_BLOCKS_S``) to the
+        block MILP.  Preparation, greedy, the upper bound and the checker
+        come on top (about 2-4 s; imports about 3 s more for the CLI).
     mip_gap : float
         Relative optimality gap at which the solver may stop.
     threads : int
@@ -135,9 +146,27 @@ class PlanningConfig:
         of its window.
     slew : SlewModel
         Telescope slew model.
+    slot_positions : tuple of int
+        Slot MILP portfolio: positions per block n of the grids solved
+        (each in two phases).
+    slot_margin_s : float
+        Slack (s) at the end of each slot block for slews longer than the
+        estimate.
     detection_lightcurve : str
         Kilonova model (``optimistic``, ``conservative``, ``nsbh`` or a
-        light-curve file) of the plans' ``expected_detections`` metric.
+        light-curve file) of the plans' ``expected_detections`` metric and
+        of the detection objective.
+    objective : str
+        ``coverage`` (maximise the probability covered) or ``detection``
+        (then improve the coverage plan's expected detections on the slot
+        grids, ``docs/design/detection.md``; never publishes fewer
+        expected detections than the coverage plan).
+    detection_levels : int
+        L, distance levels per slot of the detection objective.
+    detection_coverage_weight : float
+        λ, weight of the coverage tie-break term in the detection objective.
+    detection_time_limit_s : float
+        Wall-clock budget (s) of the detection stage, on top of ``time_limit_s``.
     """
 
     nside: int = 256
@@ -161,12 +190,18 @@ class PlanningConfig:
     block_gap_s: float = 0.0
     solver: str = "hybrid"
     milp_backend: str = "auto"
-    time_limit_s: float = 30.0
+    time_limit_s: float = 10.0
     mip_gap: float = 0.01
     threads: int = 0
     max_retries: int = 3
     slew: SlewModel = field(default_factory=SlewModel)
+    slot_positions: tuple[int, ...] = (6, 7, 5, 8)
+    slot_margin_s: float = 30.0
     detection_lightcurve: str = "conservative"
+    objective: str = "coverage"
+    detection_levels: int = 8
+    detection_coverage_weight: float = 0.05
+    detection_time_limit_s: float = 10.0
 
     def __post_init__(self) -> None:
         problems = []
@@ -181,8 +216,12 @@ class PlanningConfig:
             problems.append(f"airmass_max must be >= 1, got {self.airmass_max}")
         if len(self.filters) != 2 or self.filters[0] == self.filters[1]:
             problems.append(f"filters must be two different filters, got {self.filters!r}")
-        if self.solver not in ("greedy", "milp", "hybrid"):
-            problems.append(f"solver must be greedy, milp or hybrid, got {self.solver!r}")
+        if self.solver not in SOLVER_NAMES:
+            problems.append(f"solver must be one of {', '.join(SOLVER_NAMES)}, got {self.solver!r}")
+        if not self.slot_positions or any(int(n) < 1 for n in self.slot_positions):
+            problems.append(f"slot_positions must be positive integers, got {self.slot_positions!r}")
+        if self.slot_margin_s < 0:
+            problems.append(f"slot_margin_s must be >= 0, got {self.slot_margin_s}")
         if self.milp_backend not in ("auto", "highs", "gurobi"):
             problems.append(f"milp_backend must be auto, highs or gurobi, got {self.milp_backend!r}")
         if self.n_fields is not None and self.n_fields < 1:
@@ -194,6 +233,14 @@ class PlanningConfig:
         if self.detection_lightcurve not in PAPER_LIGHTCURVES and not Path(self.detection_lightcurve).is_file():
             problems.append(f"detection_lightcurve must be {', '.join(PAPER_LIGHTCURVES)} or a light-curve file, "
                             f"got {self.detection_lightcurve!r}")
+        if self.objective not in ("coverage", "detection"):
+            problems.append(f"objective must be coverage or detection, got {self.objective!r}")
+        if self.detection_levels < 1:
+            problems.append(f"detection_levels must be >= 1, got {self.detection_levels}")
+        if self.detection_coverage_weight < 0:
+            problems.append(f"detection_coverage_weight must be >= 0, got {self.detection_coverage_weight}")
+        if self.detection_time_limit_s <= 0:
+            problems.append(f"detection_time_limit_s must be > 0, got {self.detection_time_limit_s}")
         if problems:
             raise ValueError("; ".join(problems))
 

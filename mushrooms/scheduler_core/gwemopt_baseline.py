@@ -21,10 +21,23 @@ limmag texp[s] prob airmass filter``) becomes our :class:`~.plan.Plan`;
 gwemopt merges consecutive slots of one field and filter into one longer
 exposure, which is kept as such (``exposure_s`` may be a multiple of ~310 s).
 gwemopt's own efficiency code is never used.
+
+Cache of raw schedules (``cache_dir``): gwemopt takes ~90 s per map, so its
+raw output can be kept on disk and reused by later benchmarks.  One entry is
+two files named by :func:`cache_key` (sha256 of the sky map file's bytes and
+of the gwemopt options other than the input and output paths, i.e. horizon
+start, horizon length, filters, exposure, nside, airmass and the fixed
+options above): ``<key>.dat`` is gwemopt's ``schedule_ZTF.dat`` verbatim and
+``<key>.json`` holds ``{"skymap", "skymap_sha256", "args", "runtime_s",
+"status", "message", "created"}``.  Only successful runs are cached; an
+entry is written atomically (temporary name, then rename), so concurrent
+benchmarks may share one directory.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import subprocess
 import sys
@@ -39,7 +52,9 @@ from astropy.time import Time, TimeDelta
 from .config import PlanningConfig
 from .plan import Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 
-__all__ = ["GwemoptRun", "gwemopt_python", "run_gwemopt", "parse_schedule", "gwemopt_plan", "ENV_PYTHON"]
+__all__ = ["GwemoptRun", "gwemopt_python", "run_gwemopt", "parse_schedule", "gwemopt_plan", "cache_key", "Repair",
+           "repair_observations",
+           "ENV_PYTHON"]
 
 #: Environment variable naming the interpreter of a gwemopt installation.
 ENV_PYTHON = "MUSHROOMS_GWEMOPT_PYTHON"
@@ -103,6 +118,44 @@ def gwemopt_args(skymap_path: str | Path, start: Time, config: PlanningConfig, o
         "--nside", str(config.nside),
         "--airmass", f"{config.airmass_max:g}",
     ]
+
+
+def _portable_args(args: list[str]) -> list[str]:
+    """The options without the input sky map and output directory (they name local paths)."""
+    out, skip = [], False
+    for a in args:
+        if skip:
+            skip = False
+            continue
+        if a in ("-e", "-o"):
+            skip = True
+            continue
+        out.append(a)
+    return out
+
+
+def cache_key(skymap_path: str | Path, start: Time, config: PlanningConfig) -> str:
+    """Cache key of one gwemopt run: sha256 of the map bytes and of its portable options (hex, 64 chars)."""
+    h = hashlib.sha256()
+    h.update(hashlib.sha256(Path(skymap_path).read_bytes()).hexdigest().encode())
+    h.update(json.dumps(_portable_args(gwemopt_args(skymap_path, start, config, "out"))).encode())
+    return h.hexdigest()
+
+
+def _cache_read(cache_dir: Path, key: str) -> tuple[str, dict] | None:
+    dat, meta = cache_dir / f"{key}.dat", cache_dir / f"{key}.json"
+    try:
+        return dat.read_text(), json.loads(meta.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _cache_write(cache_dir: Path, key: str, text: str, meta: dict) -> None:
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    for suffix, body in ((".dat", text), (".json", json.dumps(meta, indent=1, sort_keys=True))):
+        tmp = cache_dir / f".{key}{suffix}.{os.getpid()}.tmp"
+        tmp.write_text(body)
+        os.replace(tmp, cache_dir / f"{key}{suffix}")
 
 
 #: gwemopt's ZTF.config ``overhead_per_exposure`` (s): its time slots are exposure + this.
@@ -174,6 +227,7 @@ def run_gwemopt(
     python: str | None = None,
     timeout_s: float = 1800.0,
     workdir: str | Path | None = None,
+    cache_dir: str | Path | None = None,
 ) -> GwemoptRun:
     """Run gwemopt offline on one sky map.
 
@@ -191,11 +245,24 @@ def run_gwemopt(
         Kill gwemopt after this many seconds.
     workdir : str or pathlib.Path, optional
         Where gwemopt writes (default: a temporary directory, removed).
+    cache_dir : str or pathlib.Path, optional
+        Directory of cached raw schedules (see the module notes): a hit is
+        returned without running gwemopt (``runtime_s`` is that of the
+        original run), a successful run is stored.
 
     Returns
     -------
     GwemoptRun
     """
+    key = None
+    if cache_dir is not None:
+        cache_dir = Path(cache_dir)
+        key = cache_key(skymap_path, start, config)
+        hit = _cache_read(cache_dir, key)
+        if hit is not None:
+            text, meta = hit
+            return GwemoptRun("ok", parse_schedule(text, start, config.exposure_s),
+                              float(meta.get("runtime_s", 0.0)), "cached")
     exe = gwemopt_python(python)
     if exe is None:
         return GwemoptRun("unavailable", (), 0.0, f"no gwemopt interpreter (set ${ENV_PYTHON})")
@@ -215,7 +282,15 @@ def run_gwemopt(
             tail = (proc.stderr or proc.stdout or "").strip().splitlines()
             why = tail[-1] if tail else f"exit status {proc.returncode}"
             return GwemoptRun("failed", (), runtime, f"gwemopt exit {proc.returncode}: {why}"[:300])
-        obs = parse_schedule(sched.read_text(), start, config.exposure_s)
+        text = sched.read_text()
+        obs = parse_schedule(text, start, config.exposure_s)
+        if cache_dir is not None and key is not None:
+            args = _portable_args(gwemopt_args(skymap_path, start, config, out))
+            _cache_write(cache_dir, key, text, {
+                "skymap": Path(skymap_path).name,
+                "skymap_sha256": hashlib.sha256(Path(skymap_path).read_bytes()).hexdigest(),
+                "args": args, "runtime_s": round(runtime, 3), "status": "ok", "message": "",
+                "created": Time.now().isot + "Z"})
     return GwemoptRun("ok", obs, runtime, "")
 
 
@@ -247,3 +322,120 @@ def gwemopt_plan(run: GwemoptRun, start: Time, config: PlanningConfig, skymap_sh
         observations=run.observations,
         metrics=metrics,
     )
+
+
+@dataclass(frozen=True)
+class Repair:
+    """What :func:`repair_observations` removed or moved.
+
+    Attributes
+    ----------
+    observations : tuple of Observation
+        The repaired schedule, in time order.
+    counts : dict
+        Exposures dropped per reason (``filter``, ``field``, ``horizon``,
+        ``overlap``, ``window``, ``unpaired``) and ``delayed`` (exposures
+        moved later by at most one overhead to respect the slew time).
+    """
+
+    observations: tuple[Observation, ...]
+    counts: dict
+
+
+def repair_observations(observations, problem) -> Repair:
+    """A baseline's schedule with every exposure that breaks a rule removed.
+
+    Rules, in this order (the plan checker's, on the problem's windows):
+
+    1. ``filter``: only the configured filters;
+    2. ``field``: only candidate fields of the problem (fields without
+       probability or outside the declination band add nothing);
+    3. ``horizon``: inside the planning horizon;
+    4. ``window``: the whole exposure inside one window of its field
+       (Sun, airmass, hour angle and mount keep-out limits, Moon);
+    5. ``overlap``: in time order, an exposure starting before the previous
+       kept one ends is dropped; one that starts after it but too soon for
+       the slew/readout/filter change is delayed to the earliest allowed
+       start (``delayed``) and dropped if that leaves its window;
+    6. ``unpaired``: per field, one exposure in each filter the cadence
+       apart is kept (the earliest such pair), with any other exposure that
+       stays the cadence away from every kept one of the other filter; a
+       field without such a pair loses all its exposures.
+
+    Removing exposures only lengthens the gaps between the others, so the
+    result passes the same rules again.
+
+    Parameters
+    ----------
+    observations : sequence of Observation
+        The schedule (times in s since the horizon start).
+    problem : PlanningProblem
+        Windows, candidate fields and configuration.
+
+    Returns
+    -------
+    Repair
+    """
+    from .slew import overhead_time
+
+    cfg = problem.config
+    counts = {k: 0 for k in ("filter", "field", "horizon", "window", "overlap", "unpaired", "delayed")}
+    w = problem.windows
+    candidates = set(int(f) for f in problem.field_ids)
+
+    def in_window(o: Observation, t: float) -> bool:
+        return w.contains(o.field_id, t, t + o.exposure_s)
+
+    kept = []
+    for o in sorted(observations, key=lambda ob: ob.start):
+        if o.filter not in cfg.filters:
+            counts["filter"] += 1
+        elif o.field_id not in candidates:
+            counts["field"] += 1
+        elif o.start < 0 or o.end > problem.horizon_s:
+            counts["horizon"] += 1
+        elif not in_window(o, o.start):
+            counts["window"] += 1
+        else:
+            kept.append(o)
+    timed: list[Observation] = []
+    for o in kept:
+        if timed:
+            p = timed[-1]
+            if o.start < p.end:
+                counts["overlap"] += 1
+                continue
+            need = float(overhead_time(p.ra, p.dec, o.ra, o.dec, cfg.slew,
+                                       cfg.filter_change_s if p.filter != o.filter else 0.0))
+            if o.start < p.end + need:
+                t = p.end + need
+                if not in_window(o, t) or t + o.exposure_s > problem.horizon_s:
+                    counts["overlap"] += 1
+                    continue
+                o = Observation(o.field_id, o.ra, o.dec, o.filter, float(t), o.exposure_s, o.block)
+                counts["delayed"] += 1
+        timed.append(o)
+    f1, f2 = cfg.filters
+    by_field: dict[int, list[Observation]] = {}
+    for o in timed:
+        by_field.setdefault(o.field_id, []).append(o)
+    final: list[Observation] = []
+    for fid, obs in by_field.items():
+        a = [o for o in obs if o.filter == f1]
+        b = [o for o in obs if o.filter == f2]
+        pairs = [(max(x.start, y.start), x, y) for x in a for y in b if abs(x.start - y.start) >= cfg.cadence_s - 1e-3]
+        if not pairs:
+            counts["unpaired"] += len(obs)
+            continue
+        _, x, y = min(pairs, key=lambda p: p[0])
+        keep = [x, y]
+        for o in sorted(obs, key=lambda ob: ob.start):
+            if o is x or o is y:
+                continue
+            other = [k for k in keep if k.filter != o.filter]
+            if all(abs(o.start - k.start) >= cfg.cadence_s - 1e-3 for k in other):
+                keep.append(o)
+            else:
+                counts["unpaired"] += 1
+        final += keep
+    return Repair(sorted_observations(final), counts)

@@ -34,7 +34,7 @@ PLAN_KEYS = (
 OBSERVATION_KEYS = ("field_id", "ra", "dec", "filter", "start", "exposure_s", "block")
 METRIC_KEYS = (
     "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
-    "n_fields", "n_exposures", "latency_s",
+    "n_fields", "n_exposures", "latency_s", "upper_bound",
     "expected_detections",
 )
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
@@ -134,6 +134,9 @@ class PlanMetrics:
         Distinct fields and exposures in the plan.
     latency_s : float or None
         Alert receipt to plan published (s), filled in by the service.
+    upper_bound : float or None
+        Certified upper bound on the coverage any rule-abiding plan of this
+        problem reaches (:mod:`.bound`; None when not computed, e.g. greedy).
     expected_detections : float or None
         Probability that the plan detects a kilonova of the configured light
         curve (``detection_lightcurve``), from the sky map's distance
@@ -150,6 +153,7 @@ class PlanMetrics:
     n_exposures: int
     latency_s: float | None = None
     mip_bound: float | None = None
+    upper_bound: float | None = None
     expected_detections: float | None = None
 
 

@@ -9,7 +9,7 @@ import time
 from astropy.time import Time, TimeDelta
 
 from .checker import check_plan
-from .config import PlanningConfig
+from .config import SOLVER_NAMES, PlanningConfig
 from .errors import InputError, PlanCheckError
 from .greedy import greedy_schedule
 from .plan import EventInfo, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
@@ -21,7 +21,11 @@ __all__ = ["make_plan", "build_plan", "run_scheduler", "SOLVERS"]
 
 log = logging.getLogger(__name__)
 
-SOLVERS = ("greedy", "milp", "hybrid")
+#: Scheduler names (``milp`` = ``blocks``, the old name kept for old configs).
+SOLVERS = SOLVER_NAMES
+
+#: The hybrid runs the block MILP only when at least this much (s) of its budget is left.
+MIN_BLOCKS_S = 3.0
 
 
 def _coverage(problem: PlanningProblem, result: ScheduleResult) -> float:
@@ -30,36 +34,81 @@ def _coverage(problem: PlanningProblem, result: ScheduleResult) -> float:
 
 def run_scheduler(problem: PlanningProblem, solver: str,
                   should_stop: StopCheck | None = None) -> ScheduleResult:
-    """Run one scheduler (``greedy``, ``milp`` or ``hybrid``) on a problem.
+    """Run one scheduler on a problem.
 
-    The hybrid runs the greedy scheduler and the MILP and keeps whichever
-    covers more probability (the MILP on a tie); its ``solver`` says which
-    and ``details`` holds both coverages.
+    Parameters
+    ----------
+    problem : PlanningProblem
+    solver : str
+        ``greedy``; ``slots`` (slot-assignment MILP portfolio, started from
+        greedy's plan); ``blocks`` (the paper's block MILP; ``milp`` is an
+        alias); ``hybrid``: greedy, then the slot portfolio started from it,
+        then (when at least :data:`MIN_BLOCKS_S` of ``config.time_limit_s``
+        is left) the block MILP with the time left; the plan covering the
+        most probability is kept (on a tie the earlier of greedy, slots,
+        blocks).
+    should_stop : callable, optional
+        Polled by every scheduler; True stops the run with the best plan so
+        far.
+
+    Returns
+    -------
+    ScheduleResult
+        For the MILP schedulers ``details["upper_bound"]`` holds the
+        certified coverage bound (:mod:`.bound`); the hybrid's ``solver``
+        names the plan kept (``hybrid(slots:highs)``, ...) and its details
+        each candidate's coverage.
     """
+    if solver not in SOLVERS:
+        raise InputError(f"unknown solver {solver!r}; choose one of {', '.join(SOLVERS)}")
     if solver == "greedy":
         return greedy_schedule(problem, should_stop)
-    from .milp import milp_schedule  # the MILP stack is only imported when used
+    t0 = time.perf_counter()
+    budget = problem.config.time_limit_s
+    if solver in ("blocks", "milp"):
+        from .milp import milp_schedule  # the MILP stack is only imported when used
 
-    if solver == "milp":
-        return milp_schedule(problem, should_stop)
-    if solver == "hybrid":
-        greedy = greedy_schedule(problem, should_stop)
-        milp = milp_schedule(problem, should_stop)
-        cg, cm = _coverage(problem, greedy), _coverage(problem, milp)
-        best = milp if cm >= cg else greedy
-        details = dict(best.details)
-        details.update(hybrid_choice="milp" if best is milp else "greedy",
-                       coverage_greedy=cg, coverage_milp=cm,
-                       milp_status=milp.status, milp_gap=milp.mip_gap,
-                       milp_bound=milp.details.get("bound"))
-        return dataclasses.replace(
-            best,
-            solver=f"hybrid({best.solver})",
-            mip_gap=milp.mip_gap,
-            runtime_s=greedy.runtime_s + milp.runtime_s,
-            details=details,
-        )
-    raise InputError(f"unknown solver {solver!r}; choose one of {', '.join(SOLVERS)}")
+        result = milp_schedule(problem, should_stop)
+        return _with_bound(problem, result)
+    from .slot_schedule import slot_schedule
+
+    greedy = greedy_schedule(problem, should_stop)
+    left = budget - (time.perf_counter() - t0)
+    slots = slot_schedule(problem, should_stop, start=greedy, time_limit_s=max(left, 0.0))
+    if solver == "slots":
+        if not slots.observations and greedy.observations:
+            slots = dataclasses.replace(slots, status=f"{slots.status}_greedy_fallback",
+                                        observations=greedy.observations,
+                                        details=dict(slots.details, greedy_details=greedy.details))
+        return _with_bound(problem, dataclasses.replace(slots, runtime_s=time.perf_counter() - t0))
+    candidates = [("greedy", greedy), ("slots", slots)]
+    left = budget - (time.perf_counter() - t0)
+    stopped = should_stop is not None and should_stop()
+    if left >= MIN_BLOCKS_S and not stopped:
+        from .milp import milp_schedule
+
+        timed = dataclasses.replace(problem, config=dataclasses.replace(problem.config, time_limit_s=left))
+        blocks = milp_schedule(timed, should_stop)
+        candidates.append(("blocks", blocks))
+    covs = {name: _coverage(problem, r) for name, r in candidates}
+    name, best = max(candidates, key=lambda nr: (covs[nr[0]], -[n for n, _ in candidates].index(nr[0])))
+    details = dict(best.details)
+    details.update(hybrid_choice=name, **{f"coverage_{n}": c for n, c in covs.items()},
+                   slots_status=slots.status, slots_gap=slots.mip_gap,
+                   blocks_status=dict(candidates)["blocks"].status if "blocks" in covs else "skipped")
+    result = dataclasses.replace(best, solver=f"hybrid({best.solver})", mip_gap=best.mip_gap,
+                                 runtime_s=time.perf_counter() - t0, details=details)
+    return _with_bound(problem, result)
+
+
+def _with_bound(problem: PlanningProblem, result: ScheduleResult) -> ScheduleResult:
+    """Attach the certified coverage upper bound (:mod:`.bound`) to a result's details."""
+    from .bound import coverage_upper_bound
+
+    ub = coverage_upper_bound(problem)
+    details = dict(result.details)
+    details.update(upper_bound=ub.value, upper_bound_status=ub.status, upper_bound_s=round(ub.runtime_s, 3))
+    return dataclasses.replace(result, details=details)
 
 
 def make_plan(
@@ -82,7 +131,8 @@ def make_plan(
     start : astropy.time.Time, optional
         Horizon start; defaults to the sky map's event time.
     solver : str, optional
-        ``greedy``, ``milp`` or ``hybrid``; defaults to ``config.solver``.
+        ``greedy``, ``slots``, ``blocks`` (alias ``milp``) or ``hybrid``;
+        defaults to ``config.solver``.
     event : EventInfo, optional
         The alert being answered (goes into the plan document).
     supersedes : str, optional
@@ -116,6 +166,10 @@ def make_plan(
     problem = prepare_problem(skymap, config, start)
     t_prep = time.perf_counter() - t0
     result = run_scheduler(problem, solver, should_stop)
+    if config.objective == "detection":
+        from .detection_slots import detection_stage
+
+        result = detection_stage(problem, skymap, result, should_stop)
     plan = build_plan(problem, result, skymap, solver, event=event, supersedes=supersedes,
                       runtime_s=time.perf_counter() - t0)
     metrics = plan.metrics
@@ -148,7 +202,7 @@ def build_plan(
     skymap : SkyMap
         The sky map (its hash keys the plan id).
     solver : str
-        The scheduler asked for (``greedy``, ``milp``, ``hybrid``).
+        The scheduler asked for (``greedy``, ``slots``, ``blocks``, ``hybrid``).
     event : EventInfo, optional
         The alert answered.
     supersedes : str, optional
@@ -177,6 +231,8 @@ def build_plan(
         runtime_s=round(result.runtime_s if runtime_s is None else runtime_s, 3),
         n_fields=len(ids),
         n_exposures=len(observations),
+        upper_bound=(None if result.details.get("upper_bound") is None
+                     else round(float(result.details["upper_bound"]), 6)),
     )
     plan_id = make_plan_id(
         skymap.sha256, iso_utc(start), dataclasses.asdict(config), solver, event.superevent_id,

@@ -64,7 +64,12 @@ class Footprints:
             return np.zeros(0, dtype=np.int64)
         rows = np.flatnonzero(np.isin(self.field_ids, ids))
         parts = [self.indices[self.indptr[k]:self.indptr[k + 1]] for k in rows]
-        return np.unique(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.int64)
+        if not parts:
+            return np.zeros(0, dtype=np.int64)
+        # a mask over the sphere is much faster than np.unique on ~1e6 indices
+        mask = np.zeros(12 * self.nside * self.nside, dtype=bool)
+        mask[np.concatenate(parts)] = True
+        return np.flatnonzero(mask)
 
     def coverage(self, field_ids: Any, prob: np.ndarray) -> float:
         """Probability inside the union of the given fields' footprints."""

@@ -25,7 +25,7 @@ import scipy.sparse as sp
 
 from .problem import StopCheck
 
-__all__ = ["MilpModel", "SolveResult", "solve_milp", "gurobi_fully_licensed", "relative_gap"]
+__all__ = ["MilpModel", "SolveResult", "solve_milp", "gurobi_fully_licensed", "resolve_backend", "relative_gap"]
 
 log = logging.getLogger(__name__)
 
@@ -194,8 +194,7 @@ def solve_milp(
     """
     if backend not in ("auto", "highs", "gurobi"):
         raise ValueError(f"unknown MILP backend {backend!r}")
-    if backend == "auto":
-        backend = "gurobi" if gurobi_fully_licensed() else "highs"
+    backend = resolve_backend(backend)
     if backend == "gurobi":
         try:
             return _solve_gurobi(model, time_limit_s, mip_gap, threads, should_stop, start)
@@ -318,12 +317,37 @@ def _gurobi_env():
     return gp, env
 
 
+def _licence_file_present() -> bool:
+    """True when a Gurobi licence file exists where Gurobi looks for one."""
+    import os
+    from pathlib import Path
+
+    env = os.environ.get("GRB_LICENSE_FILE")
+    if env:
+        return True  # Gurobi uses it (and reports a bad one itself)
+    places = [Path.home(), Path("/opt/gurobi"), Path("/Library/gurobi"), Path("C:/gurobi")]
+    return any((p / "gurobi.lic").is_file() for p in places)
+
+
+def resolve_backend(backend: str) -> str:
+    """``auto`` -> ``gurobi`` when fully licensed, else ``highs``; other names unchanged."""
+    if backend == "auto":
+        return "gurobi" if gurobi_fully_licensed() else "highs"
+    return backend
+
+
 def gurobi_fully_licensed() -> bool:
     """True when Gurobi runs here without the pip licence's size limit.
 
-    Probes with an empty model one variable over the size limit; costs a few
-    milliseconds.
+    Without a licence file (``$GRB_LICENSE_FILE``, or ``gurobi.lic`` in
+    Gurobi's default places: the home directory, ``/opt/gurobi``,
+    ``/Library/gurobi``, ``C:\\gurobi``) only the pip wheel's size-limited
+    licence can exist, so False comes back without importing gurobipy
+    (which takes seconds).  Otherwise it probes with an empty model one
+    variable over the size limit.
     """
+    if not _licence_file_present():
+        return False
     try:
         gp, env = _gurobi_env()
     except _GurobiUnavailable:
