@@ -46,6 +46,7 @@ calibration.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Mapping
 
@@ -111,6 +112,53 @@ def dark_zenith(shape: tuple[int, ...] = ()) -> SkyConditions:
     )
 
 
+def _ephemeris_at(grid: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Sun, Moon and sidereal time from Palomar at increasing JDs (UTC).
+
+    Returns (jd, sun_alt, moon_alt, moon_phase, moon_x, moon_y, moon_z, lst_unwrapped),
+    (n,) arrays (JD; deg; ICRS unit vector; deg, unwrapped so it can be interpolated).
+    """
+    loc = site()
+    tg = Time(grid, format="jd", scale="utc")
+    frame = AltAz(obstime=tg, location=loc)
+    sun = get_body("sun", tg, loc)
+    moon = get_body("moon", tg, loc)
+    elong = sun.separation(moon).rad
+    d_sun = sun.distance.to_value(u.km)
+    d_moon = moon.distance.to_value(u.km)
+    phase = np.abs(np.degrees(np.arctan2(d_sun * np.sin(elong), d_moon - d_sun * np.cos(elong))))
+    mra, mdec = np.radians(moon.ra.deg), np.radians(moon.dec.deg)
+    lst = np.degrees(np.unwrap(np.radians(tg.sidereal_time("apparent", longitude=loc.lon).deg)))
+    out = (np.asarray(grid, float), sun.transform_to(frame).alt.deg, moon.transform_to(frame).alt.deg, phase,
+           np.cos(mdec) * np.cos(mra), np.cos(mdec) * np.sin(mra), np.sin(mdec), lst)
+    for arr in out:
+        arr.setflags(write=False)
+    return out
+
+
+@functools.lru_cache(maxsize=16)
+def _ephemeris_day(day: int) -> tuple[np.ndarray, ...]:
+    """:func:`_ephemeris_at` over one UTC day (MJD ``day``: JD ``day + 2400000.5`` on), every EPHEMERIS_STEP_S.
+
+    UTC days split no night at Palomar (local midnight is 08:00 UTC); cached,
+    so the many calls of one plan or one objective cost one astropy call.
+    """
+    return _ephemeris_at(day + 2400000.5 + np.linspace(0.0, 1.0, int(round(86400.0 / EPHEMERIS_STEP_S)) + 1))
+
+
+def _ephemeris(jd: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Ephemeris covering the times ``jd``: cached day grids for a night or two, else at the times."""
+    first, last = int(np.floor(jd.min() - 2400000.5)), int(np.floor(jd.max() - 2400000.5))
+    if last - first > 2:  # e.g. a year of random times: no grid, one astropy call at the times
+        return _ephemeris_at(np.unique(jd) if np.unique(jd).size > 1 else np.array([jd.min(), jd.min() + 1e-6]))
+    parts = [_ephemeris_day(d) for d in range(first, last + 1)]
+    cols = [np.concatenate([p[k] if i == 0 else p[k][1:] for i, p in enumerate(parts)]) for k in range(7)]
+    lst = [parts[0][7]]
+    for p in parts[1:]:  # keep the unwrapped LST continuous across the days
+        lst.append(p[7][1:] + 360.0 * np.round((lst[-1][-1] - p[7][0]) / 360.0))
+    return (*cols, np.concatenate(lst))
+
+
 def sky_conditions(ra_deg: np.ndarray, dec_deg: np.ndarray, times: Time) -> SkyConditions:
     """Airmass, Moon and Sun for pointings seen from Palomar.
 
@@ -138,36 +186,15 @@ def sky_conditions(ra_deg: np.ndarray, dec_deg: np.ndarray, times: Time) -> SkyC
     dec = np.asarray(dec_deg, float)
     jd = np.asarray(times.utc.jd, float)
     loc = site()
-    # Sun and Moon on a grid of at most EPHEMERIS_STEP_S, linearly interpolated:
-    # astropy's cost grows with the number of times, not with the pointings
     lo, hi = float(jd.min()), float(jd.max())
-    n_grid = max(2, int(np.ceil((hi - lo) * 86400.0 / EPHEMERIS_STEP_S)) + 1)
-    grid = np.unique(jd)
-    if grid.size > n_grid:
-        grid = np.linspace(lo, hi, n_grid)
-    elif grid.size == 1:
-        grid = np.array([lo, lo + 1e-6])
-    tg = Time(grid, format="jd", scale="utc")
-    frame = AltAz(obstime=tg, location=loc)
-    sun = get_body("sun", tg, loc)
-    moon = get_body("moon", tg, loc)
-    elong = sun.separation(moon).rad
-    d_sun = sun.distance.to_value(u.km)
-    d_moon = moon.distance.to_value(u.km)
-    phase_g = np.abs(np.degrees(np.arctan2(d_sun * np.sin(elong), d_moon - d_sun * np.cos(elong))))
-    mra_g, mdec_g = np.radians(moon.ra.deg), np.radians(moon.dec.deg)
-    moon_xyz = [np.cos(mdec_g) * np.cos(mra_g), np.cos(mdec_g) * np.sin(mra_g), np.sin(mdec_g)]
+    eph = _ephemeris(jd.ravel())
+    grid = eph[0]
 
     def at(values: np.ndarray) -> np.ndarray:
         return np.interp(jd, grid, values)
 
-    sun_alt = at(sun.transform_to(frame).alt.deg)
-    moon_alt = at(moon.transform_to(frame).alt.deg)
-    phase = at(phase_g)
-    mx, my, mz = (at(c) for c in moon_xyz)
-    # local apparent sidereal time advances at the sidereal rate from the first grid time
-    lst0 = float(tg[0].sidereal_time("apparent", longitude=loc.lon).deg)
-    lst = lst0 + 360.98564736629 * (jd - grid[0])
+    sun_alt, moon_alt, phase, mx, my, mz = (at(v) for v in eph[1:7])
+    lst = at(eph[7]) % 360.0
     mid = Time(0.5 * (lo + hi), format="jd", scale="utc")
     flat_ra, flat_dec = np.broadcast_arrays(ra, dec)
     app = SkyCoord(ra=flat_ra.ravel() * u.deg, dec=flat_dec.ravel() * u.deg, frame="icrs").transform_to(TETE(obstime=mid))

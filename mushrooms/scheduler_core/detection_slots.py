@@ -81,18 +81,49 @@ def pair_reach(problem: PlanningProblem, inst: SlotInstance, kilonova: Kilonova,
     return best
 
 
-def distance_levels(reach: np.ndarray, n_levels: int) -> np.ndarray:
-    """Up to ``n_levels`` increasing distance levels (Mpc) from the pairs' reaches.
+def distance_levels(skymap: SkyMap, pixels: np.ndarray, r_max: float, n_levels: int,
+                    n_samples: int = 4000, seed: int = 0) -> np.ndarray:
+    """Up to ``n_levels`` increasing distance levels (Mpc) placed where the sources are.
 
-    The levels are quantiles of the positive reaches (the largest reach is
-    always a level), so every level separates some pairs from others.
+    The levels split the probability of the sources closer than ``r_max``
+    (the farthest reach of any pair) into equal parts: quantiles of
+    distances drawn from the position-weighted distance posterior of
+    ``pixels`` (the shortlisted fields' pixels), with ``r_max`` the top
+    level.  Rounding a pair's reach down to a level then loses at most
+    ``1 / n_levels`` of the reachable probability of a cell (on average half
+    of it).
+
+    Parameters
+    ----------
+    skymap : SkyMap
+        With distance layers.
+    pixels : numpy.ndarray
+        Pixels the plan can cover.
+    r_max : float
+        Largest reach (Mpc).
+    n_levels : int
+        L.
+    n_samples : int
+        Distances drawn to place the levels.
+    seed : int
+        Seed of the draw (the levels are reproducible).
     """
-    r = np.asarray(reach, float)
-    r = r[r > 0]
-    if r.size == 0:
+    from ligo.skymap.distance import conditional_ppf, parameters_to_moments
+
+    if not r_max > 0:
         return np.zeros(0)
-    q = np.quantile(r, np.linspace(0.0, 1.0, n_levels + 1)[1:])
-    return np.unique(q)
+    pixels = np.asarray(pixels, np.int64)
+    w = skymap.prob[pixels]
+    rng = np.random.default_rng(seed)
+    pick = pixels[rng.choice(pixels.size, size=n_samples, p=w / w.sum())] if w.sum() > 0 else pixels[:0]
+    mu, sigma = skymap.distmu[pick], skymap.distsigma[pick]
+    ok = np.isfinite(mu) & np.isfinite(sigma) & (sigma > 0)
+    with np.errstate(all="ignore"):
+        norm = parameters_to_moments(mu[ok], sigma[ok])[2]
+        r = conditional_ppf(rng.random(int(ok.sum())), mu[ok], sigma[ok], norm)
+    r = r[np.isfinite(r) & (r > 0) & (r < r_max)]
+    inner = np.quantile(r, np.arange(1, n_levels) / n_levels) if r.size >= n_levels else np.zeros(0)
+    return np.unique(np.concatenate([inner[inner > 0], [r_max]]))
 
 
 def pair_levels(reach: np.ndarray, levels: np.ndarray) -> np.ndarray:
@@ -316,9 +347,12 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
     field_of_row = {int(problem.field_ids[r]): f for f, r in enumerate(rows)}
     start_f = {field_of_row[fid]: t for fid, t in start_first.items() if fid in field_of_row}
     grids = slot_portfolio(problem, rows)
+    cov_grid = coverage.details.get("grid")
+    grids.sort(key=lambda g: g.name != cov_grid)  # the coverage plan's own grid first
     best = (e_cov, None, None)
     runs = []
     budget = cfg.detection_time_limit_s
+    levels = W = None
     for i, grid in enumerate(grids):
         left = budget - (time.perf_counter() - t_wall)
         if left < 0.3 or (should_stop is not None and should_stop()):
@@ -327,11 +361,13 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
         if inst.n_pairs == 0:
             continue
         reach = pair_reach(problem, inst, kilonova, skymap.event_time, depth)
-        levels = distance_levels(reach, cfg.detection_levels)
-        if levels.size == 0:
-            continue
+        if levels is None:  # placed once, on the first grid's reaches, for every grid
+            levels = distance_levels(skymap, np.unique(fp.indices), float(reach.max(initial=0.0)),
+                                     cfg.detection_levels)
+            if levels.size == 0:
+                break
+            W = level_weights(skymap, fp, cells, levels)
         plev = pair_levels(reach, levels)
-        W = level_weights(skymap, fp, cells, levels)
         dm = build_detection_model(inst, W, plev, cfg.penalty, cfg.detection_coverage_weight)
         model = dm.model
         x0 = None
@@ -339,7 +375,9 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
             pairs = map_start(inst, start_f)
             if pairs.size:
                 x0 = detection_start_vector(dm, pairs)
-        res = solve_milp(model.milp, backend, left / (len(grids) - i), cfg.mip_gap, cfg.threads, should_stop, start=x0)
+        left = budget - (time.perf_counter() - t_wall)
+        res = solve_milp(model.milp, backend, max(left, 0.3) / max(len(grids) - i, 1) if i else max(left, 0.3) / 2,
+                         cfg.mip_gap, cfg.threads, should_stop, start=x0)
         if not res.has_solution:
             runs.append({"grid": grid.name, "status": res.status})
             continue

@@ -11,7 +11,6 @@ from mushrooms.scheduler_core.detection_slots import (
     build_detection_model,
     detection_stage,
     detection_start_vector,
-    distance_levels,
     pair_levels,
 )
 from mushrooms.scheduler_core.planner import run_scheduler
@@ -34,9 +33,9 @@ def test_detection_objective_picks_the_later_deeper_slot_when_the_early_one_is_t
     inst = two_slot_instance()
     # the cell's sources lie uniformly between 100 and 200 Mpc; the early slot reaches 80 Mpc, the late 220
     reach = np.array([80.0, 220.0])
-    levels = distance_levels(reach, 4)
+    levels = np.array([80.0, 150.0, 220.0])
     plev = pair_levels(reach, levels)
-    assert plev[0] < plev[1] and plev[1] == levels.size
+    assert plev.tolist() == [1, 3]
 
     def cdf(r: np.ndarray) -> np.ndarray:
         return np.clip((np.asarray(r) - 100.0) / 100.0, 0.0, 1.0)
