@@ -58,6 +58,9 @@ __all__ = ["pair_reach", "distance_levels", "pair_levels", "level_weights", "Det
 
 log = logging.getLogger(__name__)
 
+#: Least solve time (s) of the first grid, even when setting up used the budget.
+MIN_FIRST_SOLVE_S = 1.0
+
 
 def pair_reach(problem: PlanningProblem, inst: SlotInstance, kilonova: Kilonova, merger_time: Time,
                depth: DepthModel = ZTF_DEPTH) -> np.ndarray:
@@ -355,8 +358,8 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
     levels = W = None
     for i, grid in enumerate(grids):
         left = budget - (time.perf_counter() - t_wall)
-        if left < 0.3 or (should_stop is not None and should_stop()):
-            break
+        if (i and left < 0.3) or (should_stop is not None and should_stop()):
+            break  # the first grid (the coverage plan's own) is always tried
         inst = slot_instance(problem, rows, grid, cells=cells)
         if inst.n_pairs == 0:
             continue
@@ -376,8 +379,8 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
             if pairs.size:
                 x0 = detection_start_vector(dm, pairs)
         left = budget - (time.perf_counter() - t_wall)
-        res = solve_milp(model.milp, backend, max(left, 0.3) / max(len(grids) - i, 1) if i else max(left, 0.3) / 2,
-                         cfg.mip_gap, cfg.threads, should_stop, start=x0)
+        limit = max(left, 0.3) / max(len(grids) - i, 1) if i else max(left / 2, MIN_FIRST_SOLVE_S)
+        res = solve_milp(model.milp, backend, limit, cfg.mip_gap, cfg.threads, should_stop, start=x0)
         if not res.has_solution:
             runs.append({"grid": grid.name, "status": res.status})
             continue

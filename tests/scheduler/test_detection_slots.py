@@ -62,7 +62,7 @@ def test_detection_objective_picks_the_later_deeper_slot_when_the_early_one_is_t
 
 
 def test_detection_stage_never_returns_fewer_expected_detections_than_its_coverage_plan(data_dir) -> None:
-    cfg = PlanningConfig(nside=64, time_limit_s=5.0, detection_time_limit_s=5.0)
+    cfg = PlanningConfig(nside=64, time_limit_s=5.0, detection_time_limit_s=10.0)
     sm = read_skymap(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=64)
     problem = prepare_problem(sm, cfg, sm.event_time)
     cov = run_scheduler(problem, "greedy")
