@@ -10,7 +10,18 @@ the same gwemopt schedule with every rule-breaking exposure removed by
 :func:`~mushrooms.scheduler_core.gwemopt_baseline.repair_observations`), every plan goes
 through the independent plan checker, and the detection efficiency of each
 plan is computed with the SAME injections (seeded from the map's hash) for
-two kilonova light curves.
+three kilonova models (optimistic and conservative BNS, NSBH).
+
+Scoring uses the source model the scheduler shares
+(:mod:`~mushrooms.scheduler_core.kilonova`: light curves alive from the
+merger on; :mod:`~mushrooms.scheduler_core.depth`: each exposure's limit
+from its airmass, Moon and twilight).  Every difference between two plans of
+one map is paired (same injections) and reported with its Monte Carlo error:
+``efficiency_<lc>_diff`` / ``_differr`` against the reference solver (the
+first one listed), and, with ``legacy_scoring``, the first release's score of
+the same plan (``efficiency_<lc>_v1``: flat 300 s limits, light curve dark
+before 0.202 d) with the paired change ``efficiency_<lc>_v1diff`` /
+``_v1differr``.
 
 One CSV row per (sky map, solver); a summary table on stdout; optional plots.
 Settings beyond the command line come from an optional ``[bench]`` table in
@@ -54,6 +65,8 @@ log = logging.getLogger(__name__)
 SOLVERS = ("greedy", "slots", "blocks", "hybrid", "milp", "gwemopt", "gwemopt-repaired")
 #: Solvers run through run_scheduler (the others are gwemopt's rows).
 OURS = ("greedy", "slots", "blocks", "hybrid", "milp")
+#: ``<solver>+detection``: the detection objective started from that solver's coverage plan.
+DETECTION_SUFFIX = "+detection"
 
 #: CSV columns, in order (the first nine are the issue's required ones).
 COLUMNS = (
@@ -63,6 +76,7 @@ COLUMNS = (
     "prepare_s", "solve_s", "solver_detail", "n_problems", "first_problem",
     "area90_deg2", "distmean_mpc", "n_injections", "distance_source", "start", "note",
     "bound", "coverage_over_bound",
+    "expected_detections",
 )
 
 #: Coverage differences at or below this count as a tie (absolute probability).
@@ -106,6 +120,11 @@ class BenchSettings:
     gwemopt_cache_only : bool
         With a cache: never run gwemopt, a map not in the cache gets the
         row status ``not_cached`` (score cached schedules quickly).
+    legacy_scoring : bool
+        Also score every plan as the first release did (``efficiency_<lc>_v1``).
+    reference_solver : str or None
+        Paired efficiency differences are against this solver (default: the
+        first of ``solvers``).
     """
 
     config: Any
@@ -113,13 +132,15 @@ class BenchSettings:
     start_iso: str | None = None
     n_injections: int = 10_000
     lightcurves: Mapping[str, str] = field(default_factory=lambda: {
-        "optimistic": "optimistic", "conservative": "conservative"})
+        "optimistic": "optimistic", "conservative": "conservative", "nsbh": "nsbh"})
     maglim: Mapping[str, float] = field(default_factory=lambda: {"g": 21.7, "r": 21.7, "i": 21.2})
     fixed_distance_mpc: float | None = None
     gwemopt_python: str | None = None
     gwemopt_timeout_s: float = 1800.0
     gwemopt_cache_dir: str | None = None
     gwemopt_cache_only: bool = False
+    legacy_scoring: bool = True
+    reference_solver: str | None = None
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any], **base: Any) -> "BenchSettings":
@@ -166,12 +187,15 @@ def _plan_from_result(result: Any, problem: Any, skymap: Any, solver: str) -> An
 
 
 def _score(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, injections: Any,
-           lightcurves: Mapping[str, Any], merger_time: Any) -> dict[str, Any]:
-    """Checker verdict, coverage and efficiencies of one plan."""
+           lightcurves: Mapping[str, Any], merger_time: Any) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Checker verdict, coverage and efficiencies of one plan, and its detections per light curve."""
     from .scheduler_core.checker import check_plan
-    from .scheduler_core.efficiency import detection_efficiency
+    from .scheduler_core.depth import ZTF_DEPTH
+    from .scheduler_core.efficiency import detected, paired_difference
+    from .scheduler_core.kilonova import Kilonova
 
     out: dict[str, Any] = {}
+    hits: dict[str, np.ndarray] = {}
     report = check_plan(plan, skymap, settings.config)
     obs = plan.observations
     out.update(
@@ -184,15 +208,40 @@ def _score(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, inj
         n_fields=len({o.field_id for o in obs}),
         schedule_length_s=_fmt(float(obs[-1].end - obs[0].start), 1) if obs else 0.0,
         first_exposure_s=_fmt(float(obs[0].start), 1) if obs else "",
+        expected_detections=_fmt(getattr(plan.metrics, "expected_detections", None)),
     )
     for key, lc in lightcurves.items():
         if injections is None or merger_time is None:
             out[f"efficiency_{key}"] = ""
             continue
-        eff = detection_efficiency(plan, skymap, lc, settings.maglim, footprints, injections,
-                                   merger_time=merger_time)
-        out[f"efficiency_{key}"] = _fmt(eff)
-    return out
+        h = detected(plan, Kilonova(lc), footprints, injections, merger_time, ZTF_DEPTH)
+        hits[key] = h
+        out[f"efficiency_{key}"] = _fmt(float(h.mean()))
+        if settings.legacy_scoring:
+            h1 = detected(plan, lc, footprints, injections, merger_time, settings.maglim)
+            d, e = paired_difference(h, h1)
+            out.update({f"efficiency_{key}_v1": _fmt(float(h1.mean())), f"efficiency_{key}_v1diff": _fmt(d),
+                        f"efficiency_{key}_v1differr": _fmt(e)})
+    return out, hits
+
+
+def _pair_with_reference(rows: list[dict[str, Any]], hits: Mapping[str, Mapping[str, np.ndarray]],
+                         reference: str) -> None:
+    """Add ``efficiency_<lc>_diff`` / ``_differr`` (paired, vs ``reference``) to each row in place."""
+    from .scheduler_core.efficiency import paired_difference
+
+    ref = hits.get(reference)
+    if not ref:
+        return
+    for row in rows:
+        mine = hits.get(str(row["solver"]))
+        if not mine or row["solver"] == reference:
+            continue
+        for key, h in mine.items():
+            if key in ref:
+                d, e = paired_difference(h, ref[key])
+                row[f"efficiency_{key}_diff"] = _fmt(d)
+                row[f"efficiency_{key}_differr"] = _fmt(e)
 
 
 def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]:
@@ -255,6 +304,8 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
     note = "; ".join(notes)
 
     rows: list[dict[str, Any]] = []
+    hits: dict[str, dict[str, np.ndarray]] = {}
+    results: dict[str, tuple[Any, float]] = {}  # coverage results, reused by "<solver>+detection"
     problem, prepare_s, prep_error = None, 0.0, ""
     t0 = time.perf_counter()
     try:  # every row needs it: ours to plan, gwemopt's for the repair and the bound
@@ -301,7 +352,8 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
                 plan = gwemopt_plan(run, start, cfg, skymap.sha256, cov)
                 if solver == "gwemopt-repaired":
                     plan = dataclasses.replace(plan, metrics=dataclasses.replace(plan.metrics, solver=solver))
-                scores = with_bound(_score(plan, skymap, settings, footprints, injections, lightcurves, merger))
+                scores, hits[solver] = _score(plan, skymap, settings, footprints, injections, lightcurves, merger)
+                scores = with_bound(scores)
                 rows.append(_row(name, solver, status=run.status, runtime_s=_fmt(run.runtime_s, 3),
                                  solve_s=_fmt(run.runtime_s, 3), solver_detail=detail,
                                  note="; ".join(filter(None, [note, extra_note])), **scores, **common))
@@ -309,15 +361,27 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
             if problem is None:
                 rows.append(_row(name, solver, status=prep_error or "prepare_error", valid=False, note=note, **common))
                 continue
+            base, _, objective = solver.partition(DETECTION_SUFFIX[0])
             t0 = time.perf_counter()
             try:
-                result = run_scheduler(problem, solver)
+                if objective:  # the detection stage, started from the coverage plan of the same scheduler
+                    from .scheduler_core.detection_slots import detection_stage
+
+                    if base not in results:
+                        results[base] = (run_scheduler(problem, base), time.perf_counter() - t0)
+                    t1 = time.perf_counter()
+                    result = detection_stage(problem, skymap, results[base][0])
+                    solve_s = results[base][1] + time.perf_counter() - t1
+                else:
+                    result = run_scheduler(problem, solver)
+                    solve_s = time.perf_counter() - t0
+                    results[solver] = (result, solve_s)
             except ImportError as exc:
                 rows.append(_row(name, solver, status="unavailable", valid=False, note=f"{exc}", **common))
                 continue
-            solve_s = time.perf_counter() - t0
-            plan = _plan_from_result(result, problem, skymap, solver)
-            scores = with_bound(_score(plan, skymap, settings, footprints, injections, lightcurves, merger))
+            plan = _plan_from_result(result, problem, skymap, base)
+            scores, hits[solver] = _score(plan, skymap, settings, footprints, injections, lightcurves, merger)
+            scores = with_bound(scores)
             rows.append(_row(
                 name, solver, status=result.status, mip_gap=_fmt(result.mip_gap),
                 runtime_s=_fmt(prepare_s + solve_s, 3), prepare_s=_fmt(prepare_s, 3), solve_s=_fmt(solve_s, 3),
@@ -326,6 +390,7 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
             log.exception("%s on %s failed", solver, name)
             rows.append(_row(name, solver, status=f"error: {type(exc).__name__}: {exc}"[:300], valid=False,
                              note=note, **common))
+    _pair_with_reference(rows, hits, settings.reference_solver or settings.solvers[0])
     return rows
 
 
@@ -409,12 +474,12 @@ def run_bench(paths: Sequence[str | Path], settings: BenchSettings, jobs: int = 
 def write_csv(rows: Iterable[Mapping[str, Any]], path: str | Path) -> None:
     """Write rows with the :data:`COLUMNS` header (atomic replace).
 
-    Efficiency columns of extra light curves (``efficiency_<name>``) follow
-    the required ones.
+    Efficiency columns of extra light curves and the paired differences
+    (``efficiency_<name>...``) follow the nine required columns.
     """
     rows = list(rows)
     extra = [k for k in dict.fromkeys(k for r in rows for k in r) if k.startswith("efficiency_") and k not in COLUMNS]
-    columns = list(COLUMNS[:5]) + extra + list(COLUMNS[5:])
+    columns = list(COLUMNS[:9]) + extra + list(COLUMNS[9:])
     path = Path(path)
     if path.parent and not path.parent.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -506,7 +571,56 @@ def _stat(values: list[float], fn: Any) -> str:
     return f"{fn(values):.4f}" if values else "-"
 
 
-def summarize(rows: Sequence[Mapping[str, Any]], eff_keys: Sequence[str] = ("optimistic", "conservative")) -> str:
+def _mean_err(rows: Sequence[Mapping[str, Any]], key: str) -> tuple[float, float, int, int, int] | None:
+    """Mean of per-map paired differences, its error, and maps better / worse beyond 2 sigma / total."""
+    pairs = [(_num(r.get(key)), _num(r.get(key + "err"))) for r in rows]
+    pairs = [(d, e) for d, e in pairs if d is not None and e is not None]
+    if not pairs:
+        return None
+    d = np.array([x for x, _ in pairs])
+    e = np.array([y for _, y in pairs])
+    better = int(np.sum(d > 2 * e + 1e-12))
+    worse = int(np.sum(d < -2 * e - 1e-12))
+    return float(d.mean()), float(np.sqrt(np.sum(e ** 2)) / d.size), better, worse, d.size
+
+
+def _paired_lines(rows: Sequence[Mapping[str, Any]], solvers: Sequence[str], eff_keys: Sequence[str]) -> list[str]:
+    """Summary lines for the paired differences (vs the reference solver; v1 -> fixed source model)."""
+    lines: list[str] = []
+    diff_solvers = [s for s in solvers
+                    if any(_num(r.get(f"efficiency_{k}_diff")) is not None for r in rows if r["solver"] == s
+                           for k in eff_keys)]
+    if diff_solvers:
+        ref = [s for s in solvers if s not in diff_solvers]
+        lines += ["", f"paired efficiency differences vs {ref[0] if ref else 'the reference'} (same injections; "
+                      "error of the mean = sqrt(sum err^2)/maps; better/worse = beyond 2 sigma on that map):"]
+        for s in diff_solvers:
+            rs = [r for r in rows if r["solver"] == s]
+            parts = []
+            for k in eff_keys:
+                m = _mean_err(rs, f"efficiency_{k}_diff")
+                if m is not None:
+                    parts.append(f"{k} {m[0]:+.4f} ± {m[1]:.4f} (better {m[2]}, worse {m[3]} of {m[4]})")
+            lines.append(f"  {s}: " + "; ".join(parts))
+    if any(_num(r.get(f"efficiency_{k}_v1")) is not None for r in rows for k in eff_keys):
+        lines += ["", "first-release scoring (v1: flat 300 s limits, dark before 0.202 d) -> fixed source model, "
+                      "same plans (mean v1 -> mean new, paired change ± error):"]
+        for s in solvers:
+            rs = [r for r in rows if r["solver"] == s]
+            parts = []
+            for k in eff_keys:
+                v1 = [x for x in (_num(r.get(f"efficiency_{k}_v1")) for r in rs) if x is not None]
+                v2 = [_num(r.get(f"efficiency_{k}")) for r in rs if _num(r.get(f"efficiency_{k}_v1")) is not None]
+                m = _mean_err(rs, f"efficiency_{k}_v1diff")
+                if v1 and m is not None:
+                    parts.append(f"{k} {np.mean(v1):.4f} -> {np.mean(v2):.4f} ({m[0]:+.4f} ± {m[1]:.4f})")
+            if parts:
+                lines.append(f"  {s}: " + "; ".join(parts))
+    return lines
+
+
+def summarize(rows: Sequence[Mapping[str, Any]],
+              eff_keys: Sequence[str] = ("optimistic", "conservative", "nsbh")) -> str:
     """The summary table: means, medians, validity, wall times, wins/losses.
 
     Parameters
@@ -578,6 +692,7 @@ def summarize(rows: Sequence[Mapping[str, Any]], eff_keys: Sequence[str] = ("opt
             for k in eff_keys:
                 parts.append(f"eff_{k[:4]} {'%d/%d/%d' % _wins(all_rows, s, base, f'efficiency_{k}', TIE_EFFICIENCY)}")
             lines.append(f"  {s} vs {base}: " + ", ".join(parts))
+    lines += _paired_lines(rows, solvers, eff_keys)
     if "gwemopt" in solvers:
         lines.append("")
         lines.append(f"similar-length subset (|n_exposures - gwemopt's| <= {SIMILAR_LENGTH}, the paper's section 4.1):")
@@ -698,9 +813,11 @@ def _load_settings(args: Any) -> BenchSettings:
     else:
         config = Config().scheduler
     solvers = tuple(s.strip() for s in str(args.solvers).split(",") if s.strip())
-    bad = [s for s in solvers if s not in SOLVERS]
+    bad = [s for s in solvers if s not in SOLVERS and not (
+        s.endswith(DETECTION_SUFFIX) and s[:-len(DETECTION_SUFFIX)] in OURS)]
     if bad or not solvers:
-        raise InputError(f"unknown solver(s) {', '.join(bad) or '(none)'}; choose from {', '.join(SOLVERS)}")
+        raise InputError(f"unknown solver(s) {', '.join(bad) or '(none)'}; choose from {', '.join(SOLVERS)} "
+                         f"(ours also as <solver>{DETECTION_SUFFIX})")
     if args.injections < 1:
         raise InputError(f"--injections must be >= 1, got {args.injections}")
     if args.jobs < 1:

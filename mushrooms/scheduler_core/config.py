@@ -10,7 +10,10 @@ import dataclasses
 import types
 import typing
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Mapping
+
+from .lightcurves import PAPER_LIGHTCURVES
 
 __all__ = ["PlanningConfig", "SlewModel", "dataclass_from_table", "ZTF_FILTERS", "SOLVER_NAMES"]
 
@@ -216,6 +219,21 @@ class PlanningConfig:
     slot_margin_s : float
         Slack (s) at the end of each slot block for slews longer than the
         estimate.
+    detection_lightcurve : str
+        Kilonova model (``optimistic``, ``conservative``, ``nsbh`` or a
+        light-curve file) of the plans' ``expected_detections`` metric and
+        of the detection objective.
+    objective : str
+        ``coverage`` (maximise the probability covered) or ``detection``
+        (then improve the coverage plan's expected detections on the slot
+        grids, ``docs/design/detection.md``; never publishes fewer
+        expected detections than the coverage plan).
+    detection_levels : int
+        L, distance levels per slot of the detection objective.
+    detection_coverage_weight : float
+        λ, weight of the coverage tie-break term in the detection objective.
+    detection_time_limit_s : float
+        Wall-clock budget (s) of the detection stage, on top of ``time_limit_s``.
     """
 
     nside: int = 256
@@ -248,6 +266,11 @@ class PlanningConfig:
     min_coverage: float = 0.01
     slot_positions: tuple[int, ...] = (6, 7, 5, 8)
     slot_margin_s: float = 30.0
+    detection_lightcurve: str = "conservative"
+    objective: str = "coverage"
+    detection_levels: int = 8
+    detection_coverage_weight: float = 0.05
+    detection_time_limit_s: float = 10.0
 
     def __post_init__(self) -> None:
         problems = []
@@ -282,6 +305,17 @@ class PlanningConfig:
         for name in ("min_gain", "min_coverage"):
             if not 0.0 <= getattr(self, name) < 1.0:
                 problems.append(f"{name} must be in [0, 1), got {getattr(self, name)}")
+        if self.detection_lightcurve not in PAPER_LIGHTCURVES and not Path(self.detection_lightcurve).is_file():
+            problems.append(f"detection_lightcurve must be {', '.join(PAPER_LIGHTCURVES)} or a light-curve file, "
+                            f"got {self.detection_lightcurve!r}")
+        if self.objective not in ("coverage", "detection"):
+            problems.append(f"objective must be coverage or detection, got {self.objective!r}")
+        if self.detection_levels < 1:
+            problems.append(f"detection_levels must be >= 1, got {self.detection_levels}")
+        if self.detection_coverage_weight < 0:
+            problems.append(f"detection_coverage_weight must be >= 0, got {self.detection_coverage_weight}")
+        if self.detection_time_limit_s <= 0:
+            problems.append(f"detection_time_limit_s must be > 0, got {self.detection_time_limit_s}")
         if problems:
             raise ValueError("; ".join(problems))
 

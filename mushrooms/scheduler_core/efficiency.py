@@ -15,13 +15,19 @@ to) the exposure's limiting magnitude.  One detection suffices, as in the
 paper and gwemopt's injection recovery; a stricter "both filters" rule
 would lower every number.  No extinction, no K-correction.
 
-Default limiting magnitudes (5 sigma, AB) for a 300 s exposure: g 21.7,
-r 21.7, i 21.2.  r comes from gwemopt's ``ZTF.config`` (20.4 in 30 s)
-scaled to 300 s for background-limited imaging,
-``20.4 + 1.25 log10(300/30) = 21.65``, which matches the ≈21.7 quoted for
-300 s ZTF ToO exposures; g is taken equal (ZTF's 30 s g and r depths are
-within 0.1 mag, Bellm et al. 2019); i (not planned by default) is 0.5 mag
-shallower.  Other exposure times are scaled the same way.
+Source model (shared with the scheduler, :mod:`.kilonova` and :mod:`.depth`):
+the kilonova is a :class:`~.kilonova.Kilonova` (tabulated light curve
+extended to the first hours after the merger by the expanding-fireball bound
+K1, so injections are alive from the merger time on), and each exposure's
+limit comes from :func:`~.depth.limiting_magnitude` for its filter,
+exposure time, airmass, Moon and twilight at mid-exposure (equation D1).
+
+First-release scoring ("v1") stays available for comparison: pass a
+:class:`~.lightcurves.LightCurve` (table only, undetectable before its first
+epoch) and a mapping of flat limiting magnitudes per filter for a 300 s
+exposure (:data:`DEFAULT_MAGLIM_300S`: g 21.7, r 21.7, i 21.2, from
+gwemopt's 20.4 in 30 s scaled by ``1.25 log10(t / 30 s)``) instead of a
+:class:`~.depth.DepthModel`.
 """
 
 from __future__ import annotations
@@ -35,6 +41,9 @@ import healpy as hp
 import numpy as np
 from astropy.time import Time
 
+from .depth import DepthModel, ZTF_DEPTH, sky_conditions
+from .depth import limiting_magnitude as sky_limiting_magnitude
+from .kilonova import Kilonova
 from .lightcurves import LightCurve
 from .plan import Plan
 from .problem import Footprints
@@ -47,8 +56,10 @@ __all__ = [
     "draw_injections",
     "injection_seed",
     "limiting_magnitude",
+    "exposure_limits",
     "detected",
     "detection_efficiency",
+    "paired_difference",
 ]
 
 #: 5-sigma limiting magnitudes (AB) of a 300 s ZTF exposure, per filter.
@@ -206,6 +217,32 @@ def limiting_magnitude(
     return base + 1.25 * np.log10(np.asarray(exposure_s, float) / reference_exposure_s)
 
 
+def exposure_limits(plan: Plan, depth: DepthModel | Mapping[str, float] = ZTF_DEPTH,
+                    reference_exposure_s: float = REFERENCE_EXPOSURE_S) -> np.ndarray:
+    """(m,) limiting magnitude of each planned exposure (AB mag).
+
+    Parameters
+    ----------
+    plan : Plan
+        Observations (field centre, filter, exposure time, start).
+    depth : DepthModel or mapping
+        A depth model (sky at mid-exposure, equation D1), or flat limits
+        per filter at ``reference_exposure_s`` (first-release scoring).
+    reference_exposure_s : float
+        Exposure time (s) of flat limits.
+    """
+    obs = plan.observations
+    filters = np.array([o.filter for o in obs], dtype=str)
+    expo = np.array([o.exposure_s for o in obs], dtype=float)
+    if not isinstance(depth, DepthModel):
+        return limiting_magnitude(filters, expo, depth, reference_exposure_s)
+    if not obs:
+        return np.zeros(0)
+    mid = np.array([o.start for o in obs], dtype=float) + 0.5 * expo
+    cond = sky_conditions(np.array([o.ra for o in obs]), np.array([o.dec for o in obs]), plan.absolute_time(mid))
+    return sky_limiting_magnitude(filters, expo, cond, depth)
+
+
 def _covered(footprints: Footprints, field_ids: np.ndarray, ipix: np.ndarray) -> np.ndarray:
     """(len(field_ids), n) True where an injection's pixel lies in the field."""
     out = np.zeros((field_ids.size, ipix.size), dtype=bool)
@@ -220,11 +257,11 @@ def _covered(footprints: Footprints, field_ids: np.ndarray, ipix: np.ndarray) ->
 
 def detected(
     plan: Plan,
-    lightcurve: LightCurve,
+    lightcurve: Kilonova | LightCurve,
     footprints: Footprints,
     injections: Injections,
     merger_time: Time,
-    maglim_by_filter: Mapping[str, float] = DEFAULT_MAGLIM_300S,
+    depth: DepthModel | Mapping[str, float] = ZTF_DEPTH,
     reference_exposure_s: float = REFERENCE_EXPOSURE_S,
     chunk: int = 256,
 ) -> np.ndarray:
@@ -234,18 +271,21 @@ def detected(
     ----------
     plan : Plan
         Observations with times in s since ``plan.start``.
-    lightcurve : LightCurve
-        Absolute magnitudes; each exposure uses the band named like its filter.
+    lightcurve : Kilonova or LightCurve
+        Source model; each exposure uses the band named like its filter.
+        A bare LightCurve is the first-release model (dark before its
+        first tabulated epoch).
     footprints : Footprints
         Pixel lists of (at least) the planned fields at ``injections.nside``.
     injections : Injections
         Simulated sources.
     merger_time : astropy.time.Time
         Time of the merger (t = 0 of the light curve).
-    maglim_by_filter : mapping
-        Limiting magnitude per filter at ``reference_exposure_s`` (AB mag).
+    depth : DepthModel or mapping
+        Depth model (default :data:`~.depth.ZTF_DEPTH`), or flat limiting
+        magnitudes per filter at ``reference_exposure_s`` (first release).
     reference_exposure_s : float
-        Exposure time (s) the limits refer to.
+        Exposure time (s) of flat limits.
     chunk : int
         Exposures processed at once (bounds memory to ``chunk * n`` floats).
 
@@ -271,7 +311,7 @@ def detected(
     for band in np.unique(filters).tolist():  # loop over bands, not exposures
         sel = filters == band
         absmag[sel] = lightcurve.absolute_mag(band, t_days[sel])
-    maglim = limiting_magnitude(filters, expo, maglim_by_filter, reference_exposure_s)
+    maglim = exposure_limits(plan, depth, reference_exposure_s)
     # Largest distance modulus at which each exposure still sees the source.
     with np.errstate(invalid="ignore"):
         dmu_max = np.where(np.isfinite(absmag), maglim - absmag, -math.inf)
@@ -290,8 +330,8 @@ def detected(
 def detection_efficiency(
     plan: Plan,
     skymap: SkyMap,
-    lightcurve: LightCurve,
-    maglim_by_filter: Mapping[str, float],
+    lightcurve: Kilonova | LightCurve,
+    depth: DepthModel | Mapping[str, float],
     footprints: Footprints,
     injections: Injections,
     merger_time: Time | None = None,
@@ -305,11 +345,11 @@ def detection_efficiency(
         The plan to score.
     skymap : SkyMap
         Sky map the injections were drawn from (gives the merger time).
-    lightcurve : LightCurve
-        Kilonova model.
-    maglim_by_filter : mapping
-        Limiting magnitude per filter at ``reference_exposure_s`` (AB mag),
-        e.g. :data:`DEFAULT_MAGLIM_300S`.
+    lightcurve : Kilonova or LightCurve
+        Source model (a bare LightCurve: first-release scoring).
+    depth : DepthModel or mapping
+        :data:`~.depth.ZTF_DEPTH`, or flat limits per filter at
+        ``reference_exposure_s`` such as :data:`DEFAULT_MAGLIM_300S`.
     footprints : Footprints
         Field pixel lists at the map's resolution.
     injections : Injections
@@ -328,5 +368,26 @@ def detection_efficiency(
     t0 = merger_time if merger_time is not None else skymap.event_time
     if t0 is None:
         raise ValueError("no merger time: the sky map has no event time and none was given")
-    hits = detected(plan, lightcurve, footprints, injections, t0, maglim_by_filter, reference_exposure_s)
+    hits = detected(plan, lightcurve, footprints, injections, t0, depth, reference_exposure_s)
     return float(hits.mean())
+
+
+def paired_difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """Mean difference of two plans' detections on the SAME injections, and its error.
+
+    Parameters
+    ----------
+    a, b : numpy.ndarray
+        (n,) bool detections of plans A and B (from :func:`detected`).
+
+    Returns
+    -------
+    (diff, err) : tuple of float
+        ``eff_A - eff_B`` and its paired Monte Carlo standard error
+        ``std(a_i - b_i) / sqrt(n)``, far smaller than the unpaired
+        ``sqrt(e (1 - e) / n)`` when the plans share most detections.
+    """
+    d = np.asarray(a, float) - np.asarray(b, float)
+    if d.size < 2:
+        return float(d.mean()) if d.size else 0.0, math.inf
+    return float(d.mean()), float(d.std(ddof=1) / math.sqrt(d.size))

@@ -36,6 +36,7 @@ EVENT_KEYS = ("superevent_id", "alert_type", "time_created", "skymap_sha256", "l
 METRIC_KEYS = (
     "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
     "n_fields", "n_exposures", "latency_s", "upper_bound",
+    "expected_detections",
 )
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
 
@@ -165,6 +166,11 @@ class PlanMetrics:
     upper_bound : float or None
         Certified upper bound on the coverage any rule-abiding plan of this
         problem reaches (:mod:`.bound`; None when not computed, e.g. greedy).
+    expected_detections : float or None
+        Probability that the plan detects a kilonova of the configured light
+        curve (``detection_lightcurve``), from the sky map's distance
+        posterior and each exposure's depth (:mod:`.detection`, equation
+        X1); None without distance layers.
     """
 
     coverage: float
@@ -177,6 +183,7 @@ class PlanMetrics:
     latency_s: float | None = None
     mip_bound: float | None = None
     upper_bound: float | None = None
+    expected_detections: float | None = None
 
 
 def make_plan_id(*parts: Any) -> str:

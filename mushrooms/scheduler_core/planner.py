@@ -171,6 +171,10 @@ def make_plan(
     problem = prepare_problem(skymap, config, start)
     t_prep = time.perf_counter() - t0
     result = run_scheduler(problem, solver, should_stop)
+    if config.objective == "detection":
+        from .detection_slots import detection_stage
+
+        result = detection_stage(problem, skymap, result, should_stop)
     plan = build_plan(problem, result, skymap, solver, event=event, supersedes=supersedes,
                       runtime_s=time.perf_counter() - t0)
     metrics = plan.metrics
@@ -246,7 +250,7 @@ def build_plan(
     plan_id = make_plan_id(
         skymap.sha256, iso_utc(start), dataclasses.asdict(config), solver, event.superevent_id,
     )
-    return Plan(
+    plan = Plan(
         plan_id=plan_id,
         start=start,
         end=start + TimeDelta(config.horizon_s, format="sec"),
@@ -256,6 +260,8 @@ def build_plan(
         supersedes=supersedes,
         config=json.loads(json.dumps(dataclasses.asdict(config))),  # JSON types (tuples become lists)
     )
+    return plan.with_(metrics=dataclasses.replace(
+        metrics, expected_detections=_expected_detections(plan, problem, skymap)))
 
 
 def _with_map_details(event: EventInfo, skymap: SkyMap) -> EventInfo:
@@ -286,3 +292,14 @@ def _with_airmass_and_probability(observations: tuple[Observation, ...],
                           problem.footprints.field_probability(problem.prob).tolist()))
     return tuple(dataclasses.replace(o, airmass=float(x), probability=field_prob.get(o.field_id))
                  for o, x in zip(observations, airmass))
+
+
+def _expected_detections(plan: Plan, problem: PlanningProblem, skymap: SkyMap) -> float | None:
+    """metrics.expected_detections for the configured light curve (None without distance layers)."""
+    from .detection import expected_detections
+    from .kilonova import load_kilonova
+
+    if not skymap.has_distance or skymap.event_time is None:
+        return None
+    e = expected_detections(plan, skymap, problem.footprints, load_kilonova(problem.config.detection_lightcurve))
+    return None if e is None else round(e, 6)
