@@ -34,7 +34,9 @@ MIN_BLOCKS_S = 3.0
 
 
 def _coverage(problem: PlanningProblem, result: ScheduleResult) -> float:
-    return problem.footprints.coverage({o.field_id for o in result.observations}, problem.prob)
+    """Coverage of a result as its plan will have it: after the least-gain rule of :func:`build_plan`."""
+    kept = drop_low_gain(result, problem.footprints, problem.prob, problem.config.min_gain)
+    return problem.footprints.coverage({o.field_id for o in kept.observations}, problem.prob)
 
 
 def run_scheduler(problem: PlanningProblem, solver: str,
