@@ -51,7 +51,9 @@ def test_detection_objective_picks_the_later_deeper_slot_when_the_early_one_is_t
     assert cov.milp.c @ x_early == cov.milp.c @ x_late
     dm = build_detection_model(inst, W, plev, coverage_weight=0.05)
     start = detection_start_vector(dm, np.array([0]))  # warm start: the early slot
-    res = solve_milp(dm.model.milp, "highs", 10.0, 0.0, 1, start=start)
+    # threads=0: HiGHS keeps one global thread pool per process, and an earlier solve in the same
+    # process (any other test) has fixed its size; asking for another count makes run() fail
+    res = solve_milp(dm.model.milp, "highs", 10.0, 0.0, 0, start=start)
     assert res.status == "optimal"
     assert res.x[:2].round().tolist() == [0.0, 1.0]
     assert res.objective == pytest.approx(1.0 + 0.05)  # every source in reach, plus the coverage tie-break
