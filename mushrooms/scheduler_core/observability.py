@@ -29,13 +29,13 @@ from typing import Any
 
 import healpy as hp
 import numpy as np
-from astropy.coordinates import AltAz, get_body
+from astropy.coordinates import get_body
 from astropy.time import Time, TimeDelta
 
 from .config import PlanningConfig
 from .plan import Plan
 from .skymap import SkyMap
-from .visibility import mount_limits_ok, site
+from .visibility import constraint_masks, site
 
 __all__ = ["SkyReasons", "NotObservable", "sky_reasons", "not_observable"]
 
@@ -108,21 +108,10 @@ def sky_reasons(skymap: SkyMap, config: PlanningConfig, start: Time) -> SkyReaso
 
     n_steps = int(np.floor(config.horizon_s / REASONS_STEP_S)) + 1
     times = start + TimeDelta(np.arange(n_steps) * REASONS_STEP_S, format="sec")
-    loc = site()
-    frame = AltAz(obstime=times, location=loc)
-    sun = get_body("sun", times, loc)
-    moon = get_body("moon", times, loc)
-    night = sun.transform_to(frame).alt.deg <= config.sun_alt_max_deg
-    lst = times.sidereal_time("apparent", longitude=loc.lon).deg
-
-    lat = np.radians(loc.lat.deg)
-    d = np.radians(dec)[:, None]
-    ha = (lst[None, :] - ra[:, None] + 180.0) % 360.0 - 180.0
-    sin_alt = np.sin(lat) * np.sin(d) + np.cos(lat) * np.cos(d) * np.cos(np.radians(ha))
-    reach = (sin_alt >= 1.0 / config.airmass_max) & mount_limits_ok(ha, dec[:, None], config.ha_max_h)
-    reach &= ((dec >= config.dec_min_deg) & (dec <= config.dec_max_deg))[:, None]
-    away = _separation_deg(ra[:, None], dec[:, None], moon.ra.deg[None, :], moon.dec.deg[None, :]) \
-        >= config.moon_sep_min_deg
+    masks = constraint_masks(ra, dec, times, config)  # the schedulers' own constraints, one by one
+    night, away = masks.night, masks.moon_clear
+    reach = masks.reachable & ((dec >= config.dec_min_deg) & (dec <= config.dec_max_deg))[:, None]
+    sun = get_body("sun", times[:1], site())
 
     any_time = reach.any(axis=1)
     at_night = (reach & night[None, :]).any(axis=1)

@@ -26,6 +26,7 @@ same inputs give the same plan whichever path made it.
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -37,7 +38,7 @@ from .config import PlanningConfig
 from .problem import Windows
 
 __all__ = ["site", "observability_windows", "observing_conditions", "windows_from_mask", "mount_limits_ok", "PALOMAR",
-           "GRID_ANCHOR", "NIGHT_S", "night_steps", "night_epoch", "grid_times", "windows_on_grid"]
+           "GRID_ANCHOR", "NIGHT_S", "ConstraintMasks", "constraint_masks", "night_steps", "night_epoch", "grid_times", "windows_on_grid"]
 
 #: Local mean noon at Palomar (lon -116.86 deg) on 2000-01-01: grid times are this plus whole
 #: time steps, and nights run from one such noon to the next.
@@ -96,18 +97,38 @@ def _runs(ok: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return r0, c0, c1 - 1  # nonzero() is row-major, so starts and ends pair up
 
 
-def observing_conditions(
+@dataclass(frozen=True)
+class ConstraintMasks:
+    """The observing constraints one by one, for fields x grid times.
+
+    Attributes
+    ----------
+    night : numpy.ndarray
+        (m,) bool: the Sun is below ``sun_alt_max_deg``.
+    reachable : numpy.ndarray
+        (n, m) bool: airmass at most ``airmass_max`` and inside the P48
+        mount's hour-angle and keep-out limits.
+    moon_clear : numpy.ndarray
+        (n, m) bool: at least ``moon_sep_min_deg`` from the Moon.
+    """
+
+    night: np.ndarray
+    reachable: np.ndarray
+    moon_clear: np.ndarray
+
+    def all(self) -> np.ndarray:
+        """(n, m) bool: every constraint holds."""
+        return self.night[None, :] & self.reachable & self.moon_clear
+
+
+def constraint_masks(
     ra_deg: np.ndarray,
     dec_deg: np.ndarray,
     times: Time,
     config: PlanningConfig = PlanningConfig(),
     apparent_epoch: Time | None = None,
-) -> np.ndarray:
-    """Where every observing constraint holds, for fields x grid times.
-
-    A pure function of the field centres and the times: the daemon calls it
-    once per night for the whole ZTF grid and reuses the result for every
-    alert of that night (see :func:`windows_from_mask`).
+) -> ConstraintMasks:
+    """Each observing constraint for fields x grid times (see :func:`observing_conditions`).
 
     Parameters
     ----------
@@ -124,8 +145,7 @@ def observing_conditions(
 
     Returns
     -------
-    numpy.ndarray
-        (n, m) bool: True where the field can be observed at that time.
+    ConstraintMasks
     """
     loc = site()
     lat = np.radians(loc.lat.deg)
@@ -156,11 +176,42 @@ def observing_conditions(
     cos_sep = np.sin(fdec) * np.sin(moon_dec) + np.cos(fdec) * np.cos(moon_dec) * np.cos(fra - moon_ra)
     moon_sep = np.degrees(np.arccos(np.clip(cos_sep, -1, 1)))
 
-    ok = (sun_alt <= config.sun_alt_max_deg)[None, :]
-    ok = ok & (airmass <= config.airmass_max)
-    ok &= mount_limits_ok(ha, dec_deg[:, None], config.ha_max_h)
-    ok &= moon_sep >= config.moon_sep_min_deg
-    return ok
+    reachable = (airmass <= config.airmass_max) & mount_limits_ok(ha, dec_deg[:, None], config.ha_max_h)
+    return ConstraintMasks(night=sun_alt <= config.sun_alt_max_deg, reachable=reachable,
+                           moon_clear=moon_sep >= config.moon_sep_min_deg)
+
+
+def observing_conditions(
+    ra_deg: np.ndarray,
+    dec_deg: np.ndarray,
+    times: Time,
+    config: PlanningConfig = PlanningConfig(),
+    apparent_epoch: Time | None = None,
+) -> np.ndarray:
+    """Where every observing constraint holds, for fields x grid times.
+
+    A pure function of the field centres and the times: the daemon calls it
+    once per night for the whole ZTF grid and reuses the result for every
+    alert of that night (see :func:`windows_from_mask`).  The constraints one
+    by one: :func:`constraint_masks`.
+
+    Parameters
+    ----------
+    ra_deg, dec_deg : numpy.ndarray
+        (n,) field centres (deg, ICRS).
+    times : astropy.time.Time
+        (m,) grid times (UTC).
+    config : PlanningConfig
+        Constraints (Sun, airmass, hour angle and keep-outs, Moon).
+    apparent_epoch : astropy.time.Time, optional
+        Epoch of the apparent field places; default the middle of ``times``.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, m) bool: True where the field can be observed at that time.
+    """
+    return constraint_masks(ra_deg, dec_deg, times, config, apparent_epoch).all()
 
 
 def windows_from_mask(field_ids: np.ndarray, ok: np.ndarray, offsets_s: np.ndarray, exposure_s: float) -> Windows:
