@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from astropy.time import Time
 
-from conftest import MAP_FLAT_RING
+from tests_paths import MAP_FLAT_RING
 from conftest_milp import random_problem, tiny_config
 from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
 from mushrooms.scheduler_core.bound import coverage_upper_bound, max_fields, pairable_rows
