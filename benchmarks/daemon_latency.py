@@ -158,7 +158,7 @@ def sid_of(m: dict[str, Any]) -> str | None:
 
 
 def is_final(m: dict[str, Any]) -> bool:
-    return m.get("type") == "plan_final" or (m.get("type") == "plan" and m.get("final") is True)
+    return m.get("type") == "plan_final" or (m.get("type") in ("plan", "not_observable") and m.get("final") is True)
 
 
 def wait_until(cond, timeout_s: float, daemon: Daemon | None = None, every: float = 0.05) -> bool:
@@ -223,13 +223,14 @@ def latencies(msgs: list[tuple[float, bytes | None, dict[str, Any]]], queued: di
         if sid not in sids:
             continue
         r = res.setdefault(sid, {})
-        if m.get("type") == "plan" and "first" not in r:
+        # the first answer: a plan, or the not_observable document published in its place
+        if m.get("type") in ("plan", "not_observable") and "first" not in r:
             r["first"] = m["metrics"]["latency_s"] + queued.get(m["plan_id"], float("nan"))
             r["first_out"] = t - sids[sid]
             r["first_cov"] = m["metrics"]["coverage"]
             first_doc[sid] = m
         if is_final(m) and "final" not in r:
-            if m["type"] == "plan":
+            if m["type"] in ("plan", "not_observable"):
                 r["final"] = m["metrics"]["latency_s"] + queued.get(m["plan_id"], float("nan"))
                 r["revision"] = m["revision"]
                 r["final_cov"] = m["metrics"]["coverage"]
@@ -323,7 +324,8 @@ def burst(broker: Broker, work: Path, n: int, report: list[str], final_wait_s: f
     broker.producer.flush(30)
     produce_s = time.time() - t0
     sids = dict(acked)
-    all_first = wait_until(lambda: len({sid_of(m) for _, _, m in reader.snapshot() if m.get("type") == "plan"}
+    all_first = wait_until(lambda: len({sid_of(m) for _, _, m in reader.snapshot()
+                                        if m.get("type") in ("plan", "not_observable")}
                                         & set(sids)) == n, 600, d, every=0.2)
     t_first = time.time() - t0
     all_final = wait_until(lambda: len({sid_of(m) for _, _, m in reader.snapshot() if is_final(m)} & set(sids)) == n,
@@ -411,7 +413,7 @@ def broker_stop(broker: Broker, work: Path, report: list[str], stop_s: float = 6
         rows = c.execute("SELECT key, body, published_at FROM outbox").fetchall()
     by_key: dict[str, set[str]] = {}
     for _, _, m in msgs:
-        key = m.get("plan_id") if m.get("type") == "plan" else (
+        key = m.get("plan_id") if m.get("type") in ("plan", "not_observable") else (
             f"{m.get('plan_id')}-final" if m.get("type") == "plan_final" else m.get("withdrawal_id"))
         by_key.setdefault(key, set()).add(json.dumps(m, sort_keys=True))
     stored = {k: json.dumps(json.loads(b), sort_keys=True) for k, b, _ in rows}
@@ -441,8 +443,8 @@ def main() -> int:
     a = ap.parse_args()
     broker = Broker()
     report = [f"# daemon_latency.py {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC",
-              f"machine: {os.cpu_count()} cores SHARED with ~7 other agents (load average at start "
-              f"{os.getloadavg()[0]:.1f}); every latency below is inflated by their load", ""]
+              f"machine: {os.cpu_count()} cores, load average at start {os.getloadavg()[0]:.1f} "
+              f"(other work on the machine inflates every latency below; see the load after each scenario)", ""]
     scen = ["sequential", "burst", "broker-stop"] if a.scenario == "all" else [a.scenario]
     for s in scen:
         work = Path(tempfile.mkdtemp(prefix=f"mushrooms-{s}-"))
