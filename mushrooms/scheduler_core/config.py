@@ -235,7 +235,16 @@ class PlanningConfig:
     detection_coverage_weight : float
         λ, weight of the coverage tie-break term in the detection objective.
     detection_time_limit_s : float
-        Wall-clock budget (s) of the detection stage, on top of ``time_limit_s``.
+        With ``objective = "detection"``: the share (s) of ``time_limit_s``
+        given to the detection stage, taken from the same total (the
+        coverage scheduler gets ``time_limit_s - detection_time_limit_s``);
+        it must be less than ``time_limit_s``.
+    detection_max_coverage_loss : float
+        ε of the coverage floor (X6): a detection plan must cover at least
+        ``(1 - ε)`` times what the coverage plan it started from covers
+        (relative; after real-overhead timing and the least-gain rule),
+        else the coverage plan is kept.  The daemon's supersede rule uses
+        the same floor against revision 1.
     """
 
     nside: int = 256
@@ -272,7 +281,8 @@ class PlanningConfig:
     objective: str = "coverage"
     detection_levels: int = 8
     detection_coverage_weight: float = 0.05
-    detection_time_limit_s: float = 10.0
+    detection_time_limit_s: float = 4.0
+    detection_max_coverage_loss: float = 0.02
 
     def __post_init__(self) -> None:
         problems = []
@@ -318,6 +328,11 @@ class PlanningConfig:
             problems.append(f"detection_coverage_weight must be >= 0, got {self.detection_coverage_weight}")
         if self.detection_time_limit_s <= 0:
             problems.append(f"detection_time_limit_s must be > 0, got {self.detection_time_limit_s}")
+        elif self.objective == "detection" and self.detection_time_limit_s >= self.time_limit_s:
+            problems.append(f"detection_time_limit_s ({self.detection_time_limit_s:g} s) must be less than "
+                            f"time_limit_s ({self.time_limit_s:g} s): it is the detection stage's share of it")
+        if not 0.0 <= self.detection_max_coverage_loss < 1.0:
+            problems.append(f"detection_max_coverage_loss must be in [0, 1), got {self.detection_max_coverage_loss}")
         if problems:
             raise ValueError("; ".join(problems))
 

@@ -7,6 +7,7 @@ import json
 import logging
 import time
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -15,14 +16,14 @@ from astropy.time import Time, TimeDelta
 from .checker import check_plan
 from .config import SOLVER_NAMES, PlanningConfig
 from .errors import InputError, PlanCheckError
-from .gain import drop_low_gain
+from .gain import drop_low_gain, published_coverage
 from .greedy import greedy_schedule
 from .plan import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .skymap import SkyMap
 
-__all__ = ["make_plan", "build_plan", "run_scheduler", "SOLVERS"]
+__all__ = ["make_plan", "build_plan", "run_scheduler", "optimise", "SOLVERS"]
 
 log = logging.getLogger(__name__)
 
@@ -31,12 +32,6 @@ SOLVERS = SOLVER_NAMES
 
 #: The hybrid runs the block MILP only when at least this much (s) of its budget is left.
 MIN_BLOCKS_S = 3.0
-
-
-def _coverage(problem: PlanningProblem, result: ScheduleResult) -> float:
-    """Coverage of a result as its plan will have it: after the least-gain rule of :func:`build_plan`."""
-    kept = drop_low_gain(result, problem.footprints, problem.prob, problem.config.min_gain)
-    return problem.footprints.coverage({o.field_id for o in kept.observations}, problem.prob)
 
 
 def run_scheduler(problem: PlanningProblem, solver: str,
@@ -97,7 +92,7 @@ def run_scheduler(problem: PlanningProblem, solver: str,
         timed = dataclasses.replace(problem, config=dataclasses.replace(problem.config, time_limit_s=left))
         blocks = milp_schedule(timed, should_stop)
         candidates.append(("blocks", blocks))
-    covs = {name: _coverage(problem, r) for name, r in candidates}
+    covs = {name: published_coverage(problem, r) for name, r in candidates}
     name, best = max(candidates, key=lambda nr: (covs[nr[0]], -[n for n, _ in candidates].index(nr[0])))
     details = dict(best.details)
     details.update(hybrid_choice=name, **{f"coverage_{n}": c for n, c in covs.items()},
@@ -106,6 +101,49 @@ def run_scheduler(problem: PlanningProblem, solver: str,
     result = dataclasses.replace(best, solver=f"hybrid({best.solver})", mip_gap=best.mip_gap,
                                  runtime_s=time.perf_counter() - t0, details=details)
     return _with_bound(problem, result)
+
+
+def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop: StopCheck | None = None,
+             scheduler: Callable[..., ScheduleResult] = run_scheduler) -> ScheduleResult:
+    """The whole optimisation of one plan for ``config.objective``, within ``config.time_limit_s``.
+
+    ``coverage``: the scheduler with the whole budget.  ``detection``: the
+    scheduler with ``time_limit_s - detection_time_limit_s``, then the
+    detection stage (:func:`~.detection_slots.detection_stage`) with what is
+    left of ``time_limit_s`` (at most ``detection_time_limit_s``; the
+    certified upper bound comes on top, as for ``coverage``), started
+    from the scheduler's coverage plan and kept only above its coverage
+    floor (X6) with more expected detections.
+
+    Parameters
+    ----------
+    problem : PlanningProblem
+    skymap : SkyMap
+        The map of the problem (the detection stage needs its distance layers).
+    solver : str
+        Scheduler name (:data:`SOLVERS`).
+    should_stop : callable, optional
+        Polled by both stages.
+    scheduler : callable, optional
+        ``run_scheduler``-compatible function (the daemon's planner).
+
+    Returns
+    -------
+    ScheduleResult
+    """
+    cfg = problem.config
+    if cfg.objective != "detection":
+        return scheduler(problem, solver, should_stop)
+    from .detection_slots import detection_stage
+
+    t0 = time.perf_counter()
+    share = cfg.detection_time_limit_s
+    covering = dataclasses.replace(problem, config=dataclasses.replace(
+        cfg, objective="coverage", time_limit_s=cfg.time_limit_s - share))
+    result = scheduler(covering, solver, should_stop)
+    spent = time.perf_counter() - t0 - float(result.details.get("upper_bound_s", 0.0))  # the bound comes on top
+    left = min(share, cfg.time_limit_s - spent)
+    return detection_stage(problem, skymap, result, should_stop, time_limit_s=max(left, 0.0))
 
 
 def _with_bound(problem: PlanningProblem, result: ScheduleResult) -> ScheduleResult:
@@ -172,11 +210,7 @@ def make_plan(
     event = event or EventInfo(skymap_sha256=skymap.sha256)
     problem = prepare_problem(skymap, config, start)
     t_prep = time.perf_counter() - t0
-    result = run_scheduler(problem, solver, should_stop)
-    if config.objective == "detection":
-        from .detection_slots import detection_stage
-
-        result = detection_stage(problem, skymap, result, should_stop)
+    result = optimise(problem, skymap, solver, should_stop)
     plan = build_plan(problem, result, skymap, solver, event=event, supersedes=supersedes,
                       runtime_s=time.perf_counter() - t0)
     metrics = plan.metrics
