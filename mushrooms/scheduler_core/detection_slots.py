@@ -359,6 +359,7 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
     t_wall = time.perf_counter()
     cfg = problem.config
     budget = cfg.detection_time_limit_s if time_limit_s is None else float(time_limit_s)
+    own_kilonova = kilonova is None
     kilonova = kilonova or load_kilonova(cfg.detection_lightcurve)
 
     def published(result: ScheduleResult) -> tuple[float, float]:
@@ -381,7 +382,8 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
     c_cov, e_cov = published(coverage)
     t_score = time.perf_counter() - t_score
     floor = (1.0 - cfg.detection_max_coverage_loss) * c_cov
-    details.update(expected_detections_coverage=e_cov, expected_detections=e_cov, coverage_floor=floor)
+    details.update(expected_detections_coverage=e_cov, expected_detections=e_cov, coverage_floor=floor,
+                   expected_detections_lightcurve=cfg.detection_lightcurve if own_kilonova else None)
     backend = resolve_backend(cfg.milp_backend)
     start_first: dict[int, float] = {}
     for o in coverage.observations:

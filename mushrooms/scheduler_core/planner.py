@@ -297,7 +297,7 @@ def build_plan(
         config=json.loads(json.dumps(dataclasses.asdict(config))),  # JSON types (tuples become lists)
     )
     return plan.with_(metrics=dataclasses.replace(
-        metrics, expected_detections=_expected_detections(plan, problem, skymap)))
+        metrics, expected_detections=_expected_detections(plan, problem, skymap, result)))
 
 
 def _with_map_details(event: EventInfo, skymap: SkyMap) -> EventInfo:
@@ -330,12 +330,22 @@ def _with_airmass_and_probability(observations: tuple[Observation, ...],
                  for o, x in zip(observations, airmass))
 
 
-def _expected_detections(plan: Plan, problem: PlanningProblem, skymap: SkyMap) -> float | None:
-    """metrics.expected_detections for the configured light curve (None without distance layers)."""
+def _expected_detections(plan: Plan, problem: PlanningProblem, skymap: SkyMap,
+                         result: ScheduleResult | None = None) -> float | None:
+    """metrics.expected_detections for the configured light curve (None without distance layers).
+
+    The detection stage's own score of the plan it returns (the same
+    equation X1 on the same exposures, after the least-gain rule) is reused
+    when it was made for the configured light curve.
+    """
     from .detection import expected_detections
     from .kilonova import load_kilonova
 
     if not skymap.has_distance or skymap.event_time is None:
         return None
+    details = result.details if result is not None else {}
+    if (details.get("expected_detections_lightcurve") == problem.config.detection_lightcurve
+            and details.get("expected_detections") is not None):
+        return round(float(details["expected_detections"]), 6)
     e = expected_detections(plan, skymap, problem.footprints, load_kilonova(problem.config.detection_lightcurve))
     return None if e is None else round(e, 6)

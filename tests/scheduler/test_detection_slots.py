@@ -16,7 +16,9 @@ from mushrooms.scheduler_core.detection_slots import (
     pair_levels,
 )
 from mushrooms.scheduler_core.gain import published_coverage
-from mushrooms.scheduler_core.planner import optimise, run_scheduler
+from mushrooms.scheduler_core.detection import expected_detections
+from mushrooms.scheduler_core.kilonova import load_kilonova
+from mushrooms.scheduler_core.planner import build_plan, optimise, run_scheduler
 from mushrooms.scheduler_core.prepare import prepare_problem
 from mushrooms.scheduler_core.skymap import read_skymap
 from mushrooms.scheduler_core.slots import SlotGrid, SlotInstance, build_slot_model
@@ -114,6 +116,10 @@ def test_detection_stage_never_returns_fewer_expected_detections_than_its_covera
     c0 = published_coverage(problem, cov)
     assert d["coverage_floor"] == pytest.approx((1 - loss) * c0)
     assert published_coverage(problem, det) >= (1 - loss) * c0 - 1e-9
+    # the plan reuses the stage's score of its exposures: the same as scoring the plan afresh
+    plan = build_plan(problem, det, sm, "greedy")
+    fresh = expected_detections(plan, sm, problem.footprints, load_kilonova(cfg.detection_lightcurve))
+    assert plan.metrics.expected_detections == pytest.approx(fresh, abs=2e-6)
 
 
 def test_the_detection_objective_shares_one_budget_between_its_two_stages(data_dir) -> None:
