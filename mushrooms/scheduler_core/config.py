@@ -195,7 +195,10 @@ class PlanningConfig:
         shares it over its grids; ``blocks`` gives it to its first solve
         (a re-solve gets a third); ``hybrid`` gives it to the slot
         portfolio and the time left (if at least ``MIN_BLOCKS_S``) to the
-        block MILP.  Preparation, greedy, the upper bound and the checker
+        block MILP.  With ``objective = "detection"`` it is the budget of
+        the whole optimisation: the scheduler gets ``time_limit_s -
+        detection_time_limit_s``, the detection stage the rest.
+        Preparation, greedy, the upper bound and the checker
         come on top (about 2-4 s; imports about 3 s more for the CLI).
     mip_gap : float
         Relative optimality gap at which the solver may stop.
