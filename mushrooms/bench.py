@@ -79,6 +79,7 @@ COLUMNS = (
     "area90_deg2", "distmean_mpc", "n_injections", "distance_source", "start", "note",
     "bound", "coverage_over_bound",
     "expected_detections",
+    "detection_stage",
 )
 
 #: Coverage differences at or below this count as a tie (absolute probability).
@@ -374,13 +375,20 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
             except ImportError as exc:
                 rows.append(_row(name, solver, status="unavailable", valid=False, note=f"{exc}", **common))
                 continue
+            stage = ""
+            if objective:
+                d = result.details
+                solved = [g for g in d.get("detection_grids", []) if "expected_detections" in g]
+                stage = (f"{d.get('detection_choice')}; budget {d.get('detection_budget_s')} s, "
+                         f"took {d.get('detection_runtime_s')} s; {len(solved)} grid(s) solved, "
+                         f"{sum(not g['above_floor'] for g in solved)} below the floor")
             plan = _plan_from_result(result, problem, skymap, base)
             scores, hits[solver] = _score(plan, skymap, settings, footprints, injections, lightcurves, merger)
             scores = with_bound(scores)
             rows.append(_row(
                 name, solver, status=result.status, mip_gap=_fmt(result.mip_gap),
                 runtime_s=_fmt(prepare_s + solve_s, 3), prepare_s=_fmt(prepare_s, 3), solve_s=_fmt(solve_s, 3),
-                solver_detail=result.solver, note=note, **scores, **common))
+                solver_detail=result.solver, note=note, detection_stage=stage, **scores, **common))
         except Exception as exc:  # one broken solver must not stop the benchmark
             log.exception("%s on %s failed", solver, name)
             rows.append(_row(name, solver, status=f"error: {type(exc).__name__}: {exc}"[:300], valid=False,
