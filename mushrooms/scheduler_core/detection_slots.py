@@ -67,6 +67,10 @@ log = logging.getLogger(__name__)
 #: Least solve time (s) worth starting a grid with; below it the stage stops.
 MIN_SOLVE_S = 0.3
 
+#: Share of the stage's time left given to the first grid (the coverage plan's own, warm-started):
+#: on 12 shared maps 0.9 found more than 0.5 (solving one grid well beats a wide, shallow portfolio).
+FIRST_GRID_SHARE = 0.9
+
 
 def pair_reach(problem: PlanningProblem, inst: SlotInstance, kilonova: Kilonova, merger_time: Time,
                depth: DepthModel = ZTF_DEPTH) -> np.ndarray:
@@ -428,7 +432,7 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
         if left < MIN_SOLVE_S:
             runs.append({"grid": grid.name, "status": "no time left"})
             break
-        limit = left / 2 if i == 0 else left / max(len(grids) - i, 1)
+        limit = left * FIRST_GRID_SHARE if i == 0 else left / max(len(grids) - i, 1)
         limit = max(limit, min(left, MIN_SOLVE_S))
         res = solve_milp(model.milp, backend, limit, cfg.mip_gap, cfg.threads, should_stop, start=x0)
         if not res.has_solution:
