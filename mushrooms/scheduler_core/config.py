@@ -231,8 +231,10 @@ class PlanningConfig:
     objective : str
         ``coverage`` (maximise the probability covered) or ``detection``
         (then improve the coverage plan's expected detections on the slot
-        grids, ``docs/design/detection.md``; never publishes fewer
-        expected detections than the coverage plan).
+        grids within the coverage floor, ``docs/design/detection.md``;
+        never publishes fewer expected detections than the coverage plan).
+        Applies to the optimising schedulers (slots, blocks, hybrid);
+        ``greedy`` stays the fast coverage heuristic.
     detection_levels : int
         L, distance levels per slot of the detection objective.
     detection_coverage_weight : float

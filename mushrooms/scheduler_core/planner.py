@@ -107,7 +107,8 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
              scheduler: Callable[..., ScheduleResult] = run_scheduler) -> ScheduleResult:
     """The whole optimisation of one plan for ``config.objective``, within ``config.time_limit_s``.
 
-    ``coverage``: the scheduler with the whole budget.  ``detection``: the
+    ``coverage`` (and ``greedy``, the fast coverage heuristic, whatever the
+    objective): the scheduler with the whole budget.  ``detection``: the
     scheduler with ``time_limit_s - detection_time_limit_s``, then the
     detection stage (:func:`~.detection_slots.detection_stage`) with what is
     left of ``time_limit_s`` (at most ``detection_time_limit_s``; the
@@ -132,7 +133,7 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     ScheduleResult
     """
     cfg = problem.config
-    if cfg.objective != "detection":
+    if cfg.objective != "detection" or solver == "greedy":
         return scheduler(problem, solver, should_stop)
     from .detection_slots import detection_stage
 
