@@ -234,7 +234,17 @@ class PlanningConfig:
         grids within the coverage floor, ``docs/design/detection.md``;
         never publishes fewer expected detections than the coverage plan).
         Applies to the optimising schedulers (slots, blocks, hybrid);
-        ``greedy`` stays the fast coverage heuristic.
+        ``greedy`` stays the fast coverage heuristic.  The default stays
+        ``coverage`` from the measurement on the 52 shared maps with
+        distance layers (``benchmarks/results/issue19/objective_detection_floor.txt``,
+        the 10 s budget split 6 s coverage + 4 s detection): detection
+        gives +5.8 % (optimistic BNS), +7.1 % (conservative BNS) and +7.9 %
+        (NSBH) mean efficiency for -0.6 % mean coverage within the same
+        budget, but 5 of 52 maps are worse beyond their Monte Carlo error
+        (the issue's target is none), because the coverage stage's 6 s plan
+        is worse than the 10 s plan on them; the detection stage itself
+        never returns fewer expected detections than the plan it starts
+        from.
     detection_levels : int
         L, distance levels per slot of the detection objective.
     detection_coverage_weight : float

@@ -31,7 +31,8 @@ RETRACT = "live/MS230425k-retraction.json"
 
 
 def hybrid(min_gain: float):
-    return dataclasses.replace(FAST, scheduler=dataclasses.replace(FAST.scheduler, solver="hybrid"),
+    """The hybrid with the coverage objective: revision 2 is judged by coverage."""
+    return dataclasses.replace(FAST, scheduler=dataclasses.replace(FAST.scheduler, solver="hybrid", objective="coverage"),
                                daemon=dataclasses.replace(FAST.daemon, supersede_min_gain=min_gain))
 
 

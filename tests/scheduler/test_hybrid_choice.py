@@ -13,7 +13,7 @@ from mushrooms.scheduler_core.prepare import prepare_problem
 
 
 def test_the_coverage_the_hybrid_compares_is_the_published_coverage(skymap_220722v):
-    cfg = PlanningConfig(min_gain=0.003, time_limit_s=2.0, milp_backend="highs")
+    cfg = PlanningConfig(min_gain=0.003, time_limit_s=2.0, milp_backend="highs", objective="coverage")
     problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
     greedy = run_scheduler(problem, "greedy")
     raw = problem.footprints.coverage({o.field_id for o in greedy.observations}, problem.prob)
