@@ -104,7 +104,7 @@ def run_scheduler(problem: PlanningProblem, solver: str,
 
 
 def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop: StopCheck | None = None,
-             scheduler: Callable[..., ScheduleResult] = run_scheduler) -> ScheduleResult:
+             scheduler: Callable[..., ScheduleResult] | None = None) -> ScheduleResult:
     """The whole optimisation of one plan for ``config.objective``, within ``config.time_limit_s``.
 
     ``coverage`` (and ``greedy``, the fast coverage heuristic, whatever the
@@ -126,12 +126,14 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     should_stop : callable, optional
         Polled by both stages.
     scheduler : callable, optional
-        ``run_scheduler``-compatible function (the daemon's planner).
+        ``run_scheduler``-compatible function (the daemon's planner);
+        default :func:`run_scheduler`, looked up at each call.
 
     Returns
     -------
     ScheduleResult
     """
+    scheduler = scheduler or run_scheduler
     cfg = problem.config
     if cfg.objective != "detection" or solver == "greedy":
         return scheduler(problem, solver, should_stop)
