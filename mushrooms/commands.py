@@ -203,7 +203,7 @@ def plan_main(args: argparse.Namespace) -> int:
 def _plan_by_deadline(skymap: Any, cfg: Any, start: Any, solver: str, deadline_s: float,
                       t0: float) -> tuple[Any, dict[str, Any]]:
     """The best checked plan found ``deadline_s`` after ``t0`` (anytime: greedy first, then ``solver``)."""
-    from .scheduler_core.anytime import anytime_plans, revision_document
+    from .scheduler_core.anytime import anytime_plans, is_better, revision_document
     from .scheduler_core.errors import InputError
     from .scheduler_core.prepare import prepare_problem
 
@@ -216,7 +216,7 @@ def _plan_by_deadline(skymap: Any, cfg: Any, start: Any, solver: str, deadline_s
     problem = prepare_problem(skymap, cfg, start)
     best, revision = None, 0
     for plan in anytime_plans(problem, skymap, solver, should_stop=lambda: time.perf_counter() - t0 > deadline_s):
-        if best is None or plan.metrics.coverage > best.metrics.coverage:
+        if best is None or is_better(plan, best, 0.0, cfg.objective, cfg.detection_max_coverage_loss):
             best, revision = plan, revision + 1
             log.info("--deadline: %s plan covers %.4f at %.1f s", plan.metrics.solver, plan.metrics.coverage,
                      time.perf_counter() - t0)

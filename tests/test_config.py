@@ -55,6 +55,9 @@ def test_config_toml_loads_to_the_defaults():
         ("[policy]\nmin_has_ns = 'high'\n", "policy"),
         ("[outbound]\nsink = 'email'\n", "sink must be directory or kafka"),
         ("this is not toml", "not valid TOML"),
+        ("[scheduler]\nobjective = 'detection'\ntime_limit_s = 4.0\ndetection_time_limit_s = 4.0\n",
+         "detection_time_limit_s .* must be less than time_limit_s"),
+        ("[scheduler]\ndetection_max_coverage_loss = 1.5\n", "detection_max_coverage_loss must be in"),
     ],
 )
 def test_bad_configs_are_refused_with_a_reason(tmp_path, text, message):

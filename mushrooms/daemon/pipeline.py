@@ -14,9 +14,14 @@ Anytime plans
 -------------
 Every job publishes its fast (greedy) plan at once as revision 1
 (``revision: 1``, ``final: false`` unless the configured solver is greedy),
-then runs ``config.scheduler.solver`` with the job's ``should_stop``.  Its
+then runs ``config.scheduler.solver`` (and the detection stage when the
+objective is ``detection``, :func:`~mushrooms.scheduler_core.planner.optimise`)
+with the job's ``should_stop``.  Its
 plan goes out as revision 2 (``supersedes`` = revision 1, ``final: true``)
-only when it covers at least ``[daemon] supersede_min_gain`` more;
+only when it covers at least ``[daemon] supersede_min_gain`` more (with
+``[scheduler] objective = "detection"``: when it expects at least that much
+more detections within the coverage floor,
+:func:`~mushrooms.scheduler_core.anytime.is_better`);
 otherwise a small ``plan_final`` message (key ``<plan_id>-final``) says that
 revision 1 stands.  A newer sky map supersedes the job in the store at
 accept time; its stop flag then ends the job at the next stage boundary or
@@ -467,9 +472,10 @@ class NoticePipeline:
         if job.fallback:  # the optimiser died too often on this job: the fast scheduler's plan still goes out
             log.warning("job superevent_id=%s job=%s fallback=greedy reason='%d starts died'", job.superevent_id,
                         job.job_id, job.attempts - 1)
-        if dataclasses.is_dataclass(skymap) and getattr(skymap, "distmu", None) is not None:
-            # the optimisation needs the probability only: a burst of queued jobs must not hold
-            # three distance layers (3 x 6 MB at nside 256) each
+        if (dataclasses.is_dataclass(skymap) and getattr(skymap, "distmu", None) is not None
+                and sched.objective != "detection"):
+            # the coverage optimisation needs the probability only: a burst of queued jobs must not
+            # hold three distance layers (3 x 6 MB at nside 256) each; the detection objective needs them
             skymap = dataclasses.replace(skymap, distmu=None, distsigma=None, distnorm=None)
         work = _Work(job, skymap, problem, event, plan, t_prep)
         outcome = self._publish_revision(work, plan, 1, final)
@@ -482,6 +488,7 @@ class NoticePipeline:
         """Run the configured solver; publish revision 2 if better by the margin, else ``plan_final``."""
         from ..scheduler_core import not_observable
         from ..scheduler_core.anytime import checked_plan, is_better
+        from ..scheduler_core.planner import optimise
 
         job, first = work.job, work.first
         base = dict(superevent_id=job.superevent_id, alert_type=job.alert_type, job_id=job.job_id,
@@ -492,7 +499,7 @@ class NoticePipeline:
         t0 = time.perf_counter()
         why = ""
         try:
-            result = self._scheduler(work.problem, solver, should_stop)
+            result = optimise(work.problem, work.skymap, solver, should_stop, scheduler=self._scheduler)
             if self._cancelled(job, should_stop):
                 return self._dropped(job, f"optimisation ({solver}) stopped", base)
             better = checked_plan(work.problem, result, work.skymap, solver, event=work.event,
@@ -505,14 +512,22 @@ class NoticePipeline:
             log.exception("job superevent_id=%s job=%s optimisation failed", job.superevent_id, job.job_id)
             better, why = None, f"the {solver} optimisation failed: {type(exc).__name__}: {exc}"
         gain = self.config.daemon.supersede_min_gain
-        if better is not None and not_observable(better, work.skymap, self.config.scheduler) is not None:
+        sched = self.config.scheduler
+        if better is not None and not_observable(better, work.skymap, sched) is not None:
             better, why = None, (f"{solver} covered {better.metrics.coverage:.4f}: still below min_coverage "
-                                 f"{self.config.scheduler.min_coverage:g}")
-        if better is not None and better.plan_id != first.plan_id and is_better(better, first, gain):
+                                 f"{sched.min_coverage:g}")
+        if better is not None and better.plan_id != first.plan_id and is_better(
+                better, first, gain, sched.objective, sched.detection_max_coverage_loss):
             return self._publish_revision(work, better, 2, True)
         if better is not None:
             why = (f"{solver} covered {better.metrics.coverage:.4f} against {first.metrics.coverage:.4f}: "
                    f"less than supersede_min_gain {gain:g} more")
+            e_new, e_old = better.metrics.expected_detections, first.metrics.expected_detections
+            if sched.objective == "detection" and e_new is not None and e_old is not None:
+                why = (f"{solver} expects {e_new:.4f} detections against {e_old:.4f} (coverage "
+                       f"{better.metrics.coverage:.4f} against {first.metrics.coverage:.4f}): not "
+                       f"supersede_min_gain {gain:g} more within the coverage floor "
+                       f"(detection_max_coverage_loss {sched.detection_max_coverage_loss:g})")
         return self._close_with_first(work, why)
 
     def _publish_revision(self, work: "_Work", plan: Any, revision: int, final: bool) -> Outcome:

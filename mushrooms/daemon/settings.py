@@ -53,7 +53,12 @@ class DaemonConfig:
         schedulers' footprints may disagree, so a replacement is never
         noise, yet small enough that a real improvement (typically 0.01-0.05
         on the shared maps) always goes out.  Replacing a queued plan costs
-        the observers a reload.
+        the observers a reload.  With ``[scheduler] objective =
+        "detection"`` the margin applies to ``metrics.expected_detections``
+        instead (the probability of detecting the kilonova, also 0-1),
+        and revision 2 must also respect the coverage floor
+        ``detection_max_coverage_loss`` against revision 1
+        (:func:`~mushrooms.scheduler_core.anytime.is_better`).
     group_readable : bool
         Create the state file 0640 and the service's directories 0750
         (readable by the service's group, e.g. for backups or monitoring)

@@ -17,7 +17,7 @@ from typing import Any, Callable, Iterator
 from .checker import check_plan
 from .errors import PlanCheckError
 from .plan import EventInfo, Plan
-from .planner import build_plan, run_scheduler
+from .planner import build_plan, optimise, run_scheduler
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .skymap import SkyMap
 
@@ -46,18 +46,37 @@ def checked_plan(problem: PlanningProblem, result: ScheduleResult, skymap: SkyMa
     return plan
 
 
-def is_better(candidate: Plan, incumbent: Plan, min_gain: float) -> bool:
-    """True when ``candidate`` covers more than ``incumbent`` by at least ``min_gain``.
+def is_better(candidate: Plan, incumbent: Plan, min_gain: float, objective: str = "coverage",
+              max_coverage_loss: float = 0.0) -> bool:
+    """True when ``candidate`` is better than ``incumbent`` by at least ``min_gain`` in what ``objective`` optimises.
+
+    ``coverage``: the candidate covers more by at least ``min_gain``.
+    ``detection`` (both plans with ``metrics.expected_detections``): the
+    candidate has more expected detections by at least ``min_gain`` (the
+    probability of detecting the kilonova, 0 to 1, the same units as
+    coverage) and covers at least ``(1 - max_coverage_loss)`` of the
+    incumbent's coverage (the floor X6); more coverage alone does not
+    count.  Without expected detections on either plan (no distance
+    layers) the coverage rule applies.
 
     Parameters
     ----------
     candidate, incumbent : Plan
     min_gain : float
-        Least absolute gain in probability coverage (0 to 1); the gain must
-        also be positive, so equal plans never replace each other.
+        Least absolute gain (0 to 1); the gain must also be positive, so
+        equal plans never replace each other.
+    objective : str
+        ``coverage`` or ``detection`` (``config.objective``).
+    max_coverage_loss : float
+        ε of the coverage floor (``config.detection_max_coverage_loss``), relative.
     """
-    gain = float(candidate.metrics.coverage) - float(incumbent.metrics.coverage)
-    return gain > 0 and gain >= min_gain
+    e_new, e_old = candidate.metrics.expected_detections, incumbent.metrics.expected_detections
+    if objective != "detection" or e_new is None or e_old is None:
+        gain = float(candidate.metrics.coverage) - float(incumbent.metrics.coverage)
+        return gain > 0 and gain >= min_gain
+    gain = float(e_new) - float(e_old)
+    above_floor = float(candidate.metrics.coverage) >= (1.0 - max_coverage_loss) * float(incumbent.metrics.coverage)
+    return gain > 0 and gain >= min_gain and above_floor
 
 
 def anytime_plans(problem: PlanningProblem, skymap: SkyMap, solver: str, event: EventInfo | None = None,
@@ -66,8 +85,9 @@ def anytime_plans(problem: PlanningProblem, skymap: SkyMap, solver: str, event: 
     """Yield the checked fast plan, then (unless ``solver`` is the fast one) the optimised one.
 
     The fast plan always runs to the end (it takes well under a second);
-    ``should_stop`` is passed to the optimising scheduler, which then
-    returns its best plan so far.  The optimised plan's ``supersedes`` is
+    ``should_stop`` is passed to the optimisation (:func:`~.planner.optimise`:
+    the scheduler, then the detection stage when ``config.objective`` is
+    ``detection``), which then returns its best plan so far.  The optimised plan's ``supersedes`` is
     the fast plan's id; whether it is worth publishing is the caller's
     choice (:func:`is_better`).
 
@@ -91,8 +111,9 @@ def anytime_plans(problem: PlanningProblem, skymap: SkyMap, solver: str, event: 
     if solver == FIRST_SOLVER:
         return
     t1 = time.perf_counter()
-    yield checked_plan(problem, scheduler(problem, solver, should_stop), skymap, solver, event=event,
-                       supersedes=first.plan_id, runtime_s=time.perf_counter() - t1)
+    result = optimise(problem, skymap, solver, should_stop, scheduler=scheduler)
+    yield checked_plan(problem, result, skymap, solver, event=event, supersedes=first.plan_id,
+                       runtime_s=time.perf_counter() - t1)
 
 
 def revision_document(plan: Plan, revision: int, final: bool) -> dict[str, Any]:

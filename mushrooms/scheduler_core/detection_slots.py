@@ -19,7 +19,10 @@ exposures').  The reaches are rounded down to ``L`` distance levels
   ``W_cl = Σ_{pixels i of c} prob_i (F_i(r_l) - F_i(r_{l-1}))``, the
   probability of the cell's sources lying between two levels, and a small
   coverage term (``λ = detection_coverage_weight``) that breaks ties
-  towards more probability.
+  towards more probability;
+- (X6) coverage floor ``Σ_c w_c y_c >= (1 - ε) C₀``: the plan covers at
+  least ``1 - ε`` (``ε = detection_max_coverage_loss``) of what the
+  coverage plan it starts from covers (``C₀``, as published).
 
 Since every ``W_cl >= 0`` the optimum sets ``v_cl = 1`` for every level up
 to the best reached one, so ``Σ_l W_cl v_cl`` is the cell's detection
@@ -29,8 +32,10 @@ The stage starts from a coverage plan (mapped onto each grid, the solver's
 first incumbent), solves the portfolio's grids within its own budget,
 times every solution with the real overheads (:func:`.slot_schedule.time_slot_plan`)
 and scores the executable plans exactly with (X1).  It returns the coverage
-plan itself unless a detection plan has more expected detections: it never
-publishes fewer than the plan it started from.
+plan itself unless a detection plan, as it will be published (after the
+real timing and the least-gain rule), has more expected detections *and*
+still respects the floor (X6): it never publishes fewer detections than the
+plan it started from, nor loses more than ``ε`` of its coverage.
 """
 
 from __future__ import annotations
@@ -46,6 +51,7 @@ from astropy.time import Time, TimeDelta
 from .cells import Cells, merge_cells
 from .depth import ZTF_DEPTH, DepthModel, limiting_magnitude, sky_conditions
 from .detection import distance_cdf, reach_mpc
+from .gain import drop_low_gain
 from .kilonova import Kilonova, load_kilonova
 from .plan import Observation, Plan, PlanMetrics
 from .problem import Footprints, PlanningProblem, ScheduleResult, StopCheck
@@ -58,8 +64,12 @@ __all__ = ["pair_reach", "distance_levels", "pair_levels", "level_weights", "Det
 
 log = logging.getLogger(__name__)
 
-#: Least solve time (s) of the first grid, even when setting up used the budget.
-MIN_FIRST_SOLVE_S = 1.0
+#: Least solve time (s) worth starting a grid with; below it the stage stops.
+MIN_SOLVE_S = 0.3
+
+#: Share of the stage's time left given to the first grid (the coverage plan's own, warm-started):
+#: on 12 shared maps 0.9 found more than 0.5 (solving one grid well beats a wide, shallow portfolio).
+FIRST_GRID_SHARE = 0.9
 
 
 def pair_reach(problem: PlanningProblem, inst: SlotInstance, kilonova: Kilonova, merger_time: Time,
@@ -214,8 +224,8 @@ class DetectionModel:
 
 
 def build_detection_model(inst: SlotInstance, W: np.ndarray, pair_level: np.ndarray, penalty: float = 0.0,
-                          coverage_weight: float = 0.05) -> DetectionModel:
-    """The slot model (S1-S3) with the detection blocks (X3-X5) appended.
+                          coverage_weight: float = 0.05, coverage_floor: float | None = None) -> DetectionModel:
+    """The slot model (S1-S3) with the detection blocks (X3-X6) appended.
 
     Parameters
     ----------
@@ -229,6 +239,8 @@ def build_detection_model(inst: SlotInstance, W: np.ndarray, pair_level: np.ndar
         p per observed field.
     coverage_weight : float
         λ of the coverage tie-break term.
+    coverage_floor : float, optional
+        (X6) least coverage ``Σ_c w_c y_c`` (0-1) of the solution; None: no floor.
 
     Returns
     -------
@@ -253,16 +265,27 @@ def build_detection_model(inst: SlotInstance, W: np.ndarray, pair_level: np.ndar
     r4 = F * L + np.concatenate([np.arange(C * L), cf_c * L + cf_l])
     c4 = np.concatenate([off_v + np.arange(C * L), off_u + cf_f * L + cf_l])
     v4 = np.concatenate([np.ones(C * L), -np.ones(cf_c.size)])
-    extra = sp.csr_matrix((np.concatenate([v3, v4]), (np.concatenate([r3, r4]), np.concatenate([c3, c4]))),
-                          shape=(F * L + C * L, n))
+    blocks_r, blocks_c, blocks_v = [r3, r4], [c3, c4], [v3, v4]
+    n_extra = F * L + C * L
+    if coverage_floor is not None:  # (X6) Σ_c w_c y_c >= floor
+        blocks_r.append(np.full(C, n_extra))
+        blocks_c.append(base.off_y + np.arange(C))
+        blocks_v.append(np.asarray(inst.cells.weight, float))
+        n_extra += 1
+    extra = sp.csr_matrix((np.concatenate(blocks_v), (np.concatenate(blocks_r), np.concatenate(blocks_c))),
+                          shape=(n_extra, n))
     A = sp.vstack([sp.hstack([base.milp.A, sp.csr_matrix((base.milp.n_rows, n - n0))]), extra]).tocsr()
     # (X5) Σ W v + λ Σ w y - p Σ z
     c = np.zeros(n)
     c[:n0] = base.milp.c
     c[base.off_y:n0] *= coverage_weight
     c[off_v:] = W.ravel()
-    row_lo = np.concatenate([base.milp.row_lo, np.zeros(F * L), np.full(C * L, -np.inf)])
-    row_hi = np.concatenate([base.milp.row_hi, np.zeros(F * L + C * L)])
+    row_lo = [base.milp.row_lo, np.zeros(F * L), np.full(C * L, -np.inf)]
+    row_hi = [base.milp.row_hi, np.zeros(F * L + C * L)]
+    if coverage_floor is not None:
+        row_lo.append([float(coverage_floor)])
+        row_hi.append([np.inf])
+    row_lo, row_hi = np.concatenate(row_lo), np.concatenate(row_hi)
     integer = np.concatenate([base.milp.integer, np.zeros(n - n0, bool)])
     milp = MilpModel(c, A, row_lo, row_hi, np.zeros(n), np.ones(n), integer)
     return DetectionModel(SlotModel(milp, inst), base, np.asarray(pair_level, np.int64), L)
@@ -299,15 +322,15 @@ def plan_expected_detections(problem: PlanningProblem, skymap: SkyMap, observati
 
 def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: ScheduleResult,
                     should_stop: StopCheck | None = None, kilonova: Kilonova | None = None,
-                    depth: DepthModel = ZTF_DEPTH) -> ScheduleResult:
-    """Improve a coverage plan's expected detections on the slot grids.
+                    depth: DepthModel = ZTF_DEPTH, time_limit_s: float | None = None) -> ScheduleResult:
+    """Improve a coverage plan's expected detections on the slot grids, within a coverage floor.
 
     Parameters
     ----------
     problem : PlanningProblem
         Uses ``config.detection_lightcurve``, ``detection_levels``,
-        ``detection_coverage_weight``, ``detection_time_limit_s``, the slot
-        and solver settings.
+        ``detection_coverage_weight``, ``detection_max_coverage_loss``, the
+        slot and solver settings.
     skymap : SkyMap
         Distance layers and merger time (``event_time``).
     coverage : ScheduleResult
@@ -318,28 +341,53 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
         Default: ``config.detection_lightcurve``.
     depth : DepthModel
         Limiting-magnitude model.
+    time_limit_s : float, optional
+        Wall-clock budget (s) of the whole stage (scoring, models, solves,
+        timing); default ``config.detection_time_limit_s``.  A grid is only
+        started when at least :data:`MIN_SOLVE_S` of solve time is left
+        after the time its solution will take to time and score.
 
     Returns
     -------
     ScheduleResult
-        The detection plan when it has more expected detections (X1) than
-        ``coverage``, else ``coverage`` itself; ``details`` gain
-        ``expected_detections_coverage``, ``expected_detections`` and
-        ``detection_choice``.
+        The detection plan when, as it will be published (after the
+        least-gain rule), it has more expected detections (X1) than
+        ``coverage`` and covers at least ``(1 - ε)`` of ``coverage``'s
+        published coverage (X6); else ``coverage`` itself.  ``details`` gain
+        ``expected_detections_coverage``, ``expected_detections``,
+        ``coverage_floor`` and ``detection_choice``.
     """
     from .milp import shortlist_footprints
     from .slot_schedule import map_start, slot_portfolio, slot_rows, time_slot_plan
 
     t_wall = time.perf_counter()
     cfg = problem.config
+    budget = cfg.detection_time_limit_s if time_limit_s is None else float(time_limit_s)
+    own_kilonova = kilonova is None
     kilonova = kilonova or load_kilonova(cfg.detection_lightcurve)
-    e_cov = plan_expected_detections(problem, skymap, coverage.observations, kilonova, depth)
-    details = dict(coverage.details)
-    details.update(expected_detections_coverage=e_cov, expected_detections=e_cov, detection_choice="coverage")
-    if not skymap.has_distance or skymap.event_time is None:
-        details["detection_choice"] = "coverage (no distance layers)"
+
+    def published(result: ScheduleResult) -> tuple[float, float]:
+        """(coverage, expected detections) of a result as its plan will be published."""
+        kept = drop_low_gain(result, problem.footprints, problem.prob, cfg.min_gain).observations
+        cov = problem.footprints.coverage({o.field_id for o in kept}, problem.prob)
+        return cov, plan_expected_detections(problem, skymap, kept, kilonova, depth)
+
+    def keep_coverage(choice: str, **extra) -> ScheduleResult:
+        details.update(detection_choice=choice, detection_runtime_s=round(time.perf_counter() - t_wall, 3), **extra)
         return ScheduleResult(coverage.observations, coverage.solver, coverage.status, coverage.mip_gap,
-                              coverage.runtime_s, details)
+                              coverage.runtime_s + (time.perf_counter() - t_wall), details)
+
+    details = dict(coverage.details)
+    details["detection_budget_s"] = round(budget, 3)
+    if not skymap.has_distance or skymap.event_time is None:
+        details.update(expected_detections_coverage=None, expected_detections=None)
+        return keep_coverage("coverage (no distance layers)")
+    t_score = time.perf_counter()
+    c_cov, e_cov = published(coverage)
+    t_score = time.perf_counter() - t_score
+    floor = (1.0 - cfg.detection_max_coverage_loss) * c_cov
+    details.update(expected_detections_coverage=e_cov, expected_detections=e_cov, coverage_floor=floor,
+                   expected_detections_lightcurve=cfg.detection_lightcurve if own_kilonova else None)
     backend = resolve_backend(cfg.milp_backend)
     start_first: dict[int, float] = {}
     for o in coverage.observations:
@@ -352,14 +400,16 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
     grids = slot_portfolio(problem, rows)
     cov_grid = coverage.details.get("grid")
     grids.sort(key=lambda g: g.name != cov_grid)  # the coverage plan's own grid first
-    best = (e_cov, None, None)
+    best = (e_cov, None, None, c_cov)
     runs = []
-    budget = cfg.detection_time_limit_s
     levels = W = None
+    post_s = t_score + 0.1  # time to time and score one solution (updated as measured)
     for i, grid in enumerate(grids):
-        left = budget - (time.perf_counter() - t_wall)
-        if (i and left < 0.3) or (should_stop is not None and should_stop()):
-            break  # the first grid (the coverage plan's own) is always tried
+        if should_stop is not None and should_stop():
+            break
+        if budget - (time.perf_counter() - t_wall) - post_s < MIN_SOLVE_S:
+            runs.append({"grid": grid.name, "status": "no time left"})
+            break
         inst = slot_instance(problem, rows, grid, cells=cells)
         if inst.n_pairs == 0:
             continue
@@ -371,32 +421,51 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
                 break
             W = level_weights(skymap, fp, cells, levels)
         plev = pair_levels(reach, levels)
-        dm = build_detection_model(inst, W, plev, cfg.penalty, cfg.detection_coverage_weight)
+        dm = build_detection_model(inst, W, plev, cfg.penalty, cfg.detection_coverage_weight, coverage_floor=floor)
         model = dm.model
         x0 = None
         if start_f:
             pairs = map_start(inst, start_f)
-            if pairs.size:
-                x0 = detection_start_vector(dm, pairs)
-        left = budget - (time.perf_counter() - t_wall)
-        limit = max(left, 0.3) / max(len(grids) - i, 1) if i else max(left / 2, MIN_FIRST_SOLVE_S)
+            if pairs.size and inst.cells.weight[_covered_cells(inst, pairs)].sum() >= floor:
+                x0 = detection_start_vector(dm, pairs)  # a start below the floor (X6) would be refused
+        left = budget - (time.perf_counter() - t_wall) - post_s
+        if left < MIN_SOLVE_S:
+            runs.append({"grid": grid.name, "status": "no time left"})
+            break
+        limit = left * FIRST_GRID_SHARE if i == 0 else left / max(len(grids) - i, 1)
+        limit = max(limit, min(left, MIN_SOLVE_S))
         res = solve_milp(model.milp, backend, limit, cfg.mip_gap, cfg.threads, should_stop, start=x0)
         if not res.has_solution:
             runs.append({"grid": grid.name, "status": res.status})
             continue
+        t_post = time.perf_counter()
         obs, dropped, _ = time_slot_plan(problem, model, res.x)
-        e = plan_expected_detections(problem, skymap, obs, kilonova, depth)
+        cand = ScheduleResult(tuple(obs), "detection", res.status)
+        c, e = published(cand)
+        post_s = max(post_s, time.perf_counter() - t_post)
+        ok = c >= floor - 1e-9
         runs.append({"grid": grid.name, "status": res.status, "levels": int(levels.size), "pairs": inst.n_pairs,
-                     "objective": res.objective, "bound": res.bound, "expected_detections": e,
-                     "runtime_s": round(res.runtime_s, 3)})
-        if e > best[0] + 1e-9:
-            best = (e, obs, res)
-    details.update(detection_grids=runs, detection_runtime_s=round(time.perf_counter() - t_wall, 3))
-    runtime = coverage.runtime_s + (time.perf_counter() - t_wall)
+                     "objective": res.objective, "bound": res.bound, "expected_detections": e, "coverage": c,
+                     "above_floor": ok, "dropped": len(dropped), "runtime_s": round(res.runtime_s, 3)})
+        if ok and e > best[0] + 1e-9:
+            best = (e, obs, res, c)
+    details.update(detection_grids=runs)
     if best[1] is None:
-        return ScheduleResult(coverage.observations, coverage.solver, coverage.status, coverage.mip_gap,
-                              runtime, details)
-    e, obs, res = best
-    details.update(expected_detections=e, detection_choice="detection")
-    log.info("detection objective: expected detections %.4f -> %.4f", e_cov, e)
-    return ScheduleResult(tuple(obs), f"detection({coverage.solver})", res.status, res.gap, runtime, details)
+        return keep_coverage("coverage")
+    e, obs, res, c = best
+    details.update(expected_detections=e, detection_choice="detection",
+                   detection_runtime_s=round(time.perf_counter() - t_wall, 3))
+    log.info("detection objective: expected detections %.4f -> %.4f, coverage %.4f -> %.4f (floor %.4f)",
+             e_cov, e, c_cov, c, floor)
+    return ScheduleResult(tuple(obs), f"detection({coverage.solver})", res.status, res.gap,
+                          coverage.runtime_s + (time.perf_counter() - t_wall), details)
+
+
+def _covered_cells(inst: SlotInstance, pairs: np.ndarray) -> np.ndarray:
+    """Mask of the cells covered by the fields of some pairs."""
+    z = np.zeros(inst.n_fields, bool)
+    z[inst.pair_field[np.asarray(pairs, np.int64)]] = True
+    cell_of = np.repeat(np.arange(inst.cells.n_cells), np.diff(inst.cells.indptr))
+    hit = np.zeros(inst.cells.n_cells, bool)
+    np.logical_or.at(hit, cell_of, z[inst.cells.fields])
+    return hit

@@ -25,9 +25,9 @@ from typing import Sequence
 import numpy as np
 
 from .plan import Observation
-from .problem import Footprints, ScheduleResult
+from .problem import Footprints, PlanningProblem, ScheduleResult
 
-__all__ = ["worth_a_visit", "added_probability", "drop_low_gain"]
+__all__ = ["worth_a_visit", "added_probability", "drop_low_gain", "published_coverage"]
 
 
 def worth_a_visit(footprints: Footprints, prob: np.ndarray, min_gain: float) -> np.ndarray:
@@ -115,3 +115,9 @@ def drop_low_gain(result: ScheduleResult, footprints: Footprints, prob: np.ndarr
     details = dict(result.details)
     details["dropped_low_gain"] = dropped
     return dataclasses.replace(result, observations=observations, details=details)
+
+
+def published_coverage(problem: PlanningProblem, result: ScheduleResult) -> float:
+    """Coverage (0-1) of a result as its plan will have it: after :func:`drop_low_gain`."""
+    kept = drop_low_gain(result, problem.footprints, problem.prob, problem.config.min_gain)
+    return problem.footprints.coverage({o.field_id for o in kept.observations}, problem.prob)

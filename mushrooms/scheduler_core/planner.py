@@ -7,6 +7,7 @@ import json
 import logging
 import time
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -15,14 +16,14 @@ from astropy.time import Time, TimeDelta
 from .checker import check_plan
 from .config import SOLVER_NAMES, PlanningConfig
 from .errors import InputError, PlanCheckError
-from .gain import drop_low_gain
+from .gain import drop_low_gain, published_coverage
 from .greedy import greedy_schedule
 from .plan import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .skymap import SkyMap
 
-__all__ = ["make_plan", "build_plan", "run_scheduler", "SOLVERS"]
+__all__ = ["make_plan", "build_plan", "run_scheduler", "optimise", "SOLVERS"]
 
 log = logging.getLogger(__name__)
 
@@ -31,12 +32,6 @@ SOLVERS = SOLVER_NAMES
 
 #: The hybrid runs the block MILP only when at least this much (s) of its budget is left.
 MIN_BLOCKS_S = 3.0
-
-
-def _coverage(problem: PlanningProblem, result: ScheduleResult) -> float:
-    """Coverage of a result as its plan will have it: after the least-gain rule of :func:`build_plan`."""
-    kept = drop_low_gain(result, problem.footprints, problem.prob, problem.config.min_gain)
-    return problem.footprints.coverage({o.field_id for o in kept.observations}, problem.prob)
 
 
 def run_scheduler(problem: PlanningProblem, solver: str,
@@ -97,7 +92,7 @@ def run_scheduler(problem: PlanningProblem, solver: str,
         timed = dataclasses.replace(problem, config=dataclasses.replace(problem.config, time_limit_s=left))
         blocks = milp_schedule(timed, should_stop)
         candidates.append(("blocks", blocks))
-    covs = {name: _coverage(problem, r) for name, r in candidates}
+    covs = {name: published_coverage(problem, r) for name, r in candidates}
     name, best = max(candidates, key=lambda nr: (covs[nr[0]], -[n for n, _ in candidates].index(nr[0])))
     details = dict(best.details)
     details.update(hybrid_choice=name, **{f"coverage_{n}": c for n, c in covs.items()},
@@ -106,6 +101,52 @@ def run_scheduler(problem: PlanningProblem, solver: str,
     result = dataclasses.replace(best, solver=f"hybrid({best.solver})", mip_gap=best.mip_gap,
                                  runtime_s=time.perf_counter() - t0, details=details)
     return _with_bound(problem, result)
+
+
+def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop: StopCheck | None = None,
+             scheduler: Callable[..., ScheduleResult] | None = None) -> ScheduleResult:
+    """The whole optimisation of one plan for ``config.objective``, within ``config.time_limit_s``.
+
+    ``coverage`` (and ``greedy``, the fast coverage heuristic, whatever the
+    objective): the scheduler with the whole budget.  ``detection``: the
+    scheduler with ``time_limit_s - detection_time_limit_s``, then the
+    detection stage (:func:`~.detection_slots.detection_stage`) with what is
+    left of ``time_limit_s`` (at most ``detection_time_limit_s``; the
+    certified upper bound comes on top, as for ``coverage``), started
+    from the scheduler's coverage plan and kept only above its coverage
+    floor (X6) with more expected detections.
+
+    Parameters
+    ----------
+    problem : PlanningProblem
+    skymap : SkyMap
+        The map of the problem (the detection stage needs its distance layers).
+    solver : str
+        Scheduler name (:data:`SOLVERS`).
+    should_stop : callable, optional
+        Polled by both stages.
+    scheduler : callable, optional
+        ``run_scheduler``-compatible function (the daemon's planner);
+        default :func:`run_scheduler`, looked up at each call.
+
+    Returns
+    -------
+    ScheduleResult
+    """
+    scheduler = scheduler or run_scheduler
+    cfg = problem.config
+    if cfg.objective != "detection" or solver == "greedy":
+        return scheduler(problem, solver, should_stop)
+    from .detection_slots import detection_stage
+
+    t0 = time.perf_counter()
+    share = cfg.detection_time_limit_s
+    covering = dataclasses.replace(problem, config=dataclasses.replace(
+        cfg, objective="coverage", time_limit_s=cfg.time_limit_s - share))
+    result = scheduler(covering, solver, should_stop)
+    spent = time.perf_counter() - t0 - float(result.details.get("upper_bound_s", 0.0))  # the bound comes on top
+    left = min(share, cfg.time_limit_s - spent)
+    return detection_stage(problem, skymap, result, should_stop, time_limit_s=max(left, 0.0))
 
 
 def _with_bound(problem: PlanningProblem, result: ScheduleResult) -> ScheduleResult:
@@ -172,11 +213,7 @@ def make_plan(
     event = event or EventInfo(skymap_sha256=skymap.sha256)
     problem = prepare_problem(skymap, config, start)
     t_prep = time.perf_counter() - t0
-    result = run_scheduler(problem, solver, should_stop)
-    if config.objective == "detection":
-        from .detection_slots import detection_stage
-
-        result = detection_stage(problem, skymap, result, should_stop)
+    result = optimise(problem, skymap, solver, should_stop)
     plan = build_plan(problem, result, skymap, solver, event=event, supersedes=supersedes,
                       runtime_s=time.perf_counter() - t0)
     metrics = plan.metrics
@@ -263,7 +300,7 @@ def build_plan(
         config=json.loads(json.dumps(dataclasses.asdict(config))),  # JSON types (tuples become lists)
     )
     return plan.with_(metrics=dataclasses.replace(
-        metrics, expected_detections=_expected_detections(plan, problem, skymap)))
+        metrics, expected_detections=_expected_detections(plan, problem, skymap, result)))
 
 
 def _with_map_details(event: EventInfo, skymap: SkyMap) -> EventInfo:
@@ -296,12 +333,22 @@ def _with_airmass_and_probability(observations: tuple[Observation, ...],
                  for o, x in zip(observations, airmass))
 
 
-def _expected_detections(plan: Plan, problem: PlanningProblem, skymap: SkyMap) -> float | None:
-    """metrics.expected_detections for the configured light curve (None without distance layers)."""
+def _expected_detections(plan: Plan, problem: PlanningProblem, skymap: SkyMap,
+                         result: ScheduleResult | None = None) -> float | None:
+    """metrics.expected_detections for the configured light curve (None without distance layers).
+
+    The detection stage's own score of the plan it returns (the same
+    equation X1 on the same exposures, after the least-gain rule) is reused
+    when it was made for the configured light curve.
+    """
     from .detection import expected_detections
     from .kilonova import load_kilonova
 
     if not skymap.has_distance or skymap.event_time is None:
         return None
+    details = result.details if result is not None else {}
+    if (details.get("expected_detections_lightcurve") == problem.config.detection_lightcurve
+            and details.get("expected_detections") is not None):
+        return round(float(details["expected_detections"]), 6)
     e = expected_detections(plan, skymap, problem.footprints, load_kilonova(problem.config.detection_lightcurve))
     return None if e is None else round(e, 6)

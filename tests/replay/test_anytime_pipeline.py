@@ -31,7 +31,8 @@ RETRACT = "live/MS230425k-retraction.json"
 
 
 def hybrid(min_gain: float):
-    return dataclasses.replace(FAST, scheduler=dataclasses.replace(FAST.scheduler, solver="hybrid"),
+    """The hybrid with the coverage objective: revision 2 is judged by coverage."""
+    return dataclasses.replace(FAST, scheduler=dataclasses.replace(FAST.scheduler, solver="hybrid", objective="coverage"),
                                daemon=dataclasses.replace(FAST.daemon, supersede_min_gain=min_gain))
 
 
@@ -223,3 +224,78 @@ def test_restart_after_revision_1_republishes_nothing_and_finishes_with_the_same
     assert [r["plan_id"] for r in revs] == [rev1["plan_id"], out.plan_id]
     assert observations(revs[0]["document"]) == observations(rev1)  # the same plan, not only the same id
     again.close()
+
+
+# ---------------------------------------------------------------- objective = detection
+
+def detecting(min_gain: float, loss: float = 0.02):
+    """The hybrid config with the detection objective (a small budget: the maps are small at nside 64)."""
+    cfg = hybrid(min_gain)
+    return dataclasses.replace(cfg, scheduler=dataclasses.replace(
+        cfg.scheduler, objective="detection", time_limit_s=8.0, detection_time_limit_s=6.0,
+        detection_max_coverage_loss=loss))
+
+
+@pytest.fixture(scope="module")
+def detection_run(tmp_path_factory):
+    """Revision 1 (half the greedy plan) and revision 2 (the detection stage started from the whole greedy plan)."""
+    s = Store(tmp_path_factory.mktemp("detection") / "state.sqlite")
+    sink = MemorySink()
+    planner = HalfThenWhole()
+    p = NoticePipeline(detecting(0.0), s, sink, planner=planner)
+    out = p.run_job(accept(p, PRELIM).job)
+    s.close()
+    assert planner.calls == ["greedy", "hybrid"] and out.revision == 2, [m.get("reason") for m in sink.messages]
+    first, second = [m for m in sink.messages if m["type"] == "plan"]
+    assert second["metrics"]["solver"] in ("test-optimiser", "detection(test-optimiser)")
+    return first, second
+
+
+@pytest.mark.parametrize("above", [False, True])
+def test_detection_objective_supersedes_by_expected_detections_within_the_floor(store, detection_run, above):
+    """objective = detection: revision 2 must expect supersede_min_gain more detections, within the floor."""
+    first, second = detection_run
+    m1, m2 = first["metrics"], second["metrics"]
+    d_gain = m2["expected_detections"] - m1["expected_detections"]
+    assert d_gain > 1e-4, "revision 2 must expect clearly more detections for the margin tests to mean anything"
+    c_gain = m2["coverage"] - m1["coverage"]
+    assert m2["coverage"] >= (1 - 0.02) * m1["coverage"]
+    assert second["supersedes"] == first["plan_id"]
+    margin = d_gain * (0.5 if above else 1.5)
+    sink = MemorySink()
+    p = NoticePipeline(detecting(margin), store, sink, planner=HalfThenWhole())
+    out = p.run_job(accept(p, PRELIM).job)
+    kinds = [m["type"] for m in sink.messages]
+    if above:
+        assert kinds == ["plan", "plan"] and out.revision == 2
+        assert sink.messages[1]["metrics"]["expected_detections"] >= m1["expected_detections"] + margin - 1e-6
+    else:  # below the margin in detections: revision 1 stands, whatever the coverage gain
+        assert kinds == ["plan", "plan_final"] and out.revision == 1, (d_gain, c_gain)
+        assert "detections" in sink.messages[1]["reason"] and "coverage floor" in sink.messages[1]["reason"]
+
+
+def test_a_plan_with_more_detections_and_a_little_less_coverage_is_better_only_for_the_detection_objective(
+        detection_run):
+    """The supersede rule (is_better) on the pipeline's real plans, one side's coverage moved across the floor."""
+    from mushrooms.scheduler_core.anytime import is_better
+    from mushrooms.scheduler_core.plan import Plan
+
+    first, second = (Plan.from_document(d) for d in detection_run)
+    d_gain = second.metrics.expected_detections - first.metrics.expected_detections
+
+    def covering(plan, coverage):
+        return plan.with_(metrics=dataclasses.replace(plan.metrics, coverage=coverage))
+
+    c1 = first.metrics.coverage
+    a_little_less = covering(second, c1 * (1 - 0.01))  # within a 2 % floor
+    too_little = covering(second, c1 * (1 - 0.03))
+    assert is_better(a_little_less, first, d_gain / 2, "detection", 0.02)
+    assert not is_better(a_little_less, first, d_gain / 2, "coverage", 0.02)
+    assert not is_better(too_little, first, d_gain / 2, "detection", 0.02)
+    assert not is_better(a_little_less, first, d_gain * 2, "detection", 0.02)
+    # fewer detections never replace, however much more the plan covers
+    assert not is_better(covering(first, c1 + 0.1), second, 0.0, "detection", 0.02)
+    assert is_better(covering(first, c1 + 0.1), second, 0.0, "coverage", 0.02)
+    # nor does more coverage with the same detections
+    assert not is_better(covering(second, second.metrics.coverage + 0.01), second, 0.005, "detection", 0.02)
+    assert is_better(covering(second, second.metrics.coverage + 0.01), second, 0.005, "coverage", 0.02)

@@ -48,13 +48,13 @@ def test_pairable_fields_and_the_field_cap():
 
 @pytest.fixture(scope="module")
 def ring_problem():
-    cfg = PlanningConfig(time_limit_s=3.0, milp_backend="highs", min_gain=0.0)
+    cfg = PlanningConfig(time_limit_s=3.0, milp_backend="highs", min_gain=0.0, objective="coverage")
     skymap = read_skymap(MAP_FLAT_RING, nside=cfg.nside)
     return skymap, prepare_problem(skymap, cfg, Time(skymap.event_time, scale="utc"))
 
 
 def test_bound_is_above_every_plan_on_test_maps(ring_problem, skymap_220722v):
-    cfg = PlanningConfig(time_limit_s=3.0, milp_backend="highs", min_gain=0.0)
+    cfg = PlanningConfig(time_limit_s=3.0, milp_backend="highs", min_gain=0.0, objective="coverage")
     p220722 = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
     for skymap, problem in (ring_problem, (skymap_220722v, p220722)):
         ub = coverage_upper_bound(problem).value

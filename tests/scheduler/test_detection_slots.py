@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -13,7 +15,10 @@ from mushrooms.scheduler_core.detection_slots import (
     detection_start_vector,
     pair_levels,
 )
-from mushrooms.scheduler_core.planner import run_scheduler
+from mushrooms.scheduler_core.gain import published_coverage
+from mushrooms.scheduler_core.detection import expected_detections
+from mushrooms.scheduler_core.kilonova import load_kilonova
+from mushrooms.scheduler_core.planner import build_plan, optimise, run_scheduler
 from mushrooms.scheduler_core.prepare import prepare_problem
 from mushrooms.scheduler_core.skymap import read_skymap
 from mushrooms.scheduler_core.slots import SlotGrid, SlotInstance, build_slot_model
@@ -63,16 +68,77 @@ def test_detection_objective_picks_the_later_deeper_slot_when_the_early_one_is_t
     assert np.all(ax >= dm.model.milp.row_lo - 1e-9) and np.all(ax <= dm.model.milp.row_hi + 1e-9)
 
 
-def test_detection_stage_never_returns_fewer_expected_detections_than_its_coverage_plan(data_dir) -> None:
-    cfg = PlanningConfig(nside=64, time_limit_s=5.0, detection_time_limit_s=10.0)
+def one_slot_two_fields() -> SlotInstance:
+    """Two fields (one cell each: 0.7 and 0.3 of the probability) competing for a single slot."""
+    grid = SlotGrid(1, "start", np.array([0.0]), np.array([1]), np.array([0]), np.array([0]),
+                    np.array([0.0]), np.array([1800.0]))
+    cells = Cells(np.array([0.7, 0.3]), np.array([0, 1, 2]), np.array([0, 1]), 2)
+    return SlotInstance(np.array([0, 1]), grid, cells, np.array([0, 1]), np.array([0, 0]), np.array([0, 1]),
+                        np.array([0, 1]))
+
+
+@pytest.mark.parametrize("floor", [None, 0.7 * 0.98])
+def test_the_coverage_floor_keeps_the_rich_field_the_detection_objective_alone_would_give_up(floor) -> None:
+    """(X6): the rich field's sources are out of reach, the poor field's in reach; the floor decides."""
+    inst = one_slot_two_fields()
+    levels = np.array([80.0, 220.0])
+    plev = pair_levels(np.array([80.0, 220.0]), levels)  # field 0 reaches the first level only
+    # cell 0's sources lie beyond 80 Mpc (nothing in reach of field 0), cell 1's within 80-220 Mpc
+    W = np.array([[0.0, 0.0], [0.0, 0.3]])
+    dm = build_detection_model(inst, W, plev, coverage_weight=0.05, coverage_floor=floor)
+    res = solve_milp(dm.model.milp, "highs", 10.0, 0.0, 0)
+    assert res.status == "optimal"
+    base = dm.base
+    covered = float(inst.cells.weight @ res.x[base.off_y:base.off_y + 2])
+    if floor is None:  # detections first: the poor field, 0.3 detections and 0.3 coverage
+        assert res.x[:2].round().tolist() == [0.0, 1.0] and covered == pytest.approx(0.3)
+    else:  # the floor 0.686 forbids giving up the rich field
+        assert res.x[:2].round().tolist() == [1.0, 0.0] and covered >= floor - 1e-9
+    ax = dm.model.milp.A @ res.x
+    assert np.all(ax >= dm.model.milp.row_lo - 1e-9) and np.all(ax <= dm.model.milp.row_hi + 1e-9)
+
+
+@pytest.mark.parametrize("loss", [0.0, 0.02])
+def test_detection_stage_never_returns_fewer_expected_detections_than_its_coverage_plan(data_dir, loss) -> None:
+    cfg = PlanningConfig(nside=64, time_limit_s=5.0, detection_time_limit_s=4.0, detection_max_coverage_loss=loss)
     sm = read_skymap(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=64)
     problem = prepare_problem(sm, cfg, sm.event_time)
     cov = run_scheduler(problem, "greedy")
-    det = detection_stage(problem, sm, cov)
+    det = detection_stage(problem, sm, cov, time_limit_s=10.0)
     d = det.details
     assert d["expected_detections"] >= d["expected_detections_coverage"] > 0
     assert d["detection_choice"] in ("coverage", "detection")
     if d["detection_choice"] == "coverage":
         assert det.observations == cov.observations
     ran = [g for g in d["detection_grids"] if "expected_detections" in g]
-    assert ran and max(g["expected_detections"] for g in ran) <= d["expected_detections"] + 1e-12
+    assert ran and max(g["expected_detections"] for g in ran if g["above_floor"]) <= d["expected_detections"] + 1e-12
+    # the floor (X6) holds for the plan as published: after the real timing and the least-gain rule
+    c0 = published_coverage(problem, cov)
+    assert d["coverage_floor"] == pytest.approx((1 - loss) * c0)
+    assert published_coverage(problem, det) >= (1 - loss) * c0 - 1e-9
+    # the plan reuses the stage's score of its exposures: the same as scoring the plan afresh
+    plan = build_plan(problem, det, sm, "greedy")
+    fresh = expected_detections(plan, sm, problem.footprints, load_kilonova(cfg.detection_lightcurve))
+    assert plan.metrics.expected_detections == pytest.approx(fresh, abs=2e-6)
+
+
+def test_the_detection_objective_shares_one_budget_between_its_two_stages(data_dir) -> None:
+    """objective = detection: the scheduler gets time_limit_s minus the detection share, the stage the rest."""
+    cfg = PlanningConfig(nside=64, objective="detection", time_limit_s=6.0, detection_time_limit_s=2.5)
+    sm = read_skymap(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=64)
+    problem = prepare_problem(sm, cfg, sm.event_time)
+    given = []
+
+    def scheduler(p, solver, should_stop=None):
+        given.append(p.config.time_limit_s)
+        return run_scheduler(p, solver, should_stop)
+
+    det = optimise(problem, sm, "slots", scheduler=scheduler)
+    assert given == [pytest.approx(3.5)]
+    assert 0 < det.details["detection_budget_s"] <= 2.5
+    assert det.details["detection_choice"] in ("coverage", "detection")
+    # the coverage objective leaves the scheduler the whole budget and runs no detection stage
+    cov_problem = prepare_problem(sm, dataclasses.replace(cfg, objective="coverage"), sm.event_time)
+    given.clear()
+    assert "detection_choice" not in optimise(cov_problem, sm, "greedy", scheduler=scheduler).details
+    assert given == [6.0]

@@ -7,22 +7,23 @@ import dataclasses
 from astropy.time import Time
 
 from mushrooms.scheduler_core import PlanningConfig
-from mushrooms.scheduler_core.planner import _coverage, build_plan, run_scheduler
+from mushrooms.scheduler_core.gain import published_coverage
+from mushrooms.scheduler_core.planner import build_plan, run_scheduler
 from mushrooms.scheduler_core.prepare import prepare_problem
 
 
 def test_the_coverage_the_hybrid_compares_is_the_published_coverage(skymap_220722v):
-    cfg = PlanningConfig(min_gain=0.003, time_limit_s=2.0, milp_backend="highs")
+    cfg = PlanningConfig(min_gain=0.003, time_limit_s=2.0, milp_backend="highs", objective="coverage")
     problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
     greedy = run_scheduler(problem, "greedy")
     raw = problem.footprints.coverage({o.field_id for o in greedy.observations}, problem.prob)
     plan = build_plan(problem, greedy, skymap_220722v, "greedy")
     assert plan.metrics.n_fields < len({o.field_id for o in greedy.observations})  # the rule dropped fields
     assert plan.metrics.coverage < raw
-    assert abs(_coverage(problem, greedy) - plan.metrics.coverage) < 1e-6
+    assert abs(published_coverage(problem, greedy) - plan.metrics.coverage) < 1e-6
     hybrid = build_plan(problem, run_scheduler(problem, "hybrid"), skymap_220722v, "hybrid")
     assert hybrid.metrics.coverage >= plan.metrics.coverage - 1e-6
     # without the rule nothing is dropped and both coverages agree
     cfg0 = dataclasses.replace(cfg, min_gain=0.0)
     p0 = dataclasses.replace(problem, config=cfg0)
-    assert abs(_coverage(p0, greedy) - raw) < 1e-12
+    assert abs(published_coverage(p0, greedy) - raw) < 1e-12

@@ -9,7 +9,7 @@ from mushrooms.scheduler_core import PlanningConfig, check_plan, make_plan
 
 @pytest.fixture(scope="module")
 def milp_config() -> PlanningConfig:
-    return PlanningConfig(time_limit_s=8.0)
+    return PlanningConfig(time_limit_s=8.0, objective="coverage")  # the coverage schedulers themselves
 
 
 @pytest.fixture(scope="module")
