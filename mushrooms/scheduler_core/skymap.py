@@ -43,6 +43,11 @@ PROB_SUM_TOLERANCE = 0.02
 #: multi-order notice maps unpack to 1-5 MB).  A gzip bomb stops here.
 MAX_SKYMAP_BYTES = 256 * 1024 * 1024
 
+#: Least fraction of a flat map's sibling quadruples with equal probability for
+#: it to go through ligo.skymap's derasterize (a rasterised multi-order map:
+#: fast); below it the flat map is rasterised as one order (bounded cost).
+MERGEABLE_FRACTION = 0.9
+
 #: HEALPix's deepest order (NUNIQ indices beyond it are invalid).
 MAX_ORDER = 29
 
@@ -250,15 +255,19 @@ def _multiorder_table(raw: bytes, name: str, ordering: str, columns: list[str]):
     A multi-order file is read by :func:`ligo.skymap.io.read_sky_map` with
     ``moc=True``; its NUNIQ indices are checked first (:func:`check_uniq`).
     A flat file (NESTED or RING, any nside) is read by the same function
-    (reordered to NESTED) and written as the multi-order table of its one
-    order.  (``read_sky_map(moc=True)`` would do that through
-    :func:`ligo.skymap.bayestar.derasterize`, which merges equal sibling
-    pixels in a Python walk over every pixel: tens of seconds at NSIDE 512,
-    for the same rasterised result.)  Only the probability and the three
-    distance layers (when all are present) are kept.
+    (reordered to NESTED) and turned into a multi-order table as
+    ``read_sky_map(moc=True)`` does, by :func:`ligo.skymap.bayestar.derasterize`
+    (which merges equal sibling pixels: a few seconds for real NSIDE 512-2048
+    maps, most of whose siblings are equal) -- unless few siblings are
+    equal: its walk costs about 12 µs per output pixel (38 s of CPU for a
+    noisy NSIDE 512 map), so such a map becomes the multi-order table of its
+    one order instead (1 s), the same map for
+    :func:`~ligo.skymap.bayestar.rasterize`.  Only the probability and the
+    three distance layers (when all are present) are kept.
     """
     import astropy_healpix as ah
     from astropy.table import Table
+    from ligo.skymap.bayestar import derasterize
     from ligo.skymap.io import read_sky_map
     from ligo.skymap.moc import nest2uniq
 
@@ -279,15 +288,16 @@ def _multiorder_table(raw: bytes, name: str, ordering: str, columns: list[str]):
         raise SkyMapError(f"{name} has no PROB column (columns: {', '.join(columns) or 'none'})")
     with_dist = set(DIST_COLUMNS) <= set(columns)
     arrays, meta = read_sky_map(io.BytesIO(raw), nest=True, distances=with_dist)
-    flat = np.asarray(arrays[0] if with_dist else arrays, float)
+    names = ("PROB",) + DIST_COLUMNS if with_dist else ("PROB",)
+    table = Table([np.asarray(a, float) for a in (arrays if with_dist else (arrays,))], names=names, meta=meta)
+    flat = np.asarray(table["PROB"])
     _check_values(flat, name)
+    if flat.size > 12 and np.mean(np.all(flat.reshape(-1, 4) == flat[::4, None], axis=1)) >= MERGEABLE_FRACTION:
+        return derasterize(table)
     order = int(ah.nside_to_level(ah.npix_to_nside(flat.size)))
-    table = Table(meta=meta)
-    table["UNIQ"] = nest2uniq(np.int8(order), np.arange(flat.size, dtype=np.int64))
-    table["PROBDENSITY"] = flat * (flat.size / (4 * np.pi))
-    if with_dist:
-        for column, values in zip(DIST_COLUMNS, arrays[1:]):
-            table[column] = np.asarray(values, float)
+    table.rename_column("PROB", "PROBDENSITY")
+    table["PROBDENSITY"] *= flat.size / (4 * np.pi)
+    table.add_column(nest2uniq(np.int8(order), np.arange(flat.size, dtype=np.int64)), name="UNIQ", index=0)
     return table
 
 

@@ -203,6 +203,34 @@ def test_multiorder_map_matches_ligo_skymap_downsampled(nside):
     assert np.array_equal(m.distmu, np.asarray(ref["DISTMU"]), equal_nan=True)
 
 
+@pytest.mark.parametrize("siblings", ["equal", "distinct"])
+@pytest.mark.parametrize("nside", [2, 16])
+def test_flat_map_is_what_ligo_skymap_reads_and_rasterises(tmp_path, siblings, nside):
+    """A flat map with distance layers, whether most sibling pixels are equal
+    (a rasterised multi-order map: ligo.skymap's derasterize route) or none
+    are (the one-order route), gives what ``rasterize(read_sky_map(moc=True))``
+    gives, coarser (merged by moments) and finer (shared) alike."""
+    from ligo.skymap.bayestar import rasterize
+    from ligo.skymap.distance import parameters_to_moments
+    from ligo.skymap.io import read_sky_map, write_sky_map
+
+    rng = np.random.default_rng(7)
+    npix = 12 * 4**2  # NSIDE 4
+    n_values = npix // 4 if siblings == "equal" else npix
+    repeat = npix // n_values
+    prob = np.repeat(rng.random(n_values), repeat)
+    mu = np.repeat(rng.uniform(100, 300, n_values), repeat)
+    sigma = np.repeat(rng.uniform(10, 60, n_values), repeat)
+    path = tmp_path / "flat.fits"
+    write_sky_map(str(path), [prob / prob.sum(), mu, sigma, parameters_to_moments(mu, sigma)[2]], nest=True,
+                  gps_time=1e9)
+    ref = rasterize(read_sky_map(str(path), moc=True), order=nside.bit_length() - 1)
+    m = read_skymap(path, nside=nside)
+    np.testing.assert_allclose(m.prob, np.asarray(ref["PROB"]), rtol=1e-12)
+    for got, want in zip(_moments(m.distmu, m.distsigma), _moments(ref["DISTMU"], ref["DISTSIGMA"])):
+        np.testing.assert_allclose(got, want, rtol=1e-6)
+
+
 def test_flat_map_finer_than_working_is_summed_and_coarser_is_shared(tmp_path):
     import healpy as hp
 
