@@ -8,7 +8,8 @@ ways); where pixels are merged, the distance layers are combined through the
 conditional distance moments (:func:`ligo.skymap.distance.parameters_to_moments`
 and :func:`~ligo.skymap.distance.moments_to_parameters`), so a working pixel's
 ansatz has the mean and variance of the mixture it stands for.  A flat map
-enters the same rasterisation as a multi-order map of one order.
+enters the same rasterisation as a multi-order table (ligo.skymap's
+``derasterize``, or the table of its one order when few siblings are equal).
 
 What this module adds is the guard on hostile input (a bounded gunzip, the
 NUNIQ validity check, finite non-negative probabilities summing to 1) and
