@@ -243,8 +243,9 @@ def _read_table(raw: bytes, name: str, nside: int) -> tuple[np.ndarray, dict[str
     from ligo.skymap.bayestar import rasterize  # heavy import, keep it lazy
 
     ordering, columns = _table_layout(raw)
+    order = int(ah.nside_to_level(nside))
     table = _multiorder_table(raw, name, ordering, columns)
-    working = rasterize(table, order=int(ah.nside_to_level(nside)))
+    working = rasterize(_merge_finer_pixels(table, order), order=order)  # now only shares coarser pixels
     prob = np.asarray(working["PROB"], float)
     layers = {c: np.asarray(working[c], float) for c in DIST_COLUMNS if c in working.colnames}
     return prob, layers, table.meta
@@ -300,6 +301,48 @@ def _multiorder_table(raw: bytes, name: str, ordering: str, columns: list[str]):
     table["PROBDENSITY"] *= flat.size / (4 * np.pi)
     table.add_column(nest2uniq(np.int8(order), np.arange(flat.size, dtype=np.int64)), name="UNIQ", index=0)
     return table
+
+
+def _merge_finer_pixels(table, order: int):
+    """Multi-order table with every pixel finer than ``order`` merged into its ancestor.
+
+    What :func:`ligo.skymap.bayestar.rasterize` does when it downsamples,
+    with the same functions: the merged pixel's density is the mean of its
+    children's, its distance layers those of the children's mixture
+    (:func:`ligo.skymap.distance.parameters_to_moments`, probability-weighted
+    first and second moments, :func:`~ligo.skymap.distance.moments_to_parameters`;
+    a child without a finite distance makes the merged one (inf, 1, 0)).
+    Done here only for the merged pixels: ``rasterize`` converts every
+    output pixel there and back (moments_to_parameters solves each
+    numerically), 5 s for a notice's map at NSIDE 256 against 0.1 s here,
+    and loses up to 2e-5 of the std of the pixels it only shares.
+    """
+    from astropy.table import Table, vstack
+    from ligo.skymap.distance import moments_to_parameters, parameters_to_moments
+    from ligo.skymap.moc import nest2uniq, uniq2nest
+
+    src_order, ipix = uniq2nest(np.asarray(table["UNIQ"]))
+    fine = src_order > order
+    if not np.any(fine):
+        return table
+    shift = 2 * (src_order[fine].astype(np.int64) - order)
+    parents, group = np.unique(ipix[fine] >> shift, return_inverse=True)
+    weight = np.asarray(table["PROBDENSITY"], float)[fine] / (np.int64(1) << shift)  # density x child/parent area
+    density = np.bincount(group, weight)
+    merged = Table({"UNIQ": nest2uniq(np.int8(order), parents), "PROBDENSITY": density})
+    if "DISTMU" in table.colnames:
+        mu, sigma = (np.asarray(table[c], float)[fine] for c in ("DISTMU", "DISTSIGMA"))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean, std, _ = parameters_to_moments(mu, sigma)
+            bad = ~(np.isfinite(mu) & np.isfinite(sigma))
+            mean[bad] = std[bad] = np.nan
+            first = np.bincount(group, weight * mean) / density
+            second = np.bincount(group, weight * (std**2 + mean**2)) / density
+            layers = moments_to_parameters(first, np.sqrt(second - first**2))
+        for column, values in zip(DIST_COLUMNS, layers):
+            merged[column] = values
+    coarse = Table({c: np.asarray(table[c])[~fine] for c in merged.colnames})
+    return vstack([coarse, merged])
 
 
 def _finish(prob: np.ndarray, means: dict[str, np.ndarray], meta: dict, nside: int, sha: str, name: str) -> SkyMap:
