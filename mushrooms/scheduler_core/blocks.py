@@ -1,7 +1,8 @@
-"""The block-division MILP (paper appendix A, with the fixes of DESIGN.md).
+"""The block-division MILP (paper appendix A, with the fixes to its text).
 
-Equations B0-B11 of ``docs/design/milp.md`` (B1-B7 in the appendix's order);
-each constraint block below carries its number.
+Equations B0-B11 of ``docs/design/milp.md`` (B1-B7 in the appendix's order;
+the fixes to the appendix are listed there); each constraint block below
+carries its number.
 
 Times are seconds since the horizon start.  A *candidate* is one
 (shortlisted field, observability window) pair: a field with two windows

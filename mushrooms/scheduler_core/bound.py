@@ -3,7 +3,7 @@
 Every plan the checker accepts observes each of its fields in both filters,
 the cadence apart, each exposure inside one of the field's windows, one
 exposure at a time with at least the readout between two.  Hence
-(``docs/design/milp.md``, section "Upper bound", equations U0-U4):
+(``docs/design/milp.md``, section "Certified upper bound", equations U0-U4):
 
 - only *pairable* fields take part: a field whose earliest possible
   exposure start and latest possible one are at least the cadence apart;
@@ -182,7 +182,7 @@ def coverage_upper_bound(problem: PlanningProblem, method: str = "online", time_
                       shape=(C, F + C)),
         sp.csr_matrix((np.ones(F), (np.zeros(F, np.int64), np.arange(F))), shape=(1, F + C)),
     ]).tocsr()
-    c = np.concatenate([np.zeros(F), cells.weight])
+    c = np.concatenate([np.zeros(F), cells.weight])  # (U0) max Σ w_c y_c
     integer = np.concatenate([np.ones(F, bool), np.zeros(C, bool)])
     model = MilpModel(c, A, np.full(C + 1, -np.inf), np.concatenate([np.zeros(C), [float(K)]]),
                       np.zeros(F + C), np.ones(F + C), integer)

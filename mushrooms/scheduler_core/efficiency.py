@@ -165,7 +165,7 @@ def draw_injections(
         sigma = skymap.distsigma[ipix]
         ok = np.isfinite(mu) & np.isfinite(sigma) & (sigma > 0)
         dist = np.full(n, np.nan)
-        # Averaged layers need not keep DISTNORM consistent: recompute it.
+        # DISTNORM from the two parameters (a layer read elsewhere may not match them).
         with np.errstate(all="ignore"):
             _, _, norm = parameters_to_moments(mu[ok], sigma[ok])
             dist[ok] = conditional_ppf(p[ok], mu[ok], sigma[ok], norm)

@@ -184,7 +184,7 @@ class NotObservable:
         return dataclasses.replace(self, plan=self.plan.with_(**changes))
 
     def to_document(self) -> dict[str, Any]:
-        """The ``not_observable`` document (see docs/plan-format.md)."""
+        """The ``not_observable`` document (see docs/design/plan-format.md)."""
         plan_doc = self.plan.to_document()
         keep = ("plan_id", "created", "event", "telescope", "start", "end", "supersedes", "config")
         doc: dict[str, Any] = {"type": "not_observable"}

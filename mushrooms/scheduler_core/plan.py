@@ -255,7 +255,7 @@ class Plan:
         return list(dict.fromkeys(o.field_id for o in self.observations))
 
     def to_document(self) -> dict[str, Any]:
-        """The plan document (docs/plan-format.md) as a JSON-ready dict."""
+        """The plan document (docs/design/plan-format.md) as a JSON-ready dict."""
         starts = self.absolute_time([o.start for o in self.observations]) if self.observations else []
         ends = self.absolute_time([o.end for o in self.observations]) if self.observations else []
         obs = [

@@ -1,7 +1,7 @@
 """The JSON Schema of every outbound document (plan, not_observable, withdrawal).
 
 The schema ships in the package (``data/plan-document.schema.json``);
-``docs/plan-format.md`` explains it field by field.
+``docs/design/plan-format.md`` explains it field by field.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ row: no big-M, no continuous times.
 
 Variables: ``x_k`` binary for each eligible pair ``k = (field, slot)``;
 ``z_f`` in [0, 1] (field f is observed); ``y_c`` in [0, 1] (cell c is
-covered).  Maximise ``Σ_c w_c y_c + Σ_k v_k x_k − p Σ_f z_f`` subject to
+covered).  (S0) Maximise ``Σ_c w_c y_c + Σ_k v_k x_k − p Σ_f z_f`` subject to
 
 - (S1) ``Σ_{k ∋ slot} x_k <= 1``: one field per position;
 - (S2) ``z_f − Σ_{k ∋ f} x_k = 0``, ``z_f <= 1``: each field at most once;
