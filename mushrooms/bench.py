@@ -244,7 +244,7 @@ def _pair_with_reference(rows: list[dict[str, Any]], hits: Mapping[str, Mapping[
                 row[f"efficiency_{key}_differr"] = _fmt(e)
 
 
-def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]:
+def bench_map(path: str | Path, settings: BenchSettings, raise_errors: bool = False) -> list[dict[str, Any]]:
     """Benchmark every requested solver on one sky map.
 
     Parameters
@@ -253,6 +253,9 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
         Sky map file.
     settings : BenchSettings
         Solvers, configuration and efficiency settings.
+    raise_errors : bool
+        Let an unreadable map or a failing solver raise (with its traceback,
+        for ``mushrooms study``) instead of becoming a row.
 
     Returns
     -------
@@ -278,6 +281,8 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
     try:
         skymap = read_skymap(path, nside=cfg.nside)
     except InputError as exc:
+        if raise_errors:
+            raise
         return [_row(name, s, status=f"skymap_error: {exc}", valid=False) for s in settings.solvers]
     if settings.start_iso:
         start = parse_time(settings.start_iso)
@@ -311,6 +316,8 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
     try:  # every row needs it: ours to plan, gwemopt's for the repair and the bound
         problem = prepare_problem(skymap, cfg, start)
     except Exception as exc:  # reported per solver
+        if raise_errors:
+            raise
         prep_error = f"prepare_error: {type(exc).__name__}: {exc}"
     prepare_s = time.perf_counter() - t0
     bound = coverage_upper_bound(problem).value if problem is not None else None
@@ -387,6 +394,8 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
                 runtime_s=_fmt(prepare_s + solve_s, 3), prepare_s=_fmt(prepare_s, 3), solve_s=_fmt(solve_s, 3),
                 solver_detail=result.solver, note=note, **scores, **common))
         except Exception as exc:  # one broken solver must not stop the benchmark
+            if raise_errors:
+                raise
             log.exception("%s on %s failed", solver, name)
             rows.append(_row(name, solver, status=f"error: {type(exc).__name__}: {exc}"[:300], valid=False,
                              note=note, **common))
@@ -820,7 +829,7 @@ def _load_settings(args: Any) -> BenchSettings:
                          f"(ours also as <solver>{DETECTION_SUFFIX})")
     if args.injections < 1:
         raise InputError(f"--injections must be >= 1, got {args.injections}")
-    if args.jobs < 1:
+    if getattr(args, "jobs", 1) < 1:
         raise InputError(f"--jobs must be >= 1, got {args.jobs}")
     start_iso = None
     if getattr(args, "start", None):
