@@ -777,6 +777,7 @@ def make_plots(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> list
     written.append(out)
 
     fig, ax = plt.subplots(figsize=(7, 4.5))
+    plotted = 0
     for k, marker in (("conservative", "o"), ("optimistic", "^")):
         xs, ys = [], []
         for a, b in pairs:
@@ -788,8 +789,10 @@ def make_plots(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> list
             xs.append(area)
             ys.append(100.0 * (hybrid - eb) / eb)
         ax.scatter(xs, ys, s=16, marker=marker, label=f"{k} light curve", alpha=0.8)
+        plotted += len(xs)
     ax.axhline(0, color="grey", lw=0.8)
-    ax.set_xscale("log")
+    if plotted:  # a log axis needs a point (no map with a nonzero baseline efficiency: an empty figure)
+        ax.set_xscale("log")
     ax.set_xlabel("90% credible area (deg$^2$)")
     ax.set_ylabel(f"efficiency gain of best({ours},{base})\nover {base} (%)")
     ax.legend()
