@@ -673,6 +673,7 @@ def make_figures(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> li
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
+    from matplotlib.ticker import MaxNLocator
 
     directory = Path(directory)
     written = bench.make_plots(rows, directory)
@@ -696,6 +697,7 @@ def make_figures(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> li
         ax.set_xscale("log")
         ax.set_xlabel("solve time per map (s, wall clock)")
         ax.set_ylabel("sky maps")
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(f"solve time, {max(len(t) for t in times.values())} sky maps")
         ax.legend(fontsize=8)
         fig.tight_layout()
@@ -716,6 +718,7 @@ def make_figures(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> li
         ax.set_xscale("log")
         ax.set_xlabel("90% credible area (deg$^2$)")
         ax.set_ylabel("sky maps")
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         ax.legend(fontsize=8)
         fig.tight_layout()
         out = directory / "area_hist_similar_length.png"
