@@ -140,3 +140,19 @@ def test_localised_map_cache_key_and_bad_cli_input(tmp_path, capsys) -> None:
     assert "not a directory" in capsys.readouterr().err
     assert cli_main(["study", "--solvers", "nope", "--out", str(tmp_path)]) == 2
     assert "unknown solver" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_localise_one_packaged_coincidence_with_bayestar(tmp_path) -> None:
+    """The real tool (lalsuite; ~1 min of one core): one map, cached, readable by the planner."""
+    if shutil.which("bayestar-localize-coincs") is None:
+        pytest.skip("bayestar-localize-coincs (ligo.skymap with lalsuite) not on PATH")
+    from mushrooms.scheduler_core.skymap import read_skymap
+
+    (task,) = study.maps_from_events(study.DEFAULT_EVENTS, tmp_path, study.Localisation(), ids=[0])
+    first = study.localise(task.events, task.coinc_id, study.Localisation(), task.path)
+    assert first["cached"] is False and first["cpu_s"] > 1.0 and Path(first["path"]).exists()
+    again = study.localise(task.events, task.coinc_id, study.Localisation(), task.path)
+    assert again["cached"] is True and again["path"] == first["path"]
+    skymap = read_skymap(first["path"], nside=64)
+    assert skymap.event_time is not None and skymap.distmean is not None
