@@ -82,7 +82,7 @@ log = logging.getLogger(__name__)
 
 #: The O3 BNS population of ``shared/data/skymaps/simulated/bns_o3_pipeline/``: the realised
 #: coincidences (21) of its first 600 injections (packaged; see ``data/populations/SOURCES.md``).
-DEFAULT_EVENTS = Path(__file__).resolve().parent / "data" / "populations" / "bns_o3_events.xml.gz"
+DEFAULT_EVENTS = Path(__file__).resolve().parent / "data" / "populations" / "bns_o3" / "events.xml.gz"
 #: Default solvers of a study.
 DEFAULT_SOLVERS = ("greedy", "hybrid")
 #: Frames of a failed task's traceback kept in its record.
