@@ -430,6 +430,8 @@ def open_client(workers: int = 2, scheduler: str | None = None, dashboard: bool 
     """
     from distributed import Client, LocalCluster
 
+    if not log.isEnabledFor(logging.DEBUG):  # the cluster's own INFO chatter would bury the progress bar
+        logging.getLogger("distributed").setLevel(logging.WARNING)
     if scheduler:
         return Client(scheduler)
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,

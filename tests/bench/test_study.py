@@ -90,7 +90,11 @@ def test_failed_localisation_is_recorded_and_its_plans_fail_alone(tmp_path, data
                          events=str(tmp_path / "no-such-events.xml.gz"), coinc_id=7)
     settings = bench.BenchSettings(config=PlanningConfig(nside=64, threads=1), solvers=("greedy",),
                                    n_injections=200, legacy_scoring=False)
-    run = study.run_study(client, [lost, good], settings, tmp_path / "out", progress=False)
+    remote = study.open_client(scheduler=client.scheduler.address)  # --scheduler ADDRESS: a running cluster
+    try:
+        run = study.run_study(remote, [lost, good], settings, tmp_path / "out", progress=False)
+    finally:
+        remote.close()
     assert len(run.executed) == 2 and len(run.failed) == 1
     records = {r["map"]: r for r in map(json.loads, (tmp_path / "out" / "results.jsonl").read_text().splitlines())}
     assert records["good"]["ok"] is True
