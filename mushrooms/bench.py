@@ -161,6 +161,19 @@ def find_skymaps(directory: str | Path) -> list[Path]:
     return sorted(files)
 
 
+def skymaps_in(directory: str | Path) -> list[Path]:
+    """:func:`find_skymaps` of a command's input directory; InputError when it is missing or has none."""
+    from .scheduler_core.errors import InputError
+
+    root = Path(directory)
+    if not root.is_dir():
+        raise InputError(f"not a directory: {root}")
+    paths = find_skymaps(root)
+    if not paths:
+        raise InputError(f"no sky maps (*.fits, *.fits.gz) under {root}")
+    return paths
+
+
 # --------------------------------------------------------------------------- per map
 
 
@@ -858,15 +871,8 @@ def main(args: Any) -> int:
         0 when every map was processed (individual solver failures are rows
         in the CSV, not errors); 2 on bad input.
     """
-    from .scheduler_core.errors import InputError
-
     settings = _load_settings(args)
-    root = Path(args.skymap_dir)
-    if not root.is_dir():
-        raise InputError(f"not a directory: {root}")
-    paths = find_skymaps(root)
-    if not paths:
-        raise InputError(f"no sky maps (*.fits, *.fits.gz) under {root}")
+    paths = skymaps_in(args.skymap_dir)
     if "gwemopt" in settings.solvers:
         from .scheduler_core.gwemopt_baseline import ENV_PYTHON, gwemopt_python
 

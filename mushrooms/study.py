@@ -312,8 +312,8 @@ class MapTask:
 
 
 def maps_from_directory(directory: str | Path) -> list[MapTask]:
-    """The sky maps under a directory (``bench.find_skymaps``), keyed by their bytes."""
-    return [MapTask(key=_sha256_file(p)[:24], name=str(p), path=str(p)) for p in bench.find_skymaps(directory)]
+    """The sky maps under a directory (``bench.skymaps_in``: InputError when none), keyed by their bytes."""
+    return [MapTask(key=_sha256_file(p)[:24], name=str(p), path=str(p)) for p in bench.skymaps_in(directory)]
 
 
 def maps_from_events(events: str | Path, cache: str | Path, options: Localisation,
@@ -666,6 +666,19 @@ def paper_tables(rows: Sequence[Mapping[str, Any]],
     return "\n".join(lines)
 
 
+def _save_histogram(fig: Any, ax: Any, out: Path) -> Path:
+    """Finish a histogram of map counts (integer ticks, legend) and write it."""
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
+
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
 def make_figures(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> list[Path]:
     """The paper's figures (PNG): coverage scatter and efficiency vs 90 % area (all maps and the
     similar-length subset, the bench's :func:`~mushrooms.bench.make_plots`), the solve-time
@@ -675,7 +688,6 @@ def make_figures(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> li
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-    from matplotlib.ticker import MaxNLocator
 
     directory = Path(directory)
     written = bench.make_plots(rows, directory)
@@ -699,14 +711,8 @@ def make_figures(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> li
         ax.set_xscale("log")
         ax.set_xlabel("solve time per map (s, wall clock)")
         ax.set_ylabel("sky maps")
-        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(f"solve time, {max(len(t) for t in times.values())} sky maps")
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        out = directory / "solve_time_hist.png"
-        fig.savefig(out, dpi=120)
-        plt.close(fig)
-        written.append(out)
+        written.append(_save_histogram(fig, ax, directory / "solve_time_hist.png"))
 
     area = {name: bench._num(next(iter(sol.values())).get("area90_deg2"))
             for name, sol in bench._by_map(rows).items()}
@@ -720,13 +726,7 @@ def make_figures(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> li
         ax.set_xscale("log")
         ax.set_xlabel("90% credible area (deg$^2$)")
         ax.set_ylabel("sky maps")
-        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        out = directory / "area_hist_similar_length.png"
-        fig.savefig(out, dpi=120)
-        plt.close(fig)
-        written.append(out)
+        written.append(_save_histogram(fig, ax, directory / "area_hist_similar_length.png"))
     return written
 
 
@@ -793,12 +793,7 @@ def main(args: Any) -> int:
     maps: list[MapTask] = []
     events: str | None = None
     if args.maps:
-        root = Path(args.maps)
-        if not root.is_dir():
-            raise InputError(f"not a directory: {root}")
-        maps = maps_from_directory(root)
-        if not maps:
-            raise InputError(f"no sky maps (*.fits, *.fits.gz) under {root}")
+        maps = maps_from_directory(args.maps)
     elif args.simulate is not None:
         if args.simulate < 1:
             raise InputError(f"--simulate must be >= 1, got {args.simulate}")
