@@ -166,6 +166,13 @@ class Population:
         Single-detector duty cycle.
     net_snr_threshold : float
         Network SNR threshold of a detection.
+    intrinsic_samples : int or None
+        None: ``--distribution`` (the preset; the tool first computes the
+        horizon on a 10^4-cell mass-spin grid, ~0.19 s of CPU per cell here,
+        ~30 CPU-min). N: draw N (mass1, mass2, spin1z, spin2z) points from the
+        same preset's distributions (``bns_astro``: masses normal(1.33, 0.09)
+        Msun within [1, 2], aligned spins uniform in [-0.05, 0.05]; seeded)
+        and pass them with ``--distribution-samples`` (N horizons instead).
     """
 
     n_injections: int = 1000
@@ -176,6 +183,7 @@ class Population:
         ("H1", "aLIGO140MpcT1800545", 0.80), ("L1", "aLIGO140MpcT1800545", 0.95), ("V1", "AdVO3LowT1800545", 0.80))
     duty_cycle: float = 0.7
     net_snr_threshold: float = 8.0
+    intrinsic_samples: int | None = None
 
     def key(self) -> str:
         """Cache key of this recipe."""
@@ -204,8 +212,13 @@ def simulate_population(population: Population, directory: str | Path) -> str:
     for det, model, scale in population.psd_scales:
         psd += [f"--{det}", model, f"--{det}-scale", str(scale)]
     _run_tool(psd, cwd=d)
+    if population.intrinsic_samples:
+        _write_intrinsic_samples(population, d / "intrinsic_samples.ecsv")
+        source = ["--distribution-samples", "intrinsic_samples.ecsv"]
+    else:
+        source = ["--distribution", population.distribution]
     _run_tool(["bayestar-inject", "-l", "error", "--seed", str(population.seed),
-               "--distribution", population.distribution, "--reference-psd", "psds.xml",
+               *source, "--reference-psd", "psds.xml",
                "--waveform", population.waveform, "--snr-threshold", "4", "--min-triggers", "1",
                "--nsamples", str(population.n_injections), "-j", "1", "-o", "injections.xml"], cwd=d, omp_threads=1)
     _run_tool(["bayestar-realize-coincs", "--seed", str(population.seed), "-j", "1", "-l", "error",
@@ -216,6 +229,22 @@ def simulate_population(population: Population, directory: str | Path) -> str:
                *[det for det, _, _ in population.psd_scales]], cwd=d, omp_threads=1)
     os.replace(d / "events.partial.xml.gz", events)
     return str(events)
+
+
+def _write_intrinsic_samples(population: Population, path: Path) -> None:
+    """N points of the ``bns_astro`` mass and spin distributions (bayestar-inject's own constants)."""
+    import numpy as np
+    from astropy.table import Table
+
+    if population.distribution != "bns_astro":
+        raise ValueError(f"intrinsic_samples is implemented for bns_astro, not {population.distribution}")
+    rng = np.random.default_rng(population.seed)
+    n = int(population.intrinsic_samples or 0)
+    masses = rng.normal(1.33, 0.09, size=(4 * n + 16, 2))
+    masses = masses[np.all((masses >= 1.0) & (masses <= 2.0), axis=1)][:n]  # the preset's mass range
+    spins = rng.uniform(-0.05, 0.05, size=(n, 2))
+    Table({"mass1": masses[:, 0], "mass2": masses[:, 1], "spin1z": spins[:, 0], "spin2z": spins[:, 1]}).write(
+        path, format="ascii.ecsv", overwrite=True)
 
 
 def coinc_ids(events: str | Path) -> list[int]:
@@ -744,6 +773,9 @@ def add_arguments(sp: Any) -> None:
                      help="simulate a new population of N injections (bayestar-inject, realize-coincs) and "
                           "localise its coincidences")
     sp.add_argument("--seed", type=int, default=Population.seed, help="seed of --simulate (default %(default)s)")
+    sp.add_argument("--intrinsic-samples", type=int, metavar="N",
+                    help="with --simulate: N mass-spin points of bns_astro given to bayestar-inject "
+                         "--distribution-samples instead of its preset's 10^4-cell horizon grid (~30 CPU-min)")
     sp.add_argument("--limit", type=int, metavar="N", help="only the first N coincidences / maps")
     sp.add_argument("--solvers", default=",".join(DEFAULT_SOLVERS),
                     help="comma list of greedy,slots,blocks,hybrid,milp,gwemopt,gwemopt-repaired "
@@ -797,6 +829,8 @@ def main(args: Any) -> int:
     elif args.simulate is not None:
         if args.simulate < 1:
             raise InputError(f"--simulate must be >= 1, got {args.simulate}")
+        if args.intrinsic_samples is not None and args.intrinsic_samples < 1:
+            raise InputError(f"--intrinsic-samples must be >= 1, got {args.intrinsic_samples}")
     else:
         events = args.events or str(DEFAULT_EVENTS)
         if not Path(events).is_file():
@@ -807,7 +841,8 @@ def main(args: Any) -> int:
     try:
         if not maps:
             if args.simulate is not None:
-                population = Population(n_injections=args.simulate, seed=args.seed)
+                population = Population(n_injections=args.simulate, seed=args.seed,
+                                        intrinsic_samples=args.intrinsic_samples)
                 print(f"simulating {args.simulate} injections (seed {args.seed}) -> {cache / 'populations'}",
                       file=sys.stderr)
                 events = client.submit(simulate_population, population, str(cache / "populations"),
