@@ -172,6 +172,19 @@ def find_skymaps(directory: str | Path) -> list[Path]:
     return sorted(files)
 
 
+def skymaps_in(directory: str | Path) -> list[Path]:
+    """:func:`find_skymaps` of a command's input directory; InputError when it is missing or has none."""
+    from .scheduler_core.errors import InputError
+
+    root = Path(directory)
+    if not root.is_dir():
+        raise InputError(f"not a directory: {root}")
+    paths = find_skymaps(root)
+    if not paths:
+        raise InputError(f"no sky maps (*.fits, *.fits.gz) under {root}")
+    return paths
+
+
 # --------------------------------------------------------------------------- per map
 
 
@@ -255,7 +268,7 @@ def _pair_with_reference(rows: list[dict[str, Any]], hits: Mapping[str, Mapping[
                 row[f"efficiency_{key}_differr"] = _fmt(e)
 
 
-def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]:
+def bench_map(path: str | Path, settings: BenchSettings, raise_errors: bool = False) -> list[dict[str, Any]]:
     """Benchmark every requested solver on one sky map.
 
     Parameters
@@ -264,6 +277,9 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
         Sky map file.
     settings : BenchSettings
         Solvers, configuration and efficiency settings.
+    raise_errors : bool
+        Let an unreadable map or a failing solver raise (with its traceback,
+        for ``mushrooms study``) instead of becoming a row.
 
     Returns
     -------
@@ -289,6 +305,8 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
     try:
         skymap = read_skymap(path, nside=cfg.nside)
     except InputError as exc:
+        if raise_errors:
+            raise
         return [_row(name, s, status=f"skymap_error: {exc}", valid=False) for s in settings.solvers]
     if settings.start_iso:
         start = parse_time(settings.start_iso)
@@ -321,6 +339,8 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
     try:  # every row needs it: ours to plan, gwemopt's for the repair and the bound
         problem = prepare_problem(skymap, cfg, start)
     except Exception as exc:  # reported per solver
+        if raise_errors:
+            raise
         prep_error = f"prepare_error: {type(exc).__name__}: {exc}"
     prepare_s = time.perf_counter() - t0
     bound = coverage_upper_bound(problem).value if problem is not None else None
@@ -402,6 +422,8 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
                 runtime_s=_fmt(prepare_s + solve_s, 3), prepare_s=_fmt(prepare_s, 3), solve_s=_fmt(solve_s, 3),
                 solver_detail=result.solver, note=note, detection_stage=stage, **scores, **common))
         except Exception as exc:  # one broken solver must not stop the benchmark
+            if raise_errors:
+                raise
             log.exception("%s on %s failed", solver, name)
             rows.append(_row(name, solver, status=f"error: {type(exc).__name__}: {exc}"[:300], valid=False,
                              note=note, **common))
@@ -783,6 +805,7 @@ def make_plots(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> list
     written.append(out)
 
     fig, ax = plt.subplots(figsize=(7, 4.5))
+    plotted = 0
     for k, marker in (("conservative", "o"), ("optimistic", "^")):
         xs, ys = [], []
         for a, b in pairs:
@@ -794,8 +817,10 @@ def make_plots(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> list
             xs.append(area)
             ys.append(100.0 * (hybrid - eb) / eb)
         ax.scatter(xs, ys, s=16, marker=marker, label=f"{k} light curve", alpha=0.8)
+        plotted += len(xs)
     ax.axhline(0, color="grey", lw=0.8)
-    ax.set_xscale("log")
+    if plotted:  # a log axis needs a point (no map with a nonzero baseline efficiency: an empty figure)
+        ax.set_xscale("log")
     ax.set_xlabel("90% credible area (deg$^2$)")
     ax.set_ylabel(f"efficiency gain of best({ours},{base})\nover {base} (%)")
     ax.legend()
@@ -835,7 +860,7 @@ def _load_settings(args: Any) -> BenchSettings:
                          f"(ours also as <solver>{DETECTION_SUFFIX})")
     if args.injections < 1:
         raise InputError(f"--injections must be >= 1, got {args.injections}")
-    if args.jobs < 1:
+    if getattr(args, "jobs", 1) < 1:
         raise InputError(f"--jobs must be >= 1, got {args.jobs}")
     start_iso = None
     if getattr(args, "start", None):
@@ -861,15 +886,8 @@ def main(args: Any) -> int:
         0 when every map was processed (individual solver failures are rows
         in the CSV, not errors); 2 on bad input.
     """
-    from .scheduler_core.errors import InputError
-
     settings = _load_settings(args)
-    root = Path(args.skymap_dir)
-    if not root.is_dir():
-        raise InputError(f"not a directory: {root}")
-    paths = find_skymaps(root)
-    if not paths:
-        raise InputError(f"no sky maps (*.fits, *.fits.gz) under {root}")
+    paths = skymaps_in(args.skymap_dir)
     if "gwemopt" in settings.solvers:
         from .scheduler_core.gwemopt_baseline import ENV_PYTHON, gwemopt_python
 

@@ -1,4 +1,4 @@
-"""Command line: ``mushrooms run | plan | check | replay | trigger | bench``.
+"""Command line: ``mushrooms run | plan | check | replay | trigger | bench | study``.
 
 Bad input is answered by one line on stderr and exit status 2; ``--debug``
 shows tracebacks.
@@ -32,6 +32,7 @@ COMMANDS = {
     "run": "mushrooms.daemon.service:main",
     "trigger": "mushrooms.daemon.trigger:main",
     "bench": "mushrooms.bench:main",
+    "study": "mushrooms.study:main",
 }
 
 
@@ -119,6 +120,13 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--injections", type=int, default=10000, metavar="N", help="kilonova injections per map")
     sp.add_argument("--plots", metavar="DIR", help="write the summary figures here")
     sp.add_argument("-o", "--output", metavar="FILE", default="results.csv")
+    common(sp)
+
+    sp = sub.add_parser("study", help="the paper's experiment on a Dask cluster: simulate or take sky maps, "
+                                      "plan, score, tables and figures (resumable)")
+    from .study import add_arguments as study_arguments
+
+    study_arguments(sp)
     common(sp)
     return p
 
