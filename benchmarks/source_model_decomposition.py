@@ -12,7 +12,7 @@ iers.conf.auto_download = False
 from mushrooms.scheduler_core.config import PlanningConfig
 from mushrooms.scheduler_core.skymap import read_skymap
 from mushrooms.scheduler_core.planner import make_plan
-from mushrooms.scheduler_core.efficiency import draw_injections, detected, DEFAULT_MAGLIM_300S
+from mushrooms.evaluation.efficiency import draw_injections, detected, DEFAULT_MAGLIM_300S
 from mushrooms.scheduler_core.kilonova import Kilonova
 from mushrooms.scheduler_core.lightcurves import load_lightcurve
 from mushrooms.scheduler_core.depth import ZTF_DEPTH

@@ -31,7 +31,7 @@ COMMANDS = {
     "replay": "mushrooms.daemon.replay:main",
     "run": "mushrooms.daemon.service:main",
     "trigger": "mushrooms.daemon.trigger:main",
-    "bench": "mushrooms.bench:main",
+    "bench": "mushrooms.evaluation.bench:main",
 }
 
 

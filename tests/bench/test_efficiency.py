@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from astropy.time import Time, TimeDelta
 
-from mushrooms.scheduler_core.efficiency import (
+from mushrooms.evaluation.efficiency import (
     DEFAULT_MAGLIM_300S,
     detected,
     detection_efficiency,

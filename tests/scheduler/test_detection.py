@@ -9,7 +9,7 @@ import pytest
 from mushrooms.scheduler_core.config import PlanningConfig
 from mushrooms.scheduler_core.depth import ZTF_DEPTH
 from mushrooms.scheduler_core.detection import expected_detections
-from mushrooms.scheduler_core.efficiency import detection_efficiency, draw_injections
+from mushrooms.evaluation.efficiency import detection_efficiency, draw_injections
 from mushrooms.scheduler_core.fields import field_footprints, load_ztf_fields
 from mushrooms.scheduler_core.kilonova import load_kilonova
 from mushrooms.scheduler_core.planner import make_plan

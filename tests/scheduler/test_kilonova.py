@@ -10,7 +10,7 @@ import pytest
 from astropy.time import Time, TimeDelta
 
 from mushrooms.scheduler_core.depth import ZTF_DEPTH
-from mushrooms.scheduler_core.efficiency import DEFAULT_MAGLIM_300S, Injections, detected
+from mushrooms.evaluation.efficiency import DEFAULT_MAGLIM_300S, Injections, detected
 from mushrooms.scheduler_core.kilonova import Kilonova, load_kilonova
 from mushrooms.scheduler_core.lightcurves import load_lightcurve, parse_lightcurve
 from mushrooms.scheduler_core.plan import Observation, Plan, PlanMetrics

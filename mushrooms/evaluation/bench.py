@@ -5,9 +5,9 @@ prepared once (same horizon, fields, footprints and windows for every
 solver), each requested scheduler runs (``greedy``, ``slots``, ``blocks``
 (alias ``milp``), ``hybrid`` through
 :func:`~mushrooms.scheduler_core.planner.run_scheduler`; ``gwemopt`` through
-:mod:`~mushrooms.scheduler_core.gwemopt_baseline`, and ``gwemopt-repaired``:
+:mod:`~mushrooms.evaluation.gwemopt_baseline`, and ``gwemopt-repaired``:
 the same gwemopt schedule with every rule-breaking exposure removed by
-:func:`~mushrooms.scheduler_core.gwemopt_baseline.repair_observations`), every plan goes
+:func:`~mushrooms.evaluation.gwemopt_baseline.repair_observations`), every plan goes
 through the independent plan checker, and the detection efficiency of each
 plan is computed with the SAME injections (seeded from the map's hash) for
 three kilonova models (optimistic and conservative BNS, NSBH).
@@ -116,7 +116,7 @@ class BenchSettings:
     gwemopt_cache_dir : str or None
         Directory of cached raw gwemopt schedules (keyed on the sky map's
         bytes and the options passed; format in
-        :mod:`~mushrooms.scheduler_core.gwemopt_baseline`); None = no cache.
+        :mod:`~mushrooms.evaluation.gwemopt_baseline`); None = no cache.
     gwemopt_cache_only : bool
         With a cache: never run gwemopt, a map not in the cache gets the
         row status ``not_cached`` (score cached schedules quickly).
@@ -181,7 +181,7 @@ def _fmt(x: Any, digits: int = 6) -> Any:
 
 def _plan_from_result(result: Any, problem: Any, skymap: Any, solver: str) -> Any:
     """A Plan from a ScheduleResult, as make_plan builds it but without raising on the checker."""
-    from .scheduler_core.planner import build_plan
+    from ..scheduler_core.planner import build_plan
 
     return build_plan(problem, result, skymap, solver)
 
@@ -189,10 +189,10 @@ def _plan_from_result(result: Any, problem: Any, skymap: Any, solver: str) -> An
 def _score(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, injections: Any,
            lightcurves: Mapping[str, Any], merger_time: Any) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """Checker verdict, coverage and efficiencies of one plan, and its detections per light curve."""
-    from .scheduler_core.checker import check_plan
-    from .scheduler_core.depth import ZTF_DEPTH
-    from .scheduler_core.efficiency import detected, paired_difference
-    from .scheduler_core.kilonova import Kilonova
+    from ..scheduler_core.checker import check_plan
+    from ..scheduler_core.depth import ZTF_DEPTH
+    from .efficiency import detected, paired_difference
+    from ..scheduler_core.kilonova import Kilonova
 
     out: dict[str, Any] = {}
     hits: dict[str, np.ndarray] = {}
@@ -228,7 +228,7 @@ def _score(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, inj
 def _pair_with_reference(rows: list[dict[str, Any]], hits: Mapping[str, Mapping[str, np.ndarray]],
                          reference: str) -> None:
     """Add ``efficiency_<lc>_diff`` / ``_differr`` (paired, vs ``reference``) to each row in place."""
-    from .scheduler_core.efficiency import paired_difference
+    from .efficiency import paired_difference
 
     ref = hits.get(reference)
     if not ref:
@@ -262,16 +262,16 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
     """
     from astropy.time import Time
 
-    from .scheduler_core.efficiency import draw_injections
-    from .scheduler_core.errors import InputError
-    from .scheduler_core.fields import field_footprints, load_ztf_fields
-    from .scheduler_core.bound import coverage_upper_bound
-    from .scheduler_core.gwemopt_baseline import gwemopt_plan, repair_observations, run_gwemopt
-    from .scheduler_core.lightcurves import load_lightcurve
-    from .scheduler_core.plan import parse_time
-    from .scheduler_core.planner import run_scheduler
-    from .scheduler_core.prepare import prepare_problem
-    from .scheduler_core.skymap import read_skymap
+    from .efficiency import draw_injections
+    from ..scheduler_core.errors import InputError
+    from ..scheduler_core.fields import field_footprints, load_ztf_fields
+    from ..scheduler_core.bound import coverage_upper_bound
+    from .gwemopt_baseline import gwemopt_plan, repair_observations, run_gwemopt
+    from ..scheduler_core.lightcurves import load_lightcurve
+    from ..scheduler_core.plan import parse_time
+    from ..scheduler_core.planner import run_scheduler
+    from ..scheduler_core.prepare import prepare_problem
+    from ..scheduler_core.skymap import read_skymap
 
     name = str(path)
     cfg = settings.config
@@ -365,7 +365,7 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
             t0 = time.perf_counter()
             try:
                 if objective:  # the detection stage, started from the coverage plan of the same scheduler
-                    from .scheduler_core.detection_slots import detection_stage
+                    from ..scheduler_core.detection_slots import detection_stage
 
                     if base not in results:
                         results[base] = (run_scheduler(problem, base), time.perf_counter() - t0)
@@ -796,8 +796,8 @@ def make_plots(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> list
 
 
 def _load_settings(args: Any) -> BenchSettings:
-    from .config import ConfigError, Config
-    from .scheduler_core.errors import InputError
+    from ..config import ConfigError, Config
+    from ..scheduler_core.errors import InputError
 
     bench_table: Mapping[str, Any] = {}
     if getattr(args, "config", None):
@@ -824,7 +824,7 @@ def _load_settings(args: Any) -> BenchSettings:
         raise InputError(f"--jobs must be >= 1, got {args.jobs}")
     start_iso = None
     if getattr(args, "start", None):
-        from .scheduler_core.plan import parse_time
+        from ..scheduler_core.plan import parse_time
 
         try:
             start_iso = parse_time(args.start).isot
@@ -846,7 +846,7 @@ def main(args: Any) -> int:
         0 when every map was processed (individual solver failures are rows
         in the CSV, not errors); 2 on bad input.
     """
-    from .scheduler_core.errors import InputError
+    from ..scheduler_core.errors import InputError
 
     settings = _load_settings(args)
     root = Path(args.skymap_dir)
@@ -856,7 +856,7 @@ def main(args: Any) -> int:
     if not paths:
         raise InputError(f"no sky maps (*.fits, *.fits.gz) under {root}")
     if "gwemopt" in settings.solvers:
-        from .scheduler_core.gwemopt_baseline import ENV_PYTHON, gwemopt_python
+        from .gwemopt_baseline import ENV_PYTHON, gwemopt_python
 
         if gwemopt_python(settings.gwemopt_python) is None:
             print(f"mushrooms bench: gwemopt unavailable (set ${ENV_PYTHON} to its interpreter); "
