@@ -427,7 +427,7 @@ class Service:
             from ..scheduler_core.planner import run_scheduler
 
             if self.config.scheduler.solver != FIRST_SOLVER:
-                from ..scheduler_core import milp  # noqa: F401
+                from ..scheduler_core.schedulers import block_schedule  # noqa: F401
             from astropy.time import Time
 
             skymap = read_skymap(demo_skymap_path(), nside=self.config.scheduler.nside)

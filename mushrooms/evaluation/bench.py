@@ -13,8 +13,8 @@ plan is computed with the SAME injections (seeded from the map's hash) for
 three kilonova models (optimistic and conservative BNS, NSBH).
 
 Scoring uses the source model the scheduler shares
-(:mod:`~mushrooms.scheduler_core.kilonova`: light curves alive from the
-merger on; :mod:`~mushrooms.scheduler_core.depth`: each exposure's limit
+(:mod:`~mushrooms.scheduler_core.source.kilonova`: light curves alive from the
+merger on; :mod:`~mushrooms.scheduler_core.source.depth`: each exposure's limit
 from its airmass, Moon and twilight).  Every difference between two plans of
 one map is paired (same injections) and reported with its Monte Carlo error:
 ``efficiency_<lc>_diff`` / ``_differr`` against the reference solver (the
@@ -189,10 +189,10 @@ def _plan_from_result(result: Any, problem: Any, skymap: Any, solver: str) -> An
 def _score(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, injections: Any,
            lightcurves: Mapping[str, Any], merger_time: Any) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """Checker verdict, coverage and efficiencies of one plan, and its detections per light curve."""
-    from ..scheduler_core.checker import check_plan
-    from ..scheduler_core.depth import ZTF_DEPTH
+    from ..scheduler_core.plan.checker import check_plan
+    from ..scheduler_core.source.depth import ZTF_DEPTH
     from .efficiency import detected, paired_difference
-    from ..scheduler_core.kilonova import Kilonova
+    from ..scheduler_core.source.kilonova import Kilonova
 
     out: dict[str, Any] = {}
     hits: dict[str, np.ndarray] = {}
@@ -264,14 +264,14 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
 
     from .efficiency import draw_injections
     from ..scheduler_core.errors import InputError
-    from ..scheduler_core.fields import field_footprints, load_ztf_fields
-    from ..scheduler_core.bound import coverage_upper_bound
+    from ..scheduler_core.sky.fields import field_footprints, load_ztf_fields
+    from ..scheduler_core.schedulers.bound import coverage_upper_bound
     from .gwemopt_baseline import gwemopt_plan, repair_observations, run_gwemopt
-    from ..scheduler_core.lightcurves import load_lightcurve
-    from ..scheduler_core.plan import parse_time
+    from ..scheduler_core.source.lightcurves import load_lightcurve
+    from ..scheduler_core.plan.document import parse_time
     from ..scheduler_core.planner import run_scheduler
     from ..scheduler_core.prepare import prepare_problem
-    from ..scheduler_core.skymap import read_skymap
+    from ..scheduler_core.sky.skymap import read_skymap
 
     name = str(path)
     cfg = settings.config
@@ -365,7 +365,7 @@ def bench_map(path: str | Path, settings: BenchSettings) -> list[dict[str, Any]]
             t0 = time.perf_counter()
             try:
                 if objective:  # the detection stage, started from the coverage plan of the same scheduler
-                    from ..scheduler_core.detection_slots import detection_stage
+                    from ..scheduler_core.schedulers.detection_slots import detection_stage
 
                     if base not in results:
                         results[base] = (run_scheduler(problem, base), time.perf_counter() - t0)
@@ -824,7 +824,7 @@ def _load_settings(args: Any) -> BenchSettings:
         raise InputError(f"--jobs must be >= 1, got {args.jobs}")
     start_iso = None
     if getattr(args, "start", None):
-        from ..scheduler_core.plan import parse_time
+        from ..scheduler_core.plan.document import parse_time
 
         try:
             start_iso = parse_time(args.start).isot

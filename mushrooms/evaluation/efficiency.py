@@ -41,13 +41,13 @@ import healpy as hp
 import numpy as np
 from astropy.time import Time
 
-from ..scheduler_core.depth import DepthModel, ZTF_DEPTH, sky_conditions
-from ..scheduler_core.depth import limiting_magnitude as sky_limiting_magnitude
-from ..scheduler_core.kilonova import Kilonova
-from ..scheduler_core.lightcurves import LightCurve
-from ..scheduler_core.plan import Plan
+from ..scheduler_core.source.depth import DepthModel, ZTF_DEPTH, sky_conditions
+from ..scheduler_core.source.depth import limiting_magnitude as sky_limiting_magnitude
+from ..scheduler_core.source.kilonova import Kilonova
+from ..scheduler_core.source.lightcurves import LightCurve
+from ..scheduler_core.plan.document import Plan
 from ..scheduler_core.problem import Footprints
-from ..scheduler_core.skymap import SkyMap
+from ..scheduler_core.sky.skymap import SkyMap
 
 __all__ = [
     "Injections",

@@ -50,7 +50,7 @@ import numpy as np
 from astropy.time import Time, TimeDelta
 
 from ..scheduler_core.config import PlanningConfig
-from ..scheduler_core.plan import Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
+from ..scheduler_core.plan.document import Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 
 __all__ = ["GwemoptRun", "gwemopt_python", "run_gwemopt", "parse_schedule", "gwemopt_plan", "cache_key", "Repair",
            "repair_observations",
@@ -381,7 +381,7 @@ def repair_observations(observations, problem) -> Repair:
     -------
     Repair
     """
-    from ..scheduler_core.slew import overhead_time
+    from ..scheduler_core.schedulers.slew import overhead_time
 
     cfg = problem.config
     counts = {k: 0 for k in ("filter", "field", "horizon", "window", "overlap", "unpaired", "delayed")}

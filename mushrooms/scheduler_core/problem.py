@@ -16,7 +16,7 @@ import numpy as np
 from astropy.time import Time
 
 from .config import PlanningConfig
-from .plan import Observation
+from .plan.document import Observation
 
 __all__ = ["Footprints", "Windows", "PlanningProblem", "ScheduleResult", "StopCheck", "union_intervals"]
 

@@ -7,7 +7,7 @@ import pytest
 from astropy.io import fits
 
 from mushrooms.scheduler_core import SkyMapError, read_skymap
-from mushrooms.scheduler_core.skymap import rasterize_moc
+from mushrooms.scheduler_core.sky.skymap import rasterize_moc
 
 from pathlib import Path
 

@@ -17,9 +17,9 @@ import time
 
 import numpy as np
 
-from .config import PlanningConfig
-from .plan import Observation
-from .problem import PlanningProblem, ScheduleResult, StopCheck
+from ..config import PlanningConfig
+from ..plan.document import Observation
+from ..problem import PlanningProblem, ScheduleResult, StopCheck
 from .slew import overhead_time
 
 __all__ = ["greedy_schedule", "time_two_passes"]

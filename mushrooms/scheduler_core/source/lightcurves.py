@@ -21,7 +21,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 __all__ = [
     "LightCurve",
@@ -211,6 +211,6 @@ def load_lightcurve(spec: str | Path) -> LightCurve:
     """
     key = str(spec)
     if key in PAPER_LIGHTCURVES:
-        res = resources.files(__package__).joinpath("data/lightcurves", PAPER_LIGHTCURVES[key])
+        res = resources.files("mushrooms.scheduler_core").joinpath("data/lightcurves", PAPER_LIGHTCURVES[key])
         return parse_lightcurve(res.read_text(), name=key)
     return read_lightcurve(spec)

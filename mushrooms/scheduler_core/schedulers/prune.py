@@ -14,8 +14,8 @@ import math
 
 import numpy as np
 
-from .config import PlanningConfig
-from .problem import Footprints, PlanningProblem, Windows
+from ..config import PlanningConfig
+from ..problem import Footprints, PlanningProblem, Windows
 
 __all__ = ["greedy_max_coverage", "default_shortlist_size", "shortlist_fields", "observable_time_s", "schedulable_rows",
            "SHORTLIST_MIN", "SHORTLIST_MAX", "SHORTLIST_SLACK"]

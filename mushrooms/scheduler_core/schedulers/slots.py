@@ -37,9 +37,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .cells import Cells, merge_cells
-from .config import PlanningConfig
-from .problem import PlanningProblem, union_intervals
+from ..sky.cells import Cells, merge_cells
+from ..config import PlanningConfig
+from ..problem import PlanningProblem, union_intervals
 from .solvers import MilpModel
 
 __all__ = ["SlotGrid", "SlotInstance", "SlotModel", "block_length_s", "second_pass_delay_s",
@@ -298,7 +298,7 @@ def slot_instance(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid,
     -------
     SlotInstance
     """
-    from .milp import shortlist_footprints
+    from .block_schedule import shortlist_footprints
 
     rows = np.asarray(rows, np.int64)
     if cells is None:

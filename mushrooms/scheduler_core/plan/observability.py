@@ -32,10 +32,10 @@ import numpy as np
 from astropy.coordinates import get_body
 from astropy.time import Time, TimeDelta
 
-from .config import PlanningConfig
-from .plan import Plan
-from .skymap import SkyMap
-from .visibility import constraint_masks, site
+from ..config import PlanningConfig
+from .document import Plan
+from ..sky.skymap import SkyMap
+from ..sky.visibility import constraint_masks, site
 
 __all__ = ["SkyReasons", "NotObservable", "sky_reasons", "not_observable"]
 

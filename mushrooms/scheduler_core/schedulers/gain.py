@@ -24,8 +24,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .plan import Observation
-from .problem import Footprints, ScheduleResult
+from ..plan.document import Observation
+from ..problem import Footprints, ScheduleResult
 
 __all__ = ["worth_a_visit", "added_probability", "drop_low_gain"]
 

@@ -24,9 +24,9 @@ from astropy.time import Time
 
 from .depth import ZTF_DEPTH, DepthModel, limiting_magnitude, sky_conditions
 from .kilonova import Kilonova
-from .plan import Plan
-from .problem import Footprints
-from .skymap import SkyMap
+from ..plan.document import Plan
+from ..problem import Footprints
+from ..sky.skymap import SkyMap
 
 __all__ = ["reach_mpc", "distance_cdf", "plan_reach", "expected_detections"]
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import healpy as hp
 import numpy as np
 
-from .problem import Footprints
+from ..problem import Footprints
 
 __all__ = [
     "FieldGrid",
@@ -77,7 +77,7 @@ class FieldGrid:
 @functools.lru_cache(maxsize=1)
 def load_ztf_fields() -> FieldGrid:
     """All 1778 ZTF grid fields (primary and secondary) from package data."""
-    text = resources.files(__package__).joinpath("data/ZTF_Fields.txt").read_text()
+    text = resources.files("mushrooms.scheduler_core").joinpath("data/ZTF_Fields.txt").read_text()
     rows = np.loadtxt(text.splitlines(), comments="%", usecols=(0, 1, 2))
     ids = rows[:, 0].astype(np.int64)
     return FieldGrid(ids=ids, ra=rows[:, 1].copy(), dec=rows[:, 2].copy())
@@ -86,7 +86,7 @@ def load_ztf_fields() -> FieldGrid:
 @functools.lru_cache(maxsize=1)
 def ccd_corners() -> np.ndarray:
     """(16, 4, 2) CCD corner offsets (EW, NS) in deg, in polygon order."""
-    text = resources.files(__package__).joinpath("data/ztf_ccd_layout.tbl").read_text()
+    text = resources.files("mushrooms.scheduler_core").joinpath("data/ztf_ccd_layout.tbl").read_text()
     rows = np.loadtxt(text.splitlines()[1:], delimiter=",")
     order = np.argsort(rows[:, 2], kind="stable")
     return rows[order, :2].reshape(16, 4, 2).copy()

@@ -44,9 +44,9 @@ from astropy.coordinates import AltAz, EarthLocation, SkyCoord, get_body
 from astropy.time import Time, TimeDelta
 from scipy.interpolate import CubicSpline
 
-from .config import PlanningConfig, SlewModel
-from .plan import Plan
-from .skymap import SkyMap
+from ..config import PlanningConfig, SlewModel
+from .document import Plan
+from ..sky.skymap import SkyMap
 
 __all__ = ["CheckReport", "check_plan", "polygon_coverage", "mount_reachable", "slew_seconds",
            "P48_SITE"]
@@ -105,7 +105,7 @@ class CheckReport:
 # --------------------------------------------------------------------------- data files
 
 def _data_text(name: str) -> str:
-    return resources.files(__package__).joinpath(_DATA, name).read_text()
+    return resources.files("mushrooms.scheduler_core").joinpath(_DATA, name).read_text()
 
 
 @functools.lru_cache(maxsize=1)

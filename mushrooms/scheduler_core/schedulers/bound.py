@@ -42,8 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .cells import merge_cells
-from .problem import PlanningProblem, union_intervals
+from ..sky.cells import merge_cells
+from ..problem import PlanningProblem, union_intervals
 from .solvers import MilpModel, solve_milp
 
 __all__ = ["UpperBound", "pairable_rows", "max_fields", "coverage_upper_bound"]
@@ -156,7 +156,7 @@ def coverage_upper_bound(problem: PlanningProblem, method: str = "online", time_
     -------
     UpperBound
     """
-    from .milp import shortlist_footprints
+    from .block_schedule import shortlist_footprints
 
     t0 = time.perf_counter()
     rows = pairable_rows(problem)

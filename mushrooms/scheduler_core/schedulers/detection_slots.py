@@ -43,13 +43,13 @@ import numpy as np
 import scipy.sparse as sp
 from astropy.time import Time, TimeDelta
 
-from .cells import Cells, merge_cells
-from .depth import ZTF_DEPTH, DepthModel, limiting_magnitude, sky_conditions
-from .detection import distance_cdf, reach_mpc
-from .kilonova import Kilonova, load_kilonova
-from .plan import Observation, Plan, PlanMetrics
-from .problem import Footprints, PlanningProblem, ScheduleResult, StopCheck
-from .skymap import SkyMap
+from ..sky.cells import Cells, merge_cells
+from ..source.depth import ZTF_DEPTH, DepthModel, limiting_magnitude, sky_conditions
+from ..source.detection import distance_cdf, reach_mpc
+from ..source.kilonova import Kilonova, load_kilonova
+from ..plan.document import Observation, Plan, PlanMetrics
+from ..problem import Footprints, PlanningProblem, ScheduleResult, StopCheck
+from ..sky.skymap import SkyMap
 from .slots import SlotInstance, SlotModel, build_slot_model, slot_instance, start_vector
 from .solvers import MilpModel, resolve_backend, solve_milp
 
@@ -289,7 +289,7 @@ def detection_start_vector(dm: DetectionModel, pairs: np.ndarray) -> np.ndarray:
 def plan_expected_detections(problem: PlanningProblem, skymap: SkyMap, observations: tuple[Observation, ...] | list,
                              kilonova: Kilonova, depth: DepthModel = ZTF_DEPTH) -> float:
     """Exact expected detections (X1) of scheduled exposures."""
-    from .detection import expected_detections
+    from ..source.detection import expected_detections
 
     plan = Plan("candidate", problem.start, problem.start + TimeDelta(problem.horizon_s, format="sec"),
                 tuple(observations), PlanMetrics(0.0, "", "", None, 0.0, 0, len(observations)))
@@ -327,7 +327,7 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
         ``expected_detections_coverage``, ``expected_detections`` and
         ``detection_choice``.
     """
-    from .milp import shortlist_footprints
+    from .block_schedule import shortlist_footprints
     from .slot_schedule import map_start, slot_portfolio, slot_rows, time_slot_plan
 
     t_wall = time.perf_counter()

@@ -33,11 +33,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cells import merge_cells
-from .config import PlanningConfig
+from ..sky.cells import merge_cells
+from ..config import PlanningConfig
 from .ordering import order_fields
-from .plan import Observation
-from .problem import PlanningProblem, ScheduleResult, StopCheck
+from ..plan.document import Observation
+from ..problem import PlanningProblem, ScheduleResult, StopCheck
 from .prune import shortlist_fields
 from .slew import overhead_time
 from .slots import (SlotGrid, SlotInstance, SlotModel, build_slot_model, decode_slots, make_slot_grid,
@@ -262,7 +262,7 @@ def slot_schedule(
     details: dict = {"shortlist": int(rows.size)}
     if rows.size == 0:
         return ScheduleResult((), "slots:none", "no_candidates", None, time.perf_counter() - t_wall, details)
-    from .milp import shortlist_footprints
+    from .block_schedule import shortlist_footprints
 
     weight = problem.prob if pixel_weight is None else np.asarray(pixel_weight, float)
     cells = merge_cells(shortlist_footprints(problem.footprints, rows), weight)

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .config import SlewModel
+from ..config import SlewModel
 from .slew import slew_matrix
 
 __all__ = ["path_cost", "exact_path", "approx_path", "order_fields", "EXACT_MAX"]

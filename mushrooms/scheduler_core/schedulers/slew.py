@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .config import SlewModel
+from ..config import SlewModel
 
 __all__ = ["axis_time", "slew_time", "overhead_time", "slew_matrix"]
 

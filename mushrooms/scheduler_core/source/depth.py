@@ -55,7 +55,7 @@ from astropy import units as u
 from astropy.coordinates import TETE, AltAz, SkyCoord, get_body
 from astropy.time import Time
 
-from .visibility import site
+from ..sky.visibility import site
 
 __all__ = [
     "ZTF_MEDIAN_DEPTH_30S",

@@ -25,8 +25,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from .config import dataclass_from_table
-from .plan import Plan
+from ..config import dataclass_from_table
+from .document import Plan
 
 __all__ = ["ExportConfig", "to_trigger_queue", "to_skyportal", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
 

@@ -26,11 +26,11 @@ import numpy as np
 
 from .blocks import (BlockModel, BlockParams, Candidates, DecodedBlock, build_block_model, decode_blocks,
                      heuristic_start)
-from .cells import merge_cells
-from .config import PlanningConfig
+from ..sky.cells import merge_cells
+from ..config import PlanningConfig
 from .ordering import order_fields
-from .plan import Observation
-from .problem import Footprints, PlanningProblem, ScheduleResult, StopCheck
+from ..plan.document import Observation
+from ..problem import Footprints, PlanningProblem, ScheduleResult, StopCheck
 from .prune import schedulable_rows, shortlist_fields
 from .slew import overhead_time
 from .solvers import SolveResult, solve_milp

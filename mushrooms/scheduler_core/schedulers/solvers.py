@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .problem import StopCheck
+from ..problem import StopCheck
 
 __all__ = ["MilpModel", "SolveResult", "solve_milp", "gurobi_fully_licensed", "resolve_backend", "relative_gap"]
 

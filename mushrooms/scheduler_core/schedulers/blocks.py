@@ -44,8 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .cells import Cells
-from .config import PlanningConfig
+from ..sky.cells import Cells
+from ..config import PlanningConfig
 from .solvers import MilpModel
 
 __all__ = ["BlockParams", "Candidates", "BlockModel", "block_size", "build_block_model", "decode_blocks",

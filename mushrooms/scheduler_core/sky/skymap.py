@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from astropy.time import Time
 
-from .errors import SkyMapError
+from ..errors import SkyMapError
 
 __all__ = ["SkyMap", "read_skymap", "rasterize_moc"]
 
