@@ -46,7 +46,7 @@ from ..scheduler_core.source.depth import limiting_magnitude as sky_limiting_mag
 from ..scheduler_core.source.kilonova import Kilonova
 from ..scheduler_core.source.lightcurves import LightCurve
 from ..scheduler_core.plan.document import Plan
-from ..scheduler_core.problem import Footprints
+from ..scheduler_core.sky.footprints import Footprints
 from ..scheduler_core.sky.skymap import SkyMap
 
 __all__ = [

@@ -18,7 +18,9 @@ from .plan.observability import NotObservable, not_observable
 from .plan.document import EventInfo, Observation, Plan, PlanMetrics, make_plan_id
 from .planner import make_plan, run_scheduler
 from .prepare import prepare_problem
-from .problem import Footprints, PlanningProblem, ScheduleResult, Windows
+from .sky.footprints import Footprints
+from .problem import PlanningProblem, ScheduleResult
+from .sky.windows import Windows
 from .sky.skymap import SkyMap, read_skymap
 from .sky.visibility import observability_windows
 

@@ -8,7 +8,9 @@ from astropy.time import Time
 from .config import PlanningConfig
 from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
 from .schedulers.gain import worth_a_visit
-from .problem import Footprints, PlanningProblem, Windows
+from .sky.footprints import Footprints
+from .problem import PlanningProblem
+from .sky.windows import Windows
 from .sky.skymap import SkyMap
 from .sky.visibility import observability_windows
 

@@ -18,7 +18,7 @@ from mushrooms.evaluation.efficiency import (
 )
 from mushrooms.scheduler_core.source.lightcurves import load_lightcurve, parse_lightcurve
 from mushrooms.scheduler_core.plan.document import Observation, Plan, PlanMetrics
-from mushrooms.scheduler_core.problem import Footprints
+from mushrooms.scheduler_core.sky.footprints import Footprints
 from mushrooms.scheduler_core.sky.skymap import SkyMap
 
 NSIDE = 32

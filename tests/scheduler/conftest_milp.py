@@ -27,7 +27,9 @@ import numpy as np
 from astropy.time import Time
 
 from mushrooms.scheduler_core.config import PlanningConfig
-from mushrooms.scheduler_core.problem import Footprints, PlanningProblem, Windows
+from mushrooms.scheduler_core.sky.footprints import Footprints
+from mushrooms.scheduler_core.problem import PlanningProblem
+from mushrooms.scheduler_core.sky.windows import Windows
 
 TINY_OPTIMUM = 0.51
 TINY_BLOCKS = ({1, 2}, {3, 5})

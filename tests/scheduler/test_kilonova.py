@@ -14,7 +14,7 @@ from mushrooms.evaluation.efficiency import DEFAULT_MAGLIM_300S, Injections, det
 from mushrooms.scheduler_core.source.kilonova import Kilonova, load_kilonova
 from mushrooms.scheduler_core.source.lightcurves import load_lightcurve, parse_lightcurve
 from mushrooms.scheduler_core.plan.document import Observation, Plan, PlanMetrics
-from mushrooms.scheduler_core.problem import Footprints
+from mushrooms.scheduler_core.sky.footprints import Footprints
 from mushrooms.scheduler_core.sky.visibility import site
 
 NSIDE = 32

@@ -10,7 +10,9 @@ from astropy.time import Time
 
 from conftest_milp import check_observations, random_problem, tiny_config
 from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
-from mushrooms.scheduler_core.problem import Footprints, PlanningProblem, Windows
+from mushrooms.scheduler_core.sky.footprints import Footprints
+from mushrooms.scheduler_core.problem import PlanningProblem
+from mushrooms.scheduler_core.sky.windows import Windows
 from mushrooms.scheduler_core.schedulers.slot_schedule import map_start, slot_portfolio, slot_rows, slot_schedule, time_slot_plan
 from mushrooms.scheduler_core.schedulers.slots import (block_length_s, build_slot_model, decode_slots, make_slot_grid,
                                             observable_segments, slot_instance, start_vector)

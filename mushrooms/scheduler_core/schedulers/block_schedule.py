@@ -30,7 +30,8 @@ from ..sky.cells import merge_cells
 from ..config import PlanningConfig
 from .ordering import order_fields
 from ..plan.document import Observation
-from ..problem import Footprints, PlanningProblem, ScheduleResult, StopCheck
+from ..sky.footprints import Footprints
+from ..problem import PlanningProblem, ScheduleResult, StopCheck
 from .prune import schedulable_rows, shortlist_fields
 from .slew import overhead_time
 from .solvers import SolveResult, solve_milp

@@ -43,7 +43,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..sky.cells import merge_cells
-from ..problem import PlanningProblem, union_intervals
+from ..problem import PlanningProblem
+from ..sky.windows import union_intervals
 from .solvers import MilpModel, solve_milp
 
 __all__ = ["UpperBound", "pairable_rows", "max_fields", "coverage_upper_bound"]

@@ -48,7 +48,8 @@ from ..source.depth import ZTF_DEPTH, DepthModel, limiting_magnitude, sky_condit
 from ..source.detection import distance_cdf, reach_mpc
 from ..source.kilonova import Kilonova, load_kilonova
 from ..plan.document import Observation, Plan, PlanMetrics
-from ..problem import Footprints, PlanningProblem, ScheduleResult, StopCheck
+from ..sky.footprints import Footprints
+from ..problem import PlanningProblem, ScheduleResult, StopCheck
 from ..sky.skymap import SkyMap
 from .slots import SlotInstance, SlotModel, build_slot_model, slot_instance, start_vector
 from .solvers import MilpModel, resolve_backend, solve_milp

@@ -25,7 +25,8 @@ from typing import Sequence
 import numpy as np
 
 from ..plan.document import Observation
-from ..problem import Footprints, ScheduleResult
+from ..sky.footprints import Footprints
+from ..problem import ScheduleResult
 
 __all__ = ["worth_a_visit", "added_probability", "drop_low_gain"]
 

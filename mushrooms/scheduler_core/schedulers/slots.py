@@ -39,7 +39,8 @@ import scipy.sparse as sp
 
 from ..sky.cells import Cells, merge_cells
 from ..config import PlanningConfig
-from ..problem import PlanningProblem, union_intervals
+from ..problem import PlanningProblem
+from ..sky.windows import union_intervals
 from .solvers import MilpModel
 
 __all__ = ["SlotGrid", "SlotInstance", "SlotModel", "block_length_s", "second_pass_delay_s",

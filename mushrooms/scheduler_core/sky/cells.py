@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..problem import Footprints
+from .footprints import Footprints
 
 __all__ = ["Cells", "merge_cells", "pixel_cells"]
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import healpy as hp
 import numpy as np
 
-from ..problem import Footprints
+from .footprints import Footprints
 
 __all__ = [
     "FieldGrid",

@@ -35,7 +35,7 @@ from astropy.coordinates import TETE, AltAz, EarthLocation, SkyCoord, get_body
 from astropy.time import Time, TimeDelta
 
 from ..config import PlanningConfig
-from ..problem import Windows
+from .windows import Windows
 
 __all__ = ["site", "observability_windows", "observing_conditions", "windows_from_mask", "mount_limits_ok", "PALOMAR",
            "GRID_ANCHOR", "NIGHT_S", "ConstraintMasks", "constraint_masks", "night_steps", "night_epoch", "grid_times", "windows_on_grid"]

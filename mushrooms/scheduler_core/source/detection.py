@@ -25,7 +25,7 @@ from astropy.time import Time
 from .depth import ZTF_DEPTH, DepthModel, limiting_magnitude, sky_conditions
 from .kilonova import Kilonova
 from ..plan.document import Plan
-from ..problem import Footprints
+from ..sky.footprints import Footprints
 from ..sky.skymap import SkyMap
 
 __all__ = ["reach_mpc", "distance_cdf", "plan_reach", "expected_detections"]
