@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from mushrooms.commands import demo_skymap_path
+from mushrooms.bundled import demo_skymap_path
 from mushrooms.scheduler_core import PlanningConfig, make_plan, not_observable, read_skymap
 from mushrooms.scheduler_core.schedulers.gain import added_probability, drop_low_gain
 from mushrooms.scheduler_core.prepare import prepare_problem
