@@ -5,10 +5,9 @@ Constraints (all in :class:`~.config.PlanningConfig`): Sun below
 most ``ha_max_h``; the P48 mount's southern keep-out zones; Moon separation
 at least ``moon_sep_min_deg``.
 
-The Sun, the Moon and the local apparent sidereal time come from astropy on a
-time grid; field altitudes and hour angles then follow in closed form from
-the fields' apparent (true equator and equinox of date) coordinates, for all
-fields and grid times at once.  A window is a run of consecutive grid times
+Each constraint is a composable piece of :mod:`.constraints` (combined with
+``&``; :func:`ztf_constraints`), reading the geometry of all fields and grid
+times computed at once (:func:`~.constraints.observing_geometry`).  A window is a run of consecutive grid times
 at which every constraint holds: between two grid times the altitude, hour
 angle and Sun altitude are monotonic or convex enough that the constraints
 also hold in between, so windows are slightly conservative (by less than one
@@ -31,13 +30,15 @@ from typing import Callable
 
 import numpy as np
 from astropy import units as u
-from astropy.coordinates import TETE, AltAz, EarthLocation, SkyCoord, get_body
+from astropy.coordinates import EarthLocation
 from astropy.time import Time, TimeDelta
 
 from ..config import PlanningConfig
+from .constraints import (AirmassBelow, Constraint, MoonSeparation, MountLimits, SunBelow,
+                          observing_geometry)
 from .windows import Windows
 
-__all__ = ["site", "observability_windows", "observing_conditions", "windows_from_mask", "mount_limits_ok", "PALOMAR",
+__all__ = ["site", "observability_windows", "observing_conditions", "windows_from_mask", "ztf_constraints", "PALOMAR",
            "GRID_ANCHOR", "NIGHT_S", "ConstraintMasks", "constraint_masks", "night_steps", "night_epoch", "grid_times", "windows_on_grid"]
 
 #: Local mean noon at Palomar (lon -116.86 deg) on 2000-01-01: grid times are this plus whole
@@ -55,36 +56,6 @@ def site() -> EarthLocation:
     """The P48 telescope's location."""
     lat, lon, height = PALOMAR
     return EarthLocation.from_geodetic(lon=lon * u.deg, lat=lat * u.deg, height=height * u.m)
-
-
-def mount_limits_ok(ha_deg: np.ndarray, dec_deg: np.ndarray, ha_max_h: float) -> np.ndarray:
-    """P48 pointing limits: hour angle and the southern keep-out zones.
-
-    Parameters
-    ----------
-    ha_deg : numpy.ndarray
-        Hour angle (deg, wrapped to [-180, 180)).
-    dec_deg : numpy.ndarray
-        Declination (deg); broadcasts against ``ha_deg``.
-    ha_max_h : float
-        Largest |hour angle| (hours).
-
-    Returns
-    -------
-    numpy.ndarray
-        True where the mount can point.  Besides |HA| <= ha_max_h: rising
-        fields (HA < -17.6 deg) need Dec >= -22 deg, setting ones Dec >= -45
-        deg, and away from the meridian (|HA| > 3 deg) Dec >= -46 deg
-        (ZTF's queue limits as documented for ztf_sim).
-    """
-    ha = np.asarray(ha_deg, float)
-    dec = np.asarray(dec_deg, float)
-    ok = np.abs(ha) <= ha_max_h * 15.0
-    ok &= (ha >= -17.6) | (dec >= -22.0)
-    ok &= (ha <= -17.6) | (dec >= -45.0)
-    ok &= (np.abs(ha) <= 3.0) | (dec >= -46.0)
-    ok &= dec <= 87.5
-    return ok
 
 
 def _runs(ok: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -147,38 +118,21 @@ def constraint_masks(
     -------
     ConstraintMasks
     """
-    loc = site()
-    lat = np.radians(loc.lat.deg)
-    ra_deg = np.asarray(ra_deg, float)
-    dec_deg = np.asarray(dec_deg, float)
+    geometry = observing_geometry(ra_deg, dec_deg, times, site(), apparent_epoch)
+    night, reachable, moon_clear = ztf_constraints(config)
+    return ConstraintMasks(night=night(geometry)[0], reachable=reachable(geometry), moon_clear=moon_clear(geometry))
 
-    # Sun and Moon: a few hundred astropy transforms, not one per field
-    frame = AltAz(obstime=times, location=loc)
-    sun_alt = get_body("sun", times, loc).transform_to(frame).alt.deg
-    moon = get_body("moon", times, loc)
-    lst = times.sidereal_time("apparent", longitude=loc.lon).deg
 
-    # Fields: apparent place of date (precession, nutation, aberration) once
-    if apparent_epoch is None:
-        apparent_epoch = times[0] + (times[-1] - times[0]) * 0.5
-    app = SkyCoord(ra=ra_deg * u.deg, dec=dec_deg * u.deg, frame="icrs").transform_to(TETE(obstime=apparent_epoch))
-    ra_app = app.ra.deg[:, None]
-    dec_app = np.radians(app.dec.deg)[:, None]
-    ha = (lst[None, :] - ra_app + 180.0) % 360.0 - 180.0
-    sin_alt = np.sin(lat) * np.sin(dec_app) + np.cos(lat) * np.cos(dec_app) * np.cos(np.radians(ha))
-    with np.errstate(divide="ignore"):
-        airmass = np.where(sin_alt > 0, 1.0 / np.where(sin_alt > 0, sin_alt, 1.0), np.inf)
+def ztf_constraints(config: PlanningConfig) -> tuple[Constraint, Constraint, Constraint]:
+    """The scheduler's constraints: (night, reachable, Moon clear), composable with ``&``.
 
-    moon_ra = np.radians(moon.ra.deg)[None, :]
-    moon_dec = np.radians(moon.dec.deg)[None, :]
-    fra = np.radians(ra_deg)[:, None]
-    fdec = np.radians(dec_deg)[:, None]
-    cos_sep = np.sin(fdec) * np.sin(moon_dec) + np.cos(fdec) * np.cos(moon_dec) * np.cos(fra - moon_ra)
-    moon_sep = np.degrees(np.arccos(np.clip(cos_sep, -1, 1)))
-
-    reachable = (airmass <= config.airmass_max) & mount_limits_ok(ha, dec_deg[:, None], config.ha_max_h)
-    return ConstraintMasks(night=sun_alt <= config.sun_alt_max_deg, reachable=reachable,
-                           moon_clear=moon_sep >= config.moon_sep_min_deg)
+    Night: Sun below ``sun_alt_max_deg``; reachable: airmass at most
+    ``airmass_max`` and inside the P48 mount's limits (``ha_max_h`` and the
+    keep-out zones); Moon clear: at least ``moon_sep_min_deg`` from the Moon.
+    """
+    return (SunBelow(config.sun_alt_max_deg),
+            AirmassBelow(config.airmass_max) & MountLimits(config.ha_max_h),
+            MoonSeparation(config.moon_sep_min_deg))
 
 
 def observing_conditions(
