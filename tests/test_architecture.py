@@ -150,6 +150,19 @@ def test_data_flows_one_way(graph):
     assert layering_violations(graph) == []
 
 
+def test_scheduler_core_is_a_library_on_its_own(graph):
+    # a notebook can use it without the service, the tools or the file-level config of the package
+    outside = sorted(f"{a} -> {b}" for a, targets in graph.items() if _within(a, "mushrooms.scheduler_core")
+                     for b in targets if not _within(b, "mushrooms.scheduler_core"))
+    assert outside == []
+
+
+def test_handlers_use_only_the_scheduler(graph):
+    outside = sorted(f"{a} -> {b}" for a, targets in graph.items() if _within(a, "mushrooms.handlers")
+                     for b in targets if not (_within(b, "mushrooms.handlers") or _within(b, "mushrooms.scheduler_core")))
+    assert outside == []
+
+
 # ---------------------------------------------------------------- the scan itself, on a tiny package
 def _package(tmp_path: Path, files: dict[str, str]) -> Path:
     for rel, text in files.items():

@@ -8,26 +8,26 @@ posterior, which in ligo.skymap's ansatz is proportional to
 :func:`ligo.skymap.distance.conditional_ppf`).
 
 An injection is *detected* by a plan when at least one exposure covers its
-pixel (the field's CCD footprint, :class:`~.problem.Footprints`) while the
+pixel (the field's CCD footprint, :class:`~mushrooms.scheduler_core.sky.footprints.Footprints`) while the
 kilonova's apparent magnitude at mid-exposure,
 ``M_band(t - t_merger) + 5 log10(d / 10 pc)``, is brighter than (or equal
 to) the exposure's limiting magnitude.  One detection suffices, as in the
 paper and gwemopt's injection recovery; a stricter "both filters" rule
 would lower every number.  No extinction, no K-correction.
 
-Source model (shared with the scheduler, :mod:`.kilonova` and :mod:`.depth`):
-the kilonova is a :class:`~.kilonova.Kilonova` (tabulated light curve
+Source model (shared with the scheduler, :mod:`~mushrooms.scheduler_core.source.kilonova` and :mod:`~mushrooms.scheduler_core.source.depth`):
+the kilonova is a :class:`~mushrooms.scheduler_core.source.kilonova.Kilonova` (tabulated light curve
 extended to the first hours after the merger by the expanding-fireball bound
 K1, so injections are alive from the merger time on), and each exposure's
-limit comes from :func:`~.depth.limiting_magnitude` for its filter,
+limit comes from :func:`~mushrooms.scheduler_core.source.depth.limiting_magnitude` for its filter,
 exposure time, airmass, Moon and twilight at mid-exposure (equation D1).
 
 First-release scoring ("v1") stays available for comparison: pass a
-:class:`~.lightcurves.LightCurve` (table only, undetectable before its first
+:class:`~mushrooms.scheduler_core.source.lightcurves.LightCurve` (table only, undetectable before its first
 epoch) and a mapping of flat limiting magnitudes per filter for a 300 s
 exposure (:data:`DEFAULT_MAGLIM_300S`: g 21.7, r 21.7, i 21.2, from
 gwemopt's 20.4 in 30 s scaled by ``1.25 log10(t / 30 s)``) instead of a
-:class:`~.depth.DepthModel`.
+:class:`~mushrooms.scheduler_core.source.depth.DepthModel`.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ exposure time of our configuration (``--filters g,r --exposuretimes
 off before gwemopt is imported, so nothing touches the network.
 
 Its output ``schedule_ZTF.dat`` (``field ra dec tobs[MJD, exposure start]
-limmag texp[s] prob airmass filter``) becomes our :class:`~.plan.Plan`;
+limmag texp[s] prob airmass filter``) becomes our :class:`~mushrooms.scheduler_core.plan.document.Plan`;
 gwemopt merges consecutive slots of one field and filter into one longer
 exposure, which is kept as such (``exposure_s`` may be a multiple of ~310 s).
 gwemopt's own efficiency code is never used.
@@ -301,7 +301,7 @@ def run_gwemopt(
 
 def gwemopt_plan(run: GwemoptRun, start: Time, config: PlanningConfig, skymap_sha256: str,
                  coverage: float) -> Plan:
-    """Wrap a gwemopt schedule as our :class:`~.plan.Plan` (for the checker).
+    """Wrap a gwemopt schedule as our :class:`~mushrooms.scheduler_core.plan.document.Plan` (for the checker).
 
     Parameters
     ----------
