@@ -29,9 +29,9 @@ def main(argv: list[str] | None = None) -> int:
                     default="2020-01-29T12:00:00")
     args = ap.parse_args(argv)
 
-    from mushrooms.commands import configure_astropy_offline
+    from mushrooms.offline import configure_astropy_offline
     from mushrooms.scheduler_core import PlanningConfig, check_plan, read_skymap
-    from mushrooms.scheduler_core.greedy import greedy_schedule
+    from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
     from mushrooms.scheduler_core.planner import build_plan
     from mushrooms.scheduler_core.prepare import prepare_problem
 

@@ -22,11 +22,11 @@ from pathlib import Path
 from astropy.time import Time
 from astropy.utils import iers
 
-from mushrooms.bench import find_skymaps
+from mushrooms.evaluation.bench import find_skymaps
 from mushrooms.config import Config
-from mushrooms.scheduler_core.gwemopt_baseline import _cache_read, cache_key, run_gwemopt
-from mushrooms.scheduler_core.plan import parse_time
-from mushrooms.scheduler_core.skymap import read_skymap
+from mushrooms.evaluation.gwemopt_baseline import _cache_read, cache_key, run_gwemopt
+from mushrooms.scheduler_core.plan.document import parse_time
+from mushrooms.scheduler_core.sky.skymap import read_skymap
 
 
 def main() -> int:

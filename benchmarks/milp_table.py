@@ -47,8 +47,8 @@ def sky_maps(paths: list[Path]) -> list[Path]:
 def measure(path: Path, time_limit_s: float) -> dict:
     """Greedy, MILP and hybrid on one map; returns one table row."""
     from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
-    from mushrooms.scheduler_core.greedy import greedy_schedule
-    from mushrooms.scheduler_core.milp import milp_schedule
+    from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
+    from mushrooms.scheduler_core.schedulers.block_schedule import milp_schedule
 
     cfg = PlanningConfig(time_limit_s=time_limit_s)
     sm = read_skymap(path, nside=cfg.nside)
@@ -93,7 +93,7 @@ def check(skymap, problem, result, cfg) -> tuple[bool, str]:
     from astropy.time import TimeDelta
 
     from mushrooms.scheduler_core import check_plan
-    from mushrooms.scheduler_core.plan import Plan, PlanMetrics, sorted_observations
+    from mushrooms.scheduler_core.plan.document import Plan, PlanMetrics, sorted_observations
 
     obs = sorted_observations(result.observations)
     ids = {o.field_id for o in obs}

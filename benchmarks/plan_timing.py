@@ -32,10 +32,10 @@ def stage_times(path: Path, solver: str) -> dict[str, float]:
     import numpy as np
 
     from mushrooms.scheduler_core import PlanningConfig, check_plan, read_skymap
-    from mushrooms.scheduler_core.fields import field_footprints, load_ztf_fields
+    from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
     from mushrooms.scheduler_core.planner import build_plan, run_scheduler
     from mushrooms.scheduler_core.prepare import prepare_problem
-    from mushrooms.scheduler_core.visibility import observability_windows
+    from mushrooms.scheduler_core.sky.visibility import observability_windows
 
     cfg = PlanningConfig(solver=solver)
     out: dict[str, float] = {}

@@ -16,7 +16,7 @@ import statistics
 import sys
 from pathlib import Path
 
-from mushrooms.bench import read_csv
+from mushrooms.evaluation.bench import read_csv
 
 
 def main() -> int:

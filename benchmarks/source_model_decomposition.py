@@ -10,13 +10,13 @@ import sys, glob, numpy as np
 from astropy.utils import iers
 iers.conf.auto_download = False
 from mushrooms.scheduler_core.config import PlanningConfig
-from mushrooms.scheduler_core.skymap import read_skymap
+from mushrooms.scheduler_core.sky.skymap import read_skymap
 from mushrooms.scheduler_core.planner import make_plan
-from mushrooms.scheduler_core.efficiency import draw_injections, detected, DEFAULT_MAGLIM_300S
-from mushrooms.scheduler_core.kilonova import Kilonova
-from mushrooms.scheduler_core.lightcurves import load_lightcurve
-from mushrooms.scheduler_core.depth import ZTF_DEPTH
-from mushrooms.scheduler_core.fields import field_footprints, load_ztf_fields
+from mushrooms.evaluation.efficiency import draw_injections, detected, DEFAULT_MAGLIM_300S
+from mushrooms.scheduler_core.source.kilonova import Kilonova
+from mushrooms.scheduler_core.source.lightcurves import load_lightcurve
+from mushrooms.scheduler_core.source.depth import ZTF_DEPTH
+from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
 fp = field_footprints(load_ztf_fields(), 256)
 cfg = PlanningConfig()
 out = open(sys.argv[2], "w")

@@ -3,7 +3,7 @@
 Sections: ``[scheduler]`` (:class:`~mushrooms.scheduler_core.PlanningConfig`),
 ``[policy]`` (:class:`~mushrooms.handlers.policy.PolicyConfig`),
 ``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`),
-``[export]`` (:class:`~mushrooms.scheduler_core.exports.ExportConfig`);
+``[export]`` (:class:`~mushrooms.scheduler_core.plan.exports.ExportConfig`);
 an optional ``[bench]`` table is read by ``mushrooms bench`` only.
 Secrets never come from here: see the README.
 """
@@ -18,7 +18,7 @@ from typing import Any, Mapping
 from .daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
 from .handlers.policy import PolicyConfig
 from .scheduler_core.config import PlanningConfig
-from .scheduler_core.exports import ExportConfig
+from .scheduler_core.plan.exports import ExportConfig
 
 __all__ = ["Config", "ConfigError", "load_config", "resolve_config_path", "CONFIG_ENV"]
 

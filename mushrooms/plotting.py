@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from .scheduler_core.fields import ccd_corners, deproject, load_ztf_fields
-from .scheduler_core.plan import Plan
-from .scheduler_core.skymap import SkyMap
+from .scheduler_core.sky.fields import ccd_corners, deproject, load_ztf_fields
+from .scheduler_core.plan.document import Plan
+from .scheduler_core.sky.skymap import SkyMap
 
 __all__ = ["plot_plan", "FILTER_COLOURS", "plot_title"]
 
@@ -105,7 +105,7 @@ def _sun_altitude(plan: Plan, step_s: float = 300.0) -> tuple[np.ndarray, np.nda
     from astropy.coordinates import AltAz, get_body
     from astropy.time import TimeDelta
 
-    from .scheduler_core.visibility import site
+    from .scheduler_core.sky.visibility import site
 
     span = float((plan.end - plan.start).to_value("s"))
     offsets = np.arange(0.0, span + step_s, step_s)
@@ -152,7 +152,7 @@ def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int, answer: A
     ax_sky = fig.add_axes([0.03, 0.36, 0.50, 0.52], projection="astro hours mollweide")
 
     if first_visit:  # zoom on the probability the plan covers
-        from .scheduler_core.fields import field_footprints
+        from .scheduler_core.sky.fields import field_footprints
 
         covered = np.zeros(prob.size, dtype=bool)
         covered[field_footprints(grid, skymap.nside).union(list(first_visit))] = True

@@ -18,7 +18,7 @@ def _validated(method):
     """Wrap a ``to_document`` so that every document tests produce is checked against the schema."""
     import functools
 
-    from mushrooms.scheduler_core.schema import validate_document
+    from mushrooms.scheduler_core.plan.schema import validate_document
 
     @functools.wraps(method)
     def wrapper(self, *args, **kwargs):
@@ -31,8 +31,8 @@ def _validated(method):
 
 
 def _validate_every_document() -> None:
-    from mushrooms.scheduler_core.observability import NotObservable
-    from mushrooms.scheduler_core.plan import Plan
+    from mushrooms.scheduler_core.plan.observability import NotObservable
+    from mushrooms.scheduler_core.plan.document import Plan
 
     for cls, name in ((Plan, "to_document"), (NotObservable, "to_document")):
         method = getattr(cls, name)

@@ -9,11 +9,12 @@ from pathlib import Path
 
 import pytest
 
-from mushrooms.cli import build_parser, main, quiet_time_warnings
-from mushrooms.commands import parse_start, warn_if_far_from_merger
+from mushrooms.cli import build_parser, main
+from mushrooms.tool.common import quiet_time_warnings
+from mushrooms.tool.plan import parse_start, warn_if_far_from_merger
 from mushrooms.config import resolve_config_path
 from mushrooms.scheduler_core.errors import InputError
-from mushrooms.scheduler_core.schema import validate_document
+from mushrooms.scheduler_core.plan.schema import validate_document
 
 DATA = Path(__file__).resolve().parent / "data"
 MAP = DATA / "skymaps" / "MS220722v_bayestar.multiorder.fits"
@@ -110,7 +111,7 @@ def test_a_start_far_from_the_merger_is_one_warning_without_erfa_noise(caplog):
                 warn_if_far_from_merger(start, merger)
             from astropy.coordinates import AltAz, get_body
 
-            from mushrooms.scheduler_core.visibility import site
+            from mushrooms.scheduler_core.sky.visibility import site
 
             get_body("sun", start, site()).transform_to(AltAz(obstime=start, location=site()))
         lines = [r.getMessage() for r in caplog.records]

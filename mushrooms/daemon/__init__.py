@@ -8,6 +8,7 @@ that ``mushrooms.config`` can read :mod:`.settings` cheaply):
 ``consumer``     gcn-kafka consumer, manual offset commits
 ``jobs``         one planning job per superevent, supersede, deadlines, outbox retries
 ``trigger``      ``mushrooms trigger``, trigger directory, pid lock
+``wiring``       effective config, store, sink and pipeline, shared by ``service`` and ``trigger``
 ``kafka_sink``   outbound Kafka topic (idempotent producer, acks=all)
 ``notify``       systemd ``sd_notify`` (READY, WATCHDOG, STATUS, STOPPING)
 ``credentials``  GCN client id/secret from the environment or systemd credentials

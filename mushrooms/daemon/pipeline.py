@@ -427,7 +427,7 @@ class NoticePipeline:
     def _first_plan(self, job: Job, should_stop: Callable[[], bool] | None) -> "_Work | Outcome":
         from ..scheduler_core import not_observable, read_skymap
         from ..scheduler_core.anytime import FIRST_SOLVER, checked_plan
-        from ..scheduler_core.plan import parse_time
+        from ..scheduler_core.plan.document import parse_time
 
         def stage(name: str) -> None:
             if self._cancelled(job, should_stop):

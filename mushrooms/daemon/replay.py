@@ -17,8 +17,6 @@ A bad file never stops the replay: it is a ``rejected`` line.
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 import logging
 import os
 import sys
@@ -26,14 +24,14 @@ from datetime import datetime
 from pathlib import Path
 from typing import Sequence, TextIO
 
-from ..config import Config, load_config
+from ..config import Config
 from ..handlers.alert import ALERT_TYPES, parse_notice
 from ..handlers.alert import NoticeError
 from .pipeline import NoticePipeline, Outcome
 from .sinks import DirectorySink
 from .store import Store
 
-__all__ = ["main", "collect_notices", "order_notices", "replay", "format_line"]
+__all__ = ["replay_notices", "collect_notices", "order_notices", "replay", "format_line"]
 
 log = logging.getLogger(__name__)
 
@@ -127,29 +125,37 @@ def replay(pipeline: NoticePipeline, paths: Sequence[str | Path], out: TextIO | 
     return results
 
 
-def main(args: argparse.Namespace) -> int:
-    """Entry point of ``mushrooms replay``.
+def replay_notices(notices: Sequence[str | Path], out_dir: str | Path, config: Config,
+                   state: str | Path | None = None) -> int:
+    """``mushrooms replay`` as a library call: archived notices through the daemon's path into a directory.
 
-    Returns 0 when every notice was processed (rejected and ignored notices
-    included), 1 when some failed on our side (plan checker, internal error),
-    2 when an input is missing or unreadable, or a directory holds no notice
-    (the others are still replayed).
+    Parameters
+    ----------
+    notices : sequence of path
+        Notice files, or directories of them (see :func:`collect_notices`).
+    out_dir : path
+        Directory sink for plans and withdrawals (created).
+    config : Config
+        The configuration, command-line overrides included
+        (:func:`~mushrooms.overrides.override_config`).
+    state : path, optional
+        SQLite state file; default a fresh ``.replay-state.sqlite`` in ``out_dir``.
+
+    Returns
+    -------
+    int
+        0 when every notice was processed (rejected and ignored notices
+        included), 1 when some failed on our side (plan checker, internal
+        error), 2 when an input is missing or unreadable, or a directory
+        holds no notice (the others are still replayed).
     """
-    from ..commands import configure_astropy_offline
-
-    configure_astropy_offline()
-    missing = [p for p in map(Path, args.notices) if not p.exists()]
-    empty = [p for p in map(Path, args.notices) if p.is_dir() and not collect_notices([p])]
-    unreadable = [p for p in collect_notices(args.notices) if p.exists() and not os.access(p, os.R_OK)]
-    config: Config = load_config(getattr(args, "config", None))
-    if getattr(args, "allow_mock", False):
-        config = dataclasses.replace(config, policy=dataclasses.replace(config.policy, allow_mock=True))
-    if getattr(args, "solver", None):  # the demo's --solver: this run only
-        config = dataclasses.replace(config, scheduler=dataclasses.replace(config.scheduler, solver=args.solver))
-    out_dir = Path(args.out)
+    missing = [p for p in map(Path, notices) if not p.exists()]
+    empty = [p for p in map(Path, notices) if p.is_dir() and not collect_notices([p])]
+    unreadable = [p for p in collect_notices(notices) if p.exists() and not os.access(p, os.R_OK)]
+    out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    if getattr(args, "state", None):
-        state = Path(args.state)
+    if state:
+        state = Path(state)
         state.parent.mkdir(parents=True, exist_ok=True)
     else:
         state = out_dir / ".replay-state.sqlite"
@@ -158,7 +164,7 @@ def main(args: argparse.Namespace) -> int:
     store = Store(state)
     try:
         pipeline = NoticePipeline(config, store, DirectorySink(out_dir))
-        results = replay(pipeline, args.notices)
+        results = replay(pipeline, notices)
     finally:
         store.close()
     counts: dict[str, int] = {}

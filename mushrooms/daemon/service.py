@@ -23,18 +23,17 @@ import sys
 import threading
 import time
 from datetime import datetime, timezone
-from pathlib import Path
 from typing import Any, Callable
 
 from apscheduler.schedulers.background import BackgroundScheduler
 
-from ..config import Config, ConfigError, load_config
 from .jobs import JobRunner, OutboxDrain
 from .notify import Notifier, watchdog_interval_s
-from .settings import RuntimePaths, resolve_paths
+from .settings import resolve_paths
 from .trigger import DaemonRunning, PidLock, dispatch, pending_triggers, read_trigger
+from .wiring import effective_config, make_sink, open_pipeline, private_dir
 
-__all__ = ["main", "Service", "effective_config", "open_pipeline", "setup_logging", "EXIT_STATE", "private_dir"]
+__all__ = ["main", "Service", "setup_logging", "EXIT_STATE"]
 
 log = logging.getLogger("mushrooms.daemon")
 
@@ -46,98 +45,6 @@ PRUNE_EVERY_S = 3600.0  # how often the raw bytes of old rejected messages are p
 #: sysexits' EX_DATAERR; the unit's RestartPreventExitStatus= lists it, since a
 #: restart cannot repair the file and would only loop.
 EXIT_STATE = 65
-
-
-def private_dir(path: Path, group_readable: bool = False) -> Path:
-    """Create a directory (and parents) 0700, or 0750 when group readable; an existing one is left as is."""
-    if not path.is_dir():
-        path.mkdir(parents=True, exist_ok=True)
-        path.chmod(0o750 if group_readable else 0o700)
-    return path
-
-
-# ---------------------------------------------------------------- configuration
-def effective_config(args: argparse.Namespace) -> Config:
-    """Config file (or embedded defaults) with the command-line overrides.
-
-    ``--bootstrap`` selects the local plaintext broker for input (and for the
-    Kafka sink when it has no broker of its own); ``--outbox DIR`` selects the
-    directory sink; ``--state`` the SQLite file; ``--allow-mock`` accepts
-    mock and test events.
-    """
-    config = load_config(getattr(args, "config", None))
-    kafka, outbound, daemon, policy = config.kafka, config.outbound, config.daemon, config.policy
-    bootstrap = getattr(args, "bootstrap", None)
-    if bootstrap:
-        kafka = dataclasses.replace(kafka, bootstrap=bootstrap)
-        if outbound.sink == "kafka" and not outbound.bootstrap:
-            outbound = dataclasses.replace(outbound, bootstrap=bootstrap)
-    if outbound.sink == "kafka" and not outbound.bootstrap and kafka.bootstrap:
-        outbound = dataclasses.replace(outbound, bootstrap=kafka.bootstrap)
-    if getattr(args, "outbox", None):
-        outbound = dataclasses.replace(outbound, sink="directory", directory=args.outbox)
-    if getattr(args, "state", None):
-        daemon = dataclasses.replace(daemon, state_path=args.state)
-    if getattr(args, "allow_mock", False):
-        policy = _allow_mock(policy)
-    return dataclasses.replace(config, kafka=kafka, outbound=outbound, daemon=daemon, policy=policy)
-
-
-def _allow_mock(policy: Any) -> Any:
-    names = {f.name for f in dataclasses.fields(policy)}
-    for name in ("allow_mock", "accept_mock", "mock"):
-        if name in names:
-            return dataclasses.replace(policy, **{name: True})
-    raise ConfigError("--allow-mock: the [policy] section has no allow_mock setting")
-
-
-# ---------------------------------------------------------------- wiring
-def make_sink(config: Config) -> Any:
-    """The outbound sink of the configuration."""
-    out = config.outbound
-    if out.sink == "kafka":
-        from .kafka_sink import KafkaSink, sink_security
-
-        security, described = sink_security(out)
-        log.info("event=outbound_kafka broker=%s topic=%s security=%r", out.bootstrap, out.topic, described)
-        return KafkaSink(out.bootstrap, out.topic, out.max_message_bytes, out.delivery_timeout_s, extra=security)
-    from .sinks import DirectorySink
-
-    return DirectorySink(Path(out.directory))
-
-
-def open_store(path: Path, group_readable: bool = False) -> Any:
-    """Open (create, 0600 in a 0700 directory) the SQLite state store."""
-    from .store import Store
-
-    private_dir(path.parent, group_readable)
-    return Store(path, group_readable=group_readable)
-
-
-def open_pipeline(config: Config, paths: RuntimePaths, sink: Any = None, **pipeline_kw: Any
-                  ) -> tuple[Any, Callable[[], None]]:
-    """Store + sink + pipeline; returns the pipeline and a closer.
-
-    ``pipeline_kw`` go to :class:`~.pipeline.NoticePipeline` (the daemon's
-    ``sky_cache`` and ``on_outbox``).
-    """
-    from .pipeline import NoticePipeline
-
-    store = open_store(paths.state, config.daemon.group_readable)
-    own_sink = sink is None
-    sink = make_sink(config) if own_sink else sink
-    pipeline = NoticePipeline(config, store, sink, **pipeline_kw)
-
-    def close() -> None:
-        for obj in ((sink,) if own_sink else ()) + (store,):
-            fn = getattr(obj, "close", None)
-            if fn is not None:
-                try:
-                    fn()
-                except Exception:
-                    log.exception("event=close_failed what=%s", type(obj).__name__)
-
-    return pipeline, close
 
 
 # ---------------------------------------------------------------- logging
@@ -421,13 +328,13 @@ class Service:
         cache.warm(self.config.scheduler)
         t_cache = time.perf_counter() - t0
         try:  # the first alert must not pay for first calls (checker, greedy, MILP imports)
-            from ..commands import demo_skymap_path
+            from ..bundled import demo_skymap_path
             from ..scheduler_core import read_skymap
             from ..scheduler_core.anytime import FIRST_SOLVER, checked_plan
             from ..scheduler_core.planner import run_scheduler
 
             if self.config.scheduler.solver != FIRST_SOLVER:
-                from ..scheduler_core import milp  # noqa: F401
+                from ..scheduler_core.schedulers import block_schedule  # noqa: F401
             from astropy.time import Time
 
             skymap = read_skymap(demo_skymap_path(), nside=self.config.scheduler.nside)
@@ -560,7 +467,7 @@ def _decision_fields(decision: Any) -> str:
 
 def main(args: argparse.Namespace) -> int:
     """Entry point of ``mushrooms run``."""
-    from ..commands import configure_astropy_offline
+    from ..offline import configure_astropy_offline
 
     level = logging.getLogger().level or logging.INFO
     setup_logging(level)

@@ -238,8 +238,8 @@ def dispatch(pipeline: Any, kind: str, payload: bytes, origin: str) -> Any:
 
 def main(args: argparse.Namespace) -> int:
     """``mushrooms trigger``: hand work to the daemon, or do it here."""
-    from ..commands import configure_astropy_offline
-    from .service import effective_config, open_pipeline
+    from ..offline import configure_astropy_offline
+    from .wiring import effective_config, open_pipeline
 
     configure_astropy_offline()
 

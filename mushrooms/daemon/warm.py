@@ -6,7 +6,7 @@ observability is kept per *night*: a 24 h block of grid times starting at
 local noon at Palomar (about 19:47 UTC), keyed by the constraints and the
 time step.  An alert's windows over ``[start, start + horizon]`` are cut
 from the one or two nights its horizon touches (a run of ok grid times is
-a window, as in :func:`~mushrooms.scheduler_core.visibility.observability_windows`,
+a window, as in :func:`~mushrooms.scheduler_core.sky.visibility.observability_windows`,
 on a grid anchored to the night instead of to the alert), so the second
 alert of a night costs no astropy transformation at all.
 
@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 from astropy.time import Time, TimeDelta
 
-from ..scheduler_core.visibility import GRID_ANCHOR as NIGHT_ANCHOR
-from ..scheduler_core.visibility import NIGHT_S, night_steps
+from ..scheduler_core.sky.visibility import GRID_ANCHOR as NIGHT_ANCHOR
+from ..scheduler_core.sky.visibility import NIGHT_S, night_steps
 
 __all__ = ["SkyCache", "NIGHT_S", "NIGHT_ANCHOR"]
 
@@ -52,7 +52,7 @@ class SkyCache:
     """
 
     def __init__(self, max_nights: int = 6) -> None:
-        from ..scheduler_core.fields import load_ztf_fields
+        from ..scheduler_core.sky.fields import load_ztf_fields
 
         self.grid = load_ztf_fields()
         self._footprints: dict[int, Any] = {}
@@ -68,7 +68,7 @@ class SkyCache:
         """Footprints of the whole grid at ``nside`` (memory, then disk cache)."""
         fp = self._footprints.get(nside)
         if fp is None:
-            from ..scheduler_core.fields import field_footprints
+            from ..scheduler_core.sky.fields import field_footprints
 
             fp = self._footprints[nside] = field_footprints(self.grid, nside)
         return fp
@@ -89,7 +89,7 @@ class SkyCache:
                 mask = self._nights.get(key)
             if mask is not None:
                 return mask
-            from ..scheduler_core.visibility import grid_times, night_epoch, observing_conditions
+            from ..scheduler_core.sky.visibility import grid_times, night_epoch, observing_conditions
 
             t0 = time.perf_counter()
             j = night_steps(config.time_step_s, night)
@@ -121,7 +121,7 @@ class SkyCache:
         -------
         Windows
         """
-        from ..scheduler_core.visibility import windows_on_grid
+        from ..scheduler_core.sky.visibility import windows_on_grid
 
         step = float(config.time_step_s)
 

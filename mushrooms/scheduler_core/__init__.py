@@ -8,19 +8,21 @@ No Kafka, no daemon state, no globals: call it from a notebook::
     plan.to_document()
 """
 
-from .checker import CheckReport, check_plan
+from .plan.checker import CheckReport, check_plan
 from .config import PlanningConfig, SlewModel
 from .errors import InputError, PlanCheckError, SkyMapError
-from .fields import FieldGrid, field_footprints, load_ztf_fields
-from .greedy import greedy_schedule
-from .exports import ExportConfig, to_skyportal, to_trigger_queue
-from .observability import NotObservable, not_observable
-from .plan import EventInfo, Observation, Plan, PlanMetrics, make_plan_id
+from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
+from .schedulers.greedy import greedy_schedule
+from .plan.exports import ExportConfig, to_skyportal, to_trigger_queue
+from .plan.observability import NotObservable, not_observable
+from .plan.document import EventInfo, Observation, Plan, PlanMetrics, make_plan_id
 from .planner import make_plan, run_scheduler
 from .prepare import prepare_problem
-from .problem import Footprints, PlanningProblem, ScheduleResult, Windows
-from .skymap import SkyMap, read_skymap
-from .visibility import observability_windows
+from .sky.footprints import Footprints
+from .problem import PlanningProblem, ScheduleResult
+from .sky.windows import Windows
+from .sky.skymap import SkyMap, read_skymap
+from .sky.visibility import observability_windows
 
 __all__ = [
     "CheckReport", "check_plan", "PlanningConfig", "SlewModel", "InputError", "PlanCheckError",

@@ -14,12 +14,12 @@ from __future__ import annotations
 import time
 from typing import Any, Callable, Iterator
 
-from .checker import check_plan
+from .plan.checker import check_plan
 from .errors import PlanCheckError
-from .plan import EventInfo, Plan
+from .plan.document import EventInfo, Plan
 from .planner import build_plan, optimise, run_scheduler
 from .problem import PlanningProblem, ScheduleResult, StopCheck
-from .skymap import SkyMap
+from .sky.skymap import SkyMap
 
 __all__ = ["FIRST_SOLVER", "checked_plan", "anytime_plans", "is_better", "revision_document"]
 

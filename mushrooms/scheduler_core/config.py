@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
-from .lightcurves import PAPER_LIGHTCURVES
+from .source.lightcurves import PAPER_LIGHTCURVES
 
 __all__ = ["PlanningConfig", "SlewModel", "dataclass_from_table", "ZTF_FILTERS", "SOLVER_NAMES"]
 

@@ -13,15 +13,15 @@ import numpy as np
 
 from astropy.time import Time, TimeDelta
 
-from .checker import check_plan
+from .plan.checker import check_plan
 from .config import SOLVER_NAMES, PlanningConfig
 from .errors import InputError, PlanCheckError
-from .gain import drop_low_gain, published_coverage
-from .greedy import greedy_schedule
-from .plan import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
+from .schedulers.gain import drop_low_gain, published_coverage
+from .schedulers.greedy import greedy_schedule
+from .plan.document import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
-from .skymap import SkyMap
+from .sky.skymap import SkyMap
 
 __all__ = ["make_plan", "build_plan", "run_scheduler", "optimise", "SOLVERS"]
 
@@ -68,11 +68,11 @@ def run_scheduler(problem: PlanningProblem, solver: str,
     t0 = time.perf_counter()
     budget = problem.config.time_limit_s
     if solver in ("blocks", "milp"):
-        from .milp import milp_schedule  # the MILP stack is only imported when used
+        from .schedulers.block_schedule import milp_schedule  # the MILP stack is only imported when used
 
         result = milp_schedule(problem, should_stop)
         return _with_bound(problem, result)
-    from .slot_schedule import slot_schedule
+    from .schedulers.slot_schedule import slot_schedule
 
     greedy = greedy_schedule(problem, should_stop)
     left = budget - (time.perf_counter() - t0)
@@ -87,7 +87,7 @@ def run_scheduler(problem: PlanningProblem, solver: str,
     left = budget - (time.perf_counter() - t0)
     stopped = should_stop is not None and should_stop()
     if left >= MIN_BLOCKS_S and not stopped:
-        from .milp import milp_schedule
+        from .schedulers.block_schedule import milp_schedule
 
         timed = dataclasses.replace(problem, config=dataclasses.replace(problem.config, time_limit_s=left))
         blocks = milp_schedule(timed, should_stop)
@@ -137,7 +137,7 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     cfg = problem.config
     if cfg.objective != "detection" or solver == "greedy":
         return scheduler(problem, solver, should_stop)
-    from .detection_slots import detection_stage
+    from .schedulers.detection_slots import detection_stage
 
     t0 = time.perf_counter()
     share = cfg.detection_time_limit_s
@@ -151,7 +151,7 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
 
 def _with_bound(problem: PlanningProblem, result: ScheduleResult) -> ScheduleResult:
     """Attach the certified coverage upper bound (:mod:`.bound`) to a result's details."""
-    from .bound import coverage_upper_bound
+    from .schedulers.bound import coverage_upper_bound
 
     ub = coverage_upper_bound(problem)
     details = dict(result.details)
@@ -321,7 +321,7 @@ def _with_airmass_and_probability(observations: tuple[Observation, ...],
     from astropy import units as u
     from astropy.coordinates import AltAz, SkyCoord
 
-    from .visibility import site
+    from .sky.visibility import site
 
     mid = problem.start + TimeDelta([o.start + o.exposure_s / 2 for o in observations], format="sec")
     coords = SkyCoord([o.ra for o in observations] * u.deg, [o.dec for o in observations] * u.deg)
@@ -341,8 +341,8 @@ def _expected_detections(plan: Plan, problem: PlanningProblem, skymap: SkyMap,
     equation X1 on the same exposures, after the least-gain rule) is reused
     when it was made for the configured light curve.
     """
-    from .detection import expected_detections
-    from .kilonova import load_kilonova
+    from .source.detection import expected_detections
+    from .source.kilonova import load_kilonova
 
     if not skymap.has_distance or skymap.event_time is None:
         return None

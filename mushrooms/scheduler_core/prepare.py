@@ -6,11 +6,13 @@ import numpy as np
 from astropy.time import Time
 
 from .config import PlanningConfig
-from .fields import FieldGrid, field_footprints, load_ztf_fields
-from .gain import worth_a_visit
-from .problem import Footprints, PlanningProblem, Windows
-from .skymap import SkyMap
-from .visibility import observability_windows
+from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
+from .schedulers.gain import worth_a_visit
+from .sky.footprints import Footprints
+from .problem import PlanningProblem
+from .sky.windows import Windows
+from .sky.skymap import SkyMap
+from .sky.visibility import observability_windows
 
 __all__ = ["prepare_problem"]
 

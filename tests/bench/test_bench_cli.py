@@ -8,9 +8,9 @@ import shutil
 import pytest
 from astropy.time import Time
 
-from mushrooms.bench import COLUMNS, best_of, read_csv, summarize
+from mushrooms.evaluation.bench import COLUMNS, best_of, read_csv, summarize
 from mushrooms.cli import main as cli_main
-from mushrooms.scheduler_core.gwemopt_baseline import parse_schedule, run_gwemopt
+from mushrooms.evaluation.gwemopt_baseline import parse_schedule, run_gwemopt
 from mushrooms.scheduler_core.config import PlanningConfig
 
 REQUIRED = ["skymap", "solver", "coverage", "efficiency_optimistic", "efficiency_conservative",
@@ -113,7 +113,7 @@ def test_gwemopt_without_interpreter_is_unavailable(tmp_path, monkeypatch) -> No
 def test_real_gwemopt_runs_offline_and_converts(data_dir) -> None:
     """Needs MUSHROOMS_GWEMOPT_PYTHON (a venv with ``pip install gwemopt``); ~1 min."""
     from mushrooms.scheduler_core import check_plan, read_skymap
-    from mushrooms.scheduler_core.gwemopt_baseline import gwemopt_plan, gwemopt_python
+    from mushrooms.evaluation.gwemopt_baseline import gwemopt_plan, gwemopt_python
 
     if gwemopt_python() is None:
         pytest.skip("MUSHROOMS_GWEMOPT_PYTHON not set")

@@ -9,17 +9,17 @@ import numpy as np
 import pytest
 from astropy.time import Time, TimeDelta
 
-from mushrooms.scheduler_core.efficiency import (
+from mushrooms.evaluation.efficiency import (
     DEFAULT_MAGLIM_300S,
     detected,
     detection_efficiency,
     draw_injections,
     limiting_magnitude,
 )
-from mushrooms.scheduler_core.lightcurves import load_lightcurve, parse_lightcurve
-from mushrooms.scheduler_core.plan import Observation, Plan, PlanMetrics
-from mushrooms.scheduler_core.problem import Footprints
-from mushrooms.scheduler_core.skymap import SkyMap
+from mushrooms.scheduler_core.source.lightcurves import load_lightcurve, parse_lightcurve
+from mushrooms.scheduler_core.plan.document import Observation, Plan, PlanMetrics
+from mushrooms.scheduler_core.sky.footprints import Footprints
+from mushrooms.scheduler_core.sky.skymap import SkyMap
 
 NSIDE = 32
 NPIX = 12 * NSIDE**2
@@ -122,7 +122,7 @@ def test_distance_samples_follow_the_map_ansatz() -> None:
 
 
 def test_real_map_distance_moments(data_dir) -> None:
-    from mushrooms.scheduler_core.skymap import read_skymap
+    from mushrooms.scheduler_core.sky.skymap import read_skymap
 
     sm = read_skymap(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=64)
     inj = draw_injections(sm, N)

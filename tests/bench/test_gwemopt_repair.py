@@ -11,8 +11,8 @@ from astropy.time import Time, TimeDelta
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scheduler"))
 from conftest_milp import check_observations, tiny_config, tiny_problem  # noqa: E402
-from mushrooms.scheduler_core.gwemopt_baseline import cache_key, repair_observations, run_gwemopt  # noqa: E402
-from mushrooms.scheduler_core.plan import Observation  # noqa: E402
+from mushrooms.evaluation.gwemopt_baseline import cache_key, repair_observations, run_gwemopt  # noqa: E402
+from mushrooms.scheduler_core.plan.document import Observation  # noqa: E402
 
 MAP = Path(__file__).resolve().parents[1] / "data" / "skymaps" / "S200129m_cWB_RING.fits.gz"
 

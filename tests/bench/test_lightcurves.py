@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from mushrooms.scheduler_core.lightcurves import (
+from mushrooms.scheduler_core.source.lightcurves import (
     LightCurveError,
     load_lightcurve,
     parse_lightcurve,

@@ -10,10 +10,10 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from mushrooms import bench, study  # noqa: E402
+from mushrooms.evaluation import bench, study  # noqa: E402
 from mushrooms.scheduler_core.config import PlanningConfig  # noqa: E402
 
-DEMO_MAP = Path(study.__file__).parent / "scheduler_core" / "data" / "MS181101ab_bayestar.multiorder.fits"
+DEMO_MAP = Path(study.__file__).parent.parent / "scheduler_core" / "data" / "MS181101ab_bayestar.multiorder.fits"
 #: Wall-clock columns: the only ones allowed to differ between two runs of the same plan.
 TIMINGS = {"runtime_s", "prepare_s", "solve_s"}
 
@@ -151,7 +151,7 @@ def test_localise_one_packaged_coincidence_with_bayestar(tmp_path) -> None:
     """The real tool (lalsuite; ~1 min of one core): one map, cached, readable by the planner."""
     if shutil.which("bayestar-localize-coincs") is None:
         pytest.skip("bayestar-localize-coincs (ligo.skymap with lalsuite) not on PATH")
-    from mushrooms.scheduler_core.skymap import read_skymap
+    from mushrooms.scheduler_core.sky.skymap import read_skymap
 
     (task,) = study.maps_from_events(study.DEFAULT_EVENTS, tmp_path, study.Localisation(), ids=[0])
     first = study.localise(task.events, task.coinc_id, study.Localisation(), task.path)
@@ -160,3 +160,13 @@ def test_localise_one_packaged_coincidence_with_bayestar(tmp_path) -> None:
     assert again["cached"] is True and again["path"] == first["path"]
     skymap = read_skymap(first["path"], nside=64)
     assert skymap.event_time is not None and skymap.distmean is not None
+
+
+def test_the_tools_option_defaults_are_the_studys():
+    """``mushrooms study --help`` keeps its defaults beside the parser (no numpy/dask import); they must be the study's."""
+    from mushrooms.evaluation import study as evaluation_study
+    from mushrooms.tool import study as tool_study
+
+    args = tool_study.parser().parse_args([])
+    assert tuple(args.solvers.split(",")) == evaluation_study.DEFAULT_SOLVERS
+    assert args.seed == evaluation_study.Population.seed

@@ -183,7 +183,7 @@ def test_outbound_security_settings_and_password_lookup(tmp_path: Path) -> None:
 def test_kafka_sink_really_authenticates_with_sasl(broker, monkeypatch: pytest.MonkeyPatch) -> None:
     """The mock broker speaks no SASL: a SASL sink must fail where a plaintext one succeeds."""
     from mushrooms.config import load_config
-    from mushrooms.daemon.service import make_sink
+    from mushrooms.daemon.wiring import make_sink
     import dataclasses
 
     topic = f"sasl-{time.time_ns()}"
@@ -257,7 +257,7 @@ def test_systemd_unit_passes_systemd_analyze_verify(tmp_path: Path) -> None:
 def test_command_line_overrides_the_config_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import argparse
 
-    from mushrooms.daemon.service import effective_config
+    from mushrooms.daemon.wiring import effective_config
 
     cfg = tmp_path / "config.toml"
     cfg.write_text('[outbound]\nsink = "kafka"\ntopic = "plans"\n[kafka]\ntopics = ["igwn.gwalert"]\n')

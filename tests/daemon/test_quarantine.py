@@ -14,7 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from mushrooms.daemon.consumer import Received
-from mushrooms.daemon.service import Service, open_pipeline
+from mushrooms.daemon.service import Service
+from mushrooms.daemon.wiring import open_pipeline
 
 from daemon_helpers import notice_bytes
 

@@ -12,7 +12,7 @@ from astropy.time import Time, TimeDelta
 from mushrooms.daemon.warm import NIGHT_S, SkyCache
 from mushrooms.scheduler_core import PlanningConfig, read_skymap
 from mushrooms.scheduler_core.prepare import prepare_problem
-from mushrooms.scheduler_core.visibility import night_steps, observability_windows
+from mushrooms.scheduler_core.sky.visibility import night_steps, observability_windows
 
 CFG = PlanningConfig(nside=64, time_step_s=600.0)
 MAP = Path(__file__).resolve().parents[1] / "data" / "skymaps" / "MS220722v_bayestar.multiorder.fits"

@@ -278,7 +278,7 @@ def test_a_plan_with_more_detections_and_a_little_less_coverage_is_better_only_f
         detection_run):
     """The supersede rule (is_better) on the pipeline's real plans, one side's coverage moved across the floor."""
     from mushrooms.scheduler_core.anytime import is_better
-    from mushrooms.scheduler_core.plan import Plan
+    from mushrooms.scheduler_core.plan.document import Plan
 
     first, second = (Plan.from_document(d) for d in detection_run)
     d_gain = second.metrics.expected_detections - first.metrics.expected_detections

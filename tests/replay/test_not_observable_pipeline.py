@@ -9,7 +9,7 @@ from datetime import timedelta
 from mushrooms.daemon.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import DirectorySink
 from mushrooms.daemon.store import Store
-from mushrooms.scheduler_core.schema import validate_document
+from mushrooms.scheduler_core.plan.schema import validate_document
 
 from replay_helpers import FAST, created, raw
 

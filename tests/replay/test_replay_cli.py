@@ -109,3 +109,22 @@ def test_collect_notices_expands_directories(tmp_path):
     (tmp_path / ".hidden.json").write_text("{}")
     (tmp_path / "notes.txt").write_text("")
     assert [p.name for p in collect_notices([tmp_path])] == ["a.avro", "b.json"]
+
+
+def test_replay_is_a_library_call_with_the_shared_overrides(tmp_path, fast_config, capsys):
+    # what the demo does: load the config, apply the command-line overrides in the one place, replay
+    from mushrooms.config import load_config
+    from mushrooms.daemon.replay import replay_notices
+    from mushrooms.overrides import override_config
+
+    notice = NOTICES / "json" / "MS181101ab-preliminary.json"
+    config = load_config(str(fast_config))
+    assert replay_notices([notice], tmp_path / "strict", config) == 0
+    assert lines_of(capsys)[0].split()[3] == "ignore"  # a mock event, and mocks not allowed
+    mock_ok = override_config(config, allow_mock=True, solver="greedy")
+    assert config.policy.allow_mock is False and mock_ok.policy.allow_mock is True  # the loaded one is untouched
+    state = tmp_path / "state" / "s.sqlite"
+    assert replay_notices([notice], tmp_path / "out", mock_ok, state=state) == 0
+    assert lines_of(capsys)[0].split()[3] == "plan"
+    docs = [json.loads(p.read_text()) for p in (tmp_path / "out").glob("*.json")]
+    assert state.exists() and [d["type"] for d in docs] == ["plan"]

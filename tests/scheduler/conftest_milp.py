@@ -27,7 +27,9 @@ import numpy as np
 from astropy.time import Time
 
 from mushrooms.scheduler_core.config import PlanningConfig
-from mushrooms.scheduler_core.problem import Footprints, PlanningProblem, Windows
+from mushrooms.scheduler_core.sky.footprints import Footprints
+from mushrooms.scheduler_core.problem import PlanningProblem
+from mushrooms.scheduler_core.sky.windows import Windows
 
 TINY_OPTIMUM = 0.51
 TINY_BLOCKS = ({1, 2}, {3, 5})
@@ -83,7 +85,7 @@ def random_problem(seed: int, n_fields: int = 14, nside: int = 4, config: Planni
 
 def check_observations(problem: PlanningProblem, observations) -> list[str]:
     """The checker's scheduling rules on a hand-made problem (no sky needed)."""
-    from mushrooms.scheduler_core.slew import overhead_time
+    from mushrooms.scheduler_core.schedulers.slew import overhead_time
 
     cfg = problem.config
     f1, f2 = cfg.filters

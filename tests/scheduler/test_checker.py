@@ -20,12 +20,12 @@ from astropy.coordinates import TETE, AltAz, EarthLocation, SkyCoord, get_body
 from astropy.time import Time, TimeDelta
 
 from mushrooms.scheduler_core import PlanningConfig, check_plan
-from mushrooms.scheduler_core.checker import (
+from mushrooms.scheduler_core.plan.checker import (
     MAX_LISTED, _conditions, mount_reachable, polygon_coverage, slew_seconds,
 )
 from mushrooms.scheduler_core.config import SlewModel
-from mushrooms.scheduler_core.plan import Observation, Plan, PlanMetrics
-from mushrooms.scheduler_core.skymap import SkyMap
+from mushrooms.scheduler_core.plan.document import Observation, Plan, PlanMetrics
+from mushrooms.scheduler_core.sky.skymap import SkyMap
 
 # P48, ztf_sim constants.py P48_loc (GPS position used by ZTF's robotic software)
 P48 = EarthLocation.from_geodetic(lon=-(116 + 51 / 60 + 35.5 / 3600) * u.deg,
@@ -351,7 +351,7 @@ def test_reported_coverage_is_held_to_the_recomputed_value(flat_map):
 
 def test_footprints_built_from_shrunken_ccds_are_caught(monkeypatch):
     """The checker has its own CCD outlines: coverage from CCDs shrunk by 1.5 % in fields.py is refused."""
-    import mushrooms.scheduler_core.fields as fields
+    import mushrooms.scheduler_core.sky.fields as fields
 
     nside = 256
     centres = hp.ang2vec([F687[1], F1685[1]], [F687[2], F1685[2]], lonlat=True)

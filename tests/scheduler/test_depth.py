@@ -1,4 +1,4 @@
-"""Per-exposure 5-sigma depth (scheduler_core.depth): calibration and the sky's effect."""
+"""Per-exposure 5-sigma depth (scheduler_core.source.depth): calibration and the sky's effect."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from astropy import units as u
 from astropy.coordinates import AltAz, SkyCoord, get_body
 from astropy.time import Time
 
-from mushrooms.scheduler_core.depth import (
+from mushrooms.scheduler_core.source.depth import (
     ZTF_MEDIAN_DEPTH_30S,
     SkyConditions,
     dark_zenith,
@@ -16,8 +16,8 @@ from mushrooms.scheduler_core.depth import (
     sky_brightness,
     sky_conditions,
 )
-from mushrooms.scheduler_core.fields import load_ztf_fields
-from mushrooms.scheduler_core.visibility import site
+from mushrooms.scheduler_core.sky.fields import load_ztf_fields
+from mushrooms.scheduler_core.sky.visibility import site
 
 FULL_MOON_NIGHT = Time("2020-01-11T08:00:00", scale="utc")  # full Moon 2020-01-10 19:21 UTC, high at Palomar
 NEW_MOON_NIGHT = Time("2020-01-25T08:00:00", scale="utc")  # new Moon 2020-01-24 21:42 UTC

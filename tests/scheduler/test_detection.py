@@ -1,4 +1,4 @@
-"""Expected detections (scheduler_core.detection) against the evaluation's injection recovery."""
+"""Expected detections (scheduler_core.source.detection) against the evaluation's injection recovery."""
 
 from __future__ import annotations
 
@@ -7,13 +7,13 @@ import math
 import pytest
 
 from mushrooms.scheduler_core.config import PlanningConfig
-from mushrooms.scheduler_core.depth import ZTF_DEPTH
-from mushrooms.scheduler_core.detection import expected_detections
-from mushrooms.scheduler_core.efficiency import detection_efficiency, draw_injections
-from mushrooms.scheduler_core.fields import field_footprints, load_ztf_fields
-from mushrooms.scheduler_core.kilonova import load_kilonova
+from mushrooms.scheduler_core.source.depth import ZTF_DEPTH
+from mushrooms.scheduler_core.source.detection import expected_detections
+from mushrooms.evaluation.efficiency import detection_efficiency, draw_injections
+from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
+from mushrooms.scheduler_core.source.kilonova import load_kilonova
 from mushrooms.scheduler_core.planner import make_plan
-from mushrooms.scheduler_core.skymap import read_skymap
+from mushrooms.scheduler_core.sky.skymap import read_skymap
 
 
 def test_expected_detections_is_the_limit_of_the_monte_carlo_efficiency(data_dir) -> None:

@@ -1,4 +1,4 @@
-"""The detection objective on the slot model (scheduler_core.detection_slots), with real HiGHS."""
+"""The detection objective on the slot model (scheduler_core.schedulers.detection_slots), with real HiGHS."""
 
 from __future__ import annotations
 
@@ -7,22 +7,22 @@ import dataclasses
 import numpy as np
 import pytest
 
-from mushrooms.scheduler_core.cells import Cells
+from mushrooms.scheduler_core.sky.cells import Cells
 from mushrooms.scheduler_core.config import PlanningConfig
-from mushrooms.scheduler_core.detection_slots import (
+from mushrooms.scheduler_core.schedulers.detection_slots import (
     build_detection_model,
     detection_stage,
     detection_start_vector,
     pair_levels,
 )
-from mushrooms.scheduler_core.gain import published_coverage
-from mushrooms.scheduler_core.detection import expected_detections
-from mushrooms.scheduler_core.kilonova import load_kilonova
+from mushrooms.scheduler_core.schedulers.gain import published_coverage
+from mushrooms.scheduler_core.source.detection import expected_detections
+from mushrooms.scheduler_core.source.kilonova import load_kilonova
 from mushrooms.scheduler_core.planner import build_plan, optimise, run_scheduler
 from mushrooms.scheduler_core.prepare import prepare_problem
-from mushrooms.scheduler_core.skymap import read_skymap
-from mushrooms.scheduler_core.slots import SlotGrid, SlotInstance, build_slot_model
-from mushrooms.scheduler_core.solvers import solve_milp
+from mushrooms.scheduler_core.sky.skymap import read_skymap
+from mushrooms.scheduler_core.schedulers.slots import SlotGrid, SlotInstance, build_slot_model
+from mushrooms.scheduler_core.schedulers.solvers import solve_milp
 
 
 def two_slot_instance() -> SlotInstance:

@@ -18,7 +18,7 @@ import pytest
 from astropy.time import Time
 
 from mushrooms.scheduler_core import ExportConfig, Plan, to_skyportal, to_trigger_queue
-from mushrooms.scheduler_core.schema import document_schema, validate_document
+from mushrooms.scheduler_core.plan.schema import document_schema, validate_document
 
 QUEUE_TOP = {"queue_name": str, "queue_type": str, "validity_window_mjd": list, "user": str, "targets": list}
 QUEUE_TARGET = {"request_id": int, "program_id": int, "field_id": int, "ra": float, "dec": float,

@@ -8,7 +8,7 @@ import healpy as hp
 import numpy as np
 import pytest
 
-from mushrooms.scheduler_core.fields import (
+from mushrooms.scheduler_core.sky.fields import (
     ccd_corners, deproject, field_footprints, load_ztf_fields, project,
 )
 
@@ -55,7 +55,7 @@ def test_project_and_deproject_are_inverse():
 
 
 def test_footprints_are_cached_on_disk(tmp_path, monkeypatch):
-    import mushrooms.scheduler_core.fields as fields
+    import mushrooms.scheduler_core.sky.fields as fields
 
     monkeypatch.setenv("MUSHROOMS_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(fields, "_memory_cache", {})
@@ -76,7 +76,7 @@ def test_footprints_are_cached_on_disk(tmp_path, monkeypatch):
 
 
 def test_cache_directory_follows_the_environment(monkeypatch, tmp_path):
-    import mushrooms.scheduler_core.fields as fields
+    import mushrooms.scheduler_core.sky.fields as fields
 
     for var in ("MUSHROOMS_CACHE_DIR", "CACHE_DIRECTORY", "XDG_CACHE_HOME"):
         monkeypatch.delenv(var, raising=False)

@@ -7,7 +7,7 @@ import dataclasses
 from astropy.time import Time
 
 from mushrooms.scheduler_core import PlanningConfig
-from mushrooms.scheduler_core.gain import published_coverage
+from mushrooms.scheduler_core.schedulers.gain import published_coverage
 from mushrooms.scheduler_core.planner import build_plan, run_scheduler
 from mushrooms.scheduler_core.prepare import prepare_problem
 

@@ -1,4 +1,4 @@
-"""Kilonova source model (scheduler_core.kilonova): alive from the merger on."""
+"""Kilonova source model (scheduler_core.source.kilonova): alive from the merger on."""
 
 from __future__ import annotations
 
@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from astropy.time import Time, TimeDelta
 
-from mushrooms.scheduler_core.depth import ZTF_DEPTH
-from mushrooms.scheduler_core.efficiency import DEFAULT_MAGLIM_300S, Injections, detected
-from mushrooms.scheduler_core.kilonova import Kilonova, load_kilonova
-from mushrooms.scheduler_core.lightcurves import load_lightcurve, parse_lightcurve
-from mushrooms.scheduler_core.plan import Observation, Plan, PlanMetrics
-from mushrooms.scheduler_core.problem import Footprints
-from mushrooms.scheduler_core.visibility import site
+from mushrooms.scheduler_core.source.depth import ZTF_DEPTH
+from mushrooms.evaluation.efficiency import DEFAULT_MAGLIM_300S, Injections, detected
+from mushrooms.scheduler_core.source.kilonova import Kilonova, load_kilonova
+from mushrooms.scheduler_core.source.lightcurves import load_lightcurve, parse_lightcurve
+from mushrooms.scheduler_core.plan.document import Observation, Plan, PlanMetrics
+from mushrooms.scheduler_core.sky.footprints import Footprints
+from mushrooms.scheduler_core.sky.visibility import site
 
 NSIDE = 32
 MERGER = Time("2020-01-01T04:00:00", scale="utc")  # 20:00 local time at Palomar

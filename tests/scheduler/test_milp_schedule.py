@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-import mushrooms.scheduler_core.milp as milp
+import mushrooms.scheduler_core.schedulers.block_schedule as milp
 from conftest_milp import TINY_BLOCKS, check_observations, random_problem, tiny_config, tiny_problem
 
 

@@ -7,12 +7,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from mushrooms.commands import demo_skymap_path
+from mushrooms.bundled import demo_skymap_path
 from mushrooms.scheduler_core import PlanningConfig, make_plan, not_observable, read_skymap
-from mushrooms.scheduler_core.gain import added_probability, drop_low_gain
+from mushrooms.scheduler_core.schedulers.gain import added_probability, drop_low_gain
 from mushrooms.scheduler_core.prepare import prepare_problem
 from mushrooms.scheduler_core.planner import run_scheduler
-from mushrooms.scheduler_core.schema import validate_document
+from mushrooms.scheduler_core.plan.schema import validate_document
 
 FAST = PlanningConfig(solver="greedy", nside=64, time_step_s=600.0)
 

@@ -7,7 +7,7 @@ import json
 import pytest
 
 from mushrooms.scheduler_core import Plan, to_trigger_queue
-from mushrooms.scheduler_core.plan import EVENT_KEYS, METRIC_KEYS, OBSERVATION_KEYS, PLAN_KEYS
+from mushrooms.scheduler_core.plan.document import EVENT_KEYS, METRIC_KEYS, OBSERVATION_KEYS, PLAN_KEYS
 
 
 def test_document_has_exactly_the_documented_keys(greedy_plan):

@@ -9,8 +9,9 @@ from astropy.coordinates import TETE, AltAz, EarthLocation, SkyCoord, get_body
 from astropy.time import Time, TimeDelta
 
 from mushrooms.scheduler_core import PlanningConfig
-from mushrooms.scheduler_core.fields import load_ztf_fields
-from mushrooms.scheduler_core.visibility import mount_limits_ok, observability_windows
+from mushrooms.scheduler_core.sky.fields import load_ztf_fields
+from mushrooms.scheduler_core.sky.constraints import mount_limits_ok
+from mushrooms.scheduler_core.sky.visibility import observability_windows
 
 START = Time("2022-07-22T21:57:12", scale="utc")
 # the P48 as ztf_sim's constants.py gives it (P48_loc), written out here rather than taken from the code

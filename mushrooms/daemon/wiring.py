@@ -1,0 +1,91 @@
+"""The daemon's wiring: effective configuration, state store, outbound sink and notice pipeline.
+
+Used by ``mushrooms run`` (:mod:`.service`) and ``mushrooms trigger``
+without a daemon (:mod:`.trigger`), so both open the same store and sink the
+same way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+from typing import Any, Callable
+
+from ..config import Config, load_config
+from ..overrides import override_config
+from .settings import RuntimePaths
+
+__all__ = ["effective_config", "private_dir", "make_sink", "open_store", "open_pipeline"]
+
+log = logging.getLogger("mushrooms.daemon")
+
+
+def effective_config(args: argparse.Namespace) -> Config:
+    """Config file (or embedded defaults) with the command-line overrides (:func:`~mushrooms.overrides.override_config`).
+
+    ``--bootstrap`` selects the local plaintext broker for input (and for the
+    Kafka sink when it has no broker of its own); ``--outbox DIR`` selects the
+    directory sink; ``--state`` the SQLite file; ``--allow-mock`` accepts
+    mock and test events.
+    """
+    return override_config(load_config(getattr(args, "config", None)),
+                           allow_mock=bool(getattr(args, "allow_mock", False)),
+                           bootstrap=getattr(args, "bootstrap", None), outbox=getattr(args, "outbox", None),
+                           state=getattr(args, "state", None))
+
+
+def private_dir(path: Path, group_readable: bool = False) -> Path:
+    """Create a directory (and parents) 0700, or 0750 when group readable; an existing one is left as is."""
+    if not path.is_dir():
+        path.mkdir(parents=True, exist_ok=True)
+        path.chmod(0o750 if group_readable else 0o700)
+    return path
+
+
+def make_sink(config: Config) -> Any:
+    """The outbound sink of the configuration."""
+    out = config.outbound
+    if out.sink == "kafka":
+        from .kafka_sink import KafkaSink, sink_security
+
+        security, described = sink_security(out)
+        log.info("event=outbound_kafka broker=%s topic=%s security=%r", out.bootstrap, out.topic, described)
+        return KafkaSink(out.bootstrap, out.topic, out.max_message_bytes, out.delivery_timeout_s, extra=security)
+    from .sinks import DirectorySink
+
+    return DirectorySink(Path(out.directory))
+
+
+def open_store(path: Path, group_readable: bool = False) -> Any:
+    """Open (create, 0600 in a 0700 directory) the SQLite state store."""
+    from .store import Store
+
+    private_dir(path.parent, group_readable)
+    return Store(path, group_readable=group_readable)
+
+
+def open_pipeline(config: Config, paths: RuntimePaths, sink: Any = None, **pipeline_kw: Any
+                  ) -> tuple[Any, Callable[[], None]]:
+    """Store + sink + pipeline; returns the pipeline and a closer.
+
+    ``pipeline_kw`` go to :class:`~.pipeline.NoticePipeline` (the daemon's
+    ``sky_cache`` and ``on_outbox``).
+    """
+    from .pipeline import NoticePipeline
+
+    store = open_store(paths.state, config.daemon.group_readable)
+    own_sink = sink is None
+    sink = make_sink(config) if own_sink else sink
+    pipeline = NoticePipeline(config, store, sink, **pipeline_kw)
+
+    def close() -> None:
+        for obj in ((sink,) if own_sink else ()) + (store,):
+            fn = getattr(obj, "close", None)
+            if fn is not None:
+                try:
+                    fn()
+                except Exception:
+                    log.exception("event=close_failed what=%s", type(obj).__name__)
+
+    return pipeline, close

@@ -1,0 +1,61 @@
+"""Command-line overrides of the configuration, in one place.
+
+``--allow-mock`` (``replay``, ``run``, ``trigger``, the demo), ``--solver``
+(the demo), ``--bootstrap``, ``--outbox`` and ``--state`` (``run``,
+``trigger``) change the loaded :class:`~mushrooms.config.Config` for one
+process only; the file is never written.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from .config import Config
+
+__all__ = ["override_config"]
+
+
+def override_config(config: Config, *, allow_mock: bool = False, solver: str | None = None,
+                    bootstrap: str | None = None, outbox: str | None = None,
+                    state: str | None = None) -> Config:
+    """The configuration with the command line's overrides.
+
+    Parameters
+    ----------
+    config : Config
+        As loaded from the file (or the embedded defaults).
+    allow_mock : bool
+        Accept mock (``MS``) and test (``TS``) events (``[policy] allow_mock``).
+    solver : str, optional
+        Scheduler for this run (``[scheduler] solver``).
+    bootstrap : str, optional
+        ``HOST:PORT`` of a local plaintext broker for input; also the Kafka
+        sink's broker when it has none of its own.
+    outbox : str, optional
+        Directory sink instead of the configured one.
+    state : str, optional
+        SQLite state file (``[daemon] state_path``).
+
+    Returns
+    -------
+    Config
+        A new configuration; ``config`` is unchanged.
+    """
+    kafka, outbound, daemon, policy, scheduler = (config.kafka, config.outbound, config.daemon, config.policy,
+                                                  config.scheduler)
+    if bootstrap:
+        kafka = dataclasses.replace(kafka, bootstrap=bootstrap)
+        if outbound.sink == "kafka" and not outbound.bootstrap:
+            outbound = dataclasses.replace(outbound, bootstrap=bootstrap)
+    if outbound.sink == "kafka" and not outbound.bootstrap and kafka.bootstrap:
+        outbound = dataclasses.replace(outbound, bootstrap=kafka.bootstrap)
+    if outbox:
+        outbound = dataclasses.replace(outbound, sink="directory", directory=outbox)
+    if state:
+        daemon = dataclasses.replace(daemon, state_path=state)
+    if allow_mock:
+        policy = dataclasses.replace(policy, allow_mock=True)
+    if solver:
+        scheduler = dataclasses.replace(scheduler, solver=solver)
+    return dataclasses.replace(config, kafka=kafka, outbound=outbound, daemon=daemon, policy=policy,
+                               scheduler=scheduler)

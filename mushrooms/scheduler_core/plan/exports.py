@@ -1,0 +1,208 @@
+"""Plans handed on as they are: ZTF's ToO trigger queue and SkyPortal's manual observation plan.
+
+Both follow what SkyPortal itself sends (``skyportal/facility_apis/ztf.py``
+builds the queue that ``PUT {ZTF}/api/triggers/ztf`` -- Kowalski's ToO
+endpoint -- receives; ``skyportal/handlers/api/observation_plan.py``,
+``ObservationPlanManualRequestHandler``, reads the manual plan):
+
+* queue: ``{queue_name, queue_type: "list", validity_window_mjd: [start, end],
+  user, targets: [{request_id, program_id, field_id, ra, dec, filter_id,
+  exposure_time, program_pi, subprogram_name}]}`` with ``filter_id`` 1, 2, 3
+  for g, r, i, ``program_id`` 2 (Partnership) or 3 (Caltech),
+  ``program_pi`` ``"<pi>/<user>"`` and ``subprogram_name`` ``"ToO_<name>"``;
+* SkyPortal: ``{dateobs, localization_name, allocation_id, plan_name, status,
+  payload, observation_plans: [{validity_window_start, validity_window_end,
+  status, planned_observations: [{planned_observation_id, dateobs, field_id,
+  exposure_time (int), filt ("ztfg"/"ztfr"/"ztfi"), weight,
+  overhead_per_exposure (int)}]}]}``; ``payload`` carries what SkyPortal's
+  ZTF API later needs to send the plan to the queue (``queue_name``,
+  ``program_id`` as ``Partnership``/``Caltech``, ``subprogram_name``,
+  ``start_date``/``end_date``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from ..config import dataclass_from_table
+from .document import Plan
+
+__all__ = ["ExportConfig", "to_trigger_queue", "to_skyportal", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
+
+#: ZTF queue filter ids.
+FILTER_IDS = {"g": 1, "r": 2, "i": 3}
+#: ZTF queue program ids of the programs SkyPortal's ZTF API knows.
+PROGRAM_IDS = {"Partnership": 2, "Caltech": 3}
+#: SkyPortal's names of ZTF's filters.
+SKYPORTAL_FILTERS = {"g": "ztfg", "r": "ztfr", "i": "ztfi"}
+
+
+@dataclass(frozen=True)
+class ExportConfig:
+    """``[export]``: the program fields of the queue and the SkyPortal payload.
+
+    Attributes
+    ----------
+    program : str
+        ZTF program: ``Partnership`` (program_id 2) or ``Caltech`` (3).
+    program_pi : str
+        PI of the program; the queue gets ``"<program_pi>/<user>"``.
+    subprogram_name : str
+        Subprogram; the queue gets ``"ToO_<subprogram_name>"``.
+    user : str
+        The queue's ``user`` (the Kowalski/SkyPortal user submitting it).
+    skyportal_allocation_id : int or None
+        SkyPortal allocation of the ZTF MMA instrument; ``--skyportal`` needs it.
+    skyportal_status : str
+        Status of the submitted observation plan.
+    """
+
+    program: str = "Partnership"
+    program_pi: str = "Kulkarni"
+    subprogram_name: str = "GW"
+    user: str = "mushrooms"
+    skyportal_allocation_id: int | None = None
+    skyportal_status: str = "complete"
+
+    def __post_init__(self) -> None:
+        if self.program not in PROGRAM_IDS:
+            raise ValueError(f"[export] program must be {' or '.join(PROGRAM_IDS)}, got {self.program!r}")
+        for name in ("program_pi", "subprogram_name", "user"):
+            if not str(getattr(self, name)).strip():
+                raise ValueError(f"[export] {name} must not be empty")
+
+    @classmethod
+    def from_mapping(cls, table: Mapping[str, Any]) -> "ExportConfig":
+        """Build from an ``[export]`` table; unknown keys are an error."""
+        return dataclass_from_table(cls, table, "export")
+
+
+def _tag(plan: Plan) -> str:
+    return plan.event.superevent_id or plan.plan_id
+
+
+def _iso_space(t: Any) -> str:
+    """``YYYY-MM-DD HH:MM:SS`` (UTC), the format SkyPortal's ZTF API parses with ``format="iso"``."""
+    return t.utc.iso[:19]
+
+
+def to_trigger_queue(plan: Plan, export: ExportConfig = ExportConfig(), queue_name: str | None = None
+                     ) -> dict[str, Any]:
+    """The plan as ZTF's ToO trigger queue (what SkyPortal sends to ``api/triggers/ztf``).
+
+    Parameters
+    ----------
+    plan : Plan
+        A plan with at least one observation.
+    export : ExportConfig
+        Program fields.
+    queue_name : str, optional
+        Defaults to ``ToO_<superevent or plan id>``.
+
+    Raises
+    ------
+    ValueError
+        For a plan without observations (ZTF refuses an empty queue) or a
+        filter ZTF does not have.
+    """
+    if not plan.observations:
+        raise ValueError(f"plan {plan.plan_id} has no observations: no queue to send")
+    bad = sorted({o.filter for o in plan.observations} - set(FILTER_IDS))
+    if bad:
+        raise ValueError(f"plan {plan.plan_id}: filter(s) {', '.join(bad)} are not ZTF filters (g, r, i)")
+    targets = [
+        {
+            "request_id": i + 1,
+            "program_id": PROGRAM_IDS[export.program],
+            "field_id": int(o.field_id),
+            "ra": float(o.ra),
+            "dec": float(o.dec),
+            "filter_id": FILTER_IDS[o.filter],
+            "exposure_time": float(o.exposure_s),
+            "program_pi": f"{export.program_pi}/{export.user}",
+            "subprogram_name": f"ToO_{export.subprogram_name}",
+        }
+        for i, o in enumerate(plan.observations)
+    ]
+    return {
+        "queue_name": queue_name or f"ToO_{_tag(plan)}",
+        "queue_type": "list",
+        "validity_window_mjd": [float(plan.start.mjd), float(plan.end.mjd)],
+        "user": export.user,
+        "targets": targets,
+    }
+
+
+def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization_name: str | None = None
+                 ) -> dict[str, Any]:
+    """The plan as the body of SkyPortal's ``POST /api/observation_plan/manual``.
+
+    Parameters
+    ----------
+    plan : Plan
+        A plan with at least one observation and a known event time.
+    export : ExportConfig
+        Allocation and program fields (``skyportal_allocation_id`` required).
+    localization_name : str, optional
+        SkyPortal's name of the sky map; default the plan's ``skymap_name``,
+        else ``"healpix"`` (SkyPortal's own name for an unnamed map).
+
+    Raises
+    ------
+    ValueError
+        No allocation id, no observations, no event time, or a non-ZTF filter.
+    """
+    if export.skyportal_allocation_id is None:
+        raise ValueError("a SkyPortal payload needs [export] skyportal_allocation_id (the ZTF allocation)")
+    if not plan.observations:
+        raise ValueError(f"plan {plan.plan_id} has no observations: no SkyPortal plan to submit")
+    if not plan.event.event_time:
+        raise ValueError(f"plan {plan.plan_id} has no event time: SkyPortal finds the event by its dateobs")
+    bad = sorted({o.filter for o in plan.observations} - set(SKYPORTAL_FILTERS))
+    if bad:
+        raise ValueError(f"plan {plan.plan_id}: filter(s) {', '.join(bad)} are not ZTF filters (g, r, i)")
+    starts = plan.absolute_time([o.start for o in plan.observations])
+    readout = float((plan.config or {}).get("slew", {}).get("readout_s", 8.0))
+    planned = []
+    previous_end: float | None = None
+    for i, (o, t) in enumerate(zip(plan.observations, starts)):
+        # the gap since the previous exposure when it is a slew (up to 10 min), else the readout
+        overhead = readout if previous_end is None else max(o.start - previous_end, 0.0)
+        if overhead > 600.0:
+            overhead = readout
+        previous_end = o.end
+        planned.append({
+            "planned_observation_id": i,
+            "dateobs": t.utc.isot[:23],
+            "field_id": int(o.field_id),
+            "exposure_time": int(round(o.exposure_s)),
+            "filt": SKYPORTAL_FILTERS[o.filter],
+            "weight": round(float(o.probability), 6) if o.probability is not None else 0.0,
+            "overhead_per_exposure": int(round(overhead)),
+        })
+    name = f"{plan.event.superevent_id}-{plan.plan_id}" if plan.event.superevent_id else plan.plan_id
+    return {
+        "dateobs": plan.event.event_time.rstrip("Z"),
+        "localization_name": localization_name or plan.event.skymap_name or "healpix",
+        "allocation_id": int(export.skyportal_allocation_id),
+        "plan_name": name,
+        "status": export.skyportal_status,
+        "payload": {
+            "queue_name": name,
+            "program_id": export.program,
+            "subprogram_name": export.subprogram_name,
+            "start_date": _iso_space(plan.start),
+            "end_date": _iso_space(plan.end),
+            "filter_strategy": "block",
+            "exposure_time": int(round(plan.observations[0].exposure_s)),
+            "filters": ",".join(dict.fromkeys(o.filter for o in plan.observations)),
+            "field_ids": ",".join(str(f) for f in plan.field_ids),
+        },
+        "observation_plans": [{
+            "validity_window_start": plan.start.utc.isot[:23],
+            "validity_window_end": plan.end.utc.isot[:23],
+            "status": export.skyportal_status,
+            "planned_observations": planned,
+        }],
+    }

@@ -1,0 +1,444 @@
+"""A thin MILP adapter: one backend-neutral model, two solvers (HiGHS, Gurobi).
+
+The block-division model is built once as a :class:`MilpModel` (sparse
+constraint matrix, row and column bounds, integrality, objective) and handed
+to :func:`solve_milp`, which runs HiGHS (``highspy``, the default) or Gurobi
+(``gurobipy``).  Both report the same :class:`SolveResult`: status, solution,
+objective, best bound, relative gap, time to the first incumbent and time to
+a 1 % gap (from the solvers' callbacks), and the runtime.
+
+Gurobi is used when asked for (``backend="gurobi"``) or, with
+``backend="auto"``, when a full licence is present.  The pip wheel's
+size-limited licence refuses models over 2000 variables or constraints; the
+run then falls back to HiGHS with one log line instead of failing.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..problem import StopCheck
+
+__all__ = ["MilpModel", "SolveResult", "solve_milp", "gurobi_fully_licensed", "resolve_backend", "relative_gap"]
+
+log = logging.getLogger(__name__)
+
+#: Gap at which the "time to 1 % gap" is recorded.
+REPORT_GAP = 0.01
+#: Variable/constraint limit of Gurobi's size-limited (pip) licence.
+GUROBI_PIP_LIMIT = 2000
+
+
+@dataclass(frozen=True)
+class MilpModel:
+    """A maximisation MILP ``max c·x`` s.t. ``row_lo <= A x <= row_hi``, ``col_lo <= x <= col_hi``.
+
+    Attributes
+    ----------
+    c : numpy.ndarray
+        (n,) objective coefficients (maximised).
+    A : scipy.sparse.csr_matrix
+        (m, n) constraint matrix.
+    row_lo, row_hi : numpy.ndarray
+        (m,) row bounds (``-inf`` / ``inf`` allowed).
+    col_lo, col_hi : numpy.ndarray
+        (n,) variable bounds.
+    integer : numpy.ndarray
+        (n,) True for integer variables.
+    """
+
+    c: np.ndarray
+    A: sp.csr_matrix
+    row_lo: np.ndarray
+    row_hi: np.ndarray
+    col_lo: np.ndarray
+    col_hi: np.ndarray
+    integer: np.ndarray
+
+    @property
+    def n_vars(self) -> int:
+        """Number of variables."""
+        return int(self.c.size)
+
+    @property
+    def n_rows(self) -> int:
+        """Number of constraints."""
+        return int(self.A.shape[0])
+
+    @property
+    def n_integer(self) -> int:
+        """Number of integer variables."""
+        return int(np.count_nonzero(self.integer))
+
+    def size(self) -> dict[str, int]:
+        """Model size: variables, integer variables, constraints, nonzeros."""
+        return {"vars": self.n_vars, "int_vars": self.n_integer,
+                "rows": self.n_rows, "nonzeros": int(self.A.nnz)}
+
+
+@dataclass
+class SolveResult:
+    """What a solve returned, in one shape for every backend.
+
+    Attributes
+    ----------
+    backend : str
+        ``highs`` or ``gurobi`` (the one that really ran).
+    status : str
+        ``optimal``, ``time_limit``, ``interrupted``, ``infeasible`` or
+        ``error: ...``.
+    x : numpy.ndarray or None
+        Best solution found (None without an incumbent).
+    objective : float or None
+        Objective of ``x``.
+    bound : float or None
+        Best (upper) bound on the optimum.
+    gap : float or None
+        Relative gap ``(bound - objective) / max(|objective|, 1e-10)``.
+    runtime_s : float
+        Wall time (s) of the solve.
+    time_to_first_s : float or None
+        Wall time (s) to the first incumbent.
+    time_to_gap_s : float or None
+        Wall time (s) until the gap first fell to 1 % or less.
+    note : str
+        Why a fallback happened, if it did.
+    """
+
+    backend: str
+    status: str
+    x: np.ndarray | None = None
+    objective: float | None = None
+    bound: float | None = None
+    gap: float | None = None
+    runtime_s: float = 0.0
+    time_to_first_s: float | None = None
+    time_to_gap_s: float | None = None
+    note: str = ""
+    progress: list[tuple[float, float, float]] = field(default_factory=list)
+
+    @property
+    def has_solution(self) -> bool:
+        """True when an incumbent exists."""
+        return self.x is not None
+
+
+def relative_gap(objective: float | None, bound: float | None) -> float | None:
+    """Relative MIP gap of a maximisation, ``(bound - obj) / max(|obj|, 1e-10)``, >= 0."""
+    if objective is None or bound is None or not math.isfinite(objective) or not math.isfinite(bound):
+        return None
+    return max(0.0, bound - objective) / max(abs(objective), 1e-10)
+
+
+class _Progress:
+    """Incumbent/bound bookkeeping shared by the backends' callbacks."""
+
+    def __init__(self, t0: float) -> None:
+        self.t0 = t0
+        self.first: float | None = None
+        self.at_gap: float | None = None
+        self.trace: list[tuple[float, float, float]] = []
+
+    def update(self, objective: float, bound: float) -> None:
+        # the solvers report "none yet" as +-inf (HiGHS) or +-1e100 (Gurobi)
+        objective = objective if abs(objective) < 1e99 else math.inf
+        bound = bound if abs(bound) < 1e99 else math.inf
+        now = time.perf_counter() - self.t0
+        if math.isfinite(objective) and self.first is None:
+            self.first = now
+        gap = relative_gap(objective, bound) if math.isfinite(objective) else None
+        if gap is not None and gap <= REPORT_GAP and self.at_gap is None:
+            self.at_gap = now
+        if math.isfinite(objective) and (not self.trace or self.trace[-1][1] != objective):
+            self.trace.append((now, float(objective), float(bound)))
+
+
+def solve_milp(
+    model: MilpModel,
+    backend: str = "highs",
+    time_limit_s: float = 30.0,
+    mip_gap: float = 0.01,
+    threads: int = 0,
+    should_stop: StopCheck | None = None,
+    start: np.ndarray | None = None,
+) -> SolveResult:
+    """Solve a :class:`MilpModel` with HiGHS or Gurobi.
+
+    Parameters
+    ----------
+    model : MilpModel
+        The model (maximisation).
+    backend : str
+        ``highs``, ``gurobi`` or ``auto`` (Gurobi when fully licensed).
+    time_limit_s : float
+        Wall-clock limit (s).
+    mip_gap : float
+        Relative gap at which to stop.
+    threads : int
+        Solver threads; 0 lets the solver choose.
+    should_stop : callable, optional
+        Polled from the solver's callbacks; True interrupts the solve (the
+        incumbent, if any, is kept; status ``interrupted``).
+    start : numpy.ndarray, optional
+        A feasible (or partial) solution to start from.
+
+    Returns
+    -------
+    SolveResult
+    """
+    if backend not in ("auto", "highs", "gurobi"):
+        raise ValueError(f"unknown MILP backend {backend!r}")
+    backend = resolve_backend(backend)
+    if backend == "gurobi":
+        try:
+            return _solve_gurobi(model, time_limit_s, mip_gap, threads, should_stop, start)
+        except _GurobiUnavailable as exc:
+            log.warning("Gurobi unavailable (%s); solving with HiGHS", exc)
+            result = _solve_highs(model, time_limit_s, mip_gap, threads, should_stop, start)
+            result.note = f"gurobi fallback: {exc}"
+            return result
+    return _solve_highs(model, time_limit_s, mip_gap, threads, should_stop, start)
+
+
+# --------------------------------------------------------------------- HiGHS
+
+def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads: int,
+                 should_stop: StopCheck | None, start: np.ndarray | None) -> SolveResult:
+    import highspy
+
+    t0 = time.perf_counter()
+    h = highspy.Highs()
+    h.setOptionValue("output_flag", False)
+    h.setOptionValue("time_limit", float(max(time_limit_s, 0.01)))
+    h.setOptionValue("mip_rel_gap", float(mip_gap))
+    h.setOptionValue("random_seed", 0)
+    if threads > 0:
+        h.setOptionValue("threads", int(threads))
+
+    lp = highspy.HighsLp()
+    lp.num_col_ = model.n_vars
+    lp.num_row_ = model.n_rows
+    lp.col_cost_ = np.asarray(model.c, float)
+    lp.col_lower_ = np.asarray(model.col_lo, float)
+    lp.col_upper_ = np.asarray(model.col_hi, float)
+    lp.row_lower_ = np.where(np.isfinite(model.row_lo), model.row_lo, -highspy.kHighsInf)
+    lp.row_upper_ = np.where(np.isfinite(model.row_hi), model.row_hi, highspy.kHighsInf)
+    lp.sense_ = highspy.ObjSense.kMaximize
+    csc = sp.csc_matrix(model.A)
+    csc.sort_indices()
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    lp.a_matrix_.num_col_ = model.n_vars
+    lp.a_matrix_.num_row_ = model.n_rows
+    lp.a_matrix_.start_ = csc.indptr.astype(np.int32)
+    lp.a_matrix_.index_ = csc.indices.astype(np.int32)
+    lp.a_matrix_.value_ = csc.data.astype(float)
+    lp.integrality_ = [highspy.HighsVarType.kInteger if i else highspy.HighsVarType.kContinuous
+                       for i in model.integer]
+    h.passModel(lp)
+    if start is not None:
+        sol = highspy.HighsSolution()
+        sol.col_value = list(np.asarray(start, float))
+        sol.value_valid = True
+        h.setSolution(sol)
+
+    progress = _Progress(t0)
+    interrupted = [False]
+
+    def on_improving(event) -> None:
+        out = event.data_out
+        progress.update(out.mip_primal_bound if math.isfinite(out.mip_primal_bound)
+                        else out.objective_function_value, out.mip_dual_bound)
+
+    def on_interrupt(event) -> None:
+        out = event.data_out
+        progress.update(out.mip_primal_bound, out.mip_dual_bound)
+        if should_stop is not None and should_stop():
+            interrupted[0] = True
+            event.interrupt()
+
+    h.cbMipImprovingSolution += on_improving
+    h.cbMipInterrupt += on_interrupt
+    h.run()
+    runtime = time.perf_counter() - t0
+
+    ms = h.getModelStatus()
+    info = h.getInfo()
+    sol = h.getSolution()
+    MS = highspy.HighsModelStatus
+    has_x = info.primal_solution_status == highspy.SolutionStatus.kSolutionStatusFeasible
+    x = np.asarray(sol.col_value, float) if has_x else None
+    objective = float(info.objective_function_value) if has_x else None
+    bound = float(info.mip_dual_bound) if math.isfinite(info.mip_dual_bound) else None
+    if ms == MS.kOptimal:
+        status = "optimal"
+        if bound is None and objective is not None:
+            bound = objective
+    elif ms == MS.kTimeLimit:
+        status = "time_limit"
+    elif ms == MS.kInterrupt or interrupted[0]:
+        status = "interrupted"
+    elif ms in (MS.kInfeasible, MS.kUnboundedOrInfeasible):
+        status = "infeasible"
+    else:
+        status = f"error: {h.modelStatusToString(ms)}"
+    if objective is not None:
+        progress.update(objective, bound if bound is not None else math.inf)
+    return SolveResult(
+        backend="highs", status=status, x=x, objective=objective, bound=bound,
+        gap=relative_gap(objective, bound), runtime_s=runtime,
+        time_to_first_s=progress.first if x is not None else None,
+        time_to_gap_s=progress.at_gap, progress=progress.trace,
+    )
+
+
+# -------------------------------------------------------------------- Gurobi
+
+class _GurobiUnavailable(RuntimeError):
+    """gurobipy missing, no licence, or the model exceeds a size-limited licence."""
+
+
+def _gurobi_env():
+    try:
+        import gurobipy as gp
+    except ImportError as exc:  # pragma: no cover - gurobipy is a dependency here
+        raise _GurobiUnavailable("gurobipy is not installed") from exc
+    try:
+        env = gp.Env(empty=True)
+        env.setParam("OutputFlag", 0)
+        env.start()
+    except gp.GurobiError as exc:
+        raise _GurobiUnavailable(f"no licence ({exc})") from exc
+    return gp, env
+
+
+def _licence_file_present() -> bool:
+    """True when a Gurobi licence file exists where Gurobi looks for one."""
+    import os
+    from pathlib import Path
+
+    env = os.environ.get("GRB_LICENSE_FILE")
+    if env:
+        return True  # Gurobi uses it (and reports a bad one itself)
+    places = [Path.home(), Path("/opt/gurobi"), Path("/Library/gurobi"), Path("C:/gurobi")]
+    return any((p / "gurobi.lic").is_file() for p in places)
+
+
+def resolve_backend(backend: str) -> str:
+    """``auto`` -> ``gurobi`` when fully licensed, else ``highs``; other names unchanged."""
+    if backend == "auto":
+        return "gurobi" if gurobi_fully_licensed() else "highs"
+    return backend
+
+
+def gurobi_fully_licensed() -> bool:
+    """True when Gurobi runs here without the pip licence's size limit.
+
+    Without a licence file (``$GRB_LICENSE_FILE``, or ``gurobi.lic`` in
+    Gurobi's default places: the home directory, ``/opt/gurobi``,
+    ``/Library/gurobi``, ``C:\\gurobi``) only the pip wheel's size-limited
+    licence can exist, so False comes back without importing gurobipy
+    (which takes seconds).  Otherwise it probes with an empty model one
+    variable over the size limit.
+    """
+    if not _licence_file_present():
+        return False
+    try:
+        gp, env = _gurobi_env()
+    except _GurobiUnavailable:
+        return False
+    try:
+        with gp.Model(env=env) as m:
+            m.addMVar(GUROBI_PIP_LIMIT + 1)
+            m.optimize()
+        return True
+    except gp.GurobiError:
+        return False
+    finally:
+        env.dispose()
+
+
+def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads: int,
+                  should_stop: StopCheck | None, start: np.ndarray | None) -> SolveResult:
+    gp, env = _gurobi_env()
+    GRB = gp.GRB
+    t0 = time.perf_counter()
+    progress = _Progress(t0)
+    interrupted = [False]
+    try:
+        m = gp.Model(env=env)
+        m.Params.TimeLimit = float(max(time_limit_s, 0.01))
+        m.Params.MIPGap = float(mip_gap)
+        m.Params.Seed = 0
+        if threads > 0:
+            m.Params.Threads = int(threads)
+        vtype = np.where(model.integer, GRB.INTEGER, GRB.CONTINUOUS)
+        lb = np.where(np.isfinite(model.col_lo), model.col_lo, -GRB.INFINITY)
+        ub = np.where(np.isfinite(model.col_hi), model.col_hi, GRB.INFINITY)
+        x = m.addMVar(model.n_vars, lb=lb, ub=ub, vtype=vtype)
+        m.setObjective(np.asarray(model.c, float) @ x, GRB.MAXIMIZE)
+        A = sp.csr_matrix(model.A)
+        eq = np.isfinite(model.row_lo) & (model.row_lo == model.row_hi)
+        lo = np.isfinite(model.row_lo) & ~eq
+        hi = np.isfinite(model.row_hi) & ~eq
+        if eq.any():
+            m.addMConstr(A[eq], x, "=", model.row_lo[eq])
+        if lo.any():
+            m.addMConstr(A[lo], x, ">", model.row_lo[lo])
+        if hi.any():
+            m.addMConstr(A[hi], x, "<", model.row_hi[hi])
+        if start is not None:
+            x.Start = np.asarray(start, float)
+
+        def callback(cb_model, where) -> None:
+            if where == GRB.Callback.MIP:
+                progress.update(cb_model.cbGet(GRB.Callback.MIP_OBJBST),
+                                cb_model.cbGet(GRB.Callback.MIP_OBJBND))
+            elif where == GRB.Callback.MIPSOL:
+                progress.update(cb_model.cbGet(GRB.Callback.MIPSOL_OBJBST),
+                                cb_model.cbGet(GRB.Callback.MIPSOL_OBJBND))
+            if should_stop is not None and where in (GRB.Callback.MIP, GRB.Callback.MIPNODE,
+                                                     GRB.Callback.MIPSOL) and should_stop():
+                interrupted[0] = True
+                cb_model.terminate()
+
+        try:
+            m.optimize(callback)
+        except gp.GurobiError as exc:
+            if exc.errno in (GRB.Error.SIZE_LIMIT_EXCEEDED, GRB.Error.NO_LICENSE):
+                raise _GurobiUnavailable(
+                    f"licence refuses a model of {model.n_vars} variables and {m.NumConstrs} constraints"
+                    f" (error {exc.errno})") from exc
+            raise
+        runtime = time.perf_counter() - t0
+        st = m.Status
+        has_x = m.SolCount > 0
+        xv = np.asarray(x.X, float) if has_x else None
+        objective = float(m.ObjVal) if has_x else None
+        bound = float(m.ObjBound) if has_x or st == GRB.OPTIMAL else None
+        if st == GRB.OPTIMAL:
+            status = "optimal"
+        elif st == GRB.TIME_LIMIT:
+            status = "time_limit"
+        elif st == GRB.INTERRUPTED or interrupted[0]:
+            status = "interrupted"
+        elif st in (GRB.INFEASIBLE, GRB.INF_OR_UNBD):
+            status = "infeasible"
+        else:
+            status = f"error: gurobi status {st}"
+        if objective is not None:
+            progress.update(objective, bound if bound is not None else math.inf)
+        m.dispose()
+    finally:
+        env.dispose()
+    return SolveResult(
+        backend="gurobi", status=status, x=xv, objective=objective, bound=bound,
+        gap=relative_gap(objective, bound), runtime_s=runtime,
+        time_to_first_s=progress.first if xv is not None else None,
+        time_to_gap_s=progress.at_gap, progress=progress.trace,
+    )

@@ -1,0 +1,1 @@
+"""The sky model: the LVK sky map, ZTF's field grid and footprints, merged cells, and when fields are observable."""

@@ -1,0 +1,341 @@
+"""5-sigma limiting magnitude of one ZTF exposure under the night's sky.
+
+A point source in a sky-background-limited exposure reaches signal-to-noise 5
+at a flux ``F5 ∝ sqrt(N_pix * S_sky / t)``; with the aperture ``N_pix ∝
+FWHM²`` and the sky flux ``S_sky = 10^(-0.4 mu)`` per arcsec², the limit is::
+
+    m5 = C_b + 1.25 log10(t / 30 s) + 0.5 (mu_b - mu_dark,b)
+             - k_b (X - 1) - 1.5 log10 X                              (D1)
+
+with ``C_b`` the depth of a 30 s exposure at the zenith on a dark night,
+``mu_b`` the sky surface brightness (mag/arcsec²) in the field's direction,
+``k_b`` the extinction (mag per airmass), and ``FWHM ∝ X^0.6`` (Kolmogorov
+seeing) giving the last term.  ZTF's exposures are sky limited from 30 s
+up (read noise ~ 10 e- against hundreds of sky electrons per pixel), so (D1)
+holds over the exposure times planned here.
+
+Sky brightness (flux sum of three terms, per band):
+
+* **Dark sky**, airglow and zodiacal light, brightening towards the horizon
+  as in Krisciunas & Schaefer (1991, PASP 103, 1033; "K&S"), eq. 2:
+  ``B = B_zen 10^(-0.4 k (X - 1)) X`` with X of their eq. 3.
+* **Moonlight**, K&S eqs. 15-21: the Moon's illuminance from its phase
+  angle, Rayleigh plus Mie scattering ``f(rho)`` at the Moon-field
+  separation ``rho``, the extinction of moonlight along the Moon's path
+  and the scattering column towards the field.  K&S is a V-band model; it
+  is used with each band's own extinction coefficient and the moonlit sky
+  is given the Sun's colours (AB, Willmer 2018 ApJS 236, 47:
+  g - V = +0.31, r - V = -0.15, i - V = -0.27).
+* **Twilight**: with the Sun between -18 deg and the horizon, extra sky
+  flux ``B_dark,zen (10^(0.4 s (h_sun + 18)) - 1)`` with ``s = 2.5/6``
+  mag/deg, i.e. the zenith sky 2.5 mag brighter than the night sky at the
+  end of nautical twilight (-12 deg), as measured by Tyson & Gal (1993,
+  AJ 105, 1206) and Patat et al. (2006, A&A 455, 385).
+
+Calibration: ``C_b`` is set so that the median of (D1) over a year of
+ZTF-like pointings (random night times with the Sun below -12 deg, random
+fields at airmass <= 2 and >= 20 deg from the Moon, all Moon phases) equals
+ZTF's published median depths in 30 s: g 20.8, r 20.6 (Masci et al. 2019,
+PASP 131, 018003; Bellm et al. 2019, PASP 131, 018002) and i 19.9 (Bellm
+et al. 2019).  ``tests/scheduler/test_depth.py`` repeats that calibration
+draw and checks it.  The dark-sky zenith brightnesses below (Palomar, g
+21.8, r 21.0, i 20.2 mag/arcsec²) only set how strongly moonlight and
+twilight compete with the night sky: the absolute depth comes from the
+calibration.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+from astropy import units as u
+from astropy.coordinates import TETE, AltAz, SkyCoord, get_body
+from astropy.time import Time
+
+from ..sky.visibility import site
+
+__all__ = [
+    "ZTF_MEDIAN_DEPTH_30S",
+    "SkyConditions",
+    "DepthModel",
+    "ZTF_DEPTH",
+    "sky_conditions",
+    "dark_zenith",
+    "sky_brightness",
+    "limiting_magnitude",
+]
+
+#: ZTF's published median 5-sigma depths (AB mag) of a 30 s exposure.
+ZTF_MEDIAN_DEPTH_30S: Mapping[str, float] = {"g": 20.8, "r": 20.6, "i": 19.9}
+
+#: Step (s) of the Sun and Moon ephemeris grid that :func:`sky_conditions` interpolates.
+EPHEMERIS_STEP_S = 600.0
+#: K&S eq. 3 constant (airmass of a thin layer at height ~ 10 km).
+_KS_AIRMASS = 0.96
+#: Sun colours (AB) relative to V, for the colour of moonlight (Willmer 2018).
+_SUN_MINUS_V: Mapping[str, float] = {"g": 0.31, "r": -0.15, "i": -0.27}
+
+
+@dataclass(frozen=True)
+class SkyConditions:
+    """Where an exposure points and what the sky does there (arrays broadcast).
+
+    Attributes
+    ----------
+    airmass : numpy.ndarray
+        Airmass of the field, sec z (>= 1).
+    moon_alt_deg : numpy.ndarray
+        Altitude of the Moon (deg).
+    moon_sep_deg : numpy.ndarray
+        Angular distance from the field to the Moon (deg).
+    moon_phase_deg : numpy.ndarray
+        Moon phase angle (deg): 0 full, 180 new.
+    sun_alt_deg : numpy.ndarray
+        Altitude of the Sun (deg).
+    """
+
+    airmass: np.ndarray
+    moon_alt_deg: np.ndarray
+    moon_sep_deg: np.ndarray
+    moon_phase_deg: np.ndarray
+    sun_alt_deg: np.ndarray
+
+
+def dark_zenith(shape: tuple[int, ...] = ()) -> SkyConditions:
+    """Zenith on a dark night: Moon set and new, Sun far below the horizon."""
+    return SkyConditions(
+        airmass=np.ones(shape), moon_alt_deg=np.full(shape, -30.0), moon_sep_deg=np.full(shape, 180.0),
+        moon_phase_deg=np.full(shape, 180.0), sun_alt_deg=np.full(shape, -30.0),
+    )
+
+
+def _ephemeris_at(grid: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Sun, Moon and sidereal time from Palomar at increasing JDs (UTC).
+
+    Returns (jd, sun_alt, moon_alt, moon_phase, moon_x, moon_y, moon_z, lst_unwrapped),
+    (n,) arrays (JD; deg; ICRS unit vector; deg, unwrapped so it can be interpolated).
+    """
+    loc = site()
+    tg = Time(grid, format="jd", scale="utc")
+    frame = AltAz(obstime=tg, location=loc)
+    sun = get_body("sun", tg, loc)
+    moon = get_body("moon", tg, loc)
+    elong = sun.separation(moon).rad
+    d_sun = sun.distance.to_value(u.km)
+    d_moon = moon.distance.to_value(u.km)
+    phase = np.abs(np.degrees(np.arctan2(d_sun * np.sin(elong), d_moon - d_sun * np.cos(elong))))
+    mra, mdec = np.radians(moon.ra.deg), np.radians(moon.dec.deg)
+    lst = np.degrees(np.unwrap(np.radians(tg.sidereal_time("apparent", longitude=loc.lon).deg)))
+    out = (np.asarray(grid, float), sun.transform_to(frame).alt.deg, moon.transform_to(frame).alt.deg, phase,
+           np.cos(mdec) * np.cos(mra), np.cos(mdec) * np.sin(mra), np.sin(mdec), lst)
+    for arr in out:
+        arr.setflags(write=False)
+    return out
+
+
+@functools.lru_cache(maxsize=16)
+def _ephemeris_day(day: int) -> tuple[np.ndarray, ...]:
+    """:func:`_ephemeris_at` over one UTC day (MJD ``day``: JD ``day + 2400000.5`` on), every EPHEMERIS_STEP_S.
+
+    UTC days split no night at Palomar (local midnight is 08:00 UTC); cached,
+    so the many calls of one plan or one objective cost one astropy call.
+    """
+    return _ephemeris_at(day + 2400000.5 + np.linspace(0.0, 1.0, int(round(86400.0 / EPHEMERIS_STEP_S)) + 1))
+
+
+def _ephemeris(jd: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Ephemeris covering the times ``jd``: cached day grids for a night or two, else at the times."""
+    first, last = int(np.floor(jd.min() - 2400000.5)), int(np.floor(jd.max() - 2400000.5))
+    if last - first > 2:  # e.g. a year of random times: no grid, one astropy call at the times
+        return _ephemeris_at(np.unique(jd) if np.unique(jd).size > 1 else np.array([jd.min(), jd.min() + 1e-6]))
+    parts = [_ephemeris_day(d) for d in range(first, last + 1)]
+    cols = [np.concatenate([p[k] if i == 0 else p[k][1:] for i, p in enumerate(parts)]) for k in range(7)]
+    lst = [parts[0][7]]
+    for p in parts[1:]:  # keep the unwrapped LST continuous across the days
+        lst.append(p[7][1:] + 360.0 * np.round((lst[-1][-1] - p[7][0]) / 360.0))
+    return (*cols, np.concatenate(lst))
+
+
+def sky_conditions(ra_deg: np.ndarray, dec_deg: np.ndarray, times: Time) -> SkyConditions:
+    """Airmass, Moon and Sun for pointings seen from Palomar.
+
+    Parameters
+    ----------
+    ra_deg, dec_deg : array_like
+        Pointing centres (deg, ICRS).
+    times : astropy.time.Time
+        Times of the exposures; broadcasts against ``ra_deg`` (e.g. fields
+        ``(n, 1)`` against slot times ``(m,)`` gives ``(n, m)`` conditions).
+
+    Returns
+    -------
+    SkyConditions
+        Arrays of the broadcast shape.  The Sun and the Moon come from
+        astropy at the distinct times, or on a grid of
+        :data:`EPHEMERIS_STEP_S` over their span when that is coarser,
+        linearly interpolated (the Moon moves 0.14 deg in 10 min);
+        field altitudes follow in closed form from the local apparent
+        sidereal time and the fields' apparent place (as in
+        :mod:`.visibility`), so a whole field-by-slot grid costs a few
+        astropy calls, not one per pointing.
+    """
+    ra = np.asarray(ra_deg, float)
+    dec = np.asarray(dec_deg, float)
+    jd = np.asarray(times.utc.jd, float)
+    loc = site()
+    lo, hi = float(jd.min()), float(jd.max())
+    eph = _ephemeris(jd.ravel())
+    grid = eph[0]
+
+    def at(values: np.ndarray) -> np.ndarray:
+        return np.interp(jd, grid, values)
+
+    sun_alt, moon_alt, phase, mx, my, mz = (at(v) for v in eph[1:7])
+    lst = at(eph[7]) % 360.0
+    mid = Time(0.5 * (lo + hi), format="jd", scale="utc")
+    flat_ra, flat_dec = np.broadcast_arrays(ra, dec)
+    app = SkyCoord(ra=flat_ra.ravel() * u.deg, dec=flat_dec.ravel() * u.deg, frame="icrs").transform_to(TETE(obstime=mid))
+    ra_app = app.ra.deg.reshape(flat_ra.shape)
+    dec_app = np.radians(app.dec.deg.reshape(flat_ra.shape))
+    lat = np.radians(loc.lat.deg)
+    ha = np.radians(lst - ra_app)
+    sin_alt = np.sin(lat) * np.sin(dec_app) + np.cos(lat) * np.cos(dec_app) * np.cos(ha)
+    airmass = np.where(sin_alt > 1e-3, 1.0 / np.maximum(sin_alt, 1e-3), np.inf)
+    fra, fdec = np.radians(ra), np.radians(dec)
+    norm = np.sqrt(mx ** 2 + my ** 2 + mz ** 2)
+    cos_sep = (np.cos(fdec) * np.cos(fra) * mx + np.cos(fdec) * np.sin(fra) * my + np.sin(fdec) * mz) / norm
+    sep = np.degrees(np.arccos(np.clip(cos_sep, -1.0, 1.0)))
+    shape = np.broadcast_shapes(ra.shape, dec.shape, jd.shape)
+    return SkyConditions(airmass=np.broadcast_to(airmass, shape), moon_alt_deg=np.broadcast_to(moon_alt, shape),
+                         moon_sep_deg=np.broadcast_to(sep, shape), moon_phase_deg=np.broadcast_to(phase, shape),
+                         sun_alt_deg=np.broadcast_to(sun_alt, shape))
+
+
+@dataclass(frozen=True)
+class DepthModel:
+    """Parameters of (D1) and of the sky model, per band.
+
+    Attributes
+    ----------
+    dark_zenith_depth_30s : mapping
+        ``C_b``: 5-sigma depth (AB) of a 30 s exposure at the zenith, dark sky.
+    dark_sky_zenith : mapping
+        Zenith night-sky brightness (mag/arcsec²) without Moon or twilight.
+    extinction : mapping
+        ``k_b`` (mag per airmass).
+    seeing_airmass_exponent : float
+        FWHM ∝ X^exponent (0.6 for Kolmogorov turbulence).
+    twilight_slope_mag_per_deg : float
+        ``s``: how fast the twilight sky fades with the Sun's depression.
+    """
+
+    dark_zenith_depth_30s: Mapping[str, float] = field(default_factory=lambda: {"g": 21.52, "r": 21.25, "i": 20.43})
+    dark_sky_zenith: Mapping[str, float] = field(default_factory=lambda: {"g": 21.8, "r": 21.0, "i": 20.2})
+    extinction: Mapping[str, float] = field(default_factory=lambda: {"g": 0.17, "r": 0.10, "i": 0.05})
+    seeing_airmass_exponent: float = 0.6
+    twilight_slope_mag_per_deg: float = 2.5 / 6.0
+
+    def _per_band(self, table: Mapping[str, float], bands: np.ndarray) -> np.ndarray:
+        missing = sorted(set(bands.ravel().tolist()) - set(table))
+        if missing:
+            raise ValueError(f"depth model has no band {', '.join(missing)} (bands: {', '.join(table)})")
+        uniq, inv = np.unique(bands, return_inverse=True)
+        return np.array([float(table[b]) for b in uniq.tolist()], dtype=float)[inv].reshape(bands.shape)
+
+
+#: The default model, calibrated to ZTF's median depths (see module notes).
+ZTF_DEPTH = DepthModel()
+
+
+def _ks_airmass(airmass: np.ndarray) -> np.ndarray:
+    """K&S eq. 3 airmass from sec z (saturates near the horizon)."""
+    cos_z = 1.0 / np.maximum(np.asarray(airmass, float), 1.0)
+    sin2 = 1.0 - cos_z ** 2
+    return 1.0 / np.sqrt(1.0 - _KS_AIRMASS * sin2)
+
+
+def _nl_to_mag(b_nl: np.ndarray) -> np.ndarray:
+    """nanoLamberts to V mag/arcsec² (K&S eq. 1 inverse)."""
+    with np.errstate(divide="ignore"):
+        return (20.7233 - np.log(np.asarray(b_nl, float) / 34.08)) / 0.92104
+
+
+def _moon_nl(cond: SkyConditions, k: np.ndarray) -> np.ndarray:
+    """Scattered moonlight (nanoLamberts) towards each field (K&S eqs. 15-21)."""
+    alpha = np.abs(np.asarray(cond.moon_phase_deg, float))
+    illum = 10.0 ** (-0.4 * (3.84 + 0.026 * alpha + 4e-9 * alpha ** 4))
+    rho = np.clip(np.asarray(cond.moon_sep_deg, float), 0.5, 180.0)
+    f_rho = 10.0 ** 5.36 * (1.06 + np.cos(np.radians(rho)) ** 2) + 10.0 ** (6.15 - rho / 40.0)
+    moon_alt = np.asarray(cond.moon_alt_deg, float)
+    x_moon = _ks_airmass(1.0 / np.maximum(np.sin(np.radians(np.maximum(moon_alt, 0.0))), 1e-3))
+    x_sky = _ks_airmass(cond.airmass)
+    b = f_rho * illum * 10.0 ** (-0.4 * k * x_moon) * (1.0 - 10.0 ** (-0.4 * k * x_sky))
+    return np.where(moon_alt > 0.0, b, 0.0)
+
+
+def sky_brightness(bands: np.ndarray, cond: SkyConditions, model: DepthModel = ZTF_DEPTH) -> np.ndarray:
+    """Sky surface brightness towards each field (mag/arcsec², AB).
+
+    Parameters
+    ----------
+    bands : array_like of str
+        Filter of each exposure (``g``, ``r``, ``i``).
+    cond : SkyConditions
+        Conditions broadcasting against ``bands``.
+    model : DepthModel
+        Sky parameters.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``mu_b``: dark sky (airglow brightening with airmass) + moonlight +
+        twilight, as magnitudes per arcsec².
+    """
+    bands = np.asarray(bands, dtype=str)
+    k = model._per_band(model.extinction, bands)
+    mu_dark = model._per_band(model.dark_sky_zenith, bands)
+    colour = model._per_band(_SUN_MINUS_V, bands)
+    x = np.asarray(cond.airmass, float)
+    xks = _ks_airmass(x)
+    dark = 10.0 ** (-0.4 * mu_dark) * 10.0 ** (-0.4 * k * (xks - 1.0)) * xks
+    moon = 10.0 ** (-0.4 * (_nl_to_mag(np.maximum(_moon_nl(cond, k), 1e-30)) + colour))
+    h = np.asarray(cond.sun_alt_deg, float)
+    tw_ratio = np.where(h > -18.0, 10.0 ** (0.4 * model.twilight_slope_mag_per_deg * (np.minimum(h, 0.0) + 18.0)) - 1.0,
+                        0.0)
+    twilight = 10.0 ** (-0.4 * mu_dark) * tw_ratio
+    return -2.5 * np.log10(dark + moon + twilight)
+
+
+def limiting_magnitude(bands: np.ndarray, exposure_s: np.ndarray, cond: SkyConditions,
+                       model: DepthModel = ZTF_DEPTH) -> np.ndarray:
+    """5-sigma limiting magnitude (AB) of exposures, equation (D1).
+
+    Parameters
+    ----------
+    bands : array_like of str
+        Filter of each exposure.
+    exposure_s : array_like
+        Exposure times (s).
+    cond : SkyConditions
+        Conditions of each exposure (e.g. :func:`sky_conditions`), broadcasting.
+    model : DepthModel
+        Calibrated parameters; default :data:`ZTF_DEPTH`.
+
+    Returns
+    -------
+    numpy.ndarray
+        Limiting magnitude (mag); ``-inf`` below the horizon.
+    """
+    bands = np.asarray(bands, dtype=str)
+    c = model._per_band(model.dark_zenith_depth_30s, bands)
+    k = model._per_band(model.extinction, bands)
+    mu_dark = model._per_band(model.dark_sky_zenith, bands)
+    mu = sky_brightness(bands, cond, model)
+    x = np.asarray(cond.airmass, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        m5 = (c + 1.25 * np.log10(np.asarray(exposure_s, float) / 30.0) + 0.5 * (mu - mu_dark)
+              - k * (x - 1.0) - 2.5 * model.seeing_airmass_exponent * np.log10(x))
+    return np.where(np.isfinite(x), m5, -np.inf)

@@ -1,0 +1,86 @@
+"""``mushrooms check PLAN_JSON SKYMAP``: the independent plan checker on a plan document."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import json
+import logging
+from pathlib import Path
+from typing import Sequence
+
+from .common import add_common_options, execute, tool_parser
+
+__all__ = ["HELP", "parser", "run", "main"]
+
+log = logging.getLogger("mushrooms.plan")
+
+HELP = "check a plan document against a sky map"
+
+
+def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
+    """The options of ``mushrooms check`` (added to ``p``, or to a new parser)."""
+    p = p if p is not None else tool_parser("check", HELP)
+    p.add_argument("plan", metavar="PLAN_JSON")
+    p.add_argument("skymap", metavar="SKYMAP")
+    add_common_options(p)
+    return p
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """``mushrooms check`` on its own."""
+    return execute("check", parser().parse_args(args), run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Check a plan document against a sky map; exit 1 when it fails.
+
+    The plan's embedded ``config`` is used unless ``--config`` is given.
+    """
+    from ..config import load_config
+    from ..offline import configure_astropy_offline
+    from ..scheduler_core import Plan, PlanningConfig, check_plan, read_skymap
+    from ..scheduler_core.errors import InputError
+
+    configure_astropy_offline()
+    config = load_config(args.config)
+    try:
+        doc = json.loads(Path(args.plan).read_text())
+    except FileNotFoundError:
+        raise InputError(f"plan not found: {args.plan}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read plan {args.plan}: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{args.plan} is not JSON: {exc}") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{args.plan} is not a plan document (not a JSON object)")
+    if doc.get("type") == "not_observable":
+        print(f"{args.plan}: a not_observable answer, no plan to check: {'; '.join(doc.get('reasons', []))}")
+        return 0
+    try:
+        plan = Plan.from_document(doc)
+    except ValueError as exc:
+        raise InputError(f"{args.plan}: {exc}") from None
+    planning = config.scheduler
+    if isinstance(doc.get("config"), dict) and not getattr(args, "config_explicit", False):
+        try:
+            planning = PlanningConfig.from_mapping(doc["config"])
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{args.plan}: embedded config: {exc}") from None
+        log.info("checking with the plan's embedded configuration (give --config to override)")
+    elif isinstance(doc.get("config"), dict):
+        log.info("checking with %s, not the plan's embedded configuration", args.config)
+    skymap = read_skymap(args.skymap, nside=planning.nside)
+    report = check_plan(plan, skymap, planning)
+    if report.ok:
+        print(f"{args.plan}: OK: {len(plan.observations)} exposures, coverage {report.coverage:.4f} "
+              f"(reported {report.reported_coverage})")
+        return 0
+    print(f"{args.plan}: FAILED with {sum(report.counts.values())} problem(s):")
+    for line in report.problems:
+        print(f"  {line}")
+    return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,95 @@
+"""What every tool shares: the common options, and running a command with one-line errors.
+
+Bad input (:class:`~mushrooms.scheduler_core.errors.InputError`,
+:class:`~mushrooms.config.ConfigError`) is answered by one line on stderr and
+exit status 2; an internal fault by one line and status 70 unless
+``--debug``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from typing import Callable
+
+__all__ = ["SOLVER_CHOICES", "EXIT_INPUT", "EXIT_INTERNAL", "add_common_options", "tool_parser",
+           "quiet_time_warnings", "execute"]
+
+#: ``--solver`` names (scheduler_core.config.SOLVER_NAMES, kept here so ``--help`` imports nothing heavy;
+#: tests/test_cli.py keeps the two equal).
+SOLVER_CHOICES = ["greedy", "slots", "blocks", "hybrid", "milp"]
+
+EXIT_INPUT = 2
+EXIT_INTERNAL = 70
+
+SOLVER_HELP = ("scheduler: greedy | slots | blocks (the paper's block MILP; milp = blocks) | hybrid "
+               "(default from config: hybrid)")
+
+
+def add_common_options(sp: argparse.ArgumentParser) -> None:
+    """``--config``, and the global ``--debug`` / ``--log-level`` accepted after the subcommand too."""
+    sp.add_argument("--config", metavar="FILE",
+                    help="config file; default $MUSHROOMS_CONFIG, else ./config.toml, else embedded defaults")
+    # SUPPRESS keeps the global value when the option is not repeated after the subcommand
+    sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+    sp.add_argument("--log-level", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+
+
+def tool_parser(name: str, help_text: str) -> argparse.ArgumentParser:
+    """A parser for one tool run on its own (``main(args)`` of a tool module)."""
+    return argparse.ArgumentParser(prog=f"mushrooms {name}", description=help_text)
+
+
+def quiet_time_warnings() -> None:
+    """No ERFA/IERS chatter: far-off times are reported once, in one line, by the command."""
+    import warnings
+
+    warnings.filterwarnings("ignore", message=r".*dubious year.*")
+    warnings.filterwarnings("ignore", message=r".*polar motions for times.*")
+    warnings.filterwarnings("ignore", message=r".*outside of range covered by IERS table.*")
+    warnings.filterwarnings("ignore", message=r".*IERS.*")
+    try:
+        from erfa import ErfaWarning
+    except ImportError:  # pragma: no cover - astropy always brings pyerfa
+        return
+    warnings.filterwarnings("ignore", category=ErfaWarning)
+
+
+def execute(name: str, args: argparse.Namespace, run: Callable[[argparse.Namespace], int]) -> int:
+    """Set up logging and the config path, run a command, and turn its errors into one line and a status."""
+    debug = bool(getattr(args, "debug", False))
+    log_level = getattr(args, "log_level", "INFO")
+    level = logging.DEBUG if debug else getattr(logging, str(log_level).upper(), None)
+    if not isinstance(level, int):
+        print(f"mushrooms {name}: error: --log-level {log_level!r}: expected DEBUG, INFO, WARNING "
+              "or ERROR", file=sys.stderr)
+        return EXIT_INPUT
+    logging.basicConfig(
+        level=level,
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+        stream=sys.stderr,
+    )
+    quiet_time_warnings()
+    from ..config import ConfigError, resolve_config_path
+    from ..scheduler_core.errors import InputError
+
+    try:
+        if hasattr(args, "config"):
+            given = args.config
+            path, why = resolve_config_path(given)
+            args.config, args.config_explicit = (str(path) if path else None), bool(given)
+            logging.getLogger("mushrooms.config").info("config: %s (%s)", path or "embedded defaults", why)
+        return int(run(args) or 0)
+    except (InputError, ConfigError) as exc:
+        print(f"mushrooms {name}: error: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        print(f"mushrooms {name}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # an internal fault: still one line unless --debug
+        if debug:
+            raise
+        print(f"mushrooms {name}: internal error: {type(exc).__name__}: {exc} (rerun with --debug)",
+              file=sys.stderr)
+        return EXIT_INTERNAL

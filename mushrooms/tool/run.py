@@ -1,0 +1,40 @@
+"""``mushrooms run``: the service, a GCN Kafka consumer (:mod:`mushrooms.daemon.service`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Sequence
+
+from .common import add_common_options, execute, tool_parser
+
+__all__ = ["HELP", "parser", "run", "main"]
+
+HELP = "run the service (GCN Kafka consumer)"
+
+
+def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
+    """The options of ``mushrooms run`` (added to ``p``, or to a new parser)."""
+    p = p if p is not None else tool_parser("run", HELP)
+    p.add_argument("--bootstrap", metavar="HOST:PORT", help="local plaintext broker, no credentials")
+    p.add_argument("--outbox", metavar="DIR", help="directory sink (overrides config)")
+    p.add_argument("--state", metavar="FILE", help="SQLite state file (overrides config)")
+    p.add_argument("--allow-mock", action="store_true", help="accept mock (MS) and test (TS) events")
+    add_common_options(p)
+    return p
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """``mushrooms run`` on its own."""
+    return execute("run", parser().parse_args(args), run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the service until SIGTERM; its exit status."""
+    from ..daemon.service import main as service_main
+
+    return service_main(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

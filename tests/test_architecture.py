@@ -1,0 +1,206 @@
+"""The package's shape, read from its source with ast: no import cycle, and data flows one way.
+
+Layers: ``daemon -> handlers -> scheduler_core``; ``mushrooms.evaluation``
+(benchmark, efficiency, baselines) sits beside them and only imports the
+scheduler.  Every import counts, at module level or inside a function
+(a lazy import is still a dependency), and relative imports are resolved.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE_DIR = Path(__file__).resolve().parents[1] / "mushrooms"
+
+#: (importer prefix, imported prefix): imports that must not exist.
+FORBIDDEN = (
+    ("mushrooms.scheduler_core", "mushrooms.evaluation"),
+    ("mushrooms.handlers", "mushrooms.evaluation"),
+    ("mushrooms.daemon", "mushrooms.evaluation"),
+    ("mushrooms.scheduler_core", "mushrooms.handlers"),
+    ("mushrooms.scheduler_core", "mushrooms.daemon"),
+    ("mushrooms.handlers", "mushrooms.daemon"),
+    # the daemon is below the command layer: it never reaches up into the tools
+    ("mushrooms.daemon", "mushrooms.tool"),
+    ("mushrooms.daemon", "mushrooms.cli"),
+    ("mushrooms.scheduler_core", "mushrooms.tool"),
+    ("mushrooms.handlers", "mushrooms.tool"),
+)
+
+
+def module_files(package_dir: Path) -> dict[str, tuple[Path, bool]]:
+    """Dotted module name -> (file, is a package ``__init__``) for every .py under ``package_dir``."""
+    root = package_dir.parent
+    out: dict[str, tuple[Path, bool]] = {}
+    for path in sorted(package_dir.rglob("*.py")):
+        parts = list(path.relative_to(root).with_suffix("").parts)
+        is_pkg = parts[-1] == "__init__"
+        if is_pkg:
+            parts = parts[:-1]
+        out[".".join(parts)] = (path, is_pkg)
+    return out
+
+
+def import_graph(package_dir: Path) -> dict[str, set[str]]:
+    """Module -> the package's own modules it imports (any depth in the file, relative ones resolved).
+
+    ``from pkg import name`` is an edge to ``pkg.name`` when that is a module,
+    else to ``pkg`` (its ``__init__``).  Imports outside the package are left out.
+    """
+    modules = module_files(package_dir)
+    top = package_dir.name
+    graph: dict[str, set[str]] = {}
+    for name, (path, is_pkg) in modules.items():
+        here = name.split(".") if is_pkg else name.split(".")[:-1]
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, ast.Import):
+                for alias in node.names:
+                    parts = alias.name.split(".")
+                    # "import a.b.c" imports a, a.b and a.b.c: the deepest that is ours is the edge
+                    for k in range(len(parts), 0, -1):
+                        if ".".join(parts[:k]) in modules:
+                            targets.add(".".join(parts[:k]))
+                            break
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = here[:len(here) - (node.level - 1)]
+                    module = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    module = node.module or ""
+                if module.split(".")[0] != top:
+                    continue
+                for alias in node.names:
+                    sub = f"{module}.{alias.name}"
+                    targets.add(sub if sub in modules else module)
+        graph[name] = {t for t in targets if t in modules and t != name}
+    return graph
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    cycles: list[list[str]] = []
+    counter = 0
+
+    def visit(v: str) -> None:  # recursion depth is bounded by the package's size
+        nonlocal counter
+        index[v] = low[v] = counter
+        counter += 1
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return sorted(cycles)
+
+
+def _within(module: str, prefix: str) -> bool:
+    return module == prefix or module.startswith(prefix + ".")
+
+
+def layering_violations(graph: dict[str, set[str]], forbidden=FORBIDDEN) -> list[str]:
+    """``importer -> imported`` lines for every edge a (from, to) rule forbids."""
+    return sorted(f"{a} -> {b}" for a, targets in graph.items() for b in targets
+                  for src, dst in forbidden if _within(a, src) and _within(b, dst))
+
+
+# ---------------------------------------------------------------- the real package
+@pytest.fixture(scope="module")
+def graph() -> dict[str, set[str]]:
+    return import_graph(PACKAGE_DIR)
+
+
+def test_the_graph_sees_the_package(graph):
+    # a sanity check that the scan reads what it should: known edges, lazy ones included
+    assert "mushrooms.scheduler_core.planner" in graph
+    assert "mushrooms.scheduler_core.problem" in graph["mushrooms.scheduler_core.planner"]
+    assert "mushrooms.evaluation.efficiency" in graph["mushrooms.evaluation.bench"]  # a function-level import
+    assert len(graph) > 50
+
+
+def test_no_import_cycle(graph):
+    assert import_cycles(graph) == []
+
+
+def test_data_flows_one_way(graph):
+    assert layering_violations(graph) == []
+
+
+def test_scheduler_core_is_a_library_on_its_own(graph):
+    # a notebook can use it without the service, the tools or the file-level config of the package
+    outside = sorted(f"{a} -> {b}" for a, targets in graph.items() if _within(a, "mushrooms.scheduler_core")
+                     for b in targets if not _within(b, "mushrooms.scheduler_core"))
+    assert outside == []
+
+
+def test_handlers_use_only_the_scheduler(graph):
+    outside = sorted(f"{a} -> {b}" for a, targets in graph.items() if _within(a, "mushrooms.handlers")
+                     for b in targets if not (_within(b, "mushrooms.handlers") or _within(b, "mushrooms.scheduler_core")))
+    assert outside == []
+
+
+# ---------------------------------------------------------------- the scan itself, on a tiny package
+def _package(tmp_path: Path, files: dict[str, str]) -> Path:
+    for rel, text in files.items():
+        p = tmp_path / "pkg" / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text(text)
+    return tmp_path / "pkg"
+
+
+def test_scan_finds_a_cycle_through_a_lazy_relative_import(tmp_path):
+    pkg = _package(tmp_path, {
+        "__init__.py": "",
+        "a.py": "from .sub.b import f\n",
+        "sub/__init__.py": "",
+        "sub/b.py": "def f():\n    from ..c import g\n    return g\n",
+        "c.py": "import pkg.a\n",
+        "d.py": "from pkg.sub import b\nimport json\n",
+    })
+    graph = import_graph(pkg)
+    assert graph["pkg.a"] == {"pkg.sub.b"}
+    assert graph["pkg.sub.b"] == {"pkg.c"}
+    assert graph["pkg.d"] == {"pkg.sub.b"}
+    assert import_cycles(graph) == [["pkg.a", "pkg.c", "pkg.sub.b"]]
+
+
+def test_scan_passes_an_acyclic_package_and_names_a_forbidden_edge(tmp_path):
+    pkg = _package(tmp_path, {
+        "__init__.py": "",
+        "scheduler_core/__init__.py": "from .x import y\n",
+        "scheduler_core/x.py": "y = 1\n",
+        "evaluation/__init__.py": "",
+        "evaluation/bench.py": "from ..scheduler_core import x\n",
+    })
+    graph = import_graph(pkg)
+    assert import_cycles(graph) == []
+    rules = (("pkg.scheduler_core", "pkg.evaluation"),)
+    assert layering_violations(graph, rules) == []
+    (pkg / "scheduler_core" / "x.py").write_text("def late():\n    from ..evaluation import bench\n")
+    graph = import_graph(pkg)
+    assert layering_violations(graph, rules) == ["pkg.scheduler_core.x -> pkg.evaluation.bench"]
+    assert import_cycles(graph) == [["pkg.evaluation.bench", "pkg.scheduler_core.x"]]
