@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import io
 import json
 import os
 import re
@@ -108,13 +109,41 @@ def new_sid(tag: str, i: int) -> str:
     return f"MS{datetime.now(timezone.utc):%y%m%d}{tag}{a[i // 26 % 26]}{a[i % 26]}"
 
 
+def retime_skymap(b64: str, merger: datetime) -> str:
+    """The base64 FITS sky map with its DATE-OBS / MJD-OBS moved to ``merger`` (the notice's event time).
+
+    A real notice's map carries the merger time of its notice; the daemon
+    reads the kilonova's clock (expected detections, the detection objective)
+    from the map, so a live-time copy must move it too.
+    """
+    from astropy.io import fits
+    from astropy.time import Time
+
+    t = Time(merger.replace(tzinfo=None), scale="utc")
+    with fits.open(io.BytesIO(base64.b64decode(b64))) as hdus:
+        for hdu in hdus:
+            if "DATE-OBS" in hdu.header:
+                hdu.header["DATE-OBS"] = t.isot
+            if "MJD-OBS" in hdu.header:
+                hdu.header["MJD-OBS"] = t.mjd
+        out = io.BytesIO()
+        hdus.writeto(out)
+    return base64.b64encode(out.getvalue()).decode()
+
+
 def stamp(doc: dict[str, Any], sid: str) -> bytes:
-    """A live-time copy: new id, created now, merger 60 s ago."""
+    """A live-time copy: new id, created now, merger 60 s ago (in the notice and in its sky maps)."""
     d = dict(doc)
     d["superevent_id"] = sid
     now = datetime.now(timezone.utc)
+    merger = now - timedelta(seconds=60)
     d["time_created"] = iso(now)
-    d["event"] = dict(d["event"], time=iso(now - timedelta(seconds=60)))
+    d["event"] = dict(d["event"], time=iso(merger))
+    if d["event"].get("skymap"):
+        d["event"]["skymap"] = retime_skymap(d["event"]["skymap"], merger)
+    ext = d.get("external_coinc")
+    if isinstance(ext, dict) and ext.get("combined_skymap"):
+        d["external_coinc"] = dict(ext, combined_skymap=retime_skymap(ext["combined_skymap"], merger))
     return json.dumps(d).encode()
 
 
