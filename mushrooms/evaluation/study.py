@@ -59,6 +59,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 from . import bench
+from .study_defaults import DEFAULT_SEED
 
 __all__ = [
     "DEFAULT_EVENTS",
@@ -82,8 +83,6 @@ log = logging.getLogger(__name__)
 #: The O3 BNS population of ``shared/data/skymaps/simulated/bns_o3_pipeline/``: the realised
 #: coincidences (21) of its first 600 injections (packaged; see ``data/populations/SOURCES.md``).
 DEFAULT_EVENTS = Path(__file__).resolve().parent.parent / "data" / "populations" / "bns_o3" / "events.xml.gz"
-#: Default solvers of a study.
-DEFAULT_SOLVERS = ("greedy", "hybrid")
 #: Frames of a failed task's traceback kept in its record.
 TRACEBACK_FRAMES = 4
 #: Packages whose versions every record carries.
@@ -175,7 +174,7 @@ class Population:
     """
 
     n_injections: int = 1000
-    seed: int = 2
+    seed: int = DEFAULT_SEED
     distribution: str = "bns_astro"
     waveform: str = "TaylorF2threePointFivePN"
     psd_scales: tuple[tuple[str, str, float], ...] = (

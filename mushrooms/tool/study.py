@@ -6,14 +6,10 @@ import argparse
 import sys
 from typing import Sequence
 
+from ..evaluation.study_defaults import DEFAULT_SEED, DEFAULT_SOLVERS
 from .common import add_common_options, execute, tool_parser
 
 __all__ = ["HELP", "parser", "run", "main"]
-
-#: Defaults of the options, the same as :mod:`mushrooms.evaluation.study`'s (a test keeps them equal);
-#: written here so that ``--help`` imports nothing of the evaluation (numpy, dask).
-DEFAULT_SOLVERS = ("greedy", "hybrid")
-DEFAULT_SEED = 2
 
 HELP = ("the paper's experiment on a Dask cluster: simulate or take sky maps, "
         "plan, score, tables and figures (resumable)")

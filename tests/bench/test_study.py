@@ -161,12 +161,3 @@ def test_localise_one_packaged_coincidence_with_bayestar(tmp_path) -> None:
     skymap = read_skymap(first["path"], nside=64)
     assert skymap.event_time is not None and skymap.distmean is not None
 
-
-def test_the_tools_option_defaults_are_the_studys():
-    """``mushrooms study --help`` keeps its defaults beside the parser (no numpy/dask import); they must be the study's."""
-    from mushrooms.evaluation import study as evaluation_study
-    from mushrooms.tool import study as tool_study
-
-    args = tool_study.parser().parse_args([])
-    assert tuple(args.solvers.split(",")) == evaluation_study.DEFAULT_SOLVERS
-    assert args.seed == evaluation_study.Population.seed

@@ -1,0 +1,12 @@
+"""Defaults of ``mushrooms study``, in a module of their own.
+
+The study (:mod:`mushrooms.evaluation.study`) and its command-line parser
+(:mod:`mushrooms.tool.study`) both read them; keeping them here lets
+``mushrooms study --help`` build its parser without importing numpy, dask
+or the scheduler.
+"""
+
+#: Solvers a study plans each map with.
+DEFAULT_SOLVERS: tuple[str, ...] = ("greedy", "hybrid")
+#: Seed of ``--simulate`` (bayestar-inject / realize-coincs).
+DEFAULT_SEED = 2
