@@ -22,6 +22,7 @@ PACKAGE_DIR = REPO / "mushrooms"
 #: Modules imported from an extra on purpose, with the extra that declares them.
 FROM_EXTRAS = {
     "jsonschema": "test",  # scheduler_core.plan.schema.validate_document, used by the tests only
+    "igwn_ligolw": "simulate",  # the study's injection chunks (evaluation/study.py split_injections)
     "distributed": "study",  # mushrooms study (evaluation/study.py): the task graph on Dask distributed
 }
 

@@ -68,6 +68,11 @@ __all__ = [
     "MapTask",
     "ResultStore",
     "simulate_population",
+    "SimulationError",
+    "inject_population",
+    "realize_chunk",
+    "split_injections",
+    "chunks_needed",
     "coinc_ids",
     "localise",
     "plan_and_score",
@@ -119,8 +124,26 @@ def software_versions() -> dict[str, str]:
     return out
 
 
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child between fork and exec
+    """Linux: the tool gets SIGKILL when the worker that started it dies (no orphaned BAYESTAR runs)."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except Exception:
+        pass
+
+
 def _run_tool(cmd: Sequence[str], cwd: str | Path | None = None, omp_threads: int | None = None) -> float:
-    """Run one ligo.skymap tool; its CPU time (s, children's user+sys); raise with its stderr tail."""
+    """Run one ligo.skymap tool; its CPU time (s, children's user+sys); raise with its stderr tail.
+
+    The tool runs in a session of its own, is killed with its process group
+    when the calling thread is interrupted, and (on Linux) dies with the
+    worker process that started it.
+    """
+    import signal
+
     env = dict(os.environ)
     if omp_threads is not None:
         env["OMP_NUM_THREADS"] = str(omp_threads)
@@ -128,10 +151,21 @@ def _run_tool(cmd: Sequence[str], cwd: str | Path | None = None, omp_threads: in
     if exe is None:
         raise RuntimeError(f"{cmd[0]} not found on PATH (ligo.skymap with lalsuite: pip install 'mushrooms[simulate]')")
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    proc = subprocess.run([exe, *cmd[1:]], cwd=cwd, env=env, capture_output=True, text=True)
+    proc = subprocess.Popen([exe, *cmd[1:]], cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True,
+                            preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+    try:
+        stdout, stderr = proc.communicate()
+    except BaseException:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait()
+        raise
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
-        tail = " | ".join((proc.stderr or proc.stdout).strip().splitlines()[-3:])
+        tail = " | ".join((stderr or stdout).strip().splitlines()[-3:])
         raise RuntimeError(f"{cmd[0]} exited {proc.returncode}: {tail}")
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
@@ -146,14 +180,17 @@ class Population:
     The defaults are the commands of ``shared/data/skymaps/simulated/SOURCES.md``
     (network H1, L1, V1 with the O3 noise curves scaled as there; single-detector
     threshold 4 at injection, network SNR >= 8 with 70 % duty cycle at
-    realisation).
+    realisation).  The injections are realised in chunks of ``chunk``
+    consecutive injections, one ``bayestar-realize-coincs`` task each, chunk
+    ``k`` with seed ``seed + 1 + k`` (so a chunk's coincidences do not depend
+    on how many workers there are, nor on how many chunks are realised).
 
     Attributes
     ----------
     n_injections : int
-        ``bayestar-inject --nsamples``.
+        ``bayestar-inject --nsamples``: injections drawn.
     seed : int
-        Seed of both injection and realisation.
+        Seed of the injections (and, offset by chunk, of their realisation).
     distribution : str
         ``bayestar-inject --distribution``.
     waveform : str
@@ -171,6 +208,8 @@ class Population:
         same preset's distributions (``bns_astro``: masses normal(1.33, 0.09)
         Msun within [1, 2], aligned spins uniform in [-0.05, 0.05]; seeded)
         and pass them with ``--distribution-samples`` (N horizons instead).
+    chunk : int
+        Injections per realisation task (~1.2 s of CPU per injection here).
     """
 
     n_injections: int = 1000
@@ -182,30 +221,37 @@ class Population:
     duty_cycle: float = 0.7
     net_snr_threshold: float = 8.0
     intrinsic_samples: int | None = None
+    chunk: int = 50
 
     def key(self) -> str:
-        """Cache key of this recipe."""
-        return _digest(dataclasses.asdict(self))
+        """Cache key of the injections (the realisation chunk size is not part of it)."""
+        d = dataclasses.asdict(self)
+        d.pop("chunk")
+        return _digest(d)
+
+    def chunks(self) -> list[tuple[int, int]]:
+        """The realisation chunks: ``(start, stop)`` injection indices, in order."""
+        if self.chunk < 1:
+            raise ValueError(f"chunk must be >= 1, got {self.chunk}")
+        return [(a, min(a + self.chunk, self.n_injections)) for a in range(0, self.n_injections, self.chunk)]
 
 
-def simulate_population(population: Population, directory: str | Path) -> str:
-    """Inject and realise a population with ligo.skymap's tools; the events file (cached).
+def inject_population(population: Population, directory: str | Path, jobs: int = 1) -> str:
+    """Noise curves and injections with ligo.skymap's tools; the path of ``injections.xml`` (cached).
 
-    Writes ``psds.xml``, ``injections.xml`` and ``events.xml.gz`` in
-    ``directory / population.key()`` (the events file last, by rename, so a
-    half-made population is never taken for a finished one).
-
-    Returns
-    -------
-    str
-        Path of ``events.xml.gz``.
+    Writes ``psds.xml`` and ``injections.xml`` in ``directory /
+    population.key()`` (the injections last, by rename, so a half-made file is
+    never taken for a finished one).  ``jobs``: ``bayestar-inject -j``
+    (processes for its horizon computation).
     """
     d = Path(directory) / population.key()
-    events = d / "events.xml.gz"
-    if events.exists():
-        return str(events)
+    injections = d / "injections.xml"
+    if injections.exists():
+        return str(injections)
     d.mkdir(parents=True, exist_ok=True)
-    (d / "population.json").write_text(json.dumps(dataclasses.asdict(population), indent=1))
+    meta = dataclasses.asdict(population)
+    meta.pop("chunk")
+    (d / "population.json").write_text(json.dumps(meta, indent=1))
     psd = ["bayestar-sample-model-psd", "-o", "psds.xml"]
     for det, model, scale in population.psd_scales:
         psd += [f"--{det}", model, f"--{det}-scale", str(scale)]
@@ -218,15 +264,178 @@ def simulate_population(population: Population, directory: str | Path) -> str:
     _run_tool(["bayestar-inject", "-l", "error", "--seed", str(population.seed),
                *source, "--reference-psd", "psds.xml",
                "--waveform", population.waveform, "--snr-threshold", "4", "--min-triggers", "1",
-               "--nsamples", str(population.n_injections), "-j", "1", "-o", "injections.xml"], cwd=d, omp_threads=1)
-    _run_tool(["bayestar-realize-coincs", "--seed", str(population.seed), "-j", "1", "-l", "error",
-               "-o", "events.partial.xml.gz", "injections.xml", "--reference-psd", "psds.xml",
-               "--snr-threshold", "1", "--net-snr-threshold", str(population.net_snr_threshold),
-               "--min-triggers", "1", "--duty-cycle", str(population.duty_cycle), "--keep-subthreshold",
-               "--measurement-error", "gaussian-noise", "--detector",
-               *[det for det, _, _ in population.psd_scales]], cwd=d, omp_threads=1)
-    os.replace(d / "events.partial.xml.gz", events)
-    return str(events)
+               "--nsamples", str(population.n_injections), "-j", str(max(1, int(jobs))),
+               "-o", "injections.partial.xml"], cwd=d, omp_threads=1)
+    os.replace(d / "injections.partial.xml", injections)
+    return str(injections)
+
+
+def split_injections(injections: str | Path, start: int, stop: int, target: str | Path) -> int:
+    """Write injections ``[start, stop)`` of a LIGO-LW injection file to ``target``; how many.
+
+    Every other table (process, process_params) is kept, so the chunk is a
+    valid input of ``bayestar-realize-coincs``.
+    """
+    from igwn_ligolw import lsctables
+    from igwn_ligolw import utils as ligolw_utils
+    from ligo.skymap.io.events.ligolw import ContentHandler
+
+    doc = ligolw_utils.load_filename(str(injections), contenthandler=ContentHandler)
+    table = lsctables.SimInspiralTable.get_table(doc)
+    rows = list(table)[start:stop]
+    table[:] = rows
+    ligolw_utils.write_filename(doc, str(target), trap_signals=None)  # runs in worker threads: no signal traps
+    return len(rows)
+
+
+def realize_chunk(population: Population, injections: str, k: int) -> dict[str, Any]:
+    """Realise chunk ``k`` of a population's injections (``bayestar-realize-coincs``; cached).
+
+    Returns
+    -------
+    dict
+        ``chunk``, ``events`` (the chunk's ``events.xml.gz``), ``injections``
+        (in the chunk), ``coincidences``, ``cpu_s``, ``wall_s``, ``cached``.
+    """
+    start, stop = population.chunks()[k]
+    d = Path(injections).parent / f"realized-{population.chunk}"
+    events = d / f"events-{k:04d}.xml.gz"
+    if events.exists():
+        return dict(chunk=k, events=str(events), injections=stop - start, coincidences=len(coinc_ids(events)),
+                    cpu_s=0.0, wall_s=0.0, cached=True)
+    d.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(dir=d, prefix=f".{k:04d}-") as tmp:
+        part = Path(tmp) / "injections.xml"
+        split_injections(injections, start, stop, part)
+        cpu = _run_tool(["bayestar-realize-coincs", "--seed", str(population.seed + 1 + k), "-j", "1", "-l", "error",
+                         "-o", "events.xml.gz", "injections.xml", "--reference-psd",
+                         str(Path(injections).parent / "psds.xml"),
+                         "--snr-threshold", "1", "--net-snr-threshold", str(population.net_snr_threshold),
+                         "--min-triggers", "1", "--duty-cycle", str(population.duty_cycle), "--keep-subthreshold",
+                         "--measurement-error", "gaussian-noise", "--detector",
+                         *[det for det, _, _ in population.psd_scales]], cwd=tmp, omp_threads=1)
+        n = len(coinc_ids(Path(tmp) / "events.xml.gz"))
+        os.replace(Path(tmp) / "events.xml.gz", events)
+    return dict(chunk=k, events=str(events), injections=stop - start, coincidences=n, cpu_s=round(cpu, 2),
+                wall_s=round(time.perf_counter() - t0, 2), cached=False)
+
+
+def chunks_needed(coincidences: Mapping[int, int], n_chunks: int, target: int | None) -> int | None:
+    """How many leading chunks make the population, once that is known.
+
+    Parameters
+    ----------
+    coincidences : mapping
+        Coincidences found per realised chunk index (any order, gaps allowed).
+    n_chunks : int
+        Chunks of the whole injection set.
+    target : int or None
+        Coincidences wanted (None: every chunk).
+
+    Returns
+    -------
+    int or None
+        The smallest ``K`` whose chunks ``0 .. K-1`` hold at least ``target``
+        coincidences, if those chunks are all realised; ``n_chunks`` when all
+        are realised and still short of it; None while it cannot be known yet.
+        The answer depends only on the chunks' contents, not on the order they
+        finished in (so neither on the number of workers).
+    """
+    total = 0
+    for k in range(n_chunks):
+        if k not in coincidences:
+            return None
+        total += coincidences[k]
+        if target is not None and total >= target:
+            return k + 1
+    return n_chunks
+
+
+class SimulationError(RuntimeError):
+    """A simulation tool failed: the study has no population to go on with."""
+
+
+def simulate_population(population: Population, directory: str | Path, client: Any = None,
+                        detections: int | None = None, jobs: int = 1,
+                        progress: bool = False) -> tuple[list[str], list[dict[str, Any]]]:
+    """Inject and realise a population; its events files, in chunk order, and the chunks' records.
+
+    Injection is one task (``bayestar-inject -j jobs``); realisation one task
+    per chunk of :attr:`Population.chunk` injections, at most as many in flight
+    as the cluster has threads, in chunk order, until the leading chunks hold
+    ``detections`` coincidences (:func:`chunks_needed`; None: all chunks).
+    Everything is cached under ``directory / population.key()``.
+
+    Parameters
+    ----------
+    population : Population
+        The recipe.
+    directory : path
+        Cache of populations.
+    client : distributed.Client, optional
+        The cluster; None runs the tools here, one after the other.
+    detections : int, optional
+        Coincidences wanted.
+    jobs : int
+        Processes for ``bayestar-inject``.
+    progress : bool
+        A tqdm bar over the chunks on stderr.
+    """
+    from tqdm import tqdm
+
+    n_chunks = len(population.chunks())
+    if client is None:
+        try:
+            injections = inject_population(population, directory, jobs)
+        except Exception as exc:
+            raise SimulationError(f"injecting: {type(exc).__name__}: {exc}") from exc
+        records: dict[int, dict[str, Any]] = {}
+        for k in range(n_chunks):
+            try:
+                records[k] = realize_chunk(population, injections, k)
+            except Exception as exc:
+                raise SimulationError(f"realising chunk {k}: {type(exc).__name__}: {exc}") from exc
+            if chunks_needed({i: r["coincidences"] for i, r in records.items()}, n_chunks, detections) is not None:
+                break
+    else:
+        from distributed import as_completed
+
+        inject = client.submit(inject_population, population, str(directory), jobs,
+                               key=f"inject-{population.key()}", pure=False)
+        try:
+            injections = inject.result()
+        except Exception as exc:
+            raise SimulationError(f"injecting: {type(exc).__name__}: {exc}") from exc
+        slots = max(1, sum(client.nthreads().values()))
+        records = {}
+        nxt = 0
+        pending = as_completed()
+        bar = tqdm(total=n_chunks, desc="realise", unit="chunk", disable=not progress, file=sys.stderr)
+        try:
+            while True:
+                found = sum(r["coincidences"] for r in records.values())  # of chunks < nxt: a lower bound
+                while nxt < n_chunks and pending.count() < slots and (detections is None or found < detections):
+                    pending.add(client.submit(realize_chunk, population, injections, nxt,
+                                              key=f"realize-{population.key()}-{population.chunk}-{nxt}", pure=False))
+                    nxt += 1
+                if pending.is_empty():
+                    break
+                fut = next(pending)
+                if fut.status != "finished":
+                    raise SimulationError(f"realising {fut.key}: {type(fut.exception()).__name__}: {fut.exception()}")
+                rec = fut.result()
+                records[rec["chunk"]] = rec
+                bar.update(1)
+                bar.set_postfix_str(f"{sum(r['coincidences'] for r in records.values())} coincidences")
+                fut.release()
+        finally:
+            bar.close()
+    counts = {i: r["coincidences"] for i, r in records.items()}
+    used = chunks_needed(counts, n_chunks, detections) or n_chunks
+    used = min(used, len(records))
+    chosen = [records[k] for k in range(used) if k in records]
+    return [r["events"] for r in chosen], [records[k] for k in sorted(records)]
 
 
 def _write_intrinsic_samples(population: Population, path: Path) -> None:
@@ -249,6 +458,7 @@ def coinc_ids(events: str | Path) -> list[int]:
     """The coincidences of an events file, as ``bayestar-localize-coincs`` reads them (sorted)."""
     from ligo.skymap.io import events as gw_events
 
+    logging.getLogger("BAYESTAR").setLevel(logging.ERROR)  # its phase-convention notice, once per file
     return sorted(int(k) for k in gw_events.open(str(events)))
 
 
@@ -797,27 +1007,58 @@ def main(args: Any) -> int:
             raise InputError(f"--simulate must be >= 1, got {args.simulate}")
         if args.intrinsic_samples is not None and args.intrinsic_samples < 1:
             raise InputError(f"--intrinsic-samples must be >= 1, got {args.intrinsic_samples}")
+        if args.chunk < 1:
+            raise InputError(f"--chunk must be >= 1, got {args.chunk}")
+        if args.detections is not None and args.detections < 1:
+            raise InputError(f"--detections must be >= 1, got {args.detections}")
     else:
         events = args.events or str(DEFAULT_EVENTS)
         if not Path(events).is_file():
             raise InputError(f"no such events file: {events}")
+    if args.only_simulate and args.simulate is None:
+        raise InputError("--only-simulate goes with --simulate")
+    if args.detections is not None and args.simulate is None:
+        raise InputError("--detections goes with --simulate (for other inputs use --limit)")
     t0 = time.perf_counter()
     stages: dict[str, float] = {}
+    realized: list[dict[str, Any]] = []
     client = open_client(args.workers, args.scheduler, dashboard=args.dashboard)
     try:
         if not maps:
             if args.simulate is not None:
                 population = Population(n_injections=args.simulate, seed=args.seed,
-                                        intrinsic_samples=args.intrinsic_samples)
-                print(f"simulating {args.simulate} injections (seed {args.seed}) -> {cache / 'populations'}",
-                      file=sys.stderr)
-                events = client.submit(simulate_population, population, str(cache / "populations"),
-                                       key=f"simulate-{population.key()}", pure=False).result()
+                                        intrinsic_samples=args.intrinsic_samples, chunk=args.chunk)
+                print(f"simulating {args.simulate} injections (seed {args.seed}, chunks of {args.chunk}"
+                      + (f", until {args.detections} coincidences" if args.detections else "")
+                      + f") -> {cache / 'populations'}", file=sys.stderr)
+                jobs = max(1, sum(client.nthreads().values()))
+                try:
+                    files, realized = simulate_population(
+                        population, cache / "populations", client, detections=args.detections, jobs=jobs,
+                        progress=os.environ.get("MUSHROOMS_PROGRESS", "1") != "0")
+                except SimulationError as exc:
+                    print(f"mushrooms study: simulation failed: {exc}", file=sys.stderr)
+                    return 1
+                sim_log = ResultStore(out / "realizations.jsonl")
+                for rec in realized:
+                    sim_log.append(dict(kind="realization", population=dataclasses.asdict(population), **rec))
                 stages["simulate_s"] = time.perf_counter() - t0
-            ids = client.submit(coinc_ids, str(events), pure=False).result()
-            if not ids:
-                raise InputError(f"{events}: no coincidences")
-            maps = maps_from_events(str(events), cache, options, ids)
+                if args.only_simulate:
+                    n = sum(len(coinc_ids(f)) for f in files)
+                    print(f"simulated: {sum(r['injections'] for r in realized)} injection(s) realised in "
+                          f"{len(realized)} chunk(s), {len(files)} chunk(s) taken, {n} coincidence(s) in them; "
+                          f"CPU {sum(r['cpu_s'] for r in realized):.0f} s; wall {stages['simulate_s']:.0f} s")
+                    for f in files:
+                        print(f)
+                    return 0
+            else:
+                files = [str(events)]
+            for f in files:
+                maps += maps_from_events(f, cache, options, coinc_ids(f))
+            if not maps:
+                raise InputError(f"{', '.join(files)}: no coincidences")
+            if args.detections:
+                maps = maps[:args.detections]
         if args.limit:
             maps = maps[:args.limit]
         print(f"{len(maps)} map(s) x {len(settings.solvers)} solver(s) on "
@@ -840,6 +1081,9 @@ def main(args: Any) -> int:
               f"this run: {len(run.executed)} (map, solver) task(s), {len(run.failed)} failed, "
               f"{len(cpu)} localisation(s)" + (f" (CPU median {sorted(cpu)[len(cpu) // 2]:.0f} s, "
                                                f"total {sum(cpu):.0f} s)" if cpu else "")
+              + (f"; {sum(r['injections'] for r in realized)} injection(s) realised in {len(realized)} chunk(s), "
+                 f"{sum(r['coincidences'] for r in realized)} coincidence(s), CPU "
+                 f"{sum(r['cpu_s'] for r in realized):.0f} s" if realized else "")
               + f"; wall {wall:.0f} s " + json.dumps({k: round(v, 1) for k, v in stages.items()}))
     (out / "tables.md").write_text(text + "\n\n" + footer + "\n")
     print(text)

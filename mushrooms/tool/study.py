@@ -37,6 +37,13 @@ def add_arguments(sp: argparse.ArgumentParser) -> None:
     sp.add_argument("--intrinsic-samples", type=int, metavar="N",
                     help="with --simulate: N mass-spin points of bns_astro given to bayestar-inject "
                          "--distribution-samples instead of its preset's 10^4-cell horizon grid (~30 CPU-min)")
+    sp.add_argument("--detections", type=int, metavar="N",
+                    help="with --simulate: realise chunks of injections in order until they hold N coincidences, "
+                         "and localise those N")
+    sp.add_argument("--chunk", type=int, default=50, metavar="N",
+                    help="with --simulate: injections per bayestar-realize-coincs task (default %(default)s)")
+    sp.add_argument("--only-simulate", action="store_true",
+                    help="with --simulate: stop after the simulation (print its events files)")
     sp.add_argument("--limit", type=int, metavar="N", help="only the first N coincidences / maps")
     sp.add_argument("--solvers", default=",".join(DEFAULT_SOLVERS),
                     help="comma list of greedy,slots,blocks,hybrid,milp,gwemopt,gwemopt-repaired "
