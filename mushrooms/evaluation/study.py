@@ -5,9 +5,11 @@ Stages (each a task, or one task per event / per (map, solver)):
 (a) **sky maps** — one of
 
     * a new population simulated with ligo.skymap's own command-line tools
-      (``bayestar-sample-model-psd`` → ``bayestar-inject`` →
-      ``bayestar-realize-coincs``; the O3 BNS recipe of
-      ``shared/data/skymaps/simulated/SOURCES.md``, see :class:`Population`),
+      (``bayestar-sample-model-psd`` → ``bayestar-inject`` → one
+      ``bayestar-realize-coincs`` task per chunk of injections, realised in
+      order until they hold the coincidences asked for; the O3 BNS recipe of
+      ``shared/data/skymaps/simulated/SOURCES.md``, see :class:`Population`
+      and :func:`simulate_population`),
     * a file of realised coincidences (``events.xml.gz``; default the packaged
       O3 BNS population :data:`DEFAULT_EVENTS`: 600 injections, 21
       coincidences), localised one task per coincidence with
@@ -772,7 +774,7 @@ def run_study(client: Any, maps: Sequence[MapTask], settings: bench.BenchSetting
                     rec.update(ok=False, error=f"{type(exc).__name__}: {exc}"[:500],
                                traceback=_tb_of_future(fut))
                 loc_log.append(rec)
-                bar.set_postfix_str(f"localised {what.coinc_id}")
+                bar.set_postfix_str(f"localised {Path(what.events).name.split('.')[0]}:{what.coinc_id}")
             else:
                 m, s, k = what
                 if fut.status == "finished":

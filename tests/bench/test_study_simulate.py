@@ -91,3 +91,33 @@ def test_realize_chunk_runs_the_real_tool_and_caches_its_events(tmp_path):
     again = study.realize_chunk(pop, str(injections), 1)
     assert again["cached"] and again["events"] == first["events"]
     assert again["coincidences"] == first["coincidences"]
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--detections", "5"], "--detections goes with --simulate"),
+    (["--only-simulate"], "--only-simulate goes with --simulate"),
+    (["--simulate", "100", "--chunk", "0"], "--chunk must be >= 1"),
+    (["--simulate", "100", "--detections", "0"], "--detections must be >= 1"),
+])
+def test_bad_simulation_options_are_one_line_and_exit_2(tmp_path, capsys, args, says):
+    from mushrooms.cli import main as cli_main
+
+    assert cli_main(["study", *args, "--workers", "1", "--out", str(tmp_path / "out"),
+                     "--cache", str(tmp_path / "cache")]) == 2
+    err = capsys.readouterr().err
+    assert says in err and "Traceback" not in err
+    assert not (tmp_path / "cache").exists()  # refused before any cluster or tool ran
+
+
+def test_a_failing_tool_stops_the_simulation_with_one_line(tmp_path, monkeypatch, capsys):
+    """No simulation tools on PATH: the injection task fails, the study says so and exits 1."""
+    from mushrooms.cli import main as cli_main
+
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    monkeypatch.setenv("MUSHROOMS_PROGRESS", "0")
+    rc = cli_main(["study", "--simulate", "100", "--workers", "1", "--out", str(tmp_path / "out"),
+                   "--cache", str(tmp_path / "cache")])
+    err = capsys.readouterr().err
+    assert rc == 1
+    assert "simulation failed: injecting" in err and "bayestar-sample-model-psd not found" in err
+    assert not list((tmp_path / "cache").rglob("injections.xml"))
