@@ -89,7 +89,10 @@ def run_scheduler(problem: PlanningProblem, solver: str,
     if left >= MIN_BLOCKS_S and not stopped:
         from .schedulers.block_schedule import milp_schedule
 
-        timed = dataclasses.replace(problem, config=dataclasses.replace(problem.config, time_limit_s=left))
+        # the block MILP is a coverage scheduler: its budget is what is left, whatever the objective (a
+        # detection config would refuse a budget shorter than its detection stage's share)
+        timed = dataclasses.replace(problem, config=dataclasses.replace(
+            problem.config, time_limit_s=left, objective="coverage"))
         blocks = milp_schedule(timed, should_stop)
         candidates.append(("blocks", blocks))
     covs = {name: published_coverage(problem, r) for name, r in candidates}

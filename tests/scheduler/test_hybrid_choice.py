@@ -27,3 +27,20 @@ def test_the_coverage_the_hybrid_compares_is_the_published_coverage(skymap_22072
     cfg0 = dataclasses.replace(cfg, min_gain=0.0)
     p0 = dataclasses.replace(problem, config=cfg0)
     assert abs(published_coverage(p0, greedy) - raw) < 1e-12
+
+
+def test_hybrid_under_a_detection_config_gives_its_blocks_stage_what_is_left(skymap_220722v, monkeypatch):
+    """run_scheduler with the default objective (detection): the blocks MILP's budget may be shorter than
+    the detection stage's share (found by `mushrooms study`: 'detection_time_limit_s (4 s) must be less
+    than time_limit_s (3.65 s)'); the blocks stage is a coverage scheduler and must still run."""
+    import mushrooms.scheduler_core.schedulers.slot_schedule as slot_module
+
+    real = slot_module.slot_schedule
+    monkeypatch.setattr(slot_module, "slot_schedule",
+                        lambda problem, should_stop=None, start=None, time_limit_s=None:
+                        real(problem, should_stop, start=start, time_limit_s=0.5))
+    cfg = PlanningConfig(time_limit_s=8.0, detection_time_limit_s=7.99, milp_backend="highs", objective="detection")
+    problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
+    result = run_scheduler(problem, "hybrid")
+    assert result.details["blocks_status"] != "skipped"  # > MIN_BLOCKS_S was left, < 7.99 s
+    assert result.observations
