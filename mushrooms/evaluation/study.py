@@ -354,6 +354,17 @@ def chunks_needed(coincidences: Mapping[int, int], n_chunks: int, target: int | 
     return n_chunks
 
 
+#: How often (s) the client looks at the simulation's tasks.
+POLL_S = 0.2
+
+
+def _result(fut: Any) -> Any:
+    """A future's result, waited for by polling (a blocking wait in the client does not see Ctrl-C)."""
+    while not fut.done():
+        time.sleep(POLL_S)
+    return fut.result()
+
+
 class SimulationError(RuntimeError):
     """A simulation tool failed: the study has no population to go on with."""
 
@@ -401,38 +412,45 @@ def simulate_population(population: Population, directory: str | Path, client: A
             if chunks_needed({i: r["coincidences"] for i, r in records.items()}, n_chunks, detections) is not None:
                 break
     else:
-        from distributed import as_completed
-
         inject = client.submit(inject_population, population, str(directory), jobs,
                                key=f"inject-{population.key()}", pure=False)
         try:
-            injections = inject.result()
+            injections = _result(inject)
         except Exception as exc:
             raise SimulationError(f"injecting: {type(exc).__name__}: {exc}") from exc
         slots = max(1, sum(client.nthreads().values()))
         records = {}
         nxt = 0
-        pending = as_completed()
+        inflight: list[Any] = []
         bar = tqdm(total=n_chunks, desc="realise", unit="chunk", disable=not progress, file=sys.stderr)
         try:
             while True:
                 found = sum(r["coincidences"] for r in records.values())  # of chunks < nxt: a lower bound
-                while nxt < n_chunks and pending.count() < slots and (detections is None or found < detections):
-                    pending.add(client.submit(realize_chunk, population, injections, nxt,
-                                              key=f"realize-{population.key()}-{population.chunk}-{nxt}", pure=False))
+                while nxt < n_chunks and len(inflight) < slots and (detections is None or found < detections):
+                    inflight.append(client.submit(realize_chunk, population, injections, nxt,
+                                                  key=f"realize-{population.key()}-{population.chunk}-{nxt}",
+                                                  pure=False))
                     nxt += 1
-                if pending.is_empty():
+                if not inflight:
                     break
-                fut = next(pending)
-                if fut.status != "finished":
-                    raise SimulationError(f"realising {fut.key}: {type(fut.exception()).__name__}: {fut.exception()}")
-                rec = fut.result()
-                records[rec["chunk"]] = rec
-                bar.update(1)
-                bar.set_postfix_str(f"{sum(r['coincidences'] for r in records.values())} coincidences")
-                fut.release()
+                done = [f for f in inflight if f.done()]
+                if not done:
+                    time.sleep(POLL_S)  # polled, not blocked in the client: Ctrl-C reaches us
+                    continue
+                for fut in done:
+                    inflight.remove(fut)
+                    if fut.status != "finished":
+                        raise SimulationError(f"realising {fut.key}: {type(fut.exception()).__name__}: "
+                                              f"{fut.exception()}")
+                    rec = fut.result()
+                    records[rec["chunk"]] = rec
+                    bar.update(1)
+                    bar.set_postfix_str(f"{sum(r['coincidences'] for r in records.values())} coincidences")
+                    fut.release()
         finally:
             bar.close()
+            for fut in inflight:
+                fut.cancel()
     counts = {i: r["coincidences"] for i, r in records.items()}
     used = chunks_needed(counts, n_chunks, detections) or n_chunks
     used = min(used, len(records))
