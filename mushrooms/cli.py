@@ -35,6 +35,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"mushrooms {__version__}")
     p.add_argument("--debug", action="store_true", help="show tracebacks and debug logs")
     p.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING (default INFO)")
+    p.add_argument("--config", dest="global_config", metavar="FILE",
+                   help="config file, before or after the command (after it wins)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for name, tool in TOOLS.items():
         tool.parser(sub.add_parser(name, help=tool.HELP, description=tool.HELP))
@@ -48,6 +50,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.command:
         parser.print_help()
         return EXIT_INPUT
+    if getattr(args, "config", None) is None and args.global_config is not None and hasattr(args, "config"):
+        args.config = args.global_config  # `mushrooms --config FILE plan ...`, like --debug
     return execute(args.command, args, TOOLS[args.command].run)
 
 

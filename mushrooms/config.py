@@ -20,10 +20,13 @@ from .handlers.policy import PolicyConfig
 from .scheduler_core.config import PlanningConfig
 from .scheduler_core.plan.exports import ExportConfig
 
-__all__ = ["Config", "ConfigError", "load_config", "resolve_config_path", "CONFIG_ENV"]
+__all__ = ["Config", "ConfigError", "load_config", "read_config_table", "resolve_config_path", "CONFIG_ENV"]
 
 #: Environment variable naming the config file when ``--config`` is not given.
 CONFIG_ENV = "MUSHROOMS_CONFIG"
+
+#: Largest config file read (bytes); the documented one is 10 KB.
+MAX_CONFIG_BYTES = 1024 * 1024
 
 
 class ConfigError(ValueError):
@@ -105,13 +108,28 @@ def load_config(path: str | Path | None = None) -> Config:
     """
     if path is None:
         return Config()
+    return Config.from_mapping(read_config_table(path), source=str(path))
+
+
+def read_config_table(path: str | Path) -> dict[str, Any]:
+    """The parsed TOML of a config file (a regular file: :mod:`mushrooms.inputs`), sections unchecked.
+
+    Raises
+    ------
+    ConfigError
+        When the file cannot be read or is not TOML.
+    """
+    from .inputs import read_regular_file
+    from .scheduler_core.errors import InputError
+
     p = Path(path)
     try:
-        text = p.read_text()
-    except OSError as exc:
-        raise ConfigError(f"cannot read config {p}: {exc.strerror or exc}") from None
+        text = read_regular_file(p, MAX_CONFIG_BYTES).decode()
+    except InputError as exc:
+        raise ConfigError(f"cannot read config {exc}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{p}: not valid TOML: not UTF-8 text") from None
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{p}: not valid TOML: {exc}") from None
-    return Config.from_mapping(data, source=str(p))

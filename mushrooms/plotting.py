@@ -257,5 +257,11 @@ def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int, answer: A
         area = float((credible <= 90.0).sum()) * hp.nside2pixarea(skymap.nside, degrees=True)
         fig.text(0.5, 0.925, f"90 % credible area {area:.0f} deg²; fields outlined, path in filter colours "
                              "(circle: first visit)", ha="center", fontsize=9)
-    fig.savefig(path, dpi=dpi)
+    import io
+
+    from .outputs import write_bytes_atomic
+
+    buf = io.BytesIO()  # rendered first, then written whole (a device or a symlink is never replaced)
+    fig.savefig(buf, dpi=dpi, format=Path(path).suffix.lstrip(".").lower() or "png")
     plt.close(fig)
+    write_bytes_atomic(path, buf.getvalue())

@@ -211,8 +211,10 @@ def test_check_uses_the_plans_embedded_configuration(tmp_path, capsys):
 def test_plan_of_an_unobservable_map_writes_not_observable_and_no_queue(tmp_path, capsys):
     cfg = write(tmp_path / "c.toml", FAST + "\n[export]\nskyportal_allocation_id = 3\n")
     out = tmp_path / "no.json"
-    assert main(["plan", "--config", str(cfg), "-o", str(out), "--queue", str(tmp_path / "q.json"),
-                 "--skyportal", str(tmp_path / "sp.json")]) == 0  # the bundled map: next to the Sun
+    from mushrooms.bundled import demo_skymap_path
+
+    assert main(["plan", str(demo_skymap_path()), "--config", str(cfg), "-o", str(out), "--queue",
+                 str(tmp_path / "q.json"), "--skyportal", str(tmp_path / "sp.json")]) == 0  # the bundled map: next to the Sun
     text = capsys.readouterr().out
     assert "NOT OBSERVABLE" in text and "q.json: not written (--queue): nothing to observe" in text
     assert not (tmp_path / "q.json").exists() and not (tmp_path / "sp.json").exists()

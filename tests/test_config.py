@@ -57,7 +57,7 @@ def test_config_toml_loads_to_the_defaults():
         ("this is not toml", "not valid TOML"),
         ("[scheduler]\nobjective = 'detection'\ntime_limit_s = 4.0\ndetection_time_limit_s = 4.0\n",
          "detection_time_limit_s .* must be less than time_limit_s"),
-        ("[scheduler]\ndetection_max_coverage_loss = 1.5\n", "detection_max_coverage_loss must be in"),
+        ("[scheduler]\ndetection_max_coverage_loss = 1.5\n", "detection_max_coverage_loss = 1.5: outside its range"),
     ],
 )
 def test_bad_configs_are_refused_with_a_reason(tmp_path, text, message):

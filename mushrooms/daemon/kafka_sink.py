@@ -19,6 +19,7 @@ import confluent_kafka
 
 from .credentials import CredentialsError, load_outbound_password
 from .kafka_logging import kafka_logger
+from ..scheduler_core.plan import strict_json
 from .settings import OutboundConfig
 from .sinks import SinkError
 
@@ -122,7 +123,7 @@ class KafkaSink:
             When the message is refused or not acknowledged within
             ``delivery_timeout_s``.
         """
-        value = json.dumps(message, separators=(",", ":"), sort_keys=False).encode()
+        value = strict_json.dumps(message, separators=(",", ":"), sort_keys=False).encode()
         key = _key(message)
         done = threading.Event()
         result: dict[str, Any] = {}

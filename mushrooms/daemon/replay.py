@@ -27,6 +27,8 @@ from typing import Sequence, TextIO
 from ..config import Config
 from ..handlers.alert import ALERT_TYPES, parse_notice
 from ..handlers.alert import NoticeError
+from ..inputs import read_regular_file
+from ..scheduler_core.errors import InputError
 from .pipeline import NoticePipeline, Outcome
 from .sinks import DirectorySink
 from .store import Store
@@ -105,9 +107,9 @@ def replay(pipeline: NoticePipeline, paths: Sequence[str | Path], out: TextIO | 
     read_errors: dict[Path, str] = {}
     for p in collect_notices(paths):
         try:
-            items.append((p, p.read_bytes()))
-        except OSError as exc:
-            read_errors[p] = f"cannot read {p}: {exc.strerror or exc}"
+            items.append((p, read_regular_file(p)))  # a FIFO or device is refused, never waited on
+        except InputError as exc:
+            read_errors[p] = str(exc)
             items.append((p, None))
     results: list[tuple[Path, Outcome]] = []
     for p, data, t in order_notices(items, pipeline.config.policy.max_notice_bytes):

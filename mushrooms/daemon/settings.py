@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ..scheduler_core.config import dataclass_from_table
+from ..scheduler_core.ranges import require_finite, setting
 
 __all__ = ["DaemonConfig", "KafkaConfig", "OutboundConfig", "RuntimePaths", "resolve_paths"]
 
@@ -71,17 +72,18 @@ class DaemonConfig:
     state_path: str = "mushrooms-state.sqlite"
     trigger_dir: str = "mushrooms-triggers"
     pid_file: str = "mushrooms.pid"
-    heartbeat_s: float = 30.0
-    max_jobs: int = 2
-    job_deadline_s: float = 300.0
+    heartbeat_s: float = setting(30.0, 1, 600, "s", why="systemd's status and the log line; the watchdog has its own clock")
+    max_jobs: int = setting(2, 1, 32, why="each job is a solver on a core")
+    job_deadline_s: float = setting(300.0, 1, 86400, "s", why="an alert's plan is due within minutes; a day at most")
     quarantine_dir: str = "mushrooms-quarantine"
-    accept_retries: int = 3
-    stop_grace_s: float = 20.0
-    supersede_min_gain: float = 0.005
+    accept_retries: int = setting(3, 1, 100)
+    stop_grace_s: float = setting(20.0, 0, 600, "s", why="below the unit's TimeoutStopSec")
+    supersede_min_gain: float = setting(0.005, 0, 1, why="probability")
     group_readable: bool = False
-    rejected_raw_retention_s: float = 2_592_000.0
+    rejected_raw_retention_s: float = setting(2_592_000.0, 0, 31_622_400, "s", why="up to a year")
 
     def __post_init__(self) -> None:
+        require_finite(self, "daemon")
         if not 0.0 <= self.supersede_min_gain <= 1.0:
             raise ValueError(f"[daemon] supersede_min_gain must be within 0-1, got {self.supersede_min_gain}")
         if self.max_jobs < 1:
@@ -133,13 +135,14 @@ class KafkaConfig:
     group_id: str = "mushrooms-ztf"
     domain: str = "gcn.nasa.gov"
     bootstrap: str = ""
-    poll_timeout_s: float = 1.0
+    poll_timeout_s: float = setting(1.0, 0, 10, "s", lo_open=True, why="signals are handled between polls")
     assignment: str = "group"
-    session_timeout_s: float = 30.0
-    max_message_bytes: int = 16_000_000
+    session_timeout_s: float = setting(30.0, 6, 300, "s", why="what a broker accepts by default (group.min/max.session.timeout.ms)")
+    max_message_bytes: int = setting(16_000_000, 1_000_000, 536_870_912, "bytes", why="a notice with its map is 1-2 MB")
     offset_reset: str = "earliest"
 
     def __post_init__(self) -> None:
+        require_finite(self, "kafka")
         if self.assignment not in ("group", "manual"):
             raise ValueError(f"[kafka] assignment must be group or manual, got {self.assignment!r}")
         if self.offset_reset not in ("earliest", "latest"):
@@ -195,15 +198,19 @@ class OutboundConfig:
     directory: str = "mushrooms-outbox"
     topic: str = "mushrooms.plans"
     bootstrap: str = ""
-    retry_initial_s: float = 2.0
-    retry_max_s: float = 300.0
-    max_message_bytes: int = 16_000_000
-    delivery_timeout_s: float = 30.0
+    retry_initial_s: float = setting(2.0, 0.1, 3600, "s", why="at most retry_max_s")
+    retry_max_s: float = setting(300.0, 0.1, 86400, "s")
+    max_message_bytes: int = setting(16_000_000, 1_000_000, 536_870_912, "bytes", why="librdkafka's message.max.bytes stops at 1e9")
+    delivery_timeout_s: float = setting(30.0, 1, 3600, "s")
     security_protocol: str = "plaintext"
     sasl_mechanism: str = "SCRAM-SHA-512"
     sasl_username: str = ""
 
     def __post_init__(self) -> None:
+        require_finite(self, "outbound")
+        if self.retry_initial_s > self.retry_max_s:
+            raise ValueError(f"[outbound] retry_initial_s ({self.retry_initial_s:g} s) must not exceed "
+                             f"retry_max_s ({self.retry_max_s:g} s)")
         if self.sink not in ("directory", "kafka"):
             raise ValueError(f"[outbound] sink must be directory or kafka, got {self.sink!r}")
         if self.security_protocol.lower() not in SECURITY_PROTOCOLS:

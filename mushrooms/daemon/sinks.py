@@ -16,6 +16,8 @@ import tempfile
 from pathlib import Path
 from typing import Any, Mapping, Protocol, runtime_checkable
 
+from ..scheduler_core.plan import strict_json
+
 __all__ = ["Sink", "DirectorySink", "MemorySink", "message_key", "SinkError"]
 
 
@@ -82,7 +84,7 @@ class DirectorySink:
 
     def publish(self, message: dict[str, Any]) -> None:
         target = self.path_for(message)
-        data = (json.dumps(message, indent=1) + "\n").encode()
+        data = (strict_json.dumps(message, indent=1) + "\n").encode()
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=self.directory)
         try:
             os.fchmod(fd, 0o644)  # mkstemp makes 0600; readers of the outbox need to read it
@@ -126,7 +128,7 @@ class MemorySink:
         if self.fail:
             self.fail -= 1
             raise SinkError("sink unavailable (test)")
-        self.messages.append(json.loads(json.dumps(message)))
+        self.messages.append(json.loads(strict_json.dumps(message)))
 
     def close(self) -> None:
         pass

@@ -59,6 +59,7 @@ from typing import Any, Callable, Iterator
 
 from ..handlers.decisions import Decision, EventState
 from ..handlers.text import storable
+from ..scheduler_core.plan import strict_json
 
 __all__ = ["Store", "StoreError", "StateInUse", "StateLock", "lock_state", "Job", "OutboxMessage", "NoticeRecord",
            "SCHEMA_VERSION", "RAW_PREFIX_BYTES"]
@@ -588,7 +589,7 @@ class Store:
     @staticmethod
     def _insert_outbox(c: sqlite3.Connection, key: str, kind: str, message: dict[str, Any]) -> int:
         cur = c.execute("INSERT INTO outbox(key, kind, body, created_at) VALUES (?,?,?,?)",
-                        (key, kind, json.dumps(message, sort_keys=False), _now()))
+                        (key, kind, strict_json.dumps(message, sort_keys=False), _now()))
         return int(cur.lastrowid)
 
     # ------------------------------------------------------------ jobs
@@ -736,7 +737,7 @@ class Store:
                           " revision, final) VALUES (?,?,?,?,?,0,?,?,?) ON CONFLICT(plan_id) DO UPDATE SET"
                           " withdrawn=0, job_id=excluded.job_id, seq=excluded.seq, document=excluded.document,"
                           " revision=excluded.revision, final=excluded.final",
-                          (plan_id, row["superevent_id"], job_id, now, seq, json.dumps(document), revision,
+                          (plan_id, row["superevent_id"], job_id, now, seq, strict_json.dumps(document), revision,
                            int(final)))
                 outbox_id = self._insert_outbox(c, plan_id, "plan", document)
             if final:

@@ -18,7 +18,6 @@ but a regular file read; the directory is created 0700 and the files 0600.
 from __future__ import annotations
 
 import argparse
-import errno
 import fcntl
 import logging
 import os
@@ -30,6 +29,7 @@ import time
 from pathlib import Path
 from typing import Any, IO
 
+from .. import inputs
 from ..scheduler_core.errors import InputError
 from .settings import RuntimePaths
 
@@ -47,26 +47,14 @@ MAX_TRIGGER_BYTES = 64 * 1024 * 1024
 
 
 def read_regular_file(path: Path, max_bytes: int = MAX_TRIGGER_BYTES) -> bytes:
-    """A regular file's bytes, never through a symbolic link nor from a FIFO or device.
+    """A trigger file's bytes: :func:`mushrooms.inputs.read_regular_file`, never through a symbolic link.
 
     Raises
     ------
     InputError
         A symbolic link, not a regular file, larger than ``max_bytes``, or unreadable.
     """
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
-    except OSError as exc:
-        if exc.errno == errno.ELOOP:
-            raise InputError(f"{path}: is a symbolic link; give the file itself") from None
-        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    with os.fdopen(fd, "rb") as fh:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            raise InputError(f"{path}: not a regular file")
-        if st.st_size > max_bytes:
-            raise InputError(f"{path}: {st.st_size} bytes is more than the {max_bytes}-byte trigger limit")
-        return fh.read(max_bytes + 1)[:max_bytes]
+    return inputs.read_regular_file(path, max_bytes, follow_symlinks=False)
 
 
 class DaemonRunning(RuntimeError):

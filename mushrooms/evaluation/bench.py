@@ -39,12 +39,13 @@ import multiprocessing
 import os
 import sys
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
+
+from ..scheduler_core.ranges import Range, check_table, check_value, setting
 
 __all__ = [
     "COLUMNS",
@@ -88,6 +89,10 @@ TIE_COVERAGE = 1e-4
 TIE_EFFICIENCY = 1e-3
 #: The paper's "similar schedule length" subset: exposure counts within this of gwemopt's.
 SIMILAR_LENGTH = 6
+
+
+#: ``[bench] maglim`` values: AB magnitudes a 300 s ZTF exposure may reach (21.7 in g and r).
+MAGLIM_RANGE = Range(10, 30, "mag")
 
 
 @dataclass(frozen=True)
@@ -144,14 +149,14 @@ class BenchSettings:
     lightcurves: Mapping[str, str] = field(default_factory=lambda: {
         "optimistic": "optimistic", "conservative": "conservative", "nsbh": "nsbh"})
     maglim: Mapping[str, float] = field(default_factory=lambda: {"g": 21.7, "r": 21.7, "i": 21.2})
-    fixed_distance_mpc: float | None = None
+    fixed_distance_mpc: float | None = setting(None, 1, 20_000, "Mpc", why="unset: no efficiency without distance layers")
     gwemopt_python: str | None = None
-    gwemopt_timeout_s: float = 1800.0
+    gwemopt_timeout_s: float = setting(1800.0, 1, 86400, "s")
     gwemopt_cache_dir: str | None = None
     gwemopt_cache_only: bool = False
     legacy_scoring: bool = True
     reference_solver: str | None = None
-    detection_extra_s: float = 0.0
+    detection_extra_s: float = setting(0.0, 0, 3600, "s")
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any], **base: Any) -> "BenchSettings":
@@ -160,6 +165,9 @@ class BenchSettings:
         unknown = sorted(set(values) - known)
         if unknown:
             raise ValueError(f"unknown [bench] key(s): {', '.join(unknown)}")
+        check_table(cls, values, "bench")
+        for band, mag in dict(values.get("maglim", {})).items():
+            check_value("bench", f"maglim.{band}", mag, MAGLIM_RANGE)
         kw = dict(values)
         kw.update(base)
         return cls(**kw)
@@ -836,18 +844,13 @@ def make_plots(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> list
 
 
 def _load_settings(args: Any) -> BenchSettings:
-    from ..config import ConfigError, Config
+    from ..config import ConfigError, Config, read_config_table
     from ..scheduler_core.errors import InputError
 
     bench_table: Mapping[str, Any] = {}
     if getattr(args, "config", None):
         p = Path(args.config)
-        try:
-            data = tomllib.loads(p.read_text())
-        except OSError as exc:
-            raise ConfigError(f"cannot read config {p}: {exc.strerror or exc}") from None
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"{p}: not valid TOML: {exc}") from None
+        data = read_config_table(p)
         bench_table = data.pop("bench", {}) or {}
         config = Config.from_mapping(data, source=str(p)).scheduler
     else:
@@ -864,12 +867,9 @@ def _load_settings(args: Any) -> BenchSettings:
         raise InputError(f"--jobs must be >= 1, got {args.jobs}")
     start_iso = None
     if getattr(args, "start", None):
-        from ..scheduler_core.plan.document import parse_time
+        from ..scheduler_core.times import parse_time
 
-        try:
-            start_iso = parse_time(args.start).isot
-        except ValueError as exc:
-            raise InputError(str(exc)) from None
+        start_iso = parse_time(args.start, "--start", mjd=True).isot
     try:
         return BenchSettings.from_mapping(bench_table, config=config, solvers=solvers, start_iso=start_iso,
                                           n_injections=int(args.injections))

@@ -61,6 +61,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 from . import bench
+from ..scheduler_core.plan import strict_json
 from .study_defaults import DEFAULT_SEED
 
 __all__ = [
@@ -253,7 +254,7 @@ def inject_population(population: Population, directory: str | Path, jobs: int =
     d.mkdir(parents=True, exist_ok=True)
     meta = dataclasses.asdict(population)
     meta.pop("chunk")
-    (d / "population.json").write_text(json.dumps(meta, indent=1))
+    (d / "population.json").write_text(strict_json.dumps(meta, indent=1))
     psd = ["bayestar-sample-model-psd", "-o", "psds.xml"]
     for det, model, scale in population.psd_scales:
         psd += [f"--{det}", model, f"--{det}-scale", str(scale)]
@@ -668,7 +669,7 @@ class ResultStore:
     def append(self, record: Mapping[str, Any]) -> None:
         """Write one record and put it on disk now."""
         with open(self.path, "a") as fh:
-            fh.write(json.dumps(record, default=str) + "\n")
+            fh.write(strict_json.dumps(record, default=str) + "\n")
             fh.flush()
             os.fsync(fh.fileno())
 

@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import Any, Mapping
 
+import astropy.units as _u
+
 from ..scheduler_core.errors import InputError
 from .text import storable
 
@@ -35,6 +37,9 @@ _ALIASES = {"EARLY_WARNING": "EARLYWARNING"}
 _AVRO_MAGIC = b"Obj\x01"
 _FITS_MAGIC = b"SIMPLE  ="
 _GZIP_MAGIC = b"\x1f\x8b"
+
+
+_SECOND = _u.s
 
 
 class NoticeError(InputError):
@@ -178,21 +183,23 @@ class Alert:
 def parse_time(value: Any, what: str = "time") -> datetime:
     """ISO-8601 string to a timezone-aware UTC datetime (naive means UTC).
 
+    The package's one parser (:func:`mushrooms.scheduler_core.times.parse_time`,
+    no MJD in a notice); a leap second is read as the second before it.
+
     Raises
     ------
     NoticeError
         When ``value`` is not an ISO-8601 string.
     """
+    from ..scheduler_core.times import parse_time as parse
+
     if not isinstance(value, str):
         raise NoticeError(f"{what} must be an ISO-8601 string, got {type(value).__name__}")
-    text = value.strip()
     try:
-        t = datetime.fromisoformat(text[:-1] + "+00:00" if text.endswith(("Z", "z")) else text)
-    except ValueError:
-        raise NoticeError(f"{what} is not an ISO-8601 time: {value[:40]!r}") from None
-    if t.tzinfo is None:
-        t = t.replace(tzinfo=timezone.utc)
-    return t.astimezone(timezone.utc)
+        t = parse(value, what)
+    except InputError as exc:
+        raise NoticeError(str(exc)) from None
+    return (t if t.ymdhms.second < 60 else t - 1 * _SECOND).to_datetime(timezone.utc)
 
 
 def _need(obj: Mapping[str, Any], key: str, where: str) -> Any:

@@ -13,6 +13,7 @@ from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, Mapping
 
 from ..scheduler_core.config import dataclass_from_table
+from ..scheduler_core.ranges import require_finite, setting
 
 if TYPE_CHECKING:  # pragma: no cover
     from .alert import Alert
@@ -52,7 +53,7 @@ class PolicyConfig:
         Require ``event.significant == true``.  Default True.
     max_far_hz : float
         Largest accepted false-alarm rate (Hz).  Default 3.86e-7 Hz (one per
-        month).  ``0`` or negative disables the FAR cut.
+        month).  ``0`` disables the FAR cut.
     min_p_bns_nsbh : float
         Threshold on ``classification.BNS + classification.NSBH``
         (probability, 0-1).  Default 0.1.
@@ -99,18 +100,19 @@ class PolicyConfig:
     groups: tuple[str, ...] = ("CBC",)
     alert_types: tuple[str, ...] = ("EARLYWARNING", "PRELIMINARY", "INITIAL", "UPDATE")
     require_significant: bool = True
-    max_far_hz: float = 3.86e-7
-    min_p_bns_nsbh: float = 0.1
-    min_has_ns: float = 0.5
-    max_notice_age_s: float = 3600.0
-    max_event_age_s: float = 172800.0
-    max_notice_bytes: int = 8_388_608
+    max_far_hz: float = setting(3.86e-7, 0, 1, "Hz", why="0 disables")
+    min_p_bns_nsbh: float = setting(0.1, 0, 1, why="probability")
+    min_has_ns: float = setting(0.5, 0, 1, why="probability")
+    max_notice_age_s: float = setting(3600.0, 0, 604_800, "s", why="0 disables; a week at most")
+    max_event_age_s: float = setting(172800.0, 0, 2_592_000, "s", why="0 disables; a kilonova fades within days")
+    max_notice_bytes: int = setting(8_388_608, 1024, 536_870_912, "bytes", why="GCN's limit is 4 MiB")
     plan_start: str = "received"
     use_combined_skymap: bool = True
-    max_skymap_bytes: int = 67_108_864
-    max_clock_skew_s: float = 300.0
+    max_skymap_bytes: int = setting(67_108_864, 2880, 4_294_967_296, "bytes", why="one FITS block to 4 GiB")
+    max_clock_skew_s: float = setting(300.0, 0, 86400, "s")
 
     def __post_init__(self) -> None:
+        require_finite(self, "policy")
         if self.plan_start not in PLAN_START_CHOICES:
             raise ValueError(
                 f"[policy] plan_start must be one of {', '.join(PLAN_START_CHOICES)}, got {self.plan_start!r}"

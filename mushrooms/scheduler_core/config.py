@@ -13,12 +13,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
+from .ranges import check_table, require_finite, setting
 from .source.lightcurves import PAPER_LIGHTCURVES
 
 __all__ = ["PlanningConfig", "SlewModel", "dataclass_from_table", "ZTF_FILTERS", "SOLVER_NAMES"]
 
 #: The filters of the ZTF camera (its filter exchanger holds g, r and i).
 ZTF_FILTERS = ("g", "r", "i")
+
+#: Most steps of the observability time grid (``horizon_h`` / ``time_step_s``): 24 h at 10 s.  Measured
+#: with ``mushrooms plan`` (greedy, MS220722v, load 1.3): 120 s steps 7.6 s, 10 s steps 13.6 s; 0.01 s
+#: steps ran for minutes.
+MAX_TIME_STEPS = 8640
 
 #: Scheduler names; ``milp`` is the old name of ``blocks`` (kept for old configs).
 SOLVER_NAMES = ("greedy", "slots", "blocks", "hybrid", "milp")
@@ -41,7 +47,9 @@ def dataclass_from_table(cls: type, table: Mapping[str, Any], section: str) -> A
     Raises
     ------
     ValueError
-        ``unknown [section] key(s): ...``, or the dataclass's own check.
+        ``unknown [section] key(s): ...``, a value of the wrong type or
+        outside the range its field declares (:mod:`.ranges`), or the
+        dataclass's own check.
     """
     known = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(table) - known)
@@ -52,6 +60,7 @@ def dataclass_from_table(cls: type, table: Mapping[str, Any], section: str) -> A
         expected = _type_name(hints[key])
         if expected is not None and not _has_type(value, hints[key]):
             raise ValueError(f"[{section}] {key} = {value!r}: expected {expected}, got {_toml_type(value)}")
+    check_table(cls, table, section)
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in table.items()}
     return cls(**values)
 
@@ -126,12 +135,15 @@ class SlewModel:
         CCD readout time (s); overlaps the slew; ztf_sim ``READOUT_TIME``.
     """
 
-    ha_accel_deg_s2: float = 0.4
-    ha_vmax_deg_s: float = 2.5
-    dec_accel_deg_s2: float = 0.5
-    dec_vmax_deg_s: float = 3.0
-    settle_s: float = 1.0
-    readout_s: float = 8.0
+    ha_accel_deg_s2: float = setting(0.4, 0, 10, "deg s^-2", lo_open=True, why="a drive, not a jump")
+    ha_vmax_deg_s: float = setting(2.5, 0, 20, "deg s^-1", lo_open=True, why="a drive, not a jump")
+    dec_accel_deg_s2: float = setting(0.5, 0, 10, "deg s^-2", lo_open=True, why="a drive, not a jump")
+    dec_vmax_deg_s: float = setting(3.0, 0, 20, "deg s^-1", lo_open=True, why="a drive, not a jump")
+    settle_s: float = setting(1.0, 0, 60, "s")
+    readout_s: float = setting(8.0, 0, 120, "s", why="ZTF reads out in 8 s")
+
+    def __post_init__(self) -> None:
+        require_finite(self, "scheduler.slew")
 
 
 @dataclass(frozen=True)
@@ -265,45 +277,53 @@ class PlanningConfig:
         the same floor against revision 1.
     """
 
-    nside: int = 256
-    horizon_h: float = 24.0
-    time_step_s: float = 120.0
-    sun_alt_max_deg: float = -12.0
-    airmass_max: float = 2.5
-    ha_max_h: float = 5.95
-    moon_sep_min_deg: float = 20.0
-    dec_min_deg: float = -31.0
-    dec_max_deg: float = 87.5
-    exposure_s: float = 300.0
+    nside: int = setting(256, 16, 1024, power_of_two=True,
+                         why="16: 3.7 deg pixels, still finer than a ZTF field (6.9 deg); 1024: 12.6 M pixels, 0.1 GB per sky array")
+    horizon_h: float = setting(24.0, 1, 168, "h", why="at least the two visits of a block; a kilonova fades within a week")
+    time_step_s: float = setting(120.0, 10, 900, "s",
+                                 why="windows to 10 s are finer than any exposure; 900 s is three 300 s exposures")
+    sun_alt_max_deg: float = setting(-12.0, -18, 0, "deg", why="astronomical twilight to sunset")
+    airmass_max: float = setting(2.5, 1, 3, why="zenith to 19 deg altitude (P48 observes above 20 deg)")
+    ha_max_h: float = setting(5.95, 0.5, 12, "h", why="the P48 reaches 5.95 h")
+    moon_sep_min_deg: float = setting(20.0, 0, 90, "deg")
+    dec_min_deg: float = setting(-31.0, -90, 90, "deg", why="less than dec_max_deg")
+    dec_max_deg: float = setting(87.5, -90, 90, "deg")
+    exposure_s: float = setting(300.0, 1, 3600, "s", why="ZTF ToO exposures are 30-300 s")
     filters: tuple[str, str] = ("g", "r")
-    cadence_s: float = 1800.0
-    filter_change_s: float = 120.0
-    slew_estimate_s: float = 10.0
-    n_fields: int | None = None
-    n_blocks_max: int = 6
-    min_block_size: int = 0
-    penalty: float = 0.0
-    block_gap_s: float = 0.0
+    cadence_s: float = setting(1800.0, 0, 43200, "s", lo_open=True, why="up to half a day between the two filters")
+    filter_change_s: float = setting(120.0, 0, 900, "s")
+    slew_estimate_s: float = setting(10.0, 0, 600, "s")
+    n_fields: int | None = setting(None, 1, 5000, why="unset: sized from the horizon; ZTF's grids hold 1 778 fields")
+    n_blocks_max: int = setting(6, 1, 48)
+    min_block_size: int = setting(0, 0, 500, why="0: the paper's cadence rule")
+    penalty: float = setting(0.0, 0, 1, why="probability units")
+    block_gap_s: float = setting(0.0, 0, 7200, "s")
     solver: str = "hybrid"
     milp_backend: str = "auto"
-    time_limit_s: float = 14.0
-    mip_gap: float = 0.01
-    threads: int = 0
-    max_retries: int = 3
+    time_limit_s: float = setting(14.0, 0, 3600, "s", lo_open=True, why="an alert's plan is wanted within minutes")
+    mip_gap: float = setting(0.01, 0, 1, why="relative gap")
+    threads: int = setting(0, 0, 256, why="0: the solver decides")
+    max_retries: int = setting(3, 0, 20)
     slew: SlewModel = field(default_factory=SlewModel)
-    min_gain: float = 0.001
-    min_coverage: float = 0.01
-    slot_positions: tuple[int, ...] = (6, 7, 5, 8)
-    slot_margin_s: float = 30.0
+    min_gain: float = setting(0.001, 0, 1, hi_open=True, why="probability")
+    min_coverage: float = setting(0.01, 0, 1, hi_open=True, why="probability")
+    slot_positions: tuple[int, ...] = setting((6, 7, 5, 8), 1, 50, why="each element")
+    slot_margin_s: float = setting(30.0, 0, 600, "s")
     detection_lightcurve: str = "conservative"
     objective: str = "detection"
-    detection_levels: int = 8
-    detection_coverage_weight: float = 0.05
-    detection_time_limit_s: float = 4.0
-    detection_max_coverage_loss: float = 0.02
+    detection_levels: int = setting(8, 1, 64)
+    detection_coverage_weight: float = setting(0.05, 0, 10)
+    detection_time_limit_s: float = setting(4.0, 0, 3600, "s", lo_open=True, why="less than time_limit_s")
+    detection_max_coverage_loss: float = setting(0.02, 0, 1, hi_open=True, why="relative")
 
     def __post_init__(self) -> None:
+        require_finite(self, "scheduler")
         problems = []
+        if self.dec_min_deg >= self.dec_max_deg:
+            problems.append(f"dec_min_deg ({self.dec_min_deg:g}) must be less than dec_max_deg ({self.dec_max_deg:g})")
+        if self.time_step_s > 0 and self.horizon_s / self.time_step_s > MAX_TIME_STEPS:
+            problems.append(f"horizon_h / time_step_s = {self.horizon_s / self.time_step_s:.0f} time steps, more than "
+                            f"{MAX_TIME_STEPS} (24 h at 10 s): raise time_step_s or shorten horizon_h")
         if self.nside < 1 or self.nside & (self.nside - 1):
             problems.append(f"nside must be a power of 2, got {self.nside}")
         if not 0 < self.horizon_h <= 24 * 7:
@@ -352,7 +372,7 @@ class PlanningConfig:
         if not 0.0 <= self.detection_max_coverage_loss < 1.0:
             problems.append(f"detection_max_coverage_loss must be in [0, 1), got {self.detection_max_coverage_loss}")
         if problems:
-            raise ValueError("; ".join(problems))
+            raise ValueError("[scheduler] " + "; ".join(problems))
 
     @property
     def horizon_s(self) -> float:

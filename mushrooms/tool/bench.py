@@ -38,7 +38,9 @@ def main(args: Sequence[str] | None = None) -> int:
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark, write the CSV, print the summary; the exit status."""
     from ..evaluation.bench import main as bench_main
+    from ..outputs import check_outputs
 
+    check_outputs({"-o/--output": args.output})  # a device, FIFO or directory is refused before hours of work
     return bench_main(args)
 
 

@@ -6,7 +6,6 @@ import argparse
 import sys
 import json
 import logging
-from pathlib import Path
 from typing import Sequence
 
 from .common import add_common_options, execute, tool_parser
@@ -38,20 +37,23 @@ def run(args: argparse.Namespace) -> int:
     The plan's embedded ``config`` is used unless ``--config`` is given.
     """
     from ..config import load_config
+    from ..inputs import read_regular_file, regular_file
     from ..offline import configure_astropy_offline
     from ..scheduler_core import Plan, PlanningConfig, check_plan, read_skymap
     from ..scheduler_core.errors import InputError
 
     configure_astropy_offline()
     config = load_config(args.config)
+    data = read_regular_file(args.plan, what="plan")  # never a FIFO nor a device
+    map_path = regular_file(args.skymap, "sky map")  # checked before any work
     try:
-        doc = json.loads(Path(args.plan).read_text())
-    except FileNotFoundError:
-        raise InputError(f"plan not found: {args.plan}") from None
-    except (OSError, UnicodeDecodeError) as exc:
+        doc = json.loads(data.decode(), parse_constant=_refuse_constant)
+    except UnicodeDecodeError as exc:
         raise InputError(f"cannot read plan {args.plan}: {exc}") from None
     except json.JSONDecodeError as exc:
         raise InputError(f"{args.plan} is not JSON: {exc}") from None
+    except ValueError as exc:
+        raise InputError(f"{args.plan} is not valid JSON: {exc}") from None
     if not isinstance(doc, dict):
         raise InputError(f"{args.plan} is not a plan document (not a JSON object)")
     if doc.get("type") == "not_observable":
@@ -70,16 +72,26 @@ def run(args: argparse.Namespace) -> int:
         log.info("checking with the plan's embedded configuration (give --config to override)")
     elif isinstance(doc.get("config"), dict):
         log.info("checking with %s, not the plan's embedded configuration", args.config)
-    skymap = read_skymap(args.skymap, nside=planning.nside)
+    skymap = read_skymap(map_path, nside=planning.nside)
     report = check_plan(plan, skymap, planning)
-    if report.ok:
+    recorded = plan.event.skymap_sha256
+    other_map = [] if not recorded or recorded == skymap.sha256 else [
+        f"the plan was made for another sky map: sha256 {recorded[:16]}... recorded, {args.skymap} is "
+        f"{skymap.sha256[:16]}...; its coverage is not this map's"]
+    if report.ok and not other_map:
         print(f"{args.plan}: OK: {len(plan.observations)} exposures, coverage {report.coverage:.4f} "
               f"(reported {report.reported_coverage})")
         return 0
-    print(f"{args.plan}: FAILED with {sum(report.counts.values())} problem(s):")
-    for line in report.problems:
+    problems = other_map + list(report.problems)
+    print(f"{args.plan}: FAILED with {len(other_map) + sum(report.counts.values())} problem(s):")
+    for line in problems:
         print(f"  {line}")
     return 1
+
+
+def _refuse_constant(name: str) -> None:
+    """``json.loads`` hook: NaN and Infinity are not JSON (RFC 8259), so a plan holding them is refused."""
+    raise ValueError(f"{name} is not a JSON number")
 
 
 if __name__ == "__main__":

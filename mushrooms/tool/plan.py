@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 import logging
+import math
 import time
 from typing import Any, Sequence
 
@@ -25,35 +26,16 @@ FAR_FROM_MERGER_DAYS = 3.0
 
 
 def parse_start(text: str) -> Any:
-    """``--start``: ISO-8601 (``Z``, ``+hh:mm`` offsets; no offset means UTC) or an MJD number.
+    """``--start``: :func:`~mushrooms.scheduler_core.times.parse_time` with MJD allowed.
 
     Raises
     ------
     InputError
-        When it is neither.
+        When it is not a time (an empty string included).
     """
-    from datetime import datetime, timezone
+    from ..scheduler_core.times import parse_time
 
-    from astropy.time import Time
-
-    from ..scheduler_core.errors import InputError
-
-    value = text.strip()
-    try:
-        mjd = float(value)
-    except ValueError:
-        pass
-    else:
-        if not 0.0 < mjd < 200000.0:
-            raise InputError(f"--start {text}: an MJD must be a positive day number (e.g. 60000.5)")
-        return Time(mjd, format="mjd", scale="utc")
-    try:
-        t = datetime.fromisoformat(value[:-1] + "+00:00" if value[-1:] in "Zz" else value)
-    except ValueError:
-        raise InputError(f"--start {text!r}: not an ISO-8601 time (2026-05-01T03:00:00Z, "
-                         "2026-05-01T05:00:00+02:00) nor an MJD (61161.125)") from None
-    t = t.replace(tzinfo=timezone.utc) if t.tzinfo is None else t.astimezone(timezone.utc)
-    return Time(t.replace(tzinfo=None), scale="utc")
+    return parse_time(text, "--start", mjd=True)
 
 
 def warn_if_far_from_merger(start: Any, event_time: Any) -> None:
@@ -76,7 +58,7 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     """The options of ``mushrooms plan`` (added to ``p``, or to a new parser)."""
     p = p if p is not None else tool_parser("plan", HELP)
     p.add_argument("skymap", nargs="?", metavar="SKYMAP",
-                   help="sky map FITS (multi-order or flat HEALPix); default: the bundled demo map")
+                   help="sky map FITS (multi-order or flat HEALPix); `mushrooms demo` plans the bundled demo map")
     p.add_argument("--start", metavar="TIME",
                    help="horizon start: ISO-8601 (Z or +hh:mm offset; no offset means UTC) or MJD "
                         "(default: the sky map's event time)")
@@ -104,36 +86,35 @@ def run(args: argparse.Namespace) -> int:
     When the plan covers less than ``min_coverage`` the document written is
     a ``not_observable`` answer; no queue nor SkyPortal file is written.
     """
-    from ..bundled import demo_skymap_path
     from ..config import load_config
+    from ..inputs import regular_file
     from ..offline import configure_astropy_offline
-    from ..outputs import check_output_path, write_json_atomic
+    from ..outputs import check_outputs, write_json_atomic
+    from ..scheduler_core.errors import InputError
     from ..scheduler_core import make_plan, not_observable, read_skymap, to_skyportal, to_trigger_queue
 
     configure_astropy_offline()
     t0 = time.perf_counter()
     config = load_config(args.config)
     cfg = config.scheduler
+    if not args.skymap:
+        raise InputError("no sky map given: name a FITS sky map (`mushrooms demo` plans the bundled demo map)")
     outputs = {"-o/--output": args.output, "--queue": args.queue, "--skyportal": getattr(args, "skyportal", None),
                "--plot": args.plot}
-    for what, path in outputs.items():  # before any work
-        if path:
-            check_output_path(path, what)
+    check_outputs(outputs, inputs=[args.skymap, args.config])  # before any work; never onto an input
     if getattr(args, "skyportal", None) and config.export.skyportal_allocation_id is None:
-        from ..scheduler_core.errors import InputError
-
         raise InputError("--skyportal needs [export] skyportal_allocation_id in the config "
                          "(the SkyPortal allocation of ZTF)")
-    start = parse_start(args.start) if args.start else None
-    source = args.skymap or demo_skymap_path()
-    if not args.skymap:
-        log.info("no sky map given: planning the bundled demo map (mock BNS MS181101ab)")
+    start = parse_start(args.start) if args.start is not None else None
+    deadline = getattr(args, "deadline", None)
+    if deadline is not None and not (math.isfinite(deadline) and deadline > 0):
+        raise InputError(f"--deadline {deadline:g}: must be a finite number of seconds > 0")
+    source = regular_file(args.skymap, "sky map")  # never a FIFO nor a device
     skymap = read_skymap(source, nside=cfg.nside)
     log.info("read %s: nside %d, 90%% area %.0f deg2, event time %s", source, skymap.nside,
              skymap.credible_area(0.9), skymap.event_time.isot if skymap.event_time else "unknown")
     if start is not None:
         warn_if_far_from_merger(start, skymap.event_time)
-    deadline = getattr(args, "deadline", None)
     if deadline is None:
         from ..scheduler_core.anytime import revision_document
 

@@ -8,11 +8,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 from astropy.time import Time, TimeDelta
+
+from . import strict_json
 
 __all__ = [
     "Observation",
@@ -46,26 +49,17 @@ def iso_utc(t: Time) -> str:
     return Time(t, scale="utc").isot[:23] + "Z"
 
 
-def parse_time(value: str | Time) -> Time:
-    """Parse an ISO-8601 UTC string (a trailing ``Z`` is allowed).
+def parse_time(value: str | Time, what: str = "time") -> Time:
+    """A plan document's time: :func:`mushrooms.scheduler_core.times.parse_time` (ISO-8601, no MJD).
 
     Raises
     ------
     ValueError
-        When the string is not an ISO time.
+        (:class:`~mushrooms.scheduler_core.errors.InputError`) when the string is not an ISO time.
     """
-    if isinstance(value, Time):
-        return value
-    text = str(value).strip()
-    if text.endswith("Z"):
-        text = text[:-1]
-    try:
-        return Time(text, format="isot", scale="utc")
-    except ValueError:
-        try:
-            return Time(text, format="iso", scale="utc")
-        except ValueError:
-            raise ValueError(f"not an ISO-8601 UTC time: {value!r}") from None
+    from ..times import parse_time as parse
+
+    return parse(value, what)
 
 
 @dataclass(frozen=True)
@@ -291,7 +285,7 @@ class Plan:
 
     def to_json(self, indent: int | None = 1) -> str:
         """The plan document as JSON text."""
-        return json.dumps(self.to_document(), indent=indent)
+        return strict_json.dumps(self.to_document(), indent=indent)
 
     @classmethod
     def from_document(cls, doc: Mapping[str, Any]) -> "Plan":
@@ -314,6 +308,7 @@ class Plan:
                 if lacking:
                     raise ValueError(f"observation {i} lacks key(s): {', '.join(lacking)}")
                 t = (parse_time(o["start"]) - start).to_value("s")
+                _check_pointing(i, o)
                 observations.append(
                     Observation(
                         field_id=int(o["field_id"]), ra=float(o["ra"]), dec=float(o["dec"]),
@@ -335,6 +330,14 @@ class Plan:
             )
         except (TypeError, KeyError, AttributeError) as exc:
             raise ValueError(f"malformed plan document: {exc}") from None
+
+
+def _check_pointing(i: int, o: Mapping[str, Any]) -> None:
+    """Refuse an observation whose numbers are not numbers a telescope could use (NaN, inf, RA beyond 360)."""
+    for key, lo, hi in (("ra", 0.0, 360.0), ("dec", -90.0, 90.0), ("exposure_s", 0.0, 86400.0)):
+        value = float(o[key])
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise ValueError(f"observation {i}: {key} = {o[key]!r} is not a finite number in [{lo:g}, {hi:g}]")
 
 
 def sorted_observations(observations: Sequence[Observation]) -> tuple[Observation, ...]:

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 from ..config import dataclass_from_table
+from ..ranges import setting
 from .document import Plan
 
 __all__ = ["ExportConfig", "to_trigger_queue", "to_skyportal", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
@@ -62,7 +63,7 @@ class ExportConfig:
     program_pi: str = "Kulkarni"
     subprogram_name: str = "GW"
     user: str = "mushrooms"
-    skyportal_allocation_id: int | None = None
+    skyportal_allocation_id: int | None = setting(None, 1, 2_147_483_647, why="a SkyPortal database id")
     skyportal_status: str = "complete"
 
     def __post_init__(self) -> None:

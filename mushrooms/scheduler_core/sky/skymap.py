@@ -42,6 +42,7 @@ import numpy as np
 from astropy.time import Time
 
 from ..errors import SkyMapError
+from .distance_layers import usable_distance_layers
 
 __all__ = ["SkyMap", "read_skymap", "check_uniq"]
 
@@ -254,6 +255,10 @@ def _read_table(raw: bytes, name: str, nside: int) -> tuple[np.ndarray, dict[str
     from ligo.skymap.bayestar import rasterize  # heavy import, keep it lazy
 
     ordering, columns = _table_layout(raw)
+    if ordering not in ("RING", "NESTED", "NUNIQ") and "UNIQ" not in columns:
+        # healpy's read_map assumes whatever order its caller asks for; a wrong guess plans a scrambled sky
+        raise SkyMapError(f"{name}: flat HEALPix map without ORDERING = 'RING' or 'NESTED' in its header "
+                          f"(got {ordering or 'none'}): the pixel order is unknown; set ORDERING and retry")
     order = int(ah.nside_to_level(nside))
     table = _multiorder_table(raw, name, ordering, columns)
     working = rasterize(_merge_finer_pixels(table, order), order=order)  # now only shares coarser pixels
@@ -361,6 +366,7 @@ def _finish(prob: np.ndarray, means: dict[str, np.ndarray], meta: dict, nside: i
     if not abs(total - 1.0) <= PROB_SUM_TOLERANCE:
         raise SkyMapError(f"{name}: probabilities sum to {total:.4g}, not 1 (±{PROB_SUM_TOLERANCE:g})")
     prob = prob / total
+    means = usable_distance_layers(prob, means, name)
 
     event_time = None
     if meta.get("gps_time") is not None:

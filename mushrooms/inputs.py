@@ -1,0 +1,106 @@
+"""Input files: only regular files are read, by one reader for every command.
+
+``mushrooms plan /dev/zero`` once grew to 5.5 GB, and ``plan FIFO`` or
+``check PLAN FIFO`` waited forever for a writer.  Every file a command reads
+(sky maps, plan documents, notices, trigger files, the configuration) is
+opened here without blocking (``O_NONBLOCK``: opening a FIFO returns at
+once), checked with ``fstat`` to be a regular file, and read up to a bound.
+
+:func:`read_regular_file` returns the bytes; :func:`regular_file` only
+checks and hands the path on, for readers that stream a large file
+themselves (the sky map reader).  The trigger directory also refuses
+symbolic links (``follow_symlinks=False``): a link planted there would put a
+protected file's bytes into the state.  A user's own input may be a link to
+a regular file.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import stat
+from pathlib import Path
+
+from .scheduler_core.errors import InputError
+
+__all__ = ["read_regular_file", "regular_file", "MAX_INPUT_BYTES"]
+
+#: Default bound (bytes) of a file read whole: 64 MiB (a notice is at most 8 MiB, a plan < 1 MiB).
+MAX_INPUT_BYTES = 64 * 1024 * 1024
+
+
+def _open(path: str | Path, what: str, follow_symlinks: bool) -> int:
+    flags = os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC | (0 if follow_symlinks else os.O_NOFOLLOW)
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP and not follow_symlinks:
+            raise InputError(f"{what}{path}: is a symbolic link; give the file itself") from None
+        if exc.errno == errno.ENOENT:
+            raise InputError(f"{what.strip() or 'file'} not found: {path}") from None
+        raise InputError(f"{what}{path}: cannot read ({exc.strerror or exc})") from None
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
+        kind = ("a directory" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode)
+                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file")
+        raise InputError(f"{what}{path}: {kind}, not a regular file: refused")
+    return fd
+
+
+def _prefix(what: str) -> str:
+    return f"{what} " if what else ""
+
+
+def regular_file(path: str | Path, what: str = "", follow_symlinks: bool = True) -> Path:
+    """The path, after checking that it names a readable regular file.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The input.
+    what : str
+        What it is (``sky map``), for the message.
+    follow_symlinks : bool
+        Accept a symbolic link to a regular file.
+
+    Raises
+    ------
+    InputError
+        Missing, unreadable, a directory, FIFO, device or socket (or a link
+        when ``follow_symlinks`` is False).
+    """
+    os.close(_open(path, _prefix(what), follow_symlinks))
+    return Path(path)
+
+
+def read_regular_file(path: str | Path, max_bytes: int = MAX_INPUT_BYTES, what: str = "",
+                      follow_symlinks: bool = True) -> bytes:
+    """A regular file's bytes, never from a FIFO or device, at most ``max_bytes``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The input.
+    max_bytes : int
+        Larger files are refused (by their size, before reading).
+    what : str
+        What it is (``plan``, ``config``), for the message.
+    follow_symlinks : bool
+        Accept a symbolic link to a regular file (False for the trigger
+        directory).
+
+    Raises
+    ------
+    InputError
+        Not a regular file, larger than ``max_bytes``, or unreadable.
+    """
+    fd = _open(path, _prefix(what), follow_symlinks)
+    with os.fdopen(fd, "rb") as fh:
+        size = os.fstat(fd).st_size
+        if size > max_bytes:
+            raise InputError(f"{_prefix(what)}{path}: {size} bytes is more than the {max_bytes}-byte limit")
+        try:
+            return fh.read(max_bytes + 1)[:max_bytes]
+        except OSError as exc:
+            raise InputError(f"{_prefix(what)}{path}: cannot read ({exc.strerror or exc})") from None
