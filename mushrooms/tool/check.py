@@ -41,19 +41,20 @@ def run(args: argparse.Namespace) -> int:
     from ..offline import configure_astropy_offline
     from ..scheduler_core import Plan, PlanningConfig, check_plan, read_skymap
     from ..scheduler_core.errors import InputError
+    from ..scheduler_core.plan.strict_json import non_finite_path
 
     configure_astropy_offline()
     config = load_config(args.config)
     data = read_regular_file(args.plan, what="plan")  # never a FIFO nor a device
     map_path = regular_file(args.skymap, "sky map")  # checked before any work
     try:
-        doc = json.loads(data.decode(), parse_constant=_refuse_constant)
+        doc = json.loads(data.decode())
     except UnicodeDecodeError as exc:
         raise InputError(f"cannot read plan {args.plan}: {exc}") from None
     except json.JSONDecodeError as exc:
         raise InputError(f"{args.plan} is not JSON: {exc}") from None
-    except ValueError as exc:
-        raise InputError(f"{args.plan} is not valid JSON: {exc}") from None
+    if (where := non_finite_path(doc)) is not None:  # Python reads NaN and Infinity; JSON has neither
+        raise InputError(f"{args.plan} is not valid JSON: NaN or infinity at {where}")
     if not isinstance(doc, dict):
         raise InputError(f"{args.plan} is not a plan document (not a JSON object)")
     if doc.get("type") == "not_observable":
@@ -87,11 +88,6 @@ def run(args: argparse.Namespace) -> int:
     for line in problems:
         print(f"  {line}")
     return 1
-
-
-def _refuse_constant(name: str) -> None:
-    """``json.loads`` hook: NaN and Infinity are not JSON (RFC 8259), so a plan holding them is refused."""
-    raise ValueError(f"{name} is not a JSON number")
 
 
 if __name__ == "__main__":

@@ -8,7 +8,10 @@ probability is* has no distance information at all: it used to pass
 silently and give ``expected_detections`` 0.0, which reads as "this event
 cannot be detected"; it is now a map without distance layers
 (``expected_detections`` null) and one warning.  Single bad pixels become
-ligo.skymap's ``(inf, 1, 0)``.
+ligo.skymap's ``(inf, 1, 0)``.  Done on the multi-order table, before
+rasterisation: with all-NaN layers, ligo.skymap 2.5.4's ``derasterize`` merged a
+flat NSIDE 64 map into its 12 base pixels holding 0.067 of the probability
+(the sum check then refused the map).
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import logging
 
 import numpy as np
 
-__all__ = ["usable_distance_layers"]
+__all__ = ["usable_distance_layers", "with_usable_distances"]
 
 log = logging.getLogger(__name__)
 
@@ -53,3 +56,33 @@ def usable_distance_layers(prob: np.ndarray, layers: dict[str, np.ndarray], name
         mu, sigma, norm = mu.copy(), sigma.copy(), norm.copy()
         mu[~good], sigma[~good], norm[~good] = np.inf, 1.0, 0.0
     return {"DISTMU": mu, "DISTSIGMA": sigma, "DISTNORM": norm}
+
+
+def with_usable_distances(table, name: str):
+    """A multi-order table (UNIQ, PROBDENSITY, distance layers) with :func:`usable_distance_layers` applied.
+
+    Parameters
+    ----------
+    table : astropy.table.Table
+        ligo.skymap's multi-order table (PROBDENSITY; the density's sign is the
+        probability's) or a flat one (PROB).
+    name : str
+        The map's name, for the warning.
+
+    Returns
+    -------
+    astropy.table.Table
+        The same table, its distance columns cleaned or removed.
+    """
+    columns = ("DISTMU", "DISTSIGMA", "DISTNORM")
+    if not set(columns) <= set(table.colnames):
+        return table
+    weight = table["PROBDENSITY"] if "PROBDENSITY" in table.colnames else table["PROB"]
+    layers = usable_distance_layers(np.asarray(weight, float),
+                                    {c: np.asarray(table[c], float) for c in columns}, name)
+    if not layers:
+        table.remove_columns(list(columns))
+        return table
+    for c in columns:
+        table[c] = layers[c]
+    return table

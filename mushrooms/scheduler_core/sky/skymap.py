@@ -42,7 +42,7 @@ import numpy as np
 from astropy.time import Time
 
 from ..errors import SkyMapError
-from .distance_layers import usable_distance_layers
+from .distance_layers import with_usable_distances
 
 __all__ = ["SkyMap", "read_skymap", "check_uniq"]
 
@@ -260,7 +260,7 @@ def _read_table(raw: bytes, name: str, nside: int) -> tuple[np.ndarray, dict[str
         raise SkyMapError(f"{name}: flat HEALPix map without ORDERING = 'RING' or 'NESTED' in its header "
                           f"(got {ordering or 'none'}): the pixel order is unknown; set ORDERING and retry")
     order = int(ah.nside_to_level(nside))
-    table = _multiorder_table(raw, name, ordering, columns)
+    table = with_usable_distances(_multiorder_table(raw, name, ordering, columns), name)
     working = rasterize(_merge_finer_pixels(table, order), order=order)  # now only shares coarser pixels
     prob = np.asarray(working["PROB"], float)
     layers = {c: np.asarray(working[c], float) for c in DIST_COLUMNS if c in working.colnames}
@@ -310,6 +310,7 @@ def _multiorder_table(raw: bytes, name: str, ordering: str, columns: list[str]):
     table = Table([np.asarray(a, float) for a in (arrays if with_dist else (arrays,))], names=names, meta=meta)
     flat = np.asarray(table["PROB"])
     _check_values(flat, name)
+    table = with_usable_distances(table, name)  # before derasterize: all-NaN layers made it drop 93 % of the sky
     if flat.size > 12 and np.mean(np.all(flat.reshape(-1, 4) == flat[::4, None], axis=1)) >= MERGEABLE_FRACTION:
         return derasterize(table)
     order = int(ah.nside_to_level(ah.npix_to_nside(flat.size)))
@@ -366,7 +367,6 @@ def _finish(prob: np.ndarray, means: dict[str, np.ndarray], meta: dict, nside: i
     if not abs(total - 1.0) <= PROB_SUM_TOLERANCE:
         raise SkyMapError(f"{name}: probabilities sum to {total:.4g}, not 1 (±{PROB_SUM_TOLERANCE:g})")
     prob = prob / total
-    means = usable_distance_layers(prob, means, name)
 
     event_time = None
     if meta.get("gps_time") is not None:
