@@ -83,10 +83,11 @@ class Range:
             return None
         below = value <= self.lo if self.lo_open else value < self.lo
         above = value >= self.hi if self.hi_open else value > self.hi
+        because = f" ({self.why})" if self.why else ""
         if below or above:
-            return f"outside its range {self}"
+            return f"outside its range {self}{because}"
         if self.power_of_two and (int(value) != value or int(value) & (int(value) - 1)):
-            return f"not a power of 2; range {self}"
+            return f"not a power of 2; range {self}{because}"
         return None
 
 
