@@ -9,7 +9,6 @@ stays pending and is retried.
 
 from __future__ import annotations
 
-import json
 import logging
 import threading
 import time
