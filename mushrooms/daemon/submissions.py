@@ -44,8 +44,8 @@ from ..config import Config
 from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
 from .store import Store
 
-__all__ = ["Submission", "Submitter", "queue_name", "gate", "build_body", "same_content", "STATES", "OPEN",
-           "submissions"]
+__all__ = ["Submission", "Submitter", "Verdict", "send_queue", "queue_name", "gate", "build_body", "same_content",
+           "status_document", "open_submitter", "submissions", "STATES", "OPEN"]
 
 log = logging.getLogger("mushrooms.daemon.submit")
 
@@ -180,6 +180,48 @@ def same_content(body: dict[str, Any], listed: dict[str, Any]) -> bool:
         return _targets_key(body["targets"]) == _targets_key(listed.get("queue", listed.get("targets", [])))
     except (KeyError, TypeError, ValueError):
         return False
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What one PUT/POST of a queue came to: ``submitted``, ``rejected`` or ``retry`` (5xx, timeout, unreachable)."""
+
+    state: str
+    answer: Answer | None
+    reason: str | None = None
+    remote_id: str | None = None
+
+
+def send_queue(client: KowalskiQueue | SkyPortalPlans, body: dict[str, Any], name: str) -> Verdict:
+    """Send one queue (Kowalski ``PUT``) or plan (SkyPortal ``POST``) and classify the answer.
+
+    200: submitted.  Kowalski's 409 (a queue of that name exists) counts as
+    submitted when ``GET`` lists the queue with the same content (a repeat
+    after a crash), else rejected.  Other 4xx: rejected (the server's text
+    kept).  5xx, a timeout, no connection: retry.  The daemon's submitter
+    and ``mushrooms submit`` both use it.
+    """
+    try:
+        answer = client.put(body) if isinstance(client, KowalskiQueue) else client.post(body)
+    except Unreachable as exc:
+        return Verdict("retry", None, str(exc))
+    if answer.ok:
+        remote = None
+        if isinstance(answer.data, dict) and isinstance(answer.data.get("data"), dict):
+            remote = answer.data["data"].get("id")
+        return Verdict("submitted", answer, None, None if remote is None else str(remote))
+    if answer.status == 409 and isinstance(client, KowalskiQueue):
+        try:
+            listed = [q for q in client.queues() if q.get("queue_name") == name]
+        except (Unreachable, RuntimeError) as exc:
+            return Verdict("retry", answer, f"409, and the queue list could not be read: {exc}")
+        if listed and same_content(body, listed[0]):
+            return Verdict("submitted", answer, "409: already queued with the same content (accepted)")
+        return Verdict("rejected", answer, "409: a queue of that name exists with other content" if listed
+                       else "409, but the queue list does not show it")
+    if answer.refused:
+        return Verdict("rejected", answer)
+    return Verdict("retry", answer, answer.message())
 
 
 class Submitter:
@@ -352,30 +394,10 @@ class Submitter:
             except (Unreachable, RuntimeError) as exc:
                 return self._retry(sub, None, str(exc))
         sub = self._mark_attempt(sub)
-        try:
-            answer = self.client.put(sub.body) if isinstance(self.client, KowalskiQueue) else \
-                self.client.post(sub.body)
-        except Unreachable as exc:
-            return self._retry(sub, None, str(exc))
-        if answer.ok:
-            remote = None
-            if isinstance(answer.data, dict) and isinstance(answer.data.get("data"), dict):
-                remote = answer.data["data"].get("id")
-            return self._finish(sub, "submitted", answer, remote_id=None if remote is None else str(remote))
-        if answer.status == 409 and isinstance(self.client, KowalskiQueue):
-            try:
-                listed = [q for q in self.client.queues() if q.get("queue_name") == sub.queue_name]
-            except (Unreachable, RuntimeError) as exc:
-                return self._retry(sub, 409, f"409, and the queue list could not be read: {exc}")
-            if listed and same_content(sub.body, listed[0]):
-                return self._finish(sub, "submitted", answer,
-                                    reason="409: already queued with the same content (accepted)")
-            why = "409: a queue of that name exists with other content" if listed else \
-                "409, but the queue list does not show it"
-            return self._finish(sub, "rejected", answer, reason=why)
-        if answer.refused:
-            return self._finish(sub, "rejected", answer)
-        return self._retry(sub, answer.status, answer.message())
+        verdict = send_queue(self.client, sub.body, str(sub.queue_name))
+        if verdict.state == "retry":
+            return self._retry(sub, verdict.answer.status if verdict.answer else None, verdict.reason or "")
+        return self._finish(sub, verdict.state, verdict.answer, reason=verdict.reason, remote_id=verdict.remote_id)
 
     def _remove(self, sub: Submission, end_state: str) -> bool:
         """DELETE an older (or retracted) queue; True when settled (removed, gone, or failed for good)."""

@@ -387,3 +387,45 @@ def test_submit_config_is_validated_and_the_token_comes_from_the_environment(tmp
     with pytest.raises(CredentialsError, match="MUSHROOMS_SUBMIT_TOKEN"):
         load_submit_token({})
     assert not dataclasses.replace(SubmitConfig()).enabled
+
+
+def _plan_file(world: World, tmp_path: Path) -> Path:
+    world.notice("MS181101ab-preliminary.json")
+    path = tmp_path / "plan.json"
+    path.write_text(json.dumps(world.store.plans()[-1]["document"]))
+    return path
+
+
+def test_submit_tool_dry_run_prints_the_request_redacted_and_sends_nothing(world, kowalski, tmp_path, capsys,
+                                                                         monkeypatch) -> None:
+    from mushrooms.cli import main
+
+    plan = _plan_file(world, tmp_path)
+    monkeypatch.setenv("MUSHROOMS_SUBMIT_TOKEN", TOKEN)
+    assert main(["submit", str(plan), "--target", "kowalski", "--url", kowalski.url, "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    request = json.loads(out)
+    assert request["method"] == "PUT" and request["headers"]["Authorization"] == "Bearer ***"
+    assert request["body"]["queue_name"].startswith(f"ToO_GW_{SID}_m") and TOKEN not in out
+    assert kowalski.log == []
+
+
+def test_submit_and_queue_tools_against_the_contract_server(world, kowalski, tmp_path, capsys, monkeypatch) -> None:
+    from mushrooms.cli import main
+
+    plan = _plan_file(world, tmp_path)
+    monkeypatch.setenv("MUSHROOMS_SUBMIT_TOKEN", TOKEN)
+    args = ["--url", kowalski.url]
+    assert main(["submit", str(plan), "--target", "kowalski", "--queue-name", "ToO_GW_manual", *args]) == 0
+    assert main(["submit", str(plan), "--target", "kowalski", "--queue-name", "ToO_GW_manual", *args]) == 0  # 409 same
+    assert "already queued with the same content" in capsys.readouterr().out
+    assert main(["queue", "list", *args]) == 0
+    assert capsys.readouterr().out.startswith("ToO_GW_manual\tMJD ")
+    assert main(["queue", "delete", "ToO_GW_manual", *args]) == 0
+    assert main(["queue", "delete", "ToO_GW_manual", *args]) == 1
+    assert "refused: 400: ZTF queue delete attempt rejected" in capsys.readouterr().err
+    assert kowalski.queues == {}
+    monkeypatch.delenv("MUSHROOMS_SUBMIT_TOKEN")
+    assert main(["queue", "list", *args]) == 2  # no token: one line, exit 2
+    assert "MUSHROOMS_SUBMIT_TOKEN" in capsys.readouterr().err
+    assert TOKEN not in json.dumps(kowalski.lines())
