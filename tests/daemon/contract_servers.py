@@ -89,6 +89,7 @@ class _Contract:
         self.release = threading.Event()
         self.hang_s = 60.0
         self.blocked = threading.Event()  # set while a request is held by block_after
+        self.hanging = 0  # requests held unanswered by a "hang" fault right now
         self._lock = threading.Lock()
 
     @property
@@ -112,7 +113,11 @@ class _Contract:
         if fault is None:
             return None
         if fault == "hang":
+            with self._lock:
+                self.hanging += 1
             self.release.wait(self.hang_s)
+            with self._lock:
+                self.hanging -= 1
             return _error("hung", 504)
         return _error(f"injected {fault}", int(fault))
 
