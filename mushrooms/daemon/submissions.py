@@ -266,6 +266,8 @@ class Submitter:
             unreachable server): the caller backs off before the next pass.
         """
         self.adopt()
+        if self.config.submit.dry_run:
+            return 0  # a dry run sends nothing, not even the DELETEs of queues an earlier run submitted
         waiting = 0
         for sid in self._open_events():
             try:
@@ -292,7 +294,10 @@ class Submitter:
                 elif latest is None or latest[0] != plan_id:
                     reason = "superseded before it was submitted"
                 else:
-                    reason = gate(doc, self.config)
+                    try:
+                        reason = gate(doc, self.config)
+                    except (KeyError, TypeError, ValueError) as exc:
+                        reason = f"unreadable plan document: {type(exc).__name__}: {exc}"
                 name = body = None
                 state = "skipped"
                 if reason is None:
@@ -301,7 +306,7 @@ class Submitter:
                     name = queue_name(self.config.export.subprogram_name, sid, revision)
                     try:
                         body = build_body(doc, self.config, name)
-                    except ValueError as exc:
+                    except (KeyError, TypeError, ValueError) as exc:
                         reason, state = f"no request could be built: {exc}", "failed"
                     else:
                         if self.config.submit.dry_run:

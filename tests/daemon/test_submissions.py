@@ -429,3 +429,19 @@ def test_submit_and_queue_tools_against_the_contract_server(world, kowalski, tmp
     assert main(["queue", "list", *args]) == 2  # no token: one line, exit 2
     assert "MUSHROOMS_SUBMIT_TOKEN" in capsys.readouterr().err
     assert TOKEN not in json.dumps(kowalski.lines())
+
+
+def test_a_dry_run_after_a_real_run_sends_nothing_either(tmp_path, kowalski) -> None:
+    path = tmp_path / "state.sqlite"
+    w = World(path, _config(kowalski.url))
+    w.notice("MS181101ab-preliminary.json")
+    w.submitter.step()
+    w.store.close()
+    w = World(path, _config(kowalski.url, dry_run=True))  # the operator switches to a dry run
+    try:
+        w.notice("MS181101ab-retraction.json")
+        assert w.submitter.step() == 0
+        assert [e["method"] for e in kowalski.log] == ["PUT"]  # no DELETE sent
+        assert list(kowalski.queues) == [queue_name("GW", SID, 1)]
+    finally:
+        w.store.close()

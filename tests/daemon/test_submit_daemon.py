@@ -211,8 +211,10 @@ def test_refusals_server_errors_and_a_hanging_server(broker, daemons, tmp_path, 
     assert sum("event=submission_rejected" in e for e in errors) == 2
     assert "injected 400" in s.rows(f"SELECT answer FROM submissions WHERE superevent_id='{a}'")[0][0]
     assert s.rows(f"SELECT reason FROM submissions WHERE superevent_id='{c}'")[0][0].startswith("409: a queue")
-    puts_b = [e for e in kowalski.log if e["method"] == "PUT" and e.get("queue_name") == _name(b, 1)]
-    assert [e["status"] for e in puts_b][-2:] == [500, 200] and len(puts_b) >= 3
+    # the faults go to whichever PUT comes next (b's retries or c's first): together they took them all
+    puts = [e["status"] for e in kowalski.log if e["method"] == "PUT" and e.get("queue_name") in (_name(b, 1),
+                                                                                                 _name(c, 1))]
+    assert sorted(puts) == [200, 409, 500, 504, 504], kowalski.lines()
     docs = [json.loads(r[0]) for r in s.rows("SELECT body FROM outbox WHERE kind='submission' ORDER BY outbox_id")]
     assert {(x["superevent_id"], x["state"], x["http_status"]) for x in docs} == {
         (a, "rejected", 400), (c, "rejected", 409), (b, "submitted", 200)}
