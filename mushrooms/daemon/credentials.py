@@ -100,6 +100,15 @@ def load_credentials(environ: Mapping[str, str] | None = None) -> Credentials:
     return Credentials(client_id=client_id, client_secret=secret, source=f"{id_source}, {secret_source}")
 
 
+def _secret(credential: str, variable: str, missing: str, environ: Mapping[str, str] | None) -> tuple[str, str]:
+    """One secret and where it came from (systemd credential first, then the variable), or ``CredentialsError(missing)``."""
+    env = os.environ if environ is None else environ
+    value, source = _lookup(credential, variable, env)
+    if value and source:
+        return value, source
+    raise CredentialsError(missing)
+
+
 def load_outbound_password(environ: Mapping[str, str] | None = None) -> tuple[str, str]:
     """Find the SASL password of the outbound Kafka sink.
 
@@ -118,14 +127,9 @@ def load_outbound_password(environ: Mapping[str, str] | None = None) -> tuple[st
     CredentialsError
         With a one-line hint when it is missing.
     """
-    env = os.environ if environ is None else environ
-    password, source = _lookup("outbound_password", "MUSHROOMS_OUTBOUND_PASSWORD", env)
-    if password and source:
-        return password, source
-    raise CredentialsError(
-        "outbound Kafka SASL password not found: set MUSHROOMS_OUTBOUND_PASSWORD or the systemd "
-        "credential outbound_password (or set [outbound] security_protocol to plaintext/ssl)"
-    )
+    return _secret("outbound_password", "MUSHROOMS_OUTBOUND_PASSWORD",
+                   "outbound Kafka SASL password not found: set MUSHROOMS_OUTBOUND_PASSWORD or the systemd "
+                   "credential outbound_password (or set [outbound] security_protocol to plaintext/ssl)", environ)
 
 
 def load_submit_token(environ: Mapping[str, str] | None = None) -> tuple[str, str]:
@@ -145,11 +149,6 @@ def load_submit_token(environ: Mapping[str, str] | None = None) -> tuple[str, st
     CredentialsError
         With a one-line hint when it is missing.
     """
-    env = os.environ if environ is None else environ
-    token, source = _lookup("submit_token", "MUSHROOMS_SUBMIT_TOKEN", env)
-    if token and source:
-        return token, source
-    raise CredentialsError(
-        "submission token not found: set MUSHROOMS_SUBMIT_TOKEN or the systemd credential submit_token "
-        "(or set [submit] target = \"none\" or dry_run = true)"
-    )
+    return _secret("submit_token", "MUSHROOMS_SUBMIT_TOKEN",
+                   "submission token not found: set MUSHROOMS_SUBMIT_TOKEN or the systemd credential submit_token "
+                   "(or set [submit] target = \"none\" or dry_run = true)", environ)

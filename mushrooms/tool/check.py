@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-import json
 import logging
-from pathlib import Path
 from typing import Sequence
 
-from .common import add_common_options, execute, tool_parser
+from .common import add_common_options, execute, read_json_object, tool_parser
 
 __all__ = ["HELP", "parser", "run", "main"]
 
@@ -44,16 +42,7 @@ def run(args: argparse.Namespace) -> int:
 
     configure_astropy_offline()
     config = load_config(args.config)
-    try:
-        doc = json.loads(Path(args.plan).read_text())
-    except FileNotFoundError:
-        raise InputError(f"plan not found: {args.plan}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read plan {args.plan}: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{args.plan} is not JSON: {exc}") from None
-    if not isinstance(doc, dict):
-        raise InputError(f"{args.plan} is not a plan document (not a JSON object)")
+    doc = read_json_object(args.plan)
     if doc.get("type") == "not_observable":
         print(f"{args.plan}: a not_observable answer, no plan to check: {'; '.join(doc.get('reasons', []))}")
         return 0

@@ -93,3 +93,23 @@ def execute(name: str, args: argparse.Namespace, run: Callable[[argparse.Namespa
         print(f"mushrooms {name}: internal error: {type(exc).__name__}: {exc} (rerun with --debug)",
               file=sys.stderr)
         return EXIT_INTERNAL
+
+
+def read_json_object(path: str, what: str = "plan") -> dict:
+    """A JSON object from a file (a plan document), or :class:`InputError` with one line."""
+    import json
+    from pathlib import Path
+
+    from ..scheduler_core.errors import InputError
+
+    try:
+        doc = json.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise InputError(f"{what} not found: {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read {what} {path}: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path} is not JSON: {exc}") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{path} is not a {what} document (not a JSON object)")
+    return doc

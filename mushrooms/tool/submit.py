@@ -14,10 +14,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 from typing import Sequence
 
-from .common import add_common_options, execute, tool_parser
+from .common import add_common_options, execute, read_json_object, tool_parser
 
 __all__ = ["HELP", "parser", "run", "main"]
 
@@ -47,16 +46,9 @@ def read_plan(path: str) -> dict:
     """A plan document from a file, or :class:`InputError` with one line."""
     from ..scheduler_core.errors import InputError
 
-    try:
-        doc = json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise InputError(f"plan not found: {path}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read plan {path}: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path} is not JSON: {exc}") from None
-    if not isinstance(doc, dict) or doc.get("type") != "plan":
-        raise InputError(f"{path} is not a plan document (type {doc.get('type') if isinstance(doc, dict) else None!r})")
+    doc = read_json_object(path)
+    if doc.get("type") != "plan":
+        raise InputError(f"{path} is not a plan document (type {doc.get('type')!r})")
     return doc
 
 

@@ -121,6 +121,22 @@ class _Contract:
             return _error("hung", 504)
         return _error(f"injected {fault}", int(fault))
 
+    def _handle(self, request: Request) -> Response:
+        """Auth, then an injected fault, then the contract (:meth:`_apply`); every request logged."""
+        try:
+            body = json.loads(request.get_data() or b"null")
+        except ValueError:
+            body = None
+        response = self._auth(request) or self._fault(request.method) or self._apply(request, body)
+        self._record(request, response.status_code, body)
+        if request.method in self.block_after and response.status_code == 200:
+            self.blocked.set()
+            self.release.wait(self.hang_s)
+        return response
+
+    def _apply(self, request: Request, body: Any) -> Response:
+        raise NotImplementedError
+
     def _record(self, request: Request, status: int, body: Any) -> None:
         entry = {"t": round(time.time(), 3), "method": request.method, "path": request.path, "status": status,
                  "authorization": request.headers.get("Authorization", "")}
@@ -145,19 +161,6 @@ class KowalskiContract(_Contract):
         self.queues: dict[str, dict[str, Any]] = {}
         for method in ("PUT", "DELETE", "GET"):
             server.expect_request(KOWALSKI_PATH, method=method).respond_with_handler(self._handle)
-
-    def _handle(self, request: Request) -> Response:
-        body: Any = None
-        try:
-            body = json.loads(request.get_data() or b"null")
-        except ValueError:
-            body = None
-        response = self._auth(request) or self._fault(request.method) or self._apply(request, body)
-        self._record(request, response.status_code, body)
-        if request.method in self.block_after and response.status_code == 200:
-            self.blocked.set()
-            self.release.wait(self.hang_s)
-        return response
 
     def _apply(self, request: Request, body: Any) -> Response:
         if request.method == "GET":
@@ -230,15 +233,6 @@ class SkyPortalContract(_Contract):
 
         server.expect_request(re.compile(r"^/api/observation_plan/[0-9]+$"), method="DELETE"
                               ).respond_with_handler(self._handle)
-
-    def _handle(self, request: Request) -> Response:
-        try:
-            body = json.loads(request.get_data() or b"null")
-        except ValueError:
-            body = None
-        response = self._auth(request) or self._fault(request.method) or self._apply(request, body)
-        self._record(request, response.status_code, body)
-        return response
 
     def _apply(self, request: Request, body: Any) -> Response:
         if request.method == "GET":
