@@ -1,4 +1,4 @@
-"""Command line: ``mushrooms demo | plan | check | replay | run | trigger | bench``.
+"""Command line: ``mushrooms demo | plan | check | replay | run | trigger | bench | study | submit | queue``.
 
 A thin dispatcher: each subcommand is a module of :mod:`mushrooms.tool`
 with its parser beside its implementation; :data:`TOOLS` is the registry.
@@ -14,7 +14,7 @@ from types import ModuleType
 from typing import Sequence
 
 from . import __version__
-from .tool import bench, check, demo, plan, replay, run, study, trigger
+from .tool import bench, check, demo, plan, queue, replay, run, study, submit, trigger
 from .tool.common import EXIT_INPUT, SOLVER_CHOICES, execute
 
 __all__ = ["main", "build_parser", "TOOLS", "SOLVER_CHOICES"]
@@ -22,7 +22,7 @@ __all__ = ["main", "build_parser", "TOOLS", "SOLVER_CHOICES"]
 #: subcommand -> tool module (``HELP``, ``parser(p)``, ``run(args)``), in ``--help`` order.
 TOOLS: dict[str, ModuleType] = {
     "demo": demo, "plan": plan, "check": check, "replay": replay, "run": run, "trigger": trigger, "bench": bench,
-    "study": study,
+    "study": study, "submit": submit, "queue": queue,
 }
 
 

@@ -3,7 +3,8 @@
 Sections: ``[scheduler]`` (:class:`~mushrooms.scheduler_core.PlanningConfig`),
 ``[policy]`` (:class:`~mushrooms.handlers.policy.PolicyConfig`),
 ``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`),
-``[export]`` (:class:`~mushrooms.scheduler_core.plan.exports.ExportConfig`);
+``[export]`` (:class:`~mushrooms.scheduler_core.plan.exports.ExportConfig`),
+``[submit]`` (:class:`~mushrooms.daemon.submit_settings.SubmitConfig`);
 an optional ``[bench]`` table is read by ``mushrooms bench`` only.
 Secrets never come from here: see the README.
 """
@@ -16,6 +17,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
+from .daemon.submit_settings import SubmitConfig
 from .handlers.policy import PolicyConfig
 from .scheduler_core.config import PlanningConfig
 from .scheduler_core.plan.exports import ExportConfig
@@ -44,6 +46,7 @@ class Config:
     outbound: OutboundConfig = field(default_factory=OutboundConfig)
     source: str = "<embedded defaults>"
     export: ExportConfig = field(default_factory=ExportConfig)
+    submit: SubmitConfig = field(default_factory=SubmitConfig)
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], source: str = "<mapping>") -> "Config":
@@ -55,6 +58,7 @@ class Config:
             "kafka": KafkaConfig,
             "outbound": OutboundConfig,
             "export": ExportConfig,
+            "submit": SubmitConfig,
         }
         # [bench] belongs to `mushrooms bench`, which reads it itself
         unknown = sorted(set(data) - set(sections) - {"bench"})

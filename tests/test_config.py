@@ -27,7 +27,7 @@ def _flatten(obj, prefix=""):
 def test_config_toml_lists_every_key_with_its_default():
     data = tomllib.loads((ROOT / "config.toml").read_text())
     defaults = Config()
-    for section in ("scheduler", "policy", "daemon", "kafka", "outbound", "export"):
+    for section in ("scheduler", "policy", "daemon", "kafka", "outbound", "export", "submit"):
         expected = _flatten(getattr(defaults, section))
         got = {}
         for k, v in data[section].items():

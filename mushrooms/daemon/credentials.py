@@ -12,6 +12,9 @@ sit in an ``Environment=`` line while the secret is a credential).
 The outbound Kafka sink's SASL password (when ``[outbound] security_protocol``
 is ``sasl_*``): ``$CREDENTIALS_DIRECTORY/outbound_password``, else
 ``$MUSHROOMS_OUTBOUND_PASSWORD``.
+
+The bearer token of ``[submit]`` (Kowalski or SkyPortal):
+``$CREDENTIALS_DIRECTORY/submit_token``, else ``$MUSHROOMS_SUBMIT_TOKEN``.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from typing import Mapping
 
 from ..config import ConfigError
 
-__all__ = ["Credentials", "CredentialsError", "load_credentials", "load_outbound_password"]
+__all__ = ["Credentials", "CredentialsError", "load_credentials", "load_outbound_password", "load_submit_token"]
 
 
 class CredentialsError(ConfigError):
@@ -97,6 +100,15 @@ def load_credentials(environ: Mapping[str, str] | None = None) -> Credentials:
     return Credentials(client_id=client_id, client_secret=secret, source=f"{id_source}, {secret_source}")
 
 
+def _secret(credential: str, variable: str, missing: str, environ: Mapping[str, str] | None) -> tuple[str, str]:
+    """One secret and where it came from (systemd credential first, then the variable), or ``CredentialsError(missing)``."""
+    env = os.environ if environ is None else environ
+    value, source = _lookup(credential, variable, env)
+    if value and source:
+        return value, source
+    raise CredentialsError(missing)
+
+
 def load_outbound_password(environ: Mapping[str, str] | None = None) -> tuple[str, str]:
     """Find the SASL password of the outbound Kafka sink.
 
@@ -115,11 +127,28 @@ def load_outbound_password(environ: Mapping[str, str] | None = None) -> tuple[st
     CredentialsError
         With a one-line hint when it is missing.
     """
-    env = os.environ if environ is None else environ
-    password, source = _lookup("outbound_password", "MUSHROOMS_OUTBOUND_PASSWORD", env)
-    if password and source:
-        return password, source
-    raise CredentialsError(
-        "outbound Kafka SASL password not found: set MUSHROOMS_OUTBOUND_PASSWORD or the systemd "
-        "credential outbound_password (or set [outbound] security_protocol to plaintext/ssl)"
-    )
+    return _secret("outbound_password", "MUSHROOMS_OUTBOUND_PASSWORD",
+                   "outbound Kafka SASL password not found: set MUSHROOMS_OUTBOUND_PASSWORD or the systemd "
+                   "credential outbound_password (or set [outbound] security_protocol to plaintext/ssl)", environ)
+
+
+def load_submit_token(environ: Mapping[str, str] | None = None) -> tuple[str, str]:
+    """Find the bearer token of the submission target (Kowalski or SkyPortal).
+
+    First match wins: the systemd credential ``submit_token``
+    (``$CREDENTIALS_DIRECTORY/submit_token``), else ``$MUSHROOMS_SUBMIT_TOKEN``.
+    Never from ``config.toml``; the value is never logged nor stored.
+
+    Returns
+    -------
+    token, source : str
+        The token and where it came from (for logs; never the value).
+
+    Raises
+    ------
+    CredentialsError
+        With a one-line hint when it is missing.
+    """
+    return _secret("submit_token", "MUSHROOMS_SUBMIT_TOKEN",
+                   "submission token not found: set MUSHROOMS_SUBMIT_TOKEN or the systemd credential submit_token "
+                   "(or set [submit] target = \"none\" or dry_run = true)", environ)

@@ -413,10 +413,15 @@ class OutboxDrain:
         ``flush() -> int`` messages still pending (or raises).
     initial_s, max_s : float
         First and largest back-off delay (s).
+    name : str
+        Thread name, and the ``event=<name>_failed`` of the back-off log line
+        (``outbox``: ``publish_failed``); the submitter's drain is ``submit``.
     """
 
-    def __init__(self, flush: Callable[[], Any], initial_s: float = 2.0, max_s: float = 300.0) -> None:
+    def __init__(self, flush: Callable[[], Any], initial_s: float = 2.0, max_s: float = 300.0,
+                 name: str = "outbox") -> None:
         self._flush = flush
+        self._event = "publish_failed" if name == "outbox" else f"{name}_failed"
         self._initial_s = float(initial_s)
         self._max_s = float(max_s)
         self._delay_s = self._initial_s
@@ -427,7 +432,7 @@ class OutboxDrain:
         self.attempts = 0
         self.failures = 0
         self.delays: list[float] = []  # back-off delays chosen, in order (for operators and tests)
-        self._thread = threading.Thread(target=self._run, name="outbox", daemon=True)
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._thread.start()
 
     def kick(self, now: bool = False) -> None:
@@ -474,7 +479,7 @@ class OutboxDrain:
                 self.delays.append(delay)
                 self._delay_s = min(self._delay_s * 2.0, self._max_s)
                 self._retry_at = time.monotonic() + delay
-            log.warning("event=publish_failed error=%r retry_in_s=%.1f", error, delay)
+            log.warning("event=%s error=%r retry_in_s=%.1f", self._event, error, delay)
 
     @property
     def retry_scheduled(self) -> bool:

@@ -105,6 +105,8 @@ class Service:
         self.consumer: Any = None
         self._closing = threading.Event()  # set once the store is being closed: no more retries touch it
         self._last_prune = 0.0
+        self.submitter: Any = None
+        self.submit_drain: Any = None  # [submit]: the submitter's thread (None when off)
 
     # signals only set flags; the main loop acts between polls
     def _on_signal(self, signum: int, frame: Any) -> None:
@@ -123,6 +125,12 @@ class Service:
             from .credentials import load_credentials
 
             load_credentials()  # fail fast, with one line, before touching any state
+        submit_token = None
+        if self.config.submit.enabled and not self.config.submit.dry_run:
+            from .credentials import load_submit_token
+
+            submit_token, source = load_submit_token()  # fail fast too; the value is never logged
+            log.info("event=submit_token source=%s", source)
         lock = PidLock(self.paths.pid_file)
         try:
             lock.acquire()
@@ -146,7 +154,7 @@ class Service:
                                       self.config.outbound.retry_max_s)
             try:
                 self.pipeline, close = open_pipeline(self.config, self.paths, sky_cache=self.sky_cache,
-                                                     on_outbox=self.outbox.kick)
+                                                     on_outbox=self._queued)
             except StoreError as exc:  # empty, damaged, newer: one line, and a status Restart= does not loop on
                 log.error("event=start_refused reason=%r", str(exc))
                 return EXIT_STATE
@@ -156,6 +164,13 @@ class Service:
                 log.error("event=start_refused reason=%r", str(exc))
                 return 1
             self._prune_raw()
+            from .submissions import open_submitter
+
+            opened = open_submitter(self.config, self.pipeline.store, submit_token, on_outbox=self.outbox.kick,
+                                    on_result=self._submission_result, closing=self._closing.is_set)
+            if opened is not None:
+                self.submitter, self.submit_drain = opened
+                self.submit_drain.kick()  # reconcile what a crash left half done
             self._warm_up(self.sky_cache)  # only once the state file is ours: a refused start is quick
             self.jobs = JobRunner(self._run_job, scheduler, self.config.daemon.max_jobs,
                                   self.config.daemon.job_deadline_s, on_done=self._job_done)
@@ -193,6 +208,8 @@ class Service:
             if self.consumer is not None:
                 self.consumer.close()
             scheduler.shutdown(wait=False)
+            if self.submit_drain is not None:
+                self._closing_submit()
             if hasattr(self, "outbox"):
                 self.outbox.close()
             unfinished = hasattr(self, "jobs") and self.jobs.busy()
@@ -308,9 +325,27 @@ class Service:
         return 0
 
     def _after_decision(self, decision: Any) -> None:
-        """A withdrawal waits in the outbox: the drain publishes it, off the consume loop."""
+        """A withdrawal waits in the outbox: the drain publishes it, off the consume loop (and the
+        submitter deletes the event's queues)."""
         if getattr(decision, "withdrawal_id", None) or getattr(decision, "action", None) == "withdraw":
             self.outbox.kick(now=True)
+            if self.submit_drain is not None:
+                self.submit_drain.kick(now=True)
+
+    def _queued(self) -> None:
+        """A plan (or another message) was stored: publish it, and submit it when [submit] is on."""
+        self.outbox.kick()
+        if self.submit_drain is not None:
+            self.submit_drain.kick()
+
+    def _submission_result(self, state: str, target: str) -> None:
+        """Hook for metrics: one call per submission transition (counts by result)."""
+        key = f"submissions_{state}"
+        self._counts[key] = self._counts.get(key, 0) + 1
+
+    def _closing_submit(self) -> None:
+        """Stop the submitter before the store closes (a request in flight ends within [submit] timeout_s)."""
+        self.submit_drain.close(timeout_s=self.config.submit.timeout_s + 1.0)
 
     def _run_job(self, job: Any, should_stop: Callable[[], bool]) -> Any:
         # a stopping service does not cut plans short: they get a grace period,
@@ -429,7 +464,9 @@ class Service:
         from .pipeline import NoticePipeline
 
         self.pipeline = NoticePipeline(new, self.pipeline.store, sink, sky_cache=self.sky_cache,
-                                       on_outbox=self.outbox.kick)
+                                       on_outbox=self._queued)
+        if new.submit != self.config.submit:
+            log.warning("event=reload_partial reason='[submit] changes apply at the next start'")
         if new.kafka != self.config.kafka:
             from .consumer import NoticeConsumer
 

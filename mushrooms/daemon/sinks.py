@@ -38,8 +38,8 @@ _SAFE = re.compile(r"[^A-Za-z0-9._-]")
 
 
 def message_key(message: Mapping[str, Any]) -> str:
-    """Stable key of an outbound message: ``plan_id`` (plans, not_observable answers), ``<plan_id>-final`` or
-    ``withdrawal_id``.
+    """Stable key of an outbound message: ``plan_id`` (plans, not_observable answers), ``<plan_id>-final``,
+    ``withdrawal_id`` or ``submission_id``.
 
     A ``plan_final`` message (the optimisation found nothing better: the
     named plan is final) is keyed by its plan's id with ``-final``.
@@ -53,6 +53,8 @@ def message_key(message: Mapping[str, Any]) -> str:
     if kind == "plan_final":
         plan_id = message.get("plan_id")
         key = f"{plan_id}-final" if isinstance(plan_id, str) and plan_id else None
+    elif kind == "submission":  # a plan's submission to ZTF's queue (daemon/submissions.py)
+        key = message.get("submission_id")
     else:
         key = message.get("plan_id") if kind in ("plan", "not_observable") else message.get("withdrawal_id")
     if not isinstance(key, str) or not key:

@@ -15,6 +15,10 @@ Tables
 ``plans``     plan documents (JSON) and whether they were withdrawn; a job's
               revisions (1: the fast plan, 2: a better optimised one) and
               whether the revision is ``final``.
+``submissions`` plans submitted to ZTF's queue: ``pending`` -> ``submitted``
+              -> ``replaced`` | ``deleted``, or ``rejected`` | ``failed`` |
+              ``skipped``, with the queue name, body, remote answer and times
+              (:mod:`.submissions` reads and writes it).
 ``outbox``    messages to publish; ``published_at`` is set once the sink took
               them.  Publication is at-least-once: a crash between publishing
               and marking re-publishes the same message (same key).
@@ -66,12 +70,36 @@ __all__ = ["Store", "StoreError", "StateInUse", "StateLock", "lock_state", "Job"
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
+
+#: Plans submitted to ZTF's queue (Kowalski or SkyPortal): one row per plan id (:mod:`.submissions`).
+_SUBMISSIONS = """
+CREATE TABLE IF NOT EXISTS submissions (
+    plan_id       TEXT PRIMARY KEY,
+    superevent_id TEXT NOT NULL,
+    target        TEXT NOT NULL,
+    revision      INTEGER,
+    queue_name    TEXT UNIQUE,
+    state         TEXT NOT NULL,
+    reason        TEXT,
+    body          TEXT,
+    remote_id     TEXT,
+    http_status   INTEGER,
+    answer        TEXT,
+    attempts      INTEGER NOT NULL DEFAULT 0,
+    created_at    TEXT NOT NULL,
+    attempted_at  TEXT,
+    submitted_at  TEXT,
+    finished_at   TEXT
+);
+CREATE INDEX IF NOT EXISTS submissions_event ON submissions(superevent_id, state);
+"""
 
 #: Additive migrations: ``{version: statements}`` bring a state file of
 #: ``version - 1`` up to ``version`` (a new file gets :data:`_SCHEMA` at once).
 _MIGRATIONS: dict[int, tuple[str, ...]] = {
     2: ("ALTER TABLE events ADD COLUMN localization TEXT",),  # gw | combined (issue 17)
+    3: (_SUBMISSIONS,),  # plans submitted to ZTF's queue (issue 27, :mod:`.submissions`)
 }
 
 _SCHEMA = """
@@ -147,7 +175,7 @@ CREATE TABLE IF NOT EXISTS outbox (
     last_error    TEXT
 );
 CREATE INDEX IF NOT EXISTS outbox_pending ON outbox(published_at);
-"""
+""" + _SUBMISSIONS
 
 #: Columns added after schema version 1, as (table, column, declaration).  Added
 #: when missing at every open, so state files of any earlier release keep working.

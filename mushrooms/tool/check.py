@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-import json
 import logging
 from typing import Sequence
 
-from .common import add_common_options, execute, tool_parser
+from .common import add_common_options, execute, read_json_object, tool_parser
 
 __all__ = ["HELP", "parser", "run", "main"]
 
@@ -37,26 +36,15 @@ def run(args: argparse.Namespace) -> int:
     The plan's embedded ``config`` is used unless ``--config`` is given.
     """
     from ..config import load_config
-    from ..inputs import read_regular_file, regular_file
+    from ..inputs import regular_file
     from ..offline import configure_astropy_offline
     from ..scheduler_core import Plan, PlanningConfig, check_plan, read_skymap
     from ..scheduler_core.errors import InputError
-    from ..scheduler_core.plan.strict_json import non_finite_path
 
     configure_astropy_offline()
     config = load_config(args.config)
-    data = read_regular_file(args.plan, what="plan")  # never a FIFO nor a device
+    doc = read_json_object(args.plan)
     map_path = regular_file(args.skymap, "sky map")  # checked before any work
-    try:
-        doc = json.loads(data.decode())
-    except UnicodeDecodeError as exc:
-        raise InputError(f"cannot read plan {args.plan}: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{args.plan} is not JSON: {exc}") from None
-    if (where := non_finite_path(doc)) is not None:  # Python reads NaN and Infinity; JSON has neither
-        raise InputError(f"{args.plan} is not valid JSON: NaN or infinity at {where}")
-    if not isinstance(doc, dict):
-        raise InputError(f"{args.plan} is not a plan document (not a JSON object)")
     if doc.get("type") == "not_observable":
         print(f"{args.plan}: a not_observable answer, no plan to check: {'; '.join(doc.get('reasons', []))}")
         return 0

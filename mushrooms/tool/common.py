@@ -93,3 +93,29 @@ def execute(name: str, args: argparse.Namespace, run: Callable[[argparse.Namespa
         print(f"mushrooms {name}: internal error: {type(exc).__name__}: {exc} (rerun with --debug)",
               file=sys.stderr)
         return EXIT_INTERNAL
+
+
+def read_json_object(path: str, what: str = "plan") -> dict:
+    """A JSON object from a regular file (a plan document), or :class:`InputError` with one line.
+
+    Never reads a FIFO or a device (:func:`mushrooms.inputs.read_regular_file`), and
+    refuses NaN and infinities, which Python's parser accepts and JSON does not have.
+    """
+    import json
+
+    from ..inputs import read_regular_file
+    from ..scheduler_core.errors import InputError
+    from ..scheduler_core.plan.strict_json import non_finite_path
+
+    data = read_regular_file(path, what=what)
+    try:
+        doc = json.loads(data.decode())
+    except UnicodeDecodeError as exc:
+        raise InputError(f"cannot read {what} {path}: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path} is not JSON: {exc}") from None
+    if (where := non_finite_path(doc)) is not None:
+        raise InputError(f"{path} is not valid JSON: NaN or infinity at {where}")
+    if not isinstance(doc, dict):
+        raise InputError(f"{path} is not a {what} document (not a JSON object)")
+    return doc

@@ -181,8 +181,9 @@ class Daemon:
     """``mushrooms run`` in a real subprocess; output goes to a log file."""
 
     def __init__(self, workdir: Path, args: list[str], env: dict[str, str] | None = None,
-                 gate: Path | None = None) -> None:
-        """``gate``: run through ``gated_run.py`` (jobs wait while ``gate/hold`` exists)."""
+                 gate: Path | None = None, wrapper: Path | None = None) -> None:
+        """``gate``: run through ``gated_run.py`` (jobs wait while ``gate/hold`` exists);
+        ``wrapper``: run through that script (``script ARGS`` runs ``mushrooms run ARGS``)."""
         self.workdir = workdir
         self.gate = gate
         self.log = workdir / f"daemon-{time.time_ns()}.log"
@@ -195,6 +196,8 @@ class Daemon:
             gate.mkdir(parents=True, exist_ok=True)
             e["MUSHROOMS_TEST_GATE"] = str(gate)
             cmd = [sys.executable, str(Path(__file__).with_name("gated_run.py")), *args]
+        elif wrapper is not None:
+            cmd = [sys.executable, str(wrapper), *args]
         else:
             cmd = [sys.executable, "-m", "mushrooms.cli", "run", *args]
         self._fh = open(self.log, "wb")

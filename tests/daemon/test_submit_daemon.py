@@ -1,0 +1,224 @@
+"""Submission end to end (issue 27): the real daemon, the loopback Kafka broker, the Kowalski contract server.
+
+``mushrooms run`` in a subprocess plans real notices (greedy, nside 64) and
+its submitter thread talks to the contract server of ``contract_servers.py``
+(threaded pytest-httpserver on 127.0.0.1, run by this test process).
+Kill points are reached deterministically: ``submit_fault_run.py`` kills the
+daemon with SIGKILL just before or just after its PUT; a kill during a
+DELETE is made while the server, having applied the DELETE, holds its answer.
+
+The fast scenario (notice -> PUT, update -> PUT new + DELETE old, retraction
+-> DELETE) is in the default run; kills and faults are ``slow``.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import sqlite3
+import time
+from pathlib import Path
+
+import pytest
+
+from contract_servers import KowalskiContract, loopback_server
+from daemon_helpers import Daemon, notice_bytes, write_config
+
+TOKEN = "daemon-s3cr3t-9f8e7d6c5b4a"
+SID = "MS181101ab"
+FAULT_RUN = Path(__file__).with_name("submit_fault_run.py")
+
+
+def _uniq(name: str) -> str:
+    return f"{name}-{time.time_ns()}"
+
+
+def _name(sid: str, n: int) -> str:
+    return f"ToO_GW_{sid}_r{n}"
+
+
+@pytest.fixture
+def kowalski():
+    server = loopback_server()
+    contract = KowalskiContract(server, TOKEN)
+    yield contract
+    contract.release.set()
+    server.clear()
+    server.stop()
+
+
+class Setup:
+    def __init__(self, broker, tmp_path: Path, url: str, submit: str = "") -> None:
+        self.broker = broker
+        self.topic, self.out = _uniq("gwalert"), _uniq("plans")
+        broker.ensure_topic(self.topic)
+        broker.ensure_topic(self.out)
+        extra = ("\n[submit]\ntarget = \"kowalski\"\nurl = \"" + url + "\"\ntimeout_s = 3.0\n"
+                 "retry_initial_s = 0.5\nretry_max_s = 2.0\n" + submit)
+        self.cfg = write_config(tmp_path / "config.toml", self.topic, self.out, _uniq("mushrooms"), extra)
+        self.state = tmp_path / "state.sqlite"
+        self.tmp = tmp_path
+        self.args = ["--config", str(self.cfg), "--bootstrap", broker.bootstrap, "--state", str(self.state)]
+        self.env = {"MUSHROOMS_SUBMIT_TOKEN": TOKEN}
+
+    def daemon(self, daemons: list, wrapper_kill: str | None = None) -> Daemon:
+        env = dict(self.env)
+        if wrapper_kill:
+            env["MUSHROOMS_TEST_SUBMIT_KILL"] = wrapper_kill
+        d = Daemon(self.tmp, self.args, env=env, wrapper=FAULT_RUN if wrapper_kill else None)
+        daemons.append(d)
+        return d
+
+    def send(self, name: str, sid: str | None = None) -> None:
+        self.broker.produce(self.topic, notice_bytes(name, sid), key=(sid or name).encode())
+
+    def rows(self, sql: str) -> list[tuple]:
+        with sqlite3.connect(self.state) as c:
+            return c.execute(sql).fetchall()
+
+    def states(self, sid: str = SID) -> list[tuple]:
+        return self.rows(f"SELECT queue_name, state FROM submissions WHERE superevent_id='{sid}' AND"
+                         " queue_name IS NOT NULL ORDER BY revision")
+
+
+def _wait(predicate, timeout_s: float, d: Daemon, what: str) -> None:
+    end = time.monotonic() + timeout_s
+    while not predicate():
+        d.alive()
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out waiting for {what}:\n{d.text()[-3000:]}")
+        time.sleep(0.1)
+
+
+def _no_duplicates(kowalski: KowalskiContract) -> None:
+    accepted = [e["queue_name"] for e in kowalski.log if e["method"] == "PUT" and e["status"] == 200]
+    assert len(accepted) == len(set(accepted)), kowalski.lines()
+
+
+def test_notice_update_and_retraction_through_the_daemon(broker, daemons, tmp_path, kowalski) -> None:
+    s = Setup(broker, tmp_path, kowalski.url)
+    d = s.daemon(daemons)
+    d.wait_log("event=service_ready", 120)
+    r1, r2 = _name(SID, 1), _name(SID, 2)
+    s.send("MS181101ab-preliminary.json", SID)
+    _wait(lambda: list(kowalski.queues) == [r1], 180, d, "the first queue")
+    s.send("MS230425l-preliminary.json", SID)  # an updated sky map
+    _wait(lambda: list(kowalski.queues) == [r2], 180, d, "the second queue to replace the first")
+    s.send("MS181101ab-retraction.json", SID)
+    _wait(lambda: not kowalski.queues and any(e["method"] == "DELETE" and e.get("queue_name") == r2
+                                              for e in kowalski.log), 120, d, "the retraction's DELETE")
+    _wait(lambda: s.states() == [(r1, "replaced"), (r2, "deleted")], 30, d, "the states")
+    assert d.stop() == 0
+    print("\n".join(kowalski.lines()))
+    assert kowalski.lines() == [f"PUT /api/triggers/ztf {r1} -> 200", f"PUT /api/triggers/ztf {r2} -> 200",
+                                f"DELETE /api/triggers/ztf {r1} -> 200", f"DELETE /api/triggers/ztf {r2} -> 200"]
+    assert all(e["authorization"] == f"Bearer {TOKEN}" for e in kowalski.log)
+    text = d.text()
+    assert "event=submission_submitted" in text and "event=submission_replaced" in text
+    assert TOKEN not in text
+    for f in tmp_path.iterdir():
+        if f.is_file():
+            assert TOKEN.encode() not in f.read_bytes(), f
+    docs = [json.loads(r[0]) for r in s.rows("SELECT body FROM outbox WHERE kind='submission' ORDER BY outbox_id")]
+    assert [(x["queue_name"], x["state"]) for x in docs] == [(r1, "submitted"), (r2, "submitted"),
+                                                             (r1, "replaced"), (r2, "deleted")]
+    assert s.rows("SELECT COUNT(*) FROM outbox WHERE published_at IS NULL") == [(0,)]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("point", ["before_put", "after_put"])
+def test_kill9_around_the_put_then_restart(broker, daemons, tmp_path, kowalski, point) -> None:
+    s = Setup(broker, tmp_path, kowalski.url)
+    d1 = s.daemon(daemons, wrapper_kill=point)
+    d1.wait_log("event=service_ready", 120)
+    s.send("MS181101ab-preliminary.json", SID)
+    d1.proc.wait(300)
+    assert d1.proc.returncode == -9, d1.text()[-3000:]
+    r1 = _name(SID, 1)
+    assert s.states() == [(r1, "pending")] and s.rows("SELECT attempts FROM submissions") == [(1,)]
+    assert list(kowalski.queues) == ([] if point == "before_put" else [r1])
+    d2 = s.daemon(daemons)
+    _wait(lambda: s.states() == [(r1, "submitted")], 180, d2, "the restart to settle the submission")
+    assert list(kowalski.queues) == [r1]
+    expected = ([f"PUT /api/triggers/ztf {r1} -> 200"] if point == "before_put" else
+                [f"PUT /api/triggers/ztf {r1} -> 200", f"PUT /api/triggers/ztf {r1} -> 409",
+                 "GET /api/triggers/ztf  -> 200"])
+    print(point, kowalski.lines())
+    assert kowalski.lines() == expected
+    assert d2.stop() == 0
+
+
+@pytest.mark.slow
+def test_kill9_during_the_delete_then_restart(broker, daemons, tmp_path, kowalski) -> None:
+    s = Setup(broker, tmp_path, kowalski.url)
+    d1 = s.daemon(daemons)
+    d1.wait_log("event=service_ready", 120)
+    r1, r2 = _name(SID, 1), _name(SID, 2)
+    s.send("MS181101ab-preliminary.json", SID)
+    _wait(lambda: s.states() == [(r1, "submitted")], 180, d1, "the first queue")
+    kowalski.block_after.add("DELETE")  # the server applies the DELETE, then holds its answer
+    s.send("MS230425l-preliminary.json", SID)
+    assert kowalski.blocked.wait(180), d1.text()[-3000:]
+    d1.kill9()
+    kowalski.block_after.clear()
+    kowalski.release.set()
+    assert list(kowalski.queues) == [r2] and s.states() == [(r1, "submitted"), (r2, "submitted")]
+    d2 = s.daemon(daemons)
+    _wait(lambda: s.states() == [(r1, "replaced"), (r2, "submitted")], 180, d2, "the restart to finish the DELETE")
+    print(kowalski.lines())
+    assert kowalski.lines() == [f"PUT /api/triggers/ztf {r1} -> 200", f"PUT /api/triggers/ztf {r2} -> 200",
+                                f"DELETE /api/triggers/ztf {r1} -> 200", f"DELETE /api/triggers/ztf {r1} -> 400",
+                                "GET /api/triggers/ztf  -> 200"]
+    assert list(kowalski.queues) == [r2]
+    _no_duplicates(kowalski)
+    assert d2.stop() == 0
+
+
+def _latency(text: str, sid: str) -> float:
+    m = re.search(rf"event=job_done superevent_id={sid} .*?latency_s=([0-9.]+)", text)
+    assert m, f"no job_done for {sid}"
+    return float(m.group(1))
+
+
+@pytest.mark.slow
+def test_refusals_server_errors_and_a_hanging_server(broker, daemons, tmp_path, kowalski) -> None:
+    """400 -> rejected; 409 with other content -> rejected; hang, hang, 500 -> retried until accepted;
+    a third event is planned while the server hangs."""
+    s = Setup(broker, tmp_path, kowalski.url)
+    a, b, c = SID, "MS230425l", "MS260605l"
+    kowalski.queues[_name(c, 1)] = {"queue_name": _name(c, 1), "validity_window_mjd": [1.0, 2.0], "targets": []}
+    kowalski.hang_s = 30.0
+    d = s.daemon(daemons)
+    d.wait_log("event=service_ready", 120)
+    kowalski.faults["PUT"] = [400]
+    s.send("MS181101ab-preliminary.json", a)
+    _wait(lambda: s.states(a) == [(_name(a, 1), "rejected")], 180, d, "the 400")
+    kowalski.faults["PUT"] = ["hang", "hang", 500]
+    s.send("MS230425l-preliminary.json", b)
+    _wait(lambda: kowalski.hanging > 0, 180, d, "b's first PUT to hang")
+    s.send("MS260605l-preliminary.json", c)  # planned while the server hangs
+    d.wait_log(f"event=job_done superevent_id={c}", 180)
+    hanging = kowalski.hanging
+    assert hanging > 0  # c's plan was made while requests were held unanswered
+    latency_c = _latency(d.text(), c)
+    kowalski.release.set()
+    _wait(lambda: s.states(b) == [(_name(b, 1), "submitted")] and s.states(c) == [(_name(c, 1), "rejected")],
+          240, d, "b accepted after the retries, c refused with 409")
+    assert d.stop() == 0
+    text = d.text()
+    errors = [line for line in text.splitlines() if " ERROR " in line]
+    assert len(errors) == 2, errors  # one per refusal, never repeated
+    assert sum("event=submission_rejected" in e for e in errors) == 2
+    assert "injected 400" in s.rows(f"SELECT answer FROM submissions WHERE superevent_id='{a}'")[0][0]
+    assert s.rows(f"SELECT reason FROM submissions WHERE superevent_id='{c}'")[0][0].startswith("409: a queue")
+    # the faults go to whichever PUT comes next (b's retries or c's first): together they took them all
+    puts = [e["status"] for e in kowalski.log if e["method"] == "PUT" and e.get("queue_name") in (_name(b, 1),
+                                                                                                 _name(c, 1))]
+    assert sorted(puts) == [200, 409, 500, 504, 504], kowalski.lines()
+    docs = [json.loads(r[0]) for r in s.rows("SELECT body FROM outbox WHERE kind='submission' ORDER BY outbox_id")]
+    assert {(x["superevent_id"], x["state"], x["http_status"]) for x in docs} == {
+        (a, "rejected", 400), (c, "rejected", 409), (b, "submitted", 200)}
+    print(f"\nfirst-plan latency of {c} while the server hung ({hanging} request(s) unanswered): "
+          f"{latency_c:.2f} s; of {a} (server answering): {_latency(text, a):.2f} s")
+    print("\n".join(kowalski.lines()))
+    assert TOKEN not in text
