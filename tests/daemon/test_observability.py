@@ -262,3 +262,58 @@ def test_offset_jump_past_deleted_messages_is_an_error_counted_and_shown(broker,
     d2.wait_log("event=notice origin=kafka:", 60, count=high - low)
     assert d2.stop() == 0
     assert d2.text().count("event=offset_jump") == 1
+
+
+def test_readiness_and_ready_wait_for_the_group_to_assign_partitions(broker, daemons, tmp_path: Path) -> None:
+    """The finding: ``service_ready`` long before ``partitions_assigned`` in group mode.
+
+    A member of the group has just left it (as a daemon stopping for a
+    restart does); librdkafka's mock coordinator then holds the next join
+    for ``session_timeout_s - 1`` s.  Readiness and systemd's READY=1 must
+    say "not consuming" for exactly that wait.
+    """
+    topic, out, group = _uniq("gwalert"), _uniq("plans"), _uniq("mushrooms")
+    broker.ensure_topic(topic)
+    broker.ensure_topic(out)
+    port = _free_port()
+    cfg = write_config(tmp_path / "config.toml", topic, out, group)
+    cfg.write_text(cfg.read_text().replace('assignment = "manual"', 'assignment = "group"')
+                   .replace("[daemon]\n", f'[daemon]\nmetrics_address = "127.0.0.1:{port}"\n'))
+    from mushrooms.daemon.consumer import consumer_config
+    from mushrooms.daemon.settings import KafkaConfig
+
+    # the previous member: joins, gets the partitions, leaves cleanly
+    prev = confluent_kafka.Consumer(consumer_config(KafkaConfig(topics=(topic,), group_id=group,
+                                                                bootstrap=broker.bootstrap)) | {"log_level": 3})
+    got: list[Any] = []
+    prev.subscribe([topic], on_assign=lambda c, parts: got.extend(parts))
+    _wait(lambda: prev.consume(1, 0.2) is not None and got, 60, what="the first member's assignment")
+    prev.close()
+    notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    notify.bind(str(tmp_path / "notify.sock"))
+    notify.settimeout(0.2)
+    d = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state",
+                          str(tmp_path / "state.sqlite")], env={"NOTIFY_SOCKET": str(tmp_path / "notify.sock")})
+    daemons.append(d)
+    text = d.wait_log("event=service_ready", 120)
+    assert "partitions=waiting" in text.split("event=service_ready")[1].splitlines()[0]
+    seen: list[bytes] = []
+    waiting: list[dict] = []
+    while b"READY=1" not in b"".join(seen):  # READY=1 only once the partitions are there
+        try:
+            seen.append(notify.recv(4096))
+        except (socket.timeout, BlockingIOError):
+            pass
+        code, body = _get(port, "/readyz")
+        if "event=consuming" not in d.text():
+            if code == 503:
+                waiting.append(json.loads(body))
+        d.alive()
+    ready_msg = next(m for m in seen if m.startswith(b"READY=1"))
+    assert b"STATUS=consuming" in ready_msg, seen
+    assert "event=consuming partitions=" in d.text()  # logged before READY=1 was sent
+    assert waiting and all("partitions" in w["failed"] for w in waiting)
+    assert "no partitions assigned yet" in waiting[-1]["checks"]["partitions"]["detail"]
+    _wait(lambda: _get(port, "/readyz")[0] == 200, 60, d, "ready")
+    assert d.stop() == 0
+    notify.close()
