@@ -200,10 +200,11 @@ class _Live(Collector):
     Sources (each optional; a failing one is skipped and counted in
     ``mushrooms_scrape_errors``): ``jobs() -> {"queued": n, "running": n}``,
     ``brokers() -> {client: True | False | None}``,
-    ``lag() -> {topic: messages}``, ``loop_age() -> s``.
+    ``lag() -> {topic: messages}``, ``loop_age() -> s``,
+    ``assigned() -> number of partitions``.
     """
 
-    SOURCES = ("jobs", "brokers", "lag", "loop_age")
+    SOURCES = ("jobs", "brokers", "lag", "loop_age", "assigned")
 
     def __init__(self, metrics: ServiceMetrics) -> None:
         self.metrics = metrics
@@ -240,6 +241,10 @@ class _Live(Collector):
         for topic, n in sorted((self._call("lag") or {}).items()):
             lag.add_metric([topic], float(n))
         yield lag
+        assigned = self._call("assigned")
+        if assigned is not None:
+            yield GaugeMetricFamily("mushrooms_consumer_assigned_partitions", "Input partitions assigned to the "
+                                    "consumer (0: not consuming, e.g. waiting for the group)", value=float(assigned))
         age = self._call("loop_age")
         if age is not None:
             yield GaugeMetricFamily("mushrooms_main_loop_age_seconds", "Time since the consume loop last turned",

@@ -358,6 +358,7 @@ class Service:
             brokers=self._broker_states,
             lag=lambda: dict(self.consumer.health.lag) if self.consumer is not None else {},
             loop_age=lambda: time.monotonic() - self._last_loop,
+            assigned=lambda: len(self.consumer.assigned) if self.consumer is not None else 0,
         )
         address = self.config.daemon.metrics_address
         if not address or self.listener is not None:
