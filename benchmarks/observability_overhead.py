@@ -31,6 +31,7 @@ import sys
 import tempfile
 import threading
 import time
+import urllib.error
 import urllib.request
 from pathlib import Path
 
@@ -74,15 +75,19 @@ def start(broker: Broker, work: Path, name: str, port: int | None) -> tuple[Daem
     return d, topic, out
 
 
-def scraper(port: int, every_s: float, stop: threading.Event, counts: dict[str, int]) -> None:
+def scraper(port: int, every_s: float, stop: threading.Event, counts: dict[str, int], failed: list[str]) -> None:
     while not stop.wait(every_s):
         for path in ("/metrics", "/readyz"):
             try:
                 with urllib.request.urlopen(f"http://127.0.0.1:{port}{path}", timeout=5) as r:
                     r.read()
                 counts["ok"] += 1
-            except Exception:  # 503 from /readyz is an answer too
+            except urllib.error.HTTPError as exc:  # 503 from /readyz: say which check failed
                 counts["other"] += 1
+                failed.append(f"{path} {exc.code}: {exc.read().decode()[:300]}")
+            except OSError as exc:
+                counts["other"] += 1
+                failed.append(f"{path}: {exc}")
 
 
 def main() -> int:
@@ -105,7 +110,8 @@ def main() -> int:
     daemons = {"off": (off, topic_off), "on": (on, topic_on)}
     stop = threading.Event()
     counts = {"ok": 0, "other": 0}
-    t = threading.Thread(target=scraper, args=(port, a.scrape_s, stop, counts), daemon=True)
+    failed: list[str] = []
+    t = threading.Thread(target=scraper, args=(port, a.scrape_s, stop, counts, failed), daemon=True)
     t.start()
     notices = live_notices(max(0, a.pairs - 5))
     rows: list[tuple[str, dict[str, tuple[float, float]]]] = []
@@ -152,6 +158,7 @@ def main() -> int:
               f"(min {min(diffs):+.3f}, max {max(diffs):+.3f})",
               f"outside view (producer ack -> plan read), paired difference on - off: median "
               f"{statistics.median(diffs_out):+.3f} s, mean {statistics.mean(diffs_out):+.3f} s"]
+    lines += [f"scrape not 200: {x}" for x in failed]
     print("\n".join(lines))
     out = Path(a.out) / "observability_overhead.txt"
     out.parent.mkdir(parents=True, exist_ok=True)
