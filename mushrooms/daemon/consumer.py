@@ -4,6 +4,14 @@ Offsets are committed by hand (``enable.auto.commit=false``), one message at
 a time and synchronously, only after the service has stored what it decided
 about that message.  A crash between the two redelivers the message: the
 store recognises it and the plan id is the same, so redelivery is harmless.
+
+No silent loss: when partitions are assigned the consumer compares the
+group's committed offsets with each partition's log start, and while
+consuming it compares every message's offset with the one it expected
+next.  Messages gone in between (deleted by retention while the service was
+down: librdkafka then resets to the log start with only a warning, since
+``auto.offset.reset = earliest``) are logged at ERROR
+(``event=offset_jump ... skipped=N``) and handed to ``on_offset_jump``.
 """
 
 from __future__ import annotations
@@ -11,7 +19,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import confluent_kafka
 import gcn_kafka
@@ -20,7 +28,10 @@ from .credentials import Credentials, load_credentials
 from .kafka_logging import BrokerHealth, client_settings
 from .settings import KafkaConfig
 
-__all__ = ["Received", "NoticeConsumer", "consumer_config"]
+__all__ = ["Received", "NoticeConsumer", "consumer_config", "OffsetJump"]
+
+#: ``on_offset_jump(topic, partition, expected, got, skipped, cause)``: messages were skipped.
+OffsetJump = Callable[[str, int, int, int, int, str], None]
 
 log = logging.getLogger(__name__)
 
@@ -76,10 +87,19 @@ class NoticeConsumer:
         systemd credentials.
     credentials : Credentials, optional
         Overrides the lookup (tests).
+    on_offset_jump : callable, optional
+        Told about every offset jump (:data:`OffsetJump`), after the ERROR line.
     """
 
-    def __init__(self, config: KafkaConfig, credentials: Credentials | None = None) -> None:
+    def __init__(self, config: KafkaConfig, credentials: Credentials | None = None,
+                 on_offset_jump: OffsetJump | None = None) -> None:
         self.config = config
+        self.on_offset_jump = on_offset_jump
+        #: (topic, partition) currently assigned; empty until the group (or manual mode) assigns them
+        self.assigned: set[tuple[str, int]] = set()
+        #: monotonic time since which the consumer waits for an assignment (None once it has one)
+        self.waiting_since: float | None = time.monotonic()
+        self._next: dict[tuple[str, int], int] = {}  # offset expected next, per partition
         #: whether the input cluster answers (heartbeat, systemd status)
         self.health = BrokerHealth("consumer")
         conf = consumer_config(config) | client_settings(self.health, stats_interval_s=5.0)
@@ -99,7 +119,7 @@ class NoticeConsumer:
 
     def _start(self, topics: list[str]) -> None:
         if self.config.assignment == "group":
-            self._consumer.subscribe(topics, on_assign=_log_assign, on_revoke=_log_revoke)
+            self._consumer.subscribe(topics, on_assign=self._on_assign, on_revoke=self._on_revoke)
             return
         # manual: every partition of every topic, from the group's committed offsets
         md = self._consumer.list_topics(timeout=30)
@@ -113,9 +133,87 @@ class NoticeConsumer:
                 raise RuntimeError(f"topic {topic} has no partitions")
             parts += [confluent_kafka.TopicPartition(topic, p) for p in sorted(tmd.partitions)]
         committed = self._consumer.committed(parts, timeout=30)
+        self._expect(committed)
         self._consumer.assign(committed)
         log.info("event=partitions_assigned mode=manual positions=%s",
                  " ".join(f"{tp.topic}[{tp.partition}]@{tp.offset}" for tp in committed))
+
+    # -- assignment and offset continuity -------------------------------
+    def _on_assign(self, consumer: Any, partitions: Sequence[Any]) -> None:
+        _log_assign(consumer, partitions)
+        try:
+            self._expect(consumer.committed(list(partitions), timeout=10))
+        except Exception as exc:  # the check starts with the next message instead
+            log.warning("event=offset_check_unavailable error=%r", str(exc))
+            self._mark_assigned(partitions)
+
+    def _on_revoke(self, consumer: Any, partitions: Sequence[Any]) -> None:
+        _log_revoke(consumer, partitions)
+        for tp in partitions:
+            self.assigned.discard((tp.topic, tp.partition))
+            self._next.pop((tp.topic, tp.partition), None)
+        if not self.assigned:
+            self.waiting_since = time.monotonic()
+
+    def _mark_assigned(self, partitions: Sequence[Any]) -> None:
+        self.assigned.update((tp.topic, tp.partition) for tp in partitions)
+        if self.assigned:
+            self.waiting_since = None
+
+    def _expect(self, committed: Sequence[Any]) -> None:
+        """Remember where each partition must continue; a committed offset below the log start is a jump."""
+        for tp in committed:
+            key = (tp.topic, tp.partition)
+            if tp.offset < 0:  # nothing committed: a new group starts where offset_reset says
+                self._next.pop(key, None)
+                continue
+            self._next[key] = tp.offset
+            try:
+                low, high = self._consumer.get_watermark_offsets(
+                    confluent_kafka.TopicPartition(tp.topic, tp.partition), timeout=10, cached=False)
+            except Exception as exc:
+                log.warning("event=offset_check_unavailable topic=%s partition=%d error=%r", tp.topic,
+                            tp.partition, str(exc))
+                continue
+            if tp.offset < low:
+                self._jump(tp.topic, tp.partition, tp.offset, low,
+                           "committed offset below the log start: deleted by retention before it was read")
+                self._next[key] = low
+            elif tp.offset > high:
+                log.warning("event=offset_beyond_end topic=%s partition=%d committed=%d high=%d "
+                            "(topic recreated or truncated? the consumer resets to %s)", tp.topic, tp.partition,
+                            tp.offset, high, self.config.offset_reset)
+                self._next.pop(key, None)
+        self._mark_assigned(committed)
+
+    def _check(self, msg: Any) -> None:
+        key = (msg.topic(), msg.partition())
+        expected = self._next.get(key)
+        self._next[key] = msg.offset() + 1
+        if expected is None or msg.offset() <= expected:
+            return
+        try:
+            low = self._consumer.get_watermark_offsets(
+                confluent_kafka.TopicPartition(msg.topic(), msg.partition()), timeout=5, cached=False)[0]
+        except Exception:
+            low = None
+        if low is not None and low <= expected:  # nothing was deleted: offsets of control records (transactions)
+            log.warning("event=offset_gap topic=%s partition=%d expected=%d got=%d log_start=%d (no message "
+                        "deleted: transaction markers or compaction)", msg.topic(), msg.partition(), expected,
+                        msg.offset(), low)
+            return
+        self._jump(msg.topic(), msg.partition(), expected, msg.offset(),
+                   "messages deleted by retention while waiting to be read")
+
+    def _jump(self, topic: str, partition: int, expected: int, got: int, cause: str) -> None:
+        skipped = got - expected
+        log.error("event=offset_jump topic=%s partition=%d expected=%d got=%d skipped=%d cause=%r "
+                  "(these messages were never seen by the service)", topic, partition, expected, got, skipped, cause)
+        if self.on_offset_jump is not None:
+            try:
+                self.on_offset_jump(topic, partition, expected, got, skipped, cause)
+            except Exception:
+                log.exception("event=offset_jump_callback_failed")
 
     def poll(self, timeout_s: float | None = None) -> Received | None:
         """Wait up to ``timeout_s`` (s) for one notice; None when none came.
@@ -136,6 +234,7 @@ class NoticeConsumer:
                 raise RuntimeError(f"fatal Kafka error: {err}")
             return None
         self.health.on_message()
+        self._check(msg)
         value = msg.value() or b""
         return Received(
             value=value,
@@ -152,6 +251,7 @@ class NoticeConsumer:
         """Read ``received`` again on the next poll (its storage failed)."""
         msg = received.message
         self._consumer.seek(confluent_kafka.TopicPartition(msg.topic(), msg.partition(), msg.offset()))
+        self._next[(msg.topic(), msg.partition())] = msg.offset()
 
     def close(self) -> None:
         """Leave the group (uncommitted messages are redelivered later)."""

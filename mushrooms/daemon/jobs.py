@@ -360,6 +360,12 @@ class JobRunner:
             order = sorted(self._queue, key=lambda e: (-1 if e.stop.is_set() else e.stage, e.seq))
             return [(e.key, "first" if e.stage == FIRST else "optimise") for e in order]
 
+    def counts(self) -> dict[str, int]:
+        """Work waiting for a worker (``queued``) and stages being run (``running``), for the metrics."""
+        with self._lock:
+            running = sum(e.running for e in list(self._current.values()) + self._retired)
+            return {"queued": len(self._queue), "running": running}
+
     def busy(self) -> bool:
         """True while any job (current or superseded) has not finished."""
         with self._lock:

@@ -92,6 +92,8 @@ class BrokerHealth:
         self.up: bool | None = None
         self.since = time.time()
         self.last_error: str | None = None
+        #: topic -> messages not yet consumed (consumer statistics; partitions with a known lag)
+        self.lag: dict[str, int] = {}
         self._lock = threading.Lock()
 
     def _set(self, up: bool, detail: str | None = None) -> None:
@@ -121,10 +123,17 @@ class BrokerHealth:
     def on_stats(self, text: str) -> None:
         """librdkafka ``stats_cb``: up when any broker connection is in state ``UP``."""
         try:
-            brokers = json.loads(text).get("brokers", {})
+            stats = json.loads(text)
         except ValueError:
             return
-        self._set(any(b.get("state") == "UP" for b in brokers.values()))
+        lag: dict[str, int] = {}
+        for topic, t in (stats.get("topics") or {}).items():
+            for pid, part in (t.get("partitions") or {}).items():
+                n = part.get("consumer_lag", -1)
+                if pid != "-1" and isinstance(n, int) and n >= 0:
+                    lag[topic] = lag.get(topic, 0) + n
+        self.lag = lag
+        self._set(any(b.get("state") == "UP" for b in (stats.get("brokers") or {}).values()))
 
     def describe(self) -> str:
         """``up``, ``down`` or ``unknown`` (before the first statistics)."""

@@ -17,7 +17,7 @@ from typing import Any, Mapping
 import confluent_kafka
 
 from .credentials import CredentialsError, load_outbound_password
-from .kafka_logging import kafka_logger
+from .kafka_logging import BrokerHealth, client_settings, kafka_logger
 from ..scheduler_core.plan import strict_json
 from .settings import OutboundConfig
 from .sinks import SinkError
@@ -109,7 +109,10 @@ class KafkaSink:
             "client.id": "mushrooms-sink",
         }
         conf.update(extra or {})
-        conf.setdefault("logger", kafka_logger())  # librdkafka's lines into Python logging, repeats rate-limited
+        #: whether the outbound cluster answers (readiness, ``mushrooms_broker_up{client="sink"}``)
+        self.health = BrokerHealth("sink")
+        for key, value in client_settings(self.health, stats_interval_s=5.0).items():
+            conf.setdefault(key, value)  # librdkafka's lines into Python logging, repeats rate-limited
         self._producer = confluent_kafka.Producer(conf)
         self._lock = threading.Lock()
 
@@ -147,6 +150,10 @@ class KafkaSink:
             raise PublishError(f"publish to {self.topic} failed: {result['error']}")
         log.debug("event=kafka_published topic=%s key=%s partition_offset=%s bytes=%d",
                   self.topic, key, result.get("where"), len(value))
+
+    def serve_callbacks(self) -> None:
+        """Serve librdkafka's statistics and error callbacks (:attr:`health`) between publishes."""
+        self._producer.poll(0)
 
     def close(self, timeout_s: float = 10.0) -> None:
         """Flush what is still queued (s of patience)."""

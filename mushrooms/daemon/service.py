@@ -37,6 +37,7 @@ __all__ = ["main", "Service", "setup_logging", "EXIT_STATE"]
 
 log = logging.getLogger("mushrooms.daemon")
 
+READY_WAIT_S = 60.0  # READY=1 waits this long (s) at most for the consumer group's partitions
 TRIGGER_SCAN_S = 5.0  # triggers are also picked up without SIGUSR1, at this period (s)
 WARM_INTERVAL_S = 1800.0  # the coming night's visibility is computed ahead at this period (s)
 PRUNE_EVERY_S = 3600.0  # how often the raw bytes of old rejected messages are pruned (s)
@@ -107,6 +108,17 @@ class Service:
         self._last_prune = 0.0
         self.submitter: Any = None
         self.submit_drain: Any = None  # [submit]: the submitter's thread (None when off)
+        #: starting -> warming -> running -> stopping (``/healthz``, ``/readyz``)
+        self.phase = "starting"
+        from .. import __version__
+        from .metrics import ServiceMetrics
+
+        #: the Prometheus registry and the hooks (docs/operations.md); served when metrics_address is set
+        self.metrics = ServiceMetrics(__version__, self.paths.state)
+        self.listener: Any = None
+        self._ready_sent = False
+        self._ready_wait_from = 0.0
+        self._consuming = False
 
     # signals only set flags; the main loop acts between polls
     def _on_signal(self, signum: int, frame: Any) -> None:
@@ -163,6 +175,7 @@ class Service:
             except StateInUse as exc:
                 log.error("event=start_refused reason=%r", str(exc))
                 return 1
+            self._observe()
             self._prune_raw()
             from .submissions import open_submitter
 
@@ -171,6 +184,7 @@ class Service:
             if opened is not None:
                 self.submitter, self.submit_drain = opened
                 self.submit_drain.kick()  # reconcile what a crash left half done
+            self.phase = "warming"
             self._warm_up(self.sky_cache)  # only once the state file is ours: a refused start is quick
             self.jobs = JobRunner(self._run_job, scheduler, self.config.daemon.max_jobs,
                                   self.config.daemon.job_deadline_s, on_done=self._job_done)
@@ -186,19 +200,23 @@ class Service:
             self._scan_triggers()
             from .consumer import NoticeConsumer
 
-            self.consumer = NoticeConsumer(self.config.kafka)
+            self.consumer = NoticeConsumer(self.config.kafka, on_offset_jump=self._offset_jump)
             scheduler.add_job(self._heartbeat, "interval", seconds=self.config.daemon.heartbeat_s,
                               id="heartbeat", misfire_grace_time=None, coalesce=True)
             wd = watchdog_interval_s()
             if wd:
                 scheduler.add_job(self._watchdog, "interval", seconds=wd, id="watchdog",
                                   args=[wd], misfire_grace_time=None, coalesce=True)
-            self.notifier.ready(f"consuming {','.join(self.config.kafka.topics)}")
-            log.info("event=service_ready topics=%s watchdog_s=%s startup_s=%.2f", ",".join(self.config.kafka.topics),
-                     f"{wd:.1f}" if wd else "-", time.monotonic() - self._started)
+            self.phase = "running"
+            log.info("event=service_ready topics=%s watchdog_s=%s startup_s=%.2f partitions=%s",
+                     ",".join(self.config.kafka.topics), f"{wd:.1f}" if wd else "-", time.monotonic() - self._started,
+                     "assigned" if self.consumer.assigned else "waiting")
+            self._ready_wait_from = time.monotonic()
+            self._track_assignment()
             self._loop()
             return 0
         finally:
+            self.phase = "stopping"
             self.notifier.stopping()
             log.info("event=service_stopping active_jobs=%s", ",".join(self._active()) or "-")
             if hasattr(self, "jobs"):
@@ -219,6 +237,8 @@ class Service:
                 self._close_store(close)
             if state_lock is not None:
                 state_lock.release()
+            if self.listener is not None:
+                self.listener.close()
             lock.release()
             log.info("event=service_stopped unfinished_jobs=%s", "yes" if unfinished else "no")
             if unfinished:
@@ -241,6 +261,8 @@ class Service:
             received = self.consumer.poll()
             if received is not None:
                 self._handle(received)
+            if self._consuming != bool(self.consumer.assigned) or not self._ready_sent:
+                self._track_assignment()
 
     # ------------------------------------------------------------ notices
     def _handle(self, received: Any) -> None:
@@ -262,6 +284,7 @@ class Service:
                 self._stop.wait(5.0)
                 return
         self._counts["notices"] += 1
+        self.metrics.notice(decision)
         started = self._start_jobs(decision, received.received_at)
         try:
             self.consumer.commit(received)
@@ -304,6 +327,7 @@ class Service:
                 os.replace(path, bad)
                 continue
             self._counts["triggers"] += 1
+            self.metrics.notice(decision, source="trigger")
             started = self._start_jobs(decision, received_at)
             path.unlink(missing_ok=True)
             self._after_decision(decision)
@@ -342,6 +366,7 @@ class Service:
         """Hook for metrics: one call per submission transition (counts by result)."""
         key = f"submissions_{state}"
         self._counts[key] = self._counts.get(key, 0) + 1
+        self.metrics.submission(state)
 
     def _closing_submit(self) -> None:
         """Stop the submitter before the store closes (a request in flight ends within [submit] timeout_s)."""
@@ -355,6 +380,81 @@ class Service:
 
     def _job_done(self, job: Any, outcome: Any, info: dict[str, Any]) -> None:
         self._counts["jobs"] += 1
+        self.metrics.job_finished(outcome, info)
+
+    # ------------------------------------------------------------ observability
+    def _observe(self) -> None:
+        """Count what the sink publishes, and open the metrics/health listener when configured."""
+        from .metrics import ObservedSink
+
+        if not isinstance(self.pipeline.sink, ObservedSink):
+            self.pipeline.sink = ObservedSink(self.pipeline.sink, self.metrics, self.pipeline.store.received_wall)
+        self.metrics.watch(
+            jobs=lambda: self.jobs.counts() if hasattr(self, "jobs") else {},
+            brokers=self._broker_states,
+            lag=lambda: dict(self.consumer.health.lag) if self.consumer is not None else {},
+            loop_age=lambda: time.monotonic() - self._last_loop,
+            assigned=lambda: len(self.consumer.assigned) if self.consumer is not None else 0,
+        )
+        address = self.config.daemon.metrics_address
+        if not address or self.listener is not None:
+            return
+        from .health import LIVENESS_DEFAULT_S, HealthServer, liveness, service_checks
+        from .settings import parse_address
+
+        host, port = parse_address(address)
+        limit = watchdog_interval_s()
+        limit = max(2 * limit, 3 * self.config.kafka.poll_timeout_s) if limit else LIVENESS_DEFAULT_S
+        try:
+            self.listener = HealthServer(host, port, self.metrics,
+                                         liveness(lambda: self.phase, lambda: time.monotonic() - self._last_loop,
+                                                  limit), service_checks(self)).start()
+        except OSError as exc:  # the plans matter more than the metrics: run on, say so loudly
+            log.error("event=metrics_unavailable address=%s error=%r", address, str(exc))
+            return
+        log.info("event=metrics_listening address=%s:%d paths=/metrics,/healthz,/readyz", *self.listener.address)
+
+    def _broker_states(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.consumer is not None:
+            out["consumer"] = self.consumer.health.up
+        sink = getattr(self.pipeline, "sink", None)
+        if getattr(sink, "health", None) is not None:
+            serve = getattr(sink, "serve_callbacks", None)
+            if serve is not None:
+                serve()
+            out["sink"] = sink.health.up
+        return out
+
+    def _offset_jump(self, topic: str, partition: int, expected: int, got: int, skipped: int, cause: str) -> None:
+        """The consumer found messages gone: count them and keep a record for ``mushrooms status``."""
+        self.metrics.offset_jump(topic, skipped)
+        try:
+            self.pipeline.store.record_incident("offset_jump", {
+                "topic": topic, "partition": partition, "expected": expected, "got": got, "skipped": skipped,
+                "cause": cause})
+        except Exception as exc:
+            log.error("event=incident_not_stored kind=offset_jump error=%r", f"{type(exc).__name__}: {exc}")
+
+    def _track_assignment(self) -> None:
+        """Tell systemd the truth: READY=1 once partitions are assigned (or after READY_WAIT_S), STATUS on changes."""
+        topics = ",".join(self.config.kafka.topics)
+        assigned = bool(self.consumer.assigned)
+        waited = time.monotonic() - self._started
+        if assigned and not self._consuming:
+            log.info("event=consuming partitions=%s since_start_s=%.2f", " ".join(
+                f"{t}[{p}]" for t, p in sorted(self.consumer.assigned)), waited)
+        elif self._consuming and not assigned:
+            log.warning("event=not_consuming reason='partitions revoked; waiting for the group to assign them'")
+        self._consuming = assigned
+        status = (f"consuming {topics}" if assigned else
+                  f"NOT consuming yet: waiting for the consumer group to assign partitions of {topics}")
+        if not self._ready_sent:
+            if assigned or time.monotonic() - self._ready_wait_from > READY_WAIT_S:
+                self._ready_sent = True
+                self.notifier.ready(status)
+        else:
+            self.notifier.status(status)
 
     # ------------------------------------------------------------ warm state
     def _warm_up(self, cache: Any) -> Any:
@@ -431,7 +531,9 @@ class Service:
         up = time.monotonic() - self._started
         active = self._active()
         health = getattr(self.consumer, "health", None)
-        status = (f"{health.status_text() + ', ' if health else ''}up {up / 3600:.1f} h, "
+        self._broker_states()  # serves the sink's statistics callbacks between publishes
+        consuming = "" if getattr(self.consumer, "assigned", True) else "NOT consuming (no partitions), "
+        status = (f"{consuming}{health.status_text() + ', ' if health else ''}up {up / 3600:.1f} h, "
                   f"{self._counts['notices']} notices, {self._counts['jobs']} jobs done, "
                   f"active: {','.join(active) or 'none'}")
         self.notifier.status(status)
@@ -467,11 +569,12 @@ class Service:
                                        on_outbox=self._queued)
         if new.submit != self.config.submit:
             log.warning("event=reload_partial reason='[submit] changes apply at the next start'")
+        self._observe()
         if new.kafka != self.config.kafka:
             from .consumer import NoticeConsumer
 
             self.consumer.close()
-            self.consumer = NoticeConsumer(new.kafka)
+            self.consumer = NoticeConsumer(new.kafka, on_offset_jump=self._offset_jump)
         if new.daemon.heartbeat_s != self.config.daemon.heartbeat_s:
             self.scheduler.reschedule_job("heartbeat", trigger="interval", seconds=new.daemon.heartbeat_s)
         self.config = new

@@ -10,7 +10,16 @@ from typing import Any, Mapping
 from ..scheduler_core.config import dataclass_from_table
 from ..scheduler_core.ranges import require_finite, setting
 
-__all__ = ["DaemonConfig", "KafkaConfig", "OutboundConfig", "RuntimePaths", "resolve_paths"]
+__all__ = ["DaemonConfig", "KafkaConfig", "OutboundConfig", "RuntimePaths", "resolve_paths", "parse_address"]
+
+
+def parse_address(text: str) -> tuple[str, int]:
+    """``HOST:PORT`` (``[::1]:9464`` for IPv6) as (host, port); raises ValueError."""
+    host, sep, port = text.strip().rpartition(":")
+    if not sep or not port.isdigit() or not 0 <= int(port) <= 65535:
+        raise ValueError(f"[daemon] metrics_address must be HOST:PORT, got {text!r}")
+    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    return host or "0.0.0.0", int(port)
 
 
 @dataclass(frozen=True)
@@ -67,6 +76,10 @@ class DaemonConfig:
     rejected_raw_retention_s : float
         How long (s) the first KiB of a rejected message is kept for
         inspection; then only its SHA-256, size and decision remain.
+    metrics_address : str
+        ``HOST:PORT`` of the HTTP listener with ``/metrics`` (Prometheus),
+        ``/healthz`` and ``/readyz`` (docs/operations.md), e.g.
+        ``127.0.0.1:9464``; empty (default): no listener.
     """
 
     state_path: str = "mushrooms-state.sqlite"
@@ -82,8 +95,12 @@ class DaemonConfig:
     group_readable: bool = False
     rejected_raw_retention_s: float = setting(2_592_000.0, 0, 31_622_400, "s", why="up to a year")
 
+    metrics_address: str = ""
+
     def __post_init__(self) -> None:
         require_finite(self, "daemon")
+        if self.metrics_address:
+            parse_address(self.metrics_address)
         if not 0.0 <= self.supersede_min_gain <= 1.0:
             raise ValueError(f"[daemon] supersede_min_gain must be within 0-1, got {self.supersede_min_gain}")
         if self.max_jobs < 1:

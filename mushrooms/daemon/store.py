@@ -22,6 +22,8 @@ Tables
 ``outbox``    messages to publish; ``published_at`` is set once the sink took
               them.  Publication is at-least-once: a crash between publishing
               and marking re-publishes the same message (same key).
+``incidents`` what an operator must hear of besides notices (the consumer's
+              offset jumps); created when missing at every open.
 
 Crash safety: every state change that belongs together happens in one
 ``BEGIN IMMEDIATE`` transaction (accept = notice + decision + event + job or
@@ -182,6 +184,14 @@ CREATE INDEX IF NOT EXISTS outbox_pending ON outbox(published_at);
 _ADDED_COLUMNS = (
     ("plans", "revision", "INTEGER NOT NULL DEFAULT 1"),
     ("plans", "final", "INTEGER NOT NULL DEFAULT 1"),
+)
+
+#: Tables added after schema version 2 that no migration needs (created when missing at every open;
+#: an older program ignores them).  ``incidents``: things an operator must hear of that are not
+#: notices, e.g. the consumer's offset jumps (:meth:`Store.record_incident`, ``mushrooms status``).
+_ADDED_TABLES = (
+    "CREATE TABLE IF NOT EXISTS incidents (incident_id INTEGER PRIMARY KEY AUTOINCREMENT,"
+    " kind TEXT NOT NULL, detail TEXT NOT NULL, created_at TEXT NOT NULL)",
 )
 
 _OPEN = ("pending", "running")
@@ -426,8 +436,10 @@ class Store:
         self._add_columns(conn)
 
     def _add_columns(self, conn: sqlite3.Connection) -> None:
-        """Add the columns of :data:`_ADDED_COLUMNS` that an older state file lacks."""
+        """Add the columns of :data:`_ADDED_COLUMNS` (and tables of :data:`_ADDED_TABLES`) an older state file lacks."""
         with self._lock:
+            for ddl in _ADDED_TABLES:
+                conn.execute(ddl)
             for table, column, decl in _ADDED_COLUMNS:
                 have = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
                 if column not in have:
@@ -835,6 +847,19 @@ class Store:
         with self._tx() as c:
             c.execute("UPDATE outbox SET attempts=attempts+1, last_error=? WHERE outbox_id=?",
                       (storable(error, 500), outbox_id))
+
+    # ------------------------------------------------------------ incidents
+    def record_incident(self, kind: str, detail: dict[str, Any]) -> int:
+        """Keep a small record of something the operator must hear of (``mushrooms status`` shows it)."""
+        with self._tx() as c:
+            return int(c.execute("INSERT INTO incidents(kind, detail, created_at) VALUES (?,?,?)",
+                                 (kind, json.dumps(detail), _now())).lastrowid)
+
+    def received_wall(self, plan_id: str) -> float | None:
+        """When the notice of the job that made ``plan_id`` was received (Unix s), or None."""
+        row = self._conn().execute("SELECT j.received_wall FROM plans p JOIN jobs j USING(job_id)"
+                                   " WHERE p.plan_id=?", (plan_id,)).fetchone()
+        return None if row is None else float(row[0])
 
     # ------------------------------------------------------------ inspection
     def decisions(self) -> list[dict[str, Any]]:

@@ -7,9 +7,10 @@ real solve is still running when the test acts:
 * while ``DIR/hold`` exists, a job entering a scheduler writes
   ``DIR/entered-<superevent>-<solver>`` and waits (polling its stop flag:
   a superseded job still ends at once);
-* removing ``DIR/hold`` lets every held job go on with the real scheduler.
-
-Only the pipeline's jobs are gated; the daemon's start-up warm-up is not.
+* removing ``DIR/hold`` lets every held job go on with the real scheduler;
+* while ``DIR/fail`` exists, a job's scheduler raises (a job that fails);
+* while ``DIR/hold-warm`` exists, the daemon's start-up warm-up waits
+  (``/readyz`` during warm-up).
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ def install(gate: Path) -> None:
 
         def held(problem, solver, should_stop=None):
             sid = getattr(self, "_gate_sid", "-")
+            if (gate / "fail").exists():
+                raise RuntimeError("test gate: scheduler failure")
             if (gate / "hold").exists():
                 (gate / f"entered-{sid}-{solver}").touch()
                 while (gate / "hold").exists():
@@ -48,6 +51,17 @@ def install(gate: Path) -> None:
 
     pipeline.NoticePipeline.__init__ = init
     pipeline.NoticePipeline._first_plan = first_plan
+
+    from mushrooms.daemon import service
+
+    original_warm = service.Service._warm_up
+
+    def warm_up(self, cache):
+        while (gate / "hold-warm").exists():
+            time.sleep(0.05)
+        return original_warm(self, cache)
+
+    service.Service._warm_up = warm_up
 
 
 if __name__ == "__main__":

@@ -1,0 +1,142 @@
+"""``mushrooms status``: what the service did recently, and whether it needs attention.
+
+Reads the state file read-only (:mod:`mushrooms.daemon.state_view`: a
+``mode=ro`` SQLite connection, safe while the daemon runs) and prints the
+most recent superevents: the alert types seen, the decision on the newest
+notice, each plan revision with its coverage and expected detections,
+whether it was published or is pending, and its submission state when the
+state file records submissions.  Then what needs attention: a failed job, an
+outbox message unpublished for ``--outbox-minutes``, a notice stored
+without a decision, messages the consumer skipped (offset jumps).
+
+Exit status: 0 all well, 1 something needs attention, 2 bad input (no such
+state file, not a state file).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sqlite3
+import sys
+from datetime import datetime, timezone
+from typing import Any, Sequence
+
+from .common import EXIT_INPUT, add_common_options, execute, tool_parser
+
+__all__ = ["HELP", "parser", "run", "main", "EXIT_ATTENTION"]
+
+HELP = "show recent events, plans and publication from the state file; exit 1 if something needs attention"
+
+#: Exit status when something needs attention.
+EXIT_ATTENTION = 1
+
+
+def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
+    """The options of ``mushrooms status`` (added to ``p``, or to a new parser)."""
+    p = p if p is not None else tool_parser("status", HELP)
+    p.add_argument("--state", metavar="FILE", help="SQLite state file (default: the config's [daemon] state_path)")
+    p.add_argument("--json", action="store_true", help="one JSON document on stdout (for scripts)")
+    p.add_argument("--limit", type=int, default=10, metavar="N", help="superevents shown, newest first (default 10)")
+    p.add_argument("--outbox-minutes", type=float, default=5.0, metavar="M",
+                   help="an outbox message unpublished this long needs attention (default 5)")
+    p.add_argument("--window-hours", type=float, default=24.0, metavar="H",
+                   help="failed jobs and skipped messages of the last H hours need attention (default 24)")
+    add_common_options(p)
+    return p
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """``mushrooms status`` on its own."""
+    return execute("status", parser().parse_args(args), run)
+
+
+def _state_path(args: argparse.Namespace) -> Any:
+    from pathlib import Path
+
+    if args.state:
+        return Path(args.state).expanduser()
+    from ..daemon.settings import resolve_paths
+    from ..daemon.wiring import effective_config
+
+    return resolve_paths(effective_config(args).daemon).state
+
+
+def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_hours: float) -> dict[str, Any]:
+    """The status document (what ``--json`` prints)."""
+    from ..daemon.state_view import attention, incidents, outbox_backlog, recent_events
+
+    now = datetime.now(timezone.utc)
+    pending, oldest, error = outbox_backlog(conn, now)
+    jobs = {r[0]: r[1] for r in conn.execute("SELECT status, COUNT(*) FROM jobs GROUP BY status")}
+    return {
+        "now": now.isoformat(timespec="seconds"),
+        "events": recent_events(conn, limit),
+        "jobs": jobs,
+        "outbox": {"pending": pending, "oldest_age_s": oldest, "last_error": error},
+        "offset_jumps": incidents(conn, "offset_jump", limit=limit),
+        "attention": attention(conn, now, outbox_minutes * 60.0, window_hours * 3600.0),
+    }
+
+
+def _num(x: Any, fmt: str = ".4f") -> str:
+    return "-" if x is None else format(float(x), fmt)
+
+
+def render(doc: dict[str, Any]) -> str:
+    """The human-readable report."""
+    out = [f"mushrooms status at {doc['now']}"]
+    jobs = doc["jobs"]
+    out.append("jobs: " + (", ".join(f"{n} {s}" for s, n in sorted(jobs.items())) or "none"))
+    ob = doc["outbox"]
+    out.append(f"outbox: {ob['pending']} pending" + (f", the oldest {ob['oldest_age_s']:.0f} s old"
+                                                     if ob["oldest_age_s"] is not None else ""))
+    out.append("")
+    if not doc["events"]:
+        out.append("no superevent heard of yet")
+    for ev in doc["events"]:
+        out.append(f"{ev['superevent_id']}  last notice {ev['last_received']}  ({ev['notices']} notice(s): "
+                   f"{' '.join(ev['alert_types']) or '-'}){'  RETRACTED' if ev['retracted'] else ''}")
+        out.append(f"  decision: {ev['decision'] or 'NONE'}: {ev['reason'] or '-'}")
+        for j in ev["jobs"]:
+            if j["status"] not in ("done", "superseded"):
+                out.append(f"  job {j['job_id']}: {j['status']}" + (f" ({j['reason']})" if j["reason"] else ""))
+        for p in ev["plans"]:
+            sub = p.get("submission")
+            out.append(f"  r{p['revision']}{' final' if p['final'] else ''} {p['plan_id']}: "
+                       f"{p['type'] or 'plan'}, coverage {_num(p['coverage'])}, expected detections "
+                       f"{_num(p['expected_detections'])}, {'published' if p['published'] else 'PENDING'}"
+                       + (", withdrawn" if p["withdrawn"] else "")
+                       + (f", submission {sub.get('state') or '?'}" if sub else ""))
+    out.append("")
+    if doc["attention"]:
+        out.append(f"NEEDS ATTENTION ({len(doc['attention'])}):")
+        out.extend(f"  - {line}" for line in doc["attention"])
+    else:
+        out.append("nothing needs attention")
+    return "\n".join(out)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the status; 1 when something needs attention."""
+    path = _state_path(args)
+    if not path.is_file():
+        print(f"mushrooms status: error: {path}: no such state file", file=sys.stderr)
+        return EXIT_INPUT
+    from ..daemon.state_view import connect_readonly
+
+    try:
+        conn = connect_readonly(path)
+        try:
+            doc = collect(conn, args.limit, args.outbox_minutes, args.window_hours)
+        finally:
+            conn.close()
+    except sqlite3.DatabaseError as exc:
+        print(f"mushrooms status: error: {path}: not a readable mushrooms state file ({exc})", file=sys.stderr)
+        return EXIT_INPUT
+    print(json.dumps(doc, indent=1, default=str) if args.json else render(doc))
+    return EXIT_ATTENTION if doc["attention"] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
