@@ -132,11 +132,21 @@ def test_status_reads_a_state_file_and_tolerates_tables_it_does_not_know(tmp_pat
     out = capsys.readouterr().out
     assert "S260101a" in out and "coverage 0.4200, expected detections 0.1700, published" in out
     assert "nothing needs attention" in out
-    # issue 27's submissions table, when it exists, is shown beside the plan
+    # a state file of a release without the submissions and incidents tables is read as well
     with sqlite3.connect(state) as c:
-        c.execute("CREATE TABLE submissions (submission_id INTEGER PRIMARY KEY, plan_id TEXT, state TEXT)")
-        c.execute("INSERT INTO submissions(plan_id, state) VALUES ('plan-1', 'submitted')")
+        c.execute("DROP TABLE submissions")
         c.execute("DROP TABLE incidents")  # a file no daemon of this version opened
+    assert cli_main(["status", "--state", str(state), "--json"]) == 0
+    (plan,) = json.loads(capsys.readouterr().out)["events"][0]["plans"]
+    assert plan["submission"] is None and plan["published"] is True
+    # issue 27's submissions table (the store's own schema) is shown beside the plan
+    with sqlite3.connect(state) as c:
+        c.execute("CREATE TABLE submissions (plan_id TEXT PRIMARY KEY, superevent_id TEXT NOT NULL, "
+                  "target TEXT NOT NULL, revision INTEGER, queue_name TEXT UNIQUE, state TEXT NOT NULL, "
+                  "created_at TEXT NOT NULL)")
+        c.execute("INSERT INTO submissions(plan_id, superevent_id, target, revision, queue_name, state, created_at)"
+                  " VALUES ('plan-1', 'S260101a', 'kowalski', 1, 'ToO_GW_S260101a_r1', 'submitted',"
+                  " '2026-01-01T00:00:01.000Z')")
     assert cli_main(["status", "--state", str(state), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     (plan,) = doc["events"][0]["plans"]
