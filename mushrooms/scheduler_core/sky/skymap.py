@@ -69,8 +69,8 @@ log = logging.getLogger(__name__)
 PROB_SUM_TOLERANCE = 0.02
 
 #: Pixels (flat map) or rows (multi-order map) read per chunk: the reader's
-#: peak memory beyond its working arrays is about 100 bytes x this.
-DEFAULT_CHUNK = 1 << 19
+#: peak memory beyond its working arrays is about 250 bytes x this (64 MiB).
+DEFAULT_CHUNK = 1 << 18
 
 #: Finest flat map read (HEALPix NSIDE; 2^13: 805 M pixels).
 MAX_NSIDE = 8192
@@ -322,7 +322,7 @@ def read_skymap(source: str | Path | bytes, nside: int = 256, max_bytes: int | N
         to is bounded by its own header (see the module docstring).
     chunk : int
         Pixels (flat map) or rows (multi-order map) read at a time; peak
-        memory is about 100 bytes x ``chunk`` beyond the working arrays.
+        memory is about 250 bytes x ``chunk`` beyond the working arrays.
 
     Returns
     -------

@@ -32,9 +32,10 @@ def sniff_fits(head: bytes) -> str | None:
     Returns
     -------
     str or None
-        ``"fits"`` (plain FITS), ``"gzip"`` (gzip whose content starts as
-        FITS) or None (anything else, including a gzip of something else or
-        one too short or broken to tell).
+        ``"fits"`` (plain FITS), ``"gzip"`` (a gzip whose content starts as
+        FITS, or one too broken to unpack: the reader then says "broken
+        gzip") or None (anything else, including a gzip that unpacks to
+        something else, e.g. a doubly packed file).
     """
     head = bytes(head[:65536])
     if head.startswith(FITS_MAGIC):
@@ -43,8 +44,8 @@ def sniff_fits(head: bytes) -> str | None:
         try:
             start = zlib.decompressobj(31).decompress(head, len(FITS_MAGIC))
         except zlib.error:
-            return None
-        return "gzip" if start.startswith(FITS_MAGIC) else None
+            return "gzip"  # broken: the reader's one line says how
+        return "gzip" if len(start) < len(FITS_MAGIC) or start.startswith(FITS_MAGIC) else None
     return None
 
 
