@@ -62,6 +62,41 @@ def test_a_bomb_in_a_notice_is_a_rejected_job(pipeline: NoticePipeline) -> None:
     assert out.decision == "rejected" and "more bytes follow its declared table" in out.reason
 
 
+def _flat_gzip(order: int) -> bytes:
+    """The sample multi-order map rasterised to a flat one-column NESTED map (ligo.skymap), gzipped."""
+    import gzip
+    import io
+
+    import numpy as np
+    from astropy.io import fits
+    from ligo.skymap.bayestar import rasterize
+    from ligo.skymap.io import read_sky_map
+
+    prob = np.asarray(rasterize(read_sky_map(str(MOC_MAP), moc=True), order=order)["PROB"], float)
+    hdu = fits.BinTableHDU.from_columns([fits.Column(name="PROB", format="D", array=prob)])
+    hdu.header.update({"PIXTYPE": "HEALPIX", "ORDERING": "NESTED", "NSIDE": 1 << order, "INDXSCHM": "IMPLICIT"})
+    buf = io.BytesIO()
+    fits.HDUList([fits.PrimaryHDU(), hdu]).writeto(buf)
+    return gzip.compress(buf.getvalue())
+
+
+def test_max_skymap_bytes_bounds_what_is_carried_not_what_it_unpacks_to(pipeline: NoticePipeline) -> None:
+    """A flat NSIDE 512 map: 25 MB unpacked, a few hundred kB packed.  Under a 1 MiB max_skymap_bytes
+    it is planned, by ``mushrooms trigger`` (accept_skymap) and in a notice; (before issue 24 both
+    refused it: "unpacks to more than 1 MiB"); a map over 1 MiB as carried is refused unread."""
+    flat = _flat_gzip(9)
+    assert len(flat) < 1 << 20
+    config = dataclasses.replace(FAST, policy=dataclasses.replace(FAST.policy, max_skymap_bytes=1 << 20))
+    p = NoticePipeline(config, pipeline.store, pipeline.sink)
+    acc = p.accept_skymap(flat, "trigger:flat")
+    assert acc.action == "plan" and p.run_job(acc.job).decision == "plan"
+    acc = p.accept(notice_with("MS181101ab", skymap=flat), "attack:flat", received_at())
+    assert p.run_job(acc.job).decision == "plan"
+    too_big = flat + bytes((1 << 20) + 1 - len(flat))
+    acc = p.accept_skymap(too_big, "trigger:big")
+    assert acc.action == "rejected" and "max_skymap_bytes" in acc.reason
+
+
 # ---------------------------------------------------------------- 8. broken gzip, bad UNIQ
 def test_a_truncated_gzip_map_is_a_one_line_sky_map_error() -> None:
     with pytest.raises(SkyMapError, match="gzip"):

@@ -267,7 +267,9 @@ class _Working:
         from ligo.skymap.distance import moments_to_parameters
 
         mu, sigma, norm = self.layers
-        keep = self.merged & ~self.mixed & (self.prob > 0)  # children all alike: their layers
+        # children all alike: their layers (what ligo.skymap's derasterize makes of equal siblings, even
+        # where the probability is 0 and the moments are undefined)
+        keep = self.merged & ~self.mixed
         for out, ref in zip(self.layers, self.first):
             out[keep] = ref[keep]
         solve = self.merged & ~keep
