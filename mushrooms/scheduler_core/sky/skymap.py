@@ -426,8 +426,8 @@ def _stream_flat(table: BinaryTable, name: str, ordering: str, chunk: int, worki
         raise SkyMapError(f"{name}: ORDERING = {ordering!r}; a HEALPix map is RING, NESTED or NUNIQ")
     if str(table.header.get("INDXSCHM", "IMPLICIT")).strip().upper() != "IMPLICIT":
         raise SkyMapError(f"{name}: an explicitly indexed (partial-sky) map is not supported")
-    column = "PROB" if "PROB" in table.names else "PROBABILITY"  # ligo.skymap's name for Fermi's column
-    _need_columns(table, name, ["PROB" if column == "PROB" else column])
+    column = "PROBABILITY" if "PROBABILITY" in table.names and "PROB" not in table.names else "PROB"  # Fermi's name
+    _need_columns(table, name, [column])
     used = [column] + (list(DIST_COLUMNS) if working.with_distance else [])
     per_row = {table.repeats[c] for c in used}
     if len(per_row) != 1:
