@@ -93,7 +93,7 @@ def test_truncated_and_unnormalised_maps_are_refused(tmp_path):
     truncated = tmp_path / "truncated.fits"
     truncated.write_bytes(MAP.read_bytes()[:40000])
     r = mushrooms("plan", str(truncated), "-o", str(tmp_path / "p.json"))
-    assert r.returncode == 2 and "unreadable FITS sky map" in r.stderr and "Traceback" not in r.stderr
+    assert r.returncode == 2 and "truncated" in r.stderr and "Traceback" not in r.stderr
 
     half = tmp_path / "half.fits"
     hp.write_map(half, np.full(hp.nside2npix(16), 0.5 / hp.nside2npix(16)), nest=True, dtype=np.float64,

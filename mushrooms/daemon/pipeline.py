@@ -70,6 +70,7 @@ from ..handlers.decisions import Decision, decide
 from ..handlers.localization import check_skymap, choose_localization, coincidence_summary, skymap_for_sha
 from ..handlers.policy import evaluate
 from ..scheduler_core.errors import InputError, PlanCheckError
+from ..scheduler_core.sky.sniff import is_fits
 from .sinks import Sink, message_key
 from .store import Job, NoticeRecord, Store
 
@@ -95,7 +96,6 @@ class _Work:
 log = logging.getLogger(__name__)
 
 Planner = Callable[..., Any]
-_FITS_MAGIC = (b"SIMPLE  =", b"\x1f\x8b")
 
 
 def _aware(t: datetime | None) -> datetime:
@@ -596,7 +596,7 @@ class NoticePipeline:
         raw = self.store.notice_raw(job.notice_id)
         if raw is None:
             raise RuntimeError(f"notice {job.notice_id} of job {job.job_id} has no stored bytes")
-        if raw.startswith(_FITS_MAGIC):  # a bare sky map handed in by ``mushrooms trigger``
+        if is_fits(raw):  # a bare sky map handed in by ``mushrooms trigger``
             return raw, EventInfo(skymap_sha256=job.skymap_sha256)
         alert = parse_notice(raw)
         assert alert.event is not None
@@ -749,8 +749,10 @@ class NoticePipeline:
         data = bytes(data)
         sha = hashlib.sha256(data).hexdigest()
         record = NoticeRecord(origin=origin, sha256=sha, size=len(data), received_at=iso_z(now))
-        if len(data) > self.config.policy.max_notice_bytes * 4 or not data.startswith(_FITS_MAGIC):
-            reason = "sky map too large" if data.startswith(_FITS_MAGIC) else "not a FITS sky map"
+        limit = self.config.policy.max_skymap_bytes
+        if len(data) > limit or not is_fits(data):
+            reason = f"sky map of {len(data)} bytes, more than [policy] max_skymap_bytes = {limit} (gzip it)" \
+                if is_fits(data) else "not a FITS sky map"
             nid = self.store.record_rejected(record, reason)
             log.warning("skymap origin=%s decision=rejected reason=%r", origin, reason)
             return Accepted("rejected", None, reason, nid)

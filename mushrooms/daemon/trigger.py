@@ -31,6 +31,7 @@ from typing import Any, IO
 
 from .. import inputs
 from ..scheduler_core.errors import InputError
+from ..scheduler_core.sky.sniff import is_fits
 from .settings import RuntimePaths
 
 __all__ = [
@@ -138,9 +139,9 @@ def classify(target: str) -> tuple[str, bytes]:
         raise InputError(f"{target}: is a symbolic link; give the file itself")
     if path.is_file():
         data = read_regular_file(path)
-        head = data[:80].lstrip()
-        if head.startswith(b"SIMPLE") or data[:2] == b"\x1f\x8b" or path.suffix.lower() in (".fits", ".fit", ".gz"):
+        if is_fits(data):
             return "skymap", data
+        head = data[:80].lstrip()
         if head.startswith(b"{") or data[:4] == b"Obj\x01" or path.suffix.lower() in (".json", ".avro"):
             return "notice", data
         raise InputError(f"{target}: neither a notice (JSON/Avro) nor a sky map (FITS)")

@@ -19,6 +19,7 @@ from typing import Any, Mapping
 import astropy.units as _u
 
 from ..scheduler_core.errors import InputError
+from ..scheduler_core.sky.sniff import sniff_fits
 from .text import storable
 
 __all__ = [
@@ -35,8 +36,6 @@ __all__ = [
 ALERT_TYPES = ("EARLYWARNING", "PRELIMINARY", "INITIAL", "UPDATE", "RETRACTION")
 _ALIASES = {"EARLY_WARNING": "EARLYWARNING"}
 _AVRO_MAGIC = b"Obj\x01"
-_FITS_MAGIC = b"SIMPLE  ="
-_GZIP_MAGIC = b"\x1f\x8b"
 
 
 _SECOND = _u.s
@@ -259,7 +258,7 @@ def _fits_bytes(v: Any, name: str, raw: bool) -> bytes:
             raise NoticeError(f"{name} is not valid base64") from None
     if not data:
         raise NoticeError(f"{name} is empty")
-    if not (data.startswith(_FITS_MAGIC) or data.startswith(_GZIP_MAGIC)):
+    if sniff_fits(data) is None:
         raise NoticeError(f"{name} is not a FITS file (starts with {data[:8]!r})")
     return data
 

@@ -68,8 +68,9 @@ def check_skymap(data: bytes, max_bytes: int | None = None) -> None:
     data : bytes
         FITS bytes, possibly gzipped.
     max_bytes : int, optional
-        Largest unpacked size (bytes) accepted (``[policy] max_skymap_bytes``);
-        default the reader's own bound.
+        Largest map (bytes as carried, packed for a gzip) accepted
+        (``[policy] max_skymap_bytes``); default no bound.  The unpacked
+        size is bounded by the reader from the map's own header.
 
     Raises
     ------

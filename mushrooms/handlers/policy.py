@@ -85,11 +85,14 @@ class PolicyConfig:
         otherwise.  Default True: the joint map is what an observer wants to
         search first, and it is often much smaller.
     max_skymap_bytes : int
-        Largest size (bytes) a gzipped sky map in a notice or trigger may
-        unpack to; beyond it the map is rejected as soon as the stream gets
-        there (a decompression bomb).  Default 67108864 (64 MiB: LVK's
-        multi-order notice maps are 1-5 MB; raise it to 268435456 to take
-        flat NSIDE 2048 maps, 201 MB, by ``mushrooms trigger``).
+        Largest sky map (bytes as carried: packed, for a gzip) a notice or a
+        ``mushrooms trigger`` may hand in; a bigger one is rejected unread.
+        Default 67108864 (64 MiB: LVK's multi-order notice maps are 1-5 MB,
+        a gzipped flat NSIDE 2048 map with distance layers 5-20 MB).  What a
+        map may *unpack* to is not bounded here: the reader streams it and
+        holds it to its own header (HEALPix NSIDE <= 8192, the declared
+        table size), so a flat NSIDE 1024 map that unpacks to 384 MiB is
+        accepted and a gzip bomb is refused at its header.
     max_clock_skew_s : float
         A notice whose ``time_created`` or merger time lies more than this
         (s) after the receipt clock is rejected: dated in the future, it is

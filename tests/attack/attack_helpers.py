@@ -69,6 +69,18 @@ def fits_bomb(unpacked_bytes: int, chunk: int = 1 << 24) -> bytes:
     return b"".join(parts)
 
 
+def grown_gzip(extra_bytes: int, chunk: int = 1 << 24) -> bytes:
+    """gzip of a real sky map followed by ``extra_bytes`` zeros: a valid table, then a bomb past it."""
+    z = zlib.compressobj(9, zlib.DEFLATED, 31)
+    parts = [z.compress(MOC_MAP.read_bytes())]
+    zeros = bytes(chunk)
+    while extra_bytes > 0:
+        parts.append(z.compress(zeros[:min(chunk, extra_bytes)]))
+        extra_bytes -= chunk
+    parts.append(z.flush())
+    return b"".join(parts)
+
+
 def broken_gzip() -> bytes:
     """A real sky map, gzipped, cut short (a truncated download)."""
     packed = gzip.compress(MOC_MAP.read_bytes())

@@ -252,7 +252,7 @@ def test_flat_map_finer_than_working_is_summed_and_coarser_is_shared(tmp_path):
         (lambda p: None, "not found"),
         (lambda p: p.write_bytes(b""), "empty"),
         (lambda p: p.write_bytes(b"hello, I am not a FITS file" * 100), "not a FITS"),
-        (lambda p: p.write_bytes(MAP_MULTIORDER.read_bytes()[:20000]), "unreadable"),
+        (lambda p: p.write_bytes(MAP_MULTIORDER.read_bytes()[:20000]), "truncated"),
     ],
     ids=["missing", "empty", "not-fits", "truncated"],
 )

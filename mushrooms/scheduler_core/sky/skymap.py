@@ -1,68 +1,90 @@
-"""Read LVK sky maps (multi-order or flat HEALPix FITS, path or bytes).
+"""Read LVK sky maps (multi-order or flat HEALPix FITS, path or bytes), streaming.
 
-Reading and rasterisation are ligo.skymap's own:
-:func:`ligo.skymap.io.read_sky_map` reads the file and
-:func:`ligo.skymap.bayestar.rasterize` brings it to one working NESTED
-resolution.  Probability is integrated over each working pixel (exact, both
-ways); where pixels are merged, the distance layers are combined through the
-conditional distance moments (:func:`ligo.skymap.distance.parameters_to_moments`
-and :func:`~ligo.skymap.distance.moments_to_parameters`), so a working pixel's
-ansatz has the mean and variance of the mixture it stands for.  A flat map
-enters the same rasterisation as a multi-order table (ligo.skymap's
-``derasterize``, or the table of its one order when few siblings are equal).
+The meaning is ligo.skymap's: what :func:`ligo.skymap.bayestar.rasterize`
+makes of :func:`ligo.skymap.io.read_sky_map`'s table at one working NESTED
+order.  Probability is integrated over each working pixel (exact, both
+ways); a pixel coarser than the working order is shared among its children
+with its distance layers; where pixels are merged, the distance layers are
+combined through the conditional distance moments
+(:func:`ligo.skymap.distance.parameters_to_moments`, probability-weighted
+first and second moments, :func:`~ligo.skymap.distance.moments_to_parameters`;
+a child without a finite distance makes the merged pixel ligo.skymap's
+(inf, 1, 0)), so a working pixel's ansatz has the mean and variance of the
+mixture it stands for.  Header metadata go through ligo.skymap's own
+``FITS_META_MAPPING`` (``DATE-OBS`` -> ``gps_time``, ``OBJECT``, ``DISTMEAN``).
 
-Two steps are ours, each measured better than the library route (issue 15,
-``tests/scheduler/test_skymap.py`` checks both against ligo.skymap's own
-result): pixels finer than the working order are merged first
-(``_merge_finer_pixels``, with ligo.skymap's moment functions and its
-(inf, 1, 0) convention), because ligo.skymap 2.5.4's ``rasterize`` converts
-*every* output pixel to moments and back as soon as any pixel needs merging
-(786 432 numerical solves at NSIDE 256: 5.1 s per notice map against 0.08 s);
-and a flat map whose sibling pixels are mostly unequal goes in as the table
-of its one order instead of through ``derasterize``, whose Python loop over
-pixels took 38 s of CPU on a noisy NSIDE 512 map (1 s this way).
+The route is ours (issue 24), because ligo.skymap's costs the map's
+unpacked size: ``read_sky_map`` reads the whole table (astropy), and a
+public O3 LALInference map (flat NSIDE 1024, four columns, 1.5 MB gzip)
+unpacks to 384 MiB and cost 2.0 GB of RSS and 11.7 s before a greedy plan.
+Here the rows stream through (:mod:`.fitstable`: astropy parses the
+headers, NumPy reads a chunk of rows at a time from the plain or gzip
+stream) and are accumulated at the working order as they come, vectorised
+per chunk: RING rows get their NESTED index from :func:`healpy.ring2nest`;
+finer pixels add their probability and probability-weighted moments to
+their ancestor (``np.bincount``), coarser ones are spread to their
+children.  Peak memory is one chunk (``chunk`` pixels) plus the working
+arrays, whatever the map's NSIDE (up to 8192) or unpacked size.  Two
+savings of the previous reader are kept in this form: only merged pixels
+go through ``moments_to_parameters`` (rasterize 2.5.4 converts every output
+pixel there and back: 5.1 s per notice map at NSIDE 256 against 0.08 s),
+and a merged pixel whose children all carry the same (DISTMU, DISTSIGMA)
+keeps them (a rasterised multi-order map's equal siblings: their mixture is
+themselves) instead of being solved again.
+``tests/scheduler/test_skymap.py`` and ``test_skymap_stream.py`` check the
+result against ``rasterize(read_sky_map(..., moc=True))`` in moment space.
 
-What this module adds besides is the guard on hostile input (a bounded gunzip, the
-NUNIQ validity check, finite non-negative probabilities summing to 1) and
-one-line errors.
+Hostile input is refused by what the header declares before any data is
+read: a binary table whose row width its TFORMs give, a flat map of
+12 NSIDE^2 pixels with NSIDE a power of two <= 8192, a multi-order map of
+at most 2^22 rows of valid NUNIQ indices (order 0-29, no two covering the
+same sky), a table that fits in the bytes given; reading stops at the
+declared size, and bytes beyond it (a gzip grown past its table) are
+refused.  Probabilities must be finite, non-negative and sum to 1.  Every
+refusal is one :class:`~mushrooms.scheduler_core.errors.SkyMapError` line.
 """
 
 from __future__ import annotations
 
-import gzip
 import hashlib
 import io
 import logging
+import math
 import warnings
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from astropy.time import Time
 
 from ..errors import SkyMapError
-from .distance_layers import with_usable_distances
+from .distance_layers import usable_distance_layers
+from .fitstable import BinaryTable, open_table
 
-__all__ = ["SkyMap", "read_skymap", "check_uniq"]
+__all__ = ["SkyMap", "read_skymap", "check_uniq", "DEFAULT_CHUNK", "MAX_NSIDE", "MAX_MOC_ROWS"]
 
 log = logging.getLogger(__name__)
 
 #: How far from 1 the total probability of an input map may be.
 PROB_SUM_TOLERANCE = 0.02
 
-#: Largest unpacked FITS (bytes) a gzipped sky map may grow to: 256 MiB, above
-#: the largest real map we know (201 MB, a flat NSIDE 2048 map; LVK's
-#: multi-order notice maps unpack to 1-5 MB).  A gzip bomb stops here.
-MAX_SKYMAP_BYTES = 256 * 1024 * 1024
+#: Pixels (flat map) or rows (multi-order map) read per chunk: the reader's
+#: peak memory beyond its working arrays is about 250 bytes x this (64 MiB).
+DEFAULT_CHUNK = 1 << 18
 
-#: Least fraction of a flat map's sibling quadruples with equal probability for
-#: it to go through ligo.skymap's derasterize (a rasterised multi-order map:
-#: fast); below it the flat map is rasterised as one order (bounded cost).
-MERGEABLE_FRACTION = 0.9
+#: Finest flat map read (HEALPix NSIDE; 2^13: 805 M pixels).
+MAX_NSIDE = 8192
+
+#: Most rows of a multi-order map (its NUNIQ check holds them: ~40 B a row).
+#: LVK's BAYESTAR maps have 10-50 thousand, ligo-skymap-from-samples' up to
+#: a few hundred thousand.
+MAX_MOC_ROWS = 1 << 22
 
 #: HEALPix's deepest order (NUNIQ indices beyond it are invalid).
 MAX_ORDER = 29
+
+DIST_COLUMNS = ("DISTMU", "DISTSIGMA", "DISTNORM")
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,74 +168,164 @@ def check_uniq(uniq: np.ndarray) -> None:
         raise SkyMapError(f"UNIQ values {int(a)} and {int(b)} cover the same sky (duplicate or nested pixels)")
 
 
-DIST_COLUMNS = ("DISTMU", "DISTSIGMA", "DISTNORM")
-
-
-def _table_layout(raw: bytes) -> tuple[str, list[str]]:
-    """ORDERING keyword and column names of the first table HDU."""
-    from astropy.io import fits
-
-    with fits.open(io.BytesIO(raw), memmap=False) as hdus:
-        if len(hdus) < 2 or not hasattr(hdus[1], "columns"):
-            raise SkyMapError("FITS file has no HEALPix table extension")
-        header = hdus[1].header
-        return str(header.get("ORDERING", "")).upper(), [c.upper() for c in hdus[1].columns.names]
-
-
 def _check_values(values: np.ndarray, name: str) -> None:
     if not np.all(np.isfinite(values)) or np.any(values < 0):
         raise SkyMapError(f"{name}: probabilities must be finite and non-negative")
 
 
-def _gunzip(data: bytes, name: str, max_bytes: int) -> bytes:
-    """Unpack a gzip stream, refusing to grow beyond ``max_bytes``."""
-    out = bytearray()
-    try:
-        with gzip.GzipFile(fileobj=io.BytesIO(data)) as fh:
-            while chunk := fh.read(1 << 20):
-                out += chunk
-                if len(out) > max_bytes:
-                    raise SkyMapError(f"gzipped sky map {name} unpacks to more than {_mib(max_bytes)} "
-                                      f"(from {len(data)} bytes): refused")
-                if len(out) >= 2880 and not out.startswith(b"SIMPLE  ="):
-                    break  # not FITS: said below without unpacking the rest
-    except (OSError, EOFError, zlib.error) as exc:  # BadGzipFile is an OSError
-        raise SkyMapError(f"broken gzip in sky map {name}: {exc}") from None
-    return bytes(out)
+def _metadata(header: Any) -> dict[str, Any]:
+    """The table header's metadata as ligo.skymap's ``read_sky_map`` names them."""
+    import itertools
+
+    from ligo.skymap.io.fits import FITS_META_MAPPING
+
+    meta: dict[str, Any] = {}
+    for key, rows in itertools.groupby(FITS_META_MAPPING, lambda row: row[1]):
+        if key in header:
+            for py_key, _, _, _, from_fits in rows:
+                if from_fits is not None:
+                    meta[py_key] = from_fits(header[key])
+    return meta
 
 
-def _mib(n: int) -> str:
-    return f"{n / 2**20:g} MiB"
+class _Working:
+    """Probability and distance layers accumulated at the working order, chunk by chunk.
+
+    A working pixel is either *direct* (one source pixel at the working
+    order, or a coarser one shared among its children: its layers copied)
+    or *merged* (finer source pixels: probability and the probability-
+    weighted first and second conditional distance moments summed).
+    """
+
+    def __init__(self, order: int, with_distance: bool):
+        self.order = order
+        self.npix = 12 * 4**order
+        self.prob = np.zeros(self.npix)
+        self.with_distance = with_distance
+        if with_distance:
+            self.layers = [np.full(self.npix, np.inf), np.ones(self.npix), np.zeros(self.npix)]
+            self.merged = np.zeros(self.npix, bool)
+            self.moment1 = np.zeros(self.npix)
+            self.moment2 = np.zeros(self.npix)
+            self.mixed = np.zeros(self.npix, bool)  # merged children whose (DISTMU, DISTSIGMA) differ
+            self.first = [np.zeros(self.npix), np.zeros(self.npix), np.zeros(self.npix)]  # one child's layers
+
+    def add(self, order: np.ndarray | int, ipix: np.ndarray, prob: np.ndarray,
+            layers: list[np.ndarray] | None) -> None:
+        """Add source pixels (NESTED ``ipix`` at ``order``, probability ``prob``, layers mu/sigma/norm)."""
+        order = np.broadcast_to(np.asarray(order, np.int64), ipix.shape)
+        for part, pick in ((self._same, order == self.order), (self._coarse, order < self.order),
+                           (self._fine, order > self.order)):
+            if np.any(pick):
+                part(order[pick], ipix[pick], prob[pick], None if layers is None else [x[pick] for x in layers])
+
+    def _same(self, order, ipix, prob, layers) -> None:
+        self.prob[ipix] += prob
+        if self.with_distance:
+            for out, values in zip(self.layers, layers):
+                out[ipix] = values
+
+    def _coarse(self, order, ipix, prob, layers) -> None:
+        shift = 2 * (self.order - order)
+        n = np.int64(1) << shift  # children per pixel
+        start = np.repeat(ipix << shift, n)
+        rank = np.arange(start.size, dtype=np.int64) - np.repeat(np.cumsum(n) - n, n)
+        self._same(None, start + rank, np.repeat(prob / n, n),
+                   None if layers is None else [np.repeat(x, n) for x in layers])
+
+    def _fine(self, order, ipix, prob, layers) -> None:
+        target = ipix >> (2 * (order - self.order))
+        lo, hi = int(target.min()), int(target.max())
+        span, local = slice(lo, hi + 1), target - lo
+
+        def add(acc: np.ndarray, weights: np.ndarray) -> None:
+            acc[span] += np.bincount(local, weights, minlength=hi - lo + 1)
+
+        add(self.prob, prob)
+        if not self.with_distance:
+            return
+        from ligo.skymap.distance import parameters_to_moments
+
+        mu, sigma, norm = layers
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            mean, std, _ = parameters_to_moments(mu, sigma)
+        bad = ~(np.isfinite(mu) & np.isfinite(sigma))
+        mean[bad] = std[bad] = np.nan
+        with np.errstate(invalid="ignore"):
+            add(self.moment1, prob * mean)
+            add(self.moment2, prob * (std**2 + mean**2))
+        new = ~self.merged[target]
+        self.merged[target] = True
+        for ref, values in zip(self.first, (mu, sigma, norm)):
+            ref[target[new]] = values[new]  # any one child's layers
+        differ = bad | (mu != self.first[0][target]) | (sigma != self.first[1][target])
+        self.mixed[target[differ]] = True
+
+    def result(self) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Probability per working pixel and the distance layers (empty dict without distance)."""
+        if not self.with_distance:
+            return self.prob, {}
+        from ligo.skymap.distance import moments_to_parameters
+
+        mu, sigma, norm = self.layers
+        # children all alike: their layers (what ligo.skymap's derasterize makes of equal siblings, even
+        # where the probability is 0 and the moments are undefined)
+        keep = self.merged & ~self.mixed
+        for out, ref in zip(self.layers, self.first):
+            out[keep] = ref[keep]
+        solve = self.merged & ~keep
+        if np.any(solve):
+            with np.errstate(invalid="ignore", divide="ignore"):
+                w = self.prob[solve]
+                first = self.moment1[solve] / w
+                std = np.sqrt(self.moment2[solve] / w - first**2)
+                mu[solve], sigma[solve], norm[solve] = moments_to_parameters(first, std)
+        return self.prob, dict(zip(DIST_COLUMNS, self.layers))
 
 
-def _read_bytes(source: str | Path | bytes) -> tuple[bytes, str]:
+def _open(source: str | Path | bytes) -> tuple[Any, str, int, str | None]:
+    """File object, name, size and (for bytes) SHA-256 of a sky-map source."""
     if isinstance(source, (bytes, bytearray, memoryview)):
-        return bytes(source), "<bytes>"
+        data = bytes(source)
+        if not data:
+            raise SkyMapError("sky map is empty: <bytes>")
+        return io.BytesIO(data), "<bytes>", len(data), hashlib.sha256(data).hexdigest()
     path = Path(source)
     if not path.exists():
         raise SkyMapError(f"sky map not found: {path}")
     if path.is_dir():
         raise SkyMapError(f"sky map is a directory, not a FITS file: {path}")
     try:
-        return path.read_bytes(), str(path)
+        fh = open(path, "rb")
     except OSError as exc:
         raise SkyMapError(f"cannot read sky map {path}: {exc.strerror or exc}") from None
+    size = path.stat().st_size
+    if size == 0:
+        fh.close()
+        raise SkyMapError(f"sky map is empty: {path}")
+    return fh, str(path), size, None
 
 
-def read_skymap(source: str | Path | bytes, nside: int = 256, max_bytes: int = MAX_SKYMAP_BYTES) -> SkyMap:
-    """Read a sky map and bring it to a working NESTED resolution.
+def read_skymap(source: str | Path | bytes, nside: int = 256, max_bytes: int | None = None,
+                chunk: int = DEFAULT_CHUNK) -> SkyMap:
+    """Read a sky map and bring it to a working NESTED resolution, streaming.
 
     Parameters
     ----------
     source : str, pathlib.Path or bytes
-        Path of a FITS file (``.fits``, ``.fits.gz``, multi-order or flat,
-        NESTED or RING) or the file's bytes (e.g. a decoded notice payload).
+        Path of a FITS file (``.fits``, ``.fits.gz``, multi-order or flat
+        NSIDE <= 8192, NESTED or RING, with or without distance layers) or
+        the file's bytes (e.g. a decoded notice payload).
     nside : int
         Working resolution (power of 2).
-    max_bytes : int
-        Largest size (bytes) a gzipped map may unpack to; the stream is
-        unpacked chunk by chunk and refused as soon as it grows beyond
-        this (a decompression bomb costs at most ``max_bytes`` of memory).
+    max_bytes : int, optional
+        Largest input (bytes as given: packed, for a gzip) accepted, e.g.
+        ``[policy] max_skymap_bytes`` for what a notice or trigger may
+        carry.  Default: no bound (a user's file).  What the map may unpack
+        to is bounded by its own header (see the module docstring).
+    chunk : int
+        Pixels (flat map) or rows (multi-order map) read at a time; peak
+        memory is about 250 bytes x ``chunk`` beyond the working arrays.
 
     Returns
     -------
@@ -223,143 +335,133 @@ def read_skymap(source: str | Path | bytes, nside: int = 256, max_bytes: int = M
     ------
     SkyMapError
         One line saying why: missing, empty, truncated or non-FITS file,
-        broken gzip or one unpacking beyond ``max_bytes``, invalid NUNIQ
-        indices, no probability column, probabilities negative, not finite,
-        or not summing to 1 within 2 %.
+        broken gzip, a header declaring what HEALPix or the bytes cannot
+        hold, bytes beyond the declared table, invalid NUNIQ indices, no
+        probability column, probabilities negative, not finite, or not
+        summing to 1 within 2 %.
     """
     if nside < 1 or nside & (nside - 1):
         raise SkyMapError(f"nside must be a power of 2, got {nside}")
-    data, name = _read_bytes(source)
-    if not data:
-        raise SkyMapError(f"sky map is empty: {name}")
-    sha = hashlib.sha256(data).hexdigest()
-    raw = _gunzip(data, name, max_bytes) if data[:2] == b"\x1f\x8b" else data
-    if not raw.startswith(b"SIMPLE  ="):
-        raise SkyMapError(f"not a FITS file: {name}")
+    fh, name, size, sha = _open(source)
     try:
+        if max_bytes is not None and size > max_bytes:
+            raise SkyMapError(f"sky map {name} is {size} bytes, more than the {max_bytes}-byte limit")
         with warnings.catch_warnings():
-            # a truncated or odd file is reported below as one SkyMapError line
+            # an odd file is reported below as one SkyMapError line
             warnings.simplefilter("ignore")
-            prob, means, meta = _read_table(raw, name, nside)
+            table = open_table(fh, name, size, hashed=sha is None)
+            prob, layers, meta = _read_healpix(table, name, int(nside).bit_length() - 1, chunk)
+            digest = table.finish()
     except SkyMapError:
         raise
-    except Exception as exc:  # astropy/ligo raise many types for broken files
+    except Exception as exc:  # astropy/ligo/healpy raise many types for broken files
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise SkyMapError(f"unreadable FITS sky map {name}: {msg}") from None
-    return _finish(prob, means, meta, nside, sha, name)
+    finally:
+        fh.close()
+    return _finish(prob, layers, meta, nside, sha or digest, name)
 
 
-def _read_table(raw: bytes, name: str, nside: int) -> tuple[np.ndarray, dict[str, np.ndarray], dict]:
-    """Probability, distance layers and header of a FITS sky map at ``nside``."""
-    import astropy_healpix as ah
-    from ligo.skymap.bayestar import rasterize  # heavy import, keep it lazy
+def _read_healpix(table: BinaryTable, name: str, order: int, chunk: int
+                  ) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, Any]]:
+    """Check a HEALPix table's declaration, then stream its rows into the working order."""
+    header = table.header
+    names = set(table.names)
+    coordsys = str(header.get("COORDSYS", "C")).strip().upper()
+    if coordsys and not coordsys.startswith("C"):
+        raise SkyMapError(f"sky map {name} is in coordinates {coordsys!r}, not equatorial (COORDSYS = 'C')")
+    ordering = str(header.get("ORDERING", "")).strip().upper()
+    with_distance = set(DIST_COLUMNS) <= names
+    working = _Working(order, with_distance)
+    if "UNIQ" in names or ordering == "NUNIQ":
+        _stream_multiorder(table, name, ordering, chunk, working)
+    else:
+        _stream_flat(table, name, ordering, chunk, working)
+    prob, layers = working.result()
+    # NaN, infinite or non-positive layers wherever the probability is: treated as absent, said once
+    return prob, usable_distance_layers(prob, layers, name), _metadata(header)
 
-    ordering, columns = _table_layout(raw)
-    if ordering not in ("RING", "NESTED", "NUNIQ") and "UNIQ" not in columns:
+
+def _need_columns(table: BinaryTable, name: str, columns: list[str]) -> None:
+    missing = [c for c in columns if c not in table.names]
+    if missing:
+        raise SkyMapError(f"{name} has no {missing[0]} column (columns: {', '.join(table.names) or 'none'})")
+
+
+def _stream_multiorder(table: BinaryTable, name: str, ordering: str, chunk: int, working: _Working) -> None:
+    from ligo.skymap.moc import uniq2nest
+
+    if ordering not in ("NUNIQ", ""):
+        raise SkyMapError(f"{name} has a UNIQ column but ORDERING = {ordering!r}, not NUNIQ")
+    _need_columns(table, name, ["UNIQ", "PROBDENSITY"])
+    used = ["UNIQ", "PROBDENSITY"] + (list(DIST_COLUMNS) if working.with_distance else [])
+    if any(table.repeats[c] != 1 for c in used):
+        raise SkyMapError(f"{name}: a multi-order map has one value per row in each column")
+    if table.rows > MAX_MOC_ROWS:
+        raise SkyMapError(f"{name}: a multi-order map of {table.rows} rows, more than {MAX_MOC_ROWS}: refused")
+    table.check_room()
+    seen = []
+    for rows in table.iter_rows(chunk):
+        uniq = table.column(rows, "UNIQ", np.int64)
+        bad = (uniq < 4) | (uniq >= 16 * 4**MAX_ORDER)
+        if np.any(bad):
+            raise SkyMapError(f"{name}: UNIQ value {int(uniq[np.argmax(bad)])} is not a HEALPix NUNIQ index "
+                              f"(order 0-{MAX_ORDER})")
+        seen.append(uniq)
+        density = table.column(rows, "PROBDENSITY")
+        _check_values(density, name)
+        src_order, ipix = uniq2nest(uniq)
+        src_order = src_order.astype(np.int64)
+        prob = density * (math.pi / 3) / (np.int64(1) << (2 * src_order))  # x pixel area 4 pi / (12 4^order)
+        layers = [table.column(rows, c) for c in DIST_COLUMNS] if working.with_distance else None
+        working.add(src_order, ipix, prob, layers)
+    try:
+        check_uniq(np.concatenate(seen))
+    except SkyMapError as exc:
+        raise SkyMapError(f"{name}: {exc}") from None
+
+
+def _stream_flat(table: BinaryTable, name: str, ordering: str, chunk: int, working: _Working) -> None:
+    import healpy as hp
+
+    if not ordering:
         # healpy's read_map assumes whatever order its caller asks for; a wrong guess plans a scrambled sky
-        raise SkyMapError(f"{name}: flat HEALPix map without ORDERING = 'RING' or 'NESTED' in its header "
-                          f"(got {ordering or 'none'}): the pixel order is unknown; set ORDERING and retry")
-    order = int(ah.nside_to_level(nside))
-    table = with_usable_distances(_multiorder_table(raw, name, ordering, columns), name)
-    working = rasterize(_merge_finer_pixels(table, order), order=order)  # now only shares coarser pixels
-    prob = np.asarray(working["PROB"], float)
-    layers = {c: np.asarray(working[c], float) for c in DIST_COLUMNS if c in working.colnames}
-    return prob, layers, table.meta
-
-
-def _multiorder_table(raw: bytes, name: str, ordering: str, columns: list[str]):
-    """The map as ligo.skymap's multi-order table: UNIQ, PROBDENSITY (sr^-1), distance layers.
-
-    A multi-order file is read by :func:`ligo.skymap.io.read_sky_map` with
-    ``moc=True``; its NUNIQ indices are checked first (:func:`check_uniq`).
-    A flat file (NESTED or RING, any nside) is read by the same function
-    (reordered to NESTED) and turned into a multi-order table as
-    ``read_sky_map(moc=True)`` does, by :func:`ligo.skymap.bayestar.derasterize`
-    (which merges equal sibling pixels: a few seconds for real NSIDE 512-2048
-    maps, most of whose siblings are equal) -- unless few siblings are
-    equal: its walk costs about 12 µs per output pixel (38 s of CPU for a
-    noisy NSIDE 512 map), so such a map becomes the multi-order table of its
-    one order instead (1 s), the same map for
-    :func:`~ligo.skymap.bayestar.rasterize`.  Only the probability and the
-    three distance layers (when all are present) are kept.
-    """
-    import astropy_healpix as ah
-    from astropy.table import Table
-    from ligo.skymap.bayestar import derasterize
-    from ligo.skymap.io import read_sky_map
-    from ligo.skymap.moc import nest2uniq
-
-    if ordering == "NUNIQ":
-        table = read_sky_map(io.BytesIO(raw), moc=True)
-        if "PROBDENSITY" not in table.colnames:
-            raise SkyMapError(f"{name} has no PROBDENSITY column")
-        try:
-            check_uniq(np.asarray(table["UNIQ"]))
-        except SkyMapError as exc:
-            raise SkyMapError(f"{name}: {exc}") from None
-        keep = ["UNIQ", "PROBDENSITY"] + (list(DIST_COLUMNS) if set(DIST_COLUMNS) <= set(table.colnames) else [])
-        table = table[keep]
-        table["PROBDENSITY"] = np.asarray(table["PROBDENSITY"], float)
-        _check_values(np.asarray(table["PROBDENSITY"]), name)
-        return table
-    if "PROB" not in columns:
-        raise SkyMapError(f"{name} has no PROB column (columns: {', '.join(columns) or 'none'})")
-    with_dist = set(DIST_COLUMNS) <= set(columns)
-    arrays, meta = read_sky_map(io.BytesIO(raw), nest=True, distances=with_dist)
-    names = ("PROB",) + DIST_COLUMNS if with_dist else ("PROB",)
-    table = Table([np.asarray(a, float) for a in (arrays if with_dist else (arrays,))], names=names, meta=meta)
-    flat = np.asarray(table["PROB"])
-    _check_values(flat, name)
-    table = with_usable_distances(table, name)  # before derasterize: all-NaN layers made it drop 93 % of the sky
-    if flat.size > 12 and np.mean(np.all(flat.reshape(-1, 4) == flat[::4, None], axis=1)) >= MERGEABLE_FRACTION:
-        return derasterize(table)
-    order = int(ah.nside_to_level(ah.npix_to_nside(flat.size)))
-    table.rename_column("PROB", "PROBDENSITY")
-    table["PROBDENSITY"] *= flat.size / (4 * np.pi)
-    table.add_column(nest2uniq(np.int8(order), np.arange(flat.size, dtype=np.int64)), name="UNIQ", index=0)
-    return table
-
-
-def _merge_finer_pixels(table, order: int):
-    """Multi-order table with every pixel finer than ``order`` merged into its ancestor.
-
-    What :func:`ligo.skymap.bayestar.rasterize` does when it downsamples,
-    with the same functions: the merged pixel's density is the mean of its
-    children's, its distance layers those of the children's mixture
-    (:func:`ligo.skymap.distance.parameters_to_moments`, probability-weighted
-    first and second moments, :func:`~ligo.skymap.distance.moments_to_parameters`;
-    a child without a finite distance makes the merged one (inf, 1, 0)).
-    Done here only for the merged pixels: ``rasterize`` converts every
-    output pixel there and back (moments_to_parameters solves each
-    numerically), 5 s for a notice's map at NSIDE 256 against 0.1 s here,
-    and loses up to 2e-5 of the std of the pixels it only shares.
-    """
-    from astropy.table import Table, vstack
-    from ligo.skymap.distance import moments_to_parameters, parameters_to_moments
-    from ligo.skymap.moc import nest2uniq, uniq2nest
-
-    src_order, ipix = uniq2nest(np.asarray(table["UNIQ"]))
-    fine = src_order > order
-    if not np.any(fine):
-        return table
-    shift = 2 * (src_order[fine].astype(np.int64) - order)
-    parents, group = np.unique(ipix[fine] >> shift, return_inverse=True)
-    weight = np.asarray(table["PROBDENSITY"], float)[fine] / (np.int64(1) << shift)  # density x child/parent area
-    density = np.bincount(group, weight)
-    merged = Table({"UNIQ": nest2uniq(np.int8(order), parents), "PROBDENSITY": density})
-    if "DISTMU" in table.colnames:
-        mu, sigma = (np.asarray(table[c], float)[fine] for c in ("DISTMU", "DISTSIGMA"))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean, std, _ = parameters_to_moments(mu, sigma)
-            bad = ~(np.isfinite(mu) & np.isfinite(sigma))
-            mean[bad] = std[bad] = np.nan
-            first = np.bincount(group, weight * mean) / density
-            second = np.bincount(group, weight * (std**2 + mean**2)) / density
-            layers = moments_to_parameters(first, np.sqrt(second - first**2))
-        for column, values in zip(DIST_COLUMNS, layers):
-            merged[column] = values
-    coarse = Table({c: np.asarray(table[c])[~fine] for c in merged.colnames})
-    return vstack([coarse, merged])
+        raise SkyMapError(f"{name}: flat HEALPix map without ORDERING = 'RING' or 'NESTED' in its header: "
+                          "the pixel order is unknown; set ORDERING and retry")
+    if ordering not in ("RING", "NESTED"):
+        raise SkyMapError(f"{name}: ORDERING = {ordering!r}; a HEALPix map is RING, NESTED or NUNIQ")
+    if str(table.header.get("INDXSCHM", "IMPLICIT")).strip().upper() != "IMPLICIT":
+        raise SkyMapError(f"{name}: an explicitly indexed (partial-sky) map is not supported")
+    column = "PROBABILITY" if "PROBABILITY" in table.names and "PROB" not in table.names else "PROB"  # Fermi's name
+    _need_columns(table, name, [column])
+    used = [column] + (list(DIST_COLUMNS) if working.with_distance else [])
+    per_row = {table.repeats[c] for c in used}
+    if len(per_row) != 1:
+        raise SkyMapError(f"{name}: its columns hold different numbers of pixels per row")
+    per_row_n = per_row.pop()
+    npix = table.rows * per_row_n
+    src_order = ((npix // 12).bit_length() - 1) // 2
+    if npix % 12 or 12 * 4**src_order != npix:
+        raise SkyMapError(f"{name}: {npix} pixels is not a HEALPix map (12 NSIDE^2)")
+    nside_in = 1 << src_order
+    declared = table.header.get("NSIDE", nside_in)
+    for what in (declared, nside_in):
+        if isinstance(what, int) and what > MAX_NSIDE:
+            raise SkyMapError(f"{name}: NSIDE {what} is finer than HEALPix maps are read here "
+                              f"(NSIDE <= {MAX_NSIDE}): refused")
+    if declared != nside_in:
+        raise SkyMapError(f"{name}: NSIDE = {declared!r} but the table holds {npix} pixels (NSIDE {nside_in})")
+    table.check_room()
+    done = 0
+    for rows in table.iter_rows(max(chunk // per_row_n, 1)):
+        prob = table.column(rows, column)
+        _check_values(prob, name)
+        ipix = np.arange(done, done + prob.size, dtype=np.int64)
+        done += prob.size
+        if ordering == "RING":
+            ipix = hp.ring2nest(nside_in, ipix)
+        layers = [table.column(rows, c) for c in DIST_COLUMNS] if working.with_distance else None
+        working.add(src_order, ipix, prob, layers)
 
 
 def _finish(prob: np.ndarray, means: dict[str, np.ndarray], meta: dict, nside: int, sha: str, name: str) -> SkyMap:
