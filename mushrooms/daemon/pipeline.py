@@ -703,7 +703,7 @@ class NoticePipeline:
             st = ledger.event_state(sid)
             latest = st.latest_plan_id if st is not None else None
             return Decision("rerun", sid, f"{reason} ({kind} map)", alert.alert_type, sha,
-                            supersedes=latest, localization=kind)
+                            supersedes=latest, localization=kind, time_created=iso_z(alert.time_created))
 
         nid, decision, job, cancelled, _ = self.store.record_decision(
             record, dec, lambda d: self._plan_start(alert, now), received_wall=wall)

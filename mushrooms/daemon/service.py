@@ -158,7 +158,8 @@ class Service:
             self._prune_raw()
             self._warm_up(self.sky_cache)  # only once the state file is ours: a refused start is quick
             self.jobs = JobRunner(self._run_job, scheduler, self.config.daemon.max_jobs,
-                                  self.config.daemon.job_deadline_s, on_done=self._job_done)
+                                  self.config.daemon.job_deadline_s, on_done=self._job_done,
+                                  on_failure=self._job_failed)
             log.info("event=service_starting pid=%d config=%s state=%s sink=%s triggers=%s",
                      os.getpid(), self.config.source, self.paths.state, self._sink_text(),
                      self.paths.trigger_dir)
@@ -321,6 +322,13 @@ class Service:
     def _job_done(self, job: Any, outcome: Any, info: dict[str, Any]) -> None:
         self._counts["jobs"] += 1
 
+    def _job_failed(self, job: Any, error: str) -> None:
+        """A job raised past the pipeline: record it as failed (a failure on our side: the map may be planned again)."""
+        try:
+            self.pipeline.store.fail_job(job.job_id, f"internal error: {error}", retry_same_map=True)
+        except Exception as exc:
+            log.error("event=job_failure_not_stored job=%s error=%r", getattr(job, "job_id", "-"), str(exc))
+
     # ------------------------------------------------------------ warm state
     def _warm_up(self, cache: Any) -> Any:
         """Imports, grid, footprints and tonight's visibility, and one throw-away plan, before consuming."""
@@ -406,6 +414,8 @@ class Service:
                  ",".join(active) or "-", time.monotonic() - self._last_loop)
         if time.monotonic() - self._last_prune > PRUNE_EVERY_S:
             self._prune_raw()
+        if hasattr(self, "jobs"):
+            self.jobs.check_workers()
 
     def _watchdog(self, interval_s: float) -> None:
         age = time.monotonic() - self._last_loop

@@ -8,7 +8,8 @@ Tables
               only for a retention period (:meth:`Store.prune_raw`).
 ``decisions`` one row per notice: what was decided and why (``plan``,
               ``rerun``, ``duplicate``, ``withdraw``, ``ignore``, ``rejected``).
-``events``    per superevent: last sky map accepted for planning, retracted flag.
+``events``    per superevent: last sky map accepted for planning, retracted flag,
+              ``time_created`` of the newest notice accepted (creation order).
 ``jobs``      planning jobs: ``pending`` -> ``running`` -> ``done`` | ``failed``
               | ``superseded`` | ``cancelled``, with the horizon start fixed at
               accept time (so a re-run gives the same plan id).
@@ -57,7 +58,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
-from ..handlers.decisions import Decision, EventState
+from ..handlers.decisions import Decision, EventState, newest_created
 from ..handlers.text import storable
 
 __all__ = ["Store", "StoreError", "StateInUse", "StateLock", "lock_state", "Job", "OutboxMessage", "NoticeRecord",
@@ -65,12 +66,13 @@ __all__ = ["Store", "StoreError", "StateInUse", "StateLock", "lock_state", "Job"
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 #: Additive migrations: ``{version: statements}`` bring a state file of
 #: ``version - 1`` up to ``version`` (a new file gets :data:`_SCHEMA` at once).
 _MIGRATIONS: dict[int, tuple[str, ...]] = {
     2: ("ALTER TABLE events ADD COLUMN localization TEXT",),  # gw | combined (issue 17)
+    3: ("ALTER TABLE events ADD COLUMN latest_created TEXT",),  # creation order of notices (issue 25)
 }
 
 _SCHEMA = """
@@ -101,7 +103,8 @@ CREATE TABLE IF NOT EXISTS events (
     skymap_sha256 TEXT,
     retracted     INTEGER NOT NULL DEFAULT 0,
     updated_at    TEXT NOT NULL,
-    localization  TEXT
+    localization  TEXT,
+    latest_created TEXT
 );
 CREATE TABLE IF NOT EXISTS jobs (
     job_id        INTEGER PRIMARY KEY AUTOINCREMENT,
@@ -318,15 +321,16 @@ class _TxLedger:
 
 
 def _event_state(conn: sqlite3.Connection, sid: str) -> EventState | None:
-    row = conn.execute("SELECT skymap_sha256, retracted, localization FROM events WHERE superevent_id=?",
-                       (sid,)).fetchone()
+    row = conn.execute("SELECT skymap_sha256, retracted, localization, latest_created FROM events"
+                       " WHERE superevent_id=?", (sid,)).fetchone()
     if row is None:
         return None
     ids = tuple(r[0] for r in conn.execute(
         "SELECT plan_id FROM plans WHERE superevent_id=? AND withdrawn=0 ORDER BY seq", (sid,)))
     open_job = conn.execute("SELECT EXISTS(SELECT 1 FROM jobs WHERE superevent_id=? AND status IN"
                             " ('pending','running'))", (sid,)).fetchone()[0]
-    return EventState(sid, row[0], ids, bool(row[1]), localization=row[2], open_job=bool(open_job))
+    return EventState(sid, row[0], ids, bool(row[1]), localization=row[2], open_job=bool(open_job),
+                      latest_created=row[3])
 
 
 def _job(row: sqlite3.Row, fallback: bool = False) -> Job:
@@ -570,11 +574,21 @@ class Store:
                     msg = withdrawal(decision, nid)
                     key = str(msg["withdrawal_id"])
                     self._insert_outbox(c, key, "withdrawal", msg)
+            if decision.accepted and decision.time_created:
+                self._note_created(c, sid, decision.time_created)
             c.execute("INSERT INTO decisions(notice_id, superevent_id, alert_type, decision, reason, job_id,"
                       " created_at) VALUES (?,?,?,?,?,?,?)",
                       (nid, _opt(sid), _opt(decision.alert_type), decision.action, storable(decision.reason),
                        job.job_id if job else None, now))
         return nid, decision, job, cancelled, key
+
+    @staticmethod
+    def _note_created(c: sqlite3.Connection, sid: str, created: str) -> None:
+        """Keep the event's newest accepted ``time_created`` (the creation order of its notices)."""
+        row = c.execute("SELECT latest_created FROM events WHERE superevent_id=?", (sid,)).fetchone()
+        if row is not None:
+            c.execute("UPDATE events SET latest_created=? WHERE superevent_id=?",
+                      (newest_created(row[0], created), sid))
 
     @staticmethod
     def _insert_notice(c: sqlite3.Connection, n: NoticeRecord) -> int:
