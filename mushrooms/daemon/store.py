@@ -62,7 +62,7 @@ from ..handlers.decisions import Decision, EventState, newest_created
 from ..handlers.text import storable
 
 __all__ = ["Store", "StoreError", "StateInUse", "StateLock", "lock_state", "Job", "OutboxMessage", "NoticeRecord",
-           "SCHEMA_VERSION", "RAW_PREFIX_BYTES"]
+           "SCHEMA_VERSION", "RAW_PREFIX_BYTES", "plan_final_message"]
 
 log = logging.getLogger(__name__)
 
@@ -376,6 +376,7 @@ class Store:
         self._conns: list[sqlite3.Connection] = []
         self._closed = False
         self._started: set[int] = set()  # jobs this process started and has not finished
+        self._parked: set[int] = set()  # first plan stored, waiting for an optimisation slot (start given back)
         conn = self._conn()
         try:
             version = conn.execute("PRAGMA user_version").fetchone()[0]
@@ -641,9 +642,15 @@ class Store:
             if row is None or row["status"] not in _OPEN:
                 return None
             if row["attempts"] >= max_attempts + FALLBACK_ATTEMPTS:
+                why = (f"gave up after {row['attempts']} unfinished attempts (the last "
+                       f"{FALLBACK_ATTEMPTS} with the fast scheduler)")
+                first = c.execute("SELECT plan_id FROM plans WHERE job_id=? AND withdrawn=0 ORDER BY seq DESC"
+                                  " LIMIT 1", (job_id,)).fetchone()
+                if first is not None:  # a revision went out: it stands, and the contract's plan_final says so
+                    self._close_with(c, job_id, first[0], row["superevent_id"], why)
+                    return None
                 c.execute("UPDATE jobs SET status='failed', reason=?, finished_at=? WHERE job_id=?",
-                          (f"gave up after {row['attempts']} unfinished attempts (the last "
-                           f"{FALLBACK_ATTEMPTS} with the fast scheduler)", _now(), job_id))
+                          (why, _now(), job_id))
                 return None
             fallback = row["attempts"] >= max_attempts
             prev = c.execute("SELECT plan_id FROM plans WHERE superevent_id=? AND withdrawn=0"
@@ -656,20 +663,58 @@ class Store:
             self._started.add(job_id)
         return _job(row, fallback=fallback)
 
+    def park_job(self, job_id: int) -> None:
+        """The job's first plan is stored and it now only waits for an optimisation slot: give its start back.
+
+        A process killed while the job waits did not die of this job, so the
+        wait never counts towards :meth:`start_job`'s fallback;
+        :meth:`resume_job` counts the start again when the optimisation
+        begins.
+        """
+        with self._tx() as c:
+            if c.execute("UPDATE jobs SET attempts=MAX(attempts-1, 0) WHERE job_id=? AND status='running'",
+                         (job_id,)).rowcount:
+                self._started.discard(job_id)
+                self._parked.add(job_id)
+
+    def resume_job(self, job_id: int) -> bool:
+        """A parked job's optimisation begins: count the start (False when the job is no longer running)."""
+        with self._tx() as c:
+            ok = bool(c.execute("UPDATE jobs SET attempts=attempts+1 WHERE job_id=? AND status='running'",
+                                (job_id,)).rowcount)
+            self._parked.discard(job_id)
+            if ok:
+                self._started.add(job_id)
+            return ok
+
     def release_unfinished(self) -> list[int]:
         """At a clean stop: give back the starts of jobs this process left running.
 
         They become ``pending`` with the start not counted (only starts that
         died count towards giving up) and run again at the next start.
+        Parked jobs (start already given back) just become ``pending``.
         Returns their ids.
         """
         with self._tx() as c:
-            ids = sorted(self._started)
-            released = [j for j in ids if c.execute(
+            released = [j for j in sorted(self._started) if c.execute(
                 "UPDATE jobs SET status='pending', attempts=MAX(attempts-1, 0) WHERE job_id=? AND status='running'",
                 (j,)).rowcount]
+            released += [j for j in sorted(self._parked) if c.execute(
+                "UPDATE jobs SET status='pending' WHERE job_id=? AND status='running'", (j,)).rowcount]
             self._started.clear()
-        return released
+            self._parked.clear()
+        return sorted(released)
+
+    def plan_epoch(self, job_id: int) -> int:
+        """Withdrawals of the job's superevent decided before the job's notice (0: never withdrawn).
+
+        Fixed once the job is accepted, so a job re-run after a crash gets
+        the same plan ids; the pipeline salts the plan id with it.
+        """
+        row = self._conn().execute(
+            "SELECT COUNT(*) FROM decisions d JOIN jobs j ON d.superevent_id=j.superevent_id"
+            " WHERE j.job_id=? AND d.decision='withdraw' AND d.notice_id<j.notice_id", (job_id,)).fetchone()
+        return int(row[0]) if row else 0
 
     def job_status(self, job_id: int) -> str | None:
         """``pending``, ``running``, ``done``, ``failed``, ``superseded``, ``cancelled`` (None: no such job)."""
@@ -757,6 +802,7 @@ class Store:
                 c.execute("UPDATE jobs SET status='done', plan_id=?, coverage=?, latency_s=?, reason=NULL,"
                           " finished_at=? WHERE job_id=?", (plan_id, coverage, latency_s, now, job_id))
                 self._started.discard(job_id)
+                self._parked.discard(job_id)
             else:
                 c.execute("UPDATE jobs SET plan_id=?, coverage=?, latency_s=? WHERE job_id=?",
                           (plan_id, coverage, latency_s, job_id))
@@ -776,9 +822,37 @@ class Store:
             c.execute("UPDATE jobs SET status='done', reason=?, finished_at=? WHERE job_id=?",
                       (reason[:500], _now(), job_id))
             self._started.discard(job_id)
+            self._parked.discard(job_id)
             found = c.execute("SELECT outbox_id FROM outbox WHERE key=? ORDER BY outbox_id DESC LIMIT 1",
                               (key,)).fetchone()
             return int(found[0]) if found is not None else self._insert_outbox(c, key, "plan_final", message)
+
+    def close_with_plan(self, job_id: int, plan_id: str, reason: str) -> int | None:
+        """Close a running job on its stored revision ``plan_id`` with a ``plan_final`` message.
+
+        The fallback after repeated crashes uses it: revision 1 went out
+        with ``final: false`` before the optimiser died, so the contract's
+        ``plan_final`` must follow.  Returns the outbox id (None when the job
+        is not running).
+        """
+        with self._tx() as c:
+            row = c.execute("SELECT status, superevent_id FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+            if row is None or row["status"] not in _OPEN:
+                return None
+            return self._close_with(c, job_id, plan_id, row["superevent_id"], reason)
+
+    def _close_with(self, c: sqlite3.Connection, job_id: int, plan_id: str, superevent_id: str, reason: str) -> int:
+        c.execute("UPDATE plans SET final=1 WHERE job_id=?", (job_id,))
+        c.execute("UPDATE jobs SET status='done', plan_id=?, reason=?, finished_at=? WHERE job_id=?",
+                  (plan_id, reason[:500], _now(), job_id))
+        self._started.discard(job_id)
+        self._parked.discard(job_id)
+        key = f"{plan_id}-final"
+        found = c.execute("SELECT outbox_id FROM outbox WHERE key=? ORDER BY outbox_id DESC LIMIT 1",
+                          (key,)).fetchone()
+        if found is not None:
+            return int(found[0])
+        return self._insert_outbox(c, key, "plan_final", plan_final_message(plan_id, superevent_id, reason))
 
     def job_plans(self, job_id: int) -> list[dict[str, Any]]:
         """The revisions a job stored, oldest first (documents parsed)."""
@@ -799,6 +873,7 @@ class Store:
             c.execute("UPDATE jobs SET status='failed', reason=?, finished_at=? WHERE job_id=?"
                       " AND status IN ('pending','running')", (storable(reason, 2000), _now(), job_id))
             self._started.discard(job_id)
+            self._parked.discard(job_id)
             if retry_same_map and row is not None:
                 c.execute("UPDATE events SET skymap_sha256=NULL, updated_at=? WHERE superevent_id=?"
                           " AND skymap_sha256=?", (_now(), row[0], row[1]))
@@ -847,6 +922,19 @@ class Store:
         out["jobs_open"] = c.execute("SELECT COUNT(*) FROM jobs WHERE status IN ('pending','running')").fetchone()[0]
         out["outbox_pending"] = c.execute("SELECT COUNT(*) FROM outbox WHERE published_at IS NULL").fetchone()[0]
         return out
+
+
+def plan_final_message(plan_id: str, superevent_id: str | None, reason: str) -> dict[str, Any]:
+    """The ``plan_final`` message (docs/design/CONTRACTS.md): revision 1 of ``plan_id`` stands, nothing follows."""
+    return {
+        "type": "plan_final",
+        "plan_id": plan_id,
+        "revision": 1,
+        "final": True,
+        "superevent_id": superevent_id,
+        "reason": reason,
+        "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z",
+    }
 
 
 def _opt(text: str | None) -> str | None:
