@@ -172,7 +172,7 @@ class Service:
             self._scan_triggers()
             from .consumer import NoticeConsumer
 
-            self.consumer = NoticeConsumer(self.config.kafka)
+            self.consumer = NoticeConsumer(self.config.kafka, instance_id=self._instance_id(self.config))
             scheduler.add_job(self._heartbeat, "interval", seconds=self.config.daemon.heartbeat_s,
                               id="heartbeat", misfire_grace_time=None, coalesce=True)
             wd = watchdog_interval_s()
@@ -444,12 +444,18 @@ class Service:
             from .consumer import NoticeConsumer
 
             self.consumer.close()
-            self.consumer = NoticeConsumer(new.kafka)
+            self.consumer = NoticeConsumer(new.kafka, instance_id=self._instance_id(new))
         if new.daemon.heartbeat_s != self.config.daemon.heartbeat_s:
             self.scheduler.reschedule_job("heartbeat", trigger="interval", seconds=new.daemon.heartbeat_s)
         self.config = new
         self.notifier.ready("configuration reloaded")
         log.info("event=config_reloaded source=%s", new.source)
+
+    def _instance_id(self, config: Any) -> str | None:
+        """Static group membership: stable per installation (``[kafka] instance_id``, else host + state path)."""
+        from .settings import group_instance_id
+
+        return group_instance_id(config.kafka, self.paths.state)
 
     def _active(self) -> list[str]:
         return self.jobs.active() if hasattr(self, "jobs") else []

@@ -9,7 +9,7 @@ from typing import Any, Mapping
 
 from ..scheduler_core.config import dataclass_from_table
 
-__all__ = ["DaemonConfig", "KafkaConfig", "OutboundConfig", "RuntimePaths", "resolve_paths"]
+__all__ = ["DaemonConfig", "KafkaConfig", "OutboundConfig", "RuntimePaths", "resolve_paths", "group_instance_id"]
 
 
 @dataclass(frozen=True)
@@ -127,6 +127,15 @@ class KafkaConfig:
     offset_reset : str
         Where a group with no committed offset starts: ``earliest`` or
         ``latest``.
+    instance_id : str
+        Static group membership (Kafka's ``group.instance.id``, KIP-345) in
+        ``group`` mode: a daemon restarted after a crash rejoins as the same
+        member and gets its partitions back at once instead of waiting
+        ``session_timeout_s`` for the dead member to expire.  Empty
+        (default): derived from the host name and the state file's path
+        (:func:`group_instance_id`), so it is stable per installation and
+        differs between installations sharing a group.  ``"none"``:
+        dynamic membership.  Two daemons must never share one.
     """
 
     topics: tuple[str, ...] = ("igwn.gwalert",)
@@ -138,8 +147,13 @@ class KafkaConfig:
     session_timeout_s: float = 30.0
     max_message_bytes: int = 16_000_000
     offset_reset: str = "earliest"
+    instance_id: str = ""
 
     def __post_init__(self) -> None:
+        if self.instance_id and (len(self.instance_id) > 200 or not self.instance_id.isprintable()
+                                 or " " in self.instance_id):
+            raise ValueError(f"[kafka] instance_id must be printable, without spaces, at most 200 characters, "
+                             f"got {self.instance_id!r}")
         if self.assignment not in ("group", "manual"):
             raise ValueError(f"[kafka] assignment must be group or manual, got {self.assignment!r}")
         if self.offset_reset not in ("earliest", "latest"):
@@ -266,3 +280,22 @@ def resolve_paths(daemon: DaemonConfig, environ: Mapping[str, str] | None = None
         pid_file=near(daemon.pid_file),
         quarantine_dir=near(daemon.quarantine_dir),
     )
+
+
+def group_instance_id(config: KafkaConfig, state: Path, host: str | None = None) -> str | None:
+    """The consumer's ``group.instance.id``: ``[kafka] instance_id``, else one derived from the installation.
+
+    Derived: ``mushrooms-<host>-<12 hex digits of the SHA-256 of the state
+    file's absolute path>``, the same at every restart of one installation.
+    None when static membership is off (``instance_id = "none"``).
+    """
+    import hashlib
+    import socket
+
+    if config.instance_id.lower() == "none":
+        return None
+    if config.instance_id:
+        return config.instance_id
+    host = host if host is not None else socket.gethostname()
+    digest = hashlib.sha256(str(Path(state).absolute()).encode()).hexdigest()[:12]
+    return f"mushrooms-{''.join(c for c in host if c.isalnum() or c in '.-')[:60] or 'host'}-{digest}"
