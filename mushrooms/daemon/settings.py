@@ -66,6 +66,12 @@ class DaemonConfig:
     rejected_raw_retention_s : float
         How long (s) the first KiB of a rejected message is kept for
         inspection; then only its SHA-256, size and decision remain.
+    planned_raw_retention_s : float
+        How long (s) after its last job finished the raw bytes of an
+        event's newest planned notice are kept (``mushrooms trigger
+        SUPEREVENT`` re-plans from them).  Older notices of the event lose
+        theirs as soon as none of their jobs is open; the notice row, its
+        SHA-256, size and decisions stay.  Default 7 days.
     """
 
     state_path: str = "mushrooms-state.sqlite"
@@ -80,6 +86,7 @@ class DaemonConfig:
     supersede_min_gain: float = 0.005
     group_readable: bool = False
     rejected_raw_retention_s: float = 2_592_000.0
+    planned_raw_retention_s: float = 604_800.0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.supersede_min_gain <= 1.0:

@@ -393,6 +393,9 @@ class Store:
             raise StoreError(f"{self.path}: schema version {version} is newer than this program's {SCHEMA_VERSION}")
         if version == 0:
             with self._lock:
+                # pruned raw bytes go back to the file system (before any table exists; issue 25)
+                conn.execute("PRAGMA auto_vacuum=INCREMENTAL")
+                conn.execute("VACUUM")  # the file is empty: this only makes the setting take effect
                 conn.executescript("BEGIN IMMEDIATE;" + _SCHEMA + f"PRAGMA user_version={SCHEMA_VERSION}; COMMIT;")
         elif version < SCHEMA_VERSION:
             steps = [sql for v in range(version + 1, SCHEMA_VERSION + 1) for sql in _MIGRATIONS[v]]
@@ -492,19 +495,49 @@ class Store:
                        _now()))
         return nid
 
-    def prune_raw(self, older_than_s: float) -> int:
-        """Forget the raw bytes of rejected messages decided more than ``older_than_s`` (s) ago.
+    def prune_raw(self, older_than_s: float, planned_older_than_s: float | None = None) -> int:
+        """Forget raw bytes no longer needed; returns how many notices lost theirs.
 
-        Raw bytes that a job plans from are never pruned.  Returns how many
-        notices lost theirs.
+        * Rejected messages: their first KiB, once decided more than
+          ``older_than_s`` (s) ago.
+        * Planned notices (with ``planned_older_than_s``): once none of the
+          notice's jobs is open (a job re-reads its sky map from the bytes
+          after a crash), at once when a newer planned notice of the same
+          superevent exists, else (the notice ``mushrooms trigger
+          SUPEREVENT`` would re-plan from) when its last job finished more
+          than ``planned_older_than_s`` (s) ago.
+
+        On a state file created with incremental auto-vacuum (every file
+        this version creates) the freed pages go back to the file system;
+        on older files SQLite reuses them.
         """
-        cutoff = datetime.fromtimestamp(time.time() - older_than_s, timezone.utc).isoformat(timespec="milliseconds")
+        def cutoff(age_s: float) -> str:
+            return datetime.fromtimestamp(time.time() - age_s, timezone.utc).isoformat(timespec="milliseconds")
+
         with self._tx() as c:
             cur = c.execute(
                 "UPDATE notices SET raw=NULL WHERE raw IS NOT NULL AND notice_id IN"
                 " (SELECT notice_id FROM decisions WHERE decision='rejected' AND created_at<=?)"
-                " AND notice_id NOT IN (SELECT notice_id FROM jobs)", (cutoff,))
-            return int(cur.rowcount)
+                " AND notice_id NOT IN (SELECT notice_id FROM jobs)", (cutoff(older_than_s),))
+            n = int(cur.rowcount)
+            if planned_older_than_s is not None:
+                cur = c.execute(
+                    "WITH per_notice AS (SELECT notice_id, superevent_id,"
+                    "   SUM(status IN ('pending','running')) AS open_jobs,"
+                    "   MAX(COALESCE(finished_at, created_at)) AS last_done FROM jobs GROUP BY notice_id),"
+                    " newest AS (SELECT superevent_id, MAX(notice_id) AS notice_id FROM jobs GROUP BY superevent_id)"
+                    " UPDATE notices SET raw=NULL WHERE raw IS NOT NULL AND notice_id IN"
+                    " (SELECT p.notice_id FROM per_notice p JOIN newest n USING(superevent_id)"
+                    "  WHERE p.open_jobs=0 AND (p.notice_id<n.notice_id OR p.last_done<=?))",
+                    (cutoff(planned_older_than_s),))
+                n += int(c.execute("SELECT changes()").fetchone()[0])  # rowcount is -1 for WITH ... UPDATE
+        if n:
+            try:
+                with self._lock:  # executescript steps the pragma to the end (execute frees one page)
+                    self._conn().executescript("PRAGMA incremental_vacuum;")
+            except sqlite3.Error as exc:  # reclaiming space is a courtesy
+                log.warning("state %s: incremental_vacuum failed: %s", self.path, exc)
+        return n
 
     def record_decision(
         self,

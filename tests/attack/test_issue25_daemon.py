@@ -148,3 +148,78 @@ def test_ordinary_plan_ids_do_not_change(tmp_path: Path) -> None:
     b = pipeline(tmp_path / "b.sqlite").handle(notice(), "kafka:t:0:1", LATER)
     assert a.plan_id == b.plan_id and a.plan_id.startswith("mushrooms-")
     assert Store(tmp_path / "a.sqlite").plan_epoch(1) == 0
+
+
+# ---------------------------------------------------------------- 7. a read-only state directory
+def test_a_read_only_state_directory_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    """It was exit 70 on the pid file, which ``Restart=on-failure`` restarts every 5 s."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    if shutil.which("unshare") is None:
+        import pytest
+
+        pytest.skip("unshare(1) is needed to mount the state directory read-only")
+    state = tmp_path / "state"
+    state.mkdir()
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(__file__).resolve().parents[2]),
+                                                       os.environ.get("PYTHONPATH", "")]))
+    r = subprocess.run(["unshare", "-rm", "sh", "-c",
+                        'mount --bind "$1" "$1" && mount -o remount,bind,ro "$1" && shift && exec "$@"', "sh",
+                        str(state), sys.executable, "-m", "mushrooms.cli", "run", "--state",
+                        str(state / "s.sqlite"), "--bootstrap", "127.0.0.1:9", "--outbox", str(tmp_path / "out")],
+                       capture_output=True, text=True, timeout=120, env=env, cwd=tmp_path)
+    if "mount" in r.stderr and r.returncode != 2:
+        import pytest
+
+        pytest.skip(f"no mount namespace here: {r.stderr.strip()[:200]}")
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    (line,) = [ln for ln in r.stderr.splitlines() if "error" in ln]
+    assert "cannot write the pid file" in line and "Read-only file system" in line
+    assert "Traceback" not in r.stderr + r.stdout
+    unit = (Path(__file__).resolve().parents[2] / "systemd" / "mushrooms.service").read_text()
+    prevent = next(ln for ln in unit.splitlines() if ln.startswith("RestartPreventExitStatus="))
+    assert "2" in prevent.split("=", 1)[1].split()
+
+
+# ---------------------------------------------------------------- 7. raw bytes of planned notices are pruned
+def test_raw_bytes_of_planned_notices_are_pruned_once_not_needed(tmp_path: Path) -> None:
+    path = tmp_path / "s.sqlite"
+    p = pipeline(path)
+    a1 = p.handle(notice("MS181101ab", created_shift_s=0), "kafka:t:0:1", LATER)
+    a2 = p.handle(notice("MS181101ab", "UPDATE", created_shift_s=60, other_map=True), "kafka:t:0:2", LATER)
+    b = p.handle(notice("MS181102ab"), "kafka:t:0:3", LATER)
+    pending = p.accept(notice("MS181103ab"), "kafka:t:0:4", LATER)  # its job has not run
+    assert a2.decision == "rerun"
+    pages_before = p.store._conn().execute("PRAGMA page_count").fetchone()[0]
+    # superseded notice: pruned at once; each event's newest kept for the retention; an open job's never
+    assert p.store.prune_raw(older_than_s=0, planned_older_than_s=3600) == 1
+    assert p.store.notice_raw(a1.notice_id) is None
+    assert p.store.notice_raw(a2.notice_id) is not None and p.store.notice_raw(b.notice_id) is not None
+    assert p.store.notice_raw(pending.notice_id) is not None
+    assert p.rerun_superevent("MS181101ab", "trigger:x").action == "rerun"  # still re-plannable
+    for j in p.store.pending_jobs():
+        p.run_job(j)
+    # after the retention even the newest go; the rows, hashes and decisions stay
+    assert p.store.prune_raw(older_than_s=0, planned_older_than_s=0) == 4
+    assert p.store.notice_raw(a2.notice_id) is None and p.store.notice_raw(pending.notice_id) is None
+    assert len(p.store.decisions()) == 5
+    # the file gives the pages back (incremental auto-vacuum): fewer pages than with four notices' bytes
+    conn = p.store._conn()
+    assert conn.execute("PRAGMA auto_vacuum").fetchone()[0] == 2  # incremental
+    assert conn.execute("PRAGMA freelist_count").fetchone()[0] == 0
+    assert conn.execute("PRAGMA page_count").fetchone()[0] < pages_before
+
+
+def test_the_service_prunes_planned_raw_bytes_with_the_configured_retention() -> None:
+    from mushrooms.config import load_config
+
+    cfg = load_config(None)
+    assert cfg.daemon.planned_raw_retention_s == 604800.0
+    import inspect
+
+    from mushrooms.daemon import service
+
+    assert "planned_raw_retention_s" in inspect.getsource(service.Service._prune_raw)
