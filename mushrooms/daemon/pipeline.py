@@ -67,7 +67,7 @@ from typing import Any, Callable
 from ..config import Config
 from ..handlers.alert import Alert, NoticeError, parse_notice
 from ..handlers.decisions import Decision, decide
-from ..handlers.localization import check_skymap, choose_localization, coincidence_summary, skymap_for_sha
+from ..handlers.localization import check_skymap_header, choose_localization, coincidence_summary, skymap_for_sha
 from ..handlers.policy import evaluate
 from ..scheduler_core.errors import InputError, PlanCheckError
 from .sinks import Sink, message_key
@@ -333,7 +333,8 @@ class NoticePipeline:
         if verdict.keep and not alert.is_retraction:
             localization = choose_localization(
                 alert, policy.use_combined_skymap,
-                check=lambda data: check_skymap(data, max_bytes=policy.max_skymap_bytes))
+                # headers only (bounded, milliseconds): the full decode is the job's, off the consume loop
+                check=lambda data: check_skymap_header(data, max_bytes=policy.max_skymap_bytes))
             if localization is not None and localization.note and localization.kind == "gw" \
                     and alert.external_coinc is not None:
                 log.warning("notice origin=%s superevent_id=%s: %s", origin, alert.superevent_id, localization.note)
@@ -468,7 +469,16 @@ class NoticePipeline:
         skymap_bytes, event = self._skymap_bytes(job)
         sched = self.config.scheduler
         stage("reading the sky map")
-        skymap = read_skymap(skymap_bytes, nside=sched.nside, max_bytes=self.config.policy.max_skymap_bytes)
+        try:
+            skymap = read_skymap(skymap_bytes, nside=sched.nside, max_bytes=self.config.policy.max_skymap_bytes)
+        except InputError as exc:
+            gw = self._gw_fallback(job, event)
+            if gw is None:
+                raise
+            log.warning("job superevent_id=%s job=%s: combined sky map unusable (%s); planning on the GW map",
+                        job.superevent_id, job.job_id, exc)
+            skymap_bytes, event = gw
+            skymap = read_skymap(skymap_bytes, nside=sched.nside, max_bytes=self.config.policy.max_skymap_bytes)
         lap("read")
         stage("preparing the problem")
         start = parse_time(job.start)
@@ -633,6 +643,17 @@ class NoticePipeline:
                                        time_created=iso_z(alert.time_created),
                                        skymap_sha256=hashlib.sha256(skymap_bytes).hexdigest(), localization=kind,
                                        external_coinc=coincidence_summary(alert.external_coinc))
+
+    def _gw_fallback(self, job: Job, event: Any) -> tuple[bytes, Any] | None:
+        """The notice's GW map (and event) when the job's map was its joint map; else None."""
+        if getattr(event, "localization", None) != "combined":
+            return None
+        raw = self.store.notice_raw(job.notice_id)
+        alert = parse_notice(raw) if raw else None
+        if alert is None or alert.event is None or not alert.event.skymap:
+            return None
+        data = alert.event.skymap
+        return data, dataclasses.replace(event, localization="gw", skymap_sha256=hashlib.sha256(data).hexdigest())
 
     @staticmethod
     def _prepare(skymap: Any, config: Any, start: Any) -> Any:
