@@ -35,6 +35,9 @@ OffsetJump = Callable[[str, int, int, int, int, str], None]
 
 log = logging.getLogger(__name__)
 
+#: Period (s) of the retries of a manual assignment whose topic does not exist yet.
+TOPIC_RETRY_S = 5.0
+
 
 @dataclass(frozen=True)
 class Received:
@@ -56,8 +59,12 @@ class Received:
     message: Any  # the confluent_kafka.Message, needed to commit
 
 
-def consumer_config(config: KafkaConfig) -> dict[str, Any]:
-    """librdkafka settings of the input consumer (without credentials)."""
+def consumer_config(config: KafkaConfig, instance_id: str | None = None) -> dict[str, Any]:
+    """librdkafka settings of the input consumer (without credentials).
+
+    ``instance_id`` (``group`` mode only) makes the consumer a static group
+    member (``group.instance.id``): a restart rejoins as the same member.
+    """
     conf: dict[str, Any] = {
         "group.id": config.group_id,
         "enable.auto.commit": False,
@@ -69,6 +76,8 @@ def consumer_config(config: KafkaConfig) -> dict[str, Any]:
         "receive.message.max.bytes": int(config.max_message_bytes) + 1_000_000,
         "client.id": "mushrooms",
     }
+    if instance_id and config.assignment == "group":
+        conf["group.instance.id"] = instance_id
     if config.bootstrap:
         conf["bootstrap.servers"] = config.bootstrap
         conf["security.protocol"] = "plaintext"
@@ -89,12 +98,21 @@ class NoticeConsumer:
         Overrides the lookup (tests).
     on_offset_jump : callable, optional
         Told about every offset jump (:data:`OffsetJump`), after the ERROR line.
+    instance_id : str, optional
+        Static group membership (:func:`~.settings.group_instance_id`).
+
+    In ``manual`` mode a topic that does not exist yet is waited for (one
+    warning, then a retry every :data:`TOPIC_RETRY_S`; :meth:`poll` returns
+    None meanwhile), so the daemon keeps its loop, signals and watchdog.
     """
 
     def __init__(self, config: KafkaConfig, credentials: Credentials | None = None,
-                 on_offset_jump: OffsetJump | None = None) -> None:
+                 on_offset_jump: OffsetJump | None = None, instance_id: str | None = None) -> None:
         self.config = config
         self.on_offset_jump = on_offset_jump
+        self.instance_id = instance_id if config.assignment == "group" else None
+        self._assigned = config.assignment == "group"
+        self._retry_at = 0.0
         #: (topic, partition) currently assigned; empty until the group (or manual mode) assigns them
         self.assigned: set[tuple[str, int]] = set()
         #: monotonic time since which the consumer waits for an assignment (None once it has one)
@@ -102,7 +120,7 @@ class NoticeConsumer:
         self._next: dict[tuple[str, int], int] = {}  # offset expected next, per partition
         #: whether the input cluster answers (heartbeat, systemd status)
         self.health = BrokerHealth("consumer")
-        conf = consumer_config(config) | client_settings(self.health, stats_interval_s=5.0)
+        conf = consumer_config(config, self.instance_id) | client_settings(self.health, stats_interval_s=5.0)
         if config.bootstrap:
             self._consumer = gcn_kafka.Consumer(config=conf)
             where = f"{config.bootstrap} (plaintext, no credentials)"
@@ -113,30 +131,48 @@ class NoticeConsumer:
                 domain=config.domain,
             )
             where = f"kafka.{config.domain} (client id {creds.client_id}, from {creds.source})"
+        log.info("event=consumer_started broker=%s topics=%s group_id=%s assignment=%s group_instance_id=%s",
+                 where, ",".join(config.topics), config.group_id, config.assignment, self.instance_id or "-")
         self._start(list(config.topics))
-        log.info("event=consumer_started broker=%s topics=%s group_id=%s assignment=%s",
-                 where, ",".join(config.topics), config.group_id, config.assignment)
 
     def _start(self, topics: list[str]) -> None:
         if self.config.assignment == "group":
             self._consumer.subscribe(topics, on_assign=self._on_assign, on_revoke=self._on_revoke)
             return
-        # manual: every partition of every topic, from the group's committed offsets
-        md = self._consumer.list_topics(timeout=30)
-        parts = []
-        for topic in topics:
-            tmd = md.topics.get(topic)
-            if tmd is None or tmd.error is not None or not tmd.partitions:
-                # the topic may not exist yet: ask for it again (auto-creation) once
-                tmd = self._consumer.list_topics(topic, timeout=30).topics.get(topic)
-            if tmd is None or not tmd.partitions:
-                raise RuntimeError(f"topic {topic} has no partitions")
-            parts += [confluent_kafka.TopicPartition(topic, p) for p in sorted(tmd.partitions)]
-        committed = self._consumer.committed(parts, timeout=30)
-        self._expect(committed)
+        self._assign_manually(topics, first=True)
+
+    def _assign_manually(self, topics: list[str], first: bool = False) -> bool:
+        """Assign every partition of every topic, from the group's committed offsets; False while a topic is missing."""
+        self._retry_at = time.monotonic() + TOPIC_RETRY_S
+        try:
+            md = self._consumer.list_topics(timeout=30)
+            parts = []
+            missing = []
+            for topic in topics:
+                tmd = md.topics.get(topic)
+                if tmd is None or tmd.error is not None or not tmd.partitions:
+                    # the topic may not exist yet: ask for it again (auto-creation where allowed)
+                    tmd = self._consumer.list_topics(topic, timeout=30).topics.get(topic)
+                if tmd is None or tmd.error is not None or not tmd.partitions:
+                    missing.append(topic)
+                    continue
+                parts += [confluent_kafka.TopicPartition(topic, p) for p in sorted(tmd.partitions)]
+            if missing:
+                if first:
+                    log.warning("event=topic_missing topics=%s mode=manual: waiting for the topic to exist "
+                                "(retry every %.0f s; nothing is consumed meanwhile)", ",".join(missing),
+                                TOPIC_RETRY_S)
+                return False
+            committed = self._consumer.committed(parts, timeout=30)
+            self._expect(committed)
+        except confluent_kafka.KafkaException as exc:
+            log.warning("event=manual_assignment_failed error=%r (retry in %.0f s)", str(exc), TOPIC_RETRY_S)
+            return False
         self._consumer.assign(committed)
+        self._assigned = True
         log.info("event=partitions_assigned mode=manual positions=%s",
                  " ".join(f"{tp.topic}[{tp.partition}]@{tp.offset}" for tp in committed))
+        return True
 
     # -- assignment and offset continuity -------------------------------
     def _on_assign(self, consumer: Any, partitions: Sequence[Any]) -> None:
@@ -221,7 +257,12 @@ class NoticeConsumer:
         Broker and partition errors are logged, never raised: the client
         reconnects on its own.
         """
-        msgs = self._consumer.consume(1, self.config.poll_timeout_s if timeout_s is None else timeout_s)
+        wait = self.config.poll_timeout_s if timeout_s is None else timeout_s
+        if not self._assigned:
+            if time.monotonic() < self._retry_at or not self._assign_manually(list(self.config.topics)):
+                time.sleep(wait)
+                return None
+        msgs = self._consumer.consume(1, wait)
         if not msgs:
             return None
         msg = msgs[0]

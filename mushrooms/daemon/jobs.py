@@ -14,7 +14,14 @@ A newer job for the same superevent sets the old job's stop flag and is
 queued at once; the old job returns at its next stage boundary or
 scheduler poll (well within a second) and the pipeline records it as
 superseded.  APScheduler runs each job's deadline (counted from the start
-of its first stage, over both stages).  Publishing is not done here: the
+of its first stage, over both stages; a deadline too far away for a date,
+e.g. ``inf``, means none).
+
+Worker threads never die of a job: any exception raised while a job runs
+(inside the planner or in the runner's own bookkeeping around it) is that
+job's failure, logged and handed to ``on_failure`` (the daemon records it in
+the store); and a worker thread that ended anyway is replaced at the next
+submission.  Publishing is not done here: the
 outbox has a drain of its own (:class:`OutboxDrain`), so a slow or dead
 broker never holds a planning worker.
 
@@ -31,6 +38,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import math
 import threading
 import time
 from dataclasses import dataclass, field
@@ -135,6 +143,9 @@ class JobRunner:
     on_done : callable, optional
         Called with ``(job, outcome_or_None, info)`` after each job's last
         stage, in the worker thread (keep it short).
+    on_failure : callable, optional
+        Called with ``(job, error_text)`` when a job raised (the daemon
+        records the failure in the store), in the worker thread.
     """
 
     def __init__(
@@ -144,8 +155,10 @@ class JobRunner:
         max_jobs: int = 2,
         deadline_s: float = 300.0,
         on_done: Callable[[Any, Any, dict[str, Any]], None] | None = None,
+        on_failure: Callable[[Any, str], None] | None = None,
     ) -> None:
         self._run_job = run_job
+        self._on_failure = on_failure
         self._scheduler = scheduler
         self._deadline_s = float(deadline_s)
         self._on_done = on_done
@@ -159,10 +172,30 @@ class JobRunner:
         self._current: dict[str, _Running] = {}  # superevent -> newest job
         self._known: set[str] = set()  # job keys already submitted by this process
         self._retired: list[_Running] = []  # superseded jobs still winding down
-        self._workers = [threading.Thread(target=self._work, name=f"plan-{i}", daemon=True)
-                         for i in range(int(max_jobs))]
-        for w in self._workers:
-            w.start()
+        self._workers = [self._new_worker(i) for i in range(int(max_jobs))]
+        self.replaced_workers = 0  # worker threads found dead and replaced (for operators and tests)
+
+    def _new_worker(self, i: int) -> threading.Thread:
+        w = threading.Thread(target=self._work, name=f"plan-{i}", daemon=True)
+        w.start()
+        return w
+
+    def check_workers(self) -> int:
+        """Replace worker threads that ended (the daemon calls it with its heartbeat); returns how many."""
+        with self._lock:
+            before = self.replaced_workers
+            self._ensure_workers()
+            if self.replaced_workers != before:
+                self._wake.notify_all()
+            return self.replaced_workers - before
+
+    def _ensure_workers(self) -> None:
+        """Replace worker threads that ended (lock held)."""
+        for i, w in enumerate(self._workers):
+            if not w.is_alive() and not self._closed:
+                log.error("event=worker_replaced thread=%s reason='the worker thread had ended'", w.name)
+                self._workers[i] = self._new_worker(i)
+                self.replaced_workers += 1
 
     # -- submission -------------------------------------------------------
     def submit(self, job: Any, received_at: float | None = None) -> bool:
@@ -188,6 +221,7 @@ class JobRunner:
                 self._retired.append(old)
                 log.info("event=job_superseded superevent_id=%s job=%s by_job=%s", sid, old.key, key)
             self._queue.append(entry)
+            self._ensure_workers()
             self._wake.notify()
         log.info("event=job_queued superevent_id=%s job=%s", sid, key)
         return True
@@ -256,6 +290,11 @@ class JobRunner:
             requeue = False
             try:
                 requeue = self._execute(entry)
+            except Exception as exc:  # the runner's own bookkeeping failed: still only this job's failure
+                self._failed(entry, "runner", exc)
+            except BaseException as exc:  # SystemExit and the like end this thread: the job still ends failed
+                self._failed(entry, "runner", exc)
+                raise
             finally:
                 with self._lock:
                     entry.running = False
@@ -279,11 +318,12 @@ class JobRunner:
             wait_s = now - entry.received_at if entry.received_at else None
             log.info("event=job_started superevent_id=%s job=%s wait_s=%s",
                      entry.superevent_id, entry.key, _fmt(wait_s))
-            entry.deadline = self._scheduler.add_job(
-                self._deadline, "date",
-                run_date=datetime.now(timezone.utc) + timedelta(seconds=self._deadline_s),
-                args=[entry], id=f"deadline:{entry.key}:{entry.started_at}", misfire_grace_time=None,
-            )
+            when = self._deadline_date()
+            if when is not None:
+                entry.deadline = self._scheduler.add_job(
+                    self._deadline, "date", run_date=when,
+                    args=[entry], id=f"deadline:{entry.key}:{entry.started_at}", misfire_grace_time=None,
+                )
         else:
             log.info("event=job_optimising superevent_id=%s job=%s wait_s=%.3f",
                      entry.superevent_id, entry.key, now - (entry.received_at or now))
@@ -309,11 +349,40 @@ class JobRunner:
                 return False
             info = describe_outcome(outcome)
         except Exception as exc:  # a failed job must never take the service down
-            info = {"error": f"{type(exc).__name__}: {exc}"}
-            log.exception("event=job_failed superevent_id=%s job=%s stage=%s error=%r",
-                          entry.superevent_id, entry.key, stage, info["error"])
+            self._failed(entry, stage, exc)
+            return False
         self._finish(entry, outcome, info)
         return False
+
+    def _deadline_date(self) -> datetime | None:
+        """When the job's deadline fires; None when there is none (not finite, beyond a date)."""
+        try:
+            if not math.isfinite(self._deadline_s):
+                raise OverflowError("not finite")
+            return datetime.now(timezone.utc) + timedelta(seconds=self._deadline_s)
+        except (OverflowError, ValueError) as exc:
+            log.warning("event=job_deadline_unset deadline_s=%r reason=%r: the job runs without a deadline",
+                        self._deadline_s, str(exc))
+            return None
+
+    def _failed(self, entry: _Running, stage: str, exc: BaseException) -> None:
+        """A job raised: log it, have it recorded (``on_failure``) and finish it."""
+        error = f"{type(exc).__name__}: {exc}"
+        log.error("event=job_failed superevent_id=%s job=%s stage=%s error=%r", entry.superevent_id, entry.key,
+                  stage, error, exc_info=exc)
+        if self._on_failure is not None:
+            try:
+                self._on_failure(entry.job, error)
+            except Exception:
+                log.exception("event=job_failure_not_recorded job=%s", entry.key)
+        try:
+            self._finish(entry, None, {"error": error})
+        except Exception:
+            log.exception("event=job_finish_failed job=%s", entry.key)
+            with self._lock:
+                entry.finished = True
+                if self._current.get(entry.superevent_id) is entry:
+                    del self._current[entry.superevent_id]
 
     def _finish(self, entry: _Running, outcome: Any, info: dict[str, Any]) -> None:
         if entry.deadline is not None:

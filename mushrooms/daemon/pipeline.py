@@ -67,12 +67,12 @@ from typing import Any, Callable
 from ..config import Config
 from ..handlers.alert import Alert, NoticeError, parse_notice
 from ..handlers.decisions import Decision, decide
-from ..handlers.localization import check_skymap, choose_localization, coincidence_summary, skymap_for_sha
+from ..handlers.localization import check_skymap_header, choose_localization, coincidence_summary, skymap_for_sha
 from ..handlers.policy import evaluate
 from ..scheduler_core.errors import InputError, PlanCheckError
 from ..scheduler_core.sky.sniff import is_fits
 from .sinks import Sink, message_key
-from .store import Job, NoticeRecord, Store
+from .store import Job, NoticeRecord, Store, plan_final_message
 
 __all__ = ["NoticePipeline", "Accepted", "Outcome", "iso_z"]
 
@@ -113,6 +113,22 @@ def _age_s(iso: str | None) -> str:
         return f"{(datetime.now(timezone.utc) - datetime.fromisoformat(iso)).total_seconds():.3f}"
     except ValueError:
         return "-"
+
+
+def _after_withdrawals(plan: Any, epoch: int) -> Any:
+    """``plan`` with an id of its own when its event was withdrawn ``epoch`` times before its notice.
+
+    A re-plan after a withdrawal (PRELIMINARY, RETRACTION, then an INITIAL
+    with the same map) would otherwise hash to the id the withdrawal listed,
+    and consumers that de-duplicate by id would drop the live plan.  Epoch 0
+    (every event never withdrawn, every replay of one) keeps the plain
+    :func:`~mushrooms.scheduler_core.plan.document.make_plan_id` id.
+    """
+    if not epoch:
+        return plan
+    from ..scheduler_core import make_plan_id
+
+    return plan.with_(plan_id=make_plan_id(plan.plan_id, "after-withdrawal", epoch))
 
 
 def iso_z(t: datetime) -> str:
@@ -317,7 +333,8 @@ class NoticePipeline:
         if verdict.keep and not alert.is_retraction:
             localization = choose_localization(
                 alert, policy.use_combined_skymap,
-                check=lambda data: check_skymap(data, max_bytes=policy.max_skymap_bytes))
+                # headers only (bounded, milliseconds): the full decode is the job's, off the consume loop
+                check=lambda data: check_skymap_header(data, max_bytes=policy.max_skymap_bytes))
             if localization is not None and localization.note and localization.kind == "gw" \
                     and alert.external_coinc is not None:
                 log.warning("notice origin=%s superevent_id=%s: %s", origin, alert.superevent_id, localization.note)
@@ -398,6 +415,8 @@ class NoticePipeline:
             state = self.store.describe_job(job.job_id)
             reason = f"job {job.job_id} not run: {state}"
             decision = "failed" if state.startswith("failed") else "ignore"
+            if state.startswith("done") and self.store.pending_outbox(limit=1):
+                self._hand_over(-1)  # the give-up closed it on its stored revision: plan_final is queued
             log.info("job superevent_id=%s job=%s decision=%s reason=%r", job.superevent_id, job.job_id, decision,
                      reason)
             return Outcome(decision, reason=reason, **base)
@@ -417,7 +436,15 @@ class NoticePipeline:
         if staged:
             from .jobs import Staged
 
-            return Staged(work.outcome, lambda stop: self._optimise(work, stop))
+            # waiting for an optimisation slot is not a start: a kill meanwhile is not this job's crash
+            self.store.park_job(job.job_id)
+
+            def optimise(stop: Callable[[], bool] | None) -> Outcome:
+                if not self.store.resume_job(job.job_id):
+                    return self._dropped(started, "optimisation not started", base)
+                return self._optimise(work, stop)
+
+            return Staged(work.outcome, optimise)
         return self._optimise(work, should_stop)
 
     def _cancelled(self, job: Job, should_stop: Callable[[], bool] | None) -> bool:
@@ -442,7 +469,16 @@ class NoticePipeline:
         skymap_bytes, event = self._skymap_bytes(job)
         sched = self.config.scheduler
         stage("reading the sky map")
-        skymap = read_skymap(skymap_bytes, nside=sched.nside, max_bytes=self.config.policy.max_skymap_bytes)
+        try:
+            skymap = read_skymap(skymap_bytes, nside=sched.nside, max_bytes=self.config.policy.max_skymap_bytes)
+        except InputError as exc:
+            gw = self._gw_fallback(job, event)
+            if gw is None:
+                raise
+            log.warning("job superevent_id=%s job=%s: combined sky map unusable (%s); planning on the GW map",
+                        job.superevent_id, job.job_id, exc)
+            skymap_bytes, event = gw
+            skymap = read_skymap(skymap_bytes, nside=sched.nside, max_bytes=self.config.policy.max_skymap_bytes)
         lap("read")
         stage("preparing the problem")
         start = parse_time(job.start)
@@ -458,6 +494,7 @@ class NoticePipeline:
         plan = checked_plan(problem, result, skymap, FIRST_SOLVER, event=event, supersedes=supersedes,
                             runtime_s=time.perf_counter() - t0)
         lap("check")
+        plan = _after_withdrawals(plan, self.store.plan_epoch(job.job_id))
         if plan.supersedes == plan.plan_id:
             plan = plan.with_(supersedes=None)
         # too little coverage: the answer published is the not_observable document, in the plan's place
@@ -478,6 +515,11 @@ class NoticePipeline:
             # hold three distance layers (3 x 6 MB at nside 256) each; the detection objective needs them
             skymap = dataclasses.replace(skymap, distmu=None, distsigma=None, distnorm=None)
         work = _Work(job, skymap, problem, event, plan, t_prep)
+        if job.fallback and any(r["plan_id"] == plan.plan_id and not r["final"]
+                                for r in self.store.job_plans(job.job_id)):
+            # revision 1 went out (final: false) before the optimiser died: it stands, and plan_final says so
+            return self._close_with_first(work, f"the optimiser died in {job.attempts - 1} starts; "
+                                                f"the fast plan stands")
         outcome = self._publish_revision(work, plan, 1, final)
         if outcome.decision == "ignore" or final:
             return outcome
@@ -504,6 +546,7 @@ class NoticePipeline:
                 return self._dropped(job, f"optimisation ({solver}) stopped", base)
             better = checked_plan(work.problem, result, work.skymap, solver, event=work.event,
                                   supersedes=first.plan_id, runtime_s=time.perf_counter() - t0)
+            better = _after_withdrawals(better, self.store.plan_epoch(job.job_id))
         except PlanCheckError as exc:  # revision 1 stands; the optimiser's plan is never published
             log.error("job superevent_id=%s job=%s optimised plan refused by the checker: %s", job.superevent_id,
                       job.job_id, exc)
@@ -558,15 +601,7 @@ class NoticePipeline:
         job, first = work.job, work.first
         base = dict(superevent_id=job.superevent_id, alert_type=job.alert_type, job_id=job.job_id,
                     notice_id=job.notice_id)
-        message = {
-            "type": "plan_final",
-            "plan_id": first.plan_id,
-            "revision": 1,
-            "final": True,
-            "superevent_id": job.superevent_id,
-            "reason": why,
-            "created": iso_z(datetime.now(timezone.utc)),
-        }
+        message = plan_final_message(first.plan_id, job.superevent_id, why)
         outbox_id = self.store.close_job(job.job_id, f"{first.plan_id}-final", message, why)
         if outbox_id is None:
             return self._dropped(job, "optimisation finished", base, first.plan_id)
@@ -608,6 +643,17 @@ class NoticePipeline:
                                        time_created=iso_z(alert.time_created),
                                        skymap_sha256=hashlib.sha256(skymap_bytes).hexdigest(), localization=kind,
                                        external_coinc=coincidence_summary(alert.external_coinc))
+
+    def _gw_fallback(self, job: Job, event: Any) -> tuple[bytes, Any] | None:
+        """The notice's GW map (and event) when the job's map was its joint map; else None."""
+        if getattr(event, "localization", None) != "combined":
+            return None
+        raw = self.store.notice_raw(job.notice_id)
+        alert = parse_notice(raw) if raw else None
+        if alert is None or alert.event is None or not alert.event.skymap:
+            return None
+        data = alert.event.skymap
+        return data, dataclasses.replace(event, localization="gw", skymap_sha256=hashlib.sha256(data).hexdigest())
 
     @staticmethod
     def _prepare(skymap: Any, config: Any, start: Any) -> Any:
@@ -703,7 +749,7 @@ class NoticePipeline:
             st = ledger.event_state(sid)
             latest = st.latest_plan_id if st is not None else None
             return Decision("rerun", sid, f"{reason} ({kind} map)", alert.alert_type, sha,
-                            supersedes=latest, localization=kind)
+                            supersedes=latest, localization=kind, time_created=iso_z(alert.time_created))
 
         nid, decision, job, cancelled, _ = self.store.record_decision(
             record, dec, lambda d: self._plan_start(alert, now), received_wall=wall)

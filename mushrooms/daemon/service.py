@@ -30,7 +30,9 @@ from apscheduler.schedulers.background import BackgroundScheduler
 from .jobs import JobRunner, OutboxDrain
 from .notify import Notifier, watchdog_interval_s
 from .settings import resolve_paths
-from .trigger import DaemonRunning, PidLock, dispatch, pending_triggers, read_trigger
+from .trigger import (
+    DaemonRunning, PidLock, dispatch, outcome_result, pending_triggers, read_trigger, write_result,
+)
 from .wiring import effective_config, make_sink, open_pipeline, private_dir
 
 __all__ = ["main", "Service", "setup_logging", "EXIT_STATE"]
@@ -40,7 +42,7 @@ log = logging.getLogger("mushrooms.daemon")
 READY_WAIT_S = 60.0  # READY=1 waits this long (s) at most for the consumer group's partitions
 TRIGGER_SCAN_S = 5.0  # triggers are also picked up without SIGUSR1, at this period (s)
 WARM_INTERVAL_S = 1800.0  # the coming night's visibility is computed ahead at this period (s)
-PRUNE_EVERY_S = 3600.0  # how often the raw bytes of old rejected messages are pruned (s)
+PRUNE_EVERY_S = 3600.0  # how often raw bytes no longer needed are pruned (s; also at start)
 
 #: Exit status when the state file is unusable (empty, damaged, newer schema):
 #: sysexits' EX_DATAERR; the unit's RestartPreventExitStatus= lists it, since a
@@ -119,6 +121,7 @@ class Service:
         self._ready_sent = False
         self._ready_wait_from = 0.0
         self._consuming = False
+        self._trigger_answers: dict[int, Any] = {}  # job id -> trigger file whose answer waits for the job
 
     # signals only set flags; the main loop acts between polls
     def _on_signal(self, signum: int, frame: Any) -> None:
@@ -187,7 +190,8 @@ class Service:
             self.phase = "warming"
             self._warm_up(self.sky_cache)  # only once the state file is ours: a refused start is quick
             self.jobs = JobRunner(self._run_job, scheduler, self.config.daemon.max_jobs,
-                                  self.config.daemon.job_deadline_s, on_done=self._job_done)
+                                  self.config.daemon.job_deadline_s, on_done=self._job_done,
+                                  on_failure=self._job_failed)
             log.info("event=service_starting pid=%d config=%s state=%s sink=%s triggers=%s",
                      os.getpid(), self.config.source, self.paths.state, self._sink_text(),
                      self.paths.trigger_dir)
@@ -200,7 +204,8 @@ class Service:
             self._scan_triggers()
             from .consumer import NoticeConsumer
 
-            self.consumer = NoticeConsumer(self.config.kafka, on_offset_jump=self._offset_jump)
+            self.consumer = NoticeConsumer(self.config.kafka, on_offset_jump=self._offset_jump,
+                                           instance_id=self._instance_id(self.config))
             scheduler.add_job(self._heartbeat, "interval", seconds=self.config.daemon.heartbeat_s,
                               id="heartbeat", misfire_grace_time=None, coalesce=True)
             wd = watchdog_interval_s()
@@ -323,11 +328,18 @@ class Service:
                 decision = dispatch(self.pipeline, kind, payload, origin=f"trigger:{path.name}")
             except Exception as exc:
                 log.error("event=trigger_rejected file=%s error=%r", path.name, f"{type(exc).__name__}: {exc}")
+                write_result(path, {"decision": "rejected", "reason": f"{type(exc).__name__}: {exc}"},
+                             self.config.daemon.group_readable)
                 bad = path.with_name(f".{path.name}.rejected")
                 os.replace(path, bad)
                 continue
             self._counts["triggers"] += 1
             self.metrics.notice(decision, source="trigger")
+            job = getattr(decision, "job", None)
+            if job is not None:  # answered once the job's first plan is out (or it failed)
+                self._trigger_answers[job.job_id] = path
+            else:
+                write_result(path, outcome_result(decision), self.config.daemon.group_readable)
             started = self._start_jobs(decision, received_at)
             path.unlink(missing_ok=True)
             self._after_decision(decision)
@@ -376,7 +388,15 @@ class Service:
         # a stopping service does not cut plans short: they get a grace period,
         # and a job still running at exit stays pending and resumes at the next start;
         # staged: the optimisation is queued behind newer events' first plans
-        return self.pipeline.run_job(job, should_stop, staged=True)
+        outcome = self.pipeline.run_job(job, should_stop, staged=True)
+        self._answer_trigger(job, outcome_result(job, outcome))
+        return outcome
+
+    def _answer_trigger(self, job: Any, result: dict[str, Any]) -> None:
+        """A job a trigger started: tell ``mushrooms trigger`` how its first plan went."""
+        path = self._trigger_answers.pop(getattr(job, "job_id", None), None)
+        if path is not None:
+            write_result(path, result, self.config.daemon.group_readable)
 
     def _job_done(self, job: Any, outcome: Any, info: dict[str, Any]) -> None:
         self._counts["jobs"] += 1
@@ -456,6 +476,15 @@ class Service:
         else:
             self.notifier.status(status)
 
+    def _job_failed(self, job: Any, error: str) -> None:
+        """A job raised past the pipeline: record it as failed (a failure on our side: the map may be planned again)."""
+        self._answer_trigger(job, {"decision": "failed", "reason": f"internal error: {error}",
+                                  "superevent_id": getattr(job, "superevent_id", None)})
+        try:
+            self.pipeline.store.fail_job(job.job_id, f"internal error: {error}", retry_same_map=True)
+        except Exception as exc:
+            log.error("event=job_failure_not_stored job=%s error=%r", getattr(job, "job_id", "-"), str(exc))
+
     # ------------------------------------------------------------ warm state
     def _warm_up(self, cache: Any) -> Any:
         """Imports, grid, footprints and tonight's visibility, and one throw-away plan, before consuming."""
@@ -516,15 +545,17 @@ class Service:
                      ",".join(map(str, released)))
 
     def _prune_raw(self) -> None:
-        """Forget the raw bytes of rejected messages older than the retention period."""
+        """Forget raw bytes no longer needed (rejected and planned notices, :meth:`Store.prune_raw`)."""
         self._last_prune = time.monotonic()
         try:
-            n = self.pipeline.store.prune_raw(self.config.daemon.rejected_raw_retention_s)
+            n = self.pipeline.store.prune_raw(self.config.daemon.rejected_raw_retention_s,
+                                              self.config.daemon.planned_raw_retention_s)
         except Exception as exc:
             log.warning("event=prune_failed error=%r", f"{type(exc).__name__}: {exc}")
             return
         if n:
-            log.info("event=raw_pruned notices=%d retention_s=%.0f", n, self.config.daemon.rejected_raw_retention_s)
+            log.info("event=raw_pruned notices=%d rejected_retention_s=%.0f planned_retention_s=%.0f", n,
+                     self.config.daemon.rejected_raw_retention_s, self.config.daemon.planned_raw_retention_s)
 
     # ------------------------------------------------------------ timed work
     def _heartbeat(self) -> None:
@@ -543,6 +574,8 @@ class Service:
                  ",".join(active) or "-", time.monotonic() - self._last_loop)
         if time.monotonic() - self._last_prune > PRUNE_EVERY_S:
             self._prune_raw()
+        if hasattr(self, "jobs"):
+            self.jobs.check_workers()
 
     def _watchdog(self, interval_s: float) -> None:
         age = time.monotonic() - self._last_loop
@@ -574,12 +607,19 @@ class Service:
             from .consumer import NoticeConsumer
 
             self.consumer.close()
-            self.consumer = NoticeConsumer(new.kafka, on_offset_jump=self._offset_jump)
+            self.consumer = NoticeConsumer(new.kafka, on_offset_jump=self._offset_jump,
+                                           instance_id=self._instance_id(new))
         if new.daemon.heartbeat_s != self.config.daemon.heartbeat_s:
             self.scheduler.reschedule_job("heartbeat", trigger="interval", seconds=new.daemon.heartbeat_s)
         self.config = new
         self.notifier.ready("configuration reloaded")
         log.info("event=config_reloaded source=%s", new.source)
+
+    def _instance_id(self, config: Any) -> str | None:
+        """Static group membership: stable per installation (``[kafka] instance_id``, else host + state path)."""
+        from .settings import group_instance_id
+
+        return group_instance_id(config.kafka, self.paths.state)
 
     def _active(self) -> list[str]:
         return self.jobs.active() if hasattr(self, "jobs") else []

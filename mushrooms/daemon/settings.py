@@ -10,7 +10,8 @@ from typing import Any, Mapping
 from ..scheduler_core.config import dataclass_from_table
 from ..scheduler_core.ranges import require_finite, setting
 
-__all__ = ["DaemonConfig", "KafkaConfig", "OutboundConfig", "RuntimePaths", "resolve_paths", "parse_address"]
+__all__ = ["DaemonConfig", "KafkaConfig", "OutboundConfig", "RuntimePaths", "resolve_paths", "parse_address",
+           "group_instance_id"]
 
 
 def parse_address(text: str) -> tuple[str, int]:
@@ -80,6 +81,12 @@ class DaemonConfig:
         ``HOST:PORT`` of the HTTP listener with ``/metrics`` (Prometheus),
         ``/healthz`` and ``/readyz`` (docs/operations.md), e.g.
         ``127.0.0.1:9464``; empty (default): no listener.
+    planned_raw_retention_s : float
+        How long (s) after its last job finished the raw bytes of an
+        event's newest planned notice are kept (``mushrooms trigger
+        SUPEREVENT`` re-plans from them).  Older notices of the event lose
+        theirs as soon as none of their jobs is open; the notice row, its
+        SHA-256, size and decisions stay.  Default 7 days.
     """
 
     state_path: str = "mushrooms-state.sqlite"
@@ -94,6 +101,7 @@ class DaemonConfig:
     supersede_min_gain: float = setting(0.005, 0, 1, why="probability")
     group_readable: bool = False
     rejected_raw_retention_s: float = setting(2_592_000.0, 0, 31_622_400, "s", why="up to a year")
+    planned_raw_retention_s: float = setting(604_800.0, 0, 31_622_400, "s", why="up to a year")
 
     metrics_address: str = ""
 
@@ -146,6 +154,15 @@ class KafkaConfig:
     offset_reset : str
         Where a group with no committed offset starts: ``earliest`` or
         ``latest``.
+    instance_id : str
+        Static group membership (Kafka's ``group.instance.id``, KIP-345) in
+        ``group`` mode: a daemon restarted after a crash rejoins as the same
+        member and gets its partitions back at once instead of waiting
+        ``session_timeout_s`` for the dead member to expire.  Empty
+        (default): derived from the host name and the state file's path
+        (:func:`group_instance_id`), so it is stable per installation and
+        differs between installations sharing a group.  ``"none"``:
+        dynamic membership.  Two daemons must never share one.
     """
 
     topics: tuple[str, ...] = ("igwn.gwalert",)
@@ -157,9 +174,14 @@ class KafkaConfig:
     session_timeout_s: float = setting(30.0, 6, 300, "s", why="what a broker accepts by default (group.min/max.session.timeout.ms)")
     max_message_bytes: int = setting(16_000_000, 1_000_000, 536_870_912, "bytes", why="a notice with its map is 1-2 MB")
     offset_reset: str = "earliest"
+    instance_id: str = ""
 
     def __post_init__(self) -> None:
         require_finite(self, "kafka")
+        if self.instance_id and (len(self.instance_id) > 200 or not self.instance_id.isprintable()
+                                 or " " in self.instance_id):
+            raise ValueError(f"[kafka] instance_id must be printable, without spaces, at most 200 characters, "
+                             f"got {self.instance_id!r}")
         if self.assignment not in ("group", "manual"):
             raise ValueError(f"[kafka] assignment must be group or manual, got {self.assignment!r}")
         if self.offset_reset not in ("earliest", "latest"):
@@ -290,3 +312,22 @@ def resolve_paths(daemon: DaemonConfig, environ: Mapping[str, str] | None = None
         pid_file=near(daemon.pid_file),
         quarantine_dir=near(daemon.quarantine_dir),
     )
+
+
+def group_instance_id(config: KafkaConfig, state: Path, host: str | None = None) -> str | None:
+    """The consumer's ``group.instance.id``: ``[kafka] instance_id``, else one derived from the installation.
+
+    Derived: ``mushrooms-<host>-<12 hex digits of the SHA-256 of the state
+    file's absolute path>``, the same at every restart of one installation.
+    None when static membership is off (``instance_id = "none"``).
+    """
+    import hashlib
+    import socket
+
+    if config.instance_id.lower() == "none":
+        return None
+    if config.instance_id:
+        return config.instance_id
+    host = host if host is not None else socket.gethostname()
+    digest = hashlib.sha256(str(Path(state).absolute()).encode()).hexdigest()[:12]
+    return f"mushrooms-{''.join(c for c in host if c.isalnum() or c in '.-')[:60] or 'host'}-{digest}"

@@ -8,7 +8,8 @@ Tables
               only for a retention period (:meth:`Store.prune_raw`).
 ``decisions`` one row per notice: what was decided and why (``plan``,
               ``rerun``, ``duplicate``, ``withdraw``, ``ignore``, ``rejected``).
-``events``    per superevent: last sky map accepted for planning, retracted flag.
+``events``    per superevent: last sky map accepted for planning, retracted flag,
+              ``time_created`` of the newest notice accepted (creation order).
 ``jobs``      planning jobs: ``pending`` -> ``running`` -> ``done`` | ``failed``
               | ``superseded`` | ``cancelled``, with the horizon start fixed at
               accept time (so a re-run gives the same plan id).
@@ -63,16 +64,16 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
-from ..handlers.decisions import Decision, EventState
+from ..handlers.decisions import Decision, EventState, newest_created
 from ..handlers.text import storable
 from ..scheduler_core.plan import strict_json
 
 __all__ = ["Store", "StoreError", "StateInUse", "StateLock", "lock_state", "Job", "OutboxMessage", "NoticeRecord",
-           "SCHEMA_VERSION", "RAW_PREFIX_BYTES"]
+           "SCHEMA_VERSION", "RAW_PREFIX_BYTES", "plan_final_message"]
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 #: Plans submitted to ZTF's queue (Kowalski or SkyPortal): one row per plan id (:mod:`.submissions`).
 _SUBMISSIONS = """
@@ -102,6 +103,7 @@ CREATE INDEX IF NOT EXISTS submissions_event ON submissions(superevent_id, state
 _MIGRATIONS: dict[int, tuple[str, ...]] = {
     2: ("ALTER TABLE events ADD COLUMN localization TEXT",),  # gw | combined (issue 17)
     3: (_SUBMISSIONS,),  # plans submitted to ZTF's queue (issue 27, :mod:`.submissions`)
+    4: ("ALTER TABLE events ADD COLUMN latest_created TEXT",),  # creation order of notices (issue 25)
 }
 
 _SCHEMA = """
@@ -132,7 +134,8 @@ CREATE TABLE IF NOT EXISTS events (
     skymap_sha256 TEXT,
     retracted     INTEGER NOT NULL DEFAULT 0,
     updated_at    TEXT NOT NULL,
-    localization  TEXT
+    localization  TEXT,
+    latest_created TEXT
 );
 CREATE TABLE IF NOT EXISTS jobs (
     job_id        INTEGER PRIMARY KEY AUTOINCREMENT,
@@ -357,15 +360,16 @@ class _TxLedger:
 
 
 def _event_state(conn: sqlite3.Connection, sid: str) -> EventState | None:
-    row = conn.execute("SELECT skymap_sha256, retracted, localization FROM events WHERE superevent_id=?",
-                       (sid,)).fetchone()
+    row = conn.execute("SELECT skymap_sha256, retracted, localization, latest_created FROM events"
+                       " WHERE superevent_id=?", (sid,)).fetchone()
     if row is None:
         return None
     ids = tuple(r[0] for r in conn.execute(
         "SELECT plan_id FROM plans WHERE superevent_id=? AND withdrawn=0 ORDER BY seq", (sid,)))
     open_job = conn.execute("SELECT EXISTS(SELECT 1 FROM jobs WHERE superevent_id=? AND status IN"
                             " ('pending','running'))", (sid,)).fetchone()[0]
-    return EventState(sid, row[0], ids, bool(row[1]), localization=row[2], open_job=bool(open_job))
+    return EventState(sid, row[0], ids, bool(row[1]), localization=row[2], open_job=bool(open_job),
+                      latest_created=row[3])
 
 
 def _job(row: sqlite3.Row, fallback: bool = False) -> Job:
@@ -411,6 +415,7 @@ class Store:
         self._conns: list[sqlite3.Connection] = []
         self._closed = False
         self._started: set[int] = set()  # jobs this process started and has not finished
+        self._parked: set[int] = set()  # first plan stored, waiting for an optimisation slot (start given back)
         conn = self._conn()
         try:
             version = conn.execute("PRAGMA user_version").fetchone()[0]
@@ -427,6 +432,9 @@ class Store:
             raise StoreError(f"{self.path}: schema version {version} is newer than this program's {SCHEMA_VERSION}")
         if version == 0:
             with self._lock:
+                # pruned raw bytes go back to the file system (before any table exists; issue 25)
+                conn.execute("PRAGMA auto_vacuum=INCREMENTAL")
+                conn.execute("VACUUM")  # the file is empty: this only makes the setting take effect
                 conn.executescript("BEGIN IMMEDIATE;" + _SCHEMA + f"PRAGMA user_version={SCHEMA_VERSION}; COMMIT;")
         elif version < SCHEMA_VERSION:
             steps = [sql for v in range(version + 1, SCHEMA_VERSION + 1) for sql in _MIGRATIONS[v]]
@@ -528,19 +536,49 @@ class Store:
                        _now()))
         return nid
 
-    def prune_raw(self, older_than_s: float) -> int:
-        """Forget the raw bytes of rejected messages decided more than ``older_than_s`` (s) ago.
+    def prune_raw(self, older_than_s: float, planned_older_than_s: float | None = None) -> int:
+        """Forget raw bytes no longer needed; returns how many notices lost theirs.
 
-        Raw bytes that a job plans from are never pruned.  Returns how many
-        notices lost theirs.
+        * Rejected messages: their first KiB, once decided more than
+          ``older_than_s`` (s) ago.
+        * Planned notices (with ``planned_older_than_s``): once none of the
+          notice's jobs is open (a job re-reads its sky map from the bytes
+          after a crash), at once when a newer planned notice of the same
+          superevent exists, else (the notice ``mushrooms trigger
+          SUPEREVENT`` would re-plan from) when its last job finished more
+          than ``planned_older_than_s`` (s) ago.
+
+        On a state file created with incremental auto-vacuum (every file
+        this version creates) the freed pages go back to the file system;
+        on older files SQLite reuses them.
         """
-        cutoff = datetime.fromtimestamp(time.time() - older_than_s, timezone.utc).isoformat(timespec="milliseconds")
+        def cutoff(age_s: float) -> str:
+            return datetime.fromtimestamp(time.time() - age_s, timezone.utc).isoformat(timespec="milliseconds")
+
         with self._tx() as c:
             cur = c.execute(
                 "UPDATE notices SET raw=NULL WHERE raw IS NOT NULL AND notice_id IN"
                 " (SELECT notice_id FROM decisions WHERE decision='rejected' AND created_at<=?)"
-                " AND notice_id NOT IN (SELECT notice_id FROM jobs)", (cutoff,))
-            return int(cur.rowcount)
+                " AND notice_id NOT IN (SELECT notice_id FROM jobs)", (cutoff(older_than_s),))
+            n = int(cur.rowcount)
+            if planned_older_than_s is not None:
+                cur = c.execute(
+                    "WITH per_notice AS (SELECT notice_id, superevent_id,"
+                    "   SUM(status IN ('pending','running')) AS open_jobs,"
+                    "   MAX(COALESCE(finished_at, created_at)) AS last_done FROM jobs GROUP BY notice_id),"
+                    " newest AS (SELECT superevent_id, MAX(notice_id) AS notice_id FROM jobs GROUP BY superevent_id)"
+                    " UPDATE notices SET raw=NULL WHERE raw IS NOT NULL AND notice_id IN"
+                    " (SELECT p.notice_id FROM per_notice p JOIN newest n USING(superevent_id)"
+                    "  WHERE p.open_jobs=0 AND (p.notice_id<n.notice_id OR p.last_done<=?))",
+                    (cutoff(planned_older_than_s),))
+                n += int(c.execute("SELECT changes()").fetchone()[0])  # rowcount is -1 for WITH ... UPDATE
+        if n:
+            try:
+                with self._lock:  # executescript steps the pragma to the end (execute frees one page)
+                    self._conn().executescript("PRAGMA incremental_vacuum;")
+            except sqlite3.Error as exc:  # reclaiming space is a courtesy
+                log.warning("state %s: incremental_vacuum failed: %s", self.path, exc)
+        return n
 
     def record_decision(
         self,
@@ -611,11 +649,21 @@ class Store:
                     msg = withdrawal(decision, nid)
                     key = str(msg["withdrawal_id"])
                     self._insert_outbox(c, key, "withdrawal", msg)
+            if decision.accepted and decision.time_created:
+                self._note_created(c, sid, decision.time_created)
             c.execute("INSERT INTO decisions(notice_id, superevent_id, alert_type, decision, reason, job_id,"
                       " created_at) VALUES (?,?,?,?,?,?,?)",
                       (nid, _opt(sid), _opt(decision.alert_type), decision.action, storable(decision.reason),
                        job.job_id if job else None, now))
         return nid, decision, job, cancelled, key
+
+    @staticmethod
+    def _note_created(c: sqlite3.Connection, sid: str, created: str) -> None:
+        """Keep the event's newest accepted ``time_created`` (the creation order of its notices)."""
+        row = c.execute("SELECT latest_created FROM events WHERE superevent_id=?", (sid,)).fetchone()
+        if row is not None:
+            c.execute("UPDATE events SET latest_created=? WHERE superevent_id=?",
+                      (newest_created(row[0], created), sid))
 
     @staticmethod
     def _insert_notice(c: sqlite3.Connection, n: NoticeRecord) -> int:
@@ -668,9 +716,15 @@ class Store:
             if row is None or row["status"] not in _OPEN:
                 return None
             if row["attempts"] >= max_attempts + FALLBACK_ATTEMPTS:
+                why = (f"gave up after {row['attempts']} unfinished attempts (the last "
+                       f"{FALLBACK_ATTEMPTS} with the fast scheduler)")
+                first = c.execute("SELECT plan_id FROM plans WHERE job_id=? AND withdrawn=0 ORDER BY seq DESC"
+                                  " LIMIT 1", (job_id,)).fetchone()
+                if first is not None:  # a revision went out: it stands, and the contract's plan_final says so
+                    self._close_with(c, job_id, first[0], row["superevent_id"], why)
+                    return None
                 c.execute("UPDATE jobs SET status='failed', reason=?, finished_at=? WHERE job_id=?",
-                          (f"gave up after {row['attempts']} unfinished attempts (the last "
-                           f"{FALLBACK_ATTEMPTS} with the fast scheduler)", _now(), job_id))
+                          (why, _now(), job_id))
                 return None
             fallback = row["attempts"] >= max_attempts
             prev = c.execute("SELECT plan_id FROM plans WHERE superevent_id=? AND withdrawn=0"
@@ -683,20 +737,58 @@ class Store:
             self._started.add(job_id)
         return _job(row, fallback=fallback)
 
+    def park_job(self, job_id: int) -> None:
+        """The job's first plan is stored and it now only waits for an optimisation slot: give its start back.
+
+        A process killed while the job waits did not die of this job, so the
+        wait never counts towards :meth:`start_job`'s fallback;
+        :meth:`resume_job` counts the start again when the optimisation
+        begins.
+        """
+        with self._tx() as c:
+            if c.execute("UPDATE jobs SET attempts=MAX(attempts-1, 0) WHERE job_id=? AND status='running'",
+                         (job_id,)).rowcount:
+                self._started.discard(job_id)
+                self._parked.add(job_id)
+
+    def resume_job(self, job_id: int) -> bool:
+        """A parked job's optimisation begins: count the start (False when the job is no longer running)."""
+        with self._tx() as c:
+            ok = bool(c.execute("UPDATE jobs SET attempts=attempts+1 WHERE job_id=? AND status='running'",
+                                (job_id,)).rowcount)
+            self._parked.discard(job_id)
+            if ok:
+                self._started.add(job_id)
+            return ok
+
     def release_unfinished(self) -> list[int]:
         """At a clean stop: give back the starts of jobs this process left running.
 
         They become ``pending`` with the start not counted (only starts that
         died count towards giving up) and run again at the next start.
+        Parked jobs (start already given back) just become ``pending``.
         Returns their ids.
         """
         with self._tx() as c:
-            ids = sorted(self._started)
-            released = [j for j in ids if c.execute(
+            released = [j for j in sorted(self._started) if c.execute(
                 "UPDATE jobs SET status='pending', attempts=MAX(attempts-1, 0) WHERE job_id=? AND status='running'",
                 (j,)).rowcount]
+            released += [j for j in sorted(self._parked) if c.execute(
+                "UPDATE jobs SET status='pending' WHERE job_id=? AND status='running'", (j,)).rowcount]
             self._started.clear()
-        return released
+            self._parked.clear()
+        return sorted(released)
+
+    def plan_epoch(self, job_id: int) -> int:
+        """Withdrawals of the job's superevent decided before the job's notice (0: never withdrawn).
+
+        Fixed once the job is accepted, so a job re-run after a crash gets
+        the same plan ids; the pipeline salts the plan id with it.
+        """
+        row = self._conn().execute(
+            "SELECT COUNT(*) FROM decisions d JOIN jobs j ON d.superevent_id=j.superevent_id"
+            " WHERE j.job_id=? AND d.decision='withdraw' AND d.notice_id<j.notice_id", (job_id,)).fetchone()
+        return int(row[0]) if row else 0
 
     def job_status(self, job_id: int) -> str | None:
         """``pending``, ``running``, ``done``, ``failed``, ``superseded``, ``cancelled`` (None: no such job)."""
@@ -784,6 +876,7 @@ class Store:
                 c.execute("UPDATE jobs SET status='done', plan_id=?, coverage=?, latency_s=?, reason=NULL,"
                           " finished_at=? WHERE job_id=?", (plan_id, coverage, latency_s, now, job_id))
                 self._started.discard(job_id)
+                self._parked.discard(job_id)
             else:
                 c.execute("UPDATE jobs SET plan_id=?, coverage=?, latency_s=? WHERE job_id=?",
                           (plan_id, coverage, latency_s, job_id))
@@ -803,9 +896,37 @@ class Store:
             c.execute("UPDATE jobs SET status='done', reason=?, finished_at=? WHERE job_id=?",
                       (reason[:500], _now(), job_id))
             self._started.discard(job_id)
+            self._parked.discard(job_id)
             found = c.execute("SELECT outbox_id FROM outbox WHERE key=? ORDER BY outbox_id DESC LIMIT 1",
                               (key,)).fetchone()
             return int(found[0]) if found is not None else self._insert_outbox(c, key, "plan_final", message)
+
+    def close_with_plan(self, job_id: int, plan_id: str, reason: str) -> int | None:
+        """Close a running job on its stored revision ``plan_id`` with a ``plan_final`` message.
+
+        The fallback after repeated crashes uses it: revision 1 went out
+        with ``final: false`` before the optimiser died, so the contract's
+        ``plan_final`` must follow.  Returns the outbox id (None when the job
+        is not running).
+        """
+        with self._tx() as c:
+            row = c.execute("SELECT status, superevent_id FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+            if row is None or row["status"] not in _OPEN:
+                return None
+            return self._close_with(c, job_id, plan_id, row["superevent_id"], reason)
+
+    def _close_with(self, c: sqlite3.Connection, job_id: int, plan_id: str, superevent_id: str, reason: str) -> int:
+        c.execute("UPDATE plans SET final=1 WHERE job_id=?", (job_id,))
+        c.execute("UPDATE jobs SET status='done', plan_id=?, reason=?, finished_at=? WHERE job_id=?",
+                  (plan_id, reason[:500], _now(), job_id))
+        self._started.discard(job_id)
+        self._parked.discard(job_id)
+        key = f"{plan_id}-final"
+        found = c.execute("SELECT outbox_id FROM outbox WHERE key=? ORDER BY outbox_id DESC LIMIT 1",
+                          (key,)).fetchone()
+        if found is not None:
+            return int(found[0])
+        return self._insert_outbox(c, key, "plan_final", plan_final_message(plan_id, superevent_id, reason))
 
     def job_plans(self, job_id: int) -> list[dict[str, Any]]:
         """The revisions a job stored, oldest first (documents parsed)."""
@@ -826,6 +947,7 @@ class Store:
             c.execute("UPDATE jobs SET status='failed', reason=?, finished_at=? WHERE job_id=?"
                       " AND status IN ('pending','running')", (storable(reason, 2000), _now(), job_id))
             self._started.discard(job_id)
+            self._parked.discard(job_id)
             if retry_same_map and row is not None:
                 c.execute("UPDATE events SET skymap_sha256=NULL, updated_at=? WHERE superevent_id=?"
                           " AND skymap_sha256=?", (_now(), row[0], row[1]))
@@ -887,6 +1009,19 @@ class Store:
         out["jobs_open"] = c.execute("SELECT COUNT(*) FROM jobs WHERE status IN ('pending','running')").fetchone()[0]
         out["outbox_pending"] = c.execute("SELECT COUNT(*) FROM outbox WHERE published_at IS NULL").fetchone()[0]
         return out
+
+
+def plan_final_message(plan_id: str, superevent_id: str | None, reason: str) -> dict[str, Any]:
+    """The ``plan_final`` message (docs/design/CONTRACTS.md): revision 1 of ``plan_id`` stands, nothing follows."""
+    return {
+        "type": "plan_final",
+        "plan_id": plan_id,
+        "revision": 1,
+        "final": True,
+        "superevent_id": superevent_id,
+        "reason": reason,
+        "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z",
+    }
 
 
 def _opt(text: str | None) -> str | None:

@@ -10,6 +10,13 @@ Trigger files: ``<time>-<pid>-<kind>.<ext>`` where kind is ``notice``
 (the notice bytes), ``skymap`` (the FITS bytes) or ``superevent`` (the id,
 UTF-8).  The daemon deletes a file only after its outcome is stored.
 
+The answer is truthful: the daemon writes the outcome next to the trigger
+(``.<name>.result``, JSON: the decision, its reason and, for a planning job,
+the outcome of the job's first plan) and the command prints it and exits 2
+for a refusal (an unknown superevent, a sky map the planner cannot read),
+1 for a failure on our side, 0 otherwise; it only says "queued" when no
+answer came within :data:`RESULT_WAIT_S`.
+
 No symbolic link is ever followed (a link planted in the trigger directory
 would otherwise put a protected file's bytes into the state), nor anything
 but a regular file read; the directory is created 0700 and the files 0600.
@@ -43,6 +50,8 @@ log = logging.getLogger(__name__)
 
 SUPEREVENT_RE = re.compile(r"^[MTS][A-Z]?\d{6}[a-z]{1,3}$")
 KINDS = {"notice": "json", "skymap": "fits", "superevent": "txt"}
+#: How long (s) ``mushrooms trigger`` waits for the daemon's answer (the decision and the job's first plan).
+RESULT_WAIT_S = 180.0
 #: Largest trigger file read (bytes): a sky map is at most 4 x the 8 MiB notice limit.
 MAX_TRIGGER_BYTES = 64 * 1024 * 1024
 
@@ -74,9 +83,22 @@ class PidLock:
         self._fh: IO[str] | None = None
 
     def acquire(self) -> None:
-        """Take the lock and write our pid; raises :class:`DaemonRunning`."""
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fh = open(self.path, "a+")
+        """Take the lock and write our pid; raises :class:`DaemonRunning`.
+
+        Raises
+        ------
+        InputError
+            The pid file cannot be created or written (e.g. a read-only
+            state directory): one line and exit 2, which the unit's
+            ``RestartPreventExitStatus=`` does not restart on (a restart
+            cannot make the directory writable).
+        """
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            fh = open(self.path, "a+")
+        except OSError as exc:
+            raise InputError(f"{self.path}: cannot write the pid file ({exc.strerror or exc}); the state "
+                             "directory must be writable by the service") from None
         try:
             fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -84,11 +106,15 @@ class PidLock:
             other = fh.read().strip() or "?"
             fh.close()
             raise DaemonRunning(f"another mushrooms daemon runs (pid {other}, {self.path})") from None
-        fh.seek(0)
-        fh.truncate()
-        fh.write(f"{os.getpid()}\n")
-        fh.flush()
-        os.fsync(fh.fileno())
+        try:
+            fh.seek(0)
+            fh.truncate()
+            fh.write(f"{os.getpid()}\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        except OSError as exc:
+            fh.close()
+            raise InputError(f"{self.path}: cannot write the pid file ({exc.strerror or exc})") from None
         self._fh = fh
 
     def release(self) -> None:
@@ -172,6 +198,58 @@ def write_trigger(trigger_dir: Path, kind: str, payload: bytes, group_readable: 
     return final
 
 
+def result_path(trigger: Path) -> Path:
+    """Where the daemon answers a trigger file (a dot file: never taken for a trigger)."""
+    return trigger.with_name(f".{trigger.name}.result")
+
+
+def write_result(trigger: Path, result: dict[str, Any], group_readable: bool = False) -> None:
+    """The daemon's answer to a trigger, written atomically (never raises: the answer is a courtesy)."""
+    import json
+
+    final = result_path(trigger)
+    tmp = final.with_name(final.name + ".tmp")
+    try:
+        with open(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW,
+                          0o640 if group_readable else 0o600), "w") as fh:
+            json.dump(result, fh)
+        os.replace(tmp, final)
+    except OSError as exc:
+        log.warning("event=trigger_result_not_written file=%s error=%r", trigger.name, str(exc))
+
+
+def read_result(trigger: Path, timeout_s: float) -> dict[str, Any] | None:
+    """Wait up to ``timeout_s`` (s) for the daemon's answer to ``trigger``; consume it."""
+    import json
+
+    path = result_path(trigger)
+    end = time.monotonic() + timeout_s
+    while True:
+        try:
+            data = json.loads(read_regular_file(path, 1 << 20))
+        except InputError:
+            data = None
+        except ValueError:  # half written by an old daemon: wait for the rename
+            data = None
+        if isinstance(data, dict):
+            path.unlink(missing_ok=True)
+            return data
+        if time.monotonic() > end:
+            return None
+        time.sleep(0.1)
+
+
+def outcome_result(decision: Any, outcome: Any = None) -> dict[str, Any]:
+    """The answer to a trigger from its decision and (for a planning job) its first plan's outcome."""
+    out = {"decision": str(getattr(decision, "action", "") or ""), "reason": str(getattr(decision, "reason", "")),
+           "superevent_id": getattr(decision, "superevent_id", None)}
+    if outcome is not None:
+        inner = getattr(outcome, "outcome", outcome)  # a Staged first stage carries its Outcome
+        out.update(decision=str(getattr(inner, "decision", out["decision"])),
+                   reason=str(getattr(inner, "reason", "")), plan_id=getattr(inner, "plan_id", None))
+    return out
+
+
 def pending_triggers(trigger_dir: Path) -> list[Path]:
     """Trigger files waiting, oldest first (temporary files excluded).
 
@@ -249,13 +327,23 @@ def main(args: argparse.Namespace) -> int:
             pid = None  # died between the check and the signal: do it ourselves below
             written.unlink(missing_ok=True)
         else:
-            # wait a little for the daemon to take it, to report honestly
-            end = time.monotonic() + 15.0
-            while written.exists() and time.monotonic() < end:
-                time.sleep(0.1)
-            state = "accepted" if not written.exists() else "queued (the daemon will take it at its next scan)"
-            print(f"mushrooms trigger: {kind} {args.target} handed to the daemon (pid {pid}): {state}")
-            return 0
+            # wait for the daemon's answer (its decision, and a planning job's first plan), to report honestly
+            result = read_result(written, RESULT_WAIT_S)
+            if result is None:
+                left = written.exists()
+                print(f"mushrooms trigger: {kind} {args.target} handed to the daemon (pid {pid}): "
+                      + ("queued (the daemon will take it at its next scan)" if left else
+                         "taken; no answer yet (see the daemon's log)"))
+                return 0
+            decision, reason = result.get("decision", "?"), result.get("reason", "")
+            plan = f"; plan {result['plan_id']}" if result.get("plan_id") else ""
+            status = {"rejected": 2, "failed": 1}.get(str(decision), 0)
+            text = f"{kind} {args.target} handed to the daemon (pid {pid}): {decision} ({reason}){plan}"
+            if status:
+                print(f"mushrooms trigger: error: {text}", file=sys.stderr)
+            else:
+                print(f"mushrooms trigger: {text}")
+            return status
     # no daemon: do the job here
     outbox = config.outbound.directory if config.outbound.sink == "directory" else f"kafka:{config.outbound.topic}"
     print(f"mushrooms trigger: no daemon running: planning here; state {paths.state}, outbox "

@@ -19,7 +19,20 @@ planned (not retracted)   RETRACTION                  ``withdraw`` (all the even
 unknown or retracted      RETRACTION                  ``ignore``
 any                       refused by the policy       ``ignore``
 planned on a joint map    kept, GW map only           ``duplicate`` (the joint map stands)
+any, newest accepted T    created before T            ``ignore`` (stale: never supersedes)
 ========================  ==========================  ==========
+
+Order by creation, not arrival: a notice created (``time_created``) before
+the newest notice already accepted for the event (planned, confirmed as a
+duplicate, or a retraction) never supersedes it, and nothing created before
+a retraction re-opens the event (a stale retraction does not withdraw a
+newer plan either).  This is the order ``mushrooms replay`` processes notices
+in (sorted by ``time_created``), so a live daemon that receives them out of
+order (several partitions, operator triggers) ends in the same state.  The
+one exception is degrade-never-drop: an older notice is still planned when
+the event has no plan, no open job and no retraction (the newer notice's
+planning failed).  Operators' ``trigger --force`` and ``trigger SUPEREVENT``
+bypass :func:`decide` and may plan any notice.
 
 "Map" is the localisation chosen for planning
 (:func:`~mushrooms.handlers.localization.choose_localization`): the joint GW x
@@ -32,16 +45,42 @@ joint plan stands and the reason says so; a retraction still withdraws it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from datetime import datetime, timezone
 from typing import Protocol
 
 from .alert import Alert
 from .localization import COMBINED, GW, Localization
 from .policy import Verdict
 
-__all__ = ["Decision", "EventState", "Ledger", "MemoryLedger", "decide", "ACTIONS"]
+__all__ = ["Decision", "EventState", "Ledger", "MemoryLedger", "decide", "newest_created", "ACTIONS"]
 
 ACTIONS = ("plan", "rerun", "duplicate", "withdraw", "ignore", "rejected")
+
+
+def _instant(iso: str | datetime | None) -> datetime | None:
+    """An ISO-8601 time (``Z`` or offset; naive means UTC) as an aware datetime; None when absent or unreadable."""
+    if iso is None:
+        return None
+    try:
+        t = iso if isinstance(iso, datetime) else datetime.fromisoformat(str(iso).replace("Z", "+00:00"))
+    except ValueError:
+        return None
+    return t.replace(tzinfo=timezone.utc) if t.tzinfo is None else t
+
+
+def newest_created(a: str | None, b: str | None) -> str | None:
+    """The later of two ``time_created`` values (ISO-8601 UTC), either of which may be None."""
+    ta, tb = _instant(a), _instant(b)
+    if ta is None:
+        return b if tb is not None else a
+    if tb is None:
+        return a
+    return b if tb > ta else a
+
+
+def _iso(t: datetime) -> str:
+    return t.astimezone(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
 
 
 @dataclass(frozen=True)
@@ -61,6 +100,9 @@ class EventState:
         ``gw`` or ``combined``: which localisation ``skymap_sha256`` is.
     open_job : bool
         A planning job of the event is pending or running.
+    latest_created : str or None
+        ``time_created`` (ISO-8601 UTC) of the newest notice accepted for the
+        event (planned, duplicate or retraction); older notices are stale.
     """
 
     superevent_id: str
@@ -69,6 +111,7 @@ class EventState:
     retracted: bool = False
     localization: str | None = None
     open_job: bool = False
+    latest_created: str | None = None
 
     @property
     def latest_plan_id(self) -> str | None:
@@ -96,13 +139,17 @@ class MemoryLedger:
         """Update the state as a store would after ``decision`` (and its plan)."""
         sid = decision.superevent_id
         st = self.events.get(sid, EventState(sid))
+        created = newest_created(st.latest_created, decision.time_created)
         if decision.action in ("plan", "rerun"):
             ids = st.plan_ids if not st.retracted else ()
             if plan_id:
                 ids = ids + (plan_id,)
-            self.events[sid] = EventState(sid, decision.skymap_sha256, ids, False, decision.localization)
+            self.events[sid] = EventState(sid, decision.skymap_sha256, ids, False, decision.localization,
+                                          latest_created=created)
         elif decision.action == "withdraw":
-            self.events[sid] = EventState(sid, st.skymap_sha256, (), True, st.localization)
+            self.events[sid] = EventState(sid, st.skymap_sha256, (), True, st.localization, latest_created=created)
+        elif decision.action == "duplicate" and sid in self.events:
+            self.events[sid] = replace(st, latest_created=created)
 
 
 @dataclass(frozen=True)
@@ -125,6 +172,10 @@ class Decision:
         Plans to withdraw (``withdraw``); the event's live plans (``duplicate``).
     localization : str or None
         ``gw`` or ``combined``: which of the notice's maps ``skymap_sha256`` is.
+    time_created : str or None
+        The notice's ``time_created`` (ISO-8601 UTC): an accepted decision
+        (``plan``, ``rerun``, ``duplicate``, ``withdraw``) makes it the
+        event's :attr:`EventState.latest_created` unless that is newer.
     """
 
     action: str
@@ -135,6 +186,12 @@ class Decision:
     supersedes: str | None = None
     plan_ids: tuple[str, ...] = ()
     localization: str | None = None
+    time_created: str | None = None
+
+    @property
+    def accepted(self) -> bool:
+        """The notice counts for the event's creation order (see :attr:`EventState.latest_created`)."""
+        return self.action in ("plan", "rerun", "duplicate", "withdraw")
 
     @property
     def needs_plan(self) -> bool:
@@ -163,10 +220,14 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger,
     Decision
     """
     sid = alert.superevent_id
-    base = dict(superevent_id=sid, alert_type=alert.alert_type)
+    created = _iso(alert.time_created)
+    base = dict(superevent_id=sid, alert_type=alert.alert_type, time_created=created)
     if not verdict.keep:
         return Decision("rejected" if verdict.reject else "ignore", reason=verdict.reason, **base)
     state = ledger.event_state(sid)
+    stale = _stale(alert, state)
+    if stale:
+        return Decision("ignore", reason=stale, **base)
     if alert.alert_type == "RETRACTION":
         if state is None:
             return Decision("ignore", reason="retraction of an event we never planned", **base)
@@ -209,3 +270,18 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger,
         supersedes=state.latest_plan_id,
         **base,
     )
+
+
+def _stale(alert: Alert, state: EventState | None) -> str:
+    """Why ``alert`` is older than what the event already accepted ("" when it is not)."""
+    newest = _instant(state.latest_created) if state is not None else None
+    if state is None or newest is None or _instant(alert.time_created) >= newest:
+        return ""
+    mine = _iso(alert.time_created)
+    if state.retracted:
+        return (f"stale: {alert.alert_type} created {mine}, before the retraction of {state.latest_created}; "
+                "nothing older than a retraction re-opens the event")
+    if alert.alert_type != "RETRACTION" and not state.plan_ids and not state.open_job:
+        return ""  # degrade, never drop: the event has no plan at all, so the older map is better than none
+    return (f"stale: {alert.alert_type} created {mine}, before the newest accepted notice of the event "
+            f"({state.latest_created}); a notice never supersedes a newer one")

@@ -35,13 +35,21 @@ def notice_path(name: str) -> Path:
     pytest.skip(f"sample notice {name} not available")
 
 
-def notice_bytes(name: str, superevent_id: str | None = None) -> bytes:
-    """Notice bytes; with ``superevent_id`` only that field is rewritten."""
+def notice_bytes(name: str, superevent_id: str | None = None, time_created: str | None = None) -> bytes:
+    """Notice bytes; with ``superevent_id`` / ``time_created`` only those fields are rewritten.
+
+    ``time_created`` matters since decisions follow creation order (issue 25): a
+    notice relabelled from a 2023 event is newer than a 2018 retraction of the
+    event it now names, so such a retraction must be dated after it.
+    """
     raw = notice_path(name).read_bytes()
-    if superevent_id is None:
+    if superevent_id is None and time_created is None:
         return raw
     doc = json.loads(raw)
-    doc["superevent_id"] = superevent_id
+    if superevent_id is not None:
+        doc["superevent_id"] = superevent_id
+    if time_created is not None:
+        doc["time_created"] = time_created
     return json.dumps(doc).encode()
 
 

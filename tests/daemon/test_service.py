@@ -121,6 +121,10 @@ def test_kill9_in_the_middle_of_a_job_then_restart_delivers_the_same_plan(broker
         assert committed == high or (high == 0 and committed < 0), (part, committed, high)
 
 
+#: a creation time after every archived notice the tests relabel (MS230425l is of 2023-04-25)
+LATER_THAN_2023 = "2023-04-26T00:00:00Z"
+
+
 def test_updated_skymap_supersedes_the_running_job_and_retraction_withdraws(broker, daemons, tmp_path: Path) -> None:
     topic, out, group = _uniq("gwalert"), _uniq("plans"), _uniq("mushrooms")
     broker.ensure_topic(topic)
@@ -145,7 +149,9 @@ def test_updated_skymap_supersedes_the_running_job_and_retraction_withdraws(brok
         msgs = reader.wait_for(lambda ms: _plans(ms, "MS181101ab"), 300, alive=d.alive)
         text = d.wait_log("event=job_done superevent_id=MS181101ab job=1", 60)
         assert "stopped=superseded" in text.split("event=job_done superevent_id=MS181101ab job=1")[1].splitlines()[0]
-        broker.produce(topic, notice_bytes("MS181101ab-retraction.json"), key=b"MS181101ab")
+        # dated after the relabelled 2023 notice it retracts (creation order)
+        retraction = notice_bytes("MS181101ab-retraction.json", time_created=LATER_THAN_2023)
+        broker.produce(topic, retraction, key=b"MS181101ab")
         msgs = reader.wait_for(lambda ms: any(m.get("type") == "withdrawal" for m in ms), 120, alive=d.alive)
         time.sleep(1)
         reader.wait_for(lambda ms: True, 1)

@@ -76,8 +76,8 @@ class World:
         client = make_client(self.config.submit.target, self.config.submit.url, TOKEN, self.config.submit.timeout_s)
         return Submitter(self.store, self.config, client)
 
-    def notice(self, name: str, sid: str | None = None) -> None:
-        out = self.pipeline.handle(notice_bytes(name, sid), f"test:{name}")
+    def notice(self, name: str, sid: str | None = None, time_created: str | None = None) -> None:
+        out = self.pipeline.handle(notice_bytes(name, sid, time_created), f"test:{name}")
         assert out.decision in ("plan", "rerun", "withdraw", "ignore"), out
 
     def states(self) -> list[tuple[str | None, str]]:
@@ -115,7 +115,8 @@ def test_notice_update_and_retraction_put_replace_then_delete(world, kowalski) -
     assert kowalski.lines()[1:] == [f"PUT /api/triggers/ztf {r2} -> 200", f"DELETE /api/triggers/ztf {r1} -> 200"]
     assert world.states() == [(r1, "replaced"), (r2, "submitted")]
 
-    world.notice("MS181101ab-retraction.json")
+    # dated after the relabelled 2023 map it retracts: decisions follow creation order
+    world.notice("MS181101ab-retraction.json", time_created="2023-04-26T00:00:00Z")
     assert world.submitter.step() == 0
     assert kowalski.queues == {}
     assert kowalski.lines()[-1] == f"DELETE /api/triggers/ztf {r2} -> 200"

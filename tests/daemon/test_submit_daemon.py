@@ -69,8 +69,8 @@ class Setup:
         daemons.append(d)
         return d
 
-    def send(self, name: str, sid: str | None = None) -> None:
-        self.broker.produce(self.topic, notice_bytes(name, sid), key=(sid or name).encode())
+    def send(self, name: str, sid: str | None = None, time_created: str | None = None) -> None:
+        self.broker.produce(self.topic, notice_bytes(name, sid, time_created), key=(sid or name).encode())
 
     def rows(self, sql: str) -> list[tuple]:
         with sqlite3.connect(self.state) as c:
@@ -104,7 +104,7 @@ def test_notice_update_and_retraction_through_the_daemon(broker, daemons, tmp_pa
     _wait(lambda: list(kowalski.queues) == [r1], 180, d, "the first queue")
     s.send("MS230425l-preliminary.json", SID)  # an updated sky map
     _wait(lambda: list(kowalski.queues) == [r2], 180, d, "the second queue to replace the first")
-    s.send("MS181101ab-retraction.json", SID)
+    s.send("MS181101ab-retraction.json", SID, "2023-04-26T00:00:00Z")  # after the 2023 map it retracts
     _wait(lambda: not kowalski.queues and any(e["method"] == "DELETE" and e.get("queue_name") == r2
                                               for e in kowalski.log), 120, d, "the retraction's DELETE")
     _wait(lambda: s.states() == [(r1, "replaced"), (r2, "deleted")], 30, d, "the states")

@@ -100,11 +100,20 @@ def test_trigger_hands_work_to_the_running_daemon_and_signals(broker, daemons, t
     r = trigger(tmp_path, str(notice_path("MS181101ab-preliminary.json")), "--config", str(cfg),
                 "--state", str(state))
     assert r.returncode == 0, r.stderr
-    assert f"handed to the daemon (pid {d.proc.pid}): accepted" in r.stdout
+    assert f"handed to the daemon (pid {d.proc.pid}): plan (" in r.stdout  # the first plan's real outcome
     (plan,) = wait_plans(outbox, 1, d)
     assert plan["event"]["superevent_id"] == "MS181101ab"
     assert "event=trigger file=" in d.text() and "kind=notice" in d.text()
     assert list((tmp_path / "mushrooms-triggers").iterdir()) == []
+
+    # the answer is truthful (issue 25): an unknown superevent and a map the planner refuses are errors
+    r = trigger(tmp_path, "S999999zz", "--config", str(cfg), "--state", str(state))
+    assert r.returncode == 2 and "rejected" in r.stderr and "S999999zz" in r.stderr, (r.stdout, r.stderr)
+    bad = tmp_path / "bad.fits"
+    bad.write_bytes(b"SIMPLE  =                    T" + b" " * 50 + b"END".ljust(2880 - 80))
+    r = trigger(tmp_path, str(bad), "--config", str(cfg), "--state", str(state))
+    assert r.returncode == 2 and "rejected" in r.stderr, (r.stdout, r.stderr)
+    assert list((tmp_path / "mushrooms-triggers").iterdir()) == []  # answers consumed
 
     # a second daemon on the same state refuses to start
     other = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state)])

@@ -59,7 +59,8 @@ def test_retraction_then_later_initial_plans_again():
     assert [d.action for d in out] == ["plan", "withdraw", "plan"]
     assert "after a retraction" in out[2].reason
     assert out[2].supersedes is None
-    assert ledger.event_state("MS230425k") == EventState("MS230425k", out[2].skymap_sha256, ("plan-2",), False, "gw")
+    assert ledger.event_state("MS230425k") == EventState("MS230425k", out[2].skymap_sha256, ("plan-2",), False, "gw",
+                                                         latest_created=out[2].time_created)
 
 
 def test_retractions_of_unknown_or_retracted_events_are_ignored():
@@ -73,7 +74,8 @@ def test_retractions_of_unknown_or_retracted_events_are_ignored():
 def test_policy_refusal_is_ignore_whatever_the_state():
     a = parse_notice(notice_bytes("live/S230528ay-preliminary.json"))
     d = decide(a, Verdict(False, "group Burst not in CBC"), MemoryLedger())
-    assert d == Decision("ignore", "S230528ay", "group Burst not in CBC", "PRELIMINARY")
+    assert d == Decision("ignore", "S230528ay", "group Burst not in CBC", "PRELIMINARY",
+                         time_created="2023-05-28T11:40:43.000Z")
 
 
 def test_superevents_are_independent():
