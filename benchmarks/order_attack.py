@@ -182,9 +182,13 @@ def main() -> int:
     settle()
     seqs.append(("f", sid, ps, {"planned": False}))
 
-    time.sleep(3)
-    msgs = reader.wait_for(lambda ms: True, 5)
-    reader.wait_for(lambda ms: False if time.sleep(0) else True, 1)
+    # read the outbound topic until it has been quiet for 5 s (the outbox drains asynchronously)
+    quiet = time.monotonic()
+    while time.monotonic() - quiet < 5:
+        for m in reader.c.consume(10, 0.5):
+            if m.error() is None:
+                reader.messages.append(json.loads(m.value()))
+                quiet = time.monotonic()
     msgs = list(reader.messages)
     reader.close()
     rc = d.stop()
