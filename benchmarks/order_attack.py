@@ -95,8 +95,11 @@ def find_sha(obj) -> list[str]:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "issue25" / "order_attack.txt"))
+    ap.add_argument("--out", default=None)
+    ap.add_argument("--tree", default=str(ROOT), help="tree whose mushrooms package the daemon runs")
+    ap.add_argument("--label", default="")
     a = ap.parse_args()
+    a.out = a.out or str(ROOT / "benchmarks" / "results" / "issue25" / f"order_attack{a.label}.txt")
     work = Path(tempfile.mkdtemp(prefix="mushrooms-order-"))
     load0 = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     broker = Broker()
@@ -108,7 +111,7 @@ def main() -> int:
     cfg = write_config(work / "config.toml", topic, out_topic, group)
     state = work / "state.sqlite"
     d = Daemon(work, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state)],
-               env={"PYTHONPATH": str(ROOT)})
+               env={"PYTHONPATH": a.tree})
     d.wait_log("event=service_ready", 240)
     reader = broker.reader(out_topic, f"reader-{tag}")
     produced = [0]
@@ -195,7 +198,7 @@ def main() -> int:
     load1 = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
     lines = [f"# benchmarks/order_attack.py {time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC",
-             f"# command: PYTHONPATH=$PWD nice -n 5 python benchmarks/order_attack.py",
+             f"# command: PYTHONPATH=$PWD nice -n 5 python benchmarks/order_attack.py --tree {a.tree} --label '{a.label}'",
              f"# uptime before: {load0}", f"# uptime after:  {load1}",
              f"# input topic {topic}: {nparts} partitions (mock cluster), daemon exit {rc}",
              f"# map A sha256 {A[:12]} ({MAP_A}), map B sha256 {B[:12]} ({MAP_B})", ""]

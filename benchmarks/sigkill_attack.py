@@ -55,9 +55,11 @@ def main() -> int:
                     help="random: kill 1-12 s after ready (one new event per start); during-jobs: three events "
                          "at each of the first two starts, each kill 0.5-8 s after a job started in that run")
     ap.add_argument("--out", default=None)
+    ap.add_argument("--tree", default=str(ROOT), help="tree whose mushrooms package the daemon runs")
+    ap.add_argument("--label", default="")
     a = ap.parse_args()
     rnd = random.Random(a.seed)
-    a.out = a.out or str(ROOT / "benchmarks" / "results" / "issue25" / f"sigkill_attack_{a.mode}.txt")
+    a.out = a.out or str(ROOT / "benchmarks" / "results" / "issue25" / f"sigkill_attack_{a.mode}{a.label}.txt")
     work = Path(tempfile.mkdtemp(prefix="mushrooms-kill-"))
     load0 = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     broker = Broker()
@@ -70,7 +72,7 @@ def main() -> int:
     cfg.write_text(text)
     state = work / "state.sqlite"
     args = ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state)]
-    env = {"PYTHONPATH": str(ROOT)}
+    env = {"PYTHONPATH": a.tree}
     started: list[Daemon] = []
     kills: list[str] = []
     produced: list[tuple[int, int]] = []
@@ -160,7 +162,7 @@ def main() -> int:
     two = {k: len(v) for k, v in contents.items() if len(v) > 1}
     lines = [f"# benchmarks/sigkill_attack.py {time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC, seed {a.seed}, mode {a.mode}",
              f"# command: PYTHONPATH=$PWD nice -n 5 python benchmarks/sigkill_attack.py --seed {a.seed} "
-             f"--kills {a.kills} --mode {a.mode}",
+             f"--kills {a.kills} --mode {a.mode} --tree {a.tree}",
              f"# uptime before: {load0}", f"# uptime after:  {load1}",
              f"# solver hybrid (time_limit_s 8), nside 64, max_jobs default, 4-partition input topic, wall {wall:.0f} s,"
              f" final daemon exit {rc}", ""]
