@@ -57,6 +57,7 @@ def main() -> int:
     ap.add_argument("--out", default=None)
     ap.add_argument("--tree", default=str(ROOT), help="tree whose mushrooms package the daemon runs")
     ap.add_argument("--label", default="")
+    ap.add_argument("--events", type=int, default=6, help="live events (2: every kill hits both running jobs)")
     a = ap.parse_args()
     rnd = random.Random(a.seed)
     a.out = a.out or str(ROOT / "benchmarks" / "results" / "issue25" / f"sigkill_attack_{a.mode}{a.label}.txt")
@@ -77,7 +78,7 @@ def main() -> int:
     kills: list[str] = []
     produced: list[tuple[int, int]] = []
     day = time.strftime("%y%m%d", time.gmtime())
-    sids = [f"MS{day}k{chr(97 + i)}" for i in range(6)]
+    sids = [f"MS{day}k{chr(97 + i)}" for i in range(a.events)]
     created = datetime.now(timezone.utc).replace(microsecond=0) - timedelta(minutes=10)
 
     def produce(i: int) -> None:
@@ -162,7 +163,7 @@ def main() -> int:
     two = {k: len(v) for k, v in contents.items() if len(v) > 1}
     lines = [f"# benchmarks/sigkill_attack.py {time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC, seed {a.seed}, mode {a.mode}",
              f"# command: PYTHONPATH=$PWD nice -n 5 python benchmarks/sigkill_attack.py --seed {a.seed} "
-             f"--kills {a.kills} --mode {a.mode} --tree {a.tree}",
+             f"--kills {a.kills} --mode {a.mode} --tree {a.tree} --events {a.events}",
              f"# uptime before: {load0}", f"# uptime after:  {load1}",
              f"# solver hybrid (time_limit_s 8), nside 64, max_jobs default, 4-partition input topic, wall {wall:.0f} s,"
              f" final daemon exit {rc}", ""]

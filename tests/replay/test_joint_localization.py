@@ -110,8 +110,9 @@ def test_a_manual_rerun_plans_the_joint_map(store):
 def test_a_state_file_of_schema_1_is_migrated_and_keeps_its_events(tmp_path):
     path = tmp_path / "old.sqlite"
     Store(path).close()
-    conn = sqlite3.connect(path)  # turn it into a schema-1 file: no localization column
+    conn = sqlite3.connect(path)  # turn it into a schema-1 file: no localization (2) nor latest_created (4) column
     conn.executescript("ALTER TABLE events DROP COLUMN localization;"
+                       "ALTER TABLE events DROP COLUMN latest_created;"
                        "INSERT INTO events(superevent_id, skymap_sha256, retracted, updated_at)"
                        " VALUES ('S1', 'abc', 0, '2026-01-01T00:00:00');"
                        "PRAGMA user_version=1;")
