@@ -57,6 +57,7 @@ def main() -> int:
     ap.add_argument("--out", default=None)
     ap.add_argument("--tree", default=str(ROOT), help="tree whose mushrooms package the daemon runs")
     ap.add_argument("--label", default="")
+    ap.add_argument("--time-limit", type=float, default=8.0, help="[scheduler] time_limit_s (longer: kills land mid-job)")
     ap.add_argument("--events", type=int, default=6, help="live events (2: every kill hits both running jobs)")
     a = ap.parse_args()
     rnd = random.Random(a.seed)
@@ -69,7 +70,7 @@ def main() -> int:
     broker.ensure_topic(topic)
     broker.ensure_topic(out_topic)
     cfg = write_config(work / "config.toml", topic, out_topic, group)
-    text = cfg.read_text().replace('solver = "greedy"', 'solver = "hybrid"\ntime_limit_s = 8.0')
+    text = cfg.read_text().replace('solver = "greedy"', f'solver = "hybrid"\ntime_limit_s = {a.time_limit}')
     cfg.write_text(text)
     state = work / "state.sqlite"
     args = ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state)]
@@ -163,9 +164,9 @@ def main() -> int:
     two = {k: len(v) for k, v in contents.items() if len(v) > 1}
     lines = [f"# benchmarks/sigkill_attack.py {time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC, seed {a.seed}, mode {a.mode}",
              f"# command: PYTHONPATH=$PWD nice -n 5 python benchmarks/sigkill_attack.py --seed {a.seed} "
-             f"--kills {a.kills} --mode {a.mode} --tree {a.tree} --events {a.events}",
+             f"--kills {a.kills} --mode {a.mode} --tree {a.tree} --events {a.events} --time-limit {a.time_limit}",
              f"# uptime before: {load0}", f"# uptime after:  {load1}",
-             f"# solver hybrid (time_limit_s 8), nside 64, max_jobs default, 4-partition input topic, wall {wall:.0f} s,"
+             f"# solver hybrid (time_limit_s {a.time_limit:g}), nside 64, max_jobs default, 4-partition input topic, wall {wall:.0f} s,"
              f" final daemon exit {rc}", ""]
     lines += kills
     lines += ["",
