@@ -92,6 +92,7 @@ def cases(broker: Broker, session_s: float, static: bool) -> list[tuple[str, flo
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default=str(REPO / "benchmarks" / "results"))
+    ap.add_argument("--sessions", default="30,6", help="session_timeout_s values, comma-separated")
     a = ap.parse_args()
     import confluent_kafka
 
@@ -100,7 +101,7 @@ def main() -> int:
              f"{confluent_kafka.libversion()[0]} mock cluster, {os.cpu_count()} cores, "
              f"load average at start {os.getloadavg()[0]:.1f}",
              "subscribe -> on_assign (s), daemon consumer settings", ""]
-    for session_s in (30.0, 6.0):
+    for session_s in [float(x) for x in a.sessions.split(",")]:
         for static in (False, True):
             for name, t in cases(broker, session_s, static):
                 line = (f"session_timeout_s={session_s:g} {'static member ' if static else ''}{name}: "

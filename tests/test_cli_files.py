@@ -78,6 +78,19 @@ def test_an_output_onto_a_fifo_is_refused_and_the_fifo_stays(tmp_path, cfg, caps
         assert stat.S_ISFIFO(fifo.lstat().st_mode)
 
 
+def test_an_output_onto_a_device_node_is_refused_and_the_node_stays(tmp_path, cfg, capsys):
+    """``plan -o`` used to os.replace whatever was at the path: a character device (a node like
+    /dev/null, made here in tmp_path) became a regular file."""
+    node = tmp_path / "null"
+    try:
+        os.mknod(node, stat.S_IFCHR | 0o666, os.makedev(1, 3))
+    except (PermissionError, OSError) as exc:
+        pytest.skip(f"cannot make a device node here: {exc}")
+    assert main(["plan", str(MAP), "--config", str(cfg), "-o", str(node)]) == 2
+    assert "not a regular file" in one_error(capsys)
+    assert stat.S_ISCHR(node.lstat().st_mode)
+
+
 def test_an_output_through_a_symbolic_link_keeps_the_link(tmp_path, cfg):
     real = tmp_path / "real.json"
     real.write_text("{}")

@@ -649,6 +649,12 @@ class Store:
                     msg = withdrawal(decision, nid)
                     key = str(msg["withdrawal_id"])
                     self._insert_outbox(c, key, "withdrawal", msg)
+            elif decision.retracts_unknown and decision.time_created:
+                # a retraction before any notice of its event: remembered, so that an older notice
+                # arriving after it is stale (creation order, issue 25); nothing is withdrawn or sent
+                c.execute("INSERT INTO events(superevent_id, skymap_sha256, retracted, updated_at, localization,"
+                          " latest_created) VALUES (?,NULL,1,?,NULL,?) ON CONFLICT(superevent_id) DO NOTHING",
+                          (sid, now, decision.time_created))
             if decision.accepted and decision.time_created:
                 self._note_created(c, sid, decision.time_created)
             c.execute("INSERT INTO decisions(notice_id, superevent_id, alert_type, decision, reason, job_id,"

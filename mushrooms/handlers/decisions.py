@@ -16,7 +16,7 @@ accepted, map M, no plan  kept, map M                 ``plan`` (unless its job i
 planned, map M            kept, map M' != M           ``rerun`` (supersedes the latest plan)
 retracted                 kept (e.g. a later INITIAL) ``plan`` (planned again)
 planned (not retracted)   RETRACTION                  ``withdraw`` (all the event's plans)
-unknown or retracted      RETRACTION                  ``ignore``
+unknown or retracted      RETRACTION                  ``ignore`` (unknown: remembered as retracted)
 any                       refused by the policy       ``ignore``
 planned on a joint map    kept, GW map only           ``duplicate`` (the joint map stands)
 any, newest accepted T    created before T            ``ignore`` (stale: never supersedes)
@@ -150,6 +150,8 @@ class MemoryLedger:
             self.events[sid] = EventState(sid, st.skymap_sha256, (), True, st.localization, latest_created=created)
         elif decision.action == "duplicate" and sid in self.events:
             self.events[sid] = replace(st, latest_created=created)
+        elif decision.retracts_unknown and sid not in self.events:
+            self.events[sid] = EventState(sid, retracted=True, latest_created=decision.time_created)
 
 
 @dataclass(frozen=True)
@@ -176,6 +178,11 @@ class Decision:
         The notice's ``time_created`` (ISO-8601 UTC): an accepted decision
         (``plan``, ``rerun``, ``duplicate``, ``withdraw``) makes it the
         event's :attr:`EventState.latest_created` unless that is newer.
+    retracts_unknown : bool
+        An ``ignore`` of a retraction of an event without any state: nothing
+        is withdrawn, but the event is recorded as retracted as of
+        ``time_created``, so a notice created before the retraction that
+        arrives after it stays unplanned (stale), while a later one plans.
     """
 
     action: str
@@ -187,6 +194,7 @@ class Decision:
     plan_ids: tuple[str, ...] = ()
     localization: str | None = None
     time_created: str | None = None
+    retracts_unknown: bool = False
 
     @property
     def accepted(self) -> bool:
@@ -230,7 +238,10 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger,
         return Decision("ignore", reason=stale, **base)
     if alert.alert_type == "RETRACTION":
         if state is None:
-            return Decision("ignore", reason="retraction of an event we never planned", **base)
+            # nothing to withdraw, but remembered (creation order): a notice of the event created
+            # before it and arriving later must not plan a retracted event (issue 25)
+            return Decision("ignore", reason="retraction of an event we never planned (remembered: older notices "
+                                             "of it stay unplanned)", retracts_unknown=True, **base)
         if state.retracted:
             return Decision("ignore", reason="event already retracted", **base)
         n = len(state.plan_ids)

@@ -167,3 +167,31 @@ def hostile_corpus() -> list[tuple[str, bytes]]:
     variant("skymap bad uniq", lambda d: d["event"].update(skymap=base64.b64encode(moc_with_uniq("duplicate")).decode()))
     variant("retraction", lambda d: d.update(alert_type="RETRACTION", event=None))
     return out
+
+
+def amplifying_map(order: int = 6) -> bytes:
+    """gzip of a flat float32 NSIDE 1024 NESTED map (50 MB unpacked, ~100 kB packed): the sample
+    map rasterised at ``order`` and upgraded to order 10 as ``healpy.ud_grade`` does (children share
+    their parent's probability), the kind of map of issue 25's amplifying notices."""
+    from astropy.io import fits
+    from ligo.skymap.bayestar import rasterize
+    from ligo.skymap.io import read_sky_map
+
+    prob = np.asarray(rasterize(read_sky_map(str(MOC_MAP), moc=True), order=order)["PROB"], float)
+    k = 4 ** (10 - order)
+    flat = (np.repeat(prob, k) / k).astype(np.float32)
+    hdu = fits.BinTableHDU.from_columns([fits.Column(name="PROB", format="E", array=flat)])
+    hdu.header.update({"PIXTYPE": "HEALPIX", "ORDERING": "NESTED", "NSIDE": 1024, "INDXSCHM": "IMPLICIT"})
+    buf = io.BytesIO()
+    fits.HDUList([fits.PrimaryHDU(), hdu]).writeto(buf)
+    return gzip.compress(buf.getvalue(), 9)
+
+
+def joint_notice(superevent_id: str, gw_map: bytes, combined_map: bytes) -> bytes:
+    """The sample notice with a GRB coincidence (MS181101ab-ext-update) carrying these two maps."""
+    doc = json.loads((NOTICES / "json" / "MS181101ab-ext-update.json").read_bytes())
+    doc["superevent_id"] = superevent_id
+    doc["alert_type"] = "PRELIMINARY"
+    doc["event"]["skymap"] = base64.b64encode(gw_map).decode()
+    doc["external_coinc"]["combined_skymap"] = base64.b64encode(combined_map).decode()
+    return json.dumps(doc).encode()

@@ -223,3 +223,19 @@ def test_the_service_prunes_planned_raw_bytes_with_the_configured_retention() ->
     from mushrooms.daemon import service
 
     assert "planned_raw_retention_s" in inspect.getsource(service.Service._prune_raw)
+
+
+def test_a_retraction_before_any_notice_of_its_event_keeps_older_notices_unplanned(tmp_path: Path) -> None:
+    """The retraction arrives first (another partition), a PRELIMINARY created 300 s before it later:
+    nothing is planned or sent; a notice created after the retraction plans the event again."""
+    p = pipeline(tmp_path / "s.sqlite")
+    ret = p.handle(notice(alert_type="RETRACTION", created_shift_s=300), "kafka:t:0:1", LATER)
+    assert ret.decision == "ignore" and "never planned" in ret.reason
+    late = p.handle(notice(created_shift_s=0), "kafka:t:1:1", LATER)
+    assert late.decision == "ignore" and "before the retraction" in late.reason
+    assert types(p.sink) == []
+    again = p.handle(notice(alert_type="INITIAL", created_shift_s=600), "kafka:t:2:1", LATER)
+    assert again.decision == "plan"
+    (row,) = [d for d in p.store.decisions() if d["origin"] == "kafka:t:2:1"]
+    assert "after a retraction" in row["reason"]
+    assert types(p.sink) == ["plan"]

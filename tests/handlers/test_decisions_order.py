@@ -88,3 +88,9 @@ def test_newest_created_compares_instants_not_strings():
     assert newest_created("2023-04-25T10:56:53.000Z", "2023-04-25T10:56:53.5+00:00") == "2023-04-25T10:56:53.5+00:00"
     assert newest_created(None, "2023-01-01T00:00:00Z") == "2023-01-01T00:00:00Z"
     assert newest_created("2023-01-02T00:00:00Z", "2023-01-01T00:00:00Z") == "2023-01-02T00:00:00Z"
+
+
+def test_a_retraction_before_any_notice_keeps_an_older_preliminary_unplanned():
+    out, ledger = run([notice(RET), notice(PRE), notice(INI)])
+    assert [d.action for d in out] == ["ignore", "ignore", "plan"]
+    assert "before the retraction" in out[1].reason and "after a retraction" in out[2].reason

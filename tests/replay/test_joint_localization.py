@@ -114,7 +114,7 @@ def test_a_manual_rerun_plans_the_joint_map(store):
 def test_a_state_file_of_schema_1_is_migrated_and_keeps_its_events(tmp_path):
     path = tmp_path / "old.sqlite"
     Store(path).close()
-    conn = sqlite3.connect(path)  # turn it into a schema-1 file: no localization column
+    conn = sqlite3.connect(path)  # turn it into a schema-1 file: no localization (2), submissions (3), latest_created (4)
     conn.executescript("ALTER TABLE events DROP COLUMN localization;"
                        "ALTER TABLE events DROP COLUMN latest_created;"  # schema 4
                        "DROP TABLE submissions;"  # schema 3
