@@ -21,7 +21,9 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     g.add_argument("--start-from-event", action="store_true", help="start each plan at its map's event time (default)")
     g.add_argument("--start", metavar="ISO_UTC", help="one start time for every map")
     p.add_argument("--solvers", default="greedy,slots,blocks,hybrid",
-                   help="comma list of greedy,slots,blocks,hybrid,milp,gwemopt,gwemopt-repaired")
+                   help="comma list of greedy,slots,blocks,hybrid,milp,gwemopt,gwemopt-repaired; ours as "
+                        "make_plan publishes them under the config (objective included), or with the "
+                        "objective forced by -coverage / -detection (hybrid-coverage)")
     p.add_argument("--jobs", type=int, default=1, metavar="N", help="maps in parallel processes")
     p.add_argument("--injections", type=int, default=10000, metavar="N", help="kilonova injections per map")
     p.add_argument("--plots", metavar="DIR", help="write the summary figures here")
