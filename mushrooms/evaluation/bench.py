@@ -919,12 +919,13 @@ def main(args: Any) -> int:
     """
     settings = _load_settings(args)
     paths = skymaps_in(args.skymap_dir)
-    if "gwemopt" in settings.solvers:
+    if {"gwemopt", "gwemopt-repaired"} & set(settings.solvers):
         from .gwemopt_baseline import ENV_PYTHON, gwemopt_python
 
-        if gwemopt_python(settings.gwemopt_python) is None:
-            print(f"mushrooms bench: gwemopt unavailable (set ${ENV_PYTHON} to its interpreter); "
-                  "its rows will say 'unavailable'", file=sys.stderr)
+        if gwemopt_python(settings.gwemopt_python) is None:  # (mushrooms.tool.bench refuses it without a cache)
+            print(f"mushrooms bench: gwemopt unavailable (pip install 'mushrooms[gwemopt]', or set ${ENV_PYTHON} "
+                  f"to its interpreter); its rows will say 'unavailable' where the cache "
+                  f"{settings.gwemopt_cache_dir} has no schedule", file=sys.stderr)
     t0 = time.perf_counter()
     rows = run_bench(paths, settings, jobs=args.jobs, output=args.output,
                      progress=os.environ.get("MUSHROOMS_PROGRESS", "1") != "0")

@@ -7,7 +7,7 @@ import sys
 from typing import Sequence
 
 from ..evaluation.study_defaults import DEFAULT_SEED, DEFAULT_SOLVERS
-from .common import add_common_options, execute, tool_parser
+from .common import add_common_options, execute, require_extra, tool_parser
 
 __all__ = ["HELP", "parser", "run", "main"]
 
@@ -70,6 +70,12 @@ def main(args: Sequence[str] | None = None) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Run the study; the exit status."""
+    from .bench import require_gwemopt
+
+    if getattr(args, "simulate", None) is not None:  # bayestar-inject / -realize-coincs: lalsuite, igwn-ligolw
+        require_extra("simulate")
+    require_extra("study")  # the task graph on Dask distributed
+    require_gwemopt(args)
     from ..evaluation.study import main as study_main
 
     return study_main(args)
