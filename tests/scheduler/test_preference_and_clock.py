@@ -66,3 +66,54 @@ def test_without_a_notice_the_map_clock_is_used_and_small_disagreements_are_quie
     near = merger_clock(sm.event_time + TimeDelta(CLOCK_TOLERANCE_S / 2, format="sec"), sm.event_time)
     assert near.source == "notice" and not caplog.records
     assert merger_clock(None, None).time is None
+
+
+# ---------------------------------------------------------------- issue 24 item 3, as a property
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_p = st.floats(0.0, 1.0, allow_nan=False)
+
+
+@settings(max_examples=400, deadline=None)
+@given(c=_p, e=_p, dc=_p, de=_p, margin=st.floats(0.0, 0.05), eps=st.floats(0.0, 0.1))
+def test_a_plan_with_as_many_detections_and_more_coverage_always_wins(c, e, dc, de, margin, eps) -> None:
+    """Never kept over one with as many expected detections and more coverage (by the margin)."""
+    c_new = min(1.0, c + margin + dc * (1.0 - c))
+    e_new = min(1.0, e + de * (1.0 - e))
+    if c_new - c < max(margin, 2e-9):
+        return  # not more coverage by the margin (the candidate hit 1.0)
+    for objective in ("detection", "coverage"):
+        assert is_preferred(c_new, e_new, c, e, margin, objective, coverage_floor=(1 - eps) * c)
+    assert not is_preferred(c, e, c_new, e_new, margin, "detection", coverage_floor=(1 - eps) * c_new) \
+        or e - e_new >= margin  # and the incumbent it beat never wins back unless it expects more
+
+
+def test_the_daemon_and_plan_supersede_rule_is_the_preference_rule() -> None:
+    """anytime.is_better (the daemon's supersede, plan --deadline) is is_preferred on the published metrics."""
+    import itertools
+
+    from mushrooms.scheduler_core.anytime import is_better
+    from mushrooms.scheduler_core.plan.document import Plan, PlanMetrics
+
+    def plan(c: float, e: float | None) -> Plan:
+        m = PlanMetrics(coverage=c, solver="greedy", status="greedy", mip_gap=None, mip_bound=None, runtime_s=0.0,
+                        n_fields=1, n_exposures=2, expected_detections=e)
+        return Plan(plan_id="mushrooms-0000000000000000", created="2026-01-01T00:00:00.000Z",
+                    event=EventInfo(skymap_sha256="0" * 64), start="2026-01-01T00:00:00.000Z",
+                    end="2026-01-02T00:00:00.000Z", observations=(), metrics=m, config={})
+
+    values = [(0.40, 0.0), (0.405, 0.0), (0.45, 0.0), (0.45, 0.02), (0.43, 0.03), (0.30, 0.2), (0.45, None)]
+    for (c1, e1), (c2, e2), objective in itertools.product(values, values, ("coverage", "detection")):
+        want = is_preferred(c2, e2, c1, e1, 0.005, objective, coverage_floor=0.98 * c1)
+        assert is_better(plan(c2, e2), plan(c1, e1), 0.005, objective, 0.02) == want, (c1, e1, c2, e2, objective)
+
+
+def test_a_map_header_time_out_of_range_is_no_clock_and_the_notice_decides(caplog) -> None:
+    caplog.set_level(logging.WARNING, logger="mushrooms.scheduler_core.clock")
+    far = Time("2500-01-01T00:00:00", scale="utc")
+    clock = merger_clock("2026-05-01T03:00:00Z", far, context="S9")
+    assert clock.source == "notice" and clock.disagreement_s is None
+    assert any("DATE-OBS" in r.getMessage() and "S9" in r.getMessage() for r in caplog.records)
+    assert merger_clock(None, far).time is None
