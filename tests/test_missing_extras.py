@@ -52,10 +52,15 @@ def test_study_without_distributed(maps, tmp_path, monkeypatch, capsys) -> None:
     assert not (tmp_path / "out").exists()  # refused before any work
 
 
+EVENTS = ROOT / "mushrooms" / "data" / "populations" / "bns_o3" / "events.xml.gz"
+
+
+@pytest.mark.parametrize("source", [["--simulate", "10"], ["--events", str(EVENTS)], []])
 @pytest.mark.parametrize("module", ["lal", "igwn_ligolw"])
-def test_study_simulate_without_lalsuite_or_ligolw(module, tmp_path, monkeypatch, capsys) -> None:
+def test_study_simulate_or_localise_without_lalsuite_or_ligolw(module, source, tmp_path, monkeypatch, capsys) -> None:
+    """--simulate, --events and the default (the packaged population) run bayestar-* tools: the 'simulate' extra."""
     monkeypatch.setitem(sys.modules, module, None)
-    rc = cli_main(["study", "--simulate", "10", "--out", str(tmp_path / "out"), "--cache", str(tmp_path / "c")])
+    rc = cli_main(["study", *source, "--out", str(tmp_path / "out"), "--cache", str(tmp_path / "c")])
     assert rc == 2
     assert _the_one_line(capsys, "study") == ("mushrooms study: error: needs the 'simulate' extra: "
                                               f"pip install 'mushrooms[simulate]' (No module named '{module}')")

@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the study; the exit status."""
     from .bench import require_gwemopt
 
-    if getattr(args, "simulate", None) is not None:  # bayestar-inject / -realize-coincs: lalsuite, igwn-ligolw
+    if not getattr(args, "maps", None):  # simulate and/or localise (bayestar-*): lalsuite, igwn-ligolw
         require_extra("simulate")
     require_extra("study")  # the task graph on Dask distributed
     require_gwemopt(args)
