@@ -479,6 +479,12 @@ class NoticePipeline:
                 raise
             log.warning("job superevent_id=%s job=%s: combined sky map unusable (%s); planning on the GW map",
                         job.superevent_id, job.job_id, exc)
+            try:  # the decision (taken on the headers) said "combined map": keep why the job did otherwise
+                self.store.record_incident("combined_map_unusable", {
+                    "superevent_id": job.superevent_id, "job_id": job.job_id, "notice_id": job.notice_id,
+                    "reason": f"combined sky map unusable ({exc}); planned on the GW map"})
+            except Exception as store_exc:
+                log.error("event=incident_not_stored kind=combined_map_unusable error=%r", str(store_exc))
             skymap_bytes, event = gw
             skymap = read_skymap(skymap_bytes, nside=sched.nside, max_bytes=self.config.policy.max_skymap_bytes)
         skymap, event = on_merger_clock(skymap, event)  # the kilonova's clock: the notice's merger time

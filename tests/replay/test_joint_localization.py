@@ -83,7 +83,11 @@ def test_a_corrupted_joint_map_falls_back_to_the_gw_map_with_one_logged_reason(s
     assert doc["event"]["external_coinc"]["observatory"] == "Fermi"  # the coincidence is still reported
     warnings = [r.getMessage() for r in caplog.records if "combined sky map unusable" in r.getMessage()]
     assert len(warnings) == 1 and "MS181101ab" in warnings[0]
-    assert "combined sky map unusable" in store.decisions()[0]["reason"]
+    # the decision is taken on the combined map's headers; the job decodes it, falls back and keeps why
+    [incident] = [r for r in store._conn().execute("SELECT kind, detail FROM incidents")]
+    assert incident[0] == "combined_map_unusable" and "combined sky map unusable" in incident[1]
+    assert json.loads(incident[1])["superevent_id"] == "MS181101ab"
+    assert [p["document"]["event"]["localization"] for p in store.plans("MS181101ab")] == ["gw"]
 
 
 def test_the_policy_can_plan_the_gw_map_only(store):
@@ -112,6 +116,8 @@ def test_a_state_file_of_schema_1_is_migrated_and_keeps_its_events(tmp_path):
     Store(path).close()
     conn = sqlite3.connect(path)  # turn it into a schema-1 file: no localization column
     conn.executescript("ALTER TABLE events DROP COLUMN localization;"
+                       "ALTER TABLE events DROP COLUMN latest_created;"  # schema 4
+                       "DROP TABLE submissions;"  # schema 3
                        "INSERT INTO events(superevent_id, skymap_sha256, retracted, updated_at)"
                        " VALUES ('S1', 'abc', 0, '2026-01-01T00:00:00');"
                        "PRAGMA user_version=1;")

@@ -20,7 +20,7 @@ import logging
 
 import numpy as np
 
-__all__ = ["usable_distance_layers", "with_usable_distances"]
+__all__ = ["usable_distance_layers"]
 
 log = logging.getLogger(__name__)
 
@@ -57,32 +57,3 @@ def usable_distance_layers(prob: np.ndarray, layers: dict[str, np.ndarray], name
         mu[~good], sigma[~good], norm[~good] = np.inf, 1.0, 0.0
     return {"DISTMU": mu, "DISTSIGMA": sigma, "DISTNORM": norm}
 
-
-def with_usable_distances(table, name: str):
-    """A multi-order table (UNIQ, PROBDENSITY, distance layers) with :func:`usable_distance_layers` applied.
-
-    Parameters
-    ----------
-    table : astropy.table.Table
-        ligo.skymap's multi-order table (PROBDENSITY; the density's sign is the
-        probability's) or a flat one (PROB).
-    name : str
-        The map's name, for the warning.
-
-    Returns
-    -------
-    astropy.table.Table
-        The same table, its distance columns cleaned or removed.
-    """
-    columns = ("DISTMU", "DISTSIGMA", "DISTNORM")
-    if not set(columns) <= set(table.colnames):
-        return table
-    weight = table["PROBDENSITY"] if "PROBDENSITY" in table.colnames else table["PROB"]
-    layers = usable_distance_layers(np.asarray(weight, float),
-                                    {c: np.asarray(table[c], float) for c in columns}, name)
-    if not layers:
-        table.remove_columns(list(columns))
-        return table
-    for c in columns:
-        table[c] = layers[c]
-    return table
