@@ -20,7 +20,8 @@ with the job's ``should_stop``.  Its
 plan goes out as revision 2 (``supersedes`` = revision 1, ``final: true``)
 only when it covers at least ``[daemon] supersede_min_gain`` more (with
 ``[scheduler] objective = "detection"``: when it expects at least that much
-more detections within the coverage floor,
+more detections within the coverage floor, or, the expected detections
+tying within that margin, covers that much more,
 :func:`~mushrooms.scheduler_core.anytime.is_better`);
 otherwise a small ``plan_final`` message (key ``<plan_id>-final``) says that
 revision 1 stands.  A newer sky map supersedes the job in the store at
@@ -454,6 +455,7 @@ class NoticePipeline:
     def _first_plan(self, job: Job, should_stop: Callable[[], bool] | None) -> "_Work | Outcome":
         from ..scheduler_core import not_observable, read_skymap
         from ..scheduler_core.anytime import FIRST_SOLVER, checked_plan
+        from ..scheduler_core.clock import on_merger_clock
         from ..scheduler_core.plan.document import parse_time
 
         def stage(name: str) -> None:
@@ -485,6 +487,7 @@ class NoticePipeline:
                 log.error("event=incident_not_stored kind=combined_map_unusable error=%r", str(store_exc))
             skymap_bytes, event = gw
             skymap = read_skymap(skymap_bytes, nside=sched.nside, max_bytes=self.config.policy.max_skymap_bytes)
+        skymap, event = on_merger_clock(skymap, event)  # the kilonova's clock: the notice's merger time
         lap("read")
         stage("preparing the problem")
         start = parse_time(job.start)
@@ -576,7 +579,8 @@ class NoticePipeline:
                 why = (f"{solver} expects {e_new:.4f} detections against {e_old:.4f} (coverage "
                        f"{better.metrics.coverage:.4f} against {first.metrics.coverage:.4f}): not "
                        f"supersede_min_gain {gain:g} more within the coverage floor "
-                       f"(detection_max_coverage_loss {sched.detection_max_coverage_loss:g})")
+                       f"(detection_max_coverage_loss {sched.detection_max_coverage_loss:g}), nor a tie "
+                       f"on detections with that much more coverage")
         return self._close_with_first(work, why)
 
     def _publish_revision(self, work: "_Work", plan: Any, revision: int, final: bool) -> Outcome:
@@ -648,7 +652,8 @@ class NoticePipeline:
         return skymap_bytes, EventInfo(superevent_id=alert.superevent_id, alert_type=alert.alert_type,
                                        time_created=iso_z(alert.time_created),
                                        skymap_sha256=hashlib.sha256(skymap_bytes).hexdigest(), localization=kind,
-                                       external_coinc=coincidence_summary(alert.external_coinc))
+                                       external_coinc=coincidence_summary(alert.external_coinc),
+                                       event_time=iso_z(alert.event.time))  # the merger clock (issue 24)
 
     def _gw_fallback(self, job: Job, event: Any) -> tuple[bytes, Any] | None:
         """The notice's GW map (and event) when the job's map was its joint map; else None."""

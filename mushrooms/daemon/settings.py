@@ -68,8 +68,11 @@ class DaemonConfig:
         "detection"`` the margin applies to ``metrics.expected_detections``
         instead (the probability of detecting the kilonova, also 0-1),
         and revision 2 must also respect the coverage floor
-        ``detection_max_coverage_loss`` against revision 1
-        (:func:`~mushrooms.scheduler_core.anytime.is_better`).
+        ``detection_max_coverage_loss`` against revision 1; when the
+        expected detections tie within the margin (both ~0 for a source
+        too far for the light curve) coverage decides by the margin
+        (rules R1-R3 of ``docs/design/detection.md``,
+        :func:`~mushrooms.scheduler_core.anytime.is_better`).
     group_readable : bool
         Create the state file 0640 and the service's directories 0750
         (readable by the service's group, e.g. for backups or monitoring)

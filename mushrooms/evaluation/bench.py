@@ -4,7 +4,10 @@ For each sky map (``*.fits``, ``*.fits.gz`` found recursively) the problem is
 prepared once (same horizon, fields, footprints and windows for every
 solver), each requested scheduler runs (``greedy``, ``slots``, ``blocks``
 (alias ``milp``), ``hybrid`` through
-:func:`~mushrooms.scheduler_core.planner.run_scheduler`; ``gwemopt`` through
+:func:`~mushrooms.scheduler_core.planner.optimise`, exactly as ``make_plan``
+publishes under the configuration given, its ``objective`` included;
+``<solver>-coverage`` / ``<solver>-detection`` force one objective, and the
+CSV column ``objective`` says which each row used; ``gwemopt`` through
 :mod:`~mushrooms.evaluation.gwemopt_baseline`, and ``gwemopt-repaired``:
 the same gwemopt schedule with every rule-breaking exposure removed by
 :func:`~mushrooms.evaluation.gwemopt_baseline.repair_observations`), every plan goes
@@ -50,6 +53,7 @@ from ..scheduler_core.ranges import Range, check_table, check_value, setting
 __all__ = [
     "COLUMNS",
     "SOLVERS",
+    "row_solver",
     "BenchSettings",
     "find_skymaps",
     "bench_map",
@@ -64,12 +68,17 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 SOLVERS = ("greedy", "slots", "blocks", "hybrid", "milp", "gwemopt", "gwemopt-repaired")
-#: Solvers run through run_scheduler (the others are gwemopt's rows).
+#: Our schedulers (the others are gwemopt's rows).
 OURS = ("greedy", "slots", "blocks", "hybrid", "milp")
-#: ``<solver>+detection``: the whole optimisation with ``objective = "detection"`` (:func:`optimise`:
-#: that solver with ``time_limit_s - detection_time_limit_s``, then the detection stage with the rest
-#: and its coverage floor); plain ``<solver>`` rows always use the coverage objective.
-DETECTION_SUFFIX = "+detection"
+#: Row names of our schedulers: a plain ``<solver>`` row is what ``make_plan`` publishes under the
+#: configuration given (:func:`~mushrooms.scheduler_core.planner.optimise`, ``config.objective``
+#: included: under the default ``objective = "detection"`` the scheduler, then the detection stage);
+#: ``<solver>-coverage`` and ``<solver>-detection`` force that objective (``-detection`` rows get
+#: ``detection_extra_s``).  ``greedy`` is a coverage heuristic under either objective.
+OBJECTIVE_SUFFIXES = {"-coverage": "coverage", "-detection": "detection"}
+#: What the rows mean; part of the study's result keys, so rows made under older names are not reused
+#: (1: plain rows were the coverage scheduler whatever the objective; 2: issue 24).
+ROW_NAMES_VERSION = 2
 
 #: CSV columns, in order (the first nine are the issue's required ones).
 COLUMNS = (
@@ -81,6 +90,7 @@ COLUMNS = (
     "bound", "coverage_over_bound",
     "expected_detections",
     "detection_stage",
+    "objective",
 )
 
 #: Coverage differences at or below this count as a tie (absolute probability).
@@ -134,12 +144,12 @@ class BenchSettings:
         Paired efficiency differences are against this solver (default: the
         first of ``solvers``).
     detection_extra_s : float
-        Budget added for ``<solver>+detection`` rows (s): 0 = they run the
+        Budget added for ``<solver>-detection`` rows (s): 0 = they run the
         configuration as it is (``time_limit_s`` split between the coverage
         scheduler and the detection stage); > 0 = they run it with
         ``time_limit_s`` raised by this much and ``detection_time_limit_s``
-        set to it, so the coverage scheduler keeps the plain rows' budget
-        (the deployment ``time_limit_s = 10 + extra``).
+        set to it, so the coverage scheduler keeps the ``-coverage`` rows'
+        whole budget.  Plain rows never get it (they are what is published).
     """
 
     config: Any
@@ -194,6 +204,23 @@ def skymaps_in(directory: str | Path) -> list[Path]:
 
 
 # --------------------------------------------------------------------------- per map
+
+
+def row_solver(name: str) -> tuple[str, str | None]:
+    """``(scheduler, objective)`` of a row name: ``hybrid-coverage`` -> ``("hybrid", "coverage")``.
+
+    The objective is None for a plain name (the configuration's) and for
+    gwemopt's rows.
+    """
+    for suffix, objective in OBJECTIVE_SUFFIXES.items():
+        if name.endswith(suffix) and name[:-len(suffix)] in OURS:
+            return name[:-len(suffix)], objective
+    return name, None
+
+
+def is_row_name(name: str) -> bool:
+    """A solver name ``mushrooms bench --solvers`` accepts."""
+    return name in SOLVERS or row_solver(name)[1] is not None
 
 
 def _row(skymap: str, solver: str, **values: Any) -> dict[str, Any]:
@@ -304,7 +331,7 @@ def bench_map(path: str | Path, settings: BenchSettings, raise_errors: bool = Fa
     from .gwemopt_baseline import gwemopt_plan, repair_observations, run_gwemopt
     from ..scheduler_core.source.lightcurves import load_lightcurve
     from ..scheduler_core.plan.document import parse_time
-    from ..scheduler_core.planner import optimise, run_scheduler
+    from ..scheduler_core.planner import optimise
     from ..scheduler_core.prepare import prepare_problem
     from ..scheduler_core.sky.skymap import read_skymap
 
@@ -393,42 +420,41 @@ def bench_map(path: str | Path, settings: BenchSettings, raise_errors: bool = Fa
                 scores, hits[solver] = _score(plan, skymap, settings, footprints, injections, lightcurves, merger)
                 scores = with_bound(scores)
                 rows.append(_row(name, solver, status=run.status, runtime_s=_fmt(run.runtime_s, 3),
-                                 solve_s=_fmt(run.runtime_s, 3), solver_detail=detail,
+                                 solve_s=_fmt(run.runtime_s, 3), solver_detail=detail, objective="coverage",
                                  note="; ".join(filter(None, [note, extra_note])), **scores, **common))
                 continue
             if problem is None:
                 rows.append(_row(name, solver, status=prep_error or "prepare_error", valid=False, note=note, **common))
                 continue
-            base, _, objective = solver.partition(DETECTION_SUFFIX[0])
+            base, forced = row_solver(solver)
+            rcfg = cfg if forced is None else dataclasses.replace(cfg, objective=forced)
+            if forced == "detection" and settings.detection_extra_s > 0:
+                rcfg = dataclasses.replace(rcfg, time_limit_s=cfg.time_limit_s + settings.detection_extra_s,
+                                           detection_time_limit_s=settings.detection_extra_s)
+            objective = "coverage" if base == "greedy" else rcfg.objective
+            planned = problem if rcfg == cfg else dataclasses.replace(problem, config=rcfg)
             t0 = time.perf_counter()
-            try:
-                if objective:  # the detection objective's whole optimisation, as make_plan runs it
-                    extra = settings.detection_extra_s
-                    dcfg = dataclasses.replace(cfg, objective="detection") if extra <= 0 else dataclasses.replace(
-                        cfg, objective="detection", time_limit_s=cfg.time_limit_s + extra,
-                        detection_time_limit_s=extra)
-                    detecting = dataclasses.replace(problem, config=dcfg)
-                    result = optimise(detecting, skymap, base)
-                else:
-                    result = run_scheduler(problem, solver)
+            try:  # the whole optimisation of make_plan (the scheduler, then the detection stage if asked)
+                result = optimise(planned, skymap, base)
                 solve_s = time.perf_counter() - t0
             except ImportError as exc:
                 rows.append(_row(name, solver, status="unavailable", valid=False, note=f"{exc}", **common))
                 continue
             stage = ""
-            if objective:
+            if objective == "detection":
                 d = result.details
                 solved = [g for g in d.get("detection_grids", []) if "expected_detections" in g]
                 stage = (f"{d.get('detection_choice')}; budget {d.get('detection_budget_s')} s, "
                          f"took {d.get('detection_runtime_s')} s; {len(solved)} grid(s) solved, "
                          f"{sum(not g['above_floor'] for g in solved)} below the floor")
-            plan = _plan_from_result(result, problem, skymap, base)
+            plan = _plan_from_result(result, planned, skymap, base)
             scores, hits[solver] = _score(plan, skymap, settings, footprints, injections, lightcurves, merger)
             scores = with_bound(scores)
             rows.append(_row(
                 name, solver, status=result.status, mip_gap=_fmt(result.mip_gap),
                 runtime_s=_fmt(prepare_s + solve_s, 3), prepare_s=_fmt(prepare_s, 3), solve_s=_fmt(solve_s, 3),
-                solver_detail=result.solver, note=note, detection_stage=stage, **scores, **common))
+                solver_detail=result.solver, note=note, detection_stage=stage, objective=objective,
+                **scores, **common))
         except Exception as exc:  # one broken solver must not stop the benchmark
             if raise_errors:
                 raise
@@ -547,7 +573,7 @@ def read_csv(path: str | Path) -> list[dict[str, Any]]:
                 if k == "valid":
                     row[k] = v == "True"
                 elif k in ("skymap", "solver", "status", "solver_detail", "first_problem", "start", "note",
-                           "distance_source"):
+                           "distance_source", "objective", "detection_stage"):
                     row[k] = v
                 else:
                     try:
@@ -610,6 +636,12 @@ def _wins(rows: Iterable[Mapping[str, Any]], solver: str, other: str, key: str, 
         else:
             t += 1
     return w, l, t
+
+
+def _objective_of(rows: Sequence[Mapping[str, Any]]) -> str:
+    """The objective column of a summary line: the rows' one objective, ``mixed``, or ``-`` (older CSVs)."""
+    found = sorted({str(r.get("objective") or "") for r in rows} - {""})
+    return found[0] if len(found) == 1 else ("mixed" if found else "-")
 
 
 def _stat(values: list[float], fn: Any) -> str:
@@ -691,7 +723,7 @@ def summarize(rows: Sequence[Mapping[str, Any]],
     n_maps = len(_by_map(rows))
     lines = [f"maps: {n_maps}; coverage = probability in the planned fields (checker); "
              f"efficiency = detected/injected; times in s (wall clock)"]
-    head = (f"{'solver':<20}{'n':>4}{'valid':>6}{'cov mean':>10}{'cov med':>9}"
+    head = (f"{'solver':<20}{'objective':<10}{'n':>4}{'valid':>6}{'cov mean':>10}{'cov med':>9}"
             + "".join(f"{'eff ' + k[:4] + ' mean':>15}" for k in eff_keys)
             + f"{'n_exp mean':>11}{'time med':>10}{'time mean':>10}{'cov/bound':>10}{'c/b med':>9}")
     lines += [head, "-" * len(head)]
@@ -707,7 +739,7 @@ def summarize(rows: Sequence[Mapping[str, Any]],
         valid = sum(1 for r in rs if r.get("valid") in (True, "True"))
         cb = [x for x in (_num(r.get("coverage_over_bound")) for r in rs) if x is not None]
         lines.append(
-            f"{s:<20}{len(rs):>4}{valid:>6}{_stat(cov, np.mean):>10}{_stat(cov, np.median):>9}"
+            f"{s:<20}{_objective_of(rs):<10}{len(rs):>4}{valid:>6}{_stat(cov, np.mean):>10}{_stat(cov, np.median):>9}"
             + "".join(f"{_stat(e, np.mean):>15}" for e in effs)
             + f"{_stat(nexp, np.mean)[:-2] if nexp else '-':>11}{_stat(rt, np.median)[:-2] if rt else '-':>10}"
             + f"{_stat(rt, np.mean)[:-2] if rt else '-':>10}"
@@ -856,11 +888,10 @@ def _load_settings(args: Any) -> BenchSettings:
     else:
         config = Config().scheduler
     solvers = tuple(s.strip() for s in str(args.solvers).split(",") if s.strip())
-    bad = [s for s in solvers if s not in SOLVERS and not (
-        s.endswith(DETECTION_SUFFIX) and s[:-len(DETECTION_SUFFIX)] in OURS)]
+    bad = [s for s in solvers if not is_row_name(s)]
     if bad or not solvers:
         raise InputError(f"unknown solver(s) {', '.join(bad) or '(none)'}; choose from {', '.join(SOLVERS)} "
-                         f"(ours also as <solver>{DETECTION_SUFFIX})")
+                         f"(ours also as <solver>{' or <solver>'.join(OBJECTIVE_SUFFIXES)})")
     if args.injections < 1:
         raise InputError(f"--injections must be >= 1, got {args.injections}")
     if getattr(args, "jobs", 1) < 1:
@@ -888,12 +919,13 @@ def main(args: Any) -> int:
     """
     settings = _load_settings(args)
     paths = skymaps_in(args.skymap_dir)
-    if "gwemopt" in settings.solvers:
+    if {"gwemopt", "gwemopt-repaired"} & set(settings.solvers):
         from .gwemopt_baseline import ENV_PYTHON, gwemopt_python
 
-        if gwemopt_python(settings.gwemopt_python) is None:
-            print(f"mushrooms bench: gwemopt unavailable (set ${ENV_PYTHON} to its interpreter); "
-                  "its rows will say 'unavailable'", file=sys.stderr)
+        if gwemopt_python(settings.gwemopt_python) is None:  # (mushrooms.tool.bench refuses it without a cache)
+            print(f"mushrooms bench: gwemopt unavailable (pip install 'mushrooms[gwemopt]', or set ${ENV_PYTHON} "
+                  f"to its interpreter); its rows will say 'unavailable' where the cache "
+                  f"{settings.gwemopt_cache_dir} has no schedule", file=sys.stderr)
     t0 = time.perf_counter()
     rows = run_bench(paths, settings, jobs=args.jobs, output=args.output,
                      progress=os.environ.get("MUSHROOMS_PROGRESS", "1") != "0")

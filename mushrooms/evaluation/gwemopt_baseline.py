@@ -93,11 +93,18 @@ class GwemoptRun:
 
 
 def gwemopt_python(explicit: str | None = None) -> str | None:
-    """The gwemopt interpreter: ``explicit``, else ``$MUSHROOMS_GWEMOPT_PYTHON``, else None."""
+    """The gwemopt interpreter: ``explicit``, else ``$MUSHROOMS_GWEMOPT_PYTHON``, else this one when
+    gwemopt imports here (``pip install 'mushrooms[gwemopt]'``), else None."""
     path = explicit or os.environ.get(ENV_PYTHON)
-    if not path:
-        return None
-    return path if Path(path).exists() else None
+    if path:
+        return path if Path(path).exists() else None
+    import importlib.util
+
+    try:
+        found = importlib.util.find_spec("gwemopt") is not None
+    except (ImportError, ValueError):
+        found = False
+    return sys.executable if found else None
 
 
 def gwemopt_args(skymap_path: str | Path, start: Time, config: PlanningConfig, outdir: str | Path) -> list[str]:
@@ -270,7 +277,7 @@ def run_gwemopt(
             return GwemoptRun("not_cached", (), 0.0, f"not in the gwemopt cache {cache_dir}")
     exe = gwemopt_python(python)
     if exe is None:
-        return GwemoptRun("unavailable", (), 0.0, f"no gwemopt interpreter (set ${ENV_PYTHON})")
+        return GwemoptRun("unavailable", (), 0.0, f"no gwemopt interpreter (pip install 'mushrooms[gwemopt]', or set ${ENV_PYTHON})")
     with tempfile.TemporaryDirectory(prefix="gwemopt-") as tmp:
         out = Path(workdir) if workdir is not None else Path(tmp) / "out"
         cmd = [exe, "-c", _LAUNCHER, *gwemopt_args(skymap_path, start, config, out)]

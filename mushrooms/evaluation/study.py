@@ -636,6 +636,7 @@ def study_config(settings: bench.BenchSettings) -> dict[str, Any]:
     d = dataclasses.asdict(settings)
     d.pop("solvers")
     d["config"] = dataclasses.asdict(settings.config)
+    d["row_names"] = bench.ROW_NAMES_VERSION  # a row named after a solver changed meaning (issue 24)
     return json.loads(json.dumps(d, sort_keys=True, default=str))
 
 
@@ -870,7 +871,7 @@ def _pair(solvers: Sequence[str]) -> tuple[str | None, str | None]:
 
 def _table(rows: Sequence[Mapping[str, Any]], names: Sequence[str], baselines: Sequence[str],
            eff_keys: Sequence[str]) -> list[str]:
-    head = ["solver", "maps", "coverage"] + [f"eff. {k}" for k in eff_keys] + ["n_exp", "cov/bound"]
+    head = ["solver", "objective", "maps", "coverage"] + [f"eff. {k}" for k in eff_keys] + ["n_exp", "cov/bound"]
     head += [f"vs {b}: cov W/L/T" for b in baselines] + [f"vs {b}: eff. {k[:4]} W/L/T" for b in baselines
                                                           for k in eff_keys]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -881,7 +882,7 @@ def _table(rows: Sequence[Mapping[str, Any]], names: Sequence[str], baselines: S
             xs = [x for x in (bench._num(r.get(key)) for r in rs) if x is not None]
             return f"{sum(xs) / len(xs):.{digits}f}" if xs else "-"
 
-        cells = [s, str(len(rs)), mean("coverage")] + [mean(f"efficiency_{k}") for k in eff_keys]
+        cells = [s, bench._objective_of(rs), str(len(rs)), mean("coverage")] + [mean(f"efficiency_{k}") for k in eff_keys]
         cells += [mean("n_exposures", 1), mean("coverage_over_bound")]
         for b in baselines:
             cells.append("-" if b == s else "%d/%d/%d" % bench._wins(rows, s, b, "coverage", bench.TIE_COVERAGE))

@@ -18,6 +18,7 @@ from .plan.checker import check_plan
 from .errors import PlanCheckError
 from .plan.document import EventInfo, Plan
 from .planner import build_plan, optimise, run_scheduler
+from .preference import is_preferred
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .sky.skymap import SkyMap
 
@@ -48,16 +49,17 @@ def checked_plan(problem: PlanningProblem, result: ScheduleResult, skymap: SkyMa
 
 def is_better(candidate: Plan, incumbent: Plan, min_gain: float, objective: str = "coverage",
               max_coverage_loss: float = 0.0) -> bool:
-    """True when ``candidate`` is better than ``incumbent`` by at least ``min_gain`` in what ``objective`` optimises.
+    """True when ``candidate`` is better than ``incumbent`` by the rule R1-R3 (:mod:`.preference`).
 
-    ``coverage``: the candidate covers more by at least ``min_gain``.
-    ``detection`` (both plans with ``metrics.expected_detections``): the
-    candidate has more expected detections by at least ``min_gain`` (the
-    probability of detecting the kilonova, 0 to 1, the same units as
-    coverage) and covers at least ``(1 - max_coverage_loss)`` of the
-    incumbent's coverage (the floor X6); more coverage alone does not
-    count.  Without expected detections on either plan (no distance
-    layers) the coverage rule applies.
+    ``coverage`` (or no expected detections on either plan: no distance
+    layers): the candidate covers more by at least ``min_gain``.
+    ``detection``: the candidate has more expected detections by at least
+    ``min_gain`` (the probability of detecting the kilonova, 0 to 1, the
+    same units as coverage) and covers at least ``(1 - max_coverage_loss)``
+    of the incumbent's coverage (the floor X6); when the expected
+    detections differ by less than ``min_gain`` (a tie, e.g. both ~0: a
+    source too far for the light curve), coverage decides as for
+    ``coverage``.
 
     Parameters
     ----------
@@ -70,13 +72,10 @@ def is_better(candidate: Plan, incumbent: Plan, min_gain: float, objective: str 
     max_coverage_loss : float
         ε of the coverage floor (``config.detection_max_coverage_loss``), relative.
     """
-    e_new, e_old = candidate.metrics.expected_detections, incumbent.metrics.expected_detections
-    if objective != "detection" or e_new is None or e_old is None:
-        gain = float(candidate.metrics.coverage) - float(incumbent.metrics.coverage)
-        return gain > 0 and gain >= min_gain
-    gain = float(e_new) - float(e_old)
-    above_floor = float(candidate.metrics.coverage) >= (1.0 - max_coverage_loss) * float(incumbent.metrics.coverage)
-    return gain > 0 and gain >= min_gain and above_floor
+    c_old = float(incumbent.metrics.coverage)
+    return is_preferred(float(candidate.metrics.coverage), candidate.metrics.expected_detections, c_old,
+                        incumbent.metrics.expected_detections, min_gain, objective,
+                        coverage_floor=(1.0 - max_coverage_loss) * c_old)
 
 
 def anytime_plans(problem: PlanningProblem, skymap: SkyMap, solver: str, event: EventInfo | None = None,

@@ -19,6 +19,7 @@ from .errors import InputError, PlanCheckError
 from .schedulers.gain import drop_low_gain, published_coverage
 from .schedulers.greedy import greedy_schedule
 from .plan.document import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
+from .clock import on_merger_clock
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .sky.skymap import SkyMap
@@ -180,12 +181,14 @@ def make_plan(
     config : PlanningConfig
         Planning parameters.
     start : astropy.time.Time, optional
-        Horizon start; defaults to the sky map's event time.
+        Horizon start; defaults to the merger time.
     solver : str, optional
         ``greedy``, ``slots``, ``blocks`` (alias ``milp``) or ``hybrid``;
         defaults to ``config.solver``.
     event : EventInfo, optional
-        The alert being answered (goes into the plan document).
+        The alert being answered (goes into the plan document); its
+        ``event_time`` (the notice's merger time) is the kilonova's clock,
+        else the sky map's header (:func:`~.clock.on_merger_clock`).
     supersedes : str, optional
         plan_id of the plan this one replaces.
     should_stop : callable, optional
@@ -208,12 +211,12 @@ def make_plan(
     solver = solver or config.solver
     if solver not in SOLVERS:
         raise InputError(f"unknown solver {solver!r}; choose one of {', '.join(SOLVERS)}")
+    skymap, event = on_merger_clock(skymap, event)  # the notice's merger time, else the map's
     if start is None:
         if skymap.event_time is None:
             raise InputError("the sky map has no event time (DATE-OBS); give a start time")
         start = skymap.event_time
     start = Time(start, scale="utc")
-    event = event or EventInfo(skymap_sha256=skymap.sha256)
     problem = prepare_problem(skymap, config, start)
     t_prep = time.perf_counter() - t0
     result = optimise(problem, skymap, solver, should_stop)
@@ -273,7 +276,8 @@ def build_plan(
     if result.details["dropped_low_gain"]:
         log.info("least gain %.2g: dropped %d field(s) adding less", config.min_gain,
                  len(result.details["dropped_low_gain"]))
-    event = _with_map_details(event or EventInfo(skymap_sha256=skymap.sha256), skymap)
+    skymap, event = on_merger_clock(skymap, event)  # the same clock for the document and its detections
+    event = _with_map_details(event, skymap)
     observations = _with_airmass_and_probability(sorted_observations(result.observations), problem)
     ids = {o.field_id for o in observations}
     bound = result.details.get("bound", result.details.get("milp_bound"))
@@ -307,13 +311,9 @@ def build_plan(
 
 
 def _with_map_details(event: EventInfo, skymap: SkyMap) -> EventInfo:
-    """The event with the merger time and sky-map name filled in from the map."""
+    """The event with the sky-map name filled in from the map."""
     name = None if skymap.source.startswith("<") else Path(skymap.source).name
-    return dataclasses.replace(
-        event,
-        event_time=event.event_time or (iso_utc(skymap.event_time) if skymap.event_time is not None else None),
-        skymap_name=event.skymap_name or name,
-    )
+    return dataclasses.replace(event, skymap_name=event.skymap_name or name)
 
 
 def _with_airmass_and_probability(observations: tuple[Observation, ...],

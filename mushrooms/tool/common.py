@@ -4,17 +4,24 @@ Bad input (:class:`~mushrooms.scheduler_core.errors.InputError`,
 :class:`~mushrooms.config.ConfigError`) is answered by one line on stderr and
 exit status 2; an internal fault by one line and status 70 unless
 ``--debug``.
+
+A missing optional extra (``pyproject.toml``'s ``[project.optional-dependencies]``:
+``study``, ``simulate``, ``gwemopt``) is bad input too: one line naming the
+extra to install, status 2 (:class:`MissingExtra`, :func:`require_extra`;
+an import of one of :data:`OPTIONAL_MODULES` failing anywhere in a command
+is answered the same way).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import logging
 import sys
-from typing import Callable
+from typing import Callable, Sequence
 
-__all__ = ["SOLVER_CHOICES", "EXIT_INPUT", "EXIT_INTERNAL", "add_common_options", "tool_parser",
-           "quiet_time_warnings", "execute"]
+__all__ = ["SOLVER_CHOICES", "EXIT_INPUT", "EXIT_INTERNAL", "OPTIONAL_MODULES", "MissingExtra", "require_extra",
+           "missing_extra", "add_common_options", "tool_parser", "quiet_time_warnings", "execute"]
 
 #: ``--solver`` names (scheduler_core.config.SOLVER_NAMES, kept here so ``--help`` imports nothing heavy;
 #: tests/test_cli.py keeps the two equal).
@@ -25,6 +32,60 @@ EXIT_INTERNAL = 70
 
 SOLVER_HELP = ("scheduler: greedy | slots | blocks (the paper's block MILP; milp = blocks) | hybrid "
                "(default from config: hybrid)")
+
+
+#: Top-level modules of the optional extras -> the extra that brings them (pyproject.toml).
+OPTIONAL_MODULES = {
+    "distributed": "study", "dask": "study",  # mushrooms study: the task graph
+    "lal": "simulate", "lalsimulation": "simulate", "igwn_ligolw": "simulate",  # study --simulate, localisation
+    "gwemopt": "gwemopt",  # the gwemopt baseline rows of bench / study
+}
+
+
+class MissingExtra(Exception):
+    """An optional extra a command needs is not installed; ``str()`` is the one line to print.
+
+    Parameters
+    ----------
+    extra : str
+        The extra (``study``, ``simulate``, ``gwemopt``).
+    detail : str
+        What failed (``No module named 'distributed'``).
+    hint : str
+        Anything else to do (gwemopt: its interpreter).
+    """
+
+    def __init__(self, extra: str, detail: str, hint: str = "") -> None:
+        self.extra, self.detail, self.hint = extra, detail, hint
+        super().__init__(f"needs the '{extra}' extra: pip install 'mushrooms[{extra}]'{hint} ({detail})")
+
+
+def _import_detail(exc: ImportError) -> str:
+    name = getattr(exc, "name", None)
+    return f"No module named {name!r}" if isinstance(exc, ModuleNotFoundError) and name else str(exc)
+
+
+def missing_extra(exc: BaseException) -> MissingExtra | None:
+    """The :class:`MissingExtra` behind a failed import of an optional module, else None."""
+    if not isinstance(exc, ImportError):
+        return None
+    name = (getattr(exc, "name", None) or "").split(".")[0]
+    extra = OPTIONAL_MODULES.get(name)
+    return MissingExtra(extra, _import_detail(exc)) if extra else None
+
+
+def require_extra(extra: str, modules: Sequence[str] | None = None) -> None:
+    """Import ``modules`` (default: every module of ``extra``); :class:`MissingExtra` on the first failing.
+
+    Called by a command before it starts work, so that a missing extra is
+    one line and exit status 2 at once, not an error hours later.
+    """
+    names = list(modules) if modules is not None else [m for m, e in OPTIONAL_MODULES.items() if e == extra]
+    for module in names:
+        try:
+            importlib.import_module(module)
+        except ImportError as exc:
+            raise MissingExtra(extra, _import_detail(exc)) from None
 
 
 def add_common_options(sp: argparse.ArgumentParser) -> None:
@@ -81,13 +142,16 @@ def execute(name: str, args: argparse.Namespace, run: Callable[[argparse.Namespa
             args.config, args.config_explicit = (str(path) if path else None), bool(given)
             logging.getLogger("mushrooms.config").info("config: %s (%s)", path or "embedded defaults", why)
         return int(run(args) or 0)
-    except (InputError, ConfigError) as exc:
+    except (InputError, ConfigError, MissingExtra) as exc:
         print(f"mushrooms {name}: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
     except KeyboardInterrupt:
         print(f"mushrooms {name}: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # an internal fault: still one line unless --debug
+        if (extra := missing_extra(exc)) is not None:  # an optional package imported deep inside the command
+            print(f"mushrooms {name}: error: {extra}", file=sys.stderr)
+            return EXIT_INPUT
         if debug:
             raise
         print(f"mushrooms {name}: internal error: {type(exc).__name__}: {exc} (rerun with --debug)",

@@ -7,7 +7,7 @@ import sys
 from typing import Sequence
 
 from ..evaluation.study_defaults import DEFAULT_SEED, DEFAULT_SOLVERS
-from .common import add_common_options, execute, tool_parser
+from .common import add_common_options, execute, require_extra, tool_parser
 
 __all__ = ["HELP", "parser", "run", "main"]
 
@@ -46,8 +46,9 @@ def add_arguments(sp: argparse.ArgumentParser) -> None:
                     help="with --simulate: stop after the simulation (print its events files)")
     sp.add_argument("--limit", type=int, metavar="N", help="only the first N coincidences / maps")
     sp.add_argument("--solvers", default=",".join(DEFAULT_SOLVERS),
-                    help="comma list of greedy,slots,blocks,hybrid,milp,gwemopt,gwemopt-repaired "
-                         "(default %(default)s)")
+                    help="comma list of greedy,slots,blocks,hybrid,milp,gwemopt,gwemopt-repaired; ours as "
+                         "published under the config's objective, or forced with -coverage / -detection "
+                         "(hybrid-coverage) (default %(default)s)")
     sp.add_argument("--injections", type=int, default=10000, metavar="N", help="kilonova injections per map")
     sp.add_argument("--start", metavar="ISO_UTC", help="one start time for every map (default: each map's event time)")
     where = sp.add_mutually_exclusive_group()
@@ -69,6 +70,12 @@ def main(args: Sequence[str] | None = None) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Run the study; the exit status."""
+    from .bench import require_gwemopt
+
+    if not getattr(args, "maps", None):  # simulate and/or localise (bayestar-*): lalsuite, igwn-ligolw
+        require_extra("simulate")
+    require_extra("study")  # the task graph on Dask distributed
+    require_gwemopt(args)
     from ..evaluation.study import main as study_main
 
     return study_main(args)

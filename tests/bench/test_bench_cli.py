@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import shutil
+import sys
 
 import pytest
 from astropy.time import Time
@@ -24,10 +25,13 @@ def test_bench_csv_on_one_small_map_with_greedy(tmp_path, data_dir, monkeypatch,
     shutil.copy(data_dir / "skymaps" / "S200129m_cWB_RING.fits.gz", maps)  # no distance layers
     (maps / "notes.txt").write_text("not a sky map")
     monkeypatch.delenv("MUSHROOMS_GWEMOPT_PYTHON", raising=False)
+    monkeypatch.setitem(sys.modules, "gwemopt", None)  # no gwemopt here: its rows come from the (empty) cache
     monkeypatch.setenv("MUSHROOMS_PROGRESS", "0")
+    config = tmp_path / "bench.toml"
+    config.write_text(f'[bench]\ngwemopt_cache_dir = "{tmp_path / "gwemopt-cache"}"\n')
     out = tmp_path / "results.csv"
     rc = cli_main(["bench", str(maps), "--solvers", "greedy,gwemopt", "--injections", "2000",
-                   "-o", str(out), "--plots", str(tmp_path / "plots")])
+                   "-o", str(out), "--plots", str(tmp_path / "plots"), "--config", str(config)])
     assert rc == 0
     with open(out, newline="") as fh:
         header = next(csv.reader(fh))

@@ -79,7 +79,7 @@ def test_cluster_matches_serial_bench_and_rerun_skips_finished_work(tmp_path, da
     assert study._digest(other) != records[0]["config_hash"]
 
     text = study.paper_tables(again.rows)
-    assert "| greedy | 3 |" in text and "Similar-length" not in text  # one solver: no pair to compare
+    assert "| greedy | coverage | 3 |" in text and "Similar-length" not in text  # one solver: no pair to compare
     figs = study.make_figures(again.rows, tmp_path / "figs")
     assert [p.name for p in figs] == ["solve_time_hist.png"]  # nothing to compare with one solver
 
@@ -117,11 +117,11 @@ def test_paper_tables_and_figures_on_two_solvers(tmp_path) -> None:
     text = study.paper_tables(rows, ("optimistic", "conservative"))
     lines = text.splitlines()
     hybrid_all = next(x for x in lines if x.startswith("| hybrid |"))
-    assert "| hybrid | 3 | 0.4333 | 0.2167 | 0.1083 |" in hybrid_all and "| 1/1/1 |" in hybrid_all
+    assert "| hybrid | - | 3 | 0.4333 | 0.2167 | 0.1083 |" in hybrid_all and "| 1/1/1 |" in hybrid_all
     best = [x for x in lines if x.startswith("| best(hybrid,greedy) |")]
-    assert best[0].startswith("| best(hybrid,greedy) | 3 | 0.4667 |")  # per map the plan with more coverage
+    assert best[0].startswith("| best(hybrid,greedy) | - | 3 | 0.4667 |")  # per map the plan with more coverage
     assert "Similar-length subset (2 of 3 maps" in text
-    assert best[1].startswith("| best(hybrid,greedy) | 2 | 0.5500 |")
+    assert best[1].startswith("| best(hybrid,greedy) | - | 2 | 0.5500 |")
     figs = study.make_figures(rows, tmp_path)
     names = sorted(p.relative_to(tmp_path).as_posix() for p in figs)
     assert names == ["area_hist_similar_length.png", "coverage_scatter.png", "efficiency_vs_area.png",

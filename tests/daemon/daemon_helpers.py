@@ -53,6 +53,65 @@ def notice_bytes(name: str, superevent_id: str | None = None, time_created: str 
     return json.dumps(doc).encode()
 
 
+def live_copy(name: str, superevent_id: str, now: str, farther: float | None = None) -> bytes:
+    """Notice ``name`` sent again live (issue 24): ``time_created`` = ``event.time`` = ``now``.
+
+    Its sky map is left as it is (so its header's ``DATE-OBS`` is stale) unless
+    ``farther``: then DISTMU and DISTSIGMA are multiplied by it, DISTNORM divided
+    by its square and DISTMEAN/DISTSTD scaled (the same event that far away).
+    ``external_coinc`` is dropped, so the GW map is the one planned.
+    """
+    import base64
+    import io
+
+    from astropy.io import fits
+
+    d = json.loads(notice_path(name).read_bytes())
+    d["superevent_id"], d["time_created"], d["event"]["time"] = superevent_id, now, now
+    d["external_coinc"] = None
+    if farther:
+        with fits.open(io.BytesIO(base64.b64decode(d["event"]["skymap"]))) as hdul:
+            t = hdul[1]
+            t.data  # load the table before editing it
+            t.data["DISTMU"] *= farther
+            t.data["DISTSIGMA"] *= farther
+            t.data["DISTNORM"] /= farther ** 2
+            for key in ("DISTMEAN", "DISTSTD"):
+                if key in t.header:
+                    t.header[key] = float(t.header[key]) * farther
+            out = io.BytesIO()
+            hdul.writeto(out)
+        d["event"]["skymap"] = base64.b64encode(out.getvalue()).decode()
+    return json.dumps(d).encode()
+
+
+def final_numbers(messages: list[dict[str, Any]], superevent_id: str) -> dict[str, Any]:
+    """What a job ended with: revision 1's and the optimiser's (coverage, expected detections), and who won.
+
+    The optimiser's numbers come from revision 2 when it was published, else
+    from the ``plan_final`` reason (``<solver> expects E detections against ...
+    (coverage C against ...)``).
+    """
+    import re
+
+    mine = [m for m in messages if ((m.get("event") or {}).get("superevent_id") or m.get("superevent_id"))
+            == superevent_id]
+    plans = [m for m in mine if m.get("type") == "plan"]
+    r1 = next(p for p in plans if p.get("revision") == 1)
+    r2 = next((p for p in plans if p.get("revision") == 2), None)
+    out: dict[str, Any] = {"r1": r1, "r2": r2, "c1": r1["metrics"]["coverage"],
+                           "e1": r1["metrics"]["expected_detections"]}
+    if r2 is not None:
+        out.update(c2=r2["metrics"]["coverage"], e2=r2["metrics"]["expected_detections"], won=2,
+                   solver2=r2["metrics"]["solver"], reason="")
+    else:
+        final = next(m for m in mine if m.get("type") == "plan_final")
+        m = re.search(r"expects ([0-9.]+) detections against [0-9.]+ \(coverage ([0-9.]+) against", final["reason"])
+        out.update(e2=float(m.group(1)) if m else None, c2=float(m.group(2)) if m else None, won=1,
+                   solver2="-", reason=final["reason"])
+    return out
+
+
 class Broker:
     """The mock cluster and a producer bound to it."""
 

@@ -22,6 +22,7 @@ from mushrooms.daemon.jobs import Staged
 from mushrooms.daemon.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
 from mushrooms.daemon.store import Store
+from mushrooms.scheduler_core.plan.schema import validate_document
 from mushrooms.scheduler_core.planner import run_scheduler
 
 from replay_helpers import FAST, created, mutated, raw
@@ -269,9 +270,15 @@ def test_detection_objective_supersedes_by_expected_detections_within_the_floor(
     if above:
         assert kinds == ["plan", "plan"] and out.revision == 2
         assert sink.messages[1]["metrics"]["expected_detections"] >= m1["expected_detections"] + margin - 1e-6
-    else:  # below the margin in detections: revision 1 stands, whatever the coverage gain
-        assert kinds == ["plan", "plan_final"] and out.revision == 1, (d_gain, c_gain)
-        assert "detections" in sink.messages[1]["reason"] and "coverage floor" in sink.messages[1]["reason"]
+    else:  # below the margin in detections: a tie, decided by the coverage rule (issue 24)
+        m2_now = sink.messages[1].get("metrics") or {}
+        if kinds == ["plan", "plan"]:
+            assert m2_now["coverage"] >= m1["coverage"] + margin - 1e-6
+            assert abs(m2_now["expected_detections"] - m1["expected_detections"]) < margin + 1e-6
+        else:
+            assert kinds == ["plan", "plan_final"] and out.revision == 1, (d_gain, c_gain)
+            assert c_gain < margin + 1e-6
+            assert "detections" in sink.messages[1]["reason"] and "coverage floor" in sink.messages[1]["reason"]
 
 
 def test_a_plan_with_more_detections_and_a_little_less_coverage_is_better_only_for_the_detection_objective(
@@ -296,6 +303,124 @@ def test_a_plan_with_more_detections_and_a_little_less_coverage_is_better_only_f
     # fewer detections never replace, however much more the plan covers
     assert not is_better(covering(first, c1 + 0.1), second, 0.0, "detection", 0.02)
     assert is_better(covering(first, c1 + 0.1), second, 0.0, "coverage", 0.02)
-    # nor does more coverage with the same detections
-    assert not is_better(covering(second, second.metrics.coverage + 0.01), second, 0.005, "detection", 0.02)
+    # the same detections and more coverage: the coverage rule decides (issue 24), by its margin
+    assert is_better(covering(second, second.metrics.coverage + 0.01), second, 0.005, "detection", 0.02)
+    assert not is_better(covering(second, second.metrics.coverage + 0.004), second, 0.005, "detection", 0.02)
     assert is_better(covering(second, second.metrics.coverage + 0.01), second, 0.005, "coverage", 0.02)
+
+
+# ---------------------------------------------------------------- one clock, ties to coverage (issue 24)
+
+def with_map(data: bytes, edit) -> bytes:
+    """The notice with its embedded sky map rewritten by ``edit(hdul)`` (a FITS edit of the real map)."""
+    import base64
+    import io
+
+    from astropy.io import fits
+
+    d = json.loads(data)
+    with fits.open(io.BytesIO(base64.b64decode(d["event"]["skymap"]))) as hdul:
+        hdul[1].data  # load the table before it is edited
+        edit(hdul)
+        out = io.BytesIO()
+        hdul.writeto(out)
+    d["event"]["skymap"] = base64.b64encode(out.getvalue()).decode()
+    return json.dumps(d).encode()
+
+
+def dated(iso: str):
+    """A FITS edit: the map's header says the merger was at ``iso``."""
+    def edit(hdul) -> None:
+        from astropy.time import Time
+
+        hdul[1].header["DATE-OBS"] = iso
+        if "MJD-OBS" in hdul[1].header:
+            hdul[1].header["MJD-OBS"] = Time(iso, scale="utc").mjd
+    return edit
+
+
+def hundred_times_farther(hdul) -> None:
+    for col in ("DISTMU", "DISTSIGMA"):
+        hdul[1].data[col] *= 100.0
+    for key in ("DISTMEAN", "DISTSTD"):
+        if key in hdul[1].header:
+            hdul[1].header[key] *= 100.0
+
+
+#: MS181101ab (35 deg2 at 40 Mpc, RA 194 deg, dec -18) sent again live on a night it is observable from
+#: Palomar: the notice's event.time and time_created are now, its map is the archived one (DATE-OBS 2018)
+LIVE_COPY = "json/MS181101ab-preliminary.json"
+LIVE_TIME = "2025-04-05T04:00:00.000Z"
+
+
+def live_copy() -> bytes:
+    d = json.loads(raw(LIVE_COPY))
+    d["event"]["time"] = LIVE_TIME
+    d["time_created"] = "2025-04-05T04:05:00Z"
+    return json.dumps(d).encode()
+
+
+def test_a_live_notice_with_a_stale_dated_map_counts_the_kilonova_from_the_notice(tmp_path, caplog):
+    """The notice's event.time is the kilonova clock; revision 2 then supersedes by expected detections."""
+    import logging
+
+    from mushrooms.handlers.alert import parse_notice
+
+    stale, fresh = live_copy(), with_map(live_copy(), dated(LIVE_TIME.rstrip("Z")))
+    when = parse_notice(stale).time_created + timedelta(minutes=0.5)
+    runs = {}
+    for name, data, margin in (("fresh", fresh, 0.0), ("stale", stale, None)):
+        if margin is None:  # half of what revision 2 gained on the fresh map, in expected detections
+            f1, f2 = runs["fresh"]
+            margin = 0.5 * (f2["metrics"]["expected_detections"] - f1["metrics"]["expected_detections"])
+            assert margin > 1e-3, "revision 2 must expect clearly more detections for the test to mean anything"
+            caplog.clear()
+            caplog.set_level(logging.WARNING, logger="mushrooms.scheduler_core.clock")
+        sink = MemorySink()
+        store = Store(tmp_path / f"{name}.sqlite")
+        p = NoticePipeline(detecting(margin), store, sink, planner=HalfThenWhole())
+        out = p.run_job(p.accept(data, f"test:{name}", when).job)
+        store.close()
+        # before issue 24 the stale map's clock was its 2018 header: 0 expected detections, revision 1 final
+        assert [m["type"] for m in sink.messages] == ["plan", "plan"] and out.revision == 2, \
+            [m.get("reason") for m in sink.messages]
+        runs[name] = [m for m in sink.messages if m["type"] == "plan"]
+    for doc in runs["stale"]:
+        assert doc["event"]["event_time"] == LIVE_TIME and doc["event"]["merger_time_source"] == "notice"
+        validate_document(doc)
+    # revision 1 (deterministic) expects the same detections as from the map dated right
+    e_stale, e_fresh = (runs[k][0]["metrics"]["expected_detections"] for k in ("stale", "fresh"))
+    assert e_stale == pytest.approx(e_fresh, abs=1e-9)
+    # and revision 2's published score is its exposures' score against the map dated right: the notice's clock
+    import base64
+
+    from mushrooms.scheduler_core.plan.document import Plan
+    from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
+    from mushrooms.scheduler_core.sky.skymap import read_skymap
+    from mushrooms.scheduler_core.source.detection import expected_detections
+    from mushrooms.scheduler_core.source.kilonova import load_kilonova
+
+    cfg = detecting(0.0).scheduler
+    right = read_skymap(base64.b64decode(json.loads(fresh)["event"]["skymap"]), nside=cfg.nside)
+    second = Plan.from_document(runs["stale"][1])
+    e2 = expected_detections(second, right, field_footprints(load_ztf_fields(), cfg.nside),
+                             load_kilonova(cfg.detection_lightcurve))
+    assert second.metrics.expected_detections == pytest.approx(e2, abs=2e-6) and e2 > 0.01
+    assert e2 >= e_stale + margin - 1e-6
+    warned = [r.getMessage() for r in caplog.records if r.name == "mushrooms.scheduler_core.clock"]
+    assert len(warned) == 1 and LIVE_TIME[:19] in warned[0] and "2018-11-01T22:22:46" in warned[0]
+
+
+def test_a_distant_event_publishes_the_plan_with_more_coverage(store, gain):
+    """Expected detections ~0 on both revisions (the source 100 x farther): coverage decides the supersede."""
+    sink = MemorySink()
+    p = NoticePipeline(detecting(gain * 0.5), store, sink, planner=HalfThenWhole())
+    out = p.run_job(accept(p, PRELIM, with_map(raw(PRELIM), hundred_times_farther)).job)
+    plans = [m for m in sink.messages if m["type"] == "plan"]
+    assert all(doc["metrics"]["expected_detections"] < 1e-4 for doc in plans)
+    # before issue 24: "hybrid expects 0.0000 detections against 0.0000 (coverage ...)" and revision 1 stayed final
+    assert [m["type"] for m in sink.messages] == ["plan", "plan"] and out.revision == 2, \
+        [m.get("reason") for m in sink.messages]
+    first, final = plans
+    assert final["final"] is True and final["supersedes"] == first["plan_id"]
+    assert final["metrics"]["coverage"] >= first["metrics"]["coverage"] + gain - 1e-6

@@ -35,7 +35,7 @@ PLAN_KEYS = (
 )
 OBSERVATION_KEYS = ("field_id", "ra", "dec", "filter", "start", "exposure_s", "block")
 EVENT_KEYS = ("superevent_id", "alert_type", "time_created", "skymap_sha256", "localization", "external_coinc",
-              "event_time", "skymap_name")
+              "event_time", "skymap_name", "merger_time_source")
 METRIC_KEYS = (
     "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
     "n_fields", "n_exposures", "latency_s", "upper_bound",
@@ -119,9 +119,15 @@ class EventInfo:
         The coincident external trigger (observatory, search, time
         difference in s, coincidence FARs in Hz), when the notice has one.
     event_time : str or None
-        Merger time (ISO UTC), from the sky map's header.
+        Merger time (ISO UTC): the kilonova clock of the plan (light curves,
+        detection objective, ``metrics.expected_detections``); the notice's
+        ``event.time`` when there is a notice, else the sky map's header
+        (:mod:`~mushrooms.scheduler_core.clock`).
     skymap_name : str or None
         The sky map's file name (SkyPortal's localization name), when known.
+    merger_time_source : str or None
+        Where ``event_time`` came from: ``notice`` or ``skymap`` (None
+        without a merger time).
     """
 
     superevent_id: str | None = None
@@ -132,6 +138,7 @@ class EventInfo:
     external_coinc: dict[str, Any] | None = None
     event_time: str | None = None
     skymap_name: str | None = None
+    merger_time_source: str | None = None
 
 
 @dataclass(frozen=True)

@@ -34,8 +34,12 @@ times every solution with the real overheads (:func:`.slot_schedule.time_slot_pl
 and scores the executable plans exactly with (X1).  It returns the coverage
 plan itself unless a detection plan, as it will be published (after the
 real timing and the least-gain rule), has more expected detections *and*
-still respects the floor (X6): it never publishes fewer detections than the
-plan it started from, nor loses more than ``ε`` of its coverage.
+still respects the floor (X6), or, when the expected detections tie
+(closer than ``config.min_gain``, e.g. both ~0 for a source too far for the
+light curve), covers more by ``min_gain`` (:mod:`..preference`, R1-R3): it
+never publishes fewer detections than the plan it started from (beyond the
+margin), nor loses more than ``ε`` of its coverage, nor keeps a plan over
+one with as many expected detections and more coverage.
 """
 
 from __future__ import annotations
@@ -52,6 +56,7 @@ from ..sky.cells import Cells, merge_cells
 from ..source.depth import ZTF_DEPTH, DepthModel, limiting_magnitude, sky_conditions
 from ..source.detection import distance_cdf, reach_mpc
 from .gain import drop_low_gain
+from ..preference import is_preferred
 from ..source.kilonova import Kilonova, load_kilonova
 from ..plan.document import Observation, Plan, PlanMetrics
 from ..sky.footprints import Footprints
@@ -353,8 +358,10 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
     ScheduleResult
         The detection plan when, as it will be published (after the
         least-gain rule), it has more expected detections (X1) than
-        ``coverage`` and covers at least ``(1 - ε)`` of ``coverage``'s
-        published coverage (X6); else ``coverage`` itself.  ``details`` gain
+        ``coverage`` by ``config.min_gain`` and covers at least ``(1 - ε)``
+        of ``coverage``'s published coverage (X6), or ties on expected
+        detections and covers more by ``min_gain`` (R1-R3); else
+        ``coverage`` itself.  ``details`` gain
         ``expected_detections_coverage``, ``expected_detections``,
         ``coverage_floor`` and ``detection_choice``.
     """
@@ -448,8 +455,8 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
         runs.append({"grid": grid.name, "status": res.status, "levels": int(levels.size), "pairs": inst.n_pairs,
                      "objective": res.objective, "bound": res.bound, "expected_detections": e, "coverage": c,
                      "above_floor": ok, "dropped": len(dropped), "runtime_s": round(res.runtime_s, 3)})
-        if ok and e > best[0] + 1e-9:
-            best = (e, obs, res, c)
+        if ok and is_preferred(c, e, best[3], best[0], cfg.min_gain, "detection", coverage_floor=floor):
+            best = (e, obs, res, c)  # R2, or R3: a tie in expected detections and more coverage
     details.update(detection_grids=runs)
     if best[1] is None:
         return keep_coverage("coverage")
