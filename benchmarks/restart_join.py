@@ -1,4 +1,4 @@
-"""A restarted daemon's time to its partitions after a SIGKILL, ``[kafka] assignment = "group"``.
+"""A restarted daemon's time to its partitions after a SIGKILL, ``[kafka] assignment = "group"`` or ``"manual"``.
 
 The real ``mushrooms run`` (``--tree``'s package) on librdkafka's mock cluster,
 one 4-partition topic, ``session_timeout_s`` 30 (the default): start, wait for
@@ -9,6 +9,11 @@ assigned).  With the issue-25 tree the consumer is a static member
 ``group_instance_id=`` in ``event=consumer_started``); the pre-fix tree is not.
 
     PYTHONPATH=$PWD nice -n 5 python benchmarks/restart_join.py --tree $PWD --label after [--rounds 2]
+        [--assignment manual]
+
+``--assignment manual`` is the single-instance remedy that needs no broker
+support: every partition is assigned by the daemon itself from the group's
+committed offsets, so no group coordinator holds a dead member's session.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ def main() -> int:
     ap.add_argument("--label", default="after")
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--out", default=None)
+    ap.add_argument("--assignment", choices=("group", "manual"), default="group")
     a = ap.parse_args()
     out_path = Path(a.out or ROOT / "benchmarks" / "results" / "issue25" / f"restart_join_{a.label}.txt")
     work = Path(tempfile.mkdtemp(prefix="mushrooms-restart-"))
@@ -43,10 +49,10 @@ def main() -> int:
     broker.ensure_topic(topic)
     broker.ensure_topic(out_topic)
     cfg = write_config(work / "config.toml", topic, out_topic, group)
-    cfg.write_text(cfg.read_text().replace('assignment = "manual"', 'assignment = "group"\nsession_timeout_s = 30'))
+    cfg.write_text(cfg.read_text().replace('assignment = "manual"', f'assignment = "{a.assignment}"\nsession_timeout_s = 30'))
     args = ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(work / "state.sqlite")]
     env = {"PYTHONPATH": a.tree}
-    needle = "event=partitions_assigned mode=group"  # logged by both trees
+    needle = f"event=partitions_assigned mode={a.assignment}"  # logged by both trees
 
     def start() -> tuple[Daemon, float]:
         t0 = time.monotonic()
@@ -57,11 +63,13 @@ def main() -> int:
                 raise SystemExit(f"no assignment in 300 s:\n{d.text()[-3000:]}")
             time.sleep(0.05)
         line = next(ln for ln in d.text().splitlines() if needle in ln)
-        return d, time.monotonic() - t0, line[line.find("partitions="):]
+        where = re.search(r"(partitions|positions)=.*", line)
+        return d, time.monotonic() - t0, where.group(0) if where else line
     lines = [f"# benchmarks/restart_join.py {time.strftime('%Y-%m-%d %H:%M', time.gmtime())} UTC, label {a.label}",
              f"# command: PYTHONPATH=$PWD nice -n 5 python benchmarks/restart_join.py --tree {a.tree} "
-             f"--label {a.label} --rounds {a.rounds}",
-             f"# uptime before: {load0}", "# group mode, session_timeout_s 30, 4 partitions, librdkafka mock cluster",
+             f"--label {a.label} --rounds {a.rounds} --assignment {a.assignment}",
+             f"# uptime before: {load0}",
+             f"# {a.assignment} mode, session_timeout_s 30, 4 partitions, librdkafka mock cluster",
              ""]
     d, t_first, parts = start()
     inst = re.search(r"group_instance_id=(\S+)", d.text())
