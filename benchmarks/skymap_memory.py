@@ -104,7 +104,8 @@ def run_plan(path: Path, solver: str, out: Path, python: str, pythonpath: str) -
            "-o", str(out)]  # horizon from the map's DATE-OBS, copied into every flat map
     load = os.getloadavg()[0]
     t0 = time.perf_counter()
-    r = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=REPO)
+    # ``-m`` puts the working directory first on sys.path: run in the tree whose package is meant
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=pythonpath or REPO)
     wall = time.perf_counter() - t0
     rss = re.search(r"Maximum resident set size \(kbytes\): (\d+)", r.stderr)
     doc = json.loads(out.read_text()) if r.returncode == 0 and out.exists() else {}
