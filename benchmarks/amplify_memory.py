@@ -37,7 +37,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT / "tests" / "daemon")]
 
-from daemon_helpers import Broker, Daemon, notice_path  # noqa: E402
+from daemon_helpers import BROKER_SECTIONS, Broker, Daemon, notice_path  # noqa: E402
 
 MOC = ROOT / "tests" / "data" / "skymaps" / "MS220722v_bayestar.multiorder.fits"
 
@@ -53,18 +53,8 @@ max_event_age_s = 0
 [daemon]
 heartbeat_s = 5
 
-[kafka]
-topics = ["{topic}"]
-group_id = "{group}"
-assignment = "manual"
-poll_timeout_s = 0.5
-
-[outbound]
-sink = "kafka"
-topic = "{out_topic}"
-retry_initial_s = 0.5
-retry_max_s = 5
 """
+CONFIG += BROKER_SECTIONS
 
 
 def amplifying_map(order: int) -> bytes:
@@ -111,10 +101,7 @@ def main() -> int:
     b64 = base64.b64encode(packed).decode()
     base = json.loads(notice_path("MS181101ab-ext-update.json").read_bytes())
     broker = Broker()
-    tag = str(time.time_ns())
-    topic, out_topic, group = f"gwalert-{tag}", f"plans-{tag}", f"mushrooms-{tag}"
-    broker.ensure_topic(topic)
-    broker.ensure_topic(out_topic)
+    topic, out_topic, group = broker.fresh_topics()
     cfg = work / "config.toml"
     cfg.write_text(CONFIG.format(topic=topic, out_topic=out_topic, group=group))
     state = work / "state.sqlite"

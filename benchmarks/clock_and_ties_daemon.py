@@ -46,7 +46,7 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests" / "daemon"))
 
-from daemon_helpers import Broker, Daemon, final_numbers, live_copy  # noqa: E402  (the service tests' helpers)
+from daemon_helpers import BROKER_SECTIONS, Broker, Daemon, final_numbers, live_copy  # noqa: E402  (the service tests' helpers)
 
 NOTICE = "MS230425l-preliminary.json"  # tests/daemon/data
 CASES = (("stale", "MS230425l"), ("distant", "MS230425z"))
@@ -59,18 +59,8 @@ allow_mock = true
 heartbeat_s = 2
 job_deadline_s = 900
 
-[kafka]
-topics = ["{topic}"]
-group_id = "{group}"
-assignment = "manual"
-poll_timeout_s = 0.5
-
-[outbound]
-sink = "kafka"
-topic = "{out}"
-retry_initial_s = 0.5
-retry_max_s = 5
 """
+CONFIG += BROKER_SECTIONS
 
 
 def iso_now() -> str:
@@ -115,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         work = Path(args.keep or tmp)
         work.mkdir(parents=True, exist_ok=True)
         cfg = work / "config.toml"
-        cfg.write_text(CONFIG.format(topic=topic, out=out, group=group))
+        cfg.write_text(CONFIG.format(topic=topic, out_topic=out, group=group))
         daemon = Daemon(work, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state",
                                str(work / "state.sqlite")])
         sent: dict[str, dict[str, Any]] = {}

@@ -103,17 +103,14 @@ def main() -> int:
     work = Path(tempfile.mkdtemp(prefix="mushrooms-order-"))
     load0 = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     broker = Broker()
-    tag = str(time.time_ns())
-    topic, out_topic, group = f"gwalert-{tag}", f"plans-{tag}", f"mushrooms-{tag}"
-    broker.ensure_topic(topic)
-    broker.ensure_topic(out_topic)
+    topic, out_topic, group = broker.fresh_topics()
     nparts = len(broker.producer.list_topics(topic, timeout=10).topics[topic].partitions)
     cfg = write_config(work / "config.toml", topic, out_topic, group)
     state = work / "state.sqlite"
     d = Daemon(work, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state)],
                env={"PYTHONPATH": a.tree})
     d.wait_log("event=service_ready", 240)
-    reader = broker.reader(out_topic, f"reader-{tag}")
+    reader = broker.reader(out_topic, f"reader-{group}")
     produced = [0]
     part = [0]
 
@@ -185,14 +182,7 @@ def main() -> int:
     settle()
     seqs.append(("f", sid, ps, {"planned": False}))
 
-    # read the outbound topic until it has been quiet for 5 s (the outbox drains asynchronously)
-    quiet = time.monotonic()
-    while time.monotonic() - quiet < 5:
-        for m in reader.c.consume(10, 0.5):
-            if m.error() is None:
-                reader.messages.append(json.loads(m.value()))
-                quiet = time.monotonic()
-    msgs = list(reader.messages)
+    msgs = reader.drain(5.0)  # the outbox drains asynchronously
     reader.close()
     rc = d.stop()
     load1 = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()

@@ -44,10 +44,7 @@ def main() -> int:
     work = Path(tempfile.mkdtemp(prefix="mushrooms-restart-"))
     load0 = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     broker = Broker()
-    tag = str(time.time_ns())
-    topic, out_topic, group = f"gwalert-{tag}", f"plans-{tag}", f"mushrooms-{tag}"
-    broker.ensure_topic(topic)
-    broker.ensure_topic(out_topic)
+    topic, out_topic, group = broker.fresh_topics()
     cfg = write_config(work / "config.toml", topic, out_topic, group)
     cfg.write_text(cfg.read_text().replace('assignment = "manual"', f'assignment = "{a.assignment}"\nsession_timeout_s = 30'))
     args = ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(work / "state.sqlite")]

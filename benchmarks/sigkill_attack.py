@@ -65,10 +65,7 @@ def main() -> int:
     work = Path(tempfile.mkdtemp(prefix="mushrooms-kill-"))
     load0 = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     broker = Broker()
-    tag = str(time.time_ns())
-    topic, out_topic, group = f"gwalert-{tag}", f"plans-{tag}", f"mushrooms-{tag}"
-    broker.ensure_topic(topic)
-    broker.ensure_topic(out_topic)
+    topic, out_topic, group = broker.fresh_topics()
     cfg = write_config(work / "config.toml", topic, out_topic, group)
     text = cfg.read_text().replace('solver = "greedy"', f'solver = "hybrid"\ntime_limit_s = {a.time_limit}')
     cfg.write_text(text)
@@ -124,7 +121,7 @@ def main() -> int:
         produce(nxt)
         nxt += 1
 
-    reader = broker.reader(out_topic, f"reader-{tag}")
+    reader = broker.reader(out_topic, f"reader-{group}")
 
     def final_of(ms: list[dict], sid: str) -> bool:
         mine = [m for m in ms if ((m.get("event") or {}).get("superevent_id") or m.get("superevent_id")) == sid]
@@ -136,13 +133,7 @@ def main() -> int:
         all_final_seen = True
     except AssertionError:
         all_final_seen = False
-    quiet = time.monotonic()
-    while time.monotonic() - quiet < 5:
-        for m in reader.c.consume(10, 0.5):
-            if m.error() is None:
-                reader.messages.append(json.loads(m.value()))
-                quiet = time.monotonic()
-    msgs = list(reader.messages)
+    msgs = reader.drain(5.0)  # the outbox drains asynchronously
     reader.close()
     rc = d.stop()
     wall = time.monotonic() - t0

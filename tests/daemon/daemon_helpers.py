@@ -159,6 +159,14 @@ class Broker:
             time.sleep(0.1)
         raise AssertionError(f"topic {topic} not created")
 
+    def fresh_topics(self) -> tuple[str, str, str]:
+        """New (input topic, outbound topic, consumer group) names, both topics created."""
+        tag = str(time.time_ns())
+        topic, out_topic, group = f"gwalert-{tag}", f"plans-{tag}", f"mushrooms-{tag}"
+        self.ensure_topic(topic)
+        self.ensure_topic(out_topic)
+        return topic, out_topic, group
+
     def reader(self, topic: str, group: str) -> "Reader":
         return Reader(self.bootstrap, topic, group)
 
@@ -188,6 +196,16 @@ class Reader:
                 if m.error() is None:
                     self.messages.append(json.loads(m.value()))
         return self.messages
+
+    def drain(self, quiet_s: float = 5.0) -> list[dict[str, Any]]:
+        """Read until the topic has been quiet for ``quiet_s`` (s); every message read so far."""
+        quiet = time.monotonic()
+        while time.monotonic() - quiet < quiet_s:
+            for m in self.c.consume(10, 0.5):
+                if m.error() is None:
+                    self.messages.append(json.loads(m.value()))
+                    quiet = time.monotonic()
+        return list(self.messages)
 
     def close(self) -> None:
         self.c.close()
@@ -225,6 +243,11 @@ max_event_age_s = 0
 heartbeat_s = 2
 job_deadline_s = 600
 
+"""
+
+#: The mock broker's sections of a test config: input ``{topic}`` read by ``{group}`` (manual
+#: assignment), plans to ``{out_topic}``; tests and benchmarks put their own sections before it.
+BROKER_SECTIONS = """
 [kafka]
 topics = ["{topic}"]
 group_id = "{group}"
@@ -237,6 +260,7 @@ topic = "{out_topic}"
 retry_initial_s = 0.5
 retry_max_s = 5
 """
+TEST_CONFIG += BROKER_SECTIONS
 
 
 def write_config(path: Path, topic: str, out_topic: str, group: str, extra: str = "") -> Path:

@@ -26,7 +26,7 @@ import time
 from datetime import datetime, timezone
 from pathlib import Path
 
-from daemon_helpers import Daemon, final_numbers, live_copy
+from daemon_helpers import BROKER_SECTIONS, Daemon, final_numbers, live_copy
 
 from mushrooms.scheduler_core.preference import is_preferred
 
@@ -42,18 +42,8 @@ allow_mock = true
 heartbeat_s = 2
 job_deadline_s = 600
 
-[kafka]
-topics = ["{topic}"]
-group_id = "{group}"
-assignment = "manual"
-poll_timeout_s = 0.5
-
-[outbound]
-sink = "kafka"
-topic = "{out}"
-retry_initial_s = 0.5
-retry_max_s = 5
 """
+CONFIG += BROKER_SECTIONS
 
 
 def _now() -> str:
@@ -66,7 +56,7 @@ def test_live_notice_with_a_stale_map_and_a_distant_event_through_the_daemon(bro
     broker.ensure_topic(topic)
     broker.ensure_topic(out)
     cfg = tmp_path / "config.toml"
-    cfg.write_text(CONFIG.format(topic=topic, out=out, group=group))
+    cfg.write_text(CONFIG.format(topic=topic, out_topic=out, group=group))
     sent = {}
     for sid, farther in (("MS230425l", None), ("MS230425z", 50.0)):
         sent[sid] = _now()
