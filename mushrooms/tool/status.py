@@ -75,6 +75,10 @@ def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_
         "jobs": jobs,
         "outbox": {"pending": pending, "oldest_age_s": oldest, "last_error": error},
         "offset_jumps": incidents(conn, "offset_jump", limit=limit),
+        # what a job did other than its decision said (e.g. ``combined_map_unusable``), by event
+        "event_incidents": [i for i in incidents(conn, limit=limit)
+                            if i["kind"] != "offset_jump" and isinstance(i["detail"], dict)
+                            and i["detail"].get("superevent_id")],
         "attention": attention(conn, now, outbox_minutes * 60.0, window_hours * 3600.0),
     }
 
@@ -98,6 +102,10 @@ def render(doc: dict[str, Any]) -> str:
         out.append(f"{ev['superevent_id']}  last notice {ev['last_received']}  ({ev['notices']} notice(s): "
                    f"{' '.join(ev['alert_types']) or '-'}){'  RETRACTED' if ev['retracted'] else ''}")
         out.append(f"  decision: {ev['decision'] or 'NONE'}: {ev['reason'] or '-'}")
+        for inc in doc.get("event_incidents", []):
+            if inc["detail"].get("superevent_id") == ev["superevent_id"]:
+                out.append(f"  {inc['kind']} (job {inc['detail'].get('job_id', '-')}, {inc['created_at']}): "
+                           f"{inc['detail'].get('reason', '-')}")
         for j in ev["jobs"]:
             if j["status"] not in ("done", "superseded"):
                 out.append(f"  job {j['job_id']}: {j['status']}" + (f" ({j['reason']})" if j["reason"] else ""))

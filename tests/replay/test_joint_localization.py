@@ -88,6 +88,17 @@ def test_a_corrupted_joint_map_falls_back_to_the_gw_map_with_one_logged_reason(s
     assert incident[0] == "combined_map_unusable" and "combined sky map unusable" in incident[1]
     assert json.loads(incident[1])["superevent_id"] == "MS181101ab"
     assert [p["document"]["event"]["localization"] for p in store.plans("MS181101ab")] == ["gw"]
+    # and the operator reads it under the event in `mushrooms status`
+    from mushrooms.daemon.state_view import connect_readonly
+    from mushrooms.tool.status import collect, render
+
+    conn = connect_readonly(store.path)
+    try:
+        report = render(collect(conn, 20, 10.0, 24.0))
+    finally:
+        conn.close()
+    event_block = report.split("MS181101ab", 1)[1]
+    assert "combined_map_unusable (job 1" in event_block and "planned on the GW map" in event_block
 
 
 def test_the_policy_can_plan_the_gw_map_only(store):
