@@ -82,49 +82,33 @@ def check_skymap(data: bytes, max_bytes: int | None = None) -> None:
     read_skymap(data, nside=_CHECK_NSIDE, **({} if max_bytes is None else {"max_bytes": max_bytes}))
 
 
-#: Most bytes (unpacked) :func:`check_skymap_header` reads: the primary and table headers.
-_HEADER_BYTES = 256 * 1024
-
-
 def check_skymap_header(data: bytes, max_bytes: int | None = None) -> None:
     """Raise when ``data`` is plainly not a usable sky map, from its FITS headers only.
 
-    The cheap check the consume loop runs on a joint map (issue 25): at most
-    :data:`_HEADER_BYTES` are unpacked (milliseconds, bounded memory,
-    whatever the map), the first extension must be a binary table with a
-    probability column, and the table it declares must fit ``max_bytes``.
-    The full decode happens in the planning job, which falls back to the GW
-    map when the joint map still turns out unusable.
+    The cheap check the consume loop runs on a joint map (issue 25): the
+    sky-map reader's own header parser
+    (:func:`~mushrooms.scheduler_core.sky.fitstable.open_table`, plain or
+    gzip) reads the headers up to the first binary table and no row
+    (milliseconds, bounded memory, whatever the map); the table must have a
+    probability column and fit ``max_bytes``.  The full decode happens in the
+    planning job, which falls back to the GW map when the joint map still
+    turns out unusable.
 
     Raises
     ------
     ValueError
-        Not FITS, no table, no PROB/PROBDENSITY column, or too large.
+        Not FITS, broken gzip, no (well-formed) binary table, no PROB /
+        PROBDENSITY column, or a table larger than ``max_bytes``
+        (:class:`~mushrooms.scheduler_core.errors.SkyMapError` is a ValueError).
     """
-    import zlib
+    import io
 
-    from astropy.io import fits
+    from ..scheduler_core.sky.fitstable import open_table
 
-    head = data[:_HEADER_BYTES]
-    if data[:2] == b"\x1f\x8b":
-        try:
-            head = zlib.decompressobj(47).decompress(data, _HEADER_BYTES)
-        except zlib.error as exc:
-            raise ValueError(f"broken gzip stream ({exc})") from None
-    if not head.startswith(b"SIMPLE  ="):
-        raise ValueError("not a FITS file")
-    cards = [head[i:i + 80] for i in range(0, len(head) - 79, 80)]
-    ends = [i for i, c in enumerate(cards) if c.startswith(b"END ") or c.rstrip() == b"END"]
-    if len(ends) < 2:
-        raise ValueError("no binary table after the primary header")
-    start = -(-(ends[0] + 1) // 36) * 36  # headers end on 2880-byte blocks of 36 cards
-    table = fits.Header.fromstring(b"".join(cards[start:ends[1] + 1]).decode("ascii", "replace"))
-    if table.get("XTENSION") != "BINTABLE":
-        raise ValueError("first extension is not a binary table")
-    names = {str(table.get(f"TTYPE{k}", "")).upper() for k in range(1, int(table.get("TFIELDS", 0)) + 1)}
-    if not names & {"PROB", "PROBDENSITY"}:
+    table = open_table(io.BytesIO(data), "combined sky map", size=None, hashed=False)
+    if not set(table.names) & {"PROB", "PROBDENSITY"}:
         raise ValueError("no PROB or PROBDENSITY column")
-    declared = int(table.get("NAXIS1", 0)) * int(table.get("NAXIS2", 0))
+    declared = table.rows * table.row_dtype.itemsize
     if max_bytes is not None and declared > max_bytes:
         raise ValueError(f"table of {declared} bytes exceeds the {max_bytes}-byte sky map limit")
 
