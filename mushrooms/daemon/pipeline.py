@@ -73,7 +73,7 @@ from ..handlers.policy import evaluate
 from ..scheduler_core.errors import InputError, PlanCheckError
 from ..scheduler_core.sky.sniff import is_fits
 from .sinks import Sink, message_key
-from .store import Job, NoticeRecord, Store, plan_final_message
+from .store import Job, NoticeRecord, Store
 
 __all__ = ["NoticePipeline", "Accepted", "Outcome", "iso_z"]
 
@@ -611,8 +611,7 @@ class NoticePipeline:
         job, first = work.job, work.first
         base = dict(superevent_id=job.superevent_id, alert_type=job.alert_type, job_id=job.job_id,
                     notice_id=job.notice_id)
-        message = plan_final_message(first.plan_id, job.superevent_id, why)
-        outbox_id = self.store.close_job(job.job_id, f"{first.plan_id}-final", message, why)
+        outbox_id = self.store.close_job(job.job_id, first.plan_id, why)
         if outbox_id is None:
             return self._dropped(job, "optimisation finished", base, first.plan_id)
         published = self._hand_over(outbox_id)

@@ -888,40 +888,20 @@ class Store:
                           (plan_id, coverage, latency_s, job_id))
             return outbox_id
 
-    def close_job(self, job_id: int, key: str, message: dict[str, Any], reason: str) -> int | None:
-        """Close a running job whose last stored revision stands, and queue ``message`` (``plan_final``).
+    def close_job(self, job_id: int, plan_id: str, reason: str) -> int | None:
+        """Close a running job on its stored revision ``plan_id`` and queue the ``plan_final`` message.
 
         Returns the outbox id (the earlier one after a restart), or None when
         the job is no longer running (superseded, cancelled: nothing queued).
         """
         with self._tx() as c:
-            row = c.execute("SELECT status FROM jobs WHERE job_id=?", (job_id,)).fetchone()
-            if row is None or row["status"] != "running":
-                return None
-            c.execute("UPDATE plans SET final=1 WHERE job_id=?", (job_id,))
-            c.execute("UPDATE jobs SET status='done', reason=?, finished_at=? WHERE job_id=?",
-                      (reason[:500], _now(), job_id))
-            self._started.discard(job_id)
-            self._parked.discard(job_id)
-            found = c.execute("SELECT outbox_id FROM outbox WHERE key=? ORDER BY outbox_id DESC LIMIT 1",
-                              (key,)).fetchone()
-            return int(found[0]) if found is not None else self._insert_outbox(c, key, "plan_final", message)
-
-    def close_with_plan(self, job_id: int, plan_id: str, reason: str) -> int | None:
-        """Close a running job on its stored revision ``plan_id`` with a ``plan_final`` message.
-
-        The fallback after repeated crashes uses it: revision 1 went out
-        with ``final: false`` before the optimiser died, so the contract's
-        ``plan_final`` must follow.  Returns the outbox id (None when the job
-        is not running).
-        """
-        with self._tx() as c:
             row = c.execute("SELECT status, superevent_id FROM jobs WHERE job_id=?", (job_id,)).fetchone()
-            if row is None or row["status"] not in _OPEN:
+            if row is None or row["status"] != "running":
                 return None
             return self._close_with(c, job_id, plan_id, row["superevent_id"], reason)
 
     def _close_with(self, c: sqlite3.Connection, job_id: int, plan_id: str, superevent_id: str, reason: str) -> int:
+        """Mark the job done on ``plan_id`` (its revisions final) and queue ``plan_final`` once (lock held)."""
         c.execute("UPDATE plans SET final=1 WHERE job_id=?", (job_id,))
         c.execute("UPDATE jobs SET status='done', plan_id=?, reason=?, finished_at=? WHERE job_id=?",
                   (plan_id, reason[:500], _now(), job_id))
