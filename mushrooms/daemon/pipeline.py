@@ -68,6 +68,7 @@ from typing import Any, Callable
 from ..config import Config
 from ..handlers.alert import Alert, NoticeError, parse_notice
 from ..handlers.decisions import Decision, decide
+from ..handlers.instants import iso_z
 from ..handlers.localization import check_skymap_header, choose_localization, coincidence_summary, skymap_for_sha
 from ..handlers.policy import evaluate
 from ..scheduler_core.errors import InputError, PlanCheckError
@@ -130,11 +131,6 @@ def _after_withdrawals(plan: Any, epoch: int) -> Any:
     from ..scheduler_core import make_plan_id
 
     return plan.with_(plan_id=make_plan_id(plan.plan_id, "after-withdrawal", epoch))
-
-
-def iso_z(t: datetime) -> str:
-    """Timezone-aware datetime as ``YYYY-MM-DDTHH:MM:SS.mmmZ`` (UTC)."""
-    return t.astimezone(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
 
 
 @dataclass(frozen=True)

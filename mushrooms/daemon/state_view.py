@@ -33,7 +33,11 @@ def connect_readonly(path: str | Path, timeout_s: float = 5.0) -> sqlite3.Connec
 
 
 def parse_iso(text: str | None) -> datetime | None:
-    """An ISO-8601 time of the store (``...Z`` or ``+00:00``) as an aware datetime; None when absent or bad."""
+    """An ISO-8601 time of the store (``...Z`` or ``+00:00``) as an aware datetime; None when absent or bad.
+
+    :func:`mushrooms.handlers.instants.parse_instant`'s twin, kept here so that
+    ``mushrooms status`` does not import the handlers package (~1 s).
+    """
     if not text:
         return None
     try:

@@ -65,6 +65,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator
 
 from ..handlers.decisions import Decision, EventState, newest_created
+from ..handlers.instants import now_iso_z
 from ..handlers.text import storable
 from ..scheduler_core.plan import strict_json
 
@@ -1006,7 +1007,7 @@ def plan_final_message(plan_id: str, superevent_id: str | None, reason: str) -> 
         "final": True,
         "superevent_id": superevent_id,
         "reason": reason,
-        "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z",
+        "created": now_iso_z(),
     }
 
 

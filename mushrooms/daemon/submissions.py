@@ -41,6 +41,7 @@ from datetime import datetime, timezone
 from typing import Any, Callable
 
 from ..config import Config
+from ..handlers.instants import now_iso_z
 from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
 from .store import Store
 
@@ -95,10 +96,6 @@ def submissions(store: Store, superevent_id: str | None = None) -> list[Submissi
 
 def _now_iso() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
-
-
-def _iso_z() -> str:
-    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
 
 
 def _unix(iso: str) -> float:
@@ -541,7 +538,7 @@ def status_document(sub: Submission) -> dict[str, Any]:
         "answer": None if answer is None else answer[:2000],
         "reason": sub.reason,
         "attempts": int(sub.attempts),
-        "created": _iso_z(),
+        "created": now_iso_z(),
     }
 
 

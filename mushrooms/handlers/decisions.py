@@ -46,10 +46,10 @@ joint plan stands and the reason says so; a retraction still withdraws it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from datetime import datetime, timezone
 from typing import Protocol
 
 from .alert import Alert
+from .instants import iso_z, parse_instant
 from .localization import COMBINED, GW, Localization
 from .policy import Verdict
 
@@ -58,29 +58,14 @@ __all__ = ["Decision", "EventState", "Ledger", "MemoryLedger", "decide", "newest
 ACTIONS = ("plan", "rerun", "duplicate", "withdraw", "ignore", "rejected")
 
 
-def _instant(iso: str | datetime | None) -> datetime | None:
-    """An ISO-8601 time (``Z`` or offset; naive means UTC) as an aware datetime; None when absent or unreadable."""
-    if iso is None:
-        return None
-    try:
-        t = iso if isinstance(iso, datetime) else datetime.fromisoformat(str(iso).replace("Z", "+00:00"))
-    except ValueError:
-        return None
-    return t.replace(tzinfo=timezone.utc) if t.tzinfo is None else t
-
-
 def newest_created(a: str | None, b: str | None) -> str | None:
     """The later of two ``time_created`` values (ISO-8601 UTC), either of which may be None."""
-    ta, tb = _instant(a), _instant(b)
+    ta, tb = parse_instant(a), parse_instant(b)
     if ta is None:
         return b if tb is not None else a
     if tb is None:
         return a
     return b if tb > ta else a
-
-
-def _iso(t: datetime) -> str:
-    return t.astimezone(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
 
 
 @dataclass(frozen=True)
@@ -228,7 +213,7 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger,
     Decision
     """
     sid = alert.superevent_id
-    created = _iso(alert.time_created)
+    created = iso_z(alert.time_created)
     base = dict(superevent_id=sid, alert_type=alert.alert_type, time_created=created)
     if not verdict.keep:
         return Decision("rejected" if verdict.reject else "ignore", reason=verdict.reason, **base)
@@ -285,10 +270,10 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger,
 
 def _stale(alert: Alert, state: EventState | None) -> str:
     """Why ``alert`` is older than what the event already accepted ("" when it is not)."""
-    newest = _instant(state.latest_created) if state is not None else None
-    if state is None or newest is None or _instant(alert.time_created) >= newest:
+    newest = parse_instant(state.latest_created) if state is not None else None
+    if state is None or newest is None or parse_instant(alert.time_created) >= newest:
         return ""
-    mine = _iso(alert.time_created)
+    mine = iso_z(alert.time_created)
     if state.retracted:
         return (f"stale: {alert.alert_type} created {mine}, before the retraction of {state.latest_created}; "
                 "nothing older than a retraction re-opens the event")
