@@ -210,9 +210,9 @@ def _fallback(problem: PlanningProblem, should_stop: StopCheck | None, res: Solv
 
     log.warning("MILP (%s) found no incumbent (%s); using the greedy plan", res.backend, res.status)
     greedy = greedy_schedule(problem, should_stop)
-    details.update(greedy_details=greedy.details, solver_status=res.status)
+    details.update(greedy_details=greedy.details)
     return ScheduleResult(tuple(greedy.observations), f"milp:{res.backend}", "no_incumbent_greedy_fallback",
-                          None, time.perf_counter() - t_wall, details)
+                          None, time.perf_counter() - t_wall, details, solver_status=res.status)
 
 
 def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None) -> ScheduleResult:
@@ -233,8 +233,10 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
         ``solver`` is ``milp:highs`` or ``milp:gurobi``; ``status`` the
         solver's (``optimal``, ``time_limit``, ``interrupted``) or
         ``no_incumbent_greedy_fallback`` / ``no_candidates``; ``mip_gap``
-        the final relative gap; ``details`` holds model size, cells vs
-        pixels, bound, times to first incumbent and to 1 % gap, retries.
+        the final relative gap, ``mip_bound`` the solver's bound and
+        ``dropped_by_slews`` the fields the real timing dropped;
+        ``details`` holds model size, cells vs pixels, times to first
+        incumbent and to 1 % gap, the attempts and retries.
     """
     t_wall = time.perf_counter()
     cfg: PlanningConfig = problem.config
@@ -315,8 +317,8 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
     if dropped:
         log.info("MILP: dropped %d field(s) that real slews pushed out of their windows", len(dropped))
     details.update(
-        attempts=attempts, retries=len(attempts) - 1, chosen_attempt=chosen, dropped_fields=dropped,
-        objective=res.objective, bound=res.bound, n_blocks=len({o.block for o in timed.observations}),
+        attempts=attempts, retries=len(attempts) - 1, chosen_attempt=chosen,
+        objective=res.objective, n_blocks=len({o.block for o in timed.observations}),
         solve_s=round(sum(a["runtime_s"] for a in attempts), 3),
     )
     return ScheduleResult(
@@ -326,4 +328,6 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
         mip_gap=res.gap,
         runtime_s=time.perf_counter() - t_wall,
         details=details,
+        mip_bound=res.bound,
+        dropped_by_slews=tuple(dropped),
     )

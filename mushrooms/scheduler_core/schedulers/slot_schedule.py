@@ -246,9 +246,10 @@ def slot_schedule(
     Returns
     -------
     ScheduleResult
-        ``solver`` ``slots:highs`` / ``slots:gurobi``; ``details`` hold the
-        chosen grid, per-grid objectives, bounds and times, the dropped
-        fields and the mapped start's objective.
+        ``solver`` ``slots:highs`` / ``slots:gurobi``; ``grid`` the chosen
+        grid, ``mip_bound`` its solver's bound, ``dropped_by_slews`` the
+        fields the real timing dropped; ``details`` hold the per-grid
+        objectives, bounds and times and the mapped start's objective.
     """
     t_wall = time.perf_counter()
     cfg: PlanningConfig = problem.config
@@ -327,10 +328,10 @@ def slot_schedule(
         s.result.status == "optimal" for s in solutions) and len(solutions) == len(grids) else res.status)
     if dropped:
         log.info("slots: dropped %d field(s) that real slews pushed out of their windows", len(dropped))
-    details.update(grid=sol.model.instance.grid.name, objective=res.objective, bound=res.bound,
-                   start_objective=sol.start_objective, dropped_fields=dropped, tsp_blocks=n_tsp,
+    details.update(objective=res.objective, start_objective=sol.start_objective, tsp_blocks=n_tsp,
                    backend=res.backend, backend_note=res.note, model_size=sol.model.milp.size(),
                    n_blocks=len({o.block for o in obs}))
     return ScheduleResult(tuple(obs), f"slots:{res.backend}", status, res.gap, time.perf_counter() - t_wall,
-                          details)
+                          details, mip_bound=res.bound, dropped_by_slews=tuple(dropped),
+                          grid=sol.model.instance.grid.name)
 
