@@ -10,7 +10,7 @@ schedulers themselves are pure functions of it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Callable, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 from astropy.time import Time
@@ -20,10 +20,8 @@ from .plan.document import Observation
 from .sky.footprints import Footprints
 from .sky.windows import Windows
 
-if TYPE_CHECKING:
-    from .schedulers.bound import UpperBound
-
-__all__ = ["PlanningProblem", "ScheduleResult", "StopCheck", "Scheduler", "PortfolioEntry", "DetectionReport"]
+__all__ = ["PlanningProblem", "ScheduleResult", "StopCheck", "Scheduler", "UpperBound", "PortfolioEntry",
+           "DetectionReport"]
 
 #: A callable the scheduler polls; True means "stop now, return what you have".
 StopCheck = Callable[[], bool]
@@ -68,6 +66,34 @@ class PlanningProblem:
         """(ra, dec) in deg of a candidate field."""
         k = self.footprints.row(field_id)
         return float(self.ra[k]), float(self.dec[k])
+
+
+@dataclass(frozen=True)
+class UpperBound:
+    """The certified coverage upper bound (:func:`~.schedulers.bound.coverage_upper_bound`) and how it was obtained.
+
+    Attributes
+    ----------
+    value : float
+        Upper bound on the probability coverage of any plan.
+    status : str
+        ``online`` (greedy online bound), ``optimal`` (the relaxation
+        solved), ``all_fields`` (every pairable field fits, no solve
+        needed), ``dual_bound`` (time limit: the solver's proven bound) or
+        ``empty``.
+    n_pairable : int
+        Fields able to hold a pair.
+    max_fields : int
+        K, most fields the observable time holds.
+    runtime_s : float
+        Wall time (s).
+    """
+
+    value: float
+    status: str
+    n_pairable: int
+    max_fields: int
+    runtime_s: float
 
 
 @dataclass(frozen=True)

@@ -1,23 +1,24 @@
-"""The one registry of scheduler names: name -> scheduler, and the list of names.
+"""The one registry of scheduler names: the list of names, and name -> scheduler.
 
 ``PlanningConfig.solver`` validation (:mod:`.config`), :func:`~.planner.run_scheduler`,
 the command line's ``--solver`` choices (:mod:`mushrooms.tool.common`) and
 the benchmark's rows (:mod:`mushrooms.evaluation.bench`, which adds its
 external baselines) all read it.
 
-This module imports nothing heavy: each scheduler is imported the first time
-its name is looked up (the MILP stack only when a MILP scheduler is used).
+The module is a leaf (it imports nothing of the package, so the config can
+validate against it): the schedulers register themselves
+(:mod:`.schedulers.portfolio` registers every built-in one, and
+:mod:`.planner` imports it), only under a name of :data:`SOLVER_NAMES`.
 
-=========  ==================================================================
-``greedy``  the greedy scheduler (:func:`~.schedulers.greedy.greedy_schedule`)
-``slots``   greedy, then the slot-assignment MILP portfolio started from it
-            (:func:`~.schedulers.portfolio.slots_from_greedy`), with the bound
-``blocks``  the paper's block MILP (:func:`~.schedulers.block_schedule.milp_schedule`),
-            with the bound
-``hybrid``  ``best_of(greedy, slots, blocks)`` (:data:`~.schedulers.portfolio.hybrid`),
-            with the bound
-``milp``    the old name of ``blocks`` (kept for old configs)
-=========  ==================================================================
+============  ===============================================================
+``greedy``    the greedy scheduler (:func:`~.schedulers.greedy.greedy_schedule`)
+``slots``     greedy, then the slot-assignment MILP portfolio started from it
+              (:func:`~.schedulers.portfolio.slots_from_greedy`), with the bound
+``blocks``    the paper's block MILP (:func:`~.schedulers.portfolio.blocks`), with the bound
+``hybrid``    ``best_of(greedy, slots, blocks)`` (:data:`~.schedulers.portfolio.hybrid`),
+              with the bound
+``milp``      the old name of ``blocks`` (kept for old configs)
+============  ===============================================================
 
 "With the bound": the result carries the certified coverage upper bound
 (:func:`~.schedulers.portfolio.with_upper_bound`).
@@ -25,47 +26,15 @@ its name is looked up (the MILP stack only when a MILP scheduler is used).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable
+from typing import Any, Callable
 
-if TYPE_CHECKING:
-    from .problem import Scheduler
-
-__all__ = ["SOLVER_NAMES", "get_scheduler", "unknown_solver_message"]
-
-
-def _greedy() -> "Scheduler":
-    from .schedulers.greedy import greedy_schedule
-
-    return greedy_schedule
-
-
-def _slots() -> "Scheduler":
-    from .schedulers.portfolio import slots_from_greedy, with_upper_bound
-
-    return with_upper_bound(slots_from_greedy)
-
-
-def _blocks() -> "Scheduler":
-    from .schedulers.portfolio import blocks, with_upper_bound
-
-    return with_upper_bound(blocks)
-
-
-def _hybrid() -> "Scheduler":
-    from .schedulers.portfolio import hybrid, with_upper_bound
-
-    return with_upper_bound(hybrid)
-
-
-#: name -> the function building its scheduler (called at the first look-up), in the order of the names.
-_BUILDERS: dict[str, Callable[[], "Scheduler"]] = {
-    "greedy": _greedy, "slots": _slots, "blocks": _blocks, "hybrid": _hybrid, "milp": _blocks,
-}
+__all__ = ["SOLVER_NAMES", "register", "get_scheduler", "registered", "unknown_solver_message"]
 
 #: Scheduler names; ``milp`` is the old name of ``blocks`` (kept for old configs).
-SOLVER_NAMES: tuple[str, ...] = tuple(_BUILDERS)
+SOLVER_NAMES: tuple[str, ...] = ("greedy", "slots", "blocks", "hybrid", "milp")
 
-_built: dict[str, "Scheduler"] = {}
+#: name -> scheduler (``scheduler(problem, should_stop) -> ScheduleResult``, :data:`~.problem.Scheduler`).
+_SCHEDULERS: dict[str, Callable[..., Any]] = {}
 
 
 def unknown_solver_message(name: object) -> str:
@@ -73,18 +42,36 @@ def unknown_solver_message(name: object) -> str:
     return f"unknown solver {name!r}; choose one of {', '.join(SOLVER_NAMES)}"
 
 
-def get_scheduler(name: str) -> "Scheduler":
+def register(name: str, scheduler: Callable[..., Any]) -> None:
+    """Make ``scheduler`` the scheduler of ``name`` (one of :data:`SOLVER_NAMES`)."""
+    if name not in SOLVER_NAMES:
+        raise ValueError(f"{name!r} is not a scheduler name ({', '.join(SOLVER_NAMES)})")
+    _SCHEDULERS[name] = scheduler
+
+
+def registered() -> dict[str, Callable[..., Any]]:
+    """A copy of the table name -> scheduler."""
+    return dict(_SCHEDULERS)
+
+
+def get_scheduler(name: str) -> Callable[..., Any]:
     """The scheduler of a name (:data:`SOLVER_NAMES`).
 
     Raises
     ------
     InputError
         An unknown name (:func:`unknown_solver_message`).
+    LookupError
+        A name no scheduler was registered for (the built-in ones are
+        registered when :mod:`.schedulers.portfolio` is imported, as
+        :mod:`.planner` does).
     """
-    if name not in _BUILDERS:
-        from .errors import InputError
+    if name not in SOLVER_NAMES:
+        from .errors import InputError  # errors is a leaf too
 
         raise InputError(unknown_solver_message(name))
-    if name not in _built:
-        _built[name] = _BUILDERS[name]()
-    return _built[name]
+    try:
+        return _SCHEDULERS[name]
+    except KeyError:
+        raise LookupError(f"no scheduler registered for {name!r} "
+                          "(import mushrooms.scheduler_core.schedulers.portfolio)") from None

@@ -7,8 +7,9 @@ budget (s) left of ``config.time_limit_s``.  :func:`best_of` runs stages in
 turn and keeps the plan that, as it will be published (after the
 least-gain rule), covers the most probability, the earliest stage winning
 a tie; :func:`with_upper_bound` attaches the certified coverage bound
-(:mod:`.bound`) to a scheduler's result.  :mod:`..solvers_registry` builds
-the named schedulers from these.
+(:mod:`.bound`) to a scheduler's result.  The named schedulers of
+:mod:`..solvers_registry` are built from these, and this module registers them there
+(``greedy``, ``slots``, ``blocks`` / ``milp``, ``hybrid``).
 
 The MILP modules are imported by the stages when they run (and looked up
 there, so a test can replace ``slot_schedule.slot_schedule``).
@@ -22,11 +23,12 @@ from dataclasses import dataclass
 from typing import Callable, Mapping
 
 from ..problem import PlanningProblem, PortfolioEntry, ScheduleResult, Scheduler, StopCheck
+from ..solvers_registry import register
 from .gain import published_coverage
 from .greedy import greedy_schedule
 
 __all__ = ["Stage", "StageRun", "Portfolio", "best_of", "with_upper_bound", "greedy_stage", "slots_stage",
-           "blocks_stage", "slots_from_greedy", "MIN_BLOCKS_S"]
+           "blocks_stage", "slots_from_greedy", "blocks", "hybrid", "MIN_BLOCKS_S"]
 
 #: The hybrid runs the block MILP only when at least this much (s) of its budget is left.
 MIN_BLOCKS_S = 3.0
@@ -167,3 +169,9 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
 #: block MILP with the time left; the plan covering the most as published (ties: greedy, slots, blocks).
 hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage),
                  Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S))
+
+register("greedy", greedy_schedule)
+register("slots", with_upper_bound(slots_from_greedy))
+register("blocks", with_upper_bound(blocks))
+register("milp", with_upper_bound(blocks))  # the old name of blocks
+register("hybrid", with_upper_bound(hybrid))
