@@ -81,7 +81,7 @@ def measure(path: Path, time_limit_s: float) -> dict:
         "gap": milp.mip_gap,
         "status": milp.status,
         "retries": d.get("retries"),
-        "dropped": len(d.get("dropped_fields", [])),
+        "dropped": len(milp.dropped_by_slews),
         "cov_greedy": cg, "cov_milp": cm, "cov_hybrid": cm if cm >= cg else cg,
         "prepare_s": prep, "greedy_s": greedy.runtime_s, "milp_s": milp_wall,
         "milp_valid": valid, "first_problem": first_problem,

@@ -146,8 +146,14 @@ def test_plan_with_a_deadline_writes_the_best_plan_found_by_then(tmp_path, plann
 
 
 def test_cli_solver_choices_are_the_schedulers_names() -> None:
+    """One registry: the CLI's choices, the config's validation, the planner and the bench read its names."""
     from mushrooms.cli import SOLVER_CHOICES
-    from mushrooms.scheduler_core.config import SOLVER_NAMES
+    from mushrooms.evaluation.bench import OURS, SOLVERS as BENCH_SOLVERS
+    from mushrooms.scheduler_core.config import SOLVER_NAMES as CONFIG_NAMES
     from mushrooms.scheduler_core.planner import SOLVERS
+    from mushrooms.scheduler_core.solvers_registry import SOLVER_NAMES
 
-    assert tuple(SOLVER_CHOICES) == SOLVER_NAMES == SOLVERS
+    assert tuple(SOLVER_CHOICES) == SOLVER_NAMES
+    assert CONFIG_NAMES is SOLVER_NAMES and SOLVERS is SOLVER_NAMES and OURS is SOLVER_NAMES
+    assert BENCH_SOLVERS == SOLVER_NAMES + ("gwemopt", "gwemopt-repaired")
+    assert all(name in SOLVER_CHOICES for name in SOLVER_NAMES) and "gwemopt" not in SOLVER_CHOICES

@@ -49,6 +49,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from ..scheduler_core.ranges import Range, check_table, check_value, setting
+from ..scheduler_core.solvers_registry import SOLVER_NAMES
 
 __all__ = [
     "COLUMNS",
@@ -67,9 +68,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-SOLVERS = ("greedy", "slots", "blocks", "hybrid", "milp", "gwemopt", "gwemopt-repaired")
-#: Our schedulers (the others are gwemopt's rows).
-OURS = ("greedy", "slots", "blocks", "hybrid", "milp")
+#: Our schedulers (the registry's, :mod:`~mushrooms.scheduler_core.solvers_registry`); the others are gwemopt's rows.
+OURS = SOLVER_NAMES
+SOLVERS = OURS + ("gwemopt", "gwemopt-repaired")
 #: Row names of our schedulers: a plain ``<solver>`` row is what ``make_plan`` publishes under the
 #: configuration given (:func:`~mushrooms.scheduler_core.planner.optimise`, ``config.objective``
 #: included: under the default ``objective = "detection"`` the scheduler, then the detection stage);
@@ -441,11 +442,11 @@ def bench_map(path: str | Path, settings: BenchSettings, raise_errors: bool = Fa
                 rows.append(_row(name, solver, status="unavailable", valid=False, note=f"{exc}", **common))
                 continue
             stage = ""
-            if objective == "detection":
-                d = result.details
-                solved = [g for g in d.get("detection_grids", []) if "expected_detections" in g]
-                stage = (f"{d.get('detection_choice')}; budget {d.get('detection_budget_s')} s, "
-                         f"took {d.get('detection_runtime_s')} s; {len(solved)} grid(s) solved, "
+            if objective == "detection" and result.detection is not None:
+                d = result.detection
+                solved = [g for g in d.grids if "expected_detections" in g]
+                stage = (f"{d.choice}; budget {d.budget_s} s, "
+                         f"took {d.runtime_s} s; {len(solved)} grid(s) solved, "
                          f"{sum(not g['above_floor'] for g in solved)} below the floor")
             plan = _plan_from_result(result, planned, skymap, base)
             scores, hits[solver] = _score(plan, skymap, settings, footprints, injections, lightcurves, merger)

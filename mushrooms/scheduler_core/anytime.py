@@ -27,7 +27,8 @@ __all__ = ["FIRST_SOLVER", "checked_plan", "anytime_plans", "is_better", "revisi
 #: The scheduler of every first plan (fast, never needs a time limit).
 FIRST_SOLVER = "greedy"
 
-Scheduler = Callable[[PlanningProblem, str, "StopCheck | None"], ScheduleResult]
+#: ``run_scheduler``-compatible: ``(problem, solver name, should_stop) -> ScheduleResult``.
+SchedulerByName = Callable[[PlanningProblem, str, "StopCheck | None"], ScheduleResult]
 
 
 def checked_plan(problem: PlanningProblem, result: ScheduleResult, skymap: SkyMap, solver: str,
@@ -80,7 +81,7 @@ def is_better(candidate: Plan, incumbent: Plan, min_gain: float, objective: str 
 
 def anytime_plans(problem: PlanningProblem, skymap: SkyMap, solver: str, event: EventInfo | None = None,
                   supersedes: str | None = None, should_stop: StopCheck | None = None,
-                  scheduler: Scheduler = run_scheduler) -> Iterator[Plan]:
+                  scheduler: SchedulerByName = run_scheduler) -> Iterator[Plan]:
     """Yield the checked fast plan, then (unless ``solver`` is the fast one) the optimised one.
 
     The fast plan always runs to the end (it takes well under a second);

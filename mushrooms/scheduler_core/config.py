@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .ranges import check_table, require_finite, setting
+from .solvers_registry import SOLVER_NAMES  # scheduler names (``milp`` = ``blocks``): the registry's
 from .source.lightcurves import PAPER_LIGHTCURVES
 
 __all__ = ["PlanningConfig", "SlewModel", "dataclass_from_table", "ZTF_FILTERS", "SOLVER_NAMES"]
@@ -26,8 +27,6 @@ ZTF_FILTERS = ("g", "r", "i")
 #: steps ran for minutes.
 MAX_TIME_STEPS = 8640
 
-#: Scheduler names; ``milp`` is the old name of ``blocks`` (kept for old configs).
-SOLVER_NAMES = ("greedy", "slots", "blocks", "hybrid", "milp")
 
 
 def dataclass_from_table(cls: type, table: Mapping[str, Any], section: str) -> Any:

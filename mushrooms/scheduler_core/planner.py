@@ -14,30 +14,28 @@ import numpy as np
 from astropy.time import Time, TimeDelta
 
 from .plan.checker import check_plan
-from .config import SOLVER_NAMES, PlanningConfig
+from .config import PlanningConfig
 from .errors import InputError, PlanCheckError
-from .schedulers.gain import drop_low_gain, published_coverage
-from .schedulers.greedy import greedy_schedule
+from .schedulers.gain import drop_low_gain
+from .schedulers.portfolio import MIN_BLOCKS_S  # noqa: F401  (the hybrid's; re-exported)
 from .plan.document import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 from .clock import on_merger_clock
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .sky.skymap import SkyMap
+from .solvers_registry import SOLVER_NAMES, get_scheduler, unknown_solver_message
 
 __all__ = ["make_plan", "build_plan", "run_scheduler", "optimise", "SOLVERS"]
 
 log = logging.getLogger(__name__)
 
-#: Scheduler names (``milp`` = ``blocks``, the old name kept for old configs).
+#: Scheduler names (``milp`` = ``blocks``, the old name kept for old configs): :mod:`.solvers_registry`'s.
 SOLVERS = SOLVER_NAMES
-
-#: The hybrid runs the block MILP only when at least this much (s) of its budget is left.
-MIN_BLOCKS_S = 3.0
 
 
 def run_scheduler(problem: PlanningProblem, solver: str,
                   should_stop: StopCheck | None = None) -> ScheduleResult:
-    """Run one scheduler on a problem.
+    """Run one scheduler of the registry (:mod:`.solvers_registry`) on a problem.
 
     Parameters
     ----------
@@ -49,7 +47,7 @@ def run_scheduler(problem: PlanningProblem, solver: str,
         then (when at least :data:`MIN_BLOCKS_S` of ``config.time_limit_s``
         is left) the block MILP with the time left; the plan covering the
         most probability is kept (on a tie the earlier of greedy, slots,
-        blocks).
+        blocks): :data:`.schedulers.portfolio.hybrid`.
     should_stop : callable, optional
         Polled by every scheduler; True stops the run with the best plan so
         far.
@@ -57,54 +55,12 @@ def run_scheduler(problem: PlanningProblem, solver: str,
     Returns
     -------
     ScheduleResult
-        For the MILP schedulers ``details["upper_bound"]`` holds the
-        certified coverage bound (:mod:`.bound`); the hybrid's ``solver``
-        names the plan kept (``hybrid(slots:highs)``, ...) and its details
-        each candidate's coverage.
+        For the MILP schedulers ``upper_bound`` holds the certified
+        coverage bound (:mod:`.schedulers.bound`); the hybrid's ``solver``
+        names the plan kept (``hybrid(slots:highs)``, ...), its
+        ``portfolio`` each candidate's coverage.
     """
-    if solver not in SOLVERS:
-        raise InputError(f"unknown solver {solver!r}; choose one of {', '.join(SOLVERS)}")
-    if solver == "greedy":
-        return greedy_schedule(problem, should_stop)
-    t0 = time.perf_counter()
-    budget = problem.config.time_limit_s
-    if solver in ("blocks", "milp"):
-        from .schedulers.block_schedule import milp_schedule  # the MILP stack is only imported when used
-
-        result = milp_schedule(problem, should_stop)
-        return _with_bound(problem, result)
-    from .schedulers.slot_schedule import slot_schedule
-
-    greedy = greedy_schedule(problem, should_stop)
-    left = budget - (time.perf_counter() - t0)
-    slots = slot_schedule(problem, should_stop, start=greedy, time_limit_s=max(left, 0.0))
-    if solver == "slots":
-        if not slots.observations and greedy.observations:
-            slots = dataclasses.replace(slots, status=f"{slots.status}_greedy_fallback",
-                                        observations=greedy.observations,
-                                        details=dict(slots.details, greedy_details=greedy.details))
-        return _with_bound(problem, dataclasses.replace(slots, runtime_s=time.perf_counter() - t0))
-    candidates = [("greedy", greedy), ("slots", slots)]
-    left = budget - (time.perf_counter() - t0)
-    stopped = should_stop is not None and should_stop()
-    if left >= MIN_BLOCKS_S and not stopped:
-        from .schedulers.block_schedule import milp_schedule
-
-        # the block MILP is a coverage scheduler: its budget is what is left, whatever the objective (a
-        # detection config would refuse a budget shorter than its detection stage's share)
-        timed = dataclasses.replace(problem, config=dataclasses.replace(
-            problem.config, time_limit_s=left, objective="coverage"))
-        blocks = milp_schedule(timed, should_stop)
-        candidates.append(("blocks", blocks))
-    covs = {name: published_coverage(problem, r) for name, r in candidates}
-    name, best = max(candidates, key=lambda nr: (covs[nr[0]], -[n for n, _ in candidates].index(nr[0])))
-    details = dict(best.details)
-    details.update(hybrid_choice=name, **{f"coverage_{n}": c for n, c in covs.items()},
-                   slots_status=slots.status, slots_gap=slots.mip_gap,
-                   blocks_status=dict(candidates)["blocks"].status if "blocks" in covs else "skipped")
-    result = dataclasses.replace(best, solver=f"hybrid({best.solver})", mip_gap=best.mip_gap,
-                                 runtime_s=time.perf_counter() - t0, details=details)
-    return _with_bound(problem, result)
+    return get_scheduler(solver)(problem, should_stop)
 
 
 def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop: StopCheck | None = None,
@@ -148,19 +104,10 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     covering = dataclasses.replace(problem, config=dataclasses.replace(
         cfg, objective="coverage", time_limit_s=cfg.time_limit_s - share))
     result = scheduler(covering, solver, should_stop)
-    spent = time.perf_counter() - t0 - float(result.details.get("upper_bound_s", 0.0))  # the bound comes on top
+    bound_s = 0.0 if result.upper_bound is None else round(result.upper_bound.runtime_s, 3)
+    spent = time.perf_counter() - t0 - bound_s  # the bound comes on top
     left = min(share, cfg.time_limit_s - spent)
     return detection_stage(problem, skymap, result, should_stop, time_limit_s=max(left, 0.0))
-
-
-def _with_bound(problem: PlanningProblem, result: ScheduleResult) -> ScheduleResult:
-    """Attach the certified coverage upper bound (:mod:`.bound`) to a result's details."""
-    from .schedulers.bound import coverage_upper_bound
-
-    ub = coverage_upper_bound(problem)
-    details = dict(result.details)
-    details.update(upper_bound=ub.value, upper_bound_status=ub.status, upper_bound_s=round(ub.runtime_s, 3))
-    return dataclasses.replace(result, details=details)
 
 
 def make_plan(
@@ -210,7 +157,7 @@ def make_plan(
     t0 = time.perf_counter()
     solver = solver or config.solver
     if solver not in SOLVERS:
-        raise InputError(f"unknown solver {solver!r}; choose one of {', '.join(SOLVERS)}")
+        raise InputError(unknown_solver_message(solver))
     skymap, event = on_merger_clock(skymap, event)  # the notice's merger time, else the map's
     if start is None:
         if skymap.event_time is None:
@@ -273,14 +220,14 @@ def build_plan(
     config = problem.config
     start = problem.start
     result = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain)  # every scheduler
-    if result.details["dropped_low_gain"]:
-        log.info("least gain %.2g: dropped %d field(s) adding less", config.min_gain,
-                 len(result.details["dropped_low_gain"]))
+    if result.dropped_low_gain:
+        log.info("least gain %.2g: dropped %d field(s) adding less", config.min_gain, len(result.dropped_low_gain))
     skymap, event = on_merger_clock(skymap, event)  # the same clock for the document and its detections
     event = _with_map_details(event, skymap)
     observations = _with_airmass_and_probability(sorted_observations(result.observations), problem)
     ids = {o.field_id for o in observations}
-    bound = result.details.get("bound", result.details.get("milp_bound"))
+    bound = result.mip_bound
+    upper = None if result.upper_bound is None else result.upper_bound.value
     metrics = PlanMetrics(
         coverage=round(problem.footprints.coverage(ids, skymap.prob), 6),
         solver=result.solver,
@@ -290,8 +237,7 @@ def build_plan(
         runtime_s=round(result.runtime_s if runtime_s is None else runtime_s, 3),
         n_fields=len(ids),
         n_exposures=len(observations),
-        upper_bound=(None if result.details.get("upper_bound") is None
-                     else round(float(result.details["upper_bound"]), 6)),
+        upper_bound=None if upper is None else round(float(upper), 6),
     )
     plan_id = make_plan_id(
         skymap.sha256, iso_utc(start), dataclasses.asdict(config), solver, event.superevent_id,
@@ -349,9 +295,8 @@ def _expected_detections(plan: Plan, problem: PlanningProblem, skymap: SkyMap,
 
     if not skymap.has_distance or skymap.event_time is None:
         return None
-    details = result.details if result is not None else {}
-    if (details.get("expected_detections_lightcurve") == problem.config.detection_lightcurve
-            and details.get("expected_detections") is not None):
-        return round(float(details["expected_detections"]), 6)
+    if (result is not None and result.expected_detections is not None
+            and result.expected_detections_lightcurve == problem.config.detection_lightcurve):
+        return round(float(result.expected_detections), 6)
     e = expected_detections(plan, skymap, problem.footprints, load_kilonova(problem.config.detection_lightcurve))
     return None if e is None else round(e, 6)

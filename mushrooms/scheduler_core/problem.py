@@ -10,7 +10,7 @@ schedulers themselves are pure functions of it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 from astropy.time import Time
@@ -20,7 +20,8 @@ from .plan.document import Observation
 from .sky.footprints import Footprints
 from .sky.windows import Windows
 
-__all__ = ["PlanningProblem", "ScheduleResult", "StopCheck"]
+__all__ = ["PlanningProblem", "ScheduleResult", "StopCheck", "Scheduler", "UpperBound", "PortfolioEntry",
+           "DetectionReport"]
 
 #: A callable the scheduler polls; True means "stop now, return what you have".
 StopCheck = Callable[[], bool]
@@ -68,6 +69,87 @@ class PlanningProblem:
 
 
 @dataclass(frozen=True)
+class UpperBound:
+    """The certified coverage upper bound (:func:`~.schedulers.bound.coverage_upper_bound`) and how it was obtained.
+
+    Attributes
+    ----------
+    value : float
+        Upper bound on the probability coverage of any plan.
+    status : str
+        ``online`` (greedy online bound), ``optimal`` (the relaxation
+        solved), ``all_fields`` (every pairable field fits, no solve
+        needed), ``dual_bound`` (time limit: the solver's proven bound) or
+        ``empty``.
+    n_pairable : int
+        Fields able to hold a pair.
+    max_fields : int
+        K, most fields the observable time holds.
+    runtime_s : float
+        Wall time (s).
+    """
+
+    value: float
+    status: str
+    n_pairable: int
+    max_fields: int
+    runtime_s: float
+
+
+@dataclass(frozen=True)
+class PortfolioEntry:
+    """One candidate a portfolio (:func:`~.schedulers.portfolio.best_of`) compared.
+
+    Attributes
+    ----------
+    name : str
+        The stage (``greedy``, ``slots``, ``blocks``).
+    solver, status : str
+        The candidate's own.
+    mip_gap : float or None
+        The candidate's own.
+    coverage : float
+        Its coverage as it will be published (after the least-gain rule), the
+        portfolio's criterion.
+    """
+
+    name: str
+    solver: str
+    status: str
+    mip_gap: float | None
+    coverage: float
+
+
+@dataclass(frozen=True)
+class DetectionReport:
+    """What the detection stage (:func:`~.schedulers.detection_slots.detection_stage`) did.
+
+    Attributes
+    ----------
+    choice : str
+        ``detection`` (its plan was kept), ``coverage`` or ``coverage (no
+        distance layers)`` (the coverage plan was).
+    budget_s, runtime_s : float
+        The stage's budget and wall time (s), rounded to ms.
+    expected_detections_coverage : float or None
+        Expected detections of the coverage plan it started from (None
+        without distance layers).
+    coverage_floor : float or None
+        The floor (X6) its plans had to reach.
+    grids : tuple of dict
+        Free-form per-grid diagnostics (``grid``, ``status``, and for the
+        grids solved ``expected_detections``, ``coverage``, ``above_floor``, ...).
+    """
+
+    choice: str
+    budget_s: float
+    runtime_s: float
+    expected_detections_coverage: float | None = None
+    coverage_floor: float | None = None
+    grids: tuple[Mapping[str, Any], ...] = ()
+
+
+@dataclass(frozen=True)
 class ScheduleResult:
     """What a scheduler returns, before it becomes a :class:`~.plan.Plan`.
 
@@ -84,8 +166,40 @@ class ScheduleResult:
         Relative gap at the end (None without a MILP).
     runtime_s : float
         Wall time (s) of this scheduler.
+    mip_bound : float or None
+        The MILP's proven bound on its objective for the solve kept (slots,
+        blocks; None for greedy and a greedy fallback): ``metrics.mip_bound``.
+    upper_bound : UpperBound or None
+        The certified coverage upper bound (:mod:`.schedulers.bound`),
+        attached to every MILP scheduler's result (slots, blocks, hybrid);
+        None for greedy: ``metrics.upper_bound``.
+    dropped_by_slews : tuple of int
+        Field IDs the scheduler dropped because the real slews pushed an
+        exposure out of its window (slots, blocks).
+    dropped_low_gain : tuple of int
+        Field IDs the least-gain rule removed (:func:`~.schedulers.gain.drop_low_gain`;
+        empty until the rule was applied).
+    solver_status : str or None
+        The MILP backend's own status when ``status`` is not it (a greedy
+        fallback: ``no_incumbent_greedy_fallback``).
+    grid : str or None
+        The slot grid of the plan kept (slots).
+    expected_detections : float or None
+        Expected detections (X1) of these exposures as published, when a
+        scheduler scored them (the detection stage).
+    expected_detections_lightcurve : str or None
+        The light curve (``config.detection_lightcurve``) ``expected_detections``
+        was scored with (None: another kilonova or not scored).
+    portfolio : tuple of PortfolioEntry
+        The candidates a portfolio (the hybrid) compared, in its order; empty
+        for a single scheduler.
+    portfolio_choice : str or None
+        The stage whose plan the portfolio kept.
+    detection : DetectionReport or None
+        What the detection stage did (None when it did not run).
     details : dict
-        Free-form diagnostics (model size, bound, retries, ...).
+        Free-form diagnostics only (model size, per-grid or per-attempt
+        runs, retries, ...); nothing here is read back by the planner.
     """
 
     observations: tuple[Observation, ...]
@@ -94,3 +208,19 @@ class ScheduleResult:
     mip_gap: float | None = None
     runtime_s: float = 0.0
     details: dict[str, Any] = field(default_factory=dict)
+    mip_bound: float | None = None
+    upper_bound: UpperBound | None = None
+    dropped_by_slews: tuple[int, ...] = ()
+    dropped_low_gain: tuple[int, ...] = ()
+    solver_status: str | None = None
+    grid: str | None = None
+    expected_detections: float | None = None
+    expected_detections_lightcurve: str | None = None
+    portfolio: tuple[PortfolioEntry, ...] = ()
+    portfolio_choice: str | None = None
+    detection: DetectionReport | None = None
+
+
+#: A scheduler: ``scheduler(problem, should_stop)`` plans the horizon within
+#: ``problem.config.time_limit_s`` (:mod:`.solvers_registry` names them).
+Scheduler = Callable[[PlanningProblem, "StopCheck | None"], ScheduleResult]

@@ -18,14 +18,46 @@ import argparse
 import importlib
 import logging
 import sys
-from typing import Callable, Sequence
+from collections.abc import Sequence
+from typing import Callable, Iterator
 
-__all__ = ["SOLVER_CHOICES", "EXIT_INPUT", "EXIT_INTERNAL", "OPTIONAL_MODULES", "MissingExtra", "require_extra",
-           "missing_extra", "add_common_options", "tool_parser", "quiet_time_warnings", "execute"]
+__all__ = ["SOLVER_CHOICES", "SOLVER_METAVAR", "EXIT_INPUT", "EXIT_INTERNAL", "OPTIONAL_MODULES", "MissingExtra",
+           "require_extra", "missing_extra", "add_common_options", "tool_parser", "quiet_time_warnings", "execute"]
 
-#: ``--solver`` names (scheduler_core.config.SOLVER_NAMES, kept here so ``--help`` imports nothing heavy;
-#: tests/test_cli.py keeps the two equal).
-SOLVER_CHOICES = ["greedy", "slots", "blocks", "hybrid", "milp"]
+class _SolverNames(Sequence[str]):
+    """The registry's scheduler names (:mod:`~mushrooms.scheduler_core.solvers_registry`), read when first used.
+
+    ``--solver``'s ``choices``: argparse only looks into them when it checks
+    a value or lists them in an error, never for ``--help`` (the option has a
+    metavar, :data:`SOLVER_METAVAR`), so building the parser imports no
+    scheduler code.
+    """
+
+    def _names(self) -> tuple[str, ...]:
+        from ..scheduler_core.solvers_registry import SOLVER_NAMES
+
+        return SOLVER_NAMES
+
+    def __getitem__(self, i):  # type: ignore[override]
+        return self._names()[i]
+
+    def __len__(self) -> int:
+        return len(self._names())
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._names()
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names())
+
+    def __repr__(self) -> str:
+        return repr(list(self._names()))
+
+
+#: ``--solver`` names: the registry's (scheduler_core.solvers_registry.SOLVER_NAMES), looked up lazily.
+SOLVER_CHOICES: Sequence[str] = _SolverNames()
+#: ``--solver``'s metavar (the names are in :data:`SOLVER_HELP`).
+SOLVER_METAVAR = "SOLVER"
 
 EXIT_INPUT = 2
 EXIT_INTERNAL = 70

@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 from typing import Sequence
 
-from .common import SOLVER_CHOICES, SOLVER_HELP, add_common_options, execute, tool_parser
+from .common import SOLVER_CHOICES, SOLVER_HELP, SOLVER_METAVAR, add_common_options, execute, tool_parser
 
 __all__ = ["HELP", "parser", "run", "main"]
 
@@ -18,7 +18,7 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     """The options of ``mushrooms demo`` (added to ``p``, or to a new parser)."""
     p = p if p is not None else tool_parser("demo", HELP)
     p.add_argument("--out", metavar="DIR", default="mushrooms-demo", help="where the plan, its picture and the state go")
-    p.add_argument("--solver", choices=SOLVER_CHOICES, help=SOLVER_HELP)
+    p.add_argument("--solver", choices=SOLVER_CHOICES, metavar=SOLVER_METAVAR, help=SOLVER_HELP)
     add_common_options(p)
     return p
 

@@ -13,7 +13,7 @@ import math
 import time
 from typing import Any, Sequence
 
-from .common import SOLVER_CHOICES, SOLVER_HELP, add_common_options, execute, tool_parser
+from .common import SOLVER_CHOICES, SOLVER_HELP, SOLVER_METAVAR, add_common_options, execute, tool_parser
 
 __all__ = ["HELP", "parser", "run", "main", "parse_start", "warn_if_far_from_merger"]
 
@@ -62,7 +62,7 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--start", metavar="TIME",
                    help="horizon start: ISO-8601 (Z or +hh:mm offset; no offset means UTC) or MJD "
                         "(default: the sky map's event time)")
-    p.add_argument("--solver", choices=SOLVER_CHOICES, help=SOLVER_HELP)
+    p.add_argument("--solver", choices=SOLVER_CHOICES, metavar=SOLVER_METAVAR, help=SOLVER_HELP)
     p.add_argument("-o", "--output", metavar="FILE", default="plan.json", help="plan document to write (default plan.json)")
     p.add_argument("--deadline", metavar="SECONDS", type=float,
                    help="write the best plan found by then: the greedy plan at once, the optimised one if it is "

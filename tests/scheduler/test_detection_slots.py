@@ -105,16 +105,16 @@ def test_detection_stage_never_returns_fewer_expected_detections_than_its_covera
     problem = prepare_problem(sm, cfg, sm.event_time)
     cov = run_scheduler(problem, "greedy")
     det = detection_stage(problem, sm, cov, time_limit_s=10.0)
-    d = det.details
-    assert d["expected_detections"] >= d["expected_detections_coverage"] > 0
-    assert d["detection_choice"] in ("coverage", "detection")
-    if d["detection_choice"] == "coverage":
+    d = det.detection
+    assert det.expected_detections >= d.expected_detections_coverage > 0
+    assert d.choice in ("coverage", "detection")
+    if d.choice == "coverage":
         assert det.observations == cov.observations
-    ran = [g for g in d["detection_grids"] if "expected_detections" in g]
-    assert ran and max(g["expected_detections"] for g in ran if g["above_floor"]) <= d["expected_detections"] + 1e-12
+    ran = [g for g in d.grids if "expected_detections" in g]
+    assert ran and max(g["expected_detections"] for g in ran if g["above_floor"]) <= det.expected_detections + 1e-12
     # the floor (X6) holds for the plan as published: after the real timing and the least-gain rule
     c0 = published_coverage(problem, cov)
-    assert d["coverage_floor"] == pytest.approx((1 - loss) * c0)
+    assert d.coverage_floor == pytest.approx((1 - loss) * c0)
     assert published_coverage(problem, det) >= (1 - loss) * c0 - 1e-9
     # the plan reuses the stage's score of its exposures: the same as scoring the plan afresh
     plan = build_plan(problem, det, sm, "greedy")
@@ -135,10 +135,10 @@ def test_the_detection_objective_shares_one_budget_between_its_two_stages(data_d
 
     det = optimise(problem, sm, "slots", scheduler=scheduler)
     assert given == [pytest.approx(3.5)]
-    assert 0 < det.details["detection_budget_s"] <= 2.5
-    assert det.details["detection_choice"] in ("coverage", "detection")
+    assert 0 < det.detection.budget_s <= 2.5
+    assert det.detection.choice in ("coverage", "detection")
     # the coverage objective leaves the scheduler the whole budget and runs no detection stage
     cov_problem = prepare_problem(sm, dataclasses.replace(cfg, objective="coverage"), sm.event_time)
     given.clear()
-    assert "detection_choice" not in optimise(cov_problem, sm, "greedy", scheduler=scheduler).details
+    assert optimise(cov_problem, sm, "greedy", scheduler=scheduler).detection is None
     assert given == [6.0]

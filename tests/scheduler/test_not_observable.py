@@ -80,7 +80,7 @@ def test_least_gain_every_planned_field_adds_at_least_min_gain():
     kept = drop_low_gain(result, problem.footprints, problem.prob, threshold)
     kept_order = list(dict.fromkeys(o.field_id for o in kept.observations))
     assert 0 < len(kept_order) < len(order)
-    assert set(kept.details["dropped_low_gain"]) == set(order) - set(kept_order)
+    assert set(kept.dropped_low_gain) == set(order) - set(kept_order)
     assert (added_probability(kept_order, problem.footprints, problem.prob) >= threshold).all()
     # both visits of a kept field stay, and no visit of a dropped one
     for fid in kept_order:

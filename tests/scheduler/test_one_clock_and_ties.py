@@ -51,11 +51,11 @@ def test_detection_stage_on_a_distant_source_keeps_the_plan_with_more_coverage(d
     c_weak = published_coverage(problem, weak)
     assert published_coverage(problem, whole) > c_weak + 10 * cfg.min_gain, "the start must be clearly improvable"
     det = detection_stage(problem, far, weak, time_limit_s=10.0)
-    d = det.details
-    assert d["expected_detections_coverage"] < 1e-4 and d["expected_detections"] < 1e-4  # a tie at ~0
-    ran = [g for g in d["detection_grids"] if "coverage" in g]
+    d = det.detection
+    assert d.expected_detections_coverage < 1e-4 and det.expected_detections < 1e-4  # a tie at ~0
+    ran = [g for g in d.grids if "coverage" in g]
     best = max(g["coverage"] for g in ran)
     assert best > c_weak + cfg.min_gain, "the solver found more coverage: the test needs it"
     # before issue 24 the stage kept the weak coverage plan (no candidate had more expected detections)
-    assert d["detection_choice"] == "detection"
+    assert d.choice == "detection"
     assert published_coverage(problem, det) == pytest.approx(best, abs=1e-9)

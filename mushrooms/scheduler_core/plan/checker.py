@@ -373,15 +373,41 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     if not obs:
         return CheckReport(not p.lines, tuple(p.lines), coverage, reported, p.counts)
 
-    grid = _grid()
-    ids = np.array([o.field_id for o in obs])
-    ra = np.array([o.ra for o in obs], float)
-    dec = np.array([o.dec for o in obs], float)
-    flt = np.array([o.filter for o in obs])
-    start = np.array([o.start for o in obs], float)
-    exp = np.array([o.exposure_s for o in obs], float)
-    end = start + exp
+    x = _Exposures.of(obs)
+    _check_fields(p, x, config)
+    _check_sequence(p, x, horizon, config)
+    _check_conditions(p, x, plan.start, config)
+    _check_cadence(p, x, config)
 
+    return CheckReport(not p.lines, tuple(p.lines), coverage, reported, p.counts)
+
+
+@dataclass(frozen=True)
+class _Exposures:
+    """A plan's exposures as arrays, in plan order."""
+
+    ids: np.ndarray
+    ra: np.ndarray
+    dec: np.ndarray
+    flt: np.ndarray
+    start: np.ndarray
+    exp: np.ndarray
+
+    @property
+    def end(self) -> np.ndarray:
+        return self.start + self.exp
+
+    @classmethod
+    def of(cls, obs) -> "_Exposures":
+        return cls(np.array([o.field_id for o in obs]), np.array([o.ra for o in obs], float),
+                   np.array([o.dec for o in obs], float), np.array([o.filter for o in obs]),
+                   np.array([o.start for o in obs], float), np.array([o.exposure_s for o in obs], float))
+
+
+def _check_fields(p: _Problems, x: _Exposures, config: PlanningConfig) -> None:
+    """Known fields where the grid puts them, allowed filters, positive exposures."""
+    grid = _grid()
+    ids, ra, dec, flt, exp = x.ids, x.ra, x.dec, x.flt, x.exp
     known = np.array([int(f) in grid for f in ids])
     for i in np.flatnonzero(~known):
         p.add("field", f"unknown field {ids[i]}")
@@ -395,7 +421,10 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     for i in np.flatnonzero(exp <= 0):
         p.add("exposure", f"field {ids[i]} has exposure {exp[i]} s")
 
-    # order, overlaps and overheads: readout, slew and filter change run in parallel
+
+def _check_sequence(p: _Problems, x: _Exposures, horizon: float, config: PlanningConfig) -> None:
+    """Order, overlaps and overheads (readout, slew and filter change run in parallel); the horizon."""
+    ids, ra, dec, flt, start, end = x.ids, x.ra, x.dec, x.flt, x.start, x.end
     for i in np.flatnonzero(np.diff(start) < 0):
         p.add("order", f"exposure {i + 1} (field {ids[i + 1]}) starts before exposure {i}")
     gap = start[1:] - end[:-1]
@@ -409,13 +438,15 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     for i in np.flatnonzero((gap >= 0) & (gap < need - TOL_TIME_S)):
         p.add("slew", f"only {gap[i]:.1f} s from field {ids[i]} {flt[i]} to field {ids[i + 1]} {flt[i + 1]}, needs {need[i]:.1f} s")
 
-    # horizon
     for i in np.flatnonzero((start < -TOL_TIME_S) | (end > horizon + TOL_TIME_S)):
         p.add("horizon", f"field {ids[i]} {flt[i]} at {start[i]:.0f}-{end[i]:.0f} s is outside the horizon 0-{horizon:.0f} s")
 
-    # observing conditions at start, middle and end of each exposure: (3, n) arrays
-    n = len(obs)
-    c = _conditions(plan.start, np.concatenate([start, start + exp / 2, end]), np.tile(ra, 3), np.tile(dec, 3))
+
+def _check_conditions(p: _Problems, x: _Exposures, t0: Time, config: PlanningConfig) -> None:
+    """Observing conditions at start, middle and end of each exposure ((3, n) arrays)."""
+    ids, ra, dec, flt, start, exp = x.ids, x.ra, x.dec, x.flt, x.start, x.exp
+    n = len(ids)
+    c = _conditions(t0, np.concatenate([start, start + exp / 2, x.end]), np.tile(ra, 3), np.tile(dec, 3))
     sun_alt, airmass, ha, moon_sep = (a.reshape(3, n) for a in (c.sun_alt, c.airmass, c.ha, c.moon_sep))
     slack = TOL_HA_H * 15.0  # each HA limit may be missed by this much (deg)
     mount_ok = (mount_reachable(ha, dec[None, :], config.ha_max_h) | mount_reachable(ha - slack, dec[None, :], config.ha_max_h)
@@ -431,7 +462,10 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     for i in np.flatnonzero((moon_sep < config.moon_sep_min_deg - TOL_MOON_DEG).any(axis=0)):
         p.add("window", f"field {ids[i]} {flt[i]} at {start[i]:.0f} s: Moon {moon_sep[:, i].min():.1f} deg away")
 
-    # both filters per field, the cadence apart
+
+def _check_cadence(p: _Problems, x: _Exposures, config: PlanningConfig) -> None:
+    """Both filters per field, the cadence apart."""
+    ids, flt, start = x.ids, x.flt, x.start
     f1, f2 = config.filters
     for fid in np.unique(ids):
         sel = ids == fid
@@ -443,5 +477,3 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
         sep = np.abs(t1[:, None] - t2[None, :]).min()
         if sep < config.cadence_s - TOL_TIME_S:
             p.add("cadence", f"field {fid}: {f1} and {f2} only {sep:.0f} s apart (cadence {config.cadence_s:.0f} s)")
-
-    return CheckReport(not p.lines, tuple(p.lines), coverage, reported, p.counts)

@@ -26,7 +26,7 @@ import numpy as np
 
 from .blocks import (BlockModel, BlockParams, Candidates, DecodedBlock, build_block_model, decode_blocks,
                      heuristic_start)
-from ..sky.cells import merge_cells
+from ..sky.cells import Cells, merge_cells
 from ..config import PlanningConfig
 from .ordering import order_fields
 from ..plan.document import Observation
@@ -210,9 +210,67 @@ def _fallback(problem: PlanningProblem, should_stop: StopCheck | None, res: Solv
 
     log.warning("MILP (%s) found no incumbent (%s); using the greedy plan", res.backend, res.status)
     greedy = greedy_schedule(problem, should_stop)
-    details.update(greedy_details=greedy.details, solver_status=res.status)
+    details.update(greedy_details=greedy.details)
     return ScheduleResult(tuple(greedy.observations), f"milp:{res.backend}", "no_incumbent_greedy_fallback",
-                          None, time.perf_counter() - t_wall, details)
+                          None, time.perf_counter() - t_wall, details, solver_status=res.status)
+
+
+def _prepare(problem: PlanningProblem, params: BlockParams) -> tuple[np.ndarray, Cells, Candidates]:
+    """The shortlisted rows, their merged cells and the block candidates."""
+    # the shortest block any field could join: b_size fields, or all fields if fewer
+    n_sched = len(schedulable_rows(problem, params.least_duration_s(1)))
+    b_eff = max(1, min(params.b_size, n_sched))
+    min_window = params.least_duration_s(b_eff)
+    rows = shortlist_fields(problem, min_window_s=min_window)
+    b_eff = max(1, min(params.b_size, len(rows)))
+    min_window = params.least_duration_s(b_eff)
+    fp = shortlist_footprints(problem.footprints, rows)
+    cells = merge_cells(fp, problem.prob)
+    return rows, cells, make_candidates(problem, rows, min_window)
+
+
+def _make_room(timed: TimedBlocks, blocks: list[DecodedBlock], gaps: np.ndarray, extra: np.ndarray,
+               attempt: int) -> None:
+    """Before a re-solve, widen ``gaps`` / ``extra`` (in place) where the offending block overran.
+
+    The paper's fix: more time before the offending block (inherited delay),
+    or a longer block when the block itself overran its estimate.
+    """
+    b, k, excess = timed.offending
+    late = timed.real_start[b] - blocks[b].start_s
+    over = timed.real_duration[b] - blocks[b].duration_s
+    if b > 0 and late > 1e-6:
+        gaps[b - 1] += late + RETRY_MARGIN_S
+    if over > 1e-6:
+        extra[b] += over + RETRY_MARGIN_S
+    if not (b > 0 and late > 1e-6) and not over > 1e-6:
+        extra[b] += excess + RETRY_MARGIN_S
+    log.info("MILP retry %d: block %d overruns a window by %.0f s (late %.0f s, over %.0f s)",
+             attempt + 1, b, excess, late, over)
+
+
+def _attempt_record(model: BlockModel, start: np.ndarray | None, res: SolveResult) -> dict:
+    """The diagnostics of one solve (``details["attempts"]``)."""
+    return {"start_objective": None if start is None else model.coverage_objective(start),
+            "status": res.status, "objective": res.objective, "bound": res.bound, "gap": res.gap,
+            "runtime_s": round(res.runtime_s, 3), "time_to_first_s": res.time_to_first_s,
+            "time_to_gap_s": res.time_to_gap_s}
+
+
+def _executable(problem: PlanningProblem, model: BlockModel, x: np.ndarray, rows: np.ndarray,
+                candidates: Candidates) -> tuple[list[DecodedBlock], TimedBlocks, TimedBlocks, list[int], float]:
+    """Decode, order and time a solution: (blocks, as timed, its executable version, dropped fields, coverage).
+
+    The executable version is what the solve gives once the fields pushed out
+    of their windows are dropped.
+    """
+    blocks = decode_blocks(model, x)
+    orders = _order_blocks(problem, blocks, rows, candidates)
+    timed = time_blocks(problem, blocks, rows, candidates, orders)
+    valid, dropped = ((timed, []) if timed.offending is None
+                      else _drop_offenders(problem, blocks, rows, candidates, orders))
+    coverage = problem.footprints.coverage({o.field_id for o in valid.observations}, problem.prob)
+    return blocks, timed, valid, dropped, coverage
 
 
 def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None) -> ScheduleResult:
@@ -233,22 +291,15 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
         ``solver`` is ``milp:highs`` or ``milp:gurobi``; ``status`` the
         solver's (``optimal``, ``time_limit``, ``interrupted``) or
         ``no_incumbent_greedy_fallback`` / ``no_candidates``; ``mip_gap``
-        the final relative gap; ``details`` holds model size, cells vs
-        pixels, bound, times to first incumbent and to 1 % gap, retries.
+        the final relative gap, ``mip_bound`` the solver's bound and
+        ``dropped_by_slews`` the fields the real timing dropped;
+        ``details`` holds model size, cells vs pixels, times to first
+        incumbent and to 1 % gap, the attempts and retries.
     """
     t_wall = time.perf_counter()
     cfg: PlanningConfig = problem.config
     params = BlockParams.from_config(cfg)
-    # the shortest block any field could join: b_size fields, or all fields if fewer
-    n_sched = len(schedulable_rows(problem, params.least_duration_s(1)))
-    b_eff = max(1, min(params.b_size, n_sched))
-    min_window = params.least_duration_s(b_eff)
-    rows = shortlist_fields(problem, min_window_s=min_window)
-    b_eff = max(1, min(params.b_size, len(rows)))
-    min_window = params.least_duration_s(b_eff)
-    fp = shortlist_footprints(problem.footprints, rows)
-    cells = merge_cells(fp, problem.prob)
-    candidates = make_candidates(problem, rows, min_window)
+    rows, cells, candidates = _prepare(problem, params)
     t_prep = time.perf_counter() - t_wall
     details: dict = {
         "shortlist": int(len(rows)), "n_candidates": len(candidates), "n_pixels": cells.n_pixels,
@@ -269,44 +320,23 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
         limit = cfg.time_limit_s if attempt == 0 else max(min(5.0, cfg.time_limit_s), cfg.time_limit_s / 3)
         res = solve_milp(model.milp, cfg.milp_backend, limit, cfg.mip_gap, cfg.threads, should_stop,
                          start=start)
-        attempts.append({"start_objective": None if start is None else model.coverage_objective(start),
-                         "status": res.status, "objective": res.objective, "bound": res.bound, "gap": res.gap,
-                         "runtime_s": round(res.runtime_s, 3), "time_to_first_s": res.time_to_first_s,
-                         "time_to_gap_s": res.time_to_gap_s})
+        attempts.append(_attempt_record(model, start, res))
         if attempt == 0:
             details.update(model_size=model.milp.size(), backend=res.backend, backend_note=res.note,
                            time_to_first_s=res.time_to_first_s, time_to_gap_s=res.time_to_gap_s)
         if not res.has_solution:
             details["attempts"] = attempts
             return _fallback(problem, should_stop, res, details, t_wall)
-        blocks = decode_blocks(model, res.x)
-        orders = _order_blocks(problem, blocks, rows, candidates)
-        timed = time_blocks(problem, blocks, rows, candidates, orders)
-        # what this solve gives once fields pushed out of their windows are dropped
-        valid, dropped = ((timed, []) if timed.offending is None
-                          else _drop_offenders(problem, blocks, rows, candidates, orders))
-        coverage = problem.footprints.coverage({o.field_id for o in valid.observations}, problem.prob)
+        blocks, timed, valid, dropped, coverage = _executable(problem, model, res.x, rows, candidates)
         attempts[-1].update(coverage=coverage, dropped_fields=dropped)
         if best is None or coverage >= best[0] - 1e-12:  # ties: the later, re-solved plan
             best = (coverage, valid, dropped, res, attempt)
         if timed.offending is None:
             break
-        b, k, excess = timed.offending
         interrupted = res.status == "interrupted" or (should_stop is not None and should_stop())
         if attempt == cfg.max_retries or interrupted:
             break
-        # the paper's fix: more time before the offending block (inherited delay),
-        # or a longer block when the block itself overran its estimate
-        late = timed.real_start[b] - blocks[b].start_s
-        over = timed.real_duration[b] - blocks[b].duration_s
-        if b > 0 and late > 1e-6:
-            gaps[b - 1] += late + RETRY_MARGIN_S
-        if over > 1e-6:
-            extra[b] += over + RETRY_MARGIN_S
-        if not (b > 0 and late > 1e-6) and not over > 1e-6:
-            extra[b] += excess + RETRY_MARGIN_S
-        log.info("MILP retry %d: block %d overruns a window by %.0f s (late %.0f s, over %.0f s)",
-                 attempt + 1, b, excess, late, over)
+        _make_room(timed, blocks, gaps, extra, attempt)
 
     # the best executable plan over the attempts (a re-solve may end worse than
     # the first solve with its offending fields dropped)
@@ -315,8 +345,8 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
     if dropped:
         log.info("MILP: dropped %d field(s) that real slews pushed out of their windows", len(dropped))
     details.update(
-        attempts=attempts, retries=len(attempts) - 1, chosen_attempt=chosen, dropped_fields=dropped,
-        objective=res.objective, bound=res.bound, n_blocks=len({o.block for o in timed.observations}),
+        attempts=attempts, retries=len(attempts) - 1, chosen_attempt=chosen,
+        objective=res.objective, n_blocks=len({o.block for o in timed.observations}),
         solve_s=round(sum(a["runtime_s"] for a in attempts), 3),
     )
     return ScheduleResult(
@@ -326,4 +356,6 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
         mip_gap=res.gap,
         runtime_s=time.perf_counter() - t_wall,
         details=details,
+        mip_bound=res.bound,
+        dropped_by_slews=tuple(dropped),
     )

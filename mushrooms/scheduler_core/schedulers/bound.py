@@ -37,45 +37,16 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
 from ..sky.cells import merge_cells
-from ..problem import PlanningProblem
+from ..problem import PlanningProblem, UpperBound  # UpperBound is defined beside ScheduleResult, which holds one
 from ..sky.windows import union_intervals
 from .solvers import MilpModel, solve_milp
 
 __all__ = ["UpperBound", "pairable_rows", "max_fields", "coverage_upper_bound"]
-
-
-@dataclass(frozen=True)
-class UpperBound:
-    """The bound and how it was obtained.
-
-    Attributes
-    ----------
-    value : float
-        Upper bound on the probability coverage of any plan.
-    status : str
-        ``online`` (greedy online bound), ``optimal`` (the relaxation
-        solved), ``all_fields`` (every pairable field fits, no solve
-        needed), ``dual_bound`` (time limit: the solver's proven bound) or
-        ``empty``.
-    n_pairable : int
-        Fields able to hold a pair.
-    max_fields : int
-        K, most fields the observable time holds.
-    runtime_s : float
-        Wall time (s).
-    """
-
-    value: float
-    status: str
-    n_pairable: int
-    max_fields: int
-    runtime_s: float
 
 
 def _widened(problem: PlanningProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -44,6 +44,7 @@ one with as many expected detections and more coverage.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass
@@ -60,7 +61,7 @@ from ..preference import is_preferred
 from ..source.kilonova import Kilonova, load_kilonova
 from ..plan.document import Observation, Plan, PlanMetrics
 from ..sky.footprints import Footprints
-from ..problem import PlanningProblem, ScheduleResult, StopCheck
+from ..problem import DetectionReport, PlanningProblem, ScheduleResult, StopCheck
 from ..sky.skymap import SkyMap
 from .slots import SlotInstance, SlotModel, build_slot_model, slot_instance, start_vector
 from .solvers import MilpModel, resolve_backend, solve_milp
@@ -361,112 +362,151 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
         ``coverage`` by ``config.min_gain`` and covers at least ``(1 - ε)``
         of ``coverage``'s published coverage (X6), or ties on expected
         detections and covers more by ``min_gain`` (R1-R3); else
-        ``coverage`` itself.  ``details`` gain
-        ``expected_detections_coverage``, ``expected_detections``,
-        ``coverage_floor`` and ``detection_choice``.
+        ``coverage`` itself.  ``expected_detections`` (and
+        ``expected_detections_lightcurve``) hold the returned plan's score,
+        ``detection`` (:class:`~..problem.DetectionReport`) the choice, the
+        coverage plan's score, the floor and the per-grid runs.
     """
-    from .block_schedule import shortlist_footprints
-    from .slot_schedule import map_start, slot_portfolio, slot_rows, time_slot_plan
-
     t_wall = time.perf_counter()
     cfg = problem.config
     budget = cfg.detection_time_limit_s if time_limit_s is None else float(time_limit_s)
     own_kilonova = kilonova is None
     kilonova = kilonova or load_kilonova(cfg.detection_lightcurve)
-
-    def published(result: ScheduleResult) -> tuple[float, float]:
-        """(coverage, expected detections) of a result as its plan will be published."""
-        kept = drop_low_gain(result, problem.footprints, problem.prob, cfg.min_gain).observations
-        cov = problem.footprints.coverage({o.field_id for o in kept}, problem.prob)
-        return cov, plan_expected_detections(problem, skymap, kept, kilonova, depth)
-
-    def keep_coverage(choice: str, **extra) -> ScheduleResult:
-        details.update(detection_choice=choice, detection_runtime_s=round(time.perf_counter() - t_wall, 3), **extra)
-        return ScheduleResult(coverage.observations, coverage.solver, coverage.status, coverage.mip_gap,
-                              coverage.runtime_s + (time.perf_counter() - t_wall), details)
-
-    details = dict(coverage.details)
-    details["detection_budget_s"] = round(budget, 3)
     if not skymap.has_distance or skymap.event_time is None:
-        details.update(expected_detections_coverage=None, expected_detections=None)
-        return keep_coverage("coverage (no distance layers)")
+        return _kept_coverage(coverage, t_wall, "coverage (no distance layers)", budget, None, ())
+    stage = _Stage(problem, skymap, kilonova, depth, should_stop, budget, t_wall)
     t_score = time.perf_counter()
-    c_cov, e_cov = published(coverage)
-    t_score = time.perf_counter() - t_score
+    c_cov, e_cov = stage.published(coverage)
+    stage.post_s = time.perf_counter() - t_score + 0.1  # time to time and score one solution (updated as measured)
     floor = (1.0 - cfg.detection_max_coverage_loss) * c_cov
-    details.update(expected_detections_coverage=e_cov, expected_detections=e_cov, coverage_floor=floor,
-                   expected_detections_lightcurve=cfg.detection_lightcurve if own_kilonova else None)
-    backend = resolve_backend(cfg.milp_backend)
-    start_first: dict[int, float] = {}
-    for o in coverage.observations:
-        start_first[o.field_id] = min(o.start, start_first.get(o.field_id, np.inf))
-    rows = slot_rows(problem, np.asarray(list(start_first), np.int64))
-    fp = shortlist_footprints(problem.footprints, rows)
-    cells = merge_cells(fp, problem.prob)
-    field_of_row = {int(problem.field_ids[r]): f for f, r in enumerate(rows)}
-    start_f = {field_of_row[fid]: t for fid, t in start_first.items() if fid in field_of_row}
-    grids = slot_portfolio(problem, rows)
-    cov_grid = coverage.details.get("grid")
-    grids.sort(key=lambda g: g.name != cov_grid)  # the coverage plan's own grid first
-    best = (e_cov, None, None, c_cov)
-    runs = []
-    levels = W = None
-    post_s = t_score + 0.1  # time to time and score one solution (updated as measured)
-    for i, grid in enumerate(grids):
-        if should_stop is not None and should_stop():
-            break
-        if budget - (time.perf_counter() - t_wall) - post_s < MIN_SOLVE_S:
-            runs.append({"grid": grid.name, "status": "no time left"})
-            break
-        inst = slot_instance(problem, rows, grid, cells=cells)
-        if inst.n_pairs == 0:
-            continue
-        reach = pair_reach(problem, inst, kilonova, skymap.event_time, depth)
-        if levels is None:  # placed once, on the first grid's reaches, for every grid
-            levels = distance_levels(skymap, np.unique(fp.indices), float(reach.max(initial=0.0)),
-                                     cfg.detection_levels)
-            if levels.size == 0:
-                break
-            W = level_weights(skymap, fp, cells, levels)
-        plev = pair_levels(reach, levels)
-        dm = build_detection_model(inst, W, plev, cfg.penalty, cfg.detection_coverage_weight, coverage_floor=floor)
-        model = dm.model
-        x0 = None
-        if start_f:
-            pairs = map_start(inst, start_f)
-            if pairs.size and inst.cells.weight[_covered_cells(inst, pairs)].sum() >= floor:
-                x0 = detection_start_vector(dm, pairs)  # a start below the floor (X6) would be refused
-        left = budget - (time.perf_counter() - t_wall) - post_s
-        if left < MIN_SOLVE_S:
-            runs.append({"grid": grid.name, "status": "no time left"})
-            break
-        limit = left * FIRST_GRID_SHARE if i == 0 else left / max(len(grids) - i, 1)
-        limit = max(limit, min(left, MIN_SOLVE_S))
-        res = solve_milp(model.milp, backend, limit, cfg.mip_gap, cfg.threads, should_stop, start=x0)
-        if not res.has_solution:
-            runs.append({"grid": grid.name, "status": res.status})
-            continue
-        t_post = time.perf_counter()
-        obs, dropped, _ = time_slot_plan(problem, model, res.x)
-        cand = ScheduleResult(tuple(obs), "detection", res.status)
-        c, e = published(cand)
-        post_s = max(post_s, time.perf_counter() - t_post)
-        ok = c >= floor - 1e-9
-        runs.append({"grid": grid.name, "status": res.status, "levels": int(levels.size), "pairs": inst.n_pairs,
-                     "objective": res.objective, "bound": res.bound, "expected_detections": e, "coverage": c,
-                     "above_floor": ok, "dropped": len(dropped), "runtime_s": round(res.runtime_s, 3)})
-        if ok and is_preferred(c, e, best[3], best[0], cfg.min_gain, "detection", coverage_floor=floor):
-            best = (e, obs, res, c)  # R2, or R3: a tie in expected detections and more coverage
-    details.update(detection_grids=runs)
+    lightcurve = cfg.detection_lightcurve if own_kilonova else None
+    best, runs = stage.solve_grids(coverage, floor, (e_cov, None, None, c_cov))
     if best[1] is None:
-        return keep_coverage("coverage")
+        return _kept_coverage(coverage, t_wall, "coverage", budget, (e_cov, floor, lightcurve), tuple(runs))
     e, obs, res, c = best
-    details.update(expected_detections=e, detection_choice="detection",
-                   detection_runtime_s=round(time.perf_counter() - t_wall, 3))
+    report = DetectionReport("detection", round(budget, 3), round(time.perf_counter() - t_wall, 3), e_cov, floor,
+                             tuple(runs))
     log.info("detection objective: expected detections %.4f -> %.4f, coverage %.4f -> %.4f (floor %.4f)",
              e_cov, e, c_cov, c, floor)
-    return ScheduleResult(tuple(obs), f"detection({coverage.solver})", res.status, res.gap,
-                          coverage.runtime_s + (time.perf_counter() - t_wall), details)
+    # the coverage plan's other fields (its MILP bound, certified upper bound, ...) stay as they were
+    return dataclasses.replace(coverage, observations=tuple(obs), solver=f"detection({coverage.solver})",
+                               status=res.status, mip_gap=res.gap,
+                               runtime_s=coverage.runtime_s + (time.perf_counter() - t_wall),
+                               expected_detections=e, expected_detections_lightcurve=lightcurve, detection=report)
+
+
+def _kept_coverage(coverage: ScheduleResult, t_wall: float, choice: str, budget: float,
+                   scored: tuple[float, float, str | None] | None, runs: tuple[dict, ...]) -> ScheduleResult:
+    """The coverage plan, as the detection stage returns it when it keeps it.
+
+    ``scored`` is (its expected detections, the floor, the light curve), None
+    without distance layers.
+    """
+    e_cov, floor, lightcurve = scored if scored is not None else (None, None, coverage.expected_detections_lightcurve)
+    report = DetectionReport(choice, round(budget, 3), round(time.perf_counter() - t_wall, 3), e_cov, floor, runs)
+    return dataclasses.replace(coverage, runtime_s=coverage.runtime_s + (time.perf_counter() - t_wall),
+                               expected_detections=e_cov, expected_detections_lightcurve=lightcurve,
+                               detection=report)
+
+
+class _Stage:
+    """The detection stage's solves on the slot grids of one problem, within one budget."""
+
+    def __init__(self, problem: PlanningProblem, skymap: SkyMap, kilonova: Kilonova, depth: DepthModel,
+                 should_stop: StopCheck | None, budget: float, t_wall: float) -> None:
+        self.problem, self.skymap, self.kilonova, self.depth = problem, skymap, kilonova, depth
+        self.should_stop, self.budget, self.t_wall = should_stop, budget, t_wall
+        self.post_s = 0.1
+        self.levels: np.ndarray | None = None
+        self.W: np.ndarray | None = None
+
+    def published(self, result: ScheduleResult) -> tuple[float, float]:
+        """(coverage, expected detections) of a result as its plan will be published."""
+        problem = self.problem
+        kept = drop_low_gain(result, problem.footprints, problem.prob, problem.config.min_gain).observations
+        cov = problem.footprints.coverage({o.field_id for o in kept}, problem.prob)
+        return cov, plan_expected_detections(problem, self.skymap, kept, self.kilonova, self.depth)
+
+    def left_s(self) -> float:
+        """Solve time left: the budget, less the time spent and the time to time and score a solution."""
+        return self.budget - (time.perf_counter() - self.t_wall) - self.post_s
+
+    def solve_grids(self, coverage: ScheduleResult, floor: float, best: tuple) -> tuple[tuple, list[dict]]:
+        """Solve the grids in turn from ``coverage``'s plan; (the best (e, obs, res, c), per-grid runs)."""
+        from .block_schedule import shortlist_footprints
+        from .slot_schedule import slot_portfolio, slot_rows
+
+        problem = self.problem
+        start_first: dict[int, float] = {}
+        for o in coverage.observations:
+            start_first[o.field_id] = min(o.start, start_first.get(o.field_id, np.inf))
+        rows = slot_rows(problem, np.asarray(list(start_first), np.int64))
+        self.fp = shortlist_footprints(problem.footprints, rows)
+        self.cells = merge_cells(self.fp, problem.prob)
+        self.rows, self.floor = rows, floor
+        self.backend = resolve_backend(problem.config.milp_backend)
+        field_of_row = {int(problem.field_ids[r]): f for f, r in enumerate(rows)}
+        self.start_f = {field_of_row[fid]: t for fid, t in start_first.items() if fid in field_of_row}
+        grids = slot_portfolio(problem, rows)
+        grids.sort(key=lambda g: g.name != coverage.grid)  # the coverage plan's own grid first
+        runs: list[dict] = []
+        for i, grid in enumerate(grids):
+            if self.should_stop is not None and self.should_stop():
+                break
+            if self.left_s() < MIN_SOLVE_S:
+                runs.append({"grid": grid.name, "status": "no time left"})
+                break
+            run, found, stop = self._solve_grid(grid, i, len(grids))
+            if run is not None:
+                runs.append(run)
+            if found is not None and is_preferred(found[3], found[0], best[3], best[0], problem.config.min_gain,
+                                                  "detection", coverage_floor=floor):
+                best = found  # R2, or R3: a tie in expected detections and more coverage
+            if stop:
+                break
+        return best, runs
+
+    def _solve_grid(self, grid, i: int, n_grids: int) -> tuple[dict | None, tuple | None, bool]:
+        """Solve one grid: (its run record or None, its (e, obs, res, c) when above the floor, stop after it)."""
+        from .slot_schedule import map_start, time_slot_plan
+
+        problem, cfg = self.problem, self.problem.config
+        inst = slot_instance(problem, self.rows, grid, cells=self.cells)
+        if inst.n_pairs == 0:
+            return None, None, False
+        reach = pair_reach(problem, inst, self.kilonova, self.skymap.event_time, self.depth)
+        if self.levels is None:  # placed once, on the first grid's reaches, for every grid
+            self.levels = distance_levels(self.skymap, np.unique(self.fp.indices), float(reach.max(initial=0.0)),
+                                          cfg.detection_levels)
+            if self.levels.size == 0:
+                return None, None, True
+            self.W = level_weights(self.skymap, self.fp, self.cells, self.levels)
+        plev = pair_levels(reach, self.levels)
+        dm = build_detection_model(inst, self.W, plev, cfg.penalty, cfg.detection_coverage_weight,
+                                   coverage_floor=self.floor)
+        model = dm.model
+        x0 = None
+        if self.start_f:
+            pairs = map_start(inst, self.start_f)
+            if pairs.size and inst.cells.weight[_covered_cells(inst, pairs)].sum() >= self.floor:
+                x0 = detection_start_vector(dm, pairs)  # a start below the floor (X6) would be refused
+        left = self.left_s()
+        if left < MIN_SOLVE_S:
+            return {"grid": grid.name, "status": "no time left"}, None, True
+        limit = left * FIRST_GRID_SHARE if i == 0 else left / max(n_grids - i, 1)
+        limit = max(limit, min(left, MIN_SOLVE_S))
+        res = solve_milp(model.milp, self.backend, limit, cfg.mip_gap, cfg.threads, self.should_stop, start=x0)
+        if not res.has_solution:
+            return {"grid": grid.name, "status": res.status}, None, False
+        t_post = time.perf_counter()
+        obs, dropped, _ = time_slot_plan(problem, model, res.x)
+        c, e = self.published(ScheduleResult(tuple(obs), "detection", res.status))
+        self.post_s = max(self.post_s, time.perf_counter() - t_post)
+        ok = c >= self.floor - 1e-9
+        run = {"grid": grid.name, "status": res.status, "levels": int(self.levels.size), "pairs": inst.n_pairs,
+               "objective": res.objective, "bound": res.bound, "expected_detections": e, "coverage": c,
+               "above_floor": ok, "dropped": len(dropped), "runtime_s": round(res.runtime_s, 3)}
+        return run, ((e, obs, res, c) if ok else None), False
 
 
 def _covered_cells(inst: SlotInstance, pairs: np.ndarray) -> np.ndarray:

@@ -97,8 +97,8 @@ def drop_low_gain(result: ScheduleResult, footprints: Footprints, prob: np.ndarr
     Returns
     -------
     ScheduleResult
-        Same solver and status; ``details["dropped_low_gain"]`` lists the
-        removed field IDs (empty when none was).
+        Same solver and status; ``dropped_low_gain`` lists the removed field
+        IDs (empty when none was).
     """
     observations: tuple[Observation, ...] = tuple(result.observations)
     dropped: list[int] = []
@@ -113,9 +113,7 @@ def drop_low_gain(result: ScheduleResult, footprints: Footprints, prob: np.ndarr
                 covered[pix] = True
         gone = set(dropped)
         observations = tuple(o for o in observations if o.field_id not in gone)
-    details = dict(result.details)
-    details["dropped_low_gain"] = dropped
-    return dataclasses.replace(result, observations=observations, details=details)
+    return dataclasses.replace(result, observations=observations, dropped_low_gain=tuple(dropped))
 
 
 def published_coverage(problem: PlanningProblem, result: ScheduleResult) -> float:

@@ -115,41 +115,80 @@ def greedy_schedule(problem: PlanningProblem, should_stop: StopCheck | None = No
     """
     t_wall = time.perf_counter()
     cfg: PlanningConfig = problem.config
-    f1, f2 = cfg.filters
-    exp = cfg.exposure_s
-    horizon = cfg.horizon_s
-    n = len(problem.field_ids)
-    fp = problem.footprints
-    w_rows = _window_rows(problem)
-    w_start, w_end = problem.windows.start, problem.windows.end
-    empty_row = fp.indptr[1:] == fp.indptr[:-1]
-
-    uncovered = problem.prob.copy()
-    used = np.zeros(n, dtype=bool)
-    observations: list[Observation] = []
-    pass_target = max(cfg.cadence_s - cfg.filter_change_s, exp)
-    second_delay = max(cfg.cadence_s, pass_target + cfg.filter_change_s) + exp + 60.0
-    free_at = 0.0
-    previous: tuple[float, float, str] | None = None
-    block = 0
+    state = _Greedy(problem)
     status = "greedy"
-
-    def gains() -> np.ndarray:
-        if fp.indices.size == 0:
-            return np.zeros(n)
-        g = np.add.reduceat(uncovered[fp.indices], fp.indptr[:-1])
-        g[empty_row] = 0.0
-        return g
-
-    while free_at + exp <= horizon and n:
+    while state.free_at + cfg.exposure_s <= cfg.horizon_s and state.n:
         if should_stop is not None and should_stop():
             status = "interrupted"
             break
+        saved = state.uncovered.copy()
+        batch, g = state.fill_batch()
+        if not batch:
+            # nothing fits now: jump to the next window opening of a useful field
+            opening = state.next_opening(g)
+            if opening is None:
+                break
+            state.free_at = opening
+            continue
+        batch, first, second = state.time_batch(batch, saved)
+        if not batch:
+            state.free_at += cfg.time_step_s
+            continue
+        state.commit(batch, first, second)
+
+    observations = sorted(state.observations, key=lambda o: o.start)
+    return ScheduleResult(
+        observations=tuple(observations),
+        solver="greedy",
+        status=status,
+        mip_gap=None,
+        runtime_s=time.perf_counter() - t_wall,
+        details={"n_blocks": state.block},
+    )
+
+
+class _Greedy:
+    """The greedy walk's state: what is still uncovered, the fields used, the exposures so far, the clock."""
+
+    def __init__(self, problem: PlanningProblem) -> None:
+        cfg = problem.config
+        self.problem, self.cfg = problem, cfg
+        self.exp = cfg.exposure_s
+        self.n = len(problem.field_ids)
+        self.fp = problem.footprints
+        self.w_rows = _window_rows(problem)
+        self.w_start, self.w_end = problem.windows.start, problem.windows.end
+        self.empty_row = self.fp.indptr[1:] == self.fp.indptr[:-1]
+        self.uncovered = problem.prob.copy()
+        self.used = np.zeros(self.n, dtype=bool)
+        self.observations: list[Observation] = []
+        self.pass_target = max(cfg.cadence_s - cfg.filter_change_s, self.exp)
+        self.second_delay = max(cfg.cadence_s, self.pass_target + cfg.filter_change_s) + self.exp + 60.0
+        self.free_at = 0.0
+        self.previous: tuple[float, float, str] | None = None
+        self.block = 0
+
+    def gains(self) -> np.ndarray:
+        """Uncovered probability in each field's footprint."""
+        fp = self.fp
+        if fp.indices.size == 0:
+            return np.zeros(self.n)
+        g = np.add.reduceat(self.uncovered[fp.indices], fp.indptr[:-1])
+        g[self.empty_row] = 0.0
+        return g
+
+    def _cover(self, k: int) -> None:
+        fp = self.fp
+        self.uncovered[fp.indices[fp.indptr[k]:fp.indptr[k + 1]]] = 0.0
+
+    def fill_batch(self) -> tuple[list[int], np.ndarray]:
+        """Pick fields by marginal gain until the first-filter pass is long enough; (rows, gains left)."""
+        problem, cfg, exp, n = self.problem, self.cfg, self.exp, self.n
+        f1 = cfg.filters[0]
         batch: list[int] = []
-        t = free_at
-        prev = previous
-        saved = uncovered.copy()
-        g = gains()
+        t = self.free_at
+        prev = self.previous
+        g = self.gains()
         while True:
             if prev is None:
                 oh = np.zeros(n)
@@ -157,69 +196,64 @@ def greedy_schedule(problem: PlanningProblem, should_stop: StopCheck | None = No
                 oh = overhead_time(prev[0], prev[1], problem.ra, problem.dec, cfg.slew,
                                    cfg.filter_change_s if prev[2] != f1 else 0.0)
             ts = t + oh
-            cand = ~used & (g > 0) & (ts + exp <= horizon)
-            cand &= _observable(w_rows, w_start, w_end, ts, exp, n)
-            cand &= _observable(w_rows, w_start, w_end, ts + second_delay, exp, n)
+            cand = ~self.used & (g > 0) & (ts + exp <= cfg.horizon_s)
+            cand &= _observable(self.w_rows, self.w_start, self.w_end, ts, exp, n)
+            cand &= _observable(self.w_rows, self.w_start, self.w_end, ts + self.second_delay, exp, n)
             if not cand.any():
                 break
             k = int(np.argmax(np.where(cand, g, -1.0)))
             batch.append(k)
-            used[k] = True
-            uncovered[fp.indices[fp.indptr[k]:fp.indptr[k + 1]]] = 0.0
-            g = gains()
+            self.used[k] = True
+            self._cover(k)
+            g = self.gains()
             t = ts[k] + exp
             prev = (problem.ra[k], problem.dec[k], f1)
-            if t - free_at >= pass_target:
+            if t - self.free_at >= self.pass_target:
                 break
+        return batch, g
 
-        if not batch:
-            # nothing fits now: jump to the next window opening of a useful field
-            useful = ~used & (g > 0)
-            useful_windows = (w_rows >= 0) & useful[np.clip(w_rows, 0, max(n - 1, 0))]
-            later = w_start[useful_windows & (w_start > free_at)]
-            if later.size == 0:
-                break
-            free_at = max(float(later.min()), free_at + cfg.time_step_s / 2)
-            continue
+    def next_opening(self, g: np.ndarray) -> float | None:
+        """When to try again after an empty batch: the next window opening of a useful field (None: none)."""
+        n = self.n
+        useful = ~self.used & (g > 0)
+        useful_windows = (self.w_rows >= 0) & useful[np.clip(self.w_rows, 0, max(n - 1, 0))]
+        later = self.w_start[useful_windows & (self.w_start > self.free_at)]
+        if later.size == 0:
+            return None
+        return max(float(later.min()), self.free_at + self.cfg.time_step_s / 2)
 
-        # time both passes; drop fields whose real times leave their windows
+    def time_batch(self, batch: list[int], saved: np.ndarray) -> tuple[list[int], np.ndarray, np.ndarray]:
+        """Time both passes; drop the fields whose real times leave their windows (re-timing the rest)."""
+        first = second = np.empty(0)
         while batch:
-            first, second = time_two_passes(problem, batch, free_at, previous)
+            first, second = time_two_passes(self.problem, batch, self.free_at, self.previous)
             rows = np.asarray(batch)
-            ok1 = _observable_each(w_rows, w_start, w_end, rows, first, exp)
-            ok2 = _observable_each(w_rows, w_start, w_end, rows, second, exp)
-            ok = ok1 & ok2 & (second + exp <= horizon)
+            ok1 = _observable_each(self.w_rows, self.w_start, self.w_end, rows, first, self.exp)
+            ok2 = _observable_each(self.w_rows, self.w_start, self.w_end, rows, second, self.exp)
+            ok = ok1 & ok2 & (second + self.exp <= self.cfg.horizon_s)
             if ok.all():
                 break
             bad = [b for b, good in zip(batch, ok) if not good]
             batch = [b for b, good in zip(batch, ok) if good]
-            used[bad] = False  # they may still fit a later batch
-            uncovered = saved.copy()
+            self.used[bad] = False  # they may still fit a later batch
+            self.uncovered = saved.copy()
             for k in batch:
-                uncovered[fp.indices[fp.indptr[k]:fp.indptr[k + 1]]] = 0.0
-        if not batch:
-            free_at += cfg.time_step_s
-            continue
+                self._cover(k)
+        return batch, first, second
 
+    def commit(self, batch: list[int], first: np.ndarray, second: np.ndarray) -> None:
+        """Add a timed batch's exposures (both filters) as one block and move the clock past it."""
+        problem, exp = self.problem, self.exp
+        f1, f2 = self.cfg.filters
         for k, t1, t2 in zip(batch, first, second):
             fid = int(problem.field_ids[k])
             ra, dec = float(problem.ra[k]), float(problem.dec[k])
-            observations.append(Observation(fid, ra, dec, f1, float(t1), exp, block))
-            observations.append(Observation(fid, ra, dec, f2, float(t2), exp, block))
+            self.observations.append(Observation(fid, ra, dec, f1, float(t1), exp, self.block))
+            self.observations.append(Observation(fid, ra, dec, f2, float(t2), exp, self.block))
         last = batch[-1]
-        free_at = float(second[-1] + exp)
-        previous = (float(problem.ra[last]), float(problem.dec[last]), f2)
-        block += 1
-
-    observations.sort(key=lambda o: o.start)
-    return ScheduleResult(
-        observations=tuple(observations),
-        solver="greedy",
-        status=status,
-        mip_gap=None,
-        runtime_s=time.perf_counter() - t_wall,
-        details={"n_blocks": block},
-    )
+        self.free_at = float(second[-1] + exp)
+        self.previous = (float(problem.ra[last]), float(problem.dec[last]), f2)
+        self.block += 1
 
 
 def _observable_each(w_rows: np.ndarray, w_start: np.ndarray, w_end: np.ndarray,

@@ -246,9 +246,10 @@ def slot_schedule(
     Returns
     -------
     ScheduleResult
-        ``solver`` ``slots:highs`` / ``slots:gurobi``; ``details`` hold the
-        chosen grid, per-grid objectives, bounds and times, the dropped
-        fields and the mapped start's objective.
+        ``solver`` ``slots:highs`` / ``slots:gurobi``; ``grid`` the chosen
+        grid, ``mip_bound`` its solver's bound, ``dropped_by_slews`` the
+        fields the real timing dropped; ``details`` hold the per-grid
+        objectives, bounds and times and the mapped start's objective.
     """
     t_wall = time.perf_counter()
     cfg: PlanningConfig = problem.config
@@ -270,6 +271,31 @@ def slot_schedule(
     field_of_row = {int(problem.field_ids[r]): f for f, r in enumerate(rows)}
     start_f = {field_of_row[fid]: t for fid, t in start_first.items() if fid in field_of_row}
     details.update(n_cells=cells.n_cells, n_pixels=cells.n_pixels, grids=[])
+    solutions, interrupted = _solve_grids(problem, rows, cells, grids, start_f, budget, t_wall, backend,
+                                          should_stop, pair_weight, details["grids"])
+    if not solutions:
+        return ScheduleResult((), "slots:none", "interrupted" if interrupted else "no_solution", None,
+                              time.perf_counter() - t_wall, details)
+    best = _best_executable(problem, solutions, weight)
+    _, obs, dropped, n_tsp, sol = best
+    res = sol.result
+    status = "interrupted" if interrupted else ("optimal" if all(
+        s.result.status == "optimal" for s in solutions) and len(solutions) == len(grids) else res.status)
+    if dropped:
+        log.info("slots: dropped %d field(s) that real slews pushed out of their windows", len(dropped))
+    details.update(objective=res.objective, start_objective=sol.start_objective, tsp_blocks=n_tsp,
+                   backend=res.backend, backend_note=res.note, model_size=sol.model.milp.size(),
+                   n_blocks=len({o.block for o in obs}))
+    return ScheduleResult(tuple(obs), f"slots:{res.backend}", status, res.gap, time.perf_counter() - t_wall,
+                          details, mip_bound=res.bound, dropped_by_slews=tuple(dropped),
+                          grid=sol.model.instance.grid.name)
+
+
+def _solve_grids(problem: PlanningProblem, rows: np.ndarray, cells, grids: list[SlotGrid],
+                 start_f: dict[int, float], budget: float, t_wall: float, backend: str,
+                 should_stop: StopCheck | None, pair_weight, runs: list[dict]) -> tuple[list[GridSolution], bool]:
+    """Solve the grids in turn within the budget; (the solutions found, interrupted), one run record each."""
+    cfg = problem.config
     solutions: list[GridSolution] = []
     interrupted = False
     for i, grid in enumerate(grids):
@@ -294,25 +320,30 @@ def slot_schedule(
         share = left / min(len(grids) - i, PORTFOLIO_SPLIT)
         res = solve_milp(model.milp, backend, share, cfg.mip_gap, cfg.threads,
                          should_stop, start=x0)
-        details["grids"].append({"grid": grid.name, "pairs": inst.n_pairs, "slots": grid.n_slots,
-                                 "status": res.status, "objective": res.objective, "bound": res.bound,
-                                 "start_objective": start_obj, "runtime_s": round(res.runtime_s, 3)})
+        runs.append({"grid": grid.name, "pairs": inst.n_pairs, "slots": grid.n_slots,
+                     "status": res.status, "objective": res.objective, "bound": res.bound,
+                     "start_objective": start_obj, "runtime_s": round(res.runtime_s, 3)})
         if res.status == "interrupted":
             interrupted = True
         if res.has_solution:
             solutions.append(GridSolution(model, res, start_obj))
         if interrupted:
             break
-    if not solutions:
-        return ScheduleResult((), "slots:none", "interrupted" if interrupted else "no_solution", None,
-                              time.perf_counter() - t_wall, details)
+    return solutions, interrupted
 
-    # post-process in decreasing objective until no unprocessed grid could do better
-    # (the cell term of a solution bounds what its post-processed plan covers)
+
+def _best_executable(problem: PlanningProblem, solutions: list[GridSolution], weight: np.ndarray
+                     ) -> tuple[float, list[Observation], list[int], int, GridSolution]:
+    """The best plan after post-processing: (score, observations, dropped, TSP blocks, its solution).
+
+    Solutions are post-processed in decreasing objective until no unprocessed
+    one could do better (the cell term of a solution bounds what its
+    post-processed plan covers).
+    """
     def cell_term(sol: GridSolution) -> float:
         return float(sol.model.instance.cells.weight @ sol.result.x[sol.model.off_y:])
 
-    solutions.sort(key=lambda s: -cell_term(s))
+    solutions = sorted(solutions, key=lambda s: -cell_term(s))
     best = None
     for sol in solutions:
         if best is not None and best[0] >= cell_term(sol) - 1e-12:
@@ -321,16 +352,5 @@ def slot_schedule(
         score = problem.footprints.coverage({o.field_id for o in obs}, weight)
         if best is None or score > best[0] + 1e-12:
             best = (score, obs, dropped, n_tsp, sol)
-    _, obs, dropped, n_tsp, sol = best
-    res = sol.result
-    status = "interrupted" if interrupted else ("optimal" if all(
-        s.result.status == "optimal" for s in solutions) and len(solutions) == len(grids) else res.status)
-    if dropped:
-        log.info("slots: dropped %d field(s) that real slews pushed out of their windows", len(dropped))
-    details.update(grid=sol.model.instance.grid.name, objective=res.objective, bound=res.bound,
-                   start_objective=sol.start_objective, dropped_fields=dropped, tsp_blocks=n_tsp,
-                   backend=res.backend, backend_note=res.note, model_size=sol.model.milp.size(),
-                   n_blocks=len({o.block for o in obs}))
-    return ScheduleResult(tuple(obs), f"slots:{res.backend}", status, res.gap, time.perf_counter() - t_wall,
-                          details)
-
+    assert best is not None
+    return best
