@@ -68,6 +68,8 @@ from ..handlers.decisions import Decision, EventState, newest_created
 from ..handlers.instants import now_iso_z
 from ..handlers.text import storable
 from ..scheduler_core.plan import strict_json
+from ..scheduler_core.plan.messages import plan_final_message
+from .outcomes import EventRef
 
 __all__ = ["Store", "StoreError", "StateInUse", "StateLock", "lock_state", "Job", "OutboxMessage", "NoticeRecord",
            "SCHEMA_VERSION", "RAW_PREFIX_BYTES", "plan_final_message"]
@@ -321,6 +323,11 @@ class Job:
     attempts: int
     status: str
     fallback: bool = False
+
+    @property
+    def ref(self) -> EventRef:
+        """The job's event, notice and job ids (what every :class:`~.outcomes.Outcome` of it carries)."""
+        return EventRef(self.superevent_id, self.alert_type, self.notice_id, self.job_id)
 
 
 @dataclass(frozen=True)
@@ -913,7 +920,7 @@ class Store:
                           (key,)).fetchone()
         if found is not None:
             return int(found[0])
-        return self._insert_outbox(c, key, "plan_final", plan_final_message(plan_id, superevent_id, reason))
+        return self._insert_outbox(c, key, "plan_final", plan_final_message(plan_id, superevent_id, reason, now_iso_z()))
 
     def job_plans(self, job_id: int) -> list[dict[str, Any]]:
         """The revisions a job stored, oldest first (documents parsed)."""
@@ -996,19 +1003,6 @@ class Store:
         out["jobs_open"] = c.execute("SELECT COUNT(*) FROM jobs WHERE status IN ('pending','running')").fetchone()[0]
         out["outbox_pending"] = c.execute("SELECT COUNT(*) FROM outbox WHERE published_at IS NULL").fetchone()[0]
         return out
-
-
-def plan_final_message(plan_id: str, superevent_id: str | None, reason: str) -> dict[str, Any]:
-    """The ``plan_final`` message (docs/design/CONTRACTS.md): revision 1 of ``plan_id`` stands, nothing follows."""
-    return {
-        "type": "plan_final",
-        "plan_id": plan_id,
-        "revision": 1,
-        "final": True,
-        "superevent_id": superevent_id,
-        "reason": reason,
-        "created": now_iso_z(),
-    }
 
 
 def _opt(text: str | None) -> str | None:
