@@ -48,7 +48,7 @@ raw = notice_with("MS181101ab", skymap=bomb)
 from mushrooms.scheduler_core import make_plan, read_skymap  # imports out of the timing
 import ligo.skymap.io
 base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-p = NoticePipeline(FAST, Store(sys.argv[3]), MemorySink())
+p = NoticePipeline.from_config(FAST, Store(sys.argv[3]), MemorySink())
 t0 = time.perf_counter()
 acc = p.accept(raw, "bench:bomb", received_at())
 out = p.run_job(acc.job)

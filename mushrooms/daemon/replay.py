@@ -112,7 +112,7 @@ def replay(pipeline: NoticePipeline, paths: Sequence[str | Path], out: TextIO | 
             read_errors[p] = str(exc)
             items.append((p, None))
     results: list[tuple[Path, Outcome]] = []
-    for p, data, t in order_notices(items, pipeline.config.policy.max_notice_bytes):
+    for p, data, t in order_notices(items, pipeline.policy.max_notice_bytes):
         if data is None:
             oc = Outcome("rejected", None, read_errors.get(p, "unreadable"))
             log.warning("notice origin=file:%s superevent_id=- decision=rejected reason=%r", p, oc.reason)
@@ -165,7 +165,7 @@ def replay_notices(notices: Sequence[str | Path], out_dir: str | Path, config: C
             Path(str(state) + suffix).unlink(missing_ok=True)
     store = Store(state)
     try:
-        pipeline = NoticePipeline(config, store, DirectorySink(out_dir))
+        pipeline = NoticePipeline(config.policy, config.scheduler, store, DirectorySink(out_dir), daemon=config.daemon)
         results = replay(pipeline, notices)
     finally:
         store.close()

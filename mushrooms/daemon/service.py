@@ -598,7 +598,7 @@ class Service:
             new = dataclasses.replace(new, daemon=dataclasses.replace(new.daemon, state_path=str(self.paths.state)))
         from .pipeline import NoticePipeline
 
-        self.pipeline = NoticePipeline(new, self.pipeline.store, sink, sky_cache=self.sky_cache,
+        self.pipeline = NoticePipeline(new.policy, new.scheduler, self.pipeline.store, sink, daemon=new.daemon, sky_cache=self.sky_cache,
                                        on_outbox=self._queued)
         if new.submit != self.config.submit:
             log.warning("event=reload_partial reason='[submit] changes apply at the next start'")

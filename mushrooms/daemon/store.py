@@ -68,6 +68,8 @@ from ..handlers.decisions import Decision, EventState, newest_created
 from ..handlers.instants import now_iso_z
 from ..handlers.text import storable
 from ..scheduler_core.plan import strict_json
+from ..scheduler_core.plan.messages import plan_final_message
+from .outcomes import EventRef
 
 __all__ = ["Store", "StoreError", "StateInUse", "StateLock", "lock_state", "Job", "OutboxMessage", "NoticeRecord",
            "SCHEMA_VERSION", "RAW_PREFIX_BYTES", "plan_final_message"]
@@ -98,14 +100,6 @@ CREATE TABLE IF NOT EXISTS submissions (
 );
 CREATE INDEX IF NOT EXISTS submissions_event ON submissions(superevent_id, state);
 """
-
-#: Additive migrations: ``{version: statements}`` bring a state file of
-#: ``version - 1`` up to ``version`` (a new file gets :data:`_SCHEMA` at once).
-_MIGRATIONS: dict[int, tuple[str, ...]] = {
-    2: ("ALTER TABLE events ADD COLUMN localization TEXT",),  # gw | combined (issue 17)
-    3: (_SUBMISSIONS,),  # plans submitted to ZTF's queue (issue 27, :mod:`.submissions`)
-    4: ("ALTER TABLE events ADD COLUMN latest_created TEXT",),  # creation order of notices (issue 25)
-}
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS notices (
@@ -183,19 +177,22 @@ CREATE TABLE IF NOT EXISTS outbox (
 CREATE INDEX IF NOT EXISTS outbox_pending ON outbox(published_at);
 """ + _SUBMISSIONS
 
-#: Columns added after schema version 1, as (table, column, declaration).  Added
-#: when missing at every open, so state files of any earlier release keep working.
-_ADDED_COLUMNS = (
-    ("plans", "revision", "INTEGER NOT NULL DEFAULT 1"),
-    ("plans", "final", "INTEGER NOT NULL DEFAULT 1"),
-)
-
-#: Tables added after schema version 2 that no migration needs (created when missing at every open;
-#: an older program ignores them).  ``incidents``: things an operator must hear of that are not
-#: notices, e.g. the consumer's offset jumps (:meth:`Store.record_incident`, ``mushrooms status``).
-_ADDED_TABLES = (
-    "CREATE TABLE IF NOT EXISTS incidents (incident_id INTEGER PRIMARY KEY AUTOINCREMENT,"
-    " kind TEXT NOT NULL, detail TEXT NOT NULL, created_at TEXT NOT NULL)",
+#: How older state files are brought up to date: one list, in the order the schema grew.  Each step
+#: is a table created when missing or a column (table, name, declaration) added when missing; every
+#: open applies what a file lacks, whatever its ``user_version`` says (a file of any earlier release,
+#: or one whose version and tables disagree, ends with the same tables).  ``user_version`` is then
+#: raised to :data:`SCHEMA_VERSION`; a file with a newer one is refused.  A new file gets
+#: :data:`_SCHEMA` and then the same steps.
+_UPGRADES: tuple[tuple[int, str | tuple[str, str, str]], ...] = (
+    (2, ("plans", "revision", "INTEGER NOT NULL DEFAULT 1")),  # a job's revisions (anytime plans)
+    (2, ("plans", "final", "INTEGER NOT NULL DEFAULT 1")),
+    (2, ("events", "localization", "TEXT")),  # gw | combined (issue 17)
+    # things an operator must hear of that are not notices, e.g. the consumer's offset jumps
+    # (:meth:`Store.record_incident`, ``mushrooms status``); an older program ignores the table
+    (3, "CREATE TABLE IF NOT EXISTS incidents (incident_id INTEGER PRIMARY KEY AUTOINCREMENT,"
+        " kind TEXT NOT NULL, detail TEXT NOT NULL, created_at TEXT NOT NULL)"),
+    (3, _SUBMISSIONS),  # plans submitted to ZTF's queue (issue 27, :mod:`.submissions`)
+    (4, ("events", "latest_created", "TEXT")),  # creation order of notices (issue 25)
 )
 
 _OPEN = ("pending", "running")
@@ -322,6 +319,11 @@ class Job:
     status: str
     fallback: bool = False
 
+    @property
+    def ref(self) -> EventRef:
+        """The job's event, notice and job ids (what every :class:`~.outcomes.Outcome` of it carries)."""
+        return EventRef(self.superevent_id, self.alert_type, self.notice_id, self.job_id)
+
 
 @dataclass(frozen=True)
 class OutboxMessage:
@@ -436,27 +438,26 @@ class Store:
                 # pruned raw bytes go back to the file system (before any table exists; issue 25)
                 conn.execute("PRAGMA auto_vacuum=INCREMENTAL")
                 conn.execute("VACUUM")  # the file is empty: this only makes the setting take effect
-                conn.executescript("BEGIN IMMEDIATE;" + _SCHEMA + f"PRAGMA user_version={SCHEMA_VERSION}; COMMIT;")
-        elif version < SCHEMA_VERSION:
-            steps = [sql for v in range(version + 1, SCHEMA_VERSION + 1) for sql in _MIGRATIONS[v]]
-            with self._lock:
-                conn.executescript("BEGIN IMMEDIATE;" + ";".join(steps) + f"; PRAGMA user_version={SCHEMA_VERSION}; COMMIT;")
-            log.info("state %s migrated from schema %d to %d", self.path, version, SCHEMA_VERSION)
-        self._add_columns(conn)
+                conn.executescript("BEGIN IMMEDIATE;" + _SCHEMA + "COMMIT;")
+        self._upgrade(conn, version)
 
-    def _add_columns(self, conn: sqlite3.Connection) -> None:
-        """Add the columns of :data:`_ADDED_COLUMNS` (and tables of :data:`_ADDED_TABLES`) an older state file lacks."""
+    def _upgrade(self, conn: sqlite3.Connection, version: int) -> None:
+        """Apply the :data:`_UPGRADES` the file lacks and set ``user_version`` (one transaction)."""
+        if version == SCHEMA_VERSION and not _missing(conn):
+            return
         with self._lock:
-            for ddl in _ADDED_TABLES:
-                conn.execute(ddl)
-            for table, column, decl in _ADDED_COLUMNS:
-                have = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
-                if column not in have:
-                    try:
-                        conn.execute(f"ALTER TABLE {table} ADD COLUMN {column} {decl}")
-                    except sqlite3.OperationalError as exc:  # another process added it meanwhile
-                        if "duplicate column" not in str(exc):
-                            raise
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                for step in _missing(conn):  # again under the write lock: another process may have done it
+                    for sql in filter(str.strip, step.split(";")):
+                        conn.execute(sql)
+                conn.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
+                conn.execute("COMMIT")
+            except BaseException:
+                conn.execute("ROLLBACK")
+                raise
+        if 0 < version < SCHEMA_VERSION:
+            log.info("state %s migrated from schema %d to %d", self.path, version, SCHEMA_VERSION)
 
     # ------------------------------------------------------------ connections
     def _conn(self) -> sqlite3.Connection:
@@ -913,7 +914,7 @@ class Store:
                           (key,)).fetchone()
         if found is not None:
             return int(found[0])
-        return self._insert_outbox(c, key, "plan_final", plan_final_message(plan_id, superevent_id, reason))
+        return self._insert_outbox(c, key, "plan_final", plan_final_message(plan_id, superevent_id, reason, now_iso_z()))
 
     def job_plans(self, job_id: int) -> list[dict[str, Any]]:
         """The revisions a job stored, oldest first (documents parsed)."""
@@ -998,17 +999,24 @@ class Store:
         return out
 
 
-def plan_final_message(plan_id: str, superevent_id: str | None, reason: str) -> dict[str, Any]:
-    """The ``plan_final`` message (docs/design/CONTRACTS.md): revision 1 of ``plan_id`` stands, nothing follows."""
-    return {
-        "type": "plan_final",
-        "plan_id": plan_id,
-        "revision": 1,
-        "final": True,
-        "superevent_id": superevent_id,
-        "reason": reason,
-        "created": now_iso_z(),
-    }
+def _tables(conn: sqlite3.Connection) -> set[str]:
+    return {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+
+
+def _missing(conn: sqlite3.Connection) -> list[str]:
+    """The statements of the :data:`_UPGRADES` steps the file has not had."""
+    tables = _tables(conn)
+    out: list[str] = []
+    for _, step in _UPGRADES:
+        if isinstance(step, str):
+            names = [w.split("(")[0] for w in step.split("CREATE TABLE IF NOT EXISTS ")[1:]]
+            if not set(n.strip() for n in names) <= tables:
+                out.append(step)
+            continue
+        table, column, decl = step
+        if column not in {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}:
+            out.append(f"ALTER TABLE {table} ADD COLUMN {column} {decl}")
+    return out
 
 
 def _opt(text: str | None) -> str | None:

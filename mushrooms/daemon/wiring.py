@@ -77,7 +77,7 @@ def open_pipeline(config: Config, paths: RuntimePaths, sink: Any = None, **pipel
     store = open_store(paths.state, config.daemon.group_readable)
     own_sink = sink is None
     sink = make_sink(config) if own_sink else sink
-    pipeline = NoticePipeline(config, store, sink, **pipeline_kw)
+    pipeline = NoticePipeline(config.policy, config.scheduler, store, sink, daemon=config.daemon, **pipeline_kw)
 
     def close() -> None:
         for obj in ((sink,) if own_sink else ()) + (store,):

@@ -34,6 +34,11 @@ the event has no plan, no open job and no retraction (the newer notice's
 planning failed).  Operators' ``trigger --force`` and ``trigger SUPEREVENT``
 bypass :func:`decide` and may plan any notice.
 
+A bare sky map (``mushrooms trigger SKYMAP.fits``) is decided by the same
+rule: :class:`BareSkymap` is what :func:`decide` reads of it (its event id
+is ``skymap-<sha256[:12]>``, it has no ``time_created``, and no policy cut
+applies: the verdict is the operator's request).
+
 "Map" is the localisation chosen for planning
 (:func:`~mushrooms.handlers.localization.choose_localization`): the joint GW x
 external map when the notice has a usable one, else the GW map.  A notice
@@ -46,6 +51,7 @@ joint plan stands and the reason says so; a retraction still withdraws it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from datetime import datetime
 from typing import Protocol
 
 from .alert import Alert
@@ -53,7 +59,7 @@ from .instants import iso_z, parse_instant
 from .localization import COMBINED, GW, Localization
 from .policy import Verdict
 
-__all__ = ["Decision", "EventState", "Ledger", "MemoryLedger", "decide", "newest_created", "ACTIONS"]
+__all__ = ["Decision", "EventState", "Ledger", "MemoryLedger", "BareSkymap", "decide", "newest_created", "ACTIONS"]
 
 ACTIONS = ("plan", "rerun", "duplicate", "withdraw", "ignore", "rejected")
 
@@ -140,6 +146,28 @@ class MemoryLedger:
 
 
 @dataclass(frozen=True)
+class BareSkymap:
+    """A sky map handed in without a notice, as :func:`decide` reads an alert.
+
+    Attributes
+    ----------
+    superevent_id : str
+        ``skymap-<sha256[:12]>``.
+    skymap_sha256 : str
+    alert_type : str
+        ``SKYMAP``.
+    time_created : None
+        A bare map has no creation time: it is never stale and never makes
+        an event's creation order.
+    """
+
+    superevent_id: str
+    skymap_sha256: str
+    alert_type: str = "SKYMAP"
+    time_created: datetime | None = None
+
+
+@dataclass(frozen=True)
 class Decision:
     """What to do with one alert.
 
@@ -191,14 +219,14 @@ class Decision:
         return self.action in ("plan", "rerun")
 
 
-def decide(alert: Alert, verdict: Verdict, ledger: Ledger,
+def decide(alert: Alert | BareSkymap, verdict: Verdict, ledger: Ledger,
            localization: Localization | None = None) -> Decision:
     """Decide what to do with a parsed alert.
 
     Parameters
     ----------
-    alert : Alert
-        The parsed notice.
+    alert : Alert or BareSkymap
+        The parsed notice (or a bare sky map).
     verdict : Verdict
         The policy's answer (:func:`~mushrooms.handlers.policy.evaluate`).
     ledger : Ledger
@@ -213,7 +241,7 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger,
     Decision
     """
     sid = alert.superevent_id
-    created = iso_z(alert.time_created)
+    created = iso_z(alert.time_created) if alert.time_created is not None else None
     base = dict(superevent_id=sid, alert_type=alert.alert_type, time_created=created)
     if not verdict.keep:
         return Decision("rejected" if verdict.reject else "ignore", reason=verdict.reason, **base)
@@ -268,10 +296,10 @@ def decide(alert: Alert, verdict: Verdict, ledger: Ledger,
     )
 
 
-def _stale(alert: Alert, state: EventState | None) -> str:
+def _stale(alert: Alert | BareSkymap, state: EventState | None) -> str:
     """Why ``alert`` is older than what the event already accepted ("" when it is not)."""
     newest = parse_instant(state.latest_created) if state is not None else None
-    if state is None or newest is None or parse_instant(alert.time_created) >= newest:
+    if state is None or newest is None or alert.time_created is None or parse_instant(alert.time_created) >= newest:
         return ""
     mine = iso_z(alert.time_created)
     if state.retracted:

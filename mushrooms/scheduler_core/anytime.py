@@ -4,25 +4,32 @@ The fast scheduler (greedy) answers within a second; the configured one
 (MILP or hybrid) may need tens of seconds.  :func:`anytime_plans` yields the
 fast plan first and then the optimised one, each checked, so a caller can
 publish the first while the second is being found; :func:`is_better` is the
-rule by which a later plan replaces an earlier one.  Plan documents carry
-``revision`` (1, 2, ...) and ``final`` (no further revision of this sky map
-will follow) via :func:`revision_document`.
+rule by which a later plan replaces an earlier one.  The two stages are also
+:func:`first_plan` and :func:`optimised_plan`, for a caller that publishes
+between them and runs the second later (the daemon's
+:class:`~mushrooms.daemon.planning.JobPlanner`, which queues optimisations
+behind newer first plans): ``mushrooms plan --deadline`` and the daemon run
+the same flow.  Plan documents carry ``revision`` (1, 2, ...) and ``final``
+(no further revision of this sky map will follow) via
+:func:`~.plan.messages.revision_document` (re-exported here).
 """
 
 from __future__ import annotations
 
 import time
-from typing import Any, Callable, Iterator
+from typing import Callable, Iterator
 
 from .plan.checker import check_plan
 from .errors import PlanCheckError
 from .plan.document import EventInfo, Plan
+from .plan.messages import revision_document
 from .planner import build_plan, optimise, run_scheduler
 from .preference import is_preferred
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .sky.skymap import SkyMap
 
-__all__ = ["FIRST_SOLVER", "checked_plan", "anytime_plans", "is_better", "revision_document"]
+__all__ = ["FIRST_SOLVER", "checked_plan", "first_plan", "optimised_plan", "anytime_plans", "is_better",
+           "revision_document"]
 
 #: The scheduler of every first plan (fast, never needs a time limit).
 FIRST_SOLVER = "greedy"
@@ -79,6 +86,75 @@ def is_better(candidate: Plan, incumbent: Plan, min_gain: float, objective: str 
                         coverage_floor=(1.0 - max_coverage_loss) * c_old)
 
 
+def first_plan(problem: PlanningProblem, skymap: SkyMap, event: EventInfo | None = None,
+               supersedes: str | None = None, should_stop: StopCheck | None = None,
+               scheduler: Scheduler = run_scheduler, started: float | None = None) -> Plan:
+    """The checked plan of the fast scheduler (:data:`FIRST_SOLVER`): the anytime flow's first answer.
+
+    Parameters
+    ----------
+    problem : PlanningProblem
+    skymap : SkyMap
+    event : EventInfo, optional
+    supersedes : str, optional
+        plan_id the plan replaces (an earlier sky map's plan).
+    should_stop : callable, optional
+        Passed to the scheduler (the daemon's: the job was superseded).
+    scheduler : callable, optional
+        ``run_scheduler``-compatible function.
+    started : float, optional
+        ``time.perf_counter()`` the plan's ``runtime_s`` counts from
+        (the daemon: the job's start, sky map reading included); default now.
+
+    Raises
+    ------
+    PlanCheckError
+        The plan breaks a rule.
+    """
+    t0 = time.perf_counter() if started is None else started
+    result = scheduler(problem, FIRST_SOLVER, should_stop)
+    return checked_plan(problem, result, skymap, FIRST_SOLVER, event=event, supersedes=supersedes,
+                        runtime_s=time.perf_counter() - t0)
+
+
+def optimised_plan(problem: PlanningProblem, skymap: SkyMap, solver: str, incumbent: Plan,
+                   event: EventInfo | None = None, should_stop: StopCheck | None = None,
+                   scheduler: Scheduler = run_scheduler,
+                   interrupted: Callable[[], bool] | None = None) -> Plan | None:
+    """The checked plan of ``solver`` (:func:`~.planner.optimise`) that would supersede ``incumbent``.
+
+    Whether it is worth publishing is :func:`is_better`'s call.
+
+    Parameters
+    ----------
+    problem : PlanningProblem
+    skymap : SkyMap
+    solver : str
+        The configured scheduler (``config.solver``).
+    incumbent : Plan
+        The first plan: the result's ``supersedes``.
+    event : EventInfo, optional
+    should_stop : callable, optional
+        Passed to the optimisation, which then returns its best plan so far.
+    scheduler : callable, optional
+        ``run_scheduler``-compatible function.
+    interrupted : callable, optional
+        Asked once the search returns: True (the daemon's job was superseded
+        meanwhile) skips the plan check and returns None.
+
+    Raises
+    ------
+    PlanCheckError
+        The plan breaks a rule.
+    """
+    t1 = time.perf_counter()
+    result = optimise(problem, skymap, solver, should_stop, scheduler=scheduler)
+    if interrupted is not None and interrupted():
+        return None
+    return checked_plan(problem, result, skymap, solver, event=event, supersedes=incumbent.plan_id,
+                        runtime_s=time.perf_counter() - t1)
+
+
 def anytime_plans(problem: PlanningProblem, skymap: SkyMap, solver: str, event: EventInfo | None = None,
                   supersedes: str | None = None, should_stop: StopCheck | None = None,
                   scheduler: SchedulerByName = run_scheduler) -> Iterator[Plan]:
@@ -104,21 +180,11 @@ def anytime_plans(problem: PlanningProblem, skymap: SkyMap, solver: str, event: 
     scheduler : callable, optional
         ``run_scheduler``-compatible function.
     """
-    t0 = time.perf_counter()
-    first = checked_plan(problem, scheduler(problem, FIRST_SOLVER, None), skymap, FIRST_SOLVER, event=event,
-                         supersedes=supersedes, runtime_s=time.perf_counter() - t0)
+    first = first_plan(problem, skymap, event=event, supersedes=supersedes, scheduler=scheduler)
     yield first
     if solver == FIRST_SOLVER:
         return
-    t1 = time.perf_counter()
-    result = optimise(problem, skymap, solver, should_stop, scheduler=scheduler)
-    yield checked_plan(problem, result, skymap, solver, event=event, supersedes=first.plan_id,
-                       runtime_s=time.perf_counter() - t1)
-
-
-def revision_document(plan: Plan, revision: int, final: bool) -> dict[str, Any]:
-    """The plan document with ``revision`` (1, 2, ...) and ``final`` added."""
-    doc = plan.to_document()
-    doc["revision"] = int(revision)
-    doc["final"] = bool(final)
-    return doc
+    better = optimised_plan(problem, skymap, solver, first, event=event, should_stop=should_stop,
+                            scheduler=scheduler)
+    assert better is not None  # no ``interrupted``
+    yield better

@@ -116,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     if start is not None:
         warn_if_far_from_merger(start, skymap.event_time)
     if deadline is None:
-        from ..scheduler_core.anytime import revision_document
+        from ..scheduler_core.plan.messages import revision_document
 
         plan = make_plan(skymap, cfg, start=start, solver=args.solver)
         doc = revision_document(plan, 1, True)
@@ -156,7 +156,8 @@ def run(args: argparse.Namespace) -> int:
 def _plan_by_deadline(skymap: Any, cfg: Any, start: Any, solver: str, deadline_s: float,
                       t0: float) -> tuple[Any, dict[str, Any]]:
     """The best checked plan found ``deadline_s`` after ``t0`` (anytime: greedy first, then ``solver``)."""
-    from ..scheduler_core.anytime import anytime_plans, is_better, revision_document
+    from ..scheduler_core.anytime import anytime_plans, is_better
+    from ..scheduler_core.plan.messages import revision_document
     from ..scheduler_core.errors import InputError
     from ..scheduler_core.prepare import prepare_problem
 

@@ -21,7 +21,7 @@ from attack_helpers import FAST, hostile_corpus, received_at
 
 def test_every_hostile_message_gets_exactly_one_decision_row(tmp_path) -> None:
     store = Store(tmp_path / "s.sqlite")
-    p = NoticePipeline(FAST, store, MemorySink())
+    p = NoticePipeline.from_config(FAST, store, MemorySink())
     corpus = hostile_corpus()
     assert len(corpus) >= 39
     outcomes = {}

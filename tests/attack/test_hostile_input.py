@@ -28,7 +28,7 @@ from attack_helpers import (
 @pytest.fixture
 def pipeline(tmp_path):
     store = Store(tmp_path / "state.sqlite")
-    yield NoticePipeline(FAST, store, MemorySink())
+    yield NoticePipeline.from_config(FAST, store, MemorySink())
     store.close()
 
 
@@ -87,7 +87,7 @@ def test_max_skymap_bytes_bounds_what_is_carried_not_what_it_unpacks_to(pipeline
     flat = _flat_gzip(9)
     assert len(flat) < 1 << 20
     config = dataclasses.replace(FAST, policy=dataclasses.replace(FAST.policy, max_skymap_bytes=1 << 20))
-    p = NoticePipeline(config, pipeline.store, pipeline.sink)
+    p = NoticePipeline.from_config(config, pipeline.store, pipeline.sink)
     acc = p.accept_skymap(flat, "trigger:flat")
     assert acc.action == "plan" and p.run_job(acc.job).decision == "plan"
     acc = p.accept(notice_with("MS181101ab", skymap=flat), "attack:flat", received_at())

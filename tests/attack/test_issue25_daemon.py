@@ -37,7 +37,7 @@ def notice(sid: str = "MS181101ab", alert_type: str = "PRELIMINARY", created_shi
 
 
 def pipeline(path: Path, config=GREEDY, sink=None) -> NoticePipeline:
-    return NoticePipeline(config, Store(path), sink if sink is not None else MemorySink())
+    return NoticePipeline.from_config(config, Store(path), sink if sink is not None else MemorySink())
 
 
 def types(sink: MemorySink) -> list[str]:

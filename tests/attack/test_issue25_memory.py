@@ -45,7 +45,7 @@ def _find(obj, key):
 def test_accepting_an_amplifying_joint_notice_does_not_decode_its_maps(tmp_path: Path, flat1024: bytes) -> None:
     raw = joint_notice("MS181101ab", flat1024, flat1024)
     assert len(raw) < 1 << 20  # small on the wire; each map unpacks to 50 MB
-    p = NoticePipeline(FAST, Store(tmp_path / "s.sqlite"), MemorySink())
+    p = NoticePipeline.from_config(FAST, Store(tmp_path / "s.sqlite"), MemorySink())
     gc.collect()  # astropy's FITS_rec.__del__ of the map just built copies its column: not accept's memory
     tracemalloc.start()
     try:
@@ -65,7 +65,7 @@ def test_accepting_an_amplifying_joint_notice_does_not_decode_its_maps(tmp_path:
 def test_a_joint_map_that_only_fails_when_decoded_falls_back_to_the_gw_map(tmp_path: Path) -> None:
     """Headers fine, body not (a valid table followed by a gzip bomb): the job plans on the GW map."""
     raw = joint_notice("MS181101ab", MOC_MAP.read_bytes(), grown_gzip(8 << 20))
-    p = NoticePipeline(FAST, Store(tmp_path / "s.sqlite"), MemorySink())
+    p = NoticePipeline.from_config(FAST, Store(tmp_path / "s.sqlite"), MemorySink())
     acc = p.accept(raw, "kafka:t:0:1", received_at())
     assert acc.action == "plan" and acc.job is not None, acc.reason
     out = p.run_job(acc.job)

@@ -25,7 +25,7 @@ from attack_helpers import FAST, REPO, notice_with, received_at
 
 
 def _pipeline(path: Path, sink=None) -> NoticePipeline:
-    return NoticePipeline(FAST, Store(path), sink or MemorySink())
+    return NoticePipeline.from_config(FAST, Store(path), sink or MemorySink())
 
 
 def _died(store: Store, job_id: int, times: int) -> None:
@@ -49,7 +49,7 @@ def test_a_clean_stop_does_not_count_as_a_died_start(tmp_path: Path) -> None:
 
 def test_a_job_that_died_three_times_still_publishes_the_fast_plan(tmp_path: Path) -> None:
     config = FAST
-    hybrid = NoticePipeline(config.__class__(**{**config.__dict__,
+    hybrid = NoticePipeline.from_config(config.__class__(**{**config.__dict__,
                                                 "scheduler": config.scheduler.__class__(
                                                     **{**config.scheduler.__dict__, "solver": "hybrid"})}),
                             Store(tmp_path / "s.sqlite"), MemorySink())

@@ -22,10 +22,10 @@ from pathlib import Path
 
 
 def install(gate: Path) -> None:
-    from mushrooms.daemon import pipeline
+    from mushrooms.daemon import planning
 
-    original_init = pipeline.NoticePipeline.__init__
-    original_first = pipeline.NoticePipeline._first_plan
+    original_init = planning.JobPlanner.__init__
+    original_first = planning.JobPlanner._first_stage
 
     def first_plan(self, job, should_stop):
         self._gate_sid = job.superevent_id
@@ -33,7 +33,7 @@ def install(gate: Path) -> None:
 
     def init(self, *args, **kwargs):
         original_init(self, *args, **kwargs)
-        real = self._scheduler
+        real = self.scheduler
 
         def held(problem, solver, should_stop=None):
             sid = getattr(self, "_gate_sid", "-")
@@ -47,10 +47,10 @@ def install(gate: Path) -> None:
                     time.sleep(0.02)
             return real(problem, solver, should_stop)
 
-        self._scheduler = held
+        self.scheduler = held
 
-    pipeline.NoticePipeline.__init__ = init
-    pipeline.NoticePipeline._first_plan = first_plan
+    planning.JobPlanner.__init__ = init
+    planning.JobPlanner._first_stage = first_plan
 
     from mushrooms.daemon import service
 

@@ -69,7 +69,7 @@ class World:
         self.path, self.config = path, config
         self.store = Store(path)
         self.sink = MemorySink()
-        self.pipeline = NoticePipeline(config, self.store, self.sink)
+        self.pipeline = NoticePipeline.from_config(config, self.store, self.sink)
         self.submitter = self.new_submitter()
 
     def new_submitter(self) -> Submitter:

@@ -30,7 +30,7 @@ values = st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_s
 def test_accept_never_raises(tmp_path_factory, changes):
     store = Store(tmp_path_factory.mktemp("fuzz") / "s.sqlite")
     try:
-        p = NoticePipeline(FAST, store, MemorySink())
+        p = NoticePipeline.from_config(FAST, store, MemorySink())
         doc = json.loads(json.dumps(BASE))
         for path, value in changes:
             obj = doc

@@ -80,8 +80,8 @@ def gain(tmp_path_factory):
     """Coverage of the whole greedy plan minus that of its half (the same inputs as the tests)."""
     s = Store(tmp_path_factory.mktemp("gain") / "state.sqlite")
     sink = MemorySink()
-    out = NoticePipeline(hybrid(0.0), s, sink, planner=HalfThenWhole()).run_job(accept(
-        NoticePipeline(hybrid(0.0), s, sink), PRELIM).job)
+    out = NoticePipeline.from_config(hybrid(0.0), s, sink, planner=HalfThenWhole()).run_job(accept(
+        NoticePipeline.from_config(hybrid(0.0), s, sink), PRELIM).job)
     first, second = [m for m in sink.messages if m["type"] == "plan"]
     s.close()
     assert out.revision == 2
@@ -96,7 +96,7 @@ def gain(tmp_path_factory):
 def test_revision_2_supersedes_only_when_better_by_the_margin(store, gain, above):
     sink = MemorySink()
     margin = gain * (0.5 if above else 1.5)  # the gain is above / below the margin
-    p = NoticePipeline(hybrid(margin), store, sink, planner=HalfThenWhole())
+    p = NoticePipeline.from_config(hybrid(margin), store, sink, planner=HalfThenWhole())
     out = p.run_job(accept(p, PRELIM).job)
     plans = [m for m in sink.messages if m["type"] == "plan"]
     assert plans[0]["revision"] == 1 and plans[0]["final"] is False and plans[0]["metrics"]["solver"] == "greedy"
@@ -117,7 +117,7 @@ def test_revision_2_supersedes_only_when_better_by_the_margin(store, gain, above
 
 def test_greedy_solver_publishes_one_final_revision(store):
     sink = MemorySink()
-    p = NoticePipeline(FAST, store, sink)
+    p = NoticePipeline.from_config(FAST, store, sink)
     out = p.run_job(accept(p, PRELIM).job)
     assert [(m["type"], m["revision"], m["final"]) for m in sink.messages] == [("plan", 1, True)]
     assert out.final and out.revision == 1
@@ -125,7 +125,7 @@ def test_greedy_solver_publishes_one_final_revision(store):
 
 def test_retraction_after_revision_2_withdraws_both_revisions(store, gain):
     sink = MemorySink()
-    p = NoticePipeline(hybrid(0.0), store, sink, planner=HalfThenWhole())
+    p = NoticePipeline.from_config(hybrid(0.0), store, sink, planner=HalfThenWhole())
     out = p.run_job(accept(p, PRELIM).job)
     assert out.revision == 2
     rev_ids = [m["plan_id"] for m in sink.messages if m["type"] == "plan"]
@@ -152,7 +152,7 @@ def test_cancellation_during_preparation_stores_nothing_and_frees_the_worker(sto
             assert go_on.wait(30)
             return prepare_problem(skymap, config, start)
 
-    p = NoticePipeline(FAST, store, sink, planner=planner, sky_cache=SlowCache())
+    p = NoticePipeline.from_config(FAST, store, sink, planner=planner, sky_cache=SlowCache())
     old = accept(p, PRELIM)
     result = {}
     worker = threading.Thread(target=lambda: result.setdefault("out", p.run_job(old.job, stop.is_set)))
@@ -170,7 +170,7 @@ def test_cancellation_during_preparation_stores_nothing_and_frees_the_worker(sto
     assert out.decision == "ignore" and "stopped before the fast scheduler" in out.reason and "superseded" in out.reason
     assert planner.calls == [] and sink.messages == [] and store.pending_outbox() == []
     assert store.job_status(old.job.job_id) == "superseded"
-    p2 = NoticePipeline(FAST, store, sink)  # the freed worker takes the newer map at once
+    p2 = NoticePipeline.from_config(FAST, store, sink)  # the freed worker takes the newer map at once
     assert p2.run_job(newer.job).decision == "rerun"
     assert [m["event"]["skymap_sha256"] for m in sink.messages] == [newer.job.skymap_sha256]
 
@@ -180,7 +180,7 @@ def test_newer_map_during_the_optimisation_cancels_it_and_its_first_plan_superse
     planner = HalfThenWhole()
     planner.hold = threading.Event()  # the optimiser runs until it is stopped
     stop = threading.Event()
-    p = NoticePipeline(hybrid(0.0), store, sink, planner=planner)
+    p = NoticePipeline.from_config(hybrid(0.0), store, sink, planner=planner)
     old = accept(p, PRELIM)
     staged = p.run_job(old.job, stop.is_set, staged=True)
     assert isinstance(staged, Staged) and staged.outcome.revision == 1 and not staged.outcome.final
@@ -197,7 +197,7 @@ def test_newer_map_during_the_optimisation_cancels_it_and_its_first_plan_superse
     assert not worker.is_alive()
     assert result["out"].decision == "ignore" and "superseded" in result["out"].reason
     assert [m["plan_id"] for m in sink.messages] == [rev1]  # no revision 2, no plan_final of the old map
-    new_first = NoticePipeline(hybrid(0.0), store, sink, planner=HalfThenWhole()).run_job(newer.job, staged=True)
+    new_first = NoticePipeline.from_config(hybrid(0.0), store, sink, planner=HalfThenWhole()).run_job(newer.job, staged=True)
     assert new_first.outcome.supersedes == rev1
     doc = sink.messages[-1]
     assert doc["revision"] == 1 and doc["supersedes"] == rev1 and doc["event"]["skymap_sha256"] == newer.job.skymap_sha256
@@ -206,7 +206,7 @@ def test_newer_map_during_the_optimisation_cancels_it_and_its_first_plan_superse
 def test_restart_after_revision_1_republishes_nothing_and_finishes_with_the_same_plans(store, tmp_path):
     """A crash between the revisions: the rerun job finds revision 1 stored and goes on to revision 2."""
     sink = MemorySink()
-    p = NoticePipeline(hybrid(0.0), store, sink, planner=HalfThenWhole())
+    p = NoticePipeline.from_config(hybrid(0.0), store, sink, planner=HalfThenWhole())
     acc = accept(p, PRELIM)
     staged = p.run_job(acc.job, staged=True)  # revision 1 stored; then the process "dies"
     assert isinstance(staged, Staged)
@@ -215,7 +215,7 @@ def test_restart_after_revision_1_republishes_nothing_and_finishes_with_the_same
     assert job.status == "running"
     again = Store(tmp_path / "state.sqlite")  # the restarted process
     sink2 = MemorySink()
-    out = NoticePipeline(hybrid(0.0), again, sink2, planner=HalfThenWhole()).run_job(job)
+    out = NoticePipeline.from_config(hybrid(0.0), again, sink2, planner=HalfThenWhole()).run_job(job)
     assert out.revision == 2 and out.supersedes == rev1["plan_id"]
     rows = again.pending_outbox()
     assert rows == []
@@ -243,7 +243,7 @@ def detection_run(tmp_path_factory):
     s = Store(tmp_path_factory.mktemp("detection") / "state.sqlite")
     sink = MemorySink()
     planner = HalfThenWhole()
-    p = NoticePipeline(detecting(0.0), s, sink, planner=planner)
+    p = NoticePipeline.from_config(detecting(0.0), s, sink, planner=planner)
     out = p.run_job(accept(p, PRELIM).job)
     s.close()
     assert planner.calls == ["greedy", "hybrid"] and out.revision == 2, [m.get("reason") for m in sink.messages]
@@ -264,7 +264,7 @@ def test_detection_objective_supersedes_by_expected_detections_within_the_floor(
     assert second["supersedes"] == first["plan_id"]
     margin = d_gain * (0.5 if above else 1.5)
     sink = MemorySink()
-    p = NoticePipeline(detecting(margin), store, sink, planner=HalfThenWhole())
+    p = NoticePipeline.from_config(detecting(margin), store, sink, planner=HalfThenWhole())
     out = p.run_job(accept(p, PRELIM).job)
     kinds = [m["type"] for m in sink.messages]
     if above:
@@ -378,7 +378,7 @@ def test_a_live_notice_with_a_stale_dated_map_counts_the_kilonova_from_the_notic
             caplog.set_level(logging.WARNING, logger="mushrooms.scheduler_core.clock")
         sink = MemorySink()
         store = Store(tmp_path / f"{name}.sqlite")
-        p = NoticePipeline(detecting(margin), store, sink, planner=HalfThenWhole())
+        p = NoticePipeline.from_config(detecting(margin), store, sink, planner=HalfThenWhole())
         out = p.run_job(p.accept(data, f"test:{name}", when).job)
         store.close()
         # before issue 24 the stale map's clock was its 2018 header: 0 expected detections, revision 1 final
@@ -414,7 +414,7 @@ def test_a_live_notice_with_a_stale_dated_map_counts_the_kilonova_from_the_notic
 def test_a_distant_event_publishes_the_plan_with_more_coverage(store, gain):
     """Expected detections ~0 on both revisions (the source 100 x farther): coverage decides the supersede."""
     sink = MemorySink()
-    p = NoticePipeline(detecting(gain * 0.5), store, sink, planner=HalfThenWhole())
+    p = NoticePipeline.from_config(detecting(gain * 0.5), store, sink, planner=HalfThenWhole())
     out = p.run_job(accept(p, PRELIM, with_map(raw(PRELIM), hundred_times_farther)).job)
     plans = [m for m in sink.messages if m["type"] == "plan"]
     assert all(doc["metrics"]["expected_detections"] < 1e-4 for doc in plans)

@@ -46,7 +46,7 @@ def corrupted_ext() -> bytes:
 @pytest.mark.parametrize("ext", [EXT, EXT_AVRO])
 def test_the_coincidence_update_supersedes_onto_the_joint_map(store, ext):
     sink = MemorySink()
-    p = NoticePipeline(FAST, store, sink)
+    p = NoticePipeline.from_config(FAST, store, sink)
     first = handle(p, "json/MS181101ab-preliminary.json")
     joint = handle(p, ext)
     later = handle(p, "json/MS181101ab-update.json", minutes=1)
@@ -74,7 +74,7 @@ def test_the_coincidence_update_supersedes_onto_the_joint_map(store, ext):
 
 def test_a_corrupted_joint_map_falls_back_to_the_gw_map_with_one_logged_reason(store, caplog):
     sink = MemorySink()
-    p = NoticePipeline(FAST, store, sink)
+    p = NoticePipeline.from_config(FAST, store, sink)
     with caplog.at_level(logging.WARNING, logger="mushrooms.daemon.pipeline"):
         out = handle(p, EXT, data=corrupted_ext())
     assert out.decision == "plan" and out.published
@@ -104,7 +104,7 @@ def test_a_corrupted_joint_map_falls_back_to_the_gw_map_with_one_logged_reason(s
 def test_the_policy_can_plan_the_gw_map_only(store):
     cfg = Config(scheduler=FAST.scheduler, policy=PolicyConfig(allow_mock=True, use_combined_skymap=False))
     sink = MemorySink()
-    out = NoticePipeline(cfg, store, sink).handle(raw(EXT), "test:ext", created(EXT) + timedelta(minutes=1))
+    out = NoticePipeline.from_config(cfg, store, sink).handle(raw(EXT), "test:ext", created(EXT) + timedelta(minutes=1))
     assert out.decision == "plan"
     assert sink.messages[0]["event"]["localization"] == "gw"
     assert sink.messages[0]["event"]["skymap_sha256"].startswith(GW_SHA)
@@ -112,7 +112,7 @@ def test_the_policy_can_plan_the_gw_map_only(store):
 
 def test_a_manual_rerun_plans_the_joint_map(store):
     sink = MemorySink()
-    p = NoticePipeline(FAST, store, sink)
+    p = NoticePipeline.from_config(FAST, store, sink)
     handle(p, EXT)
     acc = p.rerun_superevent("MS181101ab", "trigger:test", created(EXT) + timedelta(minutes=2))
     assert acc.action == "rerun" and acc.job is not None

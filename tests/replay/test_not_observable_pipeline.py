@@ -20,7 +20,7 @@ def test_an_event_next_to_the_sun_is_answered_not_observable_then_withdrawn(tmp_
                                                                      min_coverage=0.01))
     store = Store(tmp_path / "state.sqlite")
     try:
-        p = NoticePipeline(config, store, DirectorySink(tmp_path / "out"))
+        p = NoticePipeline.from_config(config, store, DirectorySink(tmp_path / "out"))
         rel = "json/MS181101ab-preliminary.json"
         oc = p.handle(raw(rel), f"test:{rel}", created(rel) + timedelta(minutes=0.5))
         assert oc.decision == "plan" and oc.published and oc.reason.startswith("not observable")

@@ -25,7 +25,7 @@ def store(tmp_path):
 
 
 def pipe(store, sink=None, config=FAST, planner=None):
-    return NoticePipeline(config, store, sink if sink is not None else MemorySink(), planner=planner)
+    return NoticePipeline.from_config(config, store, sink if sink is not None else MemorySink(), planner=planner)
 
 
 def handle(p, rel, data=None, minutes=0.5):
