@@ -69,7 +69,7 @@ def iso_now() -> str:
 
 def stale_clock_detections(doc: dict[str, Any], skymap_b64: str) -> float:
     """The plan's expected detections with the kilonova counted from the map's header (before issue 24)."""
-    from mushrooms.config import Config
+    from mushrooms.tool.config import Config
     from mushrooms.scheduler_core.plan.document import Plan
     from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
     from mushrooms.scheduler_core.sky.skymap import read_skymap

@@ -23,7 +23,7 @@ from astropy.time import Time
 from astropy.utils import iers
 
 from mushrooms.evaluation.bench import find_skymaps
-from mushrooms.config import Config
+from mushrooms.tool.config import Config
 from mushrooms.evaluation.gwemopt_baseline import _cache_read, cache_key, run_gwemopt
 from mushrooms.scheduler_core.plan.document import parse_time
 from mushrooms.scheduler_core.sky.skymap import read_skymap

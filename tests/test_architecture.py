@@ -4,6 +4,12 @@ Layers: ``daemon -> handlers -> scheduler_core``; ``mushrooms.evaluation``
 (benchmark, efficiency, baselines) sits beside them and only imports the
 scheduler.  Every import counts, at module level or inside a function
 (a lazy import is still a dependency), and relative imports are resolved.
+
+Configuration only at the top (issue 26): the config loader
+(:mod:`mushrooms.tool.config`) and ``argparse`` belong to the command layer
+(``mushrooms.tool``, ``mushrooms.cli``); the layers below are handed plain
+objects.  For ``argparse`` the scan also reads imports from outside the
+package (:func:`outside_imports`).
 """
 
 from __future__ import annotations
@@ -29,6 +35,16 @@ FORBIDDEN = (
     ("mushrooms.scheduler_core", "mushrooms.tool"),
     ("mushrooms.handlers", "mushrooms.tool"),
 )
+
+
+#: The config loader, and its temporary re-export shim (``mushrooms/config.py``) while other branches need it.
+CONFIG_MODULES = ("mushrooms.tool.config", "mushrooms.config")
+#: Only these import the config loader (or ``argparse``).
+COMMAND_LAYER = ("mushrooms.tool", "mushrooms.cli")
+
+#: Known importers of the config module outside the command layer.
+#: removed when the evaluation split lands (evaluation/bench.py's ``_load_settings``)
+CONFIG_IMPORTERS_UNTIL_EVALUATION_SPLIT = frozenset({"mushrooms.evaluation.bench", "mushrooms.config"})
 
 
 def module_files(package_dir: Path) -> dict[str, tuple[Path, bool]]:
@@ -78,6 +94,27 @@ def import_graph(package_dir: Path) -> dict[str, set[str]]:
                     targets.add(sub if sub in modules else module)
         graph[name] = {t for t in targets if t in modules and t != name}
     return graph
+
+
+def outside_imports(package_dir: Path) -> dict[str, set[str]]:
+    """Module -> top-level names of what it imports from outside the package (standard library, third party).
+
+    Any depth in the file counts (a function-level import too); ``import a.b``
+    and ``from a.b import c`` are ``a``.  Relative imports are the package's
+    own and are left out, as are imports of the package by its absolute name.
+    """
+    modules = module_files(package_dir)
+    top = package_dir.name
+    out: dict[str, set[str]] = {}
+    for name, (path, _) in modules.items():
+        names: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, ast.Import):
+                names.update(alias.name.split(".")[0] for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+                names.add(node.module.split(".")[0])
+        out[name] = {n for n in names if n != top}
+    return out
 
 
 def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
@@ -157,6 +194,30 @@ def test_scheduler_core_is_a_library_on_its_own(graph):
     assert outside == []
 
 
+def _in_command_layer(module: str) -> bool:
+    return any(_within(module, prefix) for prefix in COMMAND_LAYER)
+
+
+def config_importers(graph: dict[str, set[str]]) -> set[str]:
+    """Modules outside the command layer that import the config loader."""
+    return {a for a, targets in graph.items() if not _in_command_layer(a)
+            for b in targets if b in CONFIG_MODULES}
+
+
+def test_only_the_command_layer_imports_the_config(graph):
+    # every layer below gets its sections handed in (Service(config, paths), run_trigger, replay_notices)
+    allowed = CONFIG_IMPORTERS_UNTIL_EVALUATION_SPLIT
+    assert sorted(config_importers(graph) - allowed) == []
+    # an exception no longer needed is deleted from its list
+    assert sorted(allowed - config_importers(graph)) == []
+
+
+def test_only_the_command_layer_imports_argparse():
+    outside = outside_imports(PACKAGE_DIR)
+    assert "argparse" in outside["mushrooms.cli"]  # the scan sees the standard library
+    assert sorted(m for m, names in outside.items() if "argparse" in names and not _in_command_layer(m)) == []
+
+
 def test_handlers_use_only_the_scheduler(graph):
     outside = sorted(f"{a} -> {b}" for a, targets in graph.items() if _within(a, "mushrooms.handlers")
                      for b in targets if not (_within(b, "mushrooms.handlers") or _within(b, "mushrooms.scheduler_core")))
@@ -204,3 +265,31 @@ def test_scan_passes_an_acyclic_package_and_names_a_forbidden_edge(tmp_path):
     graph = import_graph(pkg)
     assert layering_violations(graph, rules) == ["pkg.scheduler_core.x -> pkg.evaluation.bench"]
     assert import_cycles(graph) == [["pkg.evaluation.bench", "pkg.scheduler_core.x"]]
+
+
+def test_scan_sees_imports_from_outside_the_package_at_any_depth(tmp_path):
+    pkg = _package(tmp_path, {
+        "__init__.py": "",
+        "a.py": "import argparse\nimport os.path as osp\nfrom . import b\n",
+        "b.py": "def f():\n    from json import loads\n    import pkg.a\n    from .a import osp\n    return loads\n",
+        "c.py": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import argparse\n",
+    })
+    outside = outside_imports(pkg)
+    assert outside["pkg.a"] == {"argparse", "os"}
+    assert outside["pkg.b"] == {"json"}  # the package's own imports, relative or absolute, are left out
+    assert outside["pkg"] == set()
+    assert outside["pkg.c"] == {"typing", "argparse"}  # a type-checking import still counts
+
+
+def test_config_rule_names_an_importer_below_the_command_layer(tmp_path):
+    pkg = _package(tmp_path, {
+        "__init__.py": "",
+        "tool/__init__.py": "",
+        "tool/config.py": "X = 1\n",
+        "tool/run.py": "from .config import X\n",
+        "daemon/__init__.py": "",
+        "daemon/service.py": "def f():\n    from ..tool import config\n",
+    })
+    graph = {a.replace("pkg.", "mushrooms.", 1): {b.replace("pkg.", "mushrooms.", 1) for b in t}
+             for a, t in import_graph(pkg).items()}
+    assert config_importers(graph) == {"mushrooms.daemon.service"}

@@ -12,7 +12,7 @@ import pytest
 from mushrooms.cli import build_parser, main
 from mushrooms.tool.common import quiet_time_warnings
 from mushrooms.tool.plan import parse_start, warn_if_far_from_merger
-from mushrooms.config import resolve_config_path
+from mushrooms.tool.config import resolve_config_path
 from mushrooms.scheduler_core.errors import InputError
 from mushrooms.scheduler_core.plan.schema import validate_document
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from mushrooms.config import Config, ConfigError, load_config
+from mushrooms.tool.config import Config, ConfigError, load_config
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -65,3 +65,33 @@ def test_bad_configs_are_refused_with_a_reason(tmp_path, text, message):
     path.write_text(text)
     with pytest.raises(ConfigError, match=message):
         load_config(path)
+
+
+def test_loading_the_config_imports_no_numpy_astropy_or_healpy():
+    # each layer's section type is a light leaf; the scheduler's checker (healpy, astropy) loads only when used
+    import subprocess
+    import sys
+
+    code = ("import sys\n"
+            "from mushrooms.tool.config import load_config\n"
+            f"config = load_config({str(ROOT / 'config.toml')!r})\n"
+            "assert config.scheduler.nside > 0 and config.source.endswith('config.toml')\n"
+            "print(' '.join(m for m in ('numpy', 'astropy', 'healpy') if m in sys.modules))\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == []
+
+
+def test_the_section_tables_are_read_by_one_leaf_helper_with_typed_errors():
+    from mushrooms.scheduler_core.tables import TableError
+    from mushrooms.daemon.settings import DaemonConfig
+
+    with pytest.raises(TableError) as wrong_type:
+        DaemonConfig.from_mapping({"heartbeat_s": "often"})
+    assert (wrong_type.value.section, wrong_type.value.key, wrong_type.value.value) == ("daemon", "heartbeat_s", "often")
+    assert str(wrong_type.value) == "[daemon] heartbeat_s = 'often': expected a number, got string"
+    with pytest.raises(TableError) as unknown:
+        DaemonConfig.from_mapping({"heartbeats": 1})
+    assert unknown.value.keys == ("heartbeats",) and str(unknown.value) == "unknown [daemon] key(s): heartbeats"
+    with pytest.raises(ConfigError, match=r"\[daemon\] heartbeat_s = 0: outside its range"):
+        Config.from_mapping({"daemon": {"heartbeat_s": 0}})

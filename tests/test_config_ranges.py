@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from mushrooms.cli import main
-from mushrooms.config import Config, ConfigError, load_config
+from mushrooms.tool.config import Config, ConfigError, load_config
 
 ROOT = Path(__file__).resolve().parents[1]
 MAP = ROOT / "tests" / "data" / "skymaps" / "MS220722v_bayestar.multiorder.fits"

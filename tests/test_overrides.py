@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from mushrooms.config import Config
-from mushrooms.overrides import override_config
+from mushrooms.tool.config import Config
+from mushrooms.tool.overrides import override_config
 
 
 def test_no_override_is_the_same_config():

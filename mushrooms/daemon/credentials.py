@@ -24,13 +24,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
-from ..config import ConfigError
-
 __all__ = ["Credentials", "CredentialsError", "load_credentials", "load_outbound_password", "load_submit_token"]
 
 
-class CredentialsError(ConfigError):
-    """GCN credentials are missing or unreadable."""
+class CredentialsError(ValueError):
+    """A credential (GCN client id/secret, outbound password, submission token) is missing or unreadable.
+
+    Bad input, like a bad config file: the tools answer it with one line and
+    exit status 2 (``mushrooms.tool.common.execute``).
+    """
 
 
 @dataclass(frozen=True)

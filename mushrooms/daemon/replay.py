@@ -24,12 +24,12 @@ from datetime import datetime
 from pathlib import Path
 from typing import Sequence, TextIO
 
-from ..config import Config
 from ..handlers.alert import ALERT_TYPES, parse_notice
 from ..handlers.alert import NoticeError
 from ..inputs import read_regular_file
 from ..scheduler_core.errors import InputError
 from .pipeline import NoticePipeline, Outcome
+from .sections import ServiceConfig
 from .sinks import DirectorySink
 from .store import Store
 
@@ -127,7 +127,7 @@ def replay(pipeline: NoticePipeline, paths: Sequence[str | Path], out: TextIO | 
     return results
 
 
-def replay_notices(notices: Sequence[str | Path], out_dir: str | Path, config: Config,
+def replay_notices(notices: Sequence[str | Path], out_dir: str | Path, config: ServiceConfig,
                    state: str | Path | None = None) -> int:
     """``mushrooms replay`` as a library call: archived notices through the daemon's path into a directory.
 
@@ -137,9 +137,10 @@ def replay_notices(notices: Sequence[str | Path], out_dir: str | Path, config: C
         Notice files, or directories of them (see :func:`collect_notices`).
     out_dir : path
         Directory sink for plans and withdrawals (created).
-    config : Config
-        The configuration, command-line overrides included
-        (:func:`~mushrooms.overrides.override_config`).
+    config : ServiceConfig
+        The assembled configuration's sections, command-line overrides
+        included (the tool layer's ``mushrooms.tool.overrides.override_config``);
+        handed to the :class:`~.pipeline.NoticePipeline` as it is.
     state : path, optional
         SQLite state file; default a fresh ``.replay-state.sqlite`` in ``out_dir``.
 

@@ -14,7 +14,6 @@ SIGUSR1 picks up ``mushrooms trigger`` files.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import logging
 import os
@@ -29,11 +28,12 @@ from apscheduler.schedulers.background import BackgroundScheduler
 
 from .jobs import JobRunner, OutboxDrain
 from .notify import Notifier, watchdog_interval_s
-from .settings import resolve_paths
+from .sections import ServiceConfig
+from .settings import RuntimePaths, resolve_paths
 from .trigger import (
     DaemonRunning, PidLock, dispatch, outcome_result, pending_triggers, read_trigger, write_result,
 )
-from .wiring import effective_config, make_sink, open_pipeline, private_dir
+from .wiring import make_sink, open_pipeline, private_dir
 
 __all__ = ["main", "Service", "setup_logging", "EXIT_STATE"]
 
@@ -87,16 +87,27 @@ def setup_logging(level: int | None = None) -> None:
 class Service:
     """The daemon: one instance per process.
 
+    Built from plain objects by the tool layer (``mushrooms.tool.run``):
+
     Parameters
     ----------
-    args : argparse.Namespace
-        The ``mushrooms run`` arguments (kept for SIGHUP reloads).
+    config : ServiceConfig
+        The assembled configuration, command-line overrides included
+        (its sections: ``scheduler``, ``policy``, ``daemon``, ``kafka``,
+        ``outbound``, ``export``, ``submit``, and ``source``).
+    paths : RuntimePaths
+        The resolved runtime paths (:func:`~.settings.resolve_paths` of
+        ``config.daemon``); fixed until a restart.
+    reload : callable, optional
+        Returns the configuration again (the file re-read, the same
+        overrides) at SIGHUP; without it a SIGHUP keeps the running one.
     """
 
-    def __init__(self, args: argparse.Namespace) -> None:
-        self.args = args
-        self.config = effective_config(args)
-        self.paths = resolve_paths(self.config.daemon)
+    def __init__(self, config: ServiceConfig, paths: RuntimePaths,
+                 reload: Callable[[], ServiceConfig] | None = None) -> None:
+        self.config = config
+        self.paths = paths
+        self._load = reload
         self.notifier = Notifier()
         self._stop = threading.Event()
         self._reload = threading.Event()
@@ -182,8 +193,9 @@ class Service:
             self._prune_raw()
             from .submissions import open_submitter
 
-            opened = open_submitter(self.config, self.pipeline.store, submit_token, on_outbox=self.outbox.kick,
-                                    on_result=self._submission_result, closing=self._closing.is_set)
+            opened = open_submitter(self.config.submit, self.config.export, self.pipeline.store, submit_token,
+                                    on_outbox=self.outbox.kick, on_result=self._submission_result,
+                                    closing=self._closing.is_set)
             if opened is not None:
                 self.submitter, self.submit_drain = opened
                 self.submit_drain.kick()  # reconcile what a crash left half done
@@ -587,8 +599,8 @@ class Service:
     def _do_reload(self) -> None:
         self.notifier.reloading()
         try:
-            new = effective_config(self.args)
-            sink = self.pipeline.sink if new.outbound == self.config.outbound else make_sink(new)
+            new = self._load() if self._load is not None else self.config
+            sink = self.pipeline.sink if new.outbound == self.config.outbound else make_sink(new.outbound)
         except Exception as exc:  # a bad file, bad sink settings, a missing password: keep running as before
             log.error("event=reload_failed error=%r (keeping the running configuration)", str(exc))
             self.notifier.ready("reload failed; old configuration kept")
@@ -645,13 +657,23 @@ def _decision_fields(decision: Any) -> str:
     return " ".join(fields) or f"decision={decision!r}"
 
 
-def main(args: argparse.Namespace) -> int:
-    """Entry point of ``mushrooms run``."""
+def main(load: Callable[[], ServiceConfig]) -> int:
+    """Entry point of ``mushrooms run``: logging, offline astropy, then the service until SIGTERM.
+
+    Parameters
+    ----------
+    load : callable
+        Returns the configuration (the tool layer's config file plus the
+        command-line overrides); called now, and again at every SIGHUP.
+    """
     from ..offline import configure_astropy_offline
 
+    # Earth-orientation tables come from the installed astropy-iers-data
+    # package: a service must never stall on (or fail for) a download.  First:
+    # importing astropy installs its logger class, which must own the "astropy"
+    # logger before setup_logging quietens it
+    configure_astropy_offline()
     level = logging.getLogger().level or logging.INFO
     setup_logging(level)
-    # Earth-orientation tables come from the installed astropy-iers-data
-    # package: a service must never stall on (or fail for) a download
-    configure_astropy_offline()
-    return Service(args).run()
+    config = load()
+    return Service(config, resolve_paths(config.daemon), reload=load).run()

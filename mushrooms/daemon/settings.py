@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
-from ..scheduler_core.config import dataclass_from_table
+from ..scheduler_core.tables import dataclass_from_table
 from ..scheduler_core.ranges import require_finite, setting
 
 __all__ = ["DaemonConfig", "KafkaConfig", "OutboundConfig", "RuntimePaths", "resolve_paths", "parse_address",

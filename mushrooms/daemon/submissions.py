@@ -38,12 +38,15 @@ import logging
 import time
 from dataclasses import dataclass
 from datetime import datetime, timezone
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
-from ..config import Config
 from ..handlers.instants import now_iso_z
 from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
 from .store import Store
+
+if TYPE_CHECKING:
+    from ..scheduler_core.plan.exports import ExportConfig
+    from .submit_settings import SubmitConfig
 
 __all__ = ["Submission", "Submitter", "Verdict", "send_queue", "queue_name", "gate", "build_body", "same_content",
            "status_document", "open_submitter", "submissions", "STATES", "OPEN"]
@@ -107,7 +110,7 @@ def queue_name(subprogram_name: str, superevent_id: str, revision: int) -> str:
     return f"ToO_{subprogram_name}_{superevent_id}_r{int(revision)}"
 
 
-def gate(document: dict[str, Any], config: Config, now: float | None = None) -> str | None:
+def gate(document: dict[str, Any], sub: SubmitConfig, now: float | None = None) -> str | None:
     """Why a plan document is not submitted (None: it is).
 
     Gates of ``[submit]``: only plans (not ``not_observable`` answers) with
@@ -115,7 +118,6 @@ def gate(document: dict[str, Any], config: Config, now: float | None = None) -> 
     ``min_coverage``, with at most ``max_exposures`` exposures (0: any), whose
     validity window has not ended.
     """
-    sub = config.submit
     if document.get("type") != "plan":
         return f"a {document.get('type')} document, not a plan"
     if not document.get("observations"):
@@ -135,7 +137,7 @@ def gate(document: dict[str, Any], config: Config, now: float | None = None) -> 
     return None
 
 
-def build_body(document: dict[str, Any], config: Config, name: str) -> dict[str, Any]:
+def build_body(document: dict[str, Any], submit: SubmitConfig, export: ExportConfig, name: str) -> dict[str, Any]:
     """The request body of a plan for ``[submit] target`` under queue name ``name``.
 
     Kowalski: :func:`~mushrooms.scheduler_core.plan.exports.to_trigger_queue`
@@ -153,9 +155,9 @@ def build_body(document: dict[str, Any], config: Config, name: str) -> dict[str,
     from ..scheduler_core.plan.exports import to_skyportal, to_trigger_queue
 
     plan = Plan.from_document(document)
-    if config.submit.target == "kowalski":
-        return to_trigger_queue(plan, config.export, queue_name=name)
-    body = to_skyportal(plan, config.export)
+    if submit.target == "kowalski":
+        return to_trigger_queue(plan, export, queue_name=name)
+    body = to_skyportal(plan, export)
     short = name.removeprefix("ToO_")
     body["plan_name"] = short
     body["payload"]["queue_name"] = short
@@ -228,8 +230,10 @@ class Submitter:
     ----------
     store : Store
         The daemon's state (plans and the ``submissions`` table).
-    config : Config
-        ``[submit]`` and ``[export]`` are used.
+    submit : SubmitConfig
+        The ``[submit]`` section (target, gates, dry run, back-off).
+    export : ExportConfig
+        The ``[export]`` section (the queue's and SkyPortal's program fields).
     client : KowalskiQueue or SkyPortalPlans or None
         The target's HTTP client (None only with ``dry_run``).
     on_outbox : callable, optional
@@ -238,11 +242,13 @@ class Submitter:
         ``on_result(state, target)`` after every transition (metrics: counts by result).
     """
 
-    def __init__(self, store: Store, config: Config, client: KowalskiQueue | SkyPortalPlans | None,
+    def __init__(self, store: Store, submit: SubmitConfig, export: ExportConfig,
+                 client: KowalskiQueue | SkyPortalPlans | None,
                  on_outbox: Callable[[], None] | None = None,
                  on_result: Callable[[str, str], None] | None = None) -> None:
         self.store = store
-        self.config = config
+        self.submit = submit
+        self.export = export
         self.client = client
         self._on_outbox = on_outbox
         self._on_result = on_result
@@ -250,7 +256,7 @@ class Submitter:
 
     @property
     def target(self) -> str:
-        return self.config.submit.target
+        return self.submit.target
 
     # ------------------------------------------------------------ one pass
     def step(self) -> int:
@@ -263,7 +269,7 @@ class Submitter:
             unreachable server): the caller backs off before the next pass.
         """
         self.adopt()
-        if self.config.submit.dry_run:
+        if self.submit.dry_run:
             return 0  # a dry run sends nothing, not even the DELETEs of queues an earlier run submitted
         waiting = 0
         for sid in self._open_events():
@@ -292,7 +298,7 @@ class Submitter:
                     reason = "superseded before it was submitted"
                 else:
                     try:
-                        reason = gate(doc, self.config)
+                        reason = gate(doc, self.submit)
                     except (KeyError, TypeError, ValueError) as exc:
                         reason = f"unreadable plan document: {type(exc).__name__}: {exc}"
                 name = body = None
@@ -300,13 +306,13 @@ class Submitter:
                 if reason is None:
                     revision = c.execute("SELECT COALESCE(MAX(revision), 0) + 1 FROM submissions WHERE"
                                          " superevent_id=?", (sid,)).fetchone()[0]
-                    name = queue_name(self.config.export.subprogram_name, sid, revision)
+                    name = queue_name(self.export.subprogram_name, sid, revision)
                     try:
-                        body = build_body(doc, self.config, name)
+                        body = build_body(doc, self.submit, self.export, name)
                     except (KeyError, TypeError, ValueError) as exc:
                         reason, state = f"no request could be built: {exc}", "failed"
                     else:
-                        if self.config.submit.dry_run:
+                        if self.submit.dry_run:
                             reason = "dry run"
                             log.info("event=submission_dry_run superevent_id=%s plan_id=%s queue_name=%s request=%s",
                                      sid, plan_id, name, json.dumps(self._request(body).describe()))
@@ -378,8 +384,8 @@ class Submitter:
     # ------------------------------------------------------------ submit
     def _request(self, body: dict[str, Any]) -> Any:
         if isinstance(self.client, SkyPortalPlans) or (self.client is None and self.target == "skyportal"):
-            return (self.client or SkyPortalPlans(self.config.submit.url, None)).post_request(body)
-        return (self.client or KowalskiQueue(self.config.submit.url, None)).put_request(body)
+            return (self.client or SkyPortalPlans(self.submit.url, None)).post_request(body)
+        return (self.client or KowalskiQueue(self.submit.url, None)).put_request(body)
 
     def _submit(self, sub: Submission) -> Submission | None:
         """PUT/POST the wanted queue; the row afterwards, or None when it waits for a retry."""
@@ -422,7 +428,7 @@ class Submitter:
                 self._retry(sub, answer.status, answer.message())
                 return False
             return True
-        user = self.config.export.user
+        user = self.export.user
         try:
             answer = self.client.delete(str(sub.queue_name), user)
         except Unreachable as exc:
@@ -542,8 +548,8 @@ def status_document(sub: Submission) -> dict[str, Any]:
     }
 
 
-def open_submitter(config: Config, store: Store, token: str | None, on_outbox: Callable[[], None] | None = None,
-                   on_result: Callable[[str, str], None] | None = None,
+def open_submitter(submit: SubmitConfig, export: ExportConfig, store: Store, token: str | None,
+                   on_outbox: Callable[[], None] | None = None, on_result: Callable[[str, str], None] | None = None,
                    closing: Callable[[], bool] | None = None) -> tuple[Submitter, Any] | None:
     """The daemon's submitter and the thread that runs it (an :class:`~.jobs.OutboxDrain` named ``submit``).
 
@@ -555,11 +561,11 @@ def open_submitter(config: Config, store: Store, token: str | None, on_outbox: C
     from .jobs import OutboxDrain
     from .remote import make_client
 
-    sub = config.submit
+    sub = submit
     if not sub.enabled:
         return None
     client = make_client(sub.target, sub.url, token, sub.timeout_s)
-    submitter = Submitter(store, config, client, on_outbox=on_outbox, on_result=on_result)
+    submitter = Submitter(store, sub, export, client, on_outbox=on_outbox, on_result=on_result)
 
     def one_pass() -> int:
         if closing is not None and closing():

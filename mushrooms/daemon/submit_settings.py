@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 from urllib.parse import urlsplit
 
-from ..scheduler_core.config import dataclass_from_table
+from ..scheduler_core.tables import dataclass_from_table
 
 __all__ = ["SubmitConfig", "SUBMIT_TARGETS"]
 

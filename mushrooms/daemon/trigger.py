@@ -24,7 +24,6 @@ but a regular file read; the directory is created 0700 and the files 0600.
 
 from __future__ import annotations
 
-import argparse
 import fcntl
 import logging
 import os
@@ -39,10 +38,11 @@ from typing import Any, IO
 from .. import inputs
 from ..scheduler_core.errors import InputError
 from ..scheduler_core.sky.sniff import is_fits
+from .sections import ServiceConfig
 from .settings import RuntimePaths
 
 __all__ = [
-    "main", "PidLock", "daemon_pid", "classify", "write_trigger", "pending_triggers",
+    "run_trigger", "PidLock", "daemon_pid", "classify", "write_trigger", "pending_triggers",
     "read_trigger", "dispatch", "DaemonRunning",
 ]
 
@@ -303,20 +303,27 @@ def dispatch(pipeline: Any, kind: str, payload: bytes, origin: str) -> Any:
     raise InputError(f"unknown trigger kind {kind!r}")
 
 
-def main(args: argparse.Namespace) -> int:
-    """``mushrooms trigger``: hand work to the daemon, or do it here."""
-    from ..offline import configure_astropy_offline
-    from .wiring import effective_config, open_pipeline
+def run_trigger(target: str, kind: str, payload: bytes, config: ServiceConfig, paths: RuntimePaths,
+                force: bool = False) -> int:
+    """``mushrooms trigger``: hand work to the daemon, or do it here; the exit status.
 
-    configure_astropy_offline()
+    Parameters
+    ----------
+    target : str
+        What was named on the command line (for messages and the origin).
+    kind, payload : str, bytes
+        The target as :func:`classify` read it.
+    config : ServiceConfig
+        The assembled configuration, command-line overrides included.
+    paths : RuntimePaths
+        The runtime paths resolved from ``config.daemon`` (the daemon's pid
+        file and trigger directory, the state file).
+    force : bool
+        ``--force``: plan even when the policy would not (needs no daemon running).
+    """
+    from .wiring import open_pipeline
 
-    kind, payload = classify(args.target)
-    config = effective_config(args)
-    from .settings import resolve_paths
-
-    paths: RuntimePaths = resolve_paths(config.daemon)
     pid = daemon_pid(paths.pid_file)
-    force = bool(getattr(args, "force", False))
     if pid is not None and force:
         raise InputError(f"--force plans here, but a daemon runs (pid {pid}); stop it, or trigger without --force")
     if pid is not None:
@@ -331,14 +338,14 @@ def main(args: argparse.Namespace) -> int:
             result = read_result(written, RESULT_WAIT_S)
             if result is None:
                 left = written.exists()
-                print(f"mushrooms trigger: {kind} {args.target} handed to the daemon (pid {pid}): "
+                print(f"mushrooms trigger: {kind} {target} handed to the daemon (pid {pid}): "
                       + ("queued (the daemon will take it at its next scan)" if left else
                          "taken; no answer yet (see the daemon's log)"))
                 return 0
             decision, reason = result.get("decision", "?"), result.get("reason", "")
             plan = f"; plan {result['plan_id']}" if result.get("plan_id") else ""
             status = {"rejected": 2, "failed": 1}.get(str(decision), 0)
-            text = f"{kind} {args.target} handed to the daemon (pid {pid}): {decision} ({reason}){plan}"
+            text = f"{kind} {target} handed to the daemon (pid {pid}): {decision} ({reason}){plan}"
             if status:
                 print(f"mushrooms trigger: error: {text}", file=sys.stderr)
             else:
@@ -351,13 +358,13 @@ def main(args: argparse.Namespace) -> int:
     pipeline, close = open_pipeline(config, paths)
     try:
         _warn_if_retracted(pipeline, kind, payload, force)
-        decision = dispatch(pipeline, kind, payload, origin=f"trigger:{kind}:{args.target}")
+        decision = dispatch(pipeline, kind, payload, origin=f"trigger:{kind}:{target}")
         if force:
-            decision = _forced(pipeline, decision, kind, payload, args.target)
-        log.info("event=trigger_accepted kind=%s target=%s decision=%s", kind, args.target,
+            decision = _forced(pipeline, decision, kind, payload, target)
+        log.info("event=trigger_accepted kind=%s target=%s decision=%s", kind, target,
                  _decision_text(decision))
         if getattr(decision, "action", None) == "rejected":
-            print(f"mushrooms trigger: error: {args.target}: {getattr(decision, 'reason', 'rejected')}",
+            print(f"mushrooms trigger: error: {target}: {getattr(decision, 'reason', 'rejected')}",
                   file=sys.stderr)
             return 2
         from .jobs import describe_outcome
@@ -372,11 +379,11 @@ def main(args: argparse.Namespace) -> int:
             done = 1
             status = {"rejected": 2, "failed": 1}.get(str(info.get("decision")), 0)
             if status:
-                print(f"mushrooms trigger: error: {args.target}: job {info.get('decision')}: "
+                print(f"mushrooms trigger: error: {target}: job {info.get('decision')}: "
                       f"{info.get('reason', '')}", file=sys.stderr)
         pipeline.flush_outbox()
         result = f": {info.get('decision')}: {info.get('reason', '')}" if done else ""
-        print(f"mushrooms trigger: no daemon running; {kind} {args.target}: "
+        print(f"mushrooms trigger: no daemon running; {kind} {target}: "
               f"{_decision_text(decision)}, {done} job(s) run here{result}", file=sys.stdout)
     finally:
         close()

@@ -1,38 +1,23 @@
-"""The daemon's wiring: effective configuration, state store, outbound sink and notice pipeline.
+"""The daemon's wiring: state store, outbound sink and notice pipeline, from plain values.
 
 Used by ``mushrooms run`` (:mod:`.service`) and ``mushrooms trigger``
 without a daemon (:mod:`.trigger`), so both open the same store and sink the
-same way.
+same way.  The configuration comes in already loaded, command-line
+overrides included (the tool layer's ``mushrooms.tool.overrides.effective_config``).
 """
 
 from __future__ import annotations
 
-import argparse
 import logging
 from pathlib import Path
 from typing import Any, Callable
 
-from ..config import Config, load_config
-from ..overrides import override_config
-from .settings import RuntimePaths
+from .sections import ServiceConfig
+from .settings import OutboundConfig, RuntimePaths
 
-__all__ = ["effective_config", "private_dir", "make_sink", "open_store", "open_pipeline"]
+__all__ = ["private_dir", "make_sink", "open_store", "open_pipeline"]
 
 log = logging.getLogger("mushrooms.daemon")
-
-
-def effective_config(args: argparse.Namespace) -> Config:
-    """Config file (or embedded defaults) with the command-line overrides (:func:`~mushrooms.overrides.override_config`).
-
-    ``--bootstrap`` selects the local plaintext broker for input (and for the
-    Kafka sink when it has no broker of its own); ``--outbox DIR`` selects the
-    directory sink; ``--state`` the SQLite file; ``--allow-mock`` accepts
-    mock and test events.
-    """
-    return override_config(load_config(getattr(args, "config", None)),
-                           allow_mock=bool(getattr(args, "allow_mock", False)),
-                           bootstrap=getattr(args, "bootstrap", None), outbox=getattr(args, "outbox", None),
-                           state=getattr(args, "state", None))
 
 
 def private_dir(path: Path, group_readable: bool = False) -> Path:
@@ -43,9 +28,8 @@ def private_dir(path: Path, group_readable: bool = False) -> Path:
     return path
 
 
-def make_sink(config: Config) -> Any:
-    """The outbound sink of the configuration."""
-    out = config.outbound
+def make_sink(out: OutboundConfig) -> Any:
+    """The outbound sink of the ``[outbound]`` section."""
     if out.sink == "kafka":
         from .kafka_sink import KafkaSink, sink_security
 
@@ -65,9 +49,12 @@ def open_store(path: Path, group_readable: bool = False) -> Any:
     return Store(path, group_readable=group_readable)
 
 
-def open_pipeline(config: Config, paths: RuntimePaths, sink: Any = None, **pipeline_kw: Any
+def open_pipeline(config: ServiceConfig, paths: RuntimePaths, sink: Any = None, **pipeline_kw: Any
                   ) -> tuple[Any, Callable[[], None]]:
     """Store + sink + pipeline; returns the pipeline and a closer.
+
+    ``config`` is the assembled configuration (its sections); ``paths`` the
+    resolved runtime paths (:func:`~.settings.resolve_paths`).
 
     ``pipeline_kw`` go to :class:`~.pipeline.NoticePipeline` (the daemon's
     ``sky_cache`` and ``on_outbox``).
@@ -76,7 +63,7 @@ def open_pipeline(config: Config, paths: RuntimePaths, sink: Any = None, **pipel
 
     store = open_store(paths.state, config.daemon.group_readable)
     own_sink = sink is None
-    sink = make_sink(config) if own_sink else sink
+    sink = make_sink(config.outbound) if own_sink else sink
     pipeline = NoticePipeline(config.policy, config.scheduler, store, sink, daemon=config.daemon, **pipeline_kw)
 
     def close() -> None:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, Mapping
 
-from ..scheduler_core.config import dataclass_from_table
+from ..scheduler_core.tables import dataclass_from_table
 from ..scheduler_core.ranges import require_finite, setting
 
 if TYPE_CHECKING:  # pragma: no cover

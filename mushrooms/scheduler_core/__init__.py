@@ -6,23 +6,53 @@ No Kafka, no daemon state, no globals: call it from a notebook::
     cfg = PlanningConfig(solver="greedy")
     plan = make_plan(read_skymap("bayestar.multiorder.fits", nside=cfg.nside), cfg)
     plan.to_document()
+
+The names below are imported on first use (PEP 562): importing a light
+module of the package (:mod:`.config`, :mod:`.tables`, :mod:`.errors`) does
+not load numpy, astropy or healpy through this ``__init__``.
 """
 
-from .plan.checker import CheckReport, check_plan
-from .config import PlanningConfig, SlewModel
-from .errors import InputError, PlanCheckError, SkyMapError
-from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
-from .schedulers.greedy import greedy_schedule
-from .plan.exports import ExportConfig, to_skyportal, to_trigger_queue
-from .plan.observability import NotObservable, not_observable
-from .plan.document import EventInfo, Observation, Plan, PlanMetrics, make_plan_id
-from .planner import make_plan, run_scheduler
-from .prepare import prepare_problem
-from .sky.footprints import Footprints
-from .problem import PlanningProblem, ScheduleResult
-from .sky.windows import Windows
-from .sky.skymap import SkyMap, read_skymap
-from .sky.visibility import observability_windows
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # the same names, for type checkers and editors
+    from .config import PlanningConfig, SlewModel
+    from .errors import InputError, PlanCheckError, SkyMapError
+    from .plan.checker import CheckReport, check_plan
+    from .plan.document import EventInfo, Observation, Plan, PlanMetrics, make_plan_id
+    from .plan.exports import ExportConfig, to_skyportal, to_trigger_queue
+    from .plan.observability import NotObservable, not_observable
+    from .planner import make_plan, run_scheduler
+    from .prepare import prepare_problem
+    from .problem import PlanningProblem, ScheduleResult
+    from .schedulers.greedy import greedy_schedule
+    from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
+    from .sky.footprints import Footprints
+    from .sky.skymap import SkyMap, read_skymap
+    from .sky.visibility import observability_windows
+    from .sky.windows import Windows
+
+#: public name -> the submodule (relative) that defines it
+_EXPORTS = {
+    "CheckReport": ".plan.checker", "check_plan": ".plan.checker",
+    "PlanningConfig": ".config", "SlewModel": ".config",
+    "InputError": ".errors", "PlanCheckError": ".errors", "SkyMapError": ".errors",
+    "FieldGrid": ".sky.fields", "field_footprints": ".sky.fields", "load_ztf_fields": ".sky.fields",
+    "greedy_schedule": ".schedulers.greedy",
+    "ExportConfig": ".plan.exports", "to_skyportal": ".plan.exports", "to_trigger_queue": ".plan.exports",
+    "NotObservable": ".plan.observability", "not_observable": ".plan.observability",
+    "EventInfo": ".plan.document", "Observation": ".plan.document", "Plan": ".plan.document",
+    "PlanMetrics": ".plan.document", "make_plan_id": ".plan.document",
+    "make_plan": ".planner", "run_scheduler": ".planner",
+    "prepare_problem": ".prepare",
+    "Footprints": ".sky.footprints",
+    "PlanningProblem": ".problem", "ScheduleResult": ".problem",
+    "Windows": ".sky.windows",
+    "SkyMap": ".sky.skymap", "read_skymap": ".sky.skymap",
+    "observability_windows": ".sky.visibility",
+}
 
 __all__ = [
     "CheckReport", "check_plan", "PlanningConfig", "SlewModel", "InputError", "PlanCheckError",
@@ -32,3 +62,17 @@ __all__ = [
     "ScheduleResult", "Windows", "SkyMap", "read_skymap", "observability_windows",
     "ExportConfig", "to_skyportal", "NotObservable", "not_observable",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public name's submodule on first use, then keep the name here."""
+    where = _EXPORTS.get(name)
+    if where is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(where, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -1,23 +1,23 @@
 """Planning parameters: one small frozen dataclass a notebook can build by hand.
 
 Every default here is the documented default of the ``[scheduler]`` section
-of ``config.toml``; a test keeps the two in step.
+of ``config.toml``; a test keeps the two in step.  Imports only the standard
+library and leaves (:mod:`.tables`, :mod:`.ranges`, :mod:`.source.named`), so
+reading the configuration loads no numpy or astropy.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import types
-import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
-from .ranges import check_table, require_finite, setting
+from .ranges import require_finite, setting
 from .solvers_registry import SOLVER_NAMES  # scheduler names (``milp`` = ``blocks``): the registry's
-from .source.lightcurves import PAPER_LIGHTCURVES
+from .source.named import PAPER_LIGHTCURVES
+from .tables import dataclass_from_table
 
-__all__ = ["PlanningConfig", "SlewModel", "dataclass_from_table", "ZTF_FILTERS", "SOLVER_NAMES"]
+__all__ = ["PlanningConfig", "SlewModel", "ZTF_FILTERS", "SOLVER_NAMES"]
 
 #: The filters of the ZTF camera (its filter exchanger holds g, r and i).
 ZTF_FILTERS = ("g", "r", "i")
@@ -27,80 +27,6 @@ ZTF_FILTERS = ("g", "r", "i")
 #: steps ran for minutes.
 MAX_TIME_STEPS = 8640
 
-
-
-def dataclass_from_table(cls: type, table: Mapping[str, Any], section: str) -> Any:
-    """Build a frozen config dataclass from a parsed TOML table.
-
-    Unknown keys are an error naming them; TOML arrays become tuples.
-
-    Parameters
-    ----------
-    cls : type
-        The dataclass.
-    table : mapping
-        The parsed ``[section]`` table.
-    section : str
-        Its name, for the error message.
-
-    Raises
-    ------
-    ValueError
-        ``unknown [section] key(s): ...``, a value of the wrong type or
-        outside the range its field declares (:mod:`.ranges`), or the
-        dataclass's own check.
-    """
-    known = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(table) - known)
-    if unknown:
-        raise ValueError(f"unknown [{section}] key(s): {', '.join(unknown)}")
-    hints = typing.get_type_hints(cls)
-    for key, value in table.items():
-        expected = _type_name(hints[key])
-        if expected is not None and not _has_type(value, hints[key]):
-            raise ValueError(f"[{section}] {key} = {value!r}: expected {expected}, got {_toml_type(value)}")
-    check_table(cls, table, section)
-    values = {k: tuple(v) if isinstance(v, list) else v for k, v in table.items()}
-    return cls(**values)
-
-
-def _toml_type(value: Any) -> str:
-    """The TOML name of a parsed value's type."""
-    names = {bool: "boolean", int: "integer", float: "float", str: "string", list: "array", dict: "table"}
-    return names.get(type(value), type(value).__name__)
-
-
-def _has_type(value: Any, hint: Any) -> bool:
-    """True when a parsed TOML value fits a dataclass field's annotation."""
-    origin = typing.get_origin(hint)
-    if origin in (typing.Union, types.UnionType):
-        return any(_has_type(value, h) for h in typing.get_args(hint))
-    if hint is type(None):
-        return value is None
-    if hint is bool:
-        return isinstance(value, bool)
-    if hint is int:
-        return isinstance(value, int) and not isinstance(value, bool)
-    if hint is float:
-        return isinstance(value, (int, float)) and not isinstance(value, bool)
-    if hint is str:
-        return isinstance(value, str)
-    if origin is tuple:
-        args = [a for a in typing.get_args(hint) if a is not Ellipsis]
-        return isinstance(value, (list, tuple)) and all(_has_type(v, args[0]) for v in value) if args else True
-    return True  # nested tables and anything else: the dataclass checks it
-
-
-def _type_name(hint: Any) -> str | None:
-    """Readable name of an annotation for error messages (None: not checked here)."""
-    origin = typing.get_origin(hint)
-    if origin in (typing.Union, types.UnionType):
-        names = [_type_name(h) for h in typing.get_args(hint) if h is not type(None)]
-        return None if None in names else " or ".join(n for n in names if n)
-    if origin is tuple:
-        args = [a for a in typing.get_args(hint) if a is not Ellipsis]
-        return f"an array of {_type_name(args[0])}s" if args else "an array"
-    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string"}.get(hint)
 
 
 @dataclass(frozen=True)

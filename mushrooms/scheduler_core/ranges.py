@@ -7,9 +7,9 @@ the default and attaches a :class:`Range` as field metadata::
     class DaemonConfig:
         heartbeat_s: float = setting(30.0, 1, 600, "s")
 
-and :func:`~mushrooms.scheduler_core.config.dataclass_from_table` refuses a
-table value outside it (:func:`check_table`), with one line naming the key,
-the value and the range.  The ranges are what an operator may *configure*;
+and :func:`~mushrooms.scheduler_core.tables.dataclass_from_table` refuses a
+table value outside it (:func:`~mushrooms.scheduler_core.tables.check_table`,
+re-exported here), with one line naming the key, the value and the range.  The ranges are what an operator may *configure*;
 a notebook building a dataclass by hand is held only to finite numbers
 (:func:`require_finite`), so unit tests may still build a one-pixel problem.
 ``docs/configuration.md`` and the comments of ``config.toml`` show the same
@@ -22,6 +22,8 @@ import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any, Mapping
+
+from .tables import TableError, check_table, check_value
 
 __all__ = ["Range", "setting", "range_of", "ranges_of", "check_table", "check_value", "require_finite"]
 
@@ -131,31 +133,6 @@ def ranges_of(cls: type) -> dict[str, Range]:
     return {f.name: r for f in dataclasses.fields(cls) if (r := range_of(f)) is not None}
 
 
-def check_value(section: str, key: str, value: Any, rng: Range) -> None:
-    """Refuse one value outside ``rng`` (arrays: every element).
-
-    Raises
-    ------
-    ValueError
-        ``[section] key = value: outside its range [lo, hi] unit``.
-    """
-    values = value if isinstance(value, (list, tuple)) else [value]
-    for v in values:
-        why = rng.problem(v)
-        if why is not None:
-            shown = f"{v:g}" if isinstance(v, float) else repr(v)
-            where = f"{key} element" if isinstance(value, (list, tuple)) else key
-            raise ValueError(f"[{section}] {where} = {shown}: {why}")
-
-
-def check_table(cls: type, table: Mapping[str, Any], section: str) -> None:
-    """Refuse the first value of a parsed table outside its field's declared range."""
-    ranges = ranges_of(cls)
-    for key, value in table.items():
-        if key in ranges and value is not None:
-            check_value(section, key, value, ranges[key])
-
-
 def require_finite(obj: Any, section: str) -> None:
     """Refuse NaN and infinities in any numeric field of a dataclass instance (arrays included).
 
@@ -164,14 +141,15 @@ def require_finite(obj: Any, section: str) -> None:
 
     Raises
     ------
-    ValueError
+    TableError
         ``[section] key = nan: not a finite number``.
     """
     for f in dataclasses.fields(obj):
         value = getattr(obj, f.name)
         for v in value if isinstance(value, (list, tuple)) else [value]:
             if isinstance(v, float) and not math.isfinite(v):
-                raise ValueError(f"[{section}] {f.name} = {v:g}: not a finite number")
+                raise TableError(f"[{section}] {f.name} = {v:g}: not a finite number", section=section,
+                                 key=f.name, value=v, expected="a finite number")
 
 
 def markdown_table(sections: Mapping[str, type]) -> str:

@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
 
     The plan's embedded ``config`` is used unless ``--config`` is given.
     """
-    from ..config import load_config
+    from .config import load_config
     from ..inputs import regular_file
     from ..offline import configure_astropy_offline
     from ..scheduler_core import Plan, PlanningConfig, check_plan, read_skymap

@@ -1,7 +1,8 @@
 """What every tool shares: the common options, and running a command with one-line errors.
 
 Bad input (:class:`~mushrooms.scheduler_core.errors.InputError`,
-:class:`~mushrooms.config.ConfigError`) is answered by one line on stderr and
+:class:`~mushrooms.tool.config.ConfigError`,
+:class:`~mushrooms.daemon.credentials.CredentialsError`) is answered by one line on stderr and
 exit status 2; an internal fault by one line and status 70 unless
 ``--debug``.
 
@@ -164,8 +165,9 @@ def execute(name: str, args: argparse.Namespace, run: Callable[[argparse.Namespa
         stream=sys.stderr,
     )
     quiet_time_warnings()
-    from ..config import ConfigError, resolve_config_path
+    from ..daemon.credentials import CredentialsError
     from ..scheduler_core.errors import InputError
+    from .config import ConfigError, resolve_config_path
 
     try:
         if hasattr(args, "config"):
@@ -174,7 +176,7 @@ def execute(name: str, args: argparse.Namespace, run: Callable[[argparse.Namespa
             args.config, args.config_explicit = (str(path) if path else None), bool(given)
             logging.getLogger("mushrooms.config").info("config: %s (%s)", path or "embedded defaults", why)
         return int(run(args) or 0)
-    except (InputError, ConfigError, MissingExtra) as exc:
+    except (InputError, ConfigError, CredentialsError, MissingExtra) as exc:
         print(f"mushrooms {name}: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
     except KeyboardInterrupt:

@@ -37,10 +37,10 @@ def run(args: argparse.Namespace) -> int:
     import base64
 
     from ..bundled import demo_notice_path
-    from ..config import load_config
+    from .config import load_config
     from ..daemon.replay import replay_notices
     from ..offline import configure_astropy_offline
-    from ..overrides import override_config
+    from .overrides import override_config
     from ..plotting import plot_plan
     from ..scheduler_core import Plan, read_skymap
 

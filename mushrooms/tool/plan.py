@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     When the plan covers less than ``min_coverage`` the document written is
     a ``not_observable`` answer; no queue nor SkyPortal file is written.
     """
-    from ..config import load_config
+    from .config import load_config
     from ..inputs import regular_file
     from ..offline import configure_astropy_offline
     from ..outputs import check_outputs, write_json_atomic

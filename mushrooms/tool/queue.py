@@ -38,10 +38,10 @@ def main(args: Sequence[str] | None = None) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """List or delete; 0 done, 1 refused or not reached, 2 bad input."""
-    from ..config import ConfigError, load_config
     from ..daemon.credentials import load_submit_token
     from ..daemon.remote import KowalskiQueue, Unreachable
     from ..scheduler_core.errors import InputError
+    from .config import ConfigError, load_config
 
     config = load_config(args.config)
     url = args.url or config.submit.url

@@ -31,10 +31,10 @@ def main(args: Sequence[str] | None = None) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Replay the notices; the exit status of :func:`~mushrooms.daemon.replay.replay_notices`."""
-    from ..config import load_config
+    from .config import load_config
     from ..daemon.replay import replay_notices
     from ..offline import configure_astropy_offline
-    from ..overrides import override_config
+    from .overrides import override_config
 
     configure_astropy_offline()
     config = override_config(load_config(args.config), allow_mock=args.allow_mock)

@@ -30,10 +30,16 @@ def main(args: Sequence[str] | None = None) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the service until SIGTERM; its exit status."""
-    from ..daemon.service import main as service_main
+    """Run the service until SIGTERM; its exit status.
 
-    return service_main(args)
+    The service gets plain objects: the configuration (file plus the
+    command-line overrides, :func:`~.overrides.effective_config`, read again
+    at every SIGHUP) and the runtime paths resolved from it.
+    """
+    from ..daemon.service import main as service_main
+    from .overrides import effective_config
+
+    return service_main(lambda: effective_config(args))
 
 
 if __name__ == "__main__":

@@ -56,7 +56,7 @@ def submit_config(args: argparse.Namespace):
     """The config with ``--target``/``--url`` applied (a bad URL is one line)."""
     import dataclasses
 
-    from ..config import ConfigError, load_config
+    from .config import ConfigError, load_config
 
     config = load_config(args.config)
     sub = config.submit
@@ -78,14 +78,14 @@ def run(args: argparse.Namespace) -> int:
 
     doc = read_plan(args.plan)
     config = submit_config(args)
-    why = gate(doc, config)
+    why = gate(doc, config.submit)
     if why and not args.force:
         print(f"mushrooms submit: not submitted: {why} (--force submits anyway)", file=sys.stderr)
         return 1
     sid = (doc.get("event") or {}).get("superevent_id") or doc["plan_id"]
     name = args.queue_name or f"ToO_{config.export.subprogram_name}_{sid}_m{doc['plan_id'][-16:][:8]}"
     try:
-        body = build_body(doc, config, name)
+        body = build_body(doc, config.submit, config.export, name)
     except ValueError as exc:
         raise InputError(f"{args.plan}: {exc}") from None
     if args.dry_run:

@@ -33,10 +33,22 @@ def main(args: Sequence[str] | None = None) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Hand the target to the running daemon, or plan it here; the exit status."""
-    from ..daemon.trigger import main as trigger_main
+    """Hand the target to the running daemon, or plan it here; the exit status.
 
-    return trigger_main(args)
+    Reads the target, loads the configuration (file plus the command-line
+    overrides) and resolves the runtime paths, then hands the plain values
+    to :func:`~mushrooms.daemon.trigger.run_trigger`.
+    """
+    from ..daemon.settings import resolve_paths
+    from ..daemon.trigger import classify, run_trigger
+    from ..offline import configure_astropy_offline
+    from .overrides import effective_config
+
+    configure_astropy_offline()
+    kind, payload = classify(args.target)
+    config = effective_config(args)
+    return run_trigger(args.target, kind, payload, config, resolve_paths(config.daemon),
+                       force=bool(getattr(args, "force", False)))
 
 
 if __name__ == "__main__":

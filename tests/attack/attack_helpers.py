@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from mushrooms.config import Config
+from mushrooms.tool.config import Config
 from mushrooms.handlers.policy import PolicyConfig
 from mushrooms.scheduler_core import PlanningConfig
 

@@ -214,7 +214,7 @@ def test_raw_bytes_of_planned_notices_are_pruned_once_not_needed(tmp_path: Path)
 
 
 def test_the_service_prunes_planned_raw_bytes_with_the_configured_retention() -> None:
-    from mushrooms.config import load_config
+    from mushrooms.tool.config import load_config
 
     cfg = load_config(None)
     assert cfg.daemon.planned_raw_retention_s == 604800.0

@@ -5,7 +5,6 @@ limits.  Real SQLite, real pipeline (greedy, nside 64), real files."""
 
 from __future__ import annotations
 
-import argparse
 import os
 import shutil
 import stat
@@ -16,12 +15,20 @@ from pathlib import Path
 import pytest
 
 from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.settings import resolve_paths
 from mushrooms.daemon.sinks import MemorySink
 from mushrooms.daemon.store import Store, StoreError
 from mushrooms.daemon.trigger import classify, pending_triggers, read_trigger, write_trigger
 from mushrooms.scheduler_core.errors import InputError
+from mushrooms.tool.config import load_config
+from mushrooms.tool.overrides import override_config
 
 from attack_helpers import FAST, REPO, notice_with, received_at
+
+
+def _service_config(path: str | None, outbox: str, state: str):
+    """What ``mushrooms run --bootstrap 127.0.0.1:9 --outbox OUTBOX --state STATE --allow-mock`` builds the service from."""
+    return override_config(load_config(path), bootstrap="127.0.0.1:9", outbox=outbox, state=state, allow_mock=True)
 
 
 def _pipeline(path: Path, sink=None) -> NoticePipeline:
@@ -113,9 +120,8 @@ def test_the_service_exits_with_a_status_restart_does_not_loop_on(tmp_path: Path
 
     state = tmp_path / "state.sqlite"
     state.write_bytes(b"")
-    args = argparse.Namespace(config=None, bootstrap="127.0.0.1:9", outbox=str(tmp_path / "out"),
-                              state=str(state), allow_mock=True)
-    assert Service(args).run() == EXIT_STATE
+    config = _service_config(None, outbox=str(tmp_path / "out"), state=str(state))
+    assert Service(config, resolve_paths(config.daemon)).run() == EXIT_STATE
     unit = (REPO / "systemd" / "mushrooms.service").read_text()
     prevent = next(line for line in unit.splitlines() if line.startswith("RestartPreventExitStatus="))
     assert str(EXIT_STATE) in prevent.split("=", 1)[1].split()
@@ -135,9 +141,8 @@ def test_a_second_service_on_the_same_state_file_is_refused_whatever_its_pid_fil
         cfg.write_text('[daemon]\npid_file = "another.pid"\n')
         from mushrooms.daemon.service import Service
 
-        args = argparse.Namespace(config=str(cfg), bootstrap="127.0.0.1:9", outbox=str(tmp_path / "out"),
-                                  state=str(state), allow_mock=True)
-        assert Service(args).run() == 1
+        config = _service_config(str(cfg), outbox=str(tmp_path / "out"), state=str(state))
+        assert Service(config, resolve_paths(config.daemon)).run() == 1
     finally:
         held.release()
     lock_state(state).release()  # free again once released
@@ -208,9 +213,8 @@ def test_no_outbox_retry_touches_the_store_once_it_is_closed(tmp_path: Path, cap
     from mushrooms.daemon.jobs import OutboxDrain
     from mushrooms.daemon.service import Service
 
-    args = argparse.Namespace(config=None, bootstrap="127.0.0.1:9", outbox=str(tmp_path / "out"),
-                              state=str(tmp_path / "s.sqlite"), allow_mock=True)
-    svc = Service(args)
+    config = _service_config(None, outbox=str(tmp_path / "out"), state=str(tmp_path / "s.sqlite"))
+    svc = Service(config, resolve_paths(config.daemon))
     svc.pipeline = _pipeline(tmp_path / "s.sqlite")
     svc.outbox = OutboxDrain(svc._flush_outbox, 0.1, 1.0)
     try:

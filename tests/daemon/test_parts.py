@@ -182,7 +182,7 @@ def test_outbound_security_settings_and_password_lookup(tmp_path: Path) -> None:
 
 def test_kafka_sink_really_authenticates_with_sasl(broker, monkeypatch: pytest.MonkeyPatch) -> None:
     """The mock broker speaks no SASL: a SASL sink must fail where a plaintext one succeeds."""
-    from mushrooms.config import load_config
+    from mushrooms.tool.config import load_config
     from mushrooms.daemon.wiring import make_sink
     import dataclasses
 
@@ -191,7 +191,7 @@ def test_kafka_sink_really_authenticates_with_sasl(broker, monkeypatch: pytest.M
     base = load_config(None)
     plain = dataclasses.replace(base, outbound=dataclasses.replace(
         base.outbound, sink="kafka", bootstrap=broker.bootstrap, topic=topic, delivery_timeout_s=20))
-    sink = make_sink(plain)
+    sink = make_sink(plain.outbound)
     sink.publish({"type": "withdrawal", "superevent_id": "S1"})
     sink.close()
     monkeypatch.setenv("MUSHROOMS_OUTBOUND_PASSWORD", "secret")
@@ -199,7 +199,7 @@ def test_kafka_sink_really_authenticates_with_sasl(broker, monkeypatch: pytest.M
     sasl = dataclasses.replace(plain, outbound=dataclasses.replace(
         plain.outbound, security_protocol="sasl_plaintext", sasl_mechanism="PLAIN", sasl_username="u",
         delivery_timeout_s=3))
-    sink = make_sink(sasl)
+    sink = make_sink(sasl.outbound)
     with pytest.raises(PublishError):
         sink.publish({"type": "withdrawal", "superevent_id": "S2"})
 
@@ -257,7 +257,7 @@ def test_systemd_unit_passes_systemd_analyze_verify(tmp_path: Path) -> None:
 def test_command_line_overrides_the_config_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import argparse
 
-    from mushrooms.daemon.wiring import effective_config
+    from mushrooms.tool.overrides import effective_config
 
     cfg = tmp_path / "config.toml"
     cfg.write_text('[outbound]\nsink = "kafka"\ntopic = "plans"\n[kafka]\ntopics = ["igwn.gwalert"]\n')
@@ -270,7 +270,7 @@ def test_command_line_overrides_the_config_file(tmp_path: Path, monkeypatch: pyt
     c = effective_config(args)
     assert (c.outbound.sink, c.outbound.directory) == ("directory", str(tmp_path / "out"))
     # credentials are never read from the config file: GCN mode without them is refused
-    from mushrooms.config import Config
+    from mushrooms.tool.config import Config
 
     with pytest.raises(ValueError, match="unknown"):
         Config.from_mapping({"kafka": {"client_secret": "x"}})

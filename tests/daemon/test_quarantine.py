@@ -6,7 +6,6 @@ plays no part in this path)."""
 
 from __future__ import annotations
 
-import argparse
 import logging
 import time
 from dataclasses import dataclass, field
@@ -15,7 +14,10 @@ from typing import Any
 
 from mushrooms.daemon.consumer import Received
 from mushrooms.daemon.service import Service
+from mushrooms.daemon.settings import resolve_paths
 from mushrooms.daemon.wiring import open_pipeline
+from mushrooms.tool.config import load_config
+from mushrooms.tool.overrides import override_config
 
 from daemon_helpers import notice_bytes
 
@@ -36,9 +38,9 @@ def _service(tmp_path: Path, quarantine: str) -> Service:
     cfg = tmp_path / "config.toml"
     cfg.write_text(f'[daemon]\naccept_retries = 2\nquarantine_dir = "{quarantine}"\n'
                    f'[outbound]\ndirectory = "{tmp_path / "outbox"}"\n')
-    args = argparse.Namespace(config=str(cfg), bootstrap="127.0.0.1:9", outbox=None,
-                              state=str(tmp_path / "state" / "state.sqlite"), allow_mock=True)
-    svc = Service(args)
+    config = override_config(load_config(str(cfg)), bootstrap="127.0.0.1:9",
+                             state=str(tmp_path / "state" / "state.sqlite"), allow_mock=True)
+    svc = Service(config, resolve_paths(config.daemon))
     svc.pipeline, close = open_pipeline(svc.config, svc.paths)
     close()  # the store is closed: every accept() now fails as a broken disk would make it
     svc.consumer = RecordingConsumer()

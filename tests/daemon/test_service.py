@@ -99,7 +99,7 @@ def test_kill9_in_the_middle_of_a_job_then_restart_delivers_the_same_plan(broker
     # the plan delivered after the crash is the plan of an uninterrupted run:
     # recompute it from the stored horizon start with the same configuration
     from mushrooms.offline import configure_astropy_offline
-    from mushrooms.config import load_config
+    from mushrooms.tool.config import load_config
     from mushrooms.scheduler_core import EventInfo, make_plan, read_skymap
     from mushrooms.scheduler_core.plan.document import parse_time
 

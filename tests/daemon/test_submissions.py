@@ -17,7 +17,7 @@ import pytest
 
 from contract_servers import KowalskiContract, SkyPortalContract, loopback_server
 from daemon_helpers import notice_bytes
-from mushrooms.config import Config, ConfigError, load_config
+from mushrooms.tool.config import Config, ConfigError, load_config
 from mushrooms.daemon.credentials import CredentialsError, load_submit_token
 from mushrooms.daemon.pipeline import NoticePipeline
 from mushrooms.daemon.remote import make_client
@@ -74,7 +74,7 @@ class World:
 
     def new_submitter(self) -> Submitter:
         client = make_client(self.config.submit.target, self.config.submit.url, TOKEN, self.config.submit.timeout_s)
-        return Submitter(self.store, self.config, client)
+        return Submitter(self.store, self.config.submit, self.config.export, client)
 
     def notice(self, name: str, sid: str | None = None, time_created: str | None = None) -> None:
         out = self.pipeline.handle(notice_bytes(name, sid, time_created), f"test:{name}")

@@ -7,7 +7,7 @@ from datetime import datetime, timedelta, timezone
 
 import pytest
 
-from mushrooms.config import Config, ConfigError
+from mushrooms.tool.config import Config, ConfigError
 from mushrooms.handlers.alert import parse_notice
 from mushrooms.handlers.policy import PolicyConfig, evaluate, superevent_kind
 

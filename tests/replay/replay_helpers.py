@@ -8,7 +8,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from mushrooms.config import Config
+from mushrooms.tool.config import Config
 from mushrooms.handlers.policy import PolicyConfig
 from mushrooms.scheduler_core import PlanningConfig
 

@@ -10,7 +10,7 @@ from datetime import timedelta
 
 import pytest
 
-from mushrooms.config import Config
+from mushrooms.tool.config import Config
 from mushrooms.daemon.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
 from mushrooms.daemon.store import SCHEMA_VERSION, Store

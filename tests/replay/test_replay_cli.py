@@ -113,9 +113,9 @@ def test_collect_notices_expands_directories(tmp_path):
 
 def test_replay_is_a_library_call_with_the_shared_overrides(tmp_path, fast_config, capsys):
     # what the demo does: load the config, apply the command-line overrides in the one place, replay
-    from mushrooms.config import load_config
+    from mushrooms.tool.config import load_config
     from mushrooms.daemon.replay import replay_notices
-    from mushrooms.overrides import override_config
+    from mushrooms.tool.overrides import override_config
 
     notice = NOTICES / "json" / "MS181101ab-preliminary.json"
     config = load_config(str(fast_config))

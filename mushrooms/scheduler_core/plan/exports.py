@@ -23,11 +23,13 @@ endpoint -- receives; ``skyportal/handlers/api/observation_plan.py``,
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
-from ..config import dataclass_from_table
 from ..ranges import setting
-from .document import Plan
+from ..tables import dataclass_from_table
+
+if TYPE_CHECKING:  # an annotation only: reading [export] imports no numpy/astropy (the document does)
+    from .document import Plan
 
 __all__ = ["ExportConfig", "to_trigger_queue", "to_skyportal", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
 

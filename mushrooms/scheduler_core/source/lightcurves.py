@@ -17,11 +17,11 @@ import math
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
 from ..errors import InputError
+from .named import PAPER_LIGHTCURVES
 
 __all__ = [
     "LightCurve",
@@ -36,12 +36,6 @@ __all__ = [
 #: Magnitude returned where a source cannot be seen (outside the table, NaN).
 NOT_DETECTABLE = math.inf
 
-#: Named light curves shipped with the package: name -> file in data/lightcurves.
-PAPER_LIGHTCURVES: Mapping[str, str] = {
-    "optimistic": "Bulla_mejdyn0.005_mejwind0.110_phi45_45.6.dat",
-    "conservative": "Bulla_BNS_mejdyn0.010_mejwind0.010_phi45_45.6.dat",
-    "nsbh": "Bulla_NSBH_mejdyn0.020_mejwind0.060_phi30_45.6.dat",
-}
 
 
 class LightCurveError(InputError):

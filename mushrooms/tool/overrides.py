@@ -2,17 +2,20 @@
 
 ``--allow-mock`` (``replay``, ``run``, ``trigger``, the demo), ``--solver``
 (the demo), ``--bootstrap``, ``--outbox`` and ``--state`` (``run``,
-``trigger``) change the loaded :class:`~mushrooms.config.Config` for one
-process only; the file is never written.
+``trigger``) change the loaded :class:`~mushrooms.tool.config.Config` for one
+process only; the file is never written.  :func:`effective_config` is the
+file plus the flags of ``run`` and ``trigger``: the tools build the daemon's
+objects from it (``Service(config, paths)``).
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 
-from .config import Config
+from .config import Config, load_config
 
-__all__ = ["override_config"]
+__all__ = ["override_config", "effective_config"]
 
 
 def override_config(config: Config, *, allow_mock: bool = False, solver: str | None = None,
@@ -59,3 +62,17 @@ def override_config(config: Config, *, allow_mock: bool = False, solver: str | N
         scheduler = dataclasses.replace(scheduler, solver=solver)
     return dataclasses.replace(config, kafka=kafka, outbound=outbound, daemon=daemon, policy=policy,
                                scheduler=scheduler)
+
+
+def effective_config(args: argparse.Namespace) -> Config:
+    """Config file (or embedded defaults) with the command-line overrides (:func:`override_config`).
+
+    ``--bootstrap`` selects the local plaintext broker for input (and for the
+    Kafka sink when it has no broker of its own); ``--outbox DIR`` selects the
+    directory sink; ``--state`` the SQLite file; ``--allow-mock`` accepts
+    mock and test events.
+    """
+    return override_config(load_config(getattr(args, "config", None)),
+                           allow_mock=bool(getattr(args, "allow_mock", False)),
+                           bootstrap=getattr(args, "bootstrap", None), outbox=getattr(args, "outbox", None),
+                           state=getattr(args, "state", None))

@@ -1,0 +1,145 @@
+"""Read ``config.toml`` into typed sections; every key has an embedded default.
+
+Sections: ``[scheduler]`` (:class:`~mushrooms.scheduler_core.PlanningConfig`),
+``[policy]`` (:class:`~mushrooms.handlers.policy.PolicyConfig`),
+``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`),
+``[export]`` (:class:`~mushrooms.scheduler_core.plan.exports.ExportConfig`),
+``[submit]`` (:class:`~mushrooms.daemon.submit_settings.SubmitConfig`);
+an optional ``[bench]`` table is read by ``mushrooms bench`` only.
+Secrets never come from here: see the README.
+
+Each layer owns its section types (built on the leaf
+:mod:`mushrooms.scheduler_core.tables`); this module, in the tool layer,
+assembles them.  Only :mod:`mushrooms.tool` and :mod:`mushrooms.cli` import
+it (``tests/test_architecture.py``): the daemon is handed the sections.
+Reading a file imports no numpy, astropy or healpy.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+from ..daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
+from ..daemon.submit_settings import SubmitConfig
+from ..handlers.policy import PolicyConfig
+from ..scheduler_core.config import PlanningConfig
+from ..scheduler_core.plan.exports import ExportConfig
+
+__all__ = ["Config", "ConfigError", "load_config", "read_config_table", "resolve_config_path", "CONFIG_ENV"]
+
+#: Environment variable naming the config file when ``--config`` is not given.
+CONFIG_ENV = "MUSHROOMS_CONFIG"
+
+#: Largest config file read (bytes); the documented one is 10 KB.
+MAX_CONFIG_BYTES = 1024 * 1024
+
+
+class ConfigError(ValueError):
+    """The configuration file is missing, unreadable or invalid."""
+
+
+@dataclass(frozen=True)
+class Config:
+    """The whole configuration."""
+
+    scheduler: PlanningConfig = field(default_factory=PlanningConfig)
+    policy: PolicyConfig = field(default_factory=PolicyConfig)
+    daemon: DaemonConfig = field(default_factory=DaemonConfig)
+    kafka: KafkaConfig = field(default_factory=KafkaConfig)
+    outbound: OutboundConfig = field(default_factory=OutboundConfig)
+    source: str = "<embedded defaults>"
+    export: ExportConfig = field(default_factory=ExportConfig)
+    submit: SubmitConfig = field(default_factory=SubmitConfig)
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any], source: str = "<mapping>") -> "Config":
+        """Build from parsed TOML; unknown sections or keys are errors."""
+        sections = {
+            "scheduler": PlanningConfig,
+            "policy": PolicyConfig,
+            "daemon": DaemonConfig,
+            "kafka": KafkaConfig,
+            "outbound": OutboundConfig,
+            "export": ExportConfig,
+            "submit": SubmitConfig,
+        }
+        # [bench] belongs to `mushrooms bench`, which reads it itself
+        unknown = sorted(set(data) - set(sections) - {"bench"})
+        if unknown:
+            raise ConfigError(f"{source}: unknown section(s): {', '.join(unknown)}")
+        kwargs: dict[str, Any] = {"source": source}
+        try:
+            for name, cls_ in sections.items():
+                if name in data:
+                    kwargs[name] = cls_.from_mapping(data[name])
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"{source}: {exc}") from None
+        return cls(**kwargs)
+
+
+def resolve_config_path(given: str | Path | None, environ: Mapping[str, str] | None = None,
+                        cwd: Path | None = None) -> tuple[Path | None, str]:
+    """Which config file a command uses, by one rule, first match wins.
+
+    1. ``--config FILE`` when given;
+    2. else ``$MUSHROOMS_CONFIG`` when set and not empty;
+    3. else ``./config.toml`` when the working directory has one;
+    4. else the embedded defaults (None).
+
+    Returns
+    -------
+    path : pathlib.Path or None
+    why : str
+        Which rule chose it (for the log).
+    """
+    import os
+
+    env = os.environ if environ is None else environ
+    if given:
+        return Path(given), "--config"
+    if env.get(CONFIG_ENV, "").strip():
+        return Path(env[CONFIG_ENV].strip()), f"${CONFIG_ENV}"
+    local = (cwd or Path.cwd()) / "config.toml"
+    if local.is_file():
+        return local, "config.toml in the working directory"
+    return None, "no --config, no $MUSHROOMS_CONFIG, no ./config.toml"
+
+
+def load_config(path: str | Path | None = None) -> Config:
+    """Load a config file, or the embedded defaults when ``path`` is None.
+
+    Raises
+    ------
+    ConfigError
+        With a one-line reason when the file cannot be used.
+    """
+    if path is None:
+        return Config()
+    return Config.from_mapping(read_config_table(path), source=str(path))
+
+
+def read_config_table(path: str | Path) -> dict[str, Any]:
+    """The parsed TOML of a config file (a regular file: :mod:`mushrooms.inputs`), sections unchecked.
+
+    Raises
+    ------
+    ConfigError
+        When the file cannot be read or is not TOML.
+    """
+    from ..inputs import read_regular_file
+    from ..scheduler_core.errors import InputError
+
+    p = Path(path)
+    try:
+        text = read_regular_file(p, MAX_CONFIG_BYTES).decode()
+    except InputError as exc:
+        raise ConfigError(f"cannot read config {exc}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{p}: not valid TOML: not UTF-8 text") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{p}: not valid TOML: {exc}") from None
