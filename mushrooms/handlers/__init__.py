@@ -11,8 +11,9 @@ load the notice parser's astropy through this ``__init__``.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from ..scheduler_core.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the same names, for type checkers and editors
     from .alert import ALERT_TYPES, Alert, EventDetails, ExternalCoinc, NoticeError, parse_notice
@@ -33,15 +34,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    """Import a public name's submodule on first use, then keep the name here."""
-    where = _EXPORTS.get(name)
-    if where is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(where, __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, __all__)
