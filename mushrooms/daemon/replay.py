@@ -5,7 +5,9 @@ scheduler_core -> plan checker -> store -> directory sink), in the order of
 the notices' own ``time_created`` (ties: alert-type order, then file order;
 notices that cannot be parsed keep their place in file order).  The policy
 clock of each notice is its ``time_created`` (as if received when issued), so
-age cuts pass and plan ids are reproducible.  One line per notice on stdout::
+age cuts pass and plan ids are reproducible.  The library logs and returns a
+:class:`ReplayReport`; the tool (:mod:`mushrooms.tool.replay`) prints one line
+per notice (:func:`format_line`) as each is done, and the report's summary::
 
     MS181101ab-earlywarning.json MS181101ab EARLYWARNING plan plan_id=mushrooms-7bb99e8043271d99 \
         coverage=0.7312 latency_s=3.21 reason='58 fields, 116 exposures'
@@ -19,10 +21,10 @@ from __future__ import annotations
 
 import logging
 import os
-import sys
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
-from typing import Sequence, TextIO
+from typing import Callable, Sequence
 
 from ..handlers.alert import ALERT_TYPES, parse_notice
 from ..handlers.alert import NoticeError
@@ -33,7 +35,7 @@ from .sections import ServiceConfig
 from .sinks import DirectorySink
 from .store import Store
 
-__all__ = ["replay_notices", "collect_notices", "order_notices", "replay", "format_line"]
+__all__ = ["replay_notices", "ReplayReport", "collect_notices", "order_notices", "replay", "format_line"]
 
 log = logging.getLogger(__name__)
 
@@ -94,15 +96,60 @@ def format_line(name: str, outcome: Outcome) -> str:
             f"reason={outcome.reason!r}")
 
 
-def replay(pipeline: NoticePipeline, paths: Sequence[str | Path], out: TextIO | None = None
+#: Called with each notice's file and outcome as soon as it is handled.
+OnOutcome = Callable[[Path, Outcome], None]
+
+
+@dataclass(frozen=True)
+class ReplayReport:
+    """What a replay did: every notice's outcome and what went wrong on the way.
+
+    Attributes
+    ----------
+    results : tuple of (Path, Outcome)
+        One per notice, in the order handled.
+    out_dir : Path
+        The directory sink (plans, withdrawals).
+    state : Path
+        The SQLite state file.
+    errors : tuple of str
+        Inputs that are missing, unreadable, or directories with no notice (one line each).
+    status : int
+        The exit status: 0 every notice processed (rejected and ignored ones
+        included), 1 some failed on our side (plan checker, internal error),
+        2 an input missing or unreadable, or a directory with no notice.
+    """
+
+    results: tuple[tuple[Path, Outcome], ...]
+    out_dir: Path
+    state: Path
+    errors: tuple[str, ...]
+    status: int
+
+    def counts(self) -> dict[str, int]:
+        """Number of notices per decision (``plan``, ``ignore``, ``rejected``, ...)."""
+        out: dict[str, int] = {}
+        for _, oc in self.results:
+            out[oc.decision] = out.get(oc.decision, 0) + 1
+        return out
+
+
+def replay(pipeline: NoticePipeline, paths: Sequence[str | Path], on_outcome: OnOutcome | None = None
            ) -> list[tuple[Path, Outcome]]:
-    """Run every notice under ``paths`` through ``pipeline.handle``; print one line each.
+    """Run every notice under ``paths`` through ``pipeline.handle``, in the notices' order.
+
+    Parameters
+    ----------
+    pipeline : NoticePipeline
+    paths : sequence of path
+        Notice files, or directories of them (:func:`collect_notices`).
+    on_outcome : callable, optional
+        Called with each notice's file and :class:`~.pipeline.Outcome` as soon as it is handled.
 
     Returns
     -------
     list of (path, Outcome)
     """
-    out = out or sys.stdout
     items: list[tuple[Path, bytes | None]] = []
     read_errors: dict[Path, str] = {}
     for p in collect_notices(paths):
@@ -122,13 +169,14 @@ def replay(pipeline: NoticePipeline, paths: Sequence[str | Path], out: TextIO | 
             except Exception as exc:  # the state could not be written: report and go on
                 log.exception("notice origin=file:%s: not processed", p)
                 oc = Outcome("failed", None, f"internal error: {type(exc).__name__}: {exc}")
-        print(format_line(p.name, oc), file=out, flush=True)
+        if on_outcome is not None:
+            on_outcome(p, oc)
         results.append((p, oc))
     return results
 
 
 def replay_notices(notices: Sequence[str | Path], out_dir: str | Path, config: ServiceConfig,
-                   state: str | Path | None = None) -> int:
+                   state: str | Path | None = None, on_outcome: OnOutcome | None = None) -> ReplayReport:
     """``mushrooms replay`` as a library call: archived notices through the daemon's path into a directory.
 
     Parameters
@@ -143,14 +191,16 @@ def replay_notices(notices: Sequence[str | Path], out_dir: str | Path, config: S
         handed to the :class:`~.pipeline.NoticePipeline` as it is.
     state : path, optional
         SQLite state file; default a fresh ``.replay-state.sqlite`` in ``out_dir``.
+    on_outcome : callable, optional
+        Called with each notice's file and outcome as soon as it is handled
+        (the tool prints :func:`format_line`).
 
     Returns
     -------
-    int
-        0 when every notice was processed (rejected and ignored notices
-        included), 1 when some failed on our side (plan checker, internal
-        error), 2 when an input is missing or unreadable, or a directory
-        holds no notice (the others are still replayed).
+    ReplayReport
+        Its ``status`` is 2 when an input is missing or unreadable, or a
+        directory holds no notice (the others are still replayed), else 1
+        when some notice failed on our side, else 0.
     """
     missing = [p for p in map(Path, notices) if not p.exists()]
     empty = [p for p in map(Path, notices) if p.is_dir() and not collect_notices([p])]
@@ -167,22 +217,16 @@ def replay_notices(notices: Sequence[str | Path], out_dir: str | Path, config: S
     store = Store(state)
     try:
         pipeline = NoticePipeline(config.policy, config.scheduler, store, DirectorySink(out_dir), daemon=config.daemon)
-        results = replay(pipeline, notices)
+        results = replay(pipeline, notices, on_outcome)
     finally:
         store.close()
-    counts: dict[str, int] = {}
-    for _, oc in results:
-        counts[oc.decision] = counts.get(oc.decision, 0) + 1
+    errors = [f"{p}: no such file or directory" for p in missing] + \
+             [f"{p}: no notice files (*.json, *.avro, *.xml) in this directory" for p in empty] + \
+             [f"{p}: unreadable" for p in unreadable] + \
+             [f"{p}: {oc.reason}" for p, oc in results if oc.reason.startswith("cannot read") and p not in missing]
+    errors = list(dict.fromkeys(errors))
+    failed = any(oc.decision == "failed" for _, oc in results)
+    report = ReplayReport(tuple(results), out_dir, Path(state), tuple(errors), 2 if errors else 1 if failed else 0)
     log.info("replay done: %d notice(s): %s; output in %s; state %s", len(results),
-             ", ".join(f"{k}={v}" for k, v in sorted(counts.items())) or "none", out_dir, state)
-    print(f"mushrooms replay: {len(results)} notice(s); outbox {out_dir.resolve()}; state {state.resolve()}",
-          file=sys.stderr)
-    bad = [f"{p}: no such file or directory" for p in missing] + \
-          [f"{p}: no notice files (*.json, *.avro, *.xml) in this directory" for p in empty] + \
-          [f"{p}: unreadable" for p in unreadable] + \
-          [f"{p}: {oc.reason}" for p, oc in results if oc.reason.startswith("cannot read") and p not in missing]
-    for line in dict.fromkeys(bad):
-        print(f"mushrooms replay: error: {line}", file=sys.stderr)
-    if bad:
-        return 2
-    return 1 if counts.get("failed") else 0
+             ", ".join(f"{k}={v}" for k, v in sorted(report.counts().items())) or "none", out_dir, state)
+    return report

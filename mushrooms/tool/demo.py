@@ -49,7 +49,11 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     notice = demo_notice_path()
-    code = replay_notices([notice], out / "outbox", config, state=out / "state.sqlite")
+    from .replay import print_outcome, print_summary
+
+    report = replay_notices([notice], out / "outbox", config, state=out / "state.sqlite", on_outcome=print_outcome)
+    print_summary(report, "demo")
+    code = report.status
     plans = sorted((out / "outbox").glob("*.json"))
     docs = [json.loads(p.read_text()) for p in plans]
     docs = [d for d in docs if d.get("type") == "plan"]

@@ -30,7 +30,7 @@ def main(args: Sequence[str] | None = None) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Replay the notices; the exit status of :func:`~mushrooms.daemon.replay.replay_notices`."""
+    """Replay the notices, print a line per notice and the summary; the report's exit status."""
     from .config import load_config
     from ..daemon.replay import replay_notices
     from ..offline import configure_astropy_offline
@@ -38,7 +38,24 @@ def run(args: argparse.Namespace) -> int:
 
     configure_astropy_offline()
     config = override_config(load_config(args.config), allow_mock=args.allow_mock)
-    return replay_notices(args.notices, args.out, config, state=args.state)
+    report = replay_notices(args.notices, args.out, config, state=args.state, on_outcome=print_outcome)
+    print_summary(report)
+    return report.status
+
+
+def print_outcome(path, outcome) -> None:
+    """One line per notice on stdout, as soon as it is handled (:func:`~mushrooms.daemon.replay.format_line`)."""
+    from ..daemon.replay import format_line
+
+    print(format_line(path.name, outcome), flush=True)
+
+
+def print_summary(report, tool: str = "replay") -> None:
+    """Where the outbox and the state are, and every input error, on stderr."""
+    print(f"mushrooms {tool}: {len(report.results)} notice(s); outbox {report.out_dir.resolve()}; "
+          f"state {report.state.resolve()}", file=sys.stderr)
+    for line in report.errors:
+        print(f"mushrooms {tool}: error: {line}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -119,12 +119,17 @@ def test_replay_is_a_library_call_with_the_shared_overrides(tmp_path, fast_confi
 
     notice = NOTICES / "json" / "MS181101ab-preliminary.json"
     config = load_config(str(fast_config))
-    assert replay_notices([notice], tmp_path / "strict", config) == 0
-    assert lines_of(capsys)[0].split()[3] == "ignore"  # a mock event, and mocks not allowed
+    report = replay_notices([notice], tmp_path / "strict", config)
+    assert report.status == 0 and report.errors == ()
+    assert [oc.decision for _, oc in report.results] == ["ignore"]  # a mock event, and mocks not allowed
+    assert capsys.readouterr().out == ""  # the library prints nothing: the tool does
     mock_ok = override_config(config, allow_mock=True, solver="greedy")
     assert config.policy.allow_mock is False and mock_ok.policy.allow_mock is True  # the loaded one is untouched
     state = tmp_path / "state" / "s.sqlite"
-    assert replay_notices([notice], tmp_path / "out", mock_ok, state=state) == 0
-    assert lines_of(capsys)[0].split()[3] == "plan"
+    seen = []
+    report = replay_notices([notice], tmp_path / "out", mock_ok, state=state,
+                            on_outcome=lambda p, oc: seen.append((p.name, oc.decision)))
+    assert report.status == 0 and report.state == state and report.counts() == {"plan": 1}
+    assert seen == [(notice.name, "plan")]
     docs = [json.loads(p.read_text()) for p in (tmp_path / "out").glob("*.json")]
     assert state.exists() and [d["type"] for d in docs] == ["plan"]
