@@ -91,6 +91,35 @@ def test_cluster_matches_serial_bench_and_rerun_skips_finished_work(tmp_path, da
     assert [p.name for p in figs] == ["solve_time_hist.png"]  # nothing to compare with one solver
 
 
+def test_run_study_from_python_writes_results_tables_and_figures(tmp_path, data_dir, client) -> None:
+    """The study as a library: plain settings and inputs in, the outcome out; nothing printed."""
+    maps_dir = tmp_path / "maps"
+    maps_dir.mkdir()
+    for name in ("MS220722v_bayestar.multiorder.fits", "S200129m_cWB_RING.fits.gz"):
+        shutil.copy(data_dir / "skymaps" / name, maps_dir)
+    # threads = 0 and the default legacy scoring: the study makes them one thread and the fixed source model
+    settings = study.StudySettings(
+        bench=bench.BenchSettings(config=PlanningConfig(nside=64, threads=0), solvers=("greedy", "greedy-coverage"),
+                                  n_injections=300),
+        out=tmp_path / "out", cache=tmp_path / "cache", scheduler=client.scheduler.address)
+    told: list[str] = []
+    outcome = study.run_study(settings, study.StudyInputs(maps=str(maps_dir), limit=1), notify=told.append)
+    assert told == [f"1 map(s) x 2 solver(s) on {client.scheduler.address}"]
+    assert outcome.n_maps == 1 and outcome.run is not None and len(outcome.run.executed) == 2
+    assert [r["solver"] for r in outcome.run.rows] == ["greedy", "greedy-coverage"]
+    assert all(scored(r) and not any(k.endswith("_v1") for k in r) for r in outcome.run.rows)
+    records = [json.loads(x) for x in (tmp_path / "out" / "results.jsonl").read_text().splitlines()]
+    assert {r["config"]["config"]["threads"] for r in records} == {1}
+    assert {r["config"]["legacy_scoring"] for r in records} == {False}
+    assert (tmp_path / "out" / "tables.md").read_text() == outcome.tables + "\n\n" + outcome.footer + "\n"
+    assert "| greedy | coverage | 1 |" in outcome.tables and outcome.footer.startswith("1 map(s), solvers greedy,")
+    assert [p.name for p in outcome.figures] == ["solve_time_hist.png"] and outcome.figures[0].exists()
+    assert len(bench.read_csv(tmp_path / "out" / "results.csv")) == 2
+    assert client.status == "running"  # a scheduler it was given is left running
+    with pytest.raises(ValueError, match="one source"):
+        study.StudyInputs(maps=str(maps_dir), events="e.xml.gz")
+
+
 def test_failed_localisation_is_recorded_and_its_plans_fail_alone(tmp_path, data_dir, client) -> None:
     good = study.MapTask(key="good", name=str(DEMO_MAP), path=str(DEMO_MAP))
     lost = study.MapTask(key="lost", name=str(tmp_path / "cache" / "7.fits"), path=str(tmp_path / "cache" / "7.fits"),
