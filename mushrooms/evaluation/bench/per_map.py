@@ -70,6 +70,8 @@ class MapScene:
         Why there is no problem.
     bound : float or None
         Certified coverage upper bound of the problem.
+    gwemopt_run : GwemoptRun or None
+        gwemopt's run on the map, made by the first of its rows and shared by the other.
     """
 
     name: str
