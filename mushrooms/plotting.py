@@ -119,23 +119,41 @@ def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int, answer: A
     import matplotlib
 
     matplotlib.use("Agg")
-    import healpy as hp
     import ligo.skymap.plot  # noqa: F401  (registers the astro projections)
-    from astropy import units as u
-    from astropy.coordinates import SkyCoord
-    from ligo.skymap.postprocess import find_greedy_credible_levels
     from matplotlib import pyplot as plt
-    from matplotlib.colors import Normalize
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import Patch
 
     grid = load_ztf_fields()
-    obs = plan.observations
     first_visit: dict[int, float] = {}
-    for o in obs:
+    for o in plan.observations:
         first_visit.setdefault(o.field_id, o.start)
+    layers, norm = _sky_layers(skymap)
+    credible = layers["zoom"][1]
+    fig = plt.figure(figsize=(13, 8.2))
+    ax_sky = fig.add_axes([0.03, 0.36, 0.50, 0.52], projection="astro hours mollweide")
+    ax_zoom = _zoom_axes(fig, grid, skymap, first_visit, credible)
+    image = None
+    for ax, layer in ((ax_sky, "sky"), (ax_zoom, "zoom")):
+        image = _sky_panel(ax, layers[layer], norm, grid, first_visit, plan.observations)
+    hours, sun_alt, sun0 = _sun_altitude(plan)
+    ax_sky.plot([sun0.ra.deg], [sun0.dec.deg], transform=ax_sky.get_transform("world"), marker="*", ms=14,
+                color="gold", mec="k", mew=0.8, ls="none")
+    _style_sky_axes(ax_sky, ax_zoom)
+    _colourbar(fig, image, norm)
+    _sky_legend(ax_sky, plan, bool(first_visit))
+    _timeline(fig.add_axes([0.06, 0.07, 0.87, 0.15]), plan, hours, sun_alt)
+    _titles(fig, plan, skymap, answer, credible)
+    _save(fig, path, dpi)
 
-    # one colour scale for both sky panels: probability per deg2 (the all-sky panel at a coarser resolution)
+
+def _sky_layers(skymap: SkyMap) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], Any]:
+    """Probability per deg² and credible levels (%) of the two sky panels, and their one colour scale.
+
+    The all-sky panel (``sky``) is drawn at a coarser resolution (NSIDE 64 at most), the zoom at the map's.
+    """
+    import healpy as hp
+    from ligo.skymap.postprocess import find_greedy_credible_levels
+    from matplotlib.colors import Normalize
+
     prob = skymap.prob
     coarse_nside = min(skymap.nside, 64)
     coarse = hp.ud_grade(prob, coarse_nside, order_in="NESTED", order_out="NESTED", power=-2)
@@ -143,48 +161,54 @@ def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int, answer: A
         "sky": (coarse / hp.nside2pixarea(coarse_nside, degrees=True), 100.0 * find_greedy_credible_levels(coarse)),
         "zoom": (prob / hp.nside2pixarea(skymap.nside, degrees=True), 100.0 * find_greedy_credible_levels(prob)),
     }
-    credible = layers["zoom"][1]
-    norm = Normalize(vmin=0.0, vmax=float(layers["zoom"][0].max()))
-    hours, sun_alt, sun0 = _sun_altitude(plan)
-    sun_limit = float((plan.config or {}).get("sun_alt_max_deg", -12.0))
+    return layers, Normalize(vmin=0.0, vmax=float(layers["zoom"][0].max()))
 
-    fig = plt.figure(figsize=(13, 8.2))
-    ax_sky = fig.add_axes([0.03, 0.36, 0.50, 0.52], projection="astro hours mollweide")
 
-    if first_visit:  # zoom on the probability the plan covers
+def _zoom_axes(fig: Any, grid: Any, skymap: SkyMap, first_visit: dict[int, float], credible: np.ndarray) -> Any:
+    """The zoom panel: on the probability the plan covers, else on the 90 % credible region."""
+    from astropy import units as u
+    from astropy.coordinates import SkyCoord
+
+    prob = skymap.prob
+    if first_visit:
         from .scheduler_core.sky.fields import field_footprints
 
         covered = np.zeros(prob.size, dtype=bool)
         covered[field_footprints(grid, skymap.nside).union(list(first_visit))] = True
         ra_c, dec_c, radius = _zoom_region(prob, covered & (prob > 0), skymap.nside)
-    else:  # else on the 90 % credible region
+    else:
         ra_c, dec_c, radius = _zoom_region(prob, credible <= 90.0, skymap.nside)
-    ax_zoom = fig.add_axes([0.60, 0.36, 0.33, 0.52], projection="astro degrees zoom",
-                           center=SkyCoord(ra_c * u.deg, dec_c * u.deg), radius=radius * u.deg)
+    return fig.add_axes([0.60, 0.36, 0.33, 0.52], projection="astro degrees zoom",
+                        center=SkyCoord(ra_c * u.deg, dec_c * u.deg), radius=radius * u.deg)
 
-    image = None
-    for ax, layer in ((ax_sky, "sky"), (ax_zoom, "zoom")):
-        density, levels = layers[layer]
-        image = ax.imshow_hpx((density, "ICRS"), nested=True, cmap="cylon", vmin=norm.vmin, vmax=norm.vmax)
-        ax.contour_hpx((levels, "ICRS"), nested=True, levels=[50.0, 90.0], colors="black",
-                       linewidths=[1.1, 0.9], linestyles=["solid", "dashed"])
-        ax.grid(alpha=0.3)
-        world = ax.get_transform("world")
-        for fid in first_visit:
-            k = grid.index_of(np.array([fid]))[0]
-            ra, dec = _outline(grid.ra[k], grid.dec[k])
-            ax.plot(ra, dec, transform=world, color="#3b6fd6", lw=0.9, alpha=0.9)
-        # the observing path: a segment into each visit, in the colour of the visit's filter
-        for a, b in zip(obs[:-1], obs[1:]):
-            if a.block != b.block or abs(a.ra - b.ra) > 180.0:
-                continue  # within a block only (blocks are hours apart), never across RA = 0h
-            ls = "-" if b.filter == obs[0].filter else (0, (3, 2))
-            ax.plot([a.ra, b.ra], [a.dec, b.dec], transform=world, color=FILTER_COLOURS.get(b.filter, "k"),
-                    lw=1.3, ls=ls)
-        if obs:
-            ax.plot([obs[0].ra], [obs[0].dec], transform=world, marker="o", ms=6, mfc="none", mec="k", mew=1.5)
-    ax_sky.plot([sun0.ra.deg], [sun0.dec.deg], transform=ax_sky.get_transform("world"), marker="*", ms=14,
-                color="gold", mec="k", mew=0.8, ls="none")
+
+def _sky_panel(ax: Any, layer: tuple[np.ndarray, np.ndarray], norm: Any, grid: Any, first_visit: dict[int, float],
+               obs: Any) -> Any:
+    """One sky panel: the probability, the 50 % and 90 % contours, the fields outlined, the path; the image."""
+    density, levels = layer
+    image = ax.imshow_hpx((density, "ICRS"), nested=True, cmap="cylon", vmin=norm.vmin, vmax=norm.vmax)
+    ax.contour_hpx((levels, "ICRS"), nested=True, levels=[50.0, 90.0], colors="black",
+                   linewidths=[1.1, 0.9], linestyles=["solid", "dashed"])
+    ax.grid(alpha=0.3)
+    world = ax.get_transform("world")
+    for fid in first_visit:
+        k = grid.index_of(np.array([fid]))[0]
+        ra, dec = _outline(grid.ra[k], grid.dec[k])
+        ax.plot(ra, dec, transform=world, color="#3b6fd6", lw=0.9, alpha=0.9)
+    # the observing path: a segment into each visit, in the colour of the visit's filter
+    for a, b in zip(obs[:-1], obs[1:]):
+        if a.block != b.block or abs(a.ra - b.ra) > 180.0:
+            continue  # within a block only (blocks are hours apart), never across RA = 0h
+        ls = "-" if b.filter == obs[0].filter else (0, (3, 2))
+        ax.plot([a.ra, b.ra], [a.dec, b.dec], transform=world, color=FILTER_COLOURS.get(b.filter, "k"),
+                lw=1.3, ls=ls)
+    if obs:
+        ax.plot([obs[0].ra], [obs[0].dec], transform=world, marker="o", ms=6, mfc="none", mec="k", mew=1.5)
+    return image
+
+
+def _style_sky_axes(ax_sky: Any, ax_zoom: Any) -> None:
+    """Tick labels of both sky panels; the zoom's always bottom and left, in degrees."""
     ax_sky.coords[0].set_ticklabel(size=8)
     ax_sky.coords[1].set_ticklabel(size=8)
     ax_zoom.coords[0].set_ticks(number=5)
@@ -200,26 +224,38 @@ def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int, answer: A
     ax_zoom.coords[0].set_axislabel("RA (deg)")
     ax_zoom.coords[1].set_axislabel("Dec (deg)")
 
-    cax = fig.add_axes([0.945, 0.40, 0.012, 0.44])
-    exponent = int(np.floor(np.log10(norm.vmax))) if norm.vmax > 0 else 0
+
+def _colourbar(fig: Any, image: Any, norm: Any) -> None:
+    """The probability scale of both sky panels, in units of a power of ten."""
     from matplotlib.ticker import FuncFormatter
 
+    cax = fig.add_axes([0.945, 0.40, 0.012, 0.44])
+    exponent = int(np.floor(np.log10(norm.vmax))) if norm.vmax > 0 else 0
     cb = fig.colorbar(image, cax=cax, format=FuncFormatter(lambda v, _: f"{v / 10.0 ** exponent:.1f}"))
     cb.set_label(f"probability per deg² (×10$^{{{exponent}}}$)", fontsize=9)
     cb.ax.tick_params(labelsize=8)
+
+
+def _sky_legend(ax_sky: Any, plan: Plan, has_fields: bool) -> None:
+    """Contours, fields, the path per filter and the Sun, below the all-sky panel."""
+    from matplotlib.lines import Line2D
+
     legend = [Line2D([], [], color="k", lw=1.1, label="50 % credible"),
               Line2D([], [], color="k", ls="--", lw=0.9, label="90 % credible")]
-    if first_visit:
+    if has_fields:
         legend.append(Line2D([], [], color="#3b6fd6", lw=0.9, label="planned field"))
     legend += [Line2D([], [], color=FILTER_COLOURS[f], lw=1.3, ls="-" if i == 0 else (0, (3, 2)),
                       label=f"path to the {f} visits")
-               for i, f in enumerate(dict.fromkeys(o.filter for o in obs))]
+               for i, f in enumerate(dict.fromkeys(o.filter for o in plan.observations))]
     legend += [Line2D([], [], color="gold", marker="*", ms=10, mec="k", ls="none", label="Sun at start")]
     ax_sky.legend(handles=legend, loc="upper left", bbox_to_anchor=(0.0, -0.02), ncol=3, fontsize=8,
                   frameon=False)
 
-    # timeline of the horizon: day / twilight / night, and every exposure by filter
-    ax_t = fig.add_axes([0.06, 0.07, 0.87, 0.15])
+
+def _timeline(ax_t: Any, plan: Plan, hours: np.ndarray, sun_alt: np.ndarray) -> None:
+    """The horizon: day, twilight and night, and every exposure by filter."""
+    obs = plan.observations
+    sun_limit = float((plan.config or {}).get("sun_alt_max_deg", -12.0))
     night = sun_alt <= sun_limit
     twilight = (sun_alt < 0) & ~night
     dt = float(hours[1] - hours[0]) if hours.size > 1 else 1.0
@@ -232,17 +268,35 @@ def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int, answer: A
         ax_t.broken_barh(bars, (row + 0.6, 0.8), color=FILTER_COLOURS.get(f, "k"))
     ax_t.set_ylim(0.4, len(filters) + 0.6)
     ax_t.set_yticks([r + 1 for r in range(len(filters))], [f"{f} exposures" for f in filters], fontsize=8)
-    span_h = hours[-1]
+    _time_axis(ax_t, plan, hours[-1])
+    _timeline_legend(ax_t, plan, filters, sun_limit)
+
+
+def _time_axis(ax_t: Any, plan: Plan, span_h: float) -> None:
+    """Hours after the start, with the UTC clock time under each tick."""
+    from astropy import units as u
+
     ax_t.set_xlim(0, span_h)
     step = 1 if span_h <= 12 else 2 if span_h <= 30 else 6
     ticks = np.arange(0, span_h + 1e-9, step)
     labels = [(plan.start + t * u.hour).utc.isot[11:16] for t in ticks]
     ax_t.set_xticks(ticks, [f"{int(t)} h\n{lab}" for t, lab in zip(ticks, labels)], fontsize=8)
     ax_t.set_xlabel(f"hours after {plan.start.utc.isot[:16]} UTC (and UTC clock time)", fontsize=9)
+
+
+def _timeline_legend(ax_t: Any, plan: Plan, filters: list[str], sun_limit: float) -> None:
+    from matplotlib.patches import Patch
+
+    obs = plan.observations
     handles = [Patch(color="#b8c4d6", label="twilight"), Patch(color="#56607a", label=f"night (Sun < {sun_limit:g}°)")]
     handles += [Patch(color=FILTER_COLOURS.get(f, "k"), label=f"{f}") for f in filters if any(o.filter == f for o in obs)]
     ax_t.legend(handles=handles, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=len(handles), fontsize=8,
                 frameon=False)
+
+
+def _titles(fig: Any, plan: Plan, skymap: SkyMap, answer: Any, credible: np.ndarray) -> None:
+    """The plan in one line (or "not observable" and why), and what the panels show."""
+    import healpy as hp
 
     m = plan.metrics
     title = plot_title(plan, skymap)
@@ -257,11 +311,17 @@ def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int, answer: A
         area = float((credible <= 90.0).sum()) * hp.nside2pixarea(skymap.nside, degrees=True)
         fig.text(0.5, 0.925, f"90 % credible area {area:.0f} deg²; fields outlined, path in filter colours "
                              "(circle: first visit)", ha="center", fontsize=9)
+
+
+def _save(fig: Any, path: str | Path, dpi: int) -> None:
+    """Render the figure, then write it whole (a device or a symlink is never replaced)."""
     import io
+
+    from matplotlib import pyplot as plt
 
     from .outputs import write_bytes_atomic
 
-    buf = io.BytesIO()  # rendered first, then written whole (a device or a symlink is never replaced)
+    buf = io.BytesIO()
     fig.savefig(buf, dpi=dpi, format=Path(path).suffix.lstrip(".").lower() or "png")
     plt.close(fig)
     write_bytes_atomic(path, buf.getvalue())

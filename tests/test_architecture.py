@@ -34,17 +34,17 @@ FORBIDDEN = (
     ("mushrooms.daemon", "mushrooms.cli"),
     ("mushrooms.scheduler_core", "mushrooms.tool"),
     ("mushrooms.handlers", "mushrooms.tool"),
+    # evaluation is a library the tools call (run_bench, run_study): it never reaches up into them
+    ("mushrooms.evaluation", "mushrooms.tool"),
+    ("mushrooms.evaluation", "mushrooms.cli"),
+    ("mushrooms.evaluation", "mushrooms.daemon"),
 )
 
 
-#: The config loader, and its temporary re-export shim (``mushrooms/config.py``) while other branches need it.
-CONFIG_MODULES = ("mushrooms.tool.config", "mushrooms.config")
+#: The config loader.
+CONFIG_MODULES = ("mushrooms.tool.config",)
 #: Only these import the config loader (or ``argparse``).
 COMMAND_LAYER = ("mushrooms.tool", "mushrooms.cli")
-
-#: Known importers of the config module outside the command layer.
-#: removed when the evaluation split lands (evaluation/bench.py's ``_load_settings``)
-CONFIG_IMPORTERS_UNTIL_EVALUATION_SPLIT = frozenset({"mushrooms.evaluation.bench", "mushrooms.config"})
 
 
 def module_files(package_dir: Path) -> dict[str, tuple[Path, bool]]:
@@ -175,7 +175,7 @@ def test_the_graph_sees_the_package(graph):
     # a sanity check that the scan reads what it should: known edges, lazy ones included
     assert "mushrooms.scheduler_core.planner" in graph
     assert "mushrooms.scheduler_core.problem" in graph["mushrooms.scheduler_core.planner"]
-    assert "mushrooms.evaluation.efficiency" in graph["mushrooms.evaluation.bench"]  # a function-level import
+    assert "mushrooms.evaluation.efficiency" in graph["mushrooms.evaluation.bench.scoring"]  # a function-level import
     assert len(graph) > 50
 
 
@@ -205,11 +205,13 @@ def config_importers(graph: dict[str, set[str]]) -> set[str]:
 
 
 def test_only_the_command_layer_imports_the_config(graph):
-    # every layer below gets its sections handed in (Service(config, paths), run_trigger, replay_notices)
-    allowed = CONFIG_IMPORTERS_UNTIL_EVALUATION_SPLIT
-    assert sorted(config_importers(graph) - allowed) == []
-    # an exception no longer needed is deleted from its list
-    assert sorted(allowed - config_importers(graph)) == []
+    # every layer below gets its sections handed in (Service(config, paths), run_trigger, replay_notices,
+    # run_bench(settings, maps), run_study(settings, inputs)): no exception
+    assert sorted(config_importers(graph)) == []
+    # the config loader lives in the command layer only: no re-export of it elsewhere (the old mushrooms.config)
+    assert "mushrooms.config" not in graph
+    assert sorted(m for m in graph if m.rsplit(".", 1)[-1] == "config" and not _in_command_layer(m)
+                  and not _within(m, "mushrooms.scheduler_core")) == []
 
 
 def test_only_the_command_layer_imports_argparse():

@@ -281,11 +281,11 @@ def test_plan_and_bench_read_start_times_alike(tmp_path, cfg, capsys, text):
     """``bench --start`` once took only ``...Z``; now both use ``scheduler_core.times.parse_time``."""
     import argparse
 
-    from mushrooms.evaluation.bench import _load_settings
+    from mushrooms.tool.bench import load_settings
     from mushrooms.tool.plan import parse_start
 
     args = argparse.Namespace(config=str(cfg), solvers="greedy", injections=10, jobs=1, start=text)
-    assert _load_settings(args).start_iso == parse_start(text).isot == "2022-07-23T02:00:00.000"
+    assert load_settings(args).start_iso == parse_start(text).isot == "2022-07-23T02:00:00.000"
 
 
 def test_plan_and_bench_refuse_a_bad_start_in_the_same_words(tmp_path, cfg, capsys):

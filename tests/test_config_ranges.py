@@ -28,14 +28,14 @@ FAST = '[scheduler]\nsolver = "greedy"\nnside = 64\ntime_step_s = 600.0\n'
 
 def sections() -> dict[str, type]:
     from mushrooms.daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
-    from mushrooms.evaluation.bench import BenchSettings
+    from mushrooms.evaluation.bench.settings import BenchConfig
     from mushrooms.handlers.policy import PolicyConfig
     from mushrooms.scheduler_core.config import PlanningConfig, SlewModel
     from mushrooms.scheduler_core.plan.exports import ExportConfig
 
     return {"scheduler": PlanningConfig, "scheduler.slew": SlewModel, "policy": PolicyConfig,
             "daemon": DaemonConfig, "kafka": KafkaConfig, "outbound": OutboundConfig, "export": ExportConfig,
-            "bench": BenchSettings}
+            "bench": BenchConfig}
 
 
 def _numeric(hint) -> bool:
@@ -54,7 +54,7 @@ def test_every_numeric_setting_declares_a_range():
         hints = typing.get_type_hints(cls)
         ranged = ranges_of(cls)
         missing += [f"[{name}] {f.name}" for f in dataclasses.fields(cls)
-                    if _numeric(hints[f.name]) and f.name not in ranged and f.name != "n_injections"]
+                    if _numeric(hints[f.name]) and f.name not in ranged]
     assert missing == []
 
 

@@ -1,14 +1,26 @@
-"""``mushrooms bench SKYMAP_DIR``: schedule quality and kilonova detection efficiency (:mod:`mushrooms.evaluation.bench`)."""
+"""``mushrooms bench SKYMAP_DIR``: schedule quality and kilonova detection efficiency (:mod:`mushrooms.evaluation.bench`).
+
+The command line and ``config.toml`` (``[scheduler]``, ``[bench]``) become
+a :class:`~mushrooms.evaluation.bench.settings.BenchSettings`;
+:func:`~mushrooms.evaluation.bench.run.run_bench` plans and scores; this
+module writes the CSV and prints the summary and the figures' paths.
+"""
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
-from typing import Sequence
+import time
+from typing import TYPE_CHECKING, Any, Sequence
 
 from .common import MissingExtra, add_common_options, execute, tool_parser
 
-__all__ = ["HELP", "parser", "run", "main", "require_gwemopt"]
+if TYPE_CHECKING:
+    from ..evaluation.bench.settings import BenchSettings
+    from .config import Config
+
+__all__ = ["HELP", "parser", "run", "main", "bench_settings", "require_gwemopt"]
 
 #: Rows that run the real gwemopt (the ``gwemopt`` extra, or its cache).
 GWEMOPT_ROWS = ("gwemopt", "gwemopt-repaired")
@@ -40,35 +52,106 @@ def main(args: Sequence[str] | None = None) -> int:
     return execute("bench", parser().parse_args(args), run)
 
 
-def require_gwemopt(args: argparse.Namespace) -> None:
-    """:class:`MissingExtra` when ``--solvers`` asks for gwemopt rows that nothing can produce.
+def bench_settings(args: argparse.Namespace, config: "Config") -> "BenchSettings":
+    """The run's settings: ``[scheduler]`` and ``[bench]`` of ``config``, and ``--solvers``, ``--injections``,
+    ``--start`` (``--jobs`` is checked too); :class:`~mushrooms.scheduler_core.errors.InputError` naming the
+    option when one is wrong.  ``mushrooms study`` reads the same options with it."""
+    from ..evaluation.bench.settings import BenchSettings, check_rows
+    from ..scheduler_core.errors import InputError
+
+    solvers = tuple(s.strip() for s in str(args.solvers).split(",") if s.strip())
+    try:
+        check_rows(solvers)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    if args.injections < 1:
+        raise InputError(f"--injections must be >= 1, got {args.injections}")
+    if getattr(args, "jobs", 1) < 1:
+        raise InputError(f"--jobs must be >= 1, got {args.jobs}")
+    start_iso = None
+    if getattr(args, "start", None):
+        from ..scheduler_core.times import parse_time
+
+        start_iso = parse_time(args.start, "--start", mjd=True).isot
+    return BenchSettings(config=config.scheduler, bench=config.bench, solvers=solvers, start_iso=start_iso,
+                         n_injections=int(args.injections))
+
+
+def load_settings(args: argparse.Namespace) -> "BenchSettings":
+    """:func:`bench_settings` of the command's config file (``--config``, resolved by :func:`~.common.execute`)."""
+    from .config import load_config
+
+    return bench_settings(args, load_config(getattr(args, "config", None)))
+
+
+def require_gwemopt(settings: "BenchSettings") -> None:
+    """:class:`MissingExtra` when the rows ask for gwemopt rows that nothing can produce.
 
     A gwemopt row needs gwemopt's interpreter (this one with the ``gwemopt``
     extra, or ``$MUSHROOMS_GWEMOPT_PYTHON`` / ``[bench] gwemopt_python``) or
     a cache of its schedules (``[bench] gwemopt_cache_dir``, whose misses are
     rows saying ``unavailable``).
     """
-    asked = [s.strip() for s in str(getattr(args, "solvers", "")).split(",") if s.strip() in GWEMOPT_ROWS]
+    asked = [s for s in settings.solvers if s in GWEMOPT_ROWS]
     if not asked:
         return
-    from ..evaluation.bench import _load_settings
     from ..evaluation.gwemopt_baseline import ENV_PYTHON, gwemopt_python
 
-    settings = _load_settings(args)
-    if gwemopt_python(settings.gwemopt_python) is None and not settings.gwemopt_cache_dir:
+    if gwemopt_python(settings.bench.gwemopt_python) is None and not settings.bench.gwemopt_cache_dir:
         raise MissingExtra("gwemopt", f"--solvers {','.join(asked)}: no gwemopt interpreter and no "
                                       "[bench] gwemopt_cache_dir",
                            hint=f" (or a Python with gwemopt in ${ENV_PYTHON})")
 
 
+def progress_bars() -> bool:
+    """Progress bars on stderr unless ``MUSHROOMS_PROGRESS=0``."""
+    return os.environ.get("MUSHROOMS_PROGRESS", "1") != "0"
+
+
+def _warn_without_gwemopt(settings: "BenchSettings") -> None:
+    """One line on stderr when gwemopt rows will come from the cache only (its misses: ``unavailable``)."""
+    if not set(GWEMOPT_ROWS) & set(settings.solvers):
+        return
+    from ..evaluation.gwemopt_baseline import ENV_PYTHON, gwemopt_python
+
+    if gwemopt_python(settings.bench.gwemopt_python) is None:  # (require_gwemopt refuses it without a cache)
+        print(f"mushrooms bench: gwemopt unavailable (pip install 'mushrooms[gwemopt]', or set ${ENV_PYTHON} "
+              f"to its interpreter); its rows will say 'unavailable' where the cache "
+              f"{settings.bench.gwemopt_cache_dir} has no schedule", file=sys.stderr)
+
+
 def run(args: argparse.Namespace) -> int:
-    """Run the benchmark, write the CSV, print the summary; the exit status."""
-    from ..evaluation.bench import main as bench_main
+    """Run the benchmark, write the CSV, print the summary; the exit status.
+
+    0 when every map was processed (individual solver failures are rows in
+    the CSV, not errors); bad input raises (exit status 2 through
+    :func:`~.common.execute`).
+    """
+    from ..evaluation.bench.plots import make_plots
+    from ..evaluation.bench.rows import write_csv
+    from ..evaluation.bench.run import run_bench, skymaps_in
+    from ..evaluation.bench.summary import summarize
     from ..outputs import check_outputs
 
     check_outputs({"-o/--output": args.output})  # a device, FIFO or directory is refused before hours of work
-    require_gwemopt(args)
-    return bench_main(args)
+    settings = load_settings(args)
+    require_gwemopt(settings)
+    paths = skymaps_in(args.skymap_dir)
+    _warn_without_gwemopt(settings)
+    t0 = time.perf_counter()
+    rows = run_bench(settings, paths, jobs=args.jobs, output=args.output, progress=progress_bars())
+    write_csv(rows, args.output)
+    print(summarize(rows, tuple(settings.bench.lightcurves)))
+    _print_footer(settings, paths, args, time.perf_counter() - t0)
+    if args.plots:
+        for p in make_plots(rows, args.plots):
+            print(f"plot: {p}")
+    return 0
+
+
+def _print_footer(settings: "BenchSettings", paths: Sequence[Any], args: argparse.Namespace, wall: float) -> None:
+    print(f"\n{len(paths)} map(s), solvers {','.join(settings.solvers)}, jobs {args.jobs}, "
+          f"{settings.n_injections} injections/map, wall {wall:.0f} s; CSV: {args.output}")
 
 
 if __name__ == "__main__":

@@ -4,8 +4,9 @@ Sections: ``[scheduler]`` (:class:`~mushrooms.scheduler_core.PlanningConfig`),
 ``[policy]`` (:class:`~mushrooms.handlers.policy.PolicyConfig`),
 ``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`),
 ``[export]`` (:class:`~mushrooms.scheduler_core.plan.exports.ExportConfig`),
-``[submit]`` (:class:`~mushrooms.daemon.submit_settings.SubmitConfig`);
-an optional ``[bench]`` table is read by ``mushrooms bench`` only.
+``[submit]`` (:class:`~mushrooms.daemon.submit_settings.SubmitConfig`),
+``[bench]`` (:class:`~mushrooms.evaluation.bench.settings.BenchConfig`:
+``mushrooms bench`` and ``mushrooms study``).
 Secrets never come from here: see the README.
 
 Each layer owns its section types (built on the leaf
@@ -24,6 +25,7 @@ from typing import Any, Mapping
 
 from ..daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
 from ..daemon.submit_settings import SubmitConfig
+from ..evaluation.bench.settings import BenchConfig
 from ..handlers.policy import PolicyConfig
 from ..scheduler_core.config import PlanningConfig
 from ..scheduler_core.plan.exports import ExportConfig
@@ -53,6 +55,7 @@ class Config:
     source: str = "<embedded defaults>"
     export: ExportConfig = field(default_factory=ExportConfig)
     submit: SubmitConfig = field(default_factory=SubmitConfig)
+    bench: BenchConfig = field(default_factory=BenchConfig)
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], source: str = "<mapping>") -> "Config":
@@ -65,9 +68,9 @@ class Config:
             "outbound": OutboundConfig,
             "export": ExportConfig,
             "submit": SubmitConfig,
+            "bench": BenchConfig,
         }
-        # [bench] belongs to `mushrooms bench`, which reads it itself
-        unknown = sorted(set(data) - set(sections) - {"bench"})
+        unknown = sorted(set(data) - set(sections))
         if unknown:
             raise ConfigError(f"{source}: unknown section(s): {', '.join(unknown)}")
         kwargs: dict[str, Any] = {"source": source}

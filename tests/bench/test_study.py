@@ -10,10 +10,17 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
+import mushrooms  # noqa: E402
 from mushrooms.evaluation import bench, study  # noqa: E402
+from mushrooms.evaluation.bench.compare import scored  # noqa: E402
+from mushrooms.evaluation.bench.rows import make_row  # noqa: E402
+from mushrooms.evaluation.bench.settings import BenchConfig  # noqa: E402
+from mushrooms.evaluation.study.provenance import digest  # noqa: E402
 from mushrooms.scheduler_core.config import PlanningConfig  # noqa: E402
 
-DEMO_MAP = Path(study.__file__).parent.parent / "scheduler_core" / "data" / "MS181101ab_bayestar.multiorder.fits"
+DEMO_MAP = Path(mushrooms.__file__).parent / "scheduler_core" / "data" / "MS181101ab_bayestar.multiorder.fits"
+#: The study scores with the fixed source model only.
+NO_V1 = BenchConfig(legacy_scoring=False)
 #: Wall-clock columns: the only ones allowed to differ between two runs of the same plan.
 TIMINGS = {"runtime_s", "prepare_s", "solve_s"}
 
@@ -37,14 +44,14 @@ def test_cluster_matches_serial_bench_and_rerun_skips_finished_work(tmp_path, da
         shutil.copy(p, maps_dir)
     (maps_dir / "broken.fits").write_bytes(b"SIMPLE  =                    T" + b"\0" * 100)  # deliberately broken
     settings = bench.BenchSettings(config=PlanningConfig(nside=64, threads=1), solvers=("greedy",),
-                                   n_injections=500, legacy_scoring=False)
+                                   n_injections=500, bench=NO_V1)
     maps = study.maps_from_directory(maps_dir)
     assert len(maps) == 4
 
-    serial = bench.run_bench([m.path for m in maps], settings, jobs=1, progress=False)
+    serial = bench.run_bench(settings, [m.path for m in maps], jobs=1, progress=False)
     out = tmp_path / "study"
     with distributed.get_task_stream(client) as ts:
-        run = study.run_study(client, maps, settings, out, progress=False)
+        run = study.run_graph(client, maps, settings, out, progress=False)
     assert _plan_tasks(ts) == 4 and len(run.executed) == 4
 
     by_serial = {(r["skymap"], r["solver"]): r for r in serial}
@@ -52,7 +59,7 @@ def test_cluster_matches_serial_bench_and_rerun_skips_finished_work(tmp_path, da
     assert len(good) == 3
     for row in good:
         ref = by_serial[(row["skymap"], row["solver"])]
-        assert bench._scored(row)
+        assert scored(row)
         assert {k: v for k, v in row.items() if k not in TIMINGS} == {k: v for k, v in ref.items() if k not in TIMINGS}
     assert any(r["efficiency_optimistic"] not in ("", None) for r in good)  # real efficiencies were compared
 
@@ -69,14 +76,14 @@ def test_cluster_matches_serial_bench_and_rerun_skips_finished_work(tmp_path, da
 
     # the rerun plans only the failed map again; finished results are not recomputed
     with distributed.get_task_stream(client) as ts:
-        again = study.run_study(client, maps, settings, out, progress=False)
+        again = study.run_graph(client, maps, settings, out, progress=False)
     assert _plan_tasks(ts) == 1 and again.executed == [bad[0]["key"]]
     assert len((out / "results.jsonl").read_text().splitlines()) == 5
     assert [r for r in again.rows if r in good] == good
 
     # another configuration is another result: nothing is reused across configurations
     other = study.study_config(bench.BenchSettings(config=PlanningConfig(nside=64, threads=1), n_injections=501))
-    assert study._digest(other) != records[0]["config_hash"]
+    assert digest(other) != records[0]["config_hash"]
 
     text = study.paper_tables(again.rows)
     assert "| greedy | coverage | 3 |" in text and "Similar-length" not in text  # one solver: no pair to compare
@@ -84,15 +91,44 @@ def test_cluster_matches_serial_bench_and_rerun_skips_finished_work(tmp_path, da
     assert [p.name for p in figs] == ["solve_time_hist.png"]  # nothing to compare with one solver
 
 
+def test_run_study_from_python_writes_results_tables_and_figures(tmp_path, data_dir, client) -> None:
+    """The study as a library: plain settings and inputs in, the outcome out; nothing printed."""
+    maps_dir = tmp_path / "maps"
+    maps_dir.mkdir()
+    for name in ("MS220722v_bayestar.multiorder.fits", "S200129m_cWB_RING.fits.gz"):
+        shutil.copy(data_dir / "skymaps" / name, maps_dir)
+    # threads = 0 and the default legacy scoring: the study makes them one thread and the fixed source model
+    settings = study.StudySettings(
+        bench=bench.BenchSettings(config=PlanningConfig(nside=64, threads=0), solvers=("greedy", "greedy-coverage"),
+                                  n_injections=300),
+        out=tmp_path / "out", cache=tmp_path / "cache", scheduler=client.scheduler.address)
+    told: list[str] = []
+    outcome = study.run_study(settings, study.StudyInputs(maps=str(maps_dir), limit=1), notify=told.append)
+    assert told == [f"1 map(s) x 2 solver(s) on {client.scheduler.address}"]
+    assert outcome.n_maps == 1 and outcome.run is not None and len(outcome.run.executed) == 2
+    assert [r["solver"] for r in outcome.run.rows] == ["greedy", "greedy-coverage"]
+    assert all(scored(r) and not any(k.endswith("_v1") for k in r) for r in outcome.run.rows)
+    records = [json.loads(x) for x in (tmp_path / "out" / "results.jsonl").read_text().splitlines()]
+    assert {r["config"]["config"]["threads"] for r in records} == {1}
+    assert {r["config"]["legacy_scoring"] for r in records} == {False}
+    assert (tmp_path / "out" / "tables.md").read_text() == outcome.tables + "\n\n" + outcome.footer + "\n"
+    assert "| greedy | coverage | 1 |" in outcome.tables and outcome.footer.startswith("1 map(s), solvers greedy,")
+    assert [p.name for p in outcome.figures] == ["solve_time_hist.png"] and outcome.figures[0].exists()
+    assert len(bench.read_csv(tmp_path / "out" / "results.csv")) == 2
+    assert client.status == "running"  # a scheduler it was given is left running
+    with pytest.raises(ValueError, match="one source"):
+        study.StudyInputs(maps=str(maps_dir), events="e.xml.gz")
+
+
 def test_failed_localisation_is_recorded_and_its_plans_fail_alone(tmp_path, data_dir, client) -> None:
     good = study.MapTask(key="good", name=str(DEMO_MAP), path=str(DEMO_MAP))
     lost = study.MapTask(key="lost", name=str(tmp_path / "cache" / "7.fits"), path=str(tmp_path / "cache" / "7.fits"),
                          events=str(tmp_path / "no-such-events.xml.gz"), coinc_id=7)
     settings = bench.BenchSettings(config=PlanningConfig(nside=64, threads=1), solvers=("greedy",),
-                                   n_injections=200, legacy_scoring=False)
+                                   n_injections=200, bench=NO_V1)
     remote = study.open_client(scheduler=client.scheduler.address)  # --scheduler ADDRESS: a running cluster
     try:
-        run = study.run_study(remote, [lost, good], settings, tmp_path / "out", progress=False)
+        run = study.run_graph(remote, [lost, good], settings, tmp_path / "out", progress=False)
     finally:
         remote.close()
     assert len(run.executed) == 2 and len(run.failed) == 1
@@ -106,7 +142,7 @@ def test_failed_localisation_is_recorded_and_its_plans_fail_alone(tmp_path, data
 
 def test_paper_tables_and_figures_on_two_solvers(tmp_path) -> None:
     def row(m: str, s: str, cov: float, eff: float, n: int, area: float, solve: float) -> dict:
-        return bench._row(m, s, coverage=cov, efficiency_optimistic=eff, efficiency_conservative=eff / 2,
+        return make_row(m, s, coverage=cov, efficiency_optimistic=eff, efficiency_conservative=eff / 2,
                           n_exposures=n, area90_deg2=area, solve_s=solve, valid=True, bound=0.9,
                           coverage_over_bound=cov / 0.9)
 

@@ -10,3 +10,5 @@ or the scheduler.
 DEFAULT_SOLVERS: tuple[str, ...] = ("greedy", "hybrid")
 #: Seed of ``--simulate`` (bayestar-inject / realize-coincs).
 DEFAULT_SEED = 2
+#: Injections per ``bayestar-realize-coincs`` task of ``--simulate``.
+DEFAULT_CHUNK = 50

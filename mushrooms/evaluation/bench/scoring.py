@@ -1,0 +1,119 @@
+"""How one plan is judged: the independent checker, and the kilonova detection efficiency.
+
+Scoring uses the source model the scheduler shares
+(:mod:`~mushrooms.scheduler_core.source.kilonova`: light curves alive from the
+merger on; :mod:`~mushrooms.scheduler_core.source.depth`: each exposure's limit
+from its airmass, Moon and twilight), on the SAME injections for every plan
+of a map (seeded from the map's hash).  Every difference between two plans
+of one map is paired (same injections) and reported with its Monte Carlo
+error: ``efficiency_<lc>_diff`` / ``_differr`` against the reference row,
+and, with ``[bench] legacy_scoring``, the first release's score of the same
+plan (``efficiency_<lc>_v1``: flat 300 s limits, light curve dark before
+0.202 d) with the paired change ``efficiency_<lc>_v1diff`` / ``_v1differr``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import numpy as np
+
+from .rows import fmt
+from .settings import BenchSettings
+
+__all__ = ["score_plan", "pair_with_reference"]
+
+
+def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, injections: Any,
+               lightcurves: Mapping[str, Any], merger_time: Any) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Checker verdict, coverage and efficiencies of one plan, and its detections per light curve.
+
+    Parameters
+    ----------
+    plan : Plan
+        The plan to judge.
+    skymap : SkyMap
+        Its sky map.
+    settings : BenchSettings
+        The planning configuration (for the checker) and ``[bench]`` (v1 scoring).
+    footprints : Footprints
+        ZTF field footprints at the map's resolution.
+    injections : Injections or None
+        The map's kilonova injections (None: no efficiency).
+    lightcurves : mapping
+        Column suffix -> loaded light curve.
+    merger_time : astropy.time.Time or None
+        When the light curves start.
+
+    Returns
+    -------
+    scores : dict
+        Row cells (coverage, validity, exposures, ``efficiency_<lc>`` ...).
+    hits : dict
+        Light-curve suffix -> bool array, one per injection: detected.
+    """
+    from ...scheduler_core.plan.checker import check_plan
+
+    report = check_plan(plan, skymap, settings.config)
+    out = _plan_cells(plan, report)
+    hits: dict[str, np.ndarray] = {}
+    for key, lc in lightcurves.items():
+        if injections is None or merger_time is None:
+            out[f"efficiency_{key}"] = ""
+            continue
+        hits[key], cells = _efficiency_cells(key, lc, plan, settings, footprints, injections, merger_time)
+        out.update(cells)
+    return out, hits
+
+
+def _plan_cells(plan: Any, report: Any) -> dict[str, Any]:
+    """The checker's verdict and the plan's size: coverage, validity, exposures, fields, length."""
+    obs = plan.observations
+    return dict(
+        coverage=fmt(float(report.coverage)),
+        coverage_reported=fmt(float(plan.metrics.coverage)),
+        valid=bool(report.ok),
+        n_problems=len(report.problems),
+        first_problem=(report.problems[0][:200] if report.problems else ""),
+        n_exposures=len(obs),
+        n_fields=len({o.field_id for o in obs}),
+        schedule_length_s=fmt(float(obs[-1].end - obs[0].start), 1) if obs else 0.0,
+        first_exposure_s=fmt(float(obs[0].start), 1) if obs else "",
+        expected_detections=fmt(getattr(plan.metrics, "expected_detections", None)),
+    )
+
+
+def _efficiency_cells(key: str, lc: Any, plan: Any, settings: BenchSettings, footprints: Any, injections: Any,
+                      merger_time: Any) -> tuple[np.ndarray, dict[str, Any]]:
+    """Detections of one light curve (the shared source model) and its cells, v1 scoring included if asked."""
+    from ...scheduler_core.source.depth import ZTF_DEPTH
+    from ...scheduler_core.source.kilonova import Kilonova
+    from ..efficiency import detected, paired_difference
+
+    h = detected(plan, Kilonova(lc), footprints, injections, merger_time, ZTF_DEPTH)
+    cells = {f"efficiency_{key}": fmt(float(h.mean()))}
+    if settings.bench.legacy_scoring:
+        h1 = detected(plan, lc, footprints, injections, merger_time, settings.bench.maglim)
+        d, e = paired_difference(h, h1)
+        cells.update({f"efficiency_{key}_v1": fmt(float(h1.mean())), f"efficiency_{key}_v1diff": fmt(d),
+                      f"efficiency_{key}_v1differr": fmt(e)})
+    return h, cells
+
+
+def pair_with_reference(rows: list[dict[str, Any]], hits: Mapping[str, Mapping[str, np.ndarray]],
+                        reference: str) -> None:
+    """Add ``efficiency_<lc>_diff`` / ``_differr`` (paired, vs ``reference``) to each row in place."""
+    from ..efficiency import paired_difference
+
+    ref = hits.get(reference)
+    if not ref:
+        return
+    for row in rows:
+        mine = hits.get(str(row["solver"]))
+        if not mine or row["solver"] == reference:
+            continue
+        for key, h in mine.items():
+            if key in ref:
+                d, e = paired_difference(h, ref[key])
+                row[f"efficiency_{key}_diff"] = fmt(d)
+                row[f"efficiency_{key}_differr"] = fmt(e)
