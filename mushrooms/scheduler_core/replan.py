@@ -40,7 +40,9 @@ from .executed import MIN_PROCESSED_FRACTION, DonePairs, ExecutedExposure, done_
 from .plan.checker import check_plan
 from .plan.document import EventInfo, Observation, Plan, iso_utc, make_plan_id
 from .problem import PlanningProblem, ScheduleResult, StopCheck
-from .schedulers.completions import PendingVisit, completion_pass, drop_repeats, insert_completions
+from .schedulers.completions import (
+    PendingVisit, completion_pass, drop_repeats, insert_completions, swap_in_completions,
+)
 from .schedulers.gain import worth_a_visit
 from .schedulers.slew import overhead_time
 from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
@@ -229,6 +231,10 @@ def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
     covered_now = uncovered.copy()
     covered_now[footprints.union({o.field_id for o in plan_obs})] = 0.0
     plan_obs_t, left = insert_completions(plan_obs, later, footprints, covered_now, windows, config)
+    if left:  # (P7) the swap: a completion instead of a planned field adding less
+        completions = {v.field_id for v in state.pending} & {o.field_id for o in plan_obs_t}
+        plan_obs_t, left = swap_in_completions(plan_obs_t, left, footprints, state.uncovered, windows, config,
+                                               keep=completions)
     if left:
         log.info("re-plan: %d half-done field(s) found no time for their other filter: %s",
                  len(left), ", ".join(str(v.field_id) for v in left))

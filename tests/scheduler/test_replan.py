@@ -85,6 +85,7 @@ def test_half_done_fields_get_their_other_filter_first_and_failed_exposures_do_n
     assert_replan_rules(replan, executed, skymap_220722v, CFG)
     print(replan.metrics, [(o.field_id, o.filter, round(o.start)) for o in replan.observations[:8]])
     half = set(pairs.one)
+    singles = [o for o in replan.observations if o.field_id in half]
     lead = []
     for o in replan.observations:
         if o.field_id not in half:
@@ -95,3 +96,10 @@ def test_half_done_fields_get_their_other_filter_first_and_failed_exposures_do_n
     for o in lead:
         assert o.filter != pairs.one[o.field_id].filters[0]
     assert replan.observations[0].start <= CFG.exposure_s + CFG.slew_estimate_s
+    # each half-done field is completed by one exposure, or would add less than min_gain beside the plan
+    assert len(singles) == len({o.field_id for o in singles})
+    fp = field_footprints(load_ztf_fields(), CFG.nside)
+    uncovered = skymap_220722v.prob.copy()
+    uncovered[fp.union(list(pairs.both) + replan.field_ids)] = 0.0
+    for fid in half - {o.field_id for o in singles}:
+        assert uncovered[fp.pixels(fid)].sum() < CFG.min_gain
