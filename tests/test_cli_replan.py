@@ -108,3 +108,11 @@ def skymap_map():
     from mushrooms.scheduler_core import PlanningConfig, read_skymap
 
     return read_skymap(MAP, nside=PlanningConfig().nside)
+
+
+def test_check_accepts_the_replan_with_its_record_and_refuses_it_without(replanned):
+    out, _, _, _ = replanned
+    ok = mushrooms("check", str(out / "replan.json"), str(MAP), "--executed", str(out / "executed.jsonl"))
+    assert ok.returncode == 0 and "OK" in ok.stdout, ok.stdout + ok.stderr
+    bare = mushrooms("check", str(out / "replan.json"), str(MAP))
+    assert bare.returncode == 1 and "give its --executed record" in bare.stderr

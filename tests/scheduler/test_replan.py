@@ -103,3 +103,24 @@ def test_half_done_fields_get_their_other_filter_first_and_failed_exposures_do_n
     uncovered[fp.union(list(pairs.both) + replan.field_ids)] = 0.0
     for fid in half - {o.field_id for o in singles}:
         assert uncovered[fp.pixels(fid)].sum() < CFG.min_gain
+
+
+def test_the_checker_counts_executed_exposures_towards_pairs_and_refuses_repeats(first_plan, skymap_220722v):
+    executed = executed_from(first_plan, 10)
+    pairs = done_pairs(executed, CFG.filters, cadence_s=CFG.cadence_s)
+    rest = first_plan.with_(observations=first_plan.observations[10:])
+    # the rest of the original plan: its singles are the half-done fields' other filter, a cadence later
+    report = check_plan(rest, skymap_220722v, CFG, executed=executed)
+    assert report.counts.get("cadence", 0) == 0 and report.counts.get("repeat", 0) == 0
+    # without the record those singles are half pairs
+    assert check_plan(rest, skymap_220722v, CFG).counts.get("cadence", 0) == len(pairs.one)
+    # two exposures of done pairs planned again
+    again = first_plan.with_(observations=first_plan.observations[8:])
+    assert check_plan(again, skymap_220722v, CFG, executed=executed).counts.get("repeat", 0) == 2
+    # a half-done field's first exposure moved to just before its planned other filter: the cadence is broken
+    fid = next(iter(pairs.one))
+    planned = next(o for o in rest.observations if o.field_id == fid)
+    moved = [dataclasses.replace(e, start=rest.absolute_time(planned.start - 600.0)) if e.field_id == fid else e
+             for e in executed]
+    broken = check_plan(rest, skymap_220722v, CFG, executed=moved)
+    assert broken.counts.get("cadence", 0) == 1 and any(f"field {fid}:" in p for p in broken.problems)
