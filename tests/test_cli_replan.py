@@ -116,3 +116,18 @@ def test_check_accepts_the_replan_with_its_record_and_refuses_it_without(replann
     assert ok.returncode == 0 and "OK" in ok.stdout, ok.stdout + ok.stderr
     bare = mushrooms("check", str(out / "replan.json"), str(MAP))
     assert bare.returncode == 1 and "give its --executed record" in bare.stderr
+
+
+def test_plan_with_two_nights_writes_one_document_and_queue_per_night(tmp_path):
+    (tmp_path / "config.toml").write_text("[scheduler]\nnights = 2\nsolver = \"greedy\"\n")
+    r = mushrooms("plan", str(MAP), "--config", str(tmp_path / "config.toml"), "-o", str(tmp_path / "plan.json"),
+                  "--queue", str(tmp_path / "queue.json"))
+    assert r.returncode == 0, r.stderr
+    first = json.loads((tmp_path / "plan.json").read_text())
+    second = json.loads((tmp_path / "plan.night2.json").read_text())
+    assert first["end"] < second["start"] and 20 < (Time(second["start"]) - Time(first["start"])).to_value("h") < 28
+    for doc in (first, second):
+        assert all(doc["start"] <= o["start"] and o["end"] <= doc["end"] for o in doc["observations"])
+    assert not {o["field_id"] for o in second["observations"]} & {o["field_id"] for o in first["observations"]}
+    assert (tmp_path / "queue.night2.json").is_file()
+    assert "night 1 of 2" in r.stdout and "night 2 of 2" in r.stdout

@@ -243,7 +243,7 @@ def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
                   solver, event, supersedes, executed, time.perf_counter() - t0, build_plan)
     report = check_plan(plan, skymap, config, executed=executed, min_processed_fraction=min_processed_fraction)
     n_completed = len({o.field_id for o in plan.observations} & {v.field_id for v in state.pending})
-    log.info("re-plan %s from %s: %d executed pair(s) covered (%.4f), %d of %d half-done field(s) completed, "
+    log.info("re-plan %s from %s: %d done pair(s) covered (%.4f), %d of %d half-done field(s) completed, "
              "%d fields, %d exposures, adds %.4f (checker %.4f), %.1f s",
              plan.plan_id, iso_utc(start), state.covered.size, state.coverage_executed, n_completed,
              len(state.pending), plan.metrics.n_fields, plan.metrics.n_exposures, plan.metrics.coverage,

@@ -18,7 +18,8 @@ from typing import Any, Sequence
 
 from .common import SOLVER_CHOICES, SOLVER_HELP, SOLVER_METAVAR, add_common_options, execute, tool_parser
 
-__all__ = ["HELP", "parser", "run", "main", "parse_start", "warn_if_far_from_merger", "read_executed"]
+__all__ = ["HELP", "parser", "run", "main", "parse_start", "warn_if_far_from_merger", "read_executed",
+           "night_path"]
 
 log = logging.getLogger("mushrooms.plan")
 
@@ -124,6 +125,8 @@ def run(args: argparse.Namespace) -> int:
     fraction = getattr(args, "min_processed_fraction", None)
     if executed_spec is None and fraction is not None:
         raise InputError("--min-processed-fraction needs --executed")
+    if deadline is not None and cfg.nights > 1:
+        raise InputError(f"--deadline plans one night; [scheduler] nights is {cfg.nights}")
     if executed_spec is not None:
         if deadline is not None:
             raise InputError("--deadline and --executed do not go together: a re-plan waits for the solver")
@@ -133,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
     skymap = read_skymap(source, nside=cfg.nside)
     log.info("read %s: nside %d, 90%% area %.0f deg2, event time %s", source, skymap.nside,
              skymap.credible_area(0.9), skymap.event_time.isot if skymap.event_time else "unknown")
-    if executed_spec is not None:
+    if executed_spec is not None or cfg.nights > 1:
         return _replan(args, config, skymap, start, executed_spec, 0.5 if fraction is None else fraction, t0)
     if start is not None:
         warn_if_far_from_merger(start, skymap.event_time)
@@ -248,44 +251,65 @@ def read_executed(spec: str, around: Any | None) -> tuple[Any, ...]:
     return tuple(exposures)
 
 
-def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec: str, fraction: float,
+def night_path(path: str, night: int) -> str:
+    """The file of night ``night``'s document: ``plan.json`` for night 1, ``plan.night2.json`` for night 2, ..."""
+    if night == 1:
+        return path
+    from pathlib import Path
+
+    p = Path(path)
+    return str(p.with_name(f"{p.stem}.night{night}{p.suffix}"))
+
+
+def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec: str | None, fraction: float,
             t0: float) -> int:
-    """``--executed``: plan what is left from ``start`` given the executed record, write it."""
+    """``--executed`` and/or ``[scheduler] nights > 1``: plan what is left, night by night; write each night's files."""
     from ..outputs import write_json_atomic
     from ..scheduler_core import to_skyportal, to_trigger_queue
     from ..scheduler_core.executed import done_pairs
+    from ..scheduler_core.nights import plan_nights
     from ..scheduler_core.plan.messages import revision_document
     from ..scheduler_core.replan import plan_remaining
     from ..scheduler_core.errors import InputError
 
     cfg = config.scheduler
-    executed = read_executed(spec, start if start is not None else skymap.event_time)
-    if start is None:
-        if not executed:
-            raise InputError("--executed holds no exposure: give --start")
-        start = max((e.end for e in executed), key=lambda t: t.unix)
-        log.info("--start: the end of the last executed exposure, %s", start.isot[:19])
-    warn_if_far_from_merger(start, skymap.event_time)
+    executed: tuple[Any, ...] = ()
+    if spec is not None:
+        executed = read_executed(spec, start if start is not None else skymap.event_time)
+        if start is None:
+            if not executed:
+                raise InputError("--executed holds no exposure: give --start")
+            start = max((e.end for e in executed), key=lambda t: t.unix)
+            log.info("--start: the end of the last executed exposure, %s", start.isot[:19])
+    if start is not None:
+        warn_if_far_from_merger(start, skymap.event_time)
     pairs = done_pairs(executed, tuple(cfg.filters), fraction, cfg.cadence_s)
-    log.info("--executed: %d exposure(s); %d field(s) done in both filters, %d in one", len(executed),
-             len(pairs.both), len(pairs.one))
-    plan = plan_remaining(skymap, cfg, start, executed, min_processed_fraction=fraction, solver=args.solver)
-    write_json_atomic(args.output, revision_document(plan, 1, True))
-    if args.queue:
-        write_json_atomic(args.queue, to_trigger_queue(plan, config.export))
-    if getattr(args, "skyportal", None):
-        write_json_atomic(args.skyportal, to_skyportal(plan, config.export))
-    if args.plot:
-        from ..plotting import plot_plan
+    if spec is not None:
+        log.info("--executed: %d exposure(s); %d field(s) done in both filters, %d in one", len(executed),
+                 len(pairs.both), len(pairs.one))
+    if cfg.nights > 1:
+        plans = plan_nights(skymap, cfg, start, executed, min_processed_fraction=fraction, solver=args.solver)
+    else:
+        plans = (plan_remaining(skymap, cfg, start, executed, min_processed_fraction=fraction, solver=args.solver),)
+    for n, plan in enumerate(plans, 1):
+        output = night_path(args.output, n)
+        write_json_atomic(output, revision_document(plan, 1, True))
+        if args.queue:
+            write_json_atomic(night_path(args.queue, n), to_trigger_queue(plan, config.export))
+        if getattr(args, "skyportal", None):
+            write_json_atomic(night_path(args.skyportal, n), to_skyportal(plan, config.export))
+        if args.plot:
+            from ..plotting import plot_plan
 
-        plot_plan(plan, skymap, args.plot)
-    m = plan.metrics
-    completed = len({o.field_id for o in plan.observations} & set(pairs.one))
-    print(f"{args.output}: from {start.isot[:19]}Z, {m.n_fields} fields, {m.n_exposures} exposures, "
-          f"adds coverage {m.coverage:.4f} to the executed {m.coverage_executed:.4f} "
-          f"(total {m.coverage + m.coverage_executed:.4f}); {len(pairs.both)} field(s) done, "
-          f"{completed} of {len(pairs.one)} half-done completed; {m.solver} ({m.status}), checked, "
-          f"{time.perf_counter() - t0:.1f} s")
+            plot_plan(plan, skymap, night_path(args.plot, n))
+        m = plan.metrics
+        night = f"night {n} of {len(plans)}, " if len(plans) > 1 else ""
+        completed = len({o.field_id for o in plan.observations} & set(pairs.one))
+        half = f", {completed} of {len(pairs.one)} half-done completed" if n == 1 and spec is not None else ""
+        print(f"{output}: {night}{plan.start.isot[:19]}Z to {plan.end.isot[:19]}Z, {m.n_fields} fields, "
+              f"{m.n_exposures} exposures, adds coverage {m.coverage:.4f} to the {m.coverage_executed:.4f} done "
+              f"before (total {m.coverage + m.coverage_executed:.4f}){half}; {m.solver} ({m.status}), checked, "
+              f"{time.perf_counter() - t0:.1f} s")
     return 0
 
 
