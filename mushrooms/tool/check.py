@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
         from .plan import read_executed
 
         executed = read_executed(args.executed, plan.start)
-    if plan.metrics.coverage_executed is not None and not executed:
+    if plan.metrics.coverage_executed and not executed:
         log.warning("%s is a re-plan (metrics.coverage_executed is set): give its --executed record", args.plan)
     report = check_plan(plan, skymap, planning, executed=executed,
                         min_processed_fraction=getattr(args, "min_processed_fraction", 0.5))
