@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from astropy.time import Time
+from astropy.time import Time, TimeDelta
 
 from .config import PlanningConfig
 from .errors import InputError, PlanCheckError
@@ -187,7 +187,7 @@ def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
         The plan failed the checker (a bug; never published).
     """
     from .clock import on_merger_clock
-    from .planner import SOLVERS, build_plan, optimise
+    from .planner import SOLVERS, optimise
     from .solvers_registry import unknown_solver_message
 
     t0 = time.perf_counter()
@@ -219,6 +219,7 @@ def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
     result = ScheduleResult((), solver="completions", status="no_time_left")
     if rest_start + 2 * config.exposure_s + config.cadence_s <= config.horizon_s:
         rest = _reduced_problem(skymap, config, start, rest_start, grid, footprints, windows, sel, uncovered, pinned)
+        result = dataclasses.replace(result, status="nothing_left")
         if rest.field_ids.size:
             reduced_map = dataclasses.replace(skymap, prob=uncovered)
             result = optimise(rest, reduced_map, solver, should_stop)
@@ -227,6 +228,9 @@ def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
                          for o in result.observations]
     # (P6) a half-done field planned as a whole new pair: its done filter is not repeated
     plan_obs, trimmed = drop_repeats(plan_obs, state.pending)
+    if trimmed:
+        log.info("re-plan: half-done field(s) %s were planned as whole pairs; their done filter is not repeated",
+                 ", ".join(map(str, trimmed)))
     # (P7) the completions that were not due: into the gaps
     covered_now = uncovered.copy()
     covered_now[footprints.union({o.field_id for o in plan_obs})] = 0.0
@@ -240,7 +244,7 @@ def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
                  len(left), ", ".join(str(v.field_id) for v in left))
 
     plan = _build(skymap, config, start, grid, footprints, windows, state, result, plan_obs_t,
-                  solver, event, supersedes, executed, time.perf_counter() - t0, build_plan)
+                  solver, event, supersedes, executed, time.perf_counter() - t0)
     report = check_plan(plan, skymap, config, executed=executed, min_processed_fraction=min_processed_fraction)
     n_completed = len({o.field_id for o in plan.observations} & {v.field_id for v in state.pending})
     log.info("re-plan %s from %s: %d done pair(s) covered (%.4f), %d of %d half-done field(s) completed, "
@@ -268,8 +272,6 @@ def _reduced_problem(skymap: SkyMap, config: PlanningConfig, start: Time, rest_s
                      footprints: Footprints, windows: Windows, sel: np.ndarray, uncovered: np.ndarray,
                      pinned: set[int]) -> PlanningProblem:
     """The problem of the rest: from ``start + rest_start``, the covered pixels at 0, no covered or pinned field."""
-    from astropy.time import TimeDelta
-
     from .prepare import prepare_problem
 
     cfg = dataclasses.replace(config, horizon_h=(config.horizon_s - rest_start) / 3600.0)
@@ -286,15 +288,22 @@ def _reduced_problem(skymap: SkyMap, config: PlanningConfig, start: Time, rest_s
 def _build(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGrid, footprints: Footprints,
            windows: Windows, state: ExecutedState, result: ScheduleResult, observations: Sequence[Observation],
            solver: str, event: EventInfo | None, supersedes: str | None,
-           executed: Sequence[ExecutedExposure], runtime_s: float, build_plan) -> Plan:
-    """The plan document: metrics on the remaining probability (P8), an id that names the executed record."""
+           executed: Sequence[ExecutedExposure], runtime_s: float) -> Plan:
+    """The plan document: metrics on the remaining probability (P8), an id that names the executed record.
+
+    The scheduler's own scores (bounds, expected detections) are of the
+    reduced problem, not of the whole plan: they are dropped, and the
+    expected detections scored again on the plan's final exposures.
+    """
+    from .planner import build_plan
+
     ids = np.unique(np.concatenate([[o.field_id for o in observations], windows.field_ids]).astype(int))
     rows = grid.index_of(ids)
     problem = PlanningProblem(config=config, start=start, prob=state.uncovered, field_ids=ids,
                               ra=grid.ra[rows], dec=grid.dec[rows], footprints=footprints.subset(ids),
                               windows=windows)
-    merged = dataclasses.replace(result, observations=tuple(observations),
-                                 solver=result.solver, upper_bound=None, mip_bound=None)
+    merged = dataclasses.replace(result, observations=tuple(observations), upper_bound=None, mip_bound=None,
+                                 expected_detections=None, expected_detections_lightcurve=None)
     # (P8) on the remaining probability: what the plan adds (coverage, expected detections)
     remaining = dataclasses.replace(skymap, prob=state.uncovered)
     plan = build_plan(problem, merged, remaining, solver, event=event, supersedes=supersedes, runtime_s=runtime_s)
