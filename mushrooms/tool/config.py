@@ -4,7 +4,8 @@ Sections: ``[scheduler]`` (:class:`~mushrooms.scheduler_core.PlanningConfig`),
 ``[policy]`` (:class:`~mushrooms.handlers.policy.PolicyConfig`),
 ``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`),
 ``[export]`` (:class:`~mushrooms.scheduler_core.plan.exports.ExportConfig`),
-``[submit]`` (:class:`~mushrooms.daemon.submit_settings.SubmitConfig`);
+``[submit]`` (:class:`~mushrooms.daemon.submit_settings.SubmitConfig`),
+``[loop]`` (:class:`~mushrooms.daemon.loop_settings.LoopConfig`);
 an optional ``[bench]`` table is read by ``mushrooms bench`` only.
 Secrets never come from here: see the README.
 
@@ -23,6 +24,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ..daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
+from ..daemon.loop_settings import LoopConfig
 from ..daemon.submit_settings import SubmitConfig
 from ..handlers.policy import PolicyConfig
 from ..scheduler_core.config import PlanningConfig
@@ -53,6 +55,7 @@ class Config:
     source: str = "<embedded defaults>"
     export: ExportConfig = field(default_factory=ExportConfig)
     submit: SubmitConfig = field(default_factory=SubmitConfig)
+    loop: LoopConfig = field(default_factory=LoopConfig)
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], source: str = "<mapping>") -> "Config":
@@ -65,6 +68,7 @@ class Config:
             "outbound": OutboundConfig,
             "export": ExportConfig,
             "submit": SubmitConfig,
+            "loop": LoopConfig,
         }
         # [bench] belongs to `mushrooms bench`, which reads it itself
         unknown = sorted(set(data) - set(sections) - {"bench"})
