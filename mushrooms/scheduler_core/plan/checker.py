@@ -35,7 +35,7 @@ import csv
 import functools
 from dataclasses import dataclass, field
 from importlib import resources
-from typing import Iterable
+from typing import Iterable, Sequence
 
 import healpy as hp
 import numpy as np
@@ -45,6 +45,7 @@ from astropy.time import Time, TimeDelta
 from scipy.interpolate import CubicSpline
 
 from ..config import PlanningConfig, SlewModel
+from ..executed import MIN_PROCESSED_FRACTION, ExecutedExposure, done_pairs, is_done
 from .document import Plan
 from ..sky.skymap import SkyMap
 
@@ -166,7 +167,7 @@ def _covered_pixels(ra0_deg: float, dec0_deg: float, nside: int) -> np.ndarray:
     return cand[on_ccd.any(axis=1)]
 
 
-def polygon_coverage(field_ids: Iterable[int], prob: np.ndarray) -> float:
+def polygon_coverage(field_ids: Iterable[int], prob: np.ndarray, without: Iterable[int] = ()) -> float:
     """Probability whose pixel centres fall inside the fields' CCD outlines.
 
     Parameters
@@ -175,17 +176,25 @@ def polygon_coverage(field_ids: Iterable[int], prob: np.ndarray) -> float:
         ZTF field IDs (unknown ones are ignored).
     prob : numpy.ndarray
         NESTED probability map.
+    without : iterable of int
+        Fields whose pixels do not count (a re-plan's executed pairs, P8).
 
     Returns
     -------
     float
     """
     nside = hp.npix2nside(prob.size)
+    hit = _polygon_mask(field_ids, nside) & ~_polygon_mask(without, nside)
+    return float(prob[hit].sum())
+
+
+def _polygon_mask(field_ids: Iterable[int], nside: int) -> np.ndarray:
+    """(npix,) True on the pixels whose centres lie inside one of the fields' CCDs."""
     grid = _grid()
-    hit = np.zeros(prob.size, bool)
+    hit = np.zeros(hp.nside2npix(nside), bool)
     for fid in {int(f) for f in field_ids} & grid.keys():
         hit[_covered_pixels(*grid[fid], nside)] = True
-    return float(prob[hit].sum())
+    return hit
 
 
 # --------------------------------------------------------------------------- telescope
@@ -337,7 +346,8 @@ class _Problems:
 
 
 def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConfig(),
-               coverage_tolerance: float = TOL_COVERAGE) -> CheckReport:
+               coverage_tolerance: float = TOL_COVERAGE, *, executed: Sequence[ExecutedExposure] = (),
+               min_processed_fraction: float = MIN_PROCESSED_FRACTION) -> CheckReport:
     """Verify a plan against the telescope, the sky and the cadence rule.
 
     Checks: known fields with the grid's coordinates; allowed filters;
@@ -347,6 +357,13 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     hour angle and mount limits, Moon separation; every field observed in
     both filters at least the cadence apart; reported coverage equal to the
     recomputed one.
+
+    With an executed record (a re-plan, ``docs/design/replan.md``): no
+    exposure of a field done in both filters (E3); a field's done exposures
+    (E1) count towards its pair, which then needs its two filters the
+    cadence apart at their widest (E3), so a half-done field may get its
+    other filter only; the coverage is recomputed outside the executed
+    pairs (P8) and ``metrics.coverage_executed`` compared with theirs.
 
     Parameters
     ----------
@@ -358,6 +375,10 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
         Constraints to check against.
     coverage_tolerance : float
         Largest allowed |reported - recomputed| coverage.
+    executed : sequence of ExecutedExposure
+        What the telescope did before the plan (default none).
+    min_processed_fraction : float
+        The done rule (E1) for ``executed``.
 
     Returns
     -------
@@ -366,10 +387,20 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     p = _Problems()
     obs = plan.observations
     horizon = float((plan.end - plan.start).to_value(u.s))
-    coverage = polygon_coverage((o.field_id for o in obs), skymap.prob)
+    pairs = done_pairs(executed, tuple(config.filters), min_processed_fraction, config.cadence_s)
+    coverage = polygon_coverage((o.field_id for o in obs), skymap.prob, without=pairs.both)
     reported = plan.metrics.coverage if plan.metrics is not None else None
     if reported is not None and abs(float(reported) - coverage) > coverage_tolerance:
         p.add("coverage", f"reported {reported:.5f} but the footprints hold {coverage:.5f}")
+    reported_executed = None if plan.metrics is None else plan.metrics.coverage_executed
+    if reported_executed is not None:
+        held = polygon_coverage(pairs.both, skymap.prob)
+        if abs(float(reported_executed) - held) > coverage_tolerance:
+            p.add("coverage", f"reported {reported_executed:.5f} executed but the executed pairs hold {held:.5f}")
+    # (P9) with an executed record: no exposure of a field done in both filters
+    for fid in sorted({o.field_id for o in obs} & set(pairs.both)):
+        p.add("repeat", f"field {fid} is done in both {config.filters[0]} and {config.filters[1]} "
+                        f"(executed) and planned again")
     if not obs:
         return CheckReport(not p.lines, tuple(p.lines), coverage, reported, p.counts)
 
@@ -377,7 +408,7 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     _check_fields(p, x, config)
     _check_sequence(p, x, horizon, config)
     _check_conditions(p, x, plan.start, config)
-    _check_cadence(p, x, config)
+    _check_cadence(p, x, config, _done_times(executed, plan.start, min_processed_fraction))
 
     return CheckReport(not p.lines, tuple(p.lines), coverage, reported, p.counts)
 
@@ -463,17 +494,31 @@ def _check_conditions(p: _Problems, x: _Exposures, t0: Time, config: PlanningCon
         p.add("window", f"field {ids[i]} {flt[i]} at {start[i]:.0f} s: Moon {moon_sep[:, i].min():.1f} deg away")
 
 
-def _check_cadence(p: _Problems, x: _Exposures, config: PlanningConfig) -> None:
-    """Both filters per field, the cadence apart."""
+def _done_times(executed: Sequence[ExecutedExposure], t0: Time,
+                min_processed_fraction: float) -> dict[int, dict[str, np.ndarray]]:
+    """Field -> filter -> starts (s since ``t0``, negative before it) of the done executed exposures (E1)."""
+    out: dict[int, dict[str, list[float]]] = {}
+    for e in executed:
+        if is_done(e, min_processed_fraction):
+            out.setdefault(e.field_id, {}).setdefault(e.filter, []).append(float((e.start - t0).to_value(u.s)))
+    return {f: {b: np.array(v) for b, v in per.items()} for f, per in out.items()}
+
+
+def _check_cadence(p: _Problems, x: _Exposures, config: PlanningConfig,
+                   done: dict[int, dict[str, np.ndarray]] | None = None) -> None:
+    """Both filters per field, the cadence apart; a field with done exposures counts them (E3: widest separation)."""
     ids, flt, start = x.ids, x.flt, x.start
     f1, f2 = config.filters
+    done = done or {}
     for fid in np.unique(ids):
         sel = ids == fid
-        t1 = start[sel & (flt == f1)]
-        t2 = start[sel & (flt == f2)]
+        before = done.get(int(fid), {})
+        t1 = np.concatenate([start[sel & (flt == f1)], before.get(f1, np.zeros(0))])
+        t2 = np.concatenate([start[sel & (flt == f2)], before.get(f2, np.zeros(0))])
         if t1.size == 0 or t2.size == 0:
             p.add("cadence", f"field {fid} is not observed in both {f1} and {f2}")
             continue
-        sep = np.abs(t1[:, None] - t2[None, :]).min()
+        gaps = np.abs(t1[:, None] - t2[None, :])
+        sep = gaps.max() if before else gaps.min()
         if sep < config.cadence_s - TOL_TIME_S:
             p.add("cadence", f"field {fid}: {f1} and {f2} only {sep:.0f} s apart (cadence {config.cadence_s:.0f} s)")

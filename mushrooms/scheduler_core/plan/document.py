@@ -39,7 +39,7 @@ EVENT_KEYS = ("superevent_id", "alert_type", "time_created", "skymap_sha256", "l
 METRIC_KEYS = (
     "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
     "n_fields", "n_exposures", "latency_s", "upper_bound",
-    "expected_detections",
+    "expected_detections", "coverage_executed",
 )
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
 
@@ -148,7 +148,8 @@ class PlanMetrics:
     Attributes
     ----------
     coverage : float
-        Probability inside the union of the planned fields' footprints.
+        Probability inside the union of the planned fields' footprints (a
+        re-plan: outside the fields already done in both filters, P8).
     solver : str
         Which scheduler produced the plan (``greedy``, ``milp:highs``, ...).
     status : str
@@ -171,7 +172,14 @@ class PlanMetrics:
         Probability that the plan detects a kilonova of the configured light
         curve (``detection_lightcurve``), from the sky map's distance
         posterior and each exposure's depth (:mod:`.detection`, equation
-        X1); None without distance layers.
+        X1); None without distance layers.  In a re-plan, of the plan's own
+        exposures (the executed ones not counted).
+    coverage_executed : float or None
+        A re-plan's (:func:`~.replan.plan_remaining`): probability inside the
+        fields the executed record holds done in both filters, which
+        ``coverage`` does not count again (P8: the total after the plan is
+        ``coverage_executed + coverage``); None for a plan made without an
+        executed record.
     """
 
     coverage: float
@@ -185,6 +193,7 @@ class PlanMetrics:
     mip_bound: float | None = None
     upper_bound: float | None = None
     expected_detections: float | None = None
+    coverage_executed: float | None = None
 
 
 def make_plan_id(*parts: Any) -> str:

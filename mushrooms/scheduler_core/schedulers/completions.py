@@ -1,0 +1,267 @@
+"""Completing half-done pairs: the single exposures a re-plan pins (P3-P7).
+
+A field the telescope observed in one filter only (:func:`~..executed.done_pairs`'s
+``one``) needs one more exposure, in its other filter, at least the cadence
+after the first, to count as covered.  That exposure costs half of a new
+pair, so it is placed before the schedulers see the rest of the night:
+
+* :func:`completion_pass` (P4) walks from the re-plan's start and takes, one
+  at a time, the visit that is due, observable and adds the most
+  not-yet-covered probability (at least ``min_gain``, P3), keeping one filter
+  as long as it can;
+* :func:`drop_repeats` (P6) removes, from a field the scheduler planned as
+  a whole new pair, the exposure in the filter already done, when the other
+  one is due;
+* :func:`insert_completions` (P7) puts the visits that were not due yet into
+  the gaps of the finished plan (the earliest gap where the overheads on
+  both sides, the due time and a window allow).
+
+Times are seconds since the re-plan's start.  The equations are in
+``docs/design/replan.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..config import PlanningConfig
+from ..plan.document import Observation
+from ..sky.footprints import Footprints
+from ..sky.windows import Windows
+from .slew import overhead_time
+
+__all__ = ["PendingVisit", "completion_pass", "insert_completions", "drop_repeats", "gains_of"]
+
+
+@dataclass(frozen=True)
+class PendingVisit:
+    """The exposure a half-done field still needs (P2).
+
+    Attributes
+    ----------
+    field_id : int
+        ZTF field ID.
+    ra, dec : float
+        Field centre (deg).
+    filter : str
+        The filter still to observe (the pair's other filter).
+    due_s : float
+        Earliest start (s since the re-plan's start) keeping the cadence
+        after the field's first done exposure; never below 0.
+    """
+
+    field_id: int
+    ra: float
+    dec: float
+    filter: str
+    due_s: float
+
+
+def gains_of(visits: Sequence[PendingVisit], footprints: Footprints, uncovered: np.ndarray) -> np.ndarray:
+    """(n,) probability still uncovered inside each visit's field (its gain if completed now)."""
+    if not visits:
+        return np.zeros(0)
+    sub = footprints.subset([v.field_id for v in visits])
+    return sub.field_probability(uncovered)
+
+
+def _worth(gain: np.ndarray, min_gain: float) -> np.ndarray:
+    """(P3) a completion is worth an exposure when it adds some probability, at least ``min_gain``."""
+    return (gain > 0) & (gain >= min_gain)
+
+
+def _earliest_in_window(field_id: int, t: float, exposure_s: float, windows: Windows) -> float | None:
+    """Earliest start >= ``t`` with ``[s, s + exposure]`` inside a window of the field (None: none)."""
+    for w0, w1 in windows.for_field(field_id):
+        s = max(t, w0)
+        if s + exposure_s <= w1:
+            return s
+    return None
+
+
+def completion_pass(visits: Sequence[PendingVisit], footprints: Footprints, uncovered: np.ndarray,
+                    windows: Windows, config: PlanningConfig, block: int = 0
+                    ) -> tuple[tuple[Observation, ...], tuple[PendingVisit, ...], np.ndarray]:
+    """The front pass of completions (P4): what is due, from the start, waiting at most one exposure's time.
+
+    Parameters
+    ----------
+    visits : sequence of PendingVisit
+        The half-done fields' missing exposures.
+    footprints : Footprints
+        Holding at least the visits' fields.
+    uncovered : numpy.ndarray
+        Probability per pixel not covered yet (P1); not modified.
+    windows : Windows
+        Observability windows (s since the start) of at least the visits' fields.
+    config : PlanningConfig
+        Exposure, filters, overheads, horizon, least gain.
+    block : int
+        Block number of the pass's exposures.
+
+    Returns
+    -------
+    observations : tuple of Observation
+        The pass, in time order; the first starts at 0.
+    left : tuple of PendingVisit
+        Visits still worth completing that the pass did not take (not due,
+        or not observable, when it reached them).
+    uncovered : numpy.ndarray
+        ``uncovered`` with the pass's fields' pixels set to 0.
+    """
+    uncovered = uncovered.copy()
+    exp, horizon = config.exposure_s, config.horizon_s
+    wait = exp + config.slew_estimate_s  # (P4) the longest wait: one exposure's time
+    left = list(visits)
+    out: list[Observation] = []
+    t, prev = 0.0, None
+    while left:
+        gain = gains_of(left, footprints, uncovered)
+        ra = np.array([v.ra for v in left])
+        dec = np.array([v.dec for v in left])
+        filt = np.array([v.filter for v in left])
+        if prev is None:
+            ready = np.full(len(left), t)
+        else:
+            change = np.where(filt != prev[2], config.filter_change_s, 0.0)
+            ready = t + overhead_time(prev[0], prev[1], ra, dec, config.slew, change)
+        s = np.full(len(left), np.inf)
+        for i, v in enumerate(left):
+            at = _earliest_in_window(v.field_id, max(float(ready[i]), v.due_s), exp, windows)
+            s[i] = np.inf if at is None else at
+        ok = _worth(gain, config.min_gain) & (s <= ready + wait) & (s + exp <= horizon)
+        if not ok.any():
+            break
+        # keep the filter in the wheel while it has work; at the start, the filter holding more gain
+        if prev is None:
+            per = {f: gain[ok & (filt == f)].sum() for f in set(filt[ok].tolist())}
+            current = max(sorted(per), key=lambda f: per[f])
+        else:
+            current = prev[2]
+        pool = ok & (filt == current)
+        pool = pool if pool.any() else ok
+        k = int(np.argmax(np.where(pool, gain, -1.0)))
+        v = left.pop(k)
+        out.append(Observation(v.field_id, v.ra, v.dec, v.filter, float(s[k]), exp, block))
+        uncovered[footprints.pixels(v.field_id)] = 0.0
+        t, prev = float(s[k]) + exp, (v.ra, v.dec, v.filter)
+    gain = gains_of(left, footprints, uncovered)
+    still = tuple(v for v, worth in zip(left, _worth(gain, config.min_gain)) if worth)
+    return tuple(out), still, uncovered
+
+
+def insert_completions(observations: Sequence[Observation], visits: Sequence[PendingVisit],
+                       footprints: Footprints, uncovered: np.ndarray, windows: Windows,
+                       config: PlanningConfig) -> tuple[tuple[Observation, ...], tuple[PendingVisit, ...]]:
+    """Fit pending visits into the gaps of a plan (P7), most gain first.
+
+    A visit goes into the earliest gap between two consecutive exposures
+    ``a, b`` (or after the last one) where, with ``o`` the overhead,
+    ``s = max(end_a + o(a, v), due_v, window opening)`` satisfies
+    ``s + t_exp + o(v, b) <= start_b``, ``[s, s + t_exp]`` inside a window
+    of the field and ``s + t_exp <= H``.  Fields the plan already observes
+    are skipped (the plan covers them).
+
+    Parameters
+    ----------
+    observations : sequence of Observation
+        The plan, times in s since the start.
+    visits : sequence of PendingVisit
+        Visits to place.
+    footprints : Footprints
+        Holding at least the visits' fields.
+    uncovered : numpy.ndarray
+        Probability per pixel not covered by the executed pairs nor the
+        plan; not modified.
+    windows : Windows
+        Observability windows (s since the start).
+    config : PlanningConfig
+
+    Returns
+    -------
+    observations : tuple of Observation
+        The plan with the visits placed, in time order.
+    left : tuple of PendingVisit
+        Visits no gap could take (or no longer worth it).
+    """
+    plan = sorted(observations, key=lambda o: o.start)
+    uncovered = uncovered.copy()
+    planned = {o.field_id for o in plan}
+    todo = [v for v in visits if v.field_id not in planned]
+    gain = gains_of(todo, footprints, uncovered)
+    left: list[PendingVisit] = []
+    exp = config.exposure_s
+    for k in np.argsort(-gain, kind="stable"):
+        v = todo[int(k)]
+        g = float(gains_of([v], footprints, uncovered)[0])
+        if not _worth(np.array([g]), config.min_gain)[0]:
+            continue
+        placed = _place(plan, v, windows, config)
+        if placed is None:
+            left.append(v)
+            continue
+        i, s = placed
+        block = plan[i - 1].block if i > 0 else 0
+        plan.insert(i, Observation(v.field_id, v.ra, v.dec, v.filter, s, exp, block))
+        uncovered[footprints.pixels(v.field_id)] = 0.0
+    return tuple(plan), tuple(left)
+
+
+def _place(plan: list[Observation], v: PendingVisit, windows: Windows,
+           config: PlanningConfig) -> tuple[int, float] | None:
+    """(index to insert at, start) of the earliest gap that takes the visit, or None."""
+    exp = config.exposure_s
+    n = len(plan)
+    if n == 0:
+        s = _earliest_in_window(v.field_id, v.due_s, exp, windows)
+        return None if s is None or s + exp > config.horizon_s else (0, s)
+    ra = np.array([o.ra for o in plan])
+    dec = np.array([o.dec for o in plan])
+    filt = np.array([o.filter for o in plan])
+    start = np.array([o.start for o in plan])
+    end = start + np.array([o.exposure_s for o in plan])
+    change = np.where(filt != v.filter, config.filter_change_s, 0.0)
+    into = overhead_time(ra, dec, v.ra, v.dec, config.slew, change)  # from exposure a to the visit
+    out_of = overhead_time(v.ra, v.dec, ra, dec, config.slew, change)  # from the visit to exposure b
+    # gap i sits after exposure i (i = n - 1: after the last one); inserting at index i + 1
+    ready = end + into
+    latest_end = np.append(start[1:] - out_of[1:], config.horizon_s)
+    for i in np.flatnonzero(latest_end - np.maximum(ready, v.due_s) >= exp):
+        s = _earliest_in_window(v.field_id, max(float(ready[i]), v.due_s), exp, windows)
+        if s is not None and s + exp <= latest_end[i]:
+            return int(i) + 1, float(s)
+    return None
+
+
+def drop_repeats(observations: Sequence[Observation], visits: Sequence[PendingVisit]
+                 ) -> tuple[tuple[Observation, ...], tuple[int, ...]]:
+    """Remove the repeat of the done filter from half-done fields planned as whole pairs (P6).
+
+    A field with a pending visit ``v`` that the plan observes in both
+    filters loses its exposure in the filter already done when the plan's
+    exposure in ``v.filter`` starts at or after ``v.due_s``: the executed
+    exposure and that one are the pair.  Removing an exposure never breaks
+    the plan's overheads (a slew is shorter than two, the filter change at
+    most one of them).
+
+    Returns
+    -------
+    observations : tuple of Observation
+        The plan without the repeats.
+    fields : tuple of int
+        The fields whose repeat was removed.
+    """
+    by_field = {v.field_id: v for v in visits}
+    drop: set[int] = set()
+    fields: list[int] = []
+    for fid, v in by_field.items():
+        mine = [i for i, o in enumerate(observations) if o.field_id == fid]
+        other = [i for i in mine if observations[i].filter == v.filter and observations[i].start >= v.due_s]
+        repeat = [i for i in mine if observations[i].filter != v.filter]
+        if other and repeat:
+            drop.update(repeat)
+            fields.append(fid)
+    return tuple(o for i, o in enumerate(observations) if i not in drop), tuple(fields)
