@@ -82,7 +82,7 @@ def run_replan(planner: Any, job: "Job", stage: Callable[[str], None],
     stage("planning what is left")
     plan = planner.replanner(skymap, config, start, executed, event=event,
                              min_processed_fraction=planner.loop.min_processed_fraction,
-                             should_stop=lambda: planner._cancelled(job, should_stop))
+                             should_stop=lambda: planner._cancelled(job, should_stop), supersedes=job.supersedes)
     stage("storing the re-plan")
     plan = plan.with_(plan_id=make_plan_id(plan.plan_id, REPLAN_SOLVER_NOTE, job.job_id), supersedes=job.supersedes)
     log.info("job superevent_id=%s job=%s replan start=%s horizon_h=%.2f executed=%d observations=%d coverage=%.4f",
