@@ -91,7 +91,7 @@ def store_executed(store: Any, exposures: Iterable["ExecutedExposure"], source: 
     """
     from ..scheduler_core.executed import SAME_START_S, to_record
 
-    added = updated = unchanged = 0
+    added = updated = unchanged = 0  # (L2)
     now = _now()
     with store._tx() as c:
         for e in exposures:

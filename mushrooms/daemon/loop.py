@@ -6,8 +6,8 @@
       live events' current plans ─ span [earliest plan start, now]
         ▸ ExecutedReader.read (file / depot / SkyPortal)      (L1)
         ▸ store_executed: one row per exposure (E2)           (L2)
-        ▸ per event: slip_of(current plan, executed, now)     (S1-S3)
-        ▸ replan_event ─► a ``replan`` job for the JobRunner  (L4, guards L5)
+        ▸ per event: slip_of(current plan, executed, now)     (L3-L5)
+        ▸ replan_event ─► a ``replan`` job for the JobRunner  (L7, guards L8)
 
 A poll that cannot read its source (unreachable, refused, not the source's
 shape) logs one line and changes nothing; the next poll tries again.  A
@@ -99,6 +99,7 @@ class ExecutedLoop:
         if not plans:
             log.debug("event=executed_poll_skipped reason='no event has a current plan'")
             return Poll()
+        # (L1) the span: from the earliest current plan's start to now
         begin = min(Time(str(p["document"]["start"]).rstrip("Z"), scale="utc") for p in plans.values())
         source = self.reader.describe()
         try:

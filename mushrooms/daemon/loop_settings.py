@@ -43,7 +43,7 @@ class LoopConfig:
         How often (s) the source is read.
     max_slip_s : float
         A published plan whose first exposure not yet executed was planned more
-        than this (s) ago has slipped: the event is re-planned from now (S2).
+        than this (s) ago has slipped: the event is re-planned from now (L4).
     timeout_s : float
         One HTTP request (s) of a URL source before the poll counts as failed
         (the next poll tries again).

@@ -187,7 +187,7 @@ class NoticePipeline:
 
     def replan_closure(self, superevent_id: str, closed_until: str, origin: str,
                        now: datetime | None = None) -> Accepted:
-        """The telescope is closed until ``closed_until``: re-plan the event from the reopening (L3).
+        """The telescope is closed until ``closed_until``: re-plan the event from the reopening (L6).
 
         ``mushrooms trigger SUPEREVENT --closed-until TIME``.  The re-plan starts
         at ``max(closed_until, now)`` (``now`` default the wall clock) with what
@@ -207,12 +207,12 @@ class NoticePipeline:
         if until is None:
             return Accepted("rejected", EventRef(sid or None),
                             f"--closed-until {closed_until!r}: not an ISO-8601 UTC time (2026-05-01T03:00:00Z)")
-        start = max(aware(until), aware(now))
+        start = max(aware(until), aware(now))  # (L6)
         return record_replan(self.store, sid, iso_z(start), f"telescope closed until {iso_z(aware(until))} "
                              f"(operator); re-planned from {iso_z(start)}", origin, operator=True)
 
     def replan_event(self, superevent_id: str, start: datetime, reason: str, origin: str) -> Accepted:
-        """Record the loop's re-plan of an event from ``start`` (the slip rule said so; guards L5)."""
+        """Record the loop's re-plan of an event from ``start`` (the slip rule said so; guards L8)."""
         from .intake import aware
         from .replans import record_replan
 

@@ -1,4 +1,4 @@
-"""A re-plan job's one stage: the rest of the event's window, given what was executed (``executed.md`` L4).
+"""A re-plan job's one stage: the rest of the event's window, given what was executed (``executed.md`` L7).
 
 ::
 
@@ -77,6 +77,7 @@ def run_replan(planner: Any, job: "Job", stage: Callable[[str], None],
     left_s = float((end - start).to_value("s"))
     if left_s <= 0:
         return _nothing(planner, job, f"the window of {job.supersedes} ends before the re-plan's start {job.start}")
+    # (L7) the rest of the superseded plan's window, with what was executed since the event's first plan
     config = dataclasses.replace(sched, horizon_h=min(sched.horizon_h, max(1.0, left_s / 3600.0)))
     executed = executed_between(store, _since_unix(store, job.superevent_id))
     stage("planning what is left")

@@ -1,4 +1,4 @@
-"""Re-plan jobs of the loop, in the store (``docs/design/executed.md`` L4).
+"""Re-plan jobs of the loop, in the store (``docs/design/executed.md`` L7, L8).
 
 A re-plan is a planning job like any other (the ``jobs`` table, run by the
 :class:`~.jobs.JobRunner`'s workers, never on the consume loop) with the
@@ -10,7 +10,7 @@ revision.  It is recorded like an operator's rerun, in one transaction: a
 trigger SUPEREVENT --closed-until``; no raw bytes), the job (on the notice
 whose sky map it re-plans) and a ``decisions`` row with the reason.
 
-(L5) Guards: an event is re-planned only when it has a current plan (not
+(L8) Guards: an event is re-planned only when it has a current plan (not
 withdrawn, not retracted); the loop re-plans a current plan at most once and
 never while a job of the event is open (that job's plan supersedes the old
 one anyway); an operator's closure supersedes an open job instead.
@@ -57,7 +57,7 @@ def next_revision(store: Store, superevent_id: str) -> int:
 
 def record_replan(store: Store, superevent_id: str, start: str, reason: str, origin: str,
                   operator: bool = False) -> Accepted:
-    """Record a re-plan job of an event from ``start``, atomically (guards L5).
+    """Record a re-plan job of an event from ``start``, atomically (guards L8).
 
     Parameters
     ----------

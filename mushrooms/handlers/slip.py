@@ -1,16 +1,16 @@
-"""Has a published plan slipped?  The loop's re-plan rule (``docs/design/executed.md`` S1-S4).
+"""Has a published plan slipped?  The loop's re-plan rule (``docs/design/executed.md`` L3-L5).
 
 A plan goes to ZTF as a list queue; the telescope walks it as the night
 allows.  Compared with what was executed, a plan needs re-planning when
 
-* (S2) it *slipped*: its first observation not yet executed was planned to
+* (L4) it *slipped*: its first observation not yet executed was planned to
   start more than ``max_slip_s`` before now (a late start, a closure, another
   ToO, a queue that skipped what no longer fit), or
-* (S3) an exposure of it *failed*: a record of one of its (field, filter)
+* (L5) an exposure of it *failed*: a record of one of its (field, filter)
   pairs inside its window that is not done (E1), not made up by a later
   done exposure of the same pair.
 
-(S1) matching: inside the plan's window, the k-th done exposure of a
+(L3) matching: inside the plan's window, the k-th done exposure of a
 (field, filter) pair executes the pair's k-th planned observation (time
 order); exposures before the plan's start belong to earlier plans.
 
@@ -38,18 +38,18 @@ class Slip:
     Attributes
     ----------
     replan : bool
-        S2 or S3 holds, and the plan's window has not ended.
+        L4 or L5 holds, and the plan's window has not ended.
     reason : str
         One phrase for the log and the decision (``slipped by 1834 s (more than max_slip_s 900 s)``).
     slip_s : float or None
         Now minus the planned start of the first observation not executed (s);
         None when every observation due was executed or none is due.
     executed : int
-        Planned observations matched by a done exposure (S1).
+        Planned observations matched by a done exposure (L3).
     planned : int
         Observations of the plan.
     failed : tuple of ExecutedExposure
-        The failed exposures of S3.
+        The failed exposures of L5.
     """
 
     replan: bool
@@ -69,7 +69,7 @@ def document_times(values: Sequence[str]) -> np.ndarray:
 
 def slip_of(plan: Mapping[str, Any], exposures: Sequence[ExecutedExposure], now: Time, max_slip_s: float,
             min_processed_fraction: float = MIN_PROCESSED_FRACTION) -> Slip:
-    """Compare a plan document with the executed record (S1-S3).
+    """Compare a plan document with the executed record (L3-L5).
 
     Parameters
     ----------
@@ -81,7 +81,7 @@ def slip_of(plan: Mapping[str, Any], exposures: Sequence[ExecutedExposure], now:
     now : astropy.time.Time
         The instant of the comparison (UTC).
     max_slip_s : float
-        Allowed lateness (s) of the first observation not executed (S2).
+        Allowed lateness (s) of the first observation not executed (L4).
     min_processed_fraction : float
         The done rule's threshold (E1).
 
@@ -109,13 +109,13 @@ def slip_of(plan: Mapping[str, Any], exposures: Sequence[ExecutedExposure], now:
             done[key] = done.get(key, 0) + 1
         else:
             failed_by.setdefault(key, []).append(e)
-    # (S1) the first done[key] planned observations of each pair are executed; the rest are not
+    # (L3) the first done[key] planned observations of each pair are executed; the rest are not
     left = [t for key, times in planned.items() for t in sorted(times)[done.get(key, 0):]]
     executed = len(obs) - len(left)
-    # (S3) a failure counts while the pair still lacks a done exposure for each planned one
+    # (L5) a failure counts while the pair still lacks a done exposure for each planned one
     failed = tuple(e for key, es in failed_by.items() if done.get(key, 0) < len(planned[key]) for e in es)
     due = min(left) if left else None
-    slip_s = t_now - due if due is not None and due < t_now else None
+    slip_s = t_now - due if due is not None and due < t_now else None  # (L4)
     if failed:
         return Slip(True, f"{len(failed)} exposure(s) failed (field {failed[0].field_id} "
                           f"{failed[0].filter}: {failed[0].status}, processed {failed[0].processed_fraction:g})",

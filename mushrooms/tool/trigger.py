@@ -2,7 +2,7 @@
 
 ``SUPEREVENT --closed-until TIME``: the telescope is closed until TIME; the
 event is re-planned from the reopening, what was executed counted as done
-(``docs/design/executed.md`` L3).
+(``docs/design/executed.md`` L6).
 """
 
 from __future__ import annotations

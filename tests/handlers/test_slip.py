@@ -1,4 +1,4 @@
-"""The loop's re-plan rule (``docs/design/executed.md`` S1-S3) on small plan documents."""
+"""The loop's re-plan rule (``docs/design/executed.md`` L3-L5) on small plan documents."""
 
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ def test_slipped_when_the_first_observation_not_executed_is_later_than_max_slip_
 
 
 def test_a_list_queue_running_out_of_order_matches_by_field_and_filter():
-    # the queue took 601 g before 600 g: both planned observations are executed (S1 pairs by field and filter)
+    # the queue took 601 g before 600 g: both planned observations are executed (L3 pairs by field and filter)
     record = [done(601, "g", 0), done(600, "g", 310)]
     assert slip_of(PLAN, record, at(1800), max_slip_s=900).executed == 2
 
