@@ -205,8 +205,9 @@ class NoticePipeline:
         sid = superevent_id.strip()
         until = parse_instant(closed_until)
         if until is None:
-            return Accepted("rejected", EventRef(sid or None),
-                            f"--closed-until {closed_until!r}: not an ISO-8601 UTC time (2026-05-01T03:00:00Z)")
+            why = f"--closed-until {closed_until!r}: not an ISO-8601 UTC time (2026-05-01T03:00:00Z)"
+            log.warning("replan superevent_id=%s origin=%s decision=rejected reason=%r", sid or "-", origin, why)
+            return Accepted("rejected", EventRef(sid or None), why)
         start = max(aware(until), aware(now))  # (L6)
         return record_replan(self.store, sid, iso_z(start), f"telescope closed until {iso_z(aware(until))} "
                              f"(operator); re-planned from {iso_z(start)}", origin, operator=True)

@@ -89,16 +89,20 @@ def record_replan(store: Store, superevent_id: str, start: str, reason: str, ori
             "SELECT * FROM jobs WHERE job_id=?", (plan["job_id"],)).fetchone()
         if source is None:
             why = f"no current plan of {sid!r} to re-plan (never planned, withdrawn or retracted)"
+            log.warning("replan superevent_id=%s origin=%s decision=rejected reason=%r", sid or "-", origin, why)
             return Accepted("rejected", ref, why)
         ref = EventRef(sid, source["alert_type"])
         open_jobs = [int(r[0]) for r in c.execute(
             "SELECT job_id FROM jobs WHERE superevent_id=? AND status IN ('pending','running')", (sid,))]
+        why = None
         if open_jobs and not operator:
-            return Accepted("ignore", ref, f"job {open_jobs[-1]} of the event is open; its plan will supersede "
-                                           f"{plan['plan_id']}")
-        if not operator and c.execute("SELECT 1 FROM jobs WHERE decision='replan' AND supersedes=?",
-                                      (plan["plan_id"],)).fetchone():
-            return Accepted("ignore", ref, f"plan {plan['plan_id']} was re-planned already")
+            why = f"job {open_jobs[-1]} of the event is open; its plan will supersede {plan['plan_id']}"
+        elif not operator and c.execute("SELECT 1 FROM jobs WHERE decision='replan' AND supersedes=?",
+                                        (plan["plan_id"],)).fetchone():
+            why = f"plan {plan['plan_id']} was re-planned already"
+        if why is not None:
+            log.info("replan superevent_id=%s origin=%s decision=ignore reason=%r", sid, origin, why)
+            return Accepted("ignore", ref, why)
         now = _now()
         if open_jobs:
             c.execute("UPDATE jobs SET status='superseded', reason='operator closure', finished_at=?"
