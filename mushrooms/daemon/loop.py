@@ -94,12 +94,13 @@ class ExecutedLoop:
 
         now = Time.now() if now is None else now
         store = self.pipeline.store
+        # (L1) the events with a current plan whose window has not ended; the span: their earliest start to now
         plans = {sid: p for sid in live_events(store) if (p := current_plan(store, sid)) is not None
-                 and p["document"].get("type", "plan") == "plan"}
+                 and p["document"].get("type", "plan") == "plan"
+                 and Time(str(p["document"]["end"]).rstrip("Z"), scale="utc") > now}
         if not plans:
-            log.debug("event=executed_poll_skipped reason='no event has a current plan'")
+            log.debug("event=executed_poll_skipped reason='no event has a current plan in its window'")
             return Poll()
-        # (L1) the span: from the earliest current plan's start to now
         begin = min(Time(str(p["document"]["start"]).rstrip("Z"), scale="utc") for p in plans.values())
         source = self.reader.describe()
         try:
