@@ -81,6 +81,10 @@ class PlanningConfig:
         Working HEALPix resolution (NESTED ordering) for coverage.
     horizon_h : float
         Planning horizon (hours) from the start time.
+    nights : int
+        Nights planned, one plan document each over its own validity window
+        (that night's twilights, :func:`~.nights.plan_nights`); 1 (the
+        default): one plan over ``horizon_h`` from the start, as before.
     time_step_s : float
         Step (s) of the time grid on which observability windows are found.
     sun_alt_max_deg : float
@@ -205,6 +209,7 @@ class PlanningConfig:
     nside: int = setting(256, 16, 1024, power_of_two=True,
                          why="16: 3.7 deg pixels, still finer than a ZTF field (6.9 deg); 1024: 12.6 M pixels, 0.1 GB per sky array")
     horizon_h: float = setting(24.0, 1, 168, "h", why="at least the two visits of a block; a kilonova fades within a week")
+    nights: int = setting(1, 1, 7, why="1: one plan over horizon_h; a kilonova fades within a week")
     time_step_s: float = setting(120.0, 10, 900, "s",
                                  why="windows to 10 s are finer than any exposure; 900 s is three 300 s exposures")
     sun_alt_max_deg: float = setting(-12.0, -18, 0, "deg", why="astronomical twilight to sunset")

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from astropy.time import Time
+from astropy.time import Time, TimeDelta
 
 from .config import PlanningConfig
 from .errors import InputError, PlanCheckError
@@ -40,7 +40,9 @@ from .executed import MIN_PROCESSED_FRACTION, DonePairs, ExecutedExposure, done_
 from .plan.checker import check_plan
 from .plan.document import EventInfo, Observation, Plan, iso_utc, make_plan_id
 from .problem import PlanningProblem, ScheduleResult, StopCheck
-from .schedulers.completions import PendingVisit, completion_pass, drop_repeats, insert_completions
+from .schedulers.completions import (
+    PendingVisit, completion_pass, drop_repeats, insert_completions, swap_in_completions,
+)
 from .schedulers.gain import worth_a_visit
 from .schedulers.slew import overhead_time
 from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
@@ -185,7 +187,7 @@ def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
         The plan failed the checker (a bug; never published).
     """
     from .clock import on_merger_clock
-    from .planner import SOLVERS, build_plan, optimise
+    from .planner import SOLVERS
     from .solvers_registry import unknown_solver_message
 
     t0 = time.perf_counter()
@@ -199,45 +201,14 @@ def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
     grid = grid if grid is not None else load_ztf_fields()
     footprints = field_footprints(grid, config.nside)
     state = executed_state(skymap, config, start, executed, footprints, grid, min_processed_fraction)
-
-    # the fields still worth a visit, and their windows over the whole horizon (once)
-    in_band = (grid.dec >= config.dec_min_deg) & (grid.dec <= config.dec_max_deg)
-    sel = in_band & worth_a_visit(footprints, state.uncovered, config.min_gain)
-    sel &= ~np.isin(grid.ids, state.covered)
-    windows = observability_windows(grid.ids[sel], grid.ra[sel], grid.dec[sel], start, config)
-
-    # (P4) the completion pass
-    pending = tuple(v for v in state.pending if sel[int(grid.index_of(np.array([v.field_id]))[0])])
-    front, later, uncovered = completion_pass(pending, footprints, state.uncovered, windows, config)
-    pinned = {o.field_id for o in front}
-
-    # (P5) the reduced problem: after the pass and the worst first overhead, without covered fields
-    rest_start = _rest_start(front, grid, sel, config)
-    plan_obs: list[Observation] = list(front)
-    result = ScheduleResult((), solver="completions", status="no_time_left")
-    if rest_start + 2 * config.exposure_s + config.cadence_s <= config.horizon_s:
-        rest = _reduced_problem(skymap, config, start, rest_start, grid, footprints, windows, sel, uncovered, pinned)
-        if rest.field_ids.size:
-            reduced_map = dataclasses.replace(skymap, prob=uncovered)
-            result = optimise(rest, reduced_map, solver, should_stop)
-            block0 = 1 if front else 0
-            plan_obs += [dataclasses.replace(o, start=o.start + rest_start, block=o.block + block0)
-                         for o in result.observations]
-    # (P6) a half-done field planned as a whole new pair: its done filter is not repeated
-    plan_obs, trimmed = drop_repeats(plan_obs, state.pending)
-    # (P7) the completions that were not due: into the gaps
-    covered_now = uncovered.copy()
-    covered_now[footprints.union({o.field_id for o in plan_obs})] = 0.0
-    plan_obs_t, left = insert_completions(plan_obs, later, footprints, covered_now, windows, config)
-    if left:
-        log.info("re-plan: %d half-done field(s) found no time for their other filter: %s",
-                 len(left), ", ".join(str(v.field_id) for v in left))
-
-    plan = _build(skymap, config, start, grid, footprints, windows, state, result, plan_obs_t,
-                  solver, event, supersedes, executed, time.perf_counter() - t0, build_plan)
+    sel, windows = _candidates(state, config, start, grid, footprints)
+    observations, result = _schedule(skymap, config, start, grid, footprints, state, sel, windows, solver,
+                                     should_stop)
+    plan = _build(skymap, config, start, grid, footprints, windows, state, result, observations,
+                  solver, event, supersedes, executed, time.perf_counter() - t0)
     report = check_plan(plan, skymap, config, executed=executed, min_processed_fraction=min_processed_fraction)
-    n_completed = len({o.field_id for o in plan.observations} & {v.field_id for v in state.pending})
-    log.info("re-plan %s from %s: %d executed pair(s) covered (%.4f), %d of %d half-done field(s) completed, "
+    n_completed = len(set(plan.field_ids) & {v.field_id for v in state.pending})
+    log.info("re-plan %s from %s: %d done pair(s) covered (%.4f), %d of %d half-done field(s) completed, "
              "%d fields, %d exposures, adds %.4f (checker %.4f), %.1f s",
              plan.plan_id, iso_utc(start), state.covered.size, state.coverage_executed, n_completed,
              len(state.pending), plan.metrics.n_fields, plan.metrics.n_exposures, plan.metrics.coverage,
@@ -245,6 +216,55 @@ def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
     if not report.ok:
         raise PlanCheckError(list(report.problems))
     return plan
+
+
+def _candidates(state: ExecutedState, config: PlanningConfig, start: Time, grid: FieldGrid,
+                footprints: Footprints) -> tuple[np.ndarray, Windows]:
+    """The grid fields still worth a visit (in the band, not covered, P3) and their windows over the horizon."""
+    in_band = (grid.dec >= config.dec_min_deg) & (grid.dec <= config.dec_max_deg)
+    sel = in_band & worth_a_visit(footprints, state.uncovered, config.min_gain) & ~np.isin(grid.ids, state.covered)
+    return sel, observability_windows(grid.ids[sel], grid.ra[sel], grid.dec[sel], start, config)
+
+
+def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGrid, footprints: Footprints,
+              state: ExecutedState, sel: np.ndarray, windows: Windows, solver: str,
+              should_stop: StopCheck | None) -> tuple[tuple[Observation, ...], ScheduleResult]:
+    """The re-plan's exposures (s since ``start``): the pass (P4), the reduced problem (P5), P6, P7."""
+    from .planner import optimise
+
+    # (P4) the completion pass
+    pending = tuple(v for v in state.pending if sel[int(grid.index_of(np.array([v.field_id]))[0])])
+    front, later, uncovered = completion_pass(pending, footprints, state.uncovered, windows, config)
+    # (P5) the reduced problem: after the pass and the worst first overhead, without covered fields
+    rest_start = _rest_start(front, grid, sel, config)
+    observations: list[Observation] = list(front)
+    result = ScheduleResult((), solver="completions", status="no_time_left")
+    if rest_start + 2 * config.exposure_s + config.cadence_s <= config.horizon_s:
+        rest = _reduced_problem(skymap, config, start, rest_start, grid, footprints, windows, uncovered,
+                                {o.field_id for o in front})
+        result = dataclasses.replace(result, status="nothing_left")
+        if rest.field_ids.size:
+            result = optimise(rest, dataclasses.replace(skymap, prob=uncovered), solver, should_stop)
+            block0 = 1 if front else 0
+            observations += [dataclasses.replace(o, start=o.start + rest_start, block=o.block + block0)
+                             for o in result.observations]
+    # (P6) a half-done field planned as a whole new pair: its done filter is not repeated
+    trimmed_obs, trimmed = drop_repeats(observations, state.pending)
+    if trimmed:
+        log.info("re-plan: half-done field(s) %s were planned as whole pairs; their done filter is not repeated",
+                 ", ".join(map(str, trimmed)))
+    # (P7) the completions that were not due: into the gaps, else in the place of a field adding less
+    covered_now = uncovered.copy()
+    covered_now[footprints.union({o.field_id for o in trimmed_obs})] = 0.0
+    placed, left = insert_completions(trimmed_obs, later, footprints, covered_now, windows, config)
+    if left:
+        completions = {v.field_id for v in state.pending} & {o.field_id for o in placed}
+        placed, left = swap_in_completions(placed, left, footprints, state.uncovered, windows, config,
+                                           keep=completions)
+    if left:
+        log.info("re-plan: %d half-done field(s) found no time for their other filter: %s",
+                 len(left), ", ".join(str(v.field_id) for v in left))
+    return placed, result
 
 
 def _rest_start(front: Sequence[Observation], grid: FieldGrid, sel: np.ndarray, config: PlanningConfig) -> float:
@@ -259,11 +279,9 @@ def _rest_start(front: Sequence[Observation], grid: FieldGrid, sel: np.ndarray, 
 
 
 def _reduced_problem(skymap: SkyMap, config: PlanningConfig, start: Time, rest_start: float, grid: FieldGrid,
-                     footprints: Footprints, windows: Windows, sel: np.ndarray, uncovered: np.ndarray,
+                     footprints: Footprints, windows: Windows, uncovered: np.ndarray,
                      pinned: set[int]) -> PlanningProblem:
     """The problem of the rest: from ``start + rest_start``, the covered pixels at 0, no covered or pinned field."""
-    from astropy.time import TimeDelta
-
     from .prepare import prepare_problem
 
     cfg = dataclasses.replace(config, horizon_h=(config.horizon_s - rest_start) / 3600.0)
@@ -280,15 +298,22 @@ def _reduced_problem(skymap: SkyMap, config: PlanningConfig, start: Time, rest_s
 def _build(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGrid, footprints: Footprints,
            windows: Windows, state: ExecutedState, result: ScheduleResult, observations: Sequence[Observation],
            solver: str, event: EventInfo | None, supersedes: str | None,
-           executed: Sequence[ExecutedExposure], runtime_s: float, build_plan) -> Plan:
-    """The plan document: metrics on the remaining probability (P8), an id that names the executed record."""
+           executed: Sequence[ExecutedExposure], runtime_s: float) -> Plan:
+    """The plan document: metrics on the remaining probability (P8), an id that names the executed record.
+
+    The scheduler's own scores (bounds, expected detections) are of the
+    reduced problem, not of the whole plan: they are dropped, and the
+    expected detections scored again on the plan's final exposures.
+    """
+    from .planner import build_plan
+
     ids = np.unique(np.concatenate([[o.field_id for o in observations], windows.field_ids]).astype(int))
     rows = grid.index_of(ids)
     problem = PlanningProblem(config=config, start=start, prob=state.uncovered, field_ids=ids,
                               ra=grid.ra[rows], dec=grid.dec[rows], footprints=footprints.subset(ids),
                               windows=windows)
-    merged = dataclasses.replace(result, observations=tuple(observations),
-                                 solver=result.solver, upper_bound=None, mip_bound=None)
+    merged = dataclasses.replace(result, observations=tuple(observations), upper_bound=None, mip_bound=None,
+                                 expected_detections=None, expected_detections_lightcurve=None)
     # (P8) on the remaining probability: what the plan adds (coverage, expected detections)
     remaining = dataclasses.replace(skymap, prob=state.uncovered)
     plan = build_plan(problem, merged, remaining, solver, event=event, supersedes=supersedes, runtime_s=runtime_s)

@@ -21,6 +21,11 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p = p if p is not None else tool_parser("check", HELP)
     p.add_argument("plan", metavar="PLAN_JSON")
     p.add_argument("skymap", metavar="SKYMAP")
+    p.add_argument("--executed", metavar="FILE",
+                   help="a re-plan's executed record (as given to `mushrooms plan --executed`): its exposures "
+                        "count towards the pairs, its done pairs must not be planned again")
+    p.add_argument("--min-processed-fraction", metavar="F", type=float, default=0.5,
+                   help="with --executed: least fraction of the quadrants reduced for an exposure to count (default 0.5)")
     add_common_options(p)
     return p
 
@@ -62,7 +67,15 @@ def run(args: argparse.Namespace) -> int:
     elif isinstance(doc.get("config"), dict):
         log.info("checking with %s, not the plan's embedded configuration", args.config)
     skymap = read_skymap(map_path, nside=planning.nside)
-    report = check_plan(plan, skymap, planning)
+    executed = ()
+    if getattr(args, "executed", None):
+        from .plan import read_executed
+
+        executed = read_executed(args.executed, plan.start)
+    if plan.metrics.coverage_executed and not executed:
+        log.warning("%s is a re-plan (metrics.coverage_executed is set): give its --executed record", args.plan)
+    report = check_plan(plan, skymap, planning, executed=executed,
+                        min_processed_fraction=getattr(args, "min_processed_fraction", 0.5))
     recorded = plan.event.skymap_sha256
     other_map = [] if not recorded or recorded == skymap.sha256 else [
         f"the plan was made for another sky map: sha256 {recorded[:16]}... recorded, {args.skymap} is "

@@ -2,6 +2,9 @@
 
 Optionally also ZTF's ToO queue, SkyPortal's manual observation-plan payload
 and a picture; ``--deadline`` writes the best plan found by then.
+``--executed FILE`` re-plans what is left from ``--start`` given what the
+telescope did (:func:`~mushrooms.scheduler_core.replan.plan_remaining`,
+``docs/design/replan.md``).
 """
 
 from __future__ import annotations
@@ -15,7 +18,8 @@ from typing import Any, Sequence
 
 from .common import SOLVER_CHOICES, SOLVER_HELP, SOLVER_METAVAR, add_common_options, execute, tool_parser
 
-__all__ = ["HELP", "parser", "run", "main", "parse_start", "warn_if_far_from_merger"]
+__all__ = ["HELP", "parser", "run", "main", "parse_start", "warn_if_far_from_merger", "read_executed",
+           "night_path"]
 
 log = logging.getLogger("mushrooms.plan")
 
@@ -71,6 +75,14 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--skyportal", metavar="FILE",
                    help="also write the body of SkyPortal's POST /api/observation_plan/manual")
     p.add_argument("--plot", metavar="FILE", help="also draw the plan on the sky map (PNG)")
+    p.add_argument("--executed", metavar="FILE",
+                   help="what the telescope did: a JSON-lines file of executed exposures (field_id, filter, start, "
+                        "exposure_s, processed_fraction, status), or file:PATH, or depot:DIR (a local copy of ZTF's "
+                        "depot); plans what is left from --start: fields done in both filters count as covered, "
+                        "half-done fields get their other filter (default --start: the end of the last exposure)")
+    p.add_argument("--min-processed-fraction", metavar="F", type=float, default=None,
+                   help="with --executed: least fraction of the 64 quadrants reduced for an exposure to count "
+                        "(default 0.5)")
     add_common_options(p)
     return p
 
@@ -109,10 +121,23 @@ def run(args: argparse.Namespace) -> int:
     deadline = getattr(args, "deadline", None)
     if deadline is not None and not (math.isfinite(deadline) and deadline > 0):
         raise InputError(f"--deadline {deadline:g}: must be a finite number of seconds > 0")
+    executed_spec = getattr(args, "executed", None)
+    fraction = getattr(args, "min_processed_fraction", None)
+    if executed_spec is None and fraction is not None:
+        raise InputError("--min-processed-fraction needs --executed")
+    if deadline is not None and cfg.nights > 1:
+        raise InputError(f"--deadline plans one night; [scheduler] nights is {cfg.nights}")
+    if executed_spec is not None:
+        if deadline is not None:
+            raise InputError("--deadline and --executed do not go together: a re-plan waits for the solver")
+        if fraction is not None and not 0.0 <= fraction <= 1.0:
+            raise InputError(f"--min-processed-fraction {fraction:g}: must be in [0, 1]")
     source = regular_file(args.skymap, "sky map")  # never a FIFO nor a device
     skymap = read_skymap(source, nside=cfg.nside)
     log.info("read %s: nside %d, 90%% area %.0f deg2, event time %s", source, skymap.nside,
              skymap.credible_area(0.9), skymap.event_time.isot if skymap.event_time else "unknown")
+    if executed_spec is not None or cfg.nights > 1:
+        return _replan(args, config, skymap, start, executed_spec, 0.5 if fraction is None else fraction, t0)
     if start is not None:
         warn_if_far_from_merger(start, skymap.event_time)
     if deadline is None:
@@ -178,6 +203,114 @@ def _plan_by_deadline(skymap: Any, cfg: Any, start: Any, solver: str, deadline_s
     return best, revision_document(best, revision, True)
 
 
+def read_executed(spec: str, around: Any | None) -> tuple[Any, ...]:
+    """The exposures ``--executed`` names: a JSON-lines file, ``file:PATH`` or ``depot:DIR``.
+
+    ``depot:DIR`` reads the depot files (``<YYYYMMDD>/ztf_recentproc_<YYYYMMDD>.json``)
+    of the two days before ``around`` (the start, or the merger) that exist.
+
+    Raises
+    ------
+    InputError
+        A missing file, a SkyPortal URL (the plan tool reads no network), a
+        file of the wrong shape.
+    """
+    from astropy.time import Time, TimeDelta
+
+    from ..handlers.executed import depot_paths, parse_executed_source, read_depot, read_jsonl
+    from ..inputs import regular_file
+    from ..scheduler_core.errors import InputError
+
+    kind, location = "file", spec
+    if spec.split(":", 1)[0] in ("none", "file", "depot", "skyportal"):
+        try:
+            source = parse_executed_source(spec)
+        except ValueError as exc:
+            raise InputError(f"--executed {spec}: {exc}") from None
+        kind, location = source.kind, source.location
+    if kind == "none":
+        return ()
+    if kind == "skyportal" or (kind == "depot" and "://" in str(location)):
+        raise InputError(f"--executed {spec}: the plan tool reads files only; the service polls "
+                         f"{kind} ([loop] executed_source)")
+    if kind == "file":
+        return read_jsonl(regular_file(location, "executed file"))
+    from pathlib import Path
+
+    folder = Path(location)
+    if not folder.is_dir():
+        raise InputError(f"--executed {spec}: {folder} is not a directory")
+    end = around if around is not None else Time.now()
+    exposures: list[Any] = []
+    names = depot_paths(end - TimeDelta(2.0, format="jd"), end + TimeDelta(1.0, format="jd"))
+    for name in names:
+        if (folder / name).is_file():
+            exposures.extend(read_depot(folder / name))
+    if not exposures:
+        log.warning("--executed %s: no depot file of %s", spec, ", ".join(names))
+    return tuple(exposures)
+
+
+def night_path(path: str, night: int) -> str:
+    """The file of night ``night``'s document: ``plan.json`` for night 1, ``plan.night2.json`` for night 2, ..."""
+    if night == 1:
+        return path
+    from pathlib import Path
+
+    p = Path(path)
+    return str(p.with_name(f"{p.stem}.night{night}{p.suffix}"))
+
+
+def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec: str | None, fraction: float,
+            t0: float) -> int:
+    """``--executed`` and/or ``[scheduler] nights > 1``: plan what is left, night by night; write each night's files."""
+    from ..outputs import write_json_atomic
+    from ..scheduler_core import to_skyportal, to_trigger_queue
+    from ..scheduler_core.executed import done_pairs
+    from ..scheduler_core.nights import plan_nights
+    from ..scheduler_core.plan.messages import revision_document
+    from ..scheduler_core.replan import plan_remaining
+    from ..scheduler_core.errors import InputError
+
+    cfg = config.scheduler
+    executed: tuple[Any, ...] = ()
+    if spec is not None:
+        executed = read_executed(spec, start if start is not None else skymap.event_time)
+        if start is None:
+            if not executed:
+                raise InputError("--executed holds no exposure: give --start")
+            start = max((e.end for e in executed), key=lambda t: t.unix)
+            log.info("--start: the end of the last executed exposure, %s", start.isot[:19])
+    if start is not None:
+        warn_if_far_from_merger(start, skymap.event_time)
+    pairs = done_pairs(executed, tuple(cfg.filters), fraction, cfg.cadence_s)
+    if spec is not None:
+        log.info("--executed: %d exposure(s); %d field(s) done in both filters, %d in one", len(executed),
+                 len(pairs.both), len(pairs.one))
+    if cfg.nights > 1:
+        plans = plan_nights(skymap, cfg, start, executed, min_processed_fraction=fraction, solver=args.solver)
+    else:
+        plans = (plan_remaining(skymap, cfg, start, executed, min_processed_fraction=fraction, solver=args.solver),)
+    for n, plan in enumerate(plans, 1):
+        output = night_path(args.output, n)
+        write_json_atomic(output, revision_document(plan, 1, True))
+        if args.queue:
+            write_json_atomic(night_path(args.queue, n), to_trigger_queue(plan, config.export))
+        if getattr(args, "skyportal", None):
+            write_json_atomic(night_path(args.skyportal, n), to_skyportal(plan, config.export))
+        if args.plot:
+            from ..plotting import plot_plan
+
+            plot_plan(plan, skymap, night_path(args.plot, n))
+        m = plan.metrics
+        night = f"night {n} of {len(plans)}, " if len(plans) > 1 else ""
+        completed = len({o.field_id for o in plan.observations} & set(pairs.one))
+        half = f", {completed} of {len(pairs.one)} half-done completed" if n == 1 and spec is not None else ""
+        print(f"{output}: {night}{plan.start.isot[:19]}Z to {plan.end.isot[:19]}Z, {m.n_fields} fields, "
+              f"{m.n_exposures} exposures, adds coverage {m.coverage:.4f} to the {m.coverage_executed:.4f} done "
+              f"before (total {m.coverage + m.coverage_executed:.4f}){half}; {m.solver} ({m.status}), checked, "
+              f"{time.perf_counter() - t0:.1f} s")
+    return 0
 
 
 if __name__ == "__main__":

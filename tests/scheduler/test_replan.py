@@ -61,16 +61,26 @@ def assert_replan_rules(replan, executed, skymap, config):
     assert replan.metrics.coverage + replan.metrics.coverage_executed == pytest.approx(total, abs=1e-5)
 
 
-@pytest.mark.parametrize("solver", ["greedy", "hybrid"])
-def test_a_replan_after_a_two_hour_closure_completes_the_half_done_fields(first_plan, skymap_220722v, solver):
-    executed = executed_from(first_plan, 10)
+@pytest.mark.parametrize("solver, n, delay_s", [("greedy", 10, 2 * 3600), ("hybrid", 10, 2 * 3600),
+                                                ("greedy", 7, 60), ("hybrid", 7, 60)])
+def test_a_replan_after_a_closure_or_a_slip_keeps_every_rule(first_plan, skymap_220722v, solver, n, delay_s):
+    """2 h closed after the 10th exposure, or re-planned a minute after the 7th (half-done fields not all due yet)."""
+    executed = executed_from(first_plan, n)
     pairs = done_pairs(executed, CFG.filters, cadence_s=CFG.cadence_s)
     assert pairs.both and pairs.one  # the scenario has both kinds
     config = dataclasses.replace(CFG, solver=solver, time_limit_s=10.0)
-    start = executed[-1].end + TimeDelta(2 * 3600, format="sec")
+    start = executed[-1].end + TimeDelta(delay_s, format="sec")
     replan = plan_remaining(skymap_220722v, config, start, executed, solver=solver)
     assert abs(seconds(first_plan, replan.start) - seconds(first_plan, start)) < 1e-3
     assert_replan_rules(replan, executed, skymap_220722v, config)
+    due = {v.field_id: seconds(replan, v.first[v.filters[0]]) + config.cadence_s for v in pairs.one.values()}
+    if n == 7:
+        assert max(due.values()) > 0  # some are not due at the start
+    # every half-done field the plan completes with one exposure gets it once due, never before
+    for fid, t_due in due.items():
+        mine = [o for o in replan.observations if o.field_id == fid]
+        if len(mine) == 1:
+            assert mine[0].start >= t_due - 1e-6
     print(solver, replan.metrics, [(o.field_id, o.filter, round(o.start)) for o in replan.observations[:6]])
 
 
@@ -85,6 +95,7 @@ def test_half_done_fields_get_their_other_filter_first_and_failed_exposures_do_n
     assert_replan_rules(replan, executed, skymap_220722v, CFG)
     print(replan.metrics, [(o.field_id, o.filter, round(o.start)) for o in replan.observations[:8]])
     half = set(pairs.one)
+    singles = [o for o in replan.observations if o.field_id in half]
     lead = []
     for o in replan.observations:
         if o.field_id not in half:
@@ -95,3 +106,60 @@ def test_half_done_fields_get_their_other_filter_first_and_failed_exposures_do_n
     for o in lead:
         assert o.filter != pairs.one[o.field_id].filters[0]
     assert replan.observations[0].start <= CFG.exposure_s + CFG.slew_estimate_s
+    # each half-done field is completed by one exposure, or would add less than min_gain beside the plan
+    assert len(singles) == len({o.field_id for o in singles})
+    fp = field_footprints(load_ztf_fields(), CFG.nside)
+    uncovered = skymap_220722v.prob.copy()
+    uncovered[fp.union(list(pairs.both) + replan.field_ids)] = 0.0
+    for fid in half - {o.field_id for o in singles}:
+        assert uncovered[fp.pixels(fid)].sum() < CFG.min_gain
+
+
+def test_the_checker_counts_executed_exposures_towards_pairs_and_refuses_repeats(first_plan, skymap_220722v):
+    executed = executed_from(first_plan, 10)
+    pairs = done_pairs(executed, CFG.filters, cadence_s=CFG.cadence_s)
+    rest = first_plan.with_(observations=first_plan.observations[10:])
+    # the rest of the original plan: its singles are the half-done fields' other filter, a cadence later
+    report = check_plan(rest, skymap_220722v, CFG, executed=executed)
+    assert report.counts.get("cadence", 0) == 0 and report.counts.get("repeat", 0) == 0
+    # without the record those singles are half pairs
+    assert check_plan(rest, skymap_220722v, CFG).counts.get("cadence", 0) == len(pairs.one)
+    # two exposures of done pairs planned again
+    again = first_plan.with_(observations=first_plan.observations[8:])
+    assert check_plan(again, skymap_220722v, CFG, executed=executed).counts.get("repeat", 0) == 2
+    # a half-done field's first exposure moved to just before its planned other filter: the cadence is broken
+    fid = next(iter(pairs.one))
+    planned = next(o for o in rest.observations if o.field_id == fid)
+    moved = [dataclasses.replace(e, start=rest.absolute_time(planned.start - 600.0)) if e.field_id == fid else e
+             for e in executed]
+    broken = check_plan(rest, skymap_220722v, CFG, executed=moved)
+    assert broken.counts.get("cadence", 0) == 1 and any(f"field {fid}:" in p for p in broken.problems)
+
+
+def test_executed_state_reads_done_half_done_failed_and_too_close_exposures(skymap_220722v):
+    from astropy.time import Time
+
+    from mushrooms.scheduler_core.replan import executed_state
+
+    grid = load_ztf_fields()
+    fp = field_footprints(grid, CFG.nside)
+    t0 = Time("2022-07-23T05:00:00", scale="utc")
+
+    def e(fid, filt, minutes, fraction=1.0, status="processed"):
+        return ExecutedExposure(fid, filt, t0 + TimeDelta(minutes * 60.0, format="sec"), 300.0, fraction, status)
+
+    record = [e(862, "g", 0), e(862, "r", 40),                 # done in both, 40 min apart
+              e(843, "g", 0), e(843, "r", 10),                 # both, too close: still needs r a cadence after g
+              e(864, "r", 5), e(864, "g", 50, 0.0, "failed"),  # g failed: needs g
+              e(1850, "g", 0), e(1850, "r", 40, 0.3),          # r only partly reduced: needs r
+              e(861, "i", 0)]                                  # a third filter: nothing
+    start = t0 + TimeDelta(3600.0, format="sec")
+    state = executed_state(skymap_220722v, CFG, start, record, fp, grid)
+    assert state.covered.tolist() == [862]
+    pending = {v.field_id: (v.filter, v.due_s) for v in state.pending}
+    assert pending == {843: ("r", 0.0), 864: ("g", 0.0), 1850: ("r", 0.0)}
+    assert state.uncovered[fp.pixels(862)].sum() == 0 and state.uncovered[fp.pixels(861)].sum() > 0
+    assert state.coverage_executed == pytest.approx(fp.coverage([862], skymap_220722v.prob))
+    # a start 10 min after the first exposure: the other filter falls due 20 min later
+    soon = executed_state(skymap_220722v, CFG, t0 + TimeDelta(600.0, format="sec"), record, fp, grid)
+    assert {v.field_id: v.due_s for v in soon.pending}[843] == pytest.approx(CFG.cadence_s - 600.0)

@@ -14,7 +14,9 @@ pair, so it is placed before the schedulers see the rest of the night:
   one is due;
 * :func:`insert_completions` (P7) puts the visits that were not due yet into
   the gaps of the finished plan (the earliest gap where the overheads on
-  both sides, the due time and a window allow).
+  both sides, the due time and a window allow), and failing that
+  (:func:`swap_in_completions`) in the place of a planned field that adds
+  less than the completion would.
 
 Times are seconds since the re-plan's start.  The equations are in
 ``docs/design/replan.md``.
@@ -33,7 +35,8 @@ from ..sky.footprints import Footprints
 from ..sky.windows import Windows
 from .slew import overhead_time
 
-__all__ = ["PendingVisit", "completion_pass", "insert_completions", "drop_repeats", "gains_of"]
+__all__ = ["PendingVisit", "completion_pass", "insert_completions", "swap_in_completions", "drop_repeats",
+           "gains_of"]
 
 
 @dataclass(frozen=True)
@@ -185,7 +188,7 @@ def insert_completions(observations: Sequence[Observation], visits: Sequence[Pen
     observations : tuple of Observation
         The plan with the visits placed, in time order.
     left : tuple of PendingVisit
-        Visits no gap could take (or no longer worth it).
+        Visits no gap could take, or no longer worth it beside the plan.
     """
     plan = sorted(observations, key=lambda o: o.start)
     uncovered = uncovered.copy()
@@ -197,9 +200,7 @@ def insert_completions(observations: Sequence[Observation], visits: Sequence[Pen
     for k in np.argsort(-gain, kind="stable"):
         v = todo[int(k)]
         g = float(gains_of([v], footprints, uncovered)[0])
-        if not _worth(np.array([g]), config.min_gain)[0]:
-            continue
-        placed = _place(plan, v, windows, config)
+        placed = _place(plan, v, windows, config) if _worth(np.array([g]), config.min_gain)[0] else None
         if placed is None:
             left.append(v)
             continue
@@ -207,6 +208,69 @@ def insert_completions(observations: Sequence[Observation], visits: Sequence[Pen
         block = plan[i - 1].block if i > 0 else 0
         plan.insert(i, Observation(v.field_id, v.ra, v.dec, v.filter, s, exp, block))
         uncovered[footprints.pixels(v.field_id)] = 0.0
+    return tuple(plan), tuple(left)
+
+
+def swap_in_completions(observations: Sequence[Observation], visits: Sequence[PendingVisit],
+                        footprints: Footprints, prob: np.ndarray, windows: Windows, config: PlanningConfig,
+                        keep: set[int] = frozenset()) -> tuple[tuple[Observation, ...], tuple[PendingVisit, ...]]:
+    """Give a pending visit the place of a planned field that adds less (P7, the swap).
+
+    For each visit (largest gain first), the planned fields not in ``keep``
+    are tried in increasing order of the probability only they cover (on
+    ``prob``): the field's exposures are removed and the visit placed as in
+    :func:`insert_completions`; the swap is kept when the visit then adds
+    more than the removed field did (and at least ``min_gain``).
+
+    Parameters
+    ----------
+    observations : sequence of Observation
+        The plan (s since the start).
+    visits : sequence of PendingVisit
+        Visits no gap took.
+    footprints : Footprints
+        Holding the plan's and the visits' fields.
+    prob : numpy.ndarray
+        Probability per pixel not covered by the executed pairs (P1).
+    windows : Windows
+    config : PlanningConfig
+    keep : set of int
+        Fields never removed (the completions already placed).
+
+    Returns
+    -------
+    observations : tuple of Observation
+        In time order.
+    left : tuple of PendingVisit
+        Visits that found no place.
+    """
+    plan = sorted(observations, key=lambda o: o.start)
+    left: list[PendingVisit] = []
+    keep = set(keep)
+    for v in visits:
+        counts = np.zeros(prob.shape, dtype=np.int32)
+        fields = list(dict.fromkeys(o.field_id for o in plan))
+        for fid in fields:
+            counts[footprints.pixels(fid)] += 1
+        own = {fid: float(prob[footprints.pixels(fid)][counts[footprints.pixels(fid)] == 1].sum()) for fid in fields}
+        pix_v = footprints.pixels(v.field_id)
+        done = False
+        for fid in sorted((f for f in fields if f not in keep), key=lambda f: own[f]):
+            gain_v = float(prob[pix_v][counts[pix_v] - np.isin(pix_v, footprints.pixels(fid)) == 0].sum())
+            if gain_v <= own[fid] or not _worth(np.array([gain_v]), config.min_gain)[0]:
+                continue
+            trial = [o for o in plan if o.field_id != fid]
+            placed = _place(trial, v, windows, config)
+            if placed is None:
+                continue
+            i, s = placed
+            block = trial[i - 1].block if i > 0 else 0
+            trial.insert(i, Observation(v.field_id, v.ra, v.dec, v.filter, s, config.exposure_s, block))
+            plan, done = trial, True
+            keep.add(v.field_id)
+            break
+        if not done:
+            left.append(v)
     return tuple(plan), tuple(left)
 
 

@@ -1,0 +1,72 @@
+"""The nights ahead at Palomar: each night's validity window, twilight to twilight (N1).
+
+A night is the dark part of one block from local noon to local noon
+(:data:`~.visibility.GRID_ANCHOR`, :data:`~.visibility.NIGHT_S`): the Sun at
+most ``sun_alt_max_deg`` high.  Its window runs from the first to the last
+time of a one-minute grid at which the Sun is that low, so it lies inside
+the true dark interval (the Sun's altitude is monotonic across a twilight),
+by less than a minute at each end.  The equations are in
+``docs/design/replan.md`` (N1-N3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from astropy.coordinates import AltAz, get_body
+from astropy.time import Time, TimeDelta
+
+from ..config import PlanningConfig
+from .visibility import GRID_ANCHOR, NIGHT_S, site
+
+__all__ = ["night_windows", "NIGHT_GRID_S"]
+
+#: Step (s) of the grid on which twilights are found.
+NIGHT_GRID_S = 60.0
+
+
+def night_windows(start: Time, config: PlanningConfig, nights: int) -> tuple[tuple[Time, Time], ...]:
+    """The validity windows of the next ``nights`` nights from ``start`` (N1).
+
+    Parameters
+    ----------
+    start : astropy.time.Time
+        From when (UTC); a night already under way starts at ``start``
+        (rounded up to the grid), one already over is skipped.
+    config : PlanningConfig
+        ``sun_alt_max_deg``: the Sun's highest altitude at night (deg).
+    nights : int
+        How many (>= 1).
+
+    Returns
+    -------
+    tuple of (Time, Time)
+        ``(evening twilight, morning twilight)`` per night, in time order.
+
+    Raises
+    ------
+    ValueError
+        ``nights < 1``, or no night in ``nights + 2`` days (a Sun limit the
+        Sun never goes below).
+    """
+    if nights < 1:
+        raise ValueError(f"nights must be >= 1, got {nights}")
+    start = Time(start, scale="utc")
+    t0 = float((start - GRID_ANCHOR).to_value("s"))
+    block = int(np.floor(t0 / NIGHT_S))
+    out: list[tuple[Time, Time]] = []
+    for b in range(block, block + nights + 2):
+        offsets = np.arange(b * NIGHT_S, (b + 1) * NIGHT_S, NIGHT_GRID_S)
+        offsets = offsets[offsets >= t0 - 1e-6]
+        if offsets.size == 0:
+            continue
+        times = GRID_ANCHOR + TimeDelta(offsets, format="sec")
+        sun = get_body("sun", times, site()).transform_to(AltAz(obstime=times, location=site()))
+        dark = np.flatnonzero(sun.alt.deg <= config.sun_alt_max_deg)
+        if dark.size == 0:
+            continue
+        # (N1) the night: first to last grid time with the Sun below the limit, never before the start
+        out.append((times[dark[0]], times[dark[-1]]))
+        if len(out) == nights:
+            return tuple(out)
+    raise ValueError(f"only {len(out)} night(s) with the Sun below {config.sun_alt_max_deg:g} deg "
+                     f"in the {nights + 2} days from {start.isot[:19]}")

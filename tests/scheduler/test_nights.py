@@ -1,0 +1,83 @@
+"""The following nights (docs/design/replan.md N1-N3): validity windows at twilight, later nights on the earlier ones."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from astropy import units as u
+from astropy.coordinates import AltAz, EarthLocation, get_body
+from astropy.time import Time, TimeDelta
+
+from mushrooms.scheduler_core import PlanningConfig, check_plan
+from mushrooms.scheduler_core.executed import done_pairs
+from mushrooms.scheduler_core.nights import as_planned, plan_nights
+from mushrooms.scheduler_core.plan.checker import P48_SITE
+from mushrooms.scheduler_core.sky.twilight import NIGHT_GRID_S, night_windows
+
+CFG = PlanningConfig(solver="greedy", nights=2)
+
+
+def sun_alt(times: Time) -> np.ndarray:
+    """The Sun's altitude (deg) at the P48, from the checker's own site (not the planner's)."""
+    lat, lon, height = P48_SITE
+    here = EarthLocation.from_geodetic(lon=lon * u.deg, lat=lat * u.deg, height=height * u.m)
+    return get_body("sun", times, here).transform_to(AltAz(obstime=times, location=here)).alt.deg
+
+
+@pytest.mark.parametrize("start", ["2022-07-22T20:00:00", "2026-01-10T18:30:00"])
+def test_night_windows_run_from_evening_to_morning_twilight(start):
+    windows = night_windows(Time(start, scale="utc"), CFG, 3)
+    assert len(windows) == 3
+    ends = []
+    for evening, morning in windows:
+        hours = (morning - evening).to_value("h")
+        assert 6.0 < hours < 14.0  # a Palomar night between the solstices
+        inside = evening + TimeDelta(np.linspace(0, (morning - evening).to_value("s"), 50), format="sec")
+        assert (sun_alt(inside) <= CFG.sun_alt_max_deg + 0.01).all()
+        outside = Time([evening - TimeDelta(2 * NIGHT_GRID_S, format="sec"),
+                        morning + TimeDelta(2 * NIGHT_GRID_S, format="sec")])
+        assert (sun_alt(outside) > CFG.sun_alt_max_deg).all()  # the twilights to within the grid
+        ends.append((evening, morning))
+    for (_, m1), (e2, _) in zip(ends, ends[1:]):
+        assert 8.0 < (e2 - m1).to_value("h") < 18.0  # one day between, no night skipped
+
+
+def test_a_night_under_way_starts_at_the_start_and_a_darker_sun_limit_shortens_the_night():
+    start = Time("2022-07-23T08:00:00", scale="utc")
+    (evening, morning), = night_windows(start, CFG, 1)
+    assert 0 <= (evening - start).to_value("s") < NIGHT_GRID_S
+    (e18, m18), = night_windows(start - TimeDelta(6 * 3600, format="sec"),
+                                dataclasses.replace(CFG, sun_alt_max_deg=-18.0), 1)
+    (e12, m12), = night_windows(start - TimeDelta(6 * 3600, format="sec"), CFG, 1)
+    assert e18 > e12 and m18 < m12
+
+
+@pytest.fixture(scope="module")
+def two_nights(skymap_220722v):
+    return plan_nights(skymap_220722v, CFG)
+
+
+def test_each_night_has_its_own_plan_within_its_twilights(two_nights, skymap_220722v):
+    windows = night_windows(skymap_220722v.event_time, CFG, 2)
+    assert len(two_nights) == 2
+    for plan, (evening, morning) in zip(two_nights, windows):
+        assert abs((plan.start - evening).to_value("s")) < 1e-3 and abs((plan.end - morning).to_value("s")) < 1e-3
+        horizon = (plan.end - plan.start).to_value("s")
+        assert all(0 <= o.start and o.end <= horizon + 1e-6 for o in plan.observations)
+        assert plan.config["horizon_h"] == pytest.approx(horizon / 3600.0)
+    assert two_nights[0].plan_id != two_nights[1].plan_id
+
+
+def test_the_second_night_is_planned_on_what_the_first_achieved(two_nights, skymap_220722v):
+    first, second = two_nights
+    assert first.observations  # this map is observable on the first night
+    before = as_planned(first)
+    night2_cfg = PlanningConfig.from_mapping(second.config)
+    report = check_plan(second, skymap_220722v, night2_cfg, executed=before)
+    assert report.ok, report.problems
+    pairs = done_pairs(before, CFG.filters, cadence_s=CFG.cadence_s)
+    assert set(pairs.both) == set(first.field_ids)
+    assert not set(second.field_ids) & set(first.field_ids)  # (N3) no field of night 1 again
+    assert second.metrics.coverage_executed == pytest.approx(first.metrics.coverage, abs=1e-5)
