@@ -43,7 +43,9 @@ class LoopConfig:
         How often (s) the source is read.
     max_slip_s : float
         A published plan whose first exposure not yet executed was planned more
-        than this (s) ago has slipped: the event is re-planned from now (L4).
+        than this (s) ago has slipped: the event is re-planned from now (L4).  Keep it above the
+        source's reporting delay (exposures reach the depot and SkyPortal once
+        reduced), or a plan reported late looks slipped.
     timeout_s : float
         One HTTP request (s) of a URL source before the poll counts as failed
         (the next poll tries again).
