@@ -27,6 +27,7 @@ FAST = '[scheduler]\nsolver = "greedy"\nnside = 64\ntime_step_s = 600.0\n'
 
 
 def sections() -> dict[str, type]:
+    from mushrooms.daemon.loop_settings import LoopConfig
     from mushrooms.daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
     from mushrooms.evaluation.bench.settings import BenchConfig
     from mushrooms.handlers.policy import PolicyConfig
@@ -35,7 +36,7 @@ def sections() -> dict[str, type]:
 
     return {"scheduler": PlanningConfig, "scheduler.slew": SlewModel, "policy": PolicyConfig,
             "daemon": DaemonConfig, "kafka": KafkaConfig, "outbound": OutboundConfig, "export": ExportConfig,
-            "bench": BenchConfig}
+            "loop": LoopConfig, "bench": BenchConfig}
 
 
 def _numeric(hint) -> bool:

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
-__all__ = ["Credentials", "CredentialsError", "load_credentials", "load_outbound_password", "load_submit_token"]
+__all__ = ["Credentials", "CredentialsError", "load_credentials", "load_outbound_password", "load_submit_token",
+           "load_executed_token"]
 
 
 class CredentialsError(ValueError):
@@ -154,3 +155,27 @@ def load_submit_token(environ: Mapping[str, str] | None = None) -> tuple[str, st
     return _secret("submit_token", "MUSHROOMS_SUBMIT_TOKEN",
                    "submission token not found: set MUSHROOMS_SUBMIT_TOKEN or the systemd credential submit_token "
                    "(or set [submit] target = \"none\" or dry_run = true)", environ)
+
+
+def load_executed_token(environ: Mapping[str, str] | None = None) -> tuple[str, str]:
+    """Find the token of a URL source of executed observations (``[loop] executed_source``).
+
+    First match wins: the systemd credential ``executed_token``
+    (``$CREDENTIALS_DIRECTORY/executed_token``), else ``$MUSHROOMS_EXECUTED_TOKEN``.
+    SkyPortal takes it as ``Authorization: token <token>``; ZTF's depot as HTTP
+    basic auth, the token being ``USER:PASSWORD``.  Never from ``config.toml``;
+    the value is never logged nor stored.
+
+    Returns
+    -------
+    token, source : str
+        The token and where it came from (for logs; never the value).
+
+    Raises
+    ------
+    CredentialsError
+        With a one-line hint when it is missing.
+    """
+    return _secret("executed_token", "MUSHROOMS_EXECUTED_TOKEN",
+                   "executed-observations token not found: set MUSHROOMS_EXECUTED_TOKEN or the systemd credential "
+                   "executed_token (or use a file: or depot:DIR source in [loop] executed_source)", environ)

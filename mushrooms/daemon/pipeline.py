@@ -119,6 +119,11 @@ class NoticePipeline:
     on_outbox : callable, optional
         Called (instead of publishing in the planning thread) whenever a
         message was queued in the outbox: the daemon's outbox drain.
+    loop : LoopConfig, optional
+        ``[loop]``: the done rule of re-plan jobs (default the built-in section).
+    replanner : callable, optional
+        What plans the rest of a re-plan job (default
+        :func:`mushrooms.scheduler_core.replan.plan_remaining`).
 
     See Also
     --------
@@ -127,12 +132,15 @@ class NoticePipeline:
 
     def __init__(self, policy: PolicyConfig, planning: Any, store: Store, sink: Sink, *,
                  daemon: DaemonConfig | None = None, planner: Planner | None = None,
-                 sky_cache: Any = None, on_outbox: Callable[[], None] | None = None):
+                 sky_cache: Any = None, on_outbox: Callable[[], None] | None = None, loop: Any = None,
+                 replanner: Callable[..., Any] | None = None):
+        from .loop_settings import LoopConfig
         from .planning import JobPlanner
 
         self.policy = policy
         self.planning = planning
         self.daemon = daemon if daemon is not None else DaemonConfig()
+        self.loop = loop if loop is not None else LoopConfig()
         self.store = store
         self.sink = sink
         if planner is None:
@@ -141,11 +149,12 @@ class NoticePipeline:
         self._flush_lock = getattr(store, "publish_lock", None) or threading.Lock()
         self.intake = Intake(policy, store)
         self.planner = JobPlanner(policy, planning, self.daemon.supersede_min_gain, store, planner, sky_cache,
-                                  self._hand_over)
+                                  self._hand_over, self.loop, replanner)
 
     @classmethod
     def from_config(cls, config: Any, store: Store, sink: Sink, **kw: Any) -> "NoticePipeline":
-        """A pipeline on ``config.policy``, ``config.scheduler`` and ``config.daemon`` (a whole Config)."""
+        """A pipeline on ``config.policy``, ``config.scheduler``, ``config.daemon`` and ``config.loop`` (a whole Config)."""
+        kw.setdefault("loop", getattr(config, "loop", None))
         return cls(config.policy, config.scheduler, store, sink, daemon=config.daemon, **kw)
 
     # ------------------------------------------------------------ intake
@@ -175,6 +184,40 @@ class NoticePipeline:
     def force_plan(self, raw: bytes, origin: str, received_at: datetime | None = None) -> Accepted:
         """Plan a notice past the policy and the duplicate check (:meth:`.intake.Intake.force_plan`)."""
         return self.intake.force_plan(raw, origin, received_at)
+
+    def replan_closure(self, superevent_id: str, closed_until: str, origin: str,
+                       now: datetime | None = None) -> Accepted:
+        """The telescope is closed until ``closed_until``: re-plan the event from the reopening (L6).
+
+        ``mushrooms trigger SUPEREVENT --closed-until TIME``.  The re-plan starts
+        at ``max(closed_until, now)`` (``now`` default the wall clock) with what
+        was executed counted as done; an open job of the event is superseded.
+
+        Returns
+        -------
+        Accepted
+            ``replan`` with its job, or ``rejected`` (no current plan, a bad time).
+        """
+        from ..handlers.instants import parse_instant
+        from .intake import aware
+        from .replans import record_replan
+
+        sid = superevent_id.strip()
+        until = parse_instant(closed_until)
+        if until is None:
+            why = f"--closed-until {closed_until!r}: not an ISO-8601 UTC time (2026-05-01T03:00:00Z)"
+            log.warning("replan superevent_id=%s origin=%s decision=rejected reason=%r", sid or "-", origin, why)
+            return Accepted("rejected", EventRef(sid or None), why)
+        start = max(aware(until), aware(now))  # (L6)
+        return record_replan(self.store, sid, iso_z(start), f"telescope closed until {iso_z(aware(until))} "
+                             f"(operator); re-planned from {iso_z(start)}", origin, operator=True)
+
+    def replan_event(self, superevent_id: str, start: datetime, reason: str, origin: str) -> Accepted:
+        """Record the loop's re-plan of an event from ``start`` (the slip rule said so; guards L8)."""
+        from .intake import aware
+        from .replans import record_replan
+
+        return record_replan(self.store, superevent_id, iso_z(aware(start)), reason, origin)
 
     # ------------------------------------------------------------ jobs
     def run_job(self, job: Job, should_stop: Callable[[], bool] | None = None,

@@ -87,10 +87,21 @@ class JobPlanner:
         The daemon's warm grids (:mod:`.warm`).
     hand_over : callable
         ``hand_over(outbox_id) -> published``: have a queued message published.
+    loop : LoopConfig, optional
+        ``[loop]``: the done rule of a re-plan job (``min_processed_fraction``).
+    replanner : callable, optional
+        ``plan_remaining``-compatible ``(skymap, config, start, executed, *, event,
+        min_processed_fraction, should_stop) -> Plan`` for re-plan jobs (default
+        :func:`mushrooms.scheduler_core.replan.plan_remaining`).
     """
 
     def __init__(self, policy: PolicyConfig, planning: Any, supersede_min_gain: float, store: Store,
-                 scheduler: Callable[..., Any], sky_cache: Any, hand_over: Callable[[int], bool]):
+                 scheduler: Callable[..., Any], sky_cache: Any, hand_over: Callable[[int], bool],
+                 loop: Any = None, replanner: Callable[..., Any] | None = None):
+        from .loop_settings import LoopConfig
+
+        self.loop = loop if loop is not None else LoopConfig()
+        self._replanner = replanner
         self.policy = policy
         self.planning = planning
         self.gain = supersede_min_gain
@@ -98,6 +109,15 @@ class JobPlanner:
         self.scheduler = scheduler
         self.cache = sky_cache
         self.hand_over = hand_over
+
+    @property
+    def replanner(self) -> Callable[..., Any]:
+        """What plans the rest of a re-plan job (``plan_remaining`` unless one was given)."""
+        if self._replanner is None:
+            from ..scheduler_core.replan import plan_remaining
+
+            self._replanner = plan_remaining
+        return self._replanner
 
     # ------------------------------------------------------------ the job
     def run_job(self, job: Job, should_stop: StopCheck | None = None, staged: bool = False) -> Any:
@@ -113,6 +133,14 @@ class JobPlanner:
                      reason)
             return Outcome(decision, job.ref, reason)
         try:
+            if started.decision == "replan":  # the loop's re-plan: one stage (.replanning)
+                from .replanning import run_replan
+
+                def stage(name: str) -> None:
+                    if self._cancelled(started, should_stop):
+                        raise _Cancelled(name)
+
+                return run_replan(self, started, stage, should_stop)
             work = self._first_stage(started, should_stop)
         except _Cancelled as exc:
             return self._dropped(started, f"stopped before {exc}")
@@ -287,6 +315,10 @@ class JobPlanner:
         return self._close_with_first(work, why)
 
     # ------------------------------------------------------------ store + outbox
+    def publish_final(self, job: Job, skymap: Any, event: Any, plan: Any, revision: int) -> Outcome:
+        """Store ``plan`` as the job's final revision ``revision`` (a re-plan's one stage) and have it published."""
+        return self._publish_revision(_Work(job, skymap, None, event, plan), plan, revision, True)
+
     def _publish_revision(self, work: _Work, plan: Any, revision: int, final: bool) -> Outcome:
         """Store one revision (and queue it), then have it published."""
         job = work.job

@@ -14,6 +14,7 @@ if TYPE_CHECKING:
     from ..handlers.policy import PolicyConfig
     from ..scheduler_core.config import PlanningConfig
     from ..scheduler_core.plan.exports import ExportConfig
+    from .loop_settings import LoopConfig
     from .settings import DaemonConfig, KafkaConfig, OutboundConfig
     from .submit_settings import SubmitConfig
 
@@ -25,8 +26,8 @@ class ServiceConfig(Protocol):
 
     Attributes
     ----------
-    scheduler, policy, daemon, kafka, outbound, export, submit
-        The ``[scheduler]`` ... ``[submit]`` tables, each its layer's own type.
+    scheduler, policy, daemon, kafka, outbound, export, submit, loop
+        The ``[scheduler]`` ... ``[loop]`` tables, each its layer's own type.
     source : str
         Where it was read from (for the logs).
     """
@@ -51,6 +52,9 @@ class ServiceConfig(Protocol):
 
     @property
     def submit(self) -> SubmitConfig: ...
+
+    @property
+    def loop(self) -> LoopConfig: ...
 
     @property
     def source(self) -> str: ...

@@ -157,6 +157,7 @@ class Service:
 
             submit_token, source = load_submit_token()  # fail fast too; the value is never logged
             log.info("event=submit_token source=%s", source)
+        executed_token = self._executed_token()  # fail fast too, before touching any state
         lock = PidLock(self.paths.pid_file)
         try:
             lock.acquire()
@@ -220,6 +221,7 @@ class Service:
                                            instance_id=self._instance_id(self.config))
             scheduler.add_job(self._heartbeat, "interval", seconds=self.config.daemon.heartbeat_s,
                               id="heartbeat", misfire_grace_time=None, coalesce=True)
+            self._start_loop(executed_token)
             wd = watchdog_interval_s()
             if wd:
                 scheduler.add_job(self._watchdog, "interval", seconds=wd, id="watchdog",
@@ -413,6 +415,49 @@ class Service:
     def _job_done(self, job: Any, outcome: Any, info: dict[str, Any]) -> None:
         self._counts["jobs"] += 1
         self.metrics.job_finished(outcome, info)
+
+    # ------------------------------------------------------------ the loop ([loop], docs/design/executed.md)
+    def _executed_token(self) -> str | None:
+        """The token of a URL source of executed observations (None: no loop, or a file/directory source)."""
+        loop = getattr(self.config, "loop", None)
+        if loop is None or not loop.enabled or not str(loop.source.location).startswith(("http://", "https://")):
+            return None
+        from .credentials import load_executed_token
+
+        token, source = load_executed_token()  # the value is never logged
+        log.info("event=executed_token source=%s", source)
+        return token
+
+    def _start_loop(self, token: str | None) -> None:
+        """With ``[loop] executed_source`` set: poll it every ``poll_interval_s`` on the timer thread (and now)."""
+        loop = getattr(self.config, "loop", None)
+        if loop is None or not loop.enabled:
+            return
+        from .loop import ExecutedLoop
+
+        self.executed_loop = ExecutedLoop(loop, self.pipeline, token)
+        self.scheduler.add_job(self._poll_executed, "interval", seconds=loop.poll_interval_s, id="executed",
+                               next_run_time=datetime.now(timezone.utc), misfire_grace_time=None, coalesce=True,
+                               max_instances=1)
+        log.info("event=executed_loop source=%s poll_interval_s=%g max_slip_s=%g min_processed_fraction=%g",
+                 self.executed_loop.reader.describe(), loop.poll_interval_s, loop.max_slip_s,
+                 loop.min_processed_fraction)
+
+    def _poll_executed(self) -> None:
+        """One poll: read and store what was executed, start the re-plans it calls for (never raises)."""
+        if self._closing.is_set() or self._stop.is_set():
+            return
+        try:
+            self.executed_loop.pipeline = self.pipeline  # a SIGHUP builds a new pipeline on the same store
+            poll = self.executed_loop.poll()
+        except Exception:
+            log.exception("event=executed_poll_failed")
+            return
+        if poll.error is None and poll.stored is not None:
+            self.metrics.observations_read()
+        for accepted in poll.jobs:
+            self.metrics.notice(accepted, source="loop")
+            self._start_jobs(accepted, time.time())
 
     # ------------------------------------------------------------ observability
     def _observe(self) -> None:
@@ -610,8 +655,11 @@ class Service:
             new = dataclasses.replace(new, daemon=dataclasses.replace(new.daemon, state_path=str(self.paths.state)))
         from .pipeline import NoticePipeline
 
-        self.pipeline = NoticePipeline(new.policy, new.scheduler, self.pipeline.store, sink, daemon=new.daemon, sky_cache=self.sky_cache,
-                                       on_outbox=self._queued)
+        self.pipeline = NoticePipeline(new.policy, new.scheduler, self.pipeline.store, sink, daemon=new.daemon,
+                                       sky_cache=self.sky_cache, on_outbox=self._queued,
+                                       loop=getattr(new, "loop", None))
+        if getattr(new, "loop", None) != getattr(self.config, "loop", None):
+            log.warning("event=reload_partial reason='[loop] source and poll interval change at the next start'")
         if new.submit != self.config.submit:
             log.warning("event=reload_partial reason='[submit] changes apply at the next start'")
         self._observe()

@@ -25,6 +25,8 @@ Tables
               and marking re-publishes the same message (same key).
 ``incidents`` what an operator must hear of besides notices (the consumer's
               offset jumps); created when missing at every open.
+``executed``  exposures the telescope took, as ``[loop] executed_source``
+              reported them: one row per exposure (:mod:`.executed_table`).
 
 Crash safety: every state change that belongs together happens in one
 ``BEGIN IMMEDIATE`` transaction (accept = notice + decision + event + job or
@@ -69,6 +71,7 @@ from ..handlers.instants import now_iso_z
 from ..handlers.text import storable
 from ..scheduler_core.plan import strict_json
 from ..scheduler_core.plan.messages import plan_final_message
+from .executed_table import EXECUTED_TABLE
 from .outcomes import EventRef
 
 __all__ = ["Store", "StoreError", "StateInUse", "StateLock", "lock_state", "Job", "OutboxMessage", "NoticeRecord",
@@ -76,7 +79,7 @@ __all__ = ["Store", "StoreError", "StateInUse", "StateLock", "lock_state", "Job"
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 
 #: Plans submitted to ZTF's queue (Kowalski or SkyPortal): one row per plan id (:mod:`.submissions`).
 _SUBMISSIONS = """
@@ -193,6 +196,7 @@ _UPGRADES: tuple[tuple[int, str | tuple[str, str, str]], ...] = (
         " kind TEXT NOT NULL, detail TEXT NOT NULL, created_at TEXT NOT NULL)"),
     (3, _SUBMISSIONS),  # plans submitted to ZTF's queue (issue 27, :mod:`.submissions`)
     (4, ("events", "latest_created", "TEXT")),  # creation order of notices (issue 25)
+    (5, EXECUTED_TABLE),  # exposures the telescope took ([loop], issue 28, :mod:`.executed_table`)
 )
 
 _OPEN = ("pending", "running")

@@ -7,8 +7,10 @@ and plans it.  Without a daemon the command does the job itself, with the
 same store and a directory sink.
 
 Trigger files: ``<time>-<pid>-<kind>.<ext>`` where kind is ``notice``
-(the notice bytes), ``skymap`` (the FITS bytes) or ``superevent`` (the id,
-UTF-8).  The daemon deletes a file only after its outcome is stored.
+(the notice bytes), ``skymap`` (the FITS bytes), ``superevent`` (the id,
+UTF-8) or ``closure`` (``mushrooms trigger SUPEREVENT --closed-until TIME``:
+``{"superevent_id": ..., "closed_until": ...}``, JSON; the event is re-planned
+from the reopening, :meth:`~.pipeline.NoticePipeline.replan_closure`).  The daemon deletes a file only after its outcome is stored.
 
 The answer is truthful: the daemon writes the outcome next to the trigger
 (``.<name>.result``, JSON: the decision, its reason and, for a planning job,
@@ -43,13 +45,13 @@ from .settings import RuntimePaths
 
 __all__ = [
     "run_trigger", "PidLock", "daemon_pid", "classify", "write_trigger", "pending_triggers",
-    "read_trigger", "dispatch", "DaemonRunning",
+    "read_trigger", "dispatch", "DaemonRunning", "closure_payload", "closure_of",
 ]
 
 log = logging.getLogger(__name__)
 
 SUPEREVENT_RE = re.compile(r"^[MTS][A-Z]?\d{6}[a-z]{1,3}$")
-KINDS = {"notice": "json", "skymap": "fits", "superevent": "txt"}
+KINDS = {"notice": "json", "skymap": "fits", "superevent": "txt", "closure": "json"}
 #: How long (s) ``mushrooms trigger`` waits for the daemon's answer (the decision and the job's first plan).
 RESULT_WAIT_S = 180.0
 #: Largest trigger file read (bytes): a sky map is at most 4 x the 8 MiB notice limit.
@@ -300,7 +302,37 @@ def dispatch(pipeline: Any, kind: str, payload: bytes, origin: str) -> Any:
         return pipeline.accept_skymap(payload, origin)
     if kind == "superevent":
         return pipeline.rerun_superevent(payload.decode().strip(), origin)
+    if kind == "closure":
+        sid, until = closure_of(payload)
+        return pipeline.replan_closure(sid, until, origin)
     raise InputError(f"unknown trigger kind {kind!r}")
+
+
+def closure_payload(superevent_id: str, closed_until: str) -> bytes:
+    """The payload of a ``closure`` trigger (``--closed-until``): JSON of the event and the reopening (ISO UTC)."""
+    import json
+
+    return json.dumps({"superevent_id": superevent_id, "closed_until": closed_until}).encode()
+
+
+def closure_of(payload: bytes) -> tuple[str, str]:
+    """The superevent and the reopening of a ``closure`` trigger's payload.
+
+    Raises
+    ------
+    InputError
+        Not the JSON :func:`closure_payload` writes.
+    """
+    import json
+
+    try:
+        doc = json.loads(payload)
+        sid, until = doc["superevent_id"], doc["closed_until"]
+    except (ValueError, KeyError, TypeError):
+        raise InputError("a closure trigger is {\"superevent_id\": ..., \"closed_until\": ...}") from None
+    if not isinstance(sid, str) or not isinstance(until, str):
+        raise InputError("a closure trigger's superevent_id and closed_until are strings")
+    return sid, until
 
 
 def run_trigger(target: str, kind: str, payload: bytes, config: ServiceConfig, paths: RuntimePaths,
@@ -394,6 +426,8 @@ def _superevent_of(kind: str, payload: bytes) -> str | None:
     """The superevent a trigger concerns (None for a bare sky map or an unreadable notice)."""
     if kind == "superevent":
         return payload.decode().strip()
+    if kind == "closure":
+        return closure_of(payload)[0]
     if kind == "notice":
         from ..handlers.alert import NoticeError, parse_notice
 

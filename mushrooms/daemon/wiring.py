@@ -64,6 +64,7 @@ def open_pipeline(config: ServiceConfig, paths: RuntimePaths, sink: Any = None, 
     store = open_store(paths.state, config.daemon.group_readable)
     own_sink = sink is None
     sink = make_sink(config.outbound) if own_sink else sink
+    pipeline_kw.setdefault("loop", getattr(config, "loop", None))
     pipeline = NoticePipeline(config.policy, config.scheduler, store, sink, daemon=config.daemon, **pipeline_kw)
 
     def close() -> None:

@@ -5,6 +5,7 @@ Sections: ``[scheduler]`` (:class:`~mushrooms.scheduler_core.PlanningConfig`),
 ``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`),
 ``[export]`` (:class:`~mushrooms.scheduler_core.plan.exports.ExportConfig`),
 ``[submit]`` (:class:`~mushrooms.daemon.submit_settings.SubmitConfig`),
+``[loop]`` (:class:`~mushrooms.daemon.loop_settings.LoopConfig`),
 ``[bench]`` (:class:`~mushrooms.evaluation.bench.settings.BenchConfig`:
 ``mushrooms bench`` and ``mushrooms study``).
 Secrets never come from here: see the README.
@@ -24,6 +25,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ..daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
+from ..daemon.loop_settings import LoopConfig
 from ..daemon.submit_settings import SubmitConfig
 from ..evaluation.bench.settings import BenchConfig
 from ..handlers.policy import PolicyConfig
@@ -56,6 +58,7 @@ class Config:
     export: ExportConfig = field(default_factory=ExportConfig)
     submit: SubmitConfig = field(default_factory=SubmitConfig)
     bench: BenchConfig = field(default_factory=BenchConfig)
+    loop: LoopConfig = field(default_factory=LoopConfig)
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], source: str = "<mapping>") -> "Config":
@@ -69,6 +72,7 @@ class Config:
             "export": ExportConfig,
             "submit": SubmitConfig,
             "bench": BenchConfig,
+            "loop": LoopConfig,
         }
         unknown = sorted(set(data) - set(sections))
         if unknown:

@@ -1,4 +1,9 @@
-"""``mushrooms trigger NOTICE.json|SKYMAP.fits|SUPEREVENT_ID``: hand work to the service, or do it here (:mod:`mushrooms.daemon.trigger`)."""
+"""``mushrooms trigger NOTICE.json|SKYMAP.fits|SUPEREVENT_ID [--closed-until TIME]``: hand work to the service, or do it here (:mod:`mushrooms.daemon.trigger`).
+
+``SUPEREVENT --closed-until TIME``: the telescope is closed until TIME; the
+event is re-planned from the reopening, what was executed counted as done
+(``docs/design/executed.md`` L6).
+"""
 
 from __future__ import annotations
 
@@ -20,6 +25,9 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--state", metavar="FILE", help="SQLite state file (overrides config)")
     p.add_argument("--outbox", metavar="DIR", help="directory sink when no daemon runs")
     p.add_argument("--allow-mock", action="store_true", help="accept mock (MS) and test (TS) events")
+    p.add_argument("--closed-until", metavar="TIME",
+                   help="with SUPEREVENT_ID: the telescope is closed until TIME (ISO-8601 UTC); re-plan the event "
+                        "from the reopening, what was executed counting as done ([loop], docs/design/executed.md)")
     p.add_argument("--force", action="store_true",
                    help="plan even when the policy would not (old, insignificant, duplicate, retracted); "
                         "logged with the policy's reason; needs no daemon running")
@@ -40,12 +48,24 @@ def run(args: argparse.Namespace) -> int:
     to :func:`~mushrooms.daemon.trigger.run_trigger`.
     """
     from ..daemon.settings import resolve_paths
-    from ..daemon.trigger import classify, run_trigger
+    from ..daemon.trigger import classify, closure_payload, run_trigger
     from ..offline import configure_astropy_offline
+    from ..scheduler_core.errors import InputError
     from .overrides import effective_config
 
     configure_astropy_offline()
     kind, payload = classify(args.target)
+    closed_until = getattr(args, "closed_until", None)
+    if closed_until is not None:
+        from ..scheduler_core.plan.document import iso_utc
+        from ..scheduler_core.times import parse_time
+
+        if kind != "superevent":
+            raise InputError(f"--closed-until takes a superevent id (like S250101ab), not a {kind} file")
+        if getattr(args, "force", False):
+            raise InputError("--closed-until re-plans a planned event; it does not combine with --force")
+        kind, payload = "closure", closure_payload(payload.decode(), iso_utc(parse_time(closed_until,
+                                                                                          "--closed-until")))
     config = effective_config(args)
     return run_trigger(args.target, kind, payload, config, resolve_paths(config.daemon),
                        force=bool(getattr(args, "force", False)))

@@ -65,13 +65,14 @@ def test_a_bare_sky_map_whose_planning_failed_can_be_triggered_again(tmp_path: P
 OLDER = {
     0: ("ALTER TABLE events DROP COLUMN localization", "ALTER TABLE events DROP COLUMN latest_created",
         "DROP TABLE submissions", "DROP TABLE incidents", "ALTER TABLE plans DROP COLUMN revision",
-        "ALTER TABLE plans DROP COLUMN final"),
+        "ALTER TABLE plans DROP COLUMN final", "DROP TABLE executed"),
     1: ("ALTER TABLE events DROP COLUMN localization", "ALTER TABLE events DROP COLUMN latest_created",
         "DROP TABLE submissions", "DROP TABLE incidents", "ALTER TABLE plans DROP COLUMN revision",
-        "ALTER TABLE plans DROP COLUMN final"),
-    2: ("ALTER TABLE events DROP COLUMN latest_created", "DROP TABLE submissions", "DROP TABLE incidents"),
-    3: ("ALTER TABLE events DROP COLUMN latest_created", "DROP TABLE incidents"),
-    4: ("DROP TABLE incidents",),
+        "ALTER TABLE plans DROP COLUMN final", "DROP TABLE executed"),
+    2: ("ALTER TABLE events DROP COLUMN latest_created", "DROP TABLE submissions", "DROP TABLE incidents",
+        "DROP TABLE executed"),
+    3: ("ALTER TABLE events DROP COLUMN latest_created", "DROP TABLE incidents", "DROP TABLE executed"),
+    4: ("DROP TABLE incidents", "DROP TABLE executed"),
 }
 
 
@@ -84,7 +85,7 @@ def test_a_state_file_of_each_older_schema_version_opens_with_its_rows(tmp_path:
     path = tmp_path / f"v{version}.sqlite"
     Store(path).close()
     with sqlite3.connect(path) as c:
-        want = {t: _columns(c, t) for t in ("events", "plans", "submissions", "incidents")}
+        want = {t: _columns(c, t) for t in ("events", "plans", "submissions", "incidents", "executed")}
         for sql in OLDER[version]:
             c.execute(sql)
         c.execute("INSERT INTO events(superevent_id, skymap_sha256, retracted, updated_at)"

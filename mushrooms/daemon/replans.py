@@ -1,0 +1,144 @@
+"""Re-plan jobs of the loop, in the store (``docs/design/executed.md`` L7, L8).
+
+A re-plan is a planning job like any other (the ``jobs`` table, run by the
+:class:`~.jobs.JobRunner`'s workers, never on the consume loop) with the
+decision ``replan``: it plans the event's newest planned sky map again from
+``start`` (now, or the dome's reopening) with what was executed counted as
+done, and its plan supersedes the event's current plan as the event's next
+revision.  It is recorded like an operator's rerun, in one transaction: a
+``notices`` row saying what asked for it (the loop's poll, or ``mushrooms
+trigger SUPEREVENT --closed-until``; no raw bytes), the job (on the notice
+whose sky map it re-plans) and a ``decisions`` row with the reason.
+
+(L8) Guards: an event is re-planned only when it has a current plan (not
+withdrawn, not retracted); the loop re-plans a current plan at most once and
+never while a job of the event is open (that job's plan supersedes the old
+one anyway); an operator's closure supersedes an open job instead.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import time
+from typing import Any
+
+from .outcomes import Accepted, EventRef
+from .store import Store, _job, _now
+
+__all__ = ["record_replan", "close_without_plan", "next_revision", "current_plan", "live_events", "replan_jobs"]
+
+log = logging.getLogger("mushrooms.daemon.loop")
+
+
+def current_plan(store: Store, superevent_id: str) -> dict[str, Any] | None:
+    """The event's newest plan not withdrawn: ``plan_id``, ``job_id``, ``revision``, ``document`` (parsed); or None."""
+    row = store._conn().execute(
+        "SELECT plan_id, job_id, revision, document FROM plans WHERE superevent_id=? AND withdrawn=0"
+        " ORDER BY seq DESC LIMIT 1", (superevent_id,)).fetchone()
+    return None if row is None else dict(row) | {"document": json.loads(row["document"])}
+
+
+def live_events(store: Store) -> list[str]:
+    """Superevents with a current plan and no retraction, in the order their plans were stored."""
+    rows = store._conn().execute(
+        "SELECT p.superevent_id, MAX(p.seq) AS last FROM plans p JOIN events e USING(superevent_id)"
+        " WHERE p.withdrawn=0 AND e.retracted=0 GROUP BY p.superevent_id ORDER BY last").fetchall()
+    return [str(r[0]) for r in rows]
+
+
+def next_revision(store: Store, superevent_id: str) -> int:
+    """The revision number of the event's next plan: one more than any it stored."""
+    row = store._conn().execute("SELECT COALESCE(MAX(revision), 0) + 1 FROM plans WHERE superevent_id=?",
+                                (superevent_id,)).fetchone()
+    return int(row[0])
+
+
+def record_replan(store: Store, superevent_id: str, start: str, reason: str, origin: str,
+                  operator: bool = False) -> Accepted:
+    """Record a re-plan job of an event from ``start``, atomically (guards L8).
+
+    Parameters
+    ----------
+    store : Store
+    superevent_id : str
+    start : str
+        The new horizon start (ISO-8601 UTC).
+    reason : str
+        Why (the slip rule's reason, or the operator's closure).
+    origin : str
+        What asked (``loop:poll``, ``trigger:<file>``).
+    operator : bool
+        An operator's request: an open job of the event is superseded
+        instead of blocking, and an already re-planned plan is re-planned again.
+
+    Returns
+    -------
+    Accepted
+        ``replan`` with the job; ``ignore`` when a guard holds (an open job,
+        already re-planned); ``rejected`` when the event has no current plan.
+    """
+    sid = superevent_id.strip()
+    ref = EventRef(sid or None)
+    with store._tx() as c:
+        plan = c.execute("SELECT p.plan_id, p.job_id FROM plans p JOIN events e USING(superevent_id)"
+                         " WHERE p.superevent_id=? AND p.withdrawn=0 AND e.retracted=0 ORDER BY p.seq DESC LIMIT 1",
+                         (sid,)).fetchone()
+        source = None if plan is None or plan["job_id"] is None else c.execute(
+            "SELECT * FROM jobs WHERE job_id=?", (plan["job_id"],)).fetchone()
+        if source is None:
+            why = f"no current plan of {sid!r} to re-plan (never planned, withdrawn or retracted)"
+            log.warning("replan superevent_id=%s origin=%s decision=rejected reason=%r", sid or "-", origin, why)
+            return Accepted("rejected", ref, why)
+        ref = EventRef(sid, source["alert_type"])
+        open_jobs = [int(r[0]) for r in c.execute(
+            "SELECT job_id FROM jobs WHERE superevent_id=? AND status IN ('pending','running')", (sid,))]
+        why = None
+        if open_jobs and not operator:
+            why = f"job {open_jobs[-1]} of the event is open; its plan will supersede {plan['plan_id']}"
+        elif not operator and c.execute("SELECT 1 FROM jobs WHERE decision='replan' AND supersedes=?",
+                                        (plan["plan_id"],)).fetchone():
+            why = f"plan {plan['plan_id']} was re-planned already"
+        if why is not None:
+            log.info("replan superevent_id=%s origin=%s decision=ignore reason=%r", sid, origin, why)
+            return Accepted("ignore", ref, why)
+        now = _now()
+        if open_jobs:
+            c.execute("UPDATE jobs SET status='superseded', reason='operator closure', finished_at=?"
+                      " WHERE superevent_id=? AND status IN ('pending','running')", (now, sid))
+        asked = f"replan {sid} from {start}: {reason}"
+        nid = int(c.execute(
+            "INSERT INTO notices(received_at, origin, sha256, size, superevent_id, alert_type, time_created, raw)"
+            " VALUES (?,?,?,?,?,?,?,NULL)", (now, origin[:500], hashlib.sha256(asked.encode()).hexdigest(), 0, sid,
+                                             source["alert_type"], source["time_created"])).lastrowid)
+        cur = c.execute(
+            "INSERT INTO jobs(notice_id, superevent_id, alert_type, time_created, skymap_sha256, decision, start,"
+            " supersedes, received_wall, status, created_at) VALUES (?,?,?,?,?,?,?,?,?,?,?)",
+            (source["notice_id"], sid, source["alert_type"], source["time_created"], source["skymap_sha256"],
+             "replan", start, plan["plan_id"], time.time(), "pending", now))
+        job = _job(c.execute("SELECT * FROM jobs WHERE job_id=?", (cur.lastrowid,)).fetchone())
+        c.execute("INSERT INTO decisions(notice_id, superevent_id, alert_type, decision, reason, job_id, created_at)"
+                  " VALUES (?,?,?,?,?,?,?)", (nid, sid, source["alert_type"], "replan", reason[:2000], job.job_id,
+                                              now))
+    log.info("replan superevent_id=%s origin=%s job=%d start=%s supersedes=%s reason=%r%s", sid, origin, job.job_id,
+             start, plan["plan_id"], reason, f" cancelled_jobs={','.join(map(str, open_jobs))}" if open_jobs else "")
+    return Accepted("replan", EventRef(sid, source["alert_type"], nid, job.job_id), reason, job, tuple(open_jobs))
+
+
+def close_without_plan(store: Store, job_id: int, reason: str) -> bool:
+    """Close a running re-plan job that found nothing left to observe (the current plan stays); False if not running."""
+    with store._tx() as c:
+        done = c.execute("UPDATE jobs SET status='done', reason=?, finished_at=? WHERE job_id=? AND status='running'",
+                         (reason[:500], _now(), job_id)).rowcount
+        store._started.discard(job_id)
+        store._parked.discard(job_id)
+    return bool(done)
+
+
+def replan_jobs(store: Store, superevent_id: str) -> list[dict[str, Any]]:
+    """The event's re-plan jobs, oldest first (id, status, start, supersedes, plan_id, reason)."""
+    rows = store._conn().execute(
+        "SELECT job_id, status, start, supersedes, plan_id, reason FROM jobs WHERE superevent_id=?"
+        " AND decision='replan' ORDER BY job_id", (superevent_id,)).fetchall()
+    return [dict(r) for r in rows]

@@ -1,0 +1,60 @@
+"""A re-plan goes to ZTF's queue when ``[submit]`` is on: the existing Submitter replaces the event's queue.
+
+The notice is planned from now (wall clock: a queue's validity window must not
+have ended), the plan's first 10 exposures are executed, the telescope closes
+for 2 h, and the re-plan (the event's revision 2) is submitted to the Kowalski
+contract server on loopback as ``..._r2``, the first queue deleted only after.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from astropy.time import Time, TimeDelta
+
+from mushrooms.daemon.loop_settings import LoopConfig
+from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.submissions import queue_name, submissions
+from mushrooms.handlers.executed import write_jsonl
+from mushrooms.scheduler_core.executed import ExecutedExposure
+
+from contract_servers import KowalskiContract, loopback_server
+from test_submissions import TOKEN, World, _config
+
+SID = "MS181101ab"
+
+
+def test_a_closure_re_plan_replaces_the_events_queue(tmp_path):
+    server = loopback_server()
+    try:
+        kowalski = KowalskiContract(server, TOKEN)
+        executed = tmp_path / "executed.jsonl"
+        config = dataclasses.replace(_config(kowalski.url), loop=LoopConfig(executed_source=f"file:{executed}"))
+        world = World(tmp_path / "state.sqlite", config)
+        try:
+            assert isinstance(world.pipeline, NoticePipeline) and world.pipeline.loop.enabled
+            world.notice("MS181101ab-preliminary.json")
+            assert world.submitter.step() == 0
+            first = world.store.plans(SID)[-1]["document"]
+            obs = first["observations"]
+            write_jsonl([ExecutedExposure(o["field_id"], o["filter"], Time(o["start"].rstrip("Z"), scale="utc"),
+                                          o["exposure_s"], 1.0, "processed") for o in obs[:10]], executed)
+            reopening = Time(obs[9]["end"].rstrip("Z"), scale="utc") + TimeDelta(7200.0, format="sec")
+            acc = world.pipeline.replan_closure(SID, reopening.isot + "Z", "test:closure")
+            assert acc.action == "replan", acc
+            out = world.pipeline.run_job(acc.job)
+            assert out.decision == "replan" and out.revision == 2, out
+            assert world.submitter.step() == 0
+            r1, r2 = queue_name("GW", SID, 1), queue_name("GW", SID, 2)
+            assert list(kowalski.queues) == [r2]
+            assert kowalski.lines()[1:] == [f"PUT /api/triggers/ztf {r2} -> 200", f"DELETE /api/triggers/ztf {r1} -> 200"]
+            assert [(s.plan_id, s.state) for s in submissions(world.store) if s.state != "skipped"] == [
+                (first["plan_id"], "replaced"), (out.plan_id, "submitted")]
+            fields = {t["field_id"] for t in kowalski.queues[r2]["targets"]}
+            new = world.store.plans(SID)[-1]["document"]
+            assert fields == {o["field_id"] for o in new["observations"]}
+        finally:
+            world.store.close()
+    finally:
+        server.clear()
+        server.stop()
