@@ -32,10 +32,9 @@ import os
 import re
 import signal
 import stat
-import sys
 import time
 from pathlib import Path
-from typing import Any, IO
+from typing import Any, IO, Protocol
 
 from .. import inputs
 from ..scheduler_core.errors import InputError
@@ -44,7 +43,7 @@ from .sections import ServiceConfig
 from .settings import RuntimePaths
 
 __all__ = [
-    "run_trigger", "PidLock", "daemon_pid", "classify", "write_trigger", "pending_triggers",
+    "run_trigger", "TriggerConsole", "LogConsole", "PidLock", "daemon_pid", "classify", "write_trigger", "pending_triggers",
     "read_trigger", "dispatch", "DaemonRunning", "closure_payload", "closure_of",
 ]
 
@@ -335,8 +334,40 @@ def closure_of(payload: bytes) -> tuple[str, str]:
     return sid, until
 
 
+class TriggerConsole(Protocol):
+    """Where :func:`run_trigger` says what happened: the tool prints (``mushrooms trigger: ...``)."""
+
+    def result(self, text: str) -> None:
+        """The outcome (stdout)."""
+
+    def note(self, text: str) -> None:
+        """Where the work is done, what ``--force`` did (stderr)."""
+
+    def warning(self, text: str) -> None:
+        """Something the operator should know (stderr, ``warning:``)."""
+
+    def error(self, text: str) -> None:
+        """The trigger failed or was refused (stderr, ``error:``)."""
+
+
+class LogConsole:
+    """A :class:`TriggerConsole` for library callers: every message to this module's log."""
+
+    def result(self, text: str) -> None:
+        log.info("trigger: %s", text)
+
+    def note(self, text: str) -> None:
+        log.info("trigger: %s", text)
+
+    def warning(self, text: str) -> None:
+        log.warning("trigger: %s", text)
+
+    def error(self, text: str) -> None:
+        log.error("trigger: %s", text)
+
+
 def run_trigger(target: str, kind: str, payload: bytes, config: ServiceConfig, paths: RuntimePaths,
-                force: bool = False) -> int:
+                force: bool = False, console: TriggerConsole | None = None) -> int:
     """``mushrooms trigger``: hand work to the daemon, or do it here; the exit status.
 
     Parameters
@@ -352,8 +383,17 @@ def run_trigger(target: str, kind: str, payload: bytes, config: ServiceConfig, p
         file and trigger directory, the state file).
     force : bool
         ``--force``: plan even when the policy would not (needs no daemon running).
+    console : TriggerConsole, optional
+        Told the outcome and the notes on the way (default: :class:`LogConsole`).
+
+    Returns
+    -------
+    int
+        0 done or handed over, 1 a job failed, 2 refused.
     """
     from .wiring import open_pipeline
+
+    console = console or LogConsole()
 
     pid = daemon_pid(paths.pid_file)
     if pid is not None and force:
@@ -370,34 +410,33 @@ def run_trigger(target: str, kind: str, payload: bytes, config: ServiceConfig, p
             result = read_result(written, RESULT_WAIT_S)
             if result is None:
                 left = written.exists()
-                print(f"mushrooms trigger: {kind} {target} handed to the daemon (pid {pid}): "
-                      + ("queued (the daemon will take it at its next scan)" if left else
-                         "taken; no answer yet (see the daemon's log)"))
+                console.result(f"{kind} {target} handed to the daemon (pid {pid}): "
+                               + ("queued (the daemon will take it at its next scan)" if left else
+                                  "taken; no answer yet (see the daemon's log)"))
                 return 0
             decision, reason = result.get("decision", "?"), result.get("reason", "")
             plan = f"; plan {result['plan_id']}" if result.get("plan_id") else ""
             status = {"rejected": 2, "failed": 1}.get(str(decision), 0)
             text = f"{kind} {target} handed to the daemon (pid {pid}): {decision} ({reason}){plan}"
             if status:
-                print(f"mushrooms trigger: error: {text}", file=sys.stderr)
+                console.error(text)
             else:
-                print(f"mushrooms trigger: {text}")
+                console.result(text)
             return status
     # no daemon: do the job here
     outbox = config.outbound.directory if config.outbound.sink == "directory" else f"kafka:{config.outbound.topic}"
-    print(f"mushrooms trigger: no daemon running: planning here; state {paths.state}, outbox "
-          f"{Path(outbox).resolve() if config.outbound.sink == 'directory' else outbox}", file=sys.stderr)
+    console.note(f"no daemon running: planning here; state {paths.state}, outbox "
+                 f"{Path(outbox).resolve() if config.outbound.sink == 'directory' else outbox}")
     pipeline, close = open_pipeline(config, paths)
     try:
-        _warn_if_retracted(pipeline, kind, payload, force)
+        _warn_if_retracted(pipeline, kind, payload, force, console)
         decision = dispatch(pipeline, kind, payload, origin=f"trigger:{kind}:{target}")
         if force:
-            decision = _forced(pipeline, decision, kind, payload, target)
+            decision = _forced(pipeline, decision, kind, payload, target, console)
         log.info("event=trigger_accepted kind=%s target=%s decision=%s", kind, target,
                  _decision_text(decision))
         if getattr(decision, "action", None) == "rejected":
-            print(f"mushrooms trigger: error: {target}: {getattr(decision, 'reason', 'rejected')}",
-                  file=sys.stderr)
+            console.error(f"{target}: {getattr(decision, 'reason', 'rejected')}")
             return 2
         from .jobs import describe_outcome
 
@@ -411,12 +450,11 @@ def run_trigger(target: str, kind: str, payload: bytes, config: ServiceConfig, p
             done = 1
             status = {"rejected": 2, "failed": 1}.get(str(info.get("decision")), 0)
             if status:
-                print(f"mushrooms trigger: error: {target}: job {info.get('decision')}: "
-                      f"{info.get('reason', '')}", file=sys.stderr)
+                console.error(f"{target}: job {info.get('decision')}: {info.get('reason', '')}")
         pipeline.flush_outbox()
         result = f": {info.get('decision')}: {info.get('reason', '')}" if done else ""
-        print(f"mushrooms trigger: no daemon running; {kind} {target}: "
-              f"{_decision_text(decision)}, {done} job(s) run here{result}", file=sys.stdout)
+        console.result(f"no daemon running; {kind} {target}: "
+                       f"{_decision_text(decision)}, {done} job(s) run here{result}")
     finally:
         close()
     return status
@@ -438,18 +476,18 @@ def _superevent_of(kind: str, payload: bytes) -> str | None:
     return None
 
 
-def _warn_if_retracted(pipeline: Any, kind: str, payload: bytes, force: bool) -> None:
-    """Warn (stderr and log) when the trigger concerns a retracted superevent."""
+def _warn_if_retracted(pipeline: Any, kind: str, payload: bytes, force: bool, console: TriggerConsole) -> None:
+    """Warn (the console and the log) when the trigger concerns a retracted superevent."""
     sid = _superevent_of(kind, payload)
     state = pipeline.store.event_state(sid) if sid else None
     if state is not None and state.retracted:
         what = ("planning it anyway (--force)" if force else "re-planning it as asked") \
             if force or kind == "superevent" else "the policy decides (a notice after a retraction may plan it again)"
         log.warning("event=trigger_retracted superevent_id=%s: the event was retracted; %s", sid, what)
-        print(f"mushrooms trigger: warning: {sid} was retracted; {what}", file=sys.stderr)
+        console.warning(f"{sid} was retracted; {what}")
 
 
-def _forced(pipeline: Any, decision: Any, kind: str, payload: bytes, target: str) -> Any:
+def _forced(pipeline: Any, decision: Any, kind: str, payload: bytes, target: str, console: TriggerConsole) -> Any:
     """``--force``: when the policy did not plan a notice (ignored or duplicate), re-plan its superevent.
 
     The re-plan uses the stored notice (the one just recorded, or the newest
@@ -460,13 +498,12 @@ def _forced(pipeline: Any, decision: Any, kind: str, payload: bytes, target: str
     if kind != "notice" or action in ("plan", "rerun", "rejected", "withdraw"):
         return decision
     if getattr(decision, "alert_type", None) == "RETRACTION":
-        print("mushrooms trigger: --force does not apply to a retraction (nothing to plan)", file=sys.stderr)
+        console.note("--force does not apply to a retraction (nothing to plan)")
         return decision
     sid = getattr(decision, "superevent_id", None)
     log.warning("event=trigger_forced superevent_id=%s target=%s policy_decision=%s policy_reason=%r: "
                 "planning anyway (--force)", sid, target, action, getattr(decision, "reason", ""))
-    print(f"mushrooms trigger: --force: the policy said {action} ({getattr(decision, 'reason', '')}); "
-          "planning anyway", file=sys.stderr)
+    console.note(f"--force: the policy said {action} ({getattr(decision, 'reason', '')}); planning anyway")
     forced = pipeline.force_plan(payload, origin=f"trigger:force:{target}")
     return forced
 

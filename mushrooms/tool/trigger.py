@@ -13,7 +13,7 @@ from typing import Sequence
 
 from .common import add_common_options, execute, tool_parser
 
-__all__ = ["HELP", "parser", "run", "main"]
+__all__ = ["HELP", "parser", "run", "main", "PrintConsole"]
 
 HELP = "hand a notice, sky map or superevent to the daemon"
 
@@ -68,7 +68,25 @@ def run(args: argparse.Namespace) -> int:
                                                                                           "--closed-until")))
     config = effective_config(args)
     return run_trigger(args.target, kind, payload, config, resolve_paths(config.daemon),
-                       force=bool(getattr(args, "force", False)))
+                       force=bool(getattr(args, "force", False)), console=PrintConsole())
+
+
+class PrintConsole:
+    """``mushrooms trigger``'s console: the outcome on stdout, notes, warnings and errors on stderr."""
+
+    prefix = "mushrooms trigger:"
+
+    def result(self, text: str) -> None:
+        print(f"{self.prefix} {text}", flush=True)
+
+    def note(self, text: str) -> None:
+        print(f"{self.prefix} {text}", file=sys.stderr, flush=True)
+
+    def warning(self, text: str) -> None:
+        print(f"{self.prefix} warning: {text}", file=sys.stderr, flush=True)
+
+    def error(self, text: str) -> None:
+        print(f"{self.prefix} error: {text}", file=sys.stderr, flush=True)
 
 
 if __name__ == "__main__":

@@ -139,3 +139,49 @@ def test_trigger_hands_work_to_the_running_daemon_and_signals(broker, daemons, t
     time.sleep(0.5)
     notify.close()
     assert b"RELOADING=1" in seen and b"STOPPING=1" in seen and seen.count(b"WATCHDOG=1") >= 1, seen
+
+
+class RecordingConsole:
+    """A TriggerConsole that keeps what it was told, by kind."""
+
+    def __init__(self) -> None:
+        self.said: list[tuple[str, str]] = []
+
+    def result(self, text: str) -> None:
+        self.said.append(("result", text))
+
+    def note(self, text: str) -> None:
+        self.said.append(("note", text))
+
+    def warning(self, text: str) -> None:
+        self.said.append(("warning", text))
+
+    def error(self, text: str) -> None:
+        self.said.append(("error", text))
+
+
+def test_run_trigger_is_a_library_call_that_prints_nothing(tmp_path: Path, capsys) -> None:
+    # the daemon layer tells its console; only the tool prints (mushrooms trigger's PrintConsole)
+    from mushrooms.daemon.settings import resolve_paths
+    from mushrooms.daemon.trigger import classify, run_trigger
+    from mushrooms.tool.config import load_config
+    from mushrooms.tool.overrides import override_config
+
+    cfg = write_config(tmp_path / "config.toml", "unused", "unused", "unused")
+    config = override_config(load_config(str(cfg)), outbox=str(tmp_path / "outbox"),
+                             state=str(tmp_path / "state.sqlite"))
+    paths = resolve_paths(config.daemon)
+    console = RecordingConsole()
+    kind, payload = classify(str(notice_path("MS181101ab-preliminary.json")))
+    assert run_trigger("prelim", kind, payload, config, paths, console=console) == 0
+    kinds = [k for k, _ in console.said]
+    assert kinds == ["note", "result"], console.said
+    assert "no daemon running: planning here" in console.said[0][1]
+    assert "1 job(s) run here" in console.said[1][1] and outbox_plans(tmp_path / "outbox")
+
+    refused = RecordingConsole()
+    kind, payload = classify("S991231zz")
+    assert run_trigger("S991231zz", kind, payload, config, paths, console=refused) == 2
+    assert refused.said[-1][0] == "error" and "S991231zz" in refused.said[-1][1]
+    out = capsys.readouterr()
+    assert out.out == "" and "mushrooms trigger" not in out.err
