@@ -147,124 +147,145 @@ class Service:
 
     def run(self) -> int:
         """Run until SIGTERM/SIGINT; returns the exit status."""
-        if not self.config.kafka.bootstrap:
-            from .credentials import load_credentials
-
-            load_credentials()  # fail fast, with one line, before touching any state
-        submit_token = None
-        if self.config.submit.enabled and not self.config.submit.dry_run:
-            from .credentials import load_submit_token
-
-            submit_token, source = load_submit_token()  # fail fast too; the value is never logged
-            log.info("event=submit_token source=%s", source)
-        executed_token = self._executed_token()  # fail fast too, before touching any state
+        submit_token, executed_token = self._tokens()  # fail fast, with one line, before touching any state
         lock = PidLock(self.paths.pid_file)
         try:
             lock.acquire()
         except DaemonRunning as exc:
             log.error("event=start_refused reason=%r", str(exc))
             return 1
-        from .store import StateInUse, StoreError, lock_state
-
         for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGUSR1):
             signal.signal(sig, self._on_signal)
         private_dir(self.paths.trigger_dir, self.config.daemon.group_readable)
         scheduler = self.scheduler = BackgroundScheduler(timezone="UTC")
         scheduler.start()
-        close: Callable[[], None] = lambda: None
-        state_lock: Any = None
+        opened = _Opened()
         try:
-            from .warm import SkyCache
-
-            self.sky_cache = SkyCache()
-            self.outbox = OutboxDrain(self._flush_outbox, self.config.outbound.retry_initial_s,
-                                      self.config.outbound.retry_max_s)
-            try:
-                self.pipeline, close = open_pipeline(self.config, self.paths, sky_cache=self.sky_cache,
-                                                     on_outbox=self._queued)
-            except StoreError as exc:  # empty, damaged, newer: one line, and a status Restart= does not loop on
-                log.error("event=start_refused reason=%r", str(exc))
-                return EXIT_STATE
-            try:  # one daemon per state file, whatever its pid file says
-                state_lock = lock_state(self.paths.state)
-            except StateInUse as exc:
-                log.error("event=start_refused reason=%r", str(exc))
-                return 1
-            self._observe()
-            self._prune_raw()
-            from .submissions import open_submitter
-
-            opened = open_submitter(self.config.submit, self.config.export, self.pipeline.store, submit_token,
-                                    on_outbox=self.outbox.kick, on_result=self._submission_result,
-                                    closing=self._closing.is_set)
-            if opened is not None:
-                self.submitter, self.submit_drain = opened
-                self.submit_drain.kick()  # reconcile what a crash left half done
-            self.phase = "warming"
-            self._warm_up(self.sky_cache)  # only once the state file is ours: a refused start is quick
-            self.jobs = JobRunner(self._run_job, scheduler, self.config.daemon.max_jobs,
-                                  self.config.daemon.job_deadline_s, on_done=self._job_done,
-                                  on_failure=self._job_failed)
-            log.info("event=service_starting pid=%d config=%s state=%s sink=%s triggers=%s",
-                     os.getpid(), self.config.source, self.paths.state, self._sink_text(),
-                     self.paths.trigger_dir)
-            self.outbox.kick()  # what a crash left in the outbox goes out first
-            scheduler.add_job(self._rewarm, "interval", seconds=WARM_INTERVAL_S, id="warm",
-                              misfire_grace_time=None, coalesce=True)
-            resumed = self.jobs.sync(self.pipeline.store.pending_jobs())
-            if resumed:
-                log.info("event=jobs_resumed count=%d", resumed)
-            self._scan_triggers()
-            from .consumer import NoticeConsumer
-
-            self.consumer = NoticeConsumer(self.config.kafka, on_offset_jump=self._offset_jump,
-                                           instance_id=self._instance_id(self.config))
-            scheduler.add_job(self._heartbeat, "interval", seconds=self.config.daemon.heartbeat_s,
-                              id="heartbeat", misfire_grace_time=None, coalesce=True)
-            self._start_loop(executed_token)
-            wd = watchdog_interval_s()
-            if wd:
-                scheduler.add_job(self._watchdog, "interval", seconds=wd, id="watchdog",
-                                  args=[wd], misfire_grace_time=None, coalesce=True)
-            self.phase = "running"
-            log.info("event=service_ready topics=%s watchdog_s=%s startup_s=%.2f partitions=%s",
-                     ",".join(self.config.kafka.topics), f"{wd:.1f}" if wd else "-", time.monotonic() - self._started,
-                     "assigned" if self.consumer.assigned else "waiting")
-            self._ready_wait_from = time.monotonic()
-            self._track_assignment()
+            refused = self._open_state(opened)
+            if refused is not None:
+                return refused
+            self._start_parts(submit_token)
+            self._start_timers(scheduler, executed_token)
             self._loop()
             return 0
         finally:
-            self.phase = "stopping"
-            self.notifier.stopping()
-            log.info("event=service_stopping active_jobs=%s", ",".join(self._active()) or "-")
-            if hasattr(self, "jobs"):
-                finished = self.jobs.shutdown(self.config.daemon.stop_grace_s)
-                if not finished:
-                    log.warning("event=jobs_left_pending reason='still running at stop; resumed at next start'")
-            if self.consumer is not None:
-                self.consumer.close()
-            scheduler.shutdown(wait=False)
-            if self.submit_drain is not None:
-                self._closing_submit()
-            if hasattr(self, "outbox"):
-                self.outbox.close()
-            unfinished = hasattr(self, "jobs") and self.jobs.busy()
-            if self.pipeline is not None and state_lock is not None:
-                self._give_back_unfinished()
-            if not unfinished:
-                self._close_store(close)
-            if state_lock is not None:
-                state_lock.release()
-            if self.listener is not None:
-                self.listener.close()
-            lock.release()
-            log.info("event=service_stopped unfinished_jobs=%s", "yes" if unfinished else "no")
-            if unfinished:
-                # worker threads cannot be interrupted; everything is durable, so
-                # leave now as a crash would, and the next start resumes the job
-                logging.shutdown()
-                os._exit(0)
+            self._stop_all(scheduler, lock, opened)
+
+    def _tokens(self) -> tuple[str | None, str | None]:
+        """Read the credentials the configuration needs (Kafka, submission, executed source); values never logged."""
+        if not self.config.kafka.bootstrap:
+            from .credentials import load_credentials
+
+            load_credentials()
+        submit_token = None
+        if self.config.submit.enabled and not self.config.submit.dry_run:
+            from .credentials import load_submit_token
+
+            submit_token, source = load_submit_token()
+            log.info("event=submit_token source=%s", source)
+        return submit_token, self._executed_token()
+
+    def _open_state(self, opened: "_Opened") -> int | None:
+        """Open the pipeline on the state file and lock it; the exit status of a refused start, else None."""
+        from .store import StateInUse, StoreError, lock_state
+        from .warm import SkyCache
+
+        self.sky_cache = SkyCache()
+        self.outbox = OutboxDrain(self._flush_outbox, self.config.outbound.retry_initial_s,
+                                  self.config.outbound.retry_max_s)
+        try:
+            self.pipeline, opened.close = open_pipeline(self.config, self.paths, sky_cache=self.sky_cache,
+                                                        on_outbox=self._queued)
+        except StoreError as exc:  # empty, damaged, newer: one line, and a status Restart= does not loop on
+            log.error("event=start_refused reason=%r", str(exc))
+            return EXIT_STATE
+        try:  # one daemon per state file, whatever its pid file says
+            opened.state_lock = lock_state(self.paths.state)
+        except StateInUse as exc:
+            log.error("event=start_refused reason=%r", str(exc))
+            return 1
+        return None
+
+    def _start_parts(self, submit_token: str | None) -> None:
+        """Metrics, the submitter, the warm-up, the job runner; then what a crash left (outbox, jobs, triggers)."""
+        self._observe()
+        self._prune_raw()
+        from .submissions import open_submitter
+
+        opened = open_submitter(self.config.submit, self.config.export, self.pipeline.store, submit_token,
+                                on_outbox=self.outbox.kick, on_result=self._submission_result,
+                                closing=self._closing.is_set)
+        if opened is not None:
+            self.submitter, self.submit_drain = opened
+            self.submit_drain.kick()  # reconcile what a crash left half done
+        self.phase = "warming"
+        self._warm_up(self.sky_cache)  # only once the state file is ours: a refused start is quick
+        self.jobs = JobRunner(self._run_job, self.scheduler, self.config.daemon.max_jobs,
+                              self.config.daemon.job_deadline_s, on_done=self._job_done,
+                              on_failure=self._job_failed)
+        log.info("event=service_starting pid=%d config=%s state=%s sink=%s triggers=%s",
+                 os.getpid(), self.config.source, self.paths.state, self._sink_text(),
+                 self.paths.trigger_dir)
+        self.outbox.kick()  # what a crash left in the outbox goes out first
+
+    def _start_timers(self, scheduler: BackgroundScheduler, executed_token: str | None) -> None:
+        """Resume jobs, scan triggers, open the consumer and start the timed jobs; then ready."""
+        scheduler.add_job(self._rewarm, "interval", seconds=WARM_INTERVAL_S, id="warm",
+                          misfire_grace_time=None, coalesce=True)
+        resumed = self.jobs.sync(self.pipeline.store.pending_jobs())
+        if resumed:
+            log.info("event=jobs_resumed count=%d", resumed)
+        self._scan_triggers()
+        from .consumer import NoticeConsumer
+
+        self.consumer = NoticeConsumer(self.config.kafka, on_offset_jump=self._offset_jump,
+                                       instance_id=self._instance_id(self.config))
+        scheduler.add_job(self._heartbeat, "interval", seconds=self.config.daemon.heartbeat_s,
+                          id="heartbeat", misfire_grace_time=None, coalesce=True)
+        self._start_loop(executed_token)
+        wd = watchdog_interval_s()
+        if wd:
+            scheduler.add_job(self._watchdog, "interval", seconds=wd, id="watchdog",
+                              args=[wd], misfire_grace_time=None, coalesce=True)
+        self.phase = "running"
+        log.info("event=service_ready topics=%s watchdog_s=%s startup_s=%.2f partitions=%s",
+                 ",".join(self.config.kafka.topics), f"{wd:.1f}" if wd else "-", time.monotonic() - self._started,
+                 "assigned" if self.consumer.assigned else "waiting")
+        self._ready_wait_from = time.monotonic()
+        self._track_assignment()
+
+    def _stop_all(self, scheduler: BackgroundScheduler, lock: PidLock, opened: "_Opened") -> None:
+        """Stop in order: jobs (with grace), consumer, timers, submitter, outbox, state; leave as a crash if a job hangs."""
+        self.phase = "stopping"
+        self.notifier.stopping()
+        log.info("event=service_stopping active_jobs=%s", ",".join(self._active()) or "-")
+        if hasattr(self, "jobs"):
+            finished = self.jobs.shutdown(self.config.daemon.stop_grace_s)
+            if not finished:
+                log.warning("event=jobs_left_pending reason='still running at stop; resumed at next start'")
+        if self.consumer is not None:
+            self.consumer.close()
+        scheduler.shutdown(wait=False)
+        if self.submit_drain is not None:
+            self._closing_submit()
+        if hasattr(self, "outbox"):
+            self.outbox.close()
+        unfinished = hasattr(self, "jobs") and self.jobs.busy()
+        if self.pipeline is not None and opened.state_lock is not None:
+            self._give_back_unfinished()
+        if not unfinished:
+            self._close_store(opened.close)
+        if opened.state_lock is not None:
+            opened.state_lock.release()
+        if self.listener is not None:
+            self.listener.close()
+        lock.release()
+        log.info("event=service_stopped unfinished_jobs=%s", "yes" if unfinished else "no")
+        if unfinished:
+            # worker threads cannot be interrupted; everything is durable, so
+            # leave now as a crash would, and the next start resumes the job
+            logging.shutdown()
+            os._exit(0)
 
     def _loop(self) -> None:
         last_scan = time.monotonic()
@@ -725,3 +746,11 @@ def main(load: Callable[[], ServiceConfig]) -> int:
     setup_logging(level)
     config = load()
     return Service(config, resolve_paths(config.daemon), reload=load).run()
+
+
+@dataclasses.dataclass
+class _Opened:
+    """What :meth:`Service.run` opened on the state file, for the stop to close."""
+
+    close: Callable[[], None] = lambda: None
+    state_lock: Any = None
