@@ -315,7 +315,7 @@ def _capacity_cuts(rows: _Rows, data: ExactData, exp: float, cad: float, r: floa
             k = ((early[:, 0] >= A) & (early[:, 1] <= B)).astype(float) + ((late[:, 0] >= A) & (late[:, 1] <= B))
             inside = k > 0
             cap = B - A + r
-            if inside.any() and (k[inside] == 2).all():  # both filters inside: at least one filter change
+            if inside.any() and (k[inside] == 2).all() and B - A + 2 * r >= max(fc, r):  # a filter change inside
                 cap = B - A + 2 * r - max(fc, r)
             if not inside.any() or k.sum() * (exp + r) <= cap:
                 continue  # every exposure fits: implied
