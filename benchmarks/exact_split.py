@@ -10,7 +10,7 @@ For each reduced instance (the top ``k`` pairable fields of a shared sky map,
 ``threads = 1``, ``min_gain = 0`` so every plan is scored on its raw coverage)
 it runs greedy, the default ``hybrid`` (``time_limit_s = --plan-limit``), the
 current certified bound (online U4 as published, and U0 solved), the
-interval bound V (V1-V4, ``--interval-limit`` s), and the exact model (:mod:`mushrooms.evaluation.exact`, E0-E6) within
+interval bound V (V1-V4, ``--interval-limit`` s), and the exact model (:mod:`mushrooms.evaluation.exact`, C0-C6) within
 ``--exact-limit`` s, started from the greedy and hybrid plans.  Every exact
 plan goes through the independent checker.
 
@@ -68,6 +68,7 @@ def measure(path: Path, k: int, exact_limit: float, plan_limit: float, interval_
     from mushrooms.scheduler_core import PlanningConfig, check_plan, prepare_problem, read_skymap
     from mushrooms.scheduler_core.planner import build_plan, run_scheduler
     from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound
+    from mushrooms.scheduler_core.schedulers.interval_bound import interval_upper_bound
 
     cfg = PlanningConfig(objective="coverage", threads=1, time_limit_s=plan_limit, milp_backend="highs",
                          min_gain=0.0, min_coverage=0.0)
@@ -82,7 +83,7 @@ def measure(path: Path, k: int, exact_limit: float, plan_limit: float, interval_
     hybrid = run_scheduler(problem, "hybrid")
     online = hybrid.upper_bound
     u0 = coverage_upper_bound(problem, method="milp", time_limit_s=30.0)
-    interval = coverage_upper_bound(problem, method="interval", time_limit_s=interval_limit)
+    interval = interval_upper_bound(problem, time_limit_s=interval_limit)
     t = time.perf_counter()
     ex = solve_exact(problem, time_limit_s=exact_limit, threads=1,
                      starts=(greedy.observations, hybrid.observations))

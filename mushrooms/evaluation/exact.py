@@ -5,7 +5,7 @@ it answers "what is the best plan any scheduler could find on this
 problem?" on a few tens of fields, so that the distance from a plan to the
 certified bound splits into *bound slack* (bound − optimum) and *optimiser
 loss* (optimum − plan).  ``docs/design/milp.md``, section "Exact model",
-equations E0–E6.
+equations C0–C6.
 
 Every field is observed in both filters or not at all, each exposure at a
 continuous start time inside one of the field's windows, the two filters
@@ -17,7 +17,7 @@ the night).  Because an exposure (300 s) outlasts any overhead, "every
 pair apart" is the same as "every consecutive pair apart", so an integral
 solution is exactly a rule-abiding plan and every rule-abiding plan is one:
 the optimum is the optimum of the rules on the problem's windows.
-Interval capacity cuts (E6) make the LP relaxation count the competition
+Interval capacity cuts (C6) make the LP relaxation count the competition
 for time.
 """
 
@@ -126,7 +126,7 @@ class ExactModel:
     o_pair : numpy.ndarray
         (P, 2) the exposures (e < e') each o orders.
     n_cuts : int
-        Interval capacity rows (E6).
+        Interval capacity rows (C6).
     """
 
     milp: MilpModel
@@ -185,7 +185,7 @@ class _Rows:
 
 
 def build_exact_model(problem: PlanningProblem, data: ExactData | None = None) -> ExactModel:
-    """Assemble the exact continuous-time MILP (equations E0–E6 of ``docs/design/milp.md``).
+    """Assemble the exact continuous-time MILP (equations C0–C6 of ``docs/design/milp.md``).
 
     Parameters
     ----------
@@ -232,26 +232,26 @@ def build_exact_model(problem: PlanningProblem, data: ExactData | None = None) -
     n = oy + C
     rows = _Rows()
 
-    # (E1) window choice: an observed field's exposure lies in one of its windows, Σ_w u_{e,w} = x_f
+    # (C1) window choice: an observed field's exposure lies in one of its windows, Σ_w u_{e,w} = x_f
     for e in np.unique(u_exposure):
         k = np.flatnonzero(u_exposure == e)
         rows.add([*(ou + k), ox + f_of[e]], [*np.ones(k.size), -1.0], 0.0, 0.0)
 
-    # (E2) inside the window chosen: a_w - (a_w - lo)(1 - u) <= t_e <= b_w - exp + (hi - b_w + exp)(1 - u)
+    # (C2) inside the window chosen: a_w - (a_w - lo)(1 - u) <= t_e <= b_w - exp + (hi - b_w + exp)(1 - u)
     for k, (e, w) in enumerate(zip(u_exposure, u_window)):
         a, b = data.windows[f_of[e]][w]
         rows.add([ot + e, ou + k], [1.0, -(a - lo_e[e])], lo_e[e], math.inf)
         rows.add([ot + e, ou + k], [1.0, hi_e[e] - (b - exp)], -math.inf, hi_e[e])
     # (single-window fields: the bounds lo <= t_e <= hi below are that window)
 
-    # (E3) cadence, either filter first: d_f = 1 -> t_{f,1} >= t_{f,0} + c; d_f = 0 -> t_{f,0} >= t_{f,1} + c
+    # (C3) cadence, either filter first: d_f = 1 -> t_{f,1} >= t_{f,0} + c; d_f = 0 -> t_{f,0} >= t_{f,1} + c
     for f in ok:
         M = cad + hi[f] - lo[f]
         rows.add([ot + 2 * f + 1, ot + 2 * f, od + f, ox + f], [1.0, -1.0, -M, -M], cad - 2 * M, math.inf)
         rows.add([ot + 2 * f, ot + 2 * f + 1, od + f, ox + f], [1.0, -1.0, M, -M], cad - M, math.inf)
         rows.add([od + f, ox + f], [1.0, -1.0], -math.inf, 0.0)
 
-    # (E4) one exposure at a time: t_e' >= t_e + exp + oh(e, e') or t_e >= t_e' + exp + oh(e', e)
+    # (C4) one exposure at a time: t_e' >= t_e + exp + oh(e, e') or t_e >= t_e' + exp + oh(e', e)
     for k, (e, e2) in enumerate(o_pair):
         for first, second, sign in ((e, e2, 1.0), (e2, e, -1.0)):
             p = exp + oh[first, second]
@@ -267,16 +267,16 @@ def build_exact_model(problem: PlanningProblem, data: ExactData | None = None) -
     for f, g in sorted(set(apart)):
         rows.add([ox + f, ox + g], [1.0, 1.0], -math.inf, 1.0)
 
-    # (E5) cell coverage: y_l <= Σ_{f ∋ l} x_f
+    # (C5) cell coverage: y_l <= Σ_{f ∋ l} x_f
     cells = data.cells
     for c in range(C):
         members = cells.fields[cells.indptr[c]:cells.indptr[c + 1]]
         rows.add([oy + c, *(ox + members)], [1.0, *(-np.ones(members.size))], -math.inf, 0.0)
 
-    # (E6) interval capacity: the exposures the windows and the cadence hold inside [A, B] need (exp + r) each
+    # (C6) interval capacity: the exposures the windows and the cadence hold inside [A, B] need (exp + r) each
     n_cuts = _capacity_cuts(rows, data, exp, cad, r, cfg.filter_change_s, ox)
 
-    # (E0) objective: maximise Σ_l w_l y_l
+    # (C0) objective: maximise Σ_l w_l y_l
     c_obj = np.zeros(n)
     c_obj[oy:] = cells.weight
     col_lo, col_hi = np.zeros(n), np.ones(n)
@@ -290,7 +290,7 @@ def build_exact_model(problem: PlanningProblem, data: ExactData | None = None) -
 
 
 def _capacity_cuts(rows: _Rows, data: ExactData, exp: float, cad: float, r: float, fc: float, ox: int) -> int:
-    """(E6) rows ``Σ_f k_f(A, B) (exp + r) x_f <= B - A + r`` that are not implied.
+    """(C6) rows ``Σ_f k_f(A, B) (exp + r) x_f <= B - A + r`` that are not implied.
 
     A field observable in ``[lo, hi + exp]`` has its earlier exposure inside
     ``[lo, hi + exp - c]`` and its later one inside ``[lo + c, hi + exp]``

@@ -15,6 +15,7 @@ from mushrooms.scheduler_core import PlanningConfig, check_plan, prepare_problem
 from mushrooms.scheduler_core.planner import build_plan, run_scheduler
 from mushrooms.scheduler_core.problem import PlanningProblem
 from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound
+from mushrooms.scheduler_core.schedulers.interval_bound import interval_upper_bound
 from mushrooms.scheduler_core.sky.footprints import Footprints
 from mushrooms.scheduler_core.sky.windows import Windows
 
@@ -188,6 +189,16 @@ def test_every_plan_is_a_point_of_the_model_and_the_optimum_is_above_it(seed):
         assert float(model.milp.c @ v) == pytest.approx(coverage(problem, obs), abs=1e-9)
         assert ex.optimum >= coverage(problem, obs) - 1e-9, solver
     assert coverage_upper_bound(problem).value >= ex.optimum - 1e-9
+    assert interval_upper_bound(problem, time_limit_s=10.0).value >= ex.optimum - 1e-9
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_interval_bound_is_above_the_exact_optimum_and_below_the_online_bound(seed):
+    problem = random_small_problem(200 + seed, n_fields=8)
+    ex = solve_exact(problem, time_limit_s=20.0)
+    assert ex.proven
+    interval = interval_upper_bound(problem, time_limit_s=10.0).value
+    assert ex.optimum - 1e-9 <= interval <= coverage_upper_bound(problem).value + 1e-9
 
 
 @pytest.fixture(scope="module")
@@ -213,3 +224,4 @@ def test_exact_plan_on_a_real_map_passes_the_checker_and_beats_every_scheduler(r
     assert ex.optimum >= coverage(problem, slots.observations) - 1e-9
     assert slots.upper_bound.value >= ex.optimum - 1e-9
     assert coverage_upper_bound(problem, method="milp").value >= ex.optimum - 1e-9
+    assert interval_upper_bound(problem, time_limit_s=10.0).value >= ex.optimum - 1e-9

@@ -117,12 +117,12 @@ def coverage_upper_bound(problem: PlanningProblem, method: str = "online", time_
     ----------
     problem : PlanningProblem
     method : str
-        ``online`` (default, fast), ``milp`` (solve the relaxation) or
-        ``interval`` (the tighter relaxation counting the competition for
-        time, :func:`~.interval_bound.interval_upper_bound`, V1-V4).
+        ``online`` (default, fast) or ``milp`` (solve the relaxation); the
+        tighter interval bound (V1-V4) is
+        :func:`~.interval_bound.interval_upper_bound`.
     time_limit_s : float
-        For ``milp`` and ``interval``: limit (s) of the solves; when reached,
-        the solver's proven dual bound is used (still an upper bound).
+        For ``milp``: limit (s) of the solve; when reached, the solver's
+        proven dual bound is used (still an upper bound).
     backend : str
         MILP backend (``highs`` by default: the bound must not depend on a licence).
 
@@ -132,10 +132,6 @@ def coverage_upper_bound(problem: PlanningProblem, method: str = "online", time_
     """
     from .block_schedule import shortlist_footprints
 
-    if method == "interval":
-        from .interval_bound import interval_upper_bound
-
-        return interval_upper_bound(problem, time_limit_s)
     t0 = time.perf_counter()
     rows = pairable_rows(problem)
     K = max_fields(problem, rows)
