@@ -124,7 +124,7 @@ def hand_problem() -> PlanningProblem:
 
 def test_hand_checked_instance_has_the_optimum_worked_out_by_hand():
     problem = hand_problem()
-    ex = solve_exact(problem, time_limit_s=20.0)
+    ex = solve_exact(problem, time_limit_s=60.0)
     assert ex.proven
     assert ex.optimum == pytest.approx(HAND_OPTIMUM, abs=1e-9)
     assert {o.field_id for o in ex.result.observations} == HAND_FIELDS
@@ -166,7 +166,7 @@ def random_small_problem(seed: int, n_fields: int = 4) -> PlanningProblem:
 @pytest.mark.parametrize("seed", range(5))
 def test_exact_optimum_equals_enumeration_on_small_random_instances(seed):
     problem = random_small_problem(seed)
-    ex = solve_exact(problem, time_limit_s=20.0)
+    ex = solve_exact(problem, time_limit_s=60.0)
     assert ex.proven
     assert rule_problems(problem, ex.result.observations) == []
     assert coverage(problem, ex.result.observations) == pytest.approx(ex.optimum, abs=1e-9)
@@ -177,7 +177,7 @@ def test_exact_optimum_equals_enumeration_on_small_random_instances(seed):
 def test_every_plan_is_a_point_of_the_model_and_the_optimum_is_above_it(seed):
     problem = random_small_problem(100 + seed, n_fields=7)
     model = build_exact_model(problem)
-    ex = solve_exact(problem, time_limit_s=20.0)
+    ex = solve_exact(problem, time_limit_s=60.0)
     assert ex.proven
     for solver in ("greedy", "slots", "blocks"):
         obs = run_scheduler(problem, solver).observations
@@ -194,8 +194,8 @@ def test_every_plan_is_a_point_of_the_model_and_the_optimum_is_above_it(seed):
 
 @pytest.mark.parametrize("seed", range(5))
 def test_interval_bound_is_above_the_exact_optimum_and_below_the_online_bound(seed):
-    problem = random_small_problem(200 + seed, n_fields=8)
-    ex = solve_exact(problem, time_limit_s=20.0)
+    problem = random_small_problem(200 + seed, n_fields=7)
+    ex = solve_exact(problem, time_limit_s=60.0)
     assert ex.proven
     interval = interval_upper_bound(problem, time_limit_s=10.0).value
     assert ex.optimum - 1e-9 <= interval <= coverage_upper_bound(problem).value + 1e-9
