@@ -117,7 +117,9 @@ def coverage_upper_bound(problem: PlanningProblem, method: str = "online", time_
     ----------
     problem : PlanningProblem
     method : str
-        ``online`` (default, fast) or ``milp`` (solve the relaxation).
+        ``online`` (default, fast) or ``milp`` (solve the relaxation); the
+        tighter interval bound (V1-V4) is
+        :func:`~.interval_bound.interval_upper_bound`.
     time_limit_s : float
         For ``milp``: limit (s) of the solve; when reached, the solver's
         proven dual bound is used (still an upper bound).
