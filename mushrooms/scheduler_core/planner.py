@@ -240,7 +240,7 @@ def build_plan(
         upper_bound=None if upper is None else round(float(upper), 6),
     )
     plan_id = make_plan_id(
-        skymap.sha256, iso_utc(start), dataclasses.asdict(config), solver, event.superevent_id,
+        skymap.sha256, iso_utc(start), config.record(), solver, event.superevent_id,
     )
     plan = Plan(
         plan_id=plan_id,
@@ -250,7 +250,7 @@ def build_plan(
         metrics=metrics,
         event=event,
         supersedes=supersedes,
-        config=json.loads(json.dumps(dataclasses.asdict(config))),  # JSON types (tuples become lists)
+        config=json.loads(json.dumps(config.record())),  # JSON types (tuples become lists)
     )
     return plan.with_(metrics=dataclasses.replace(
         metrics, expected_detections=_expected_detections(plan, problem, skymap, result)))
