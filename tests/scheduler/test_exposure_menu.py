@@ -182,3 +182,18 @@ def test_the_menu_gives_a_more_distant_map_longer_exposures(data_dir) -> None:
     e_near = _probability_weighted_exposure(near_problem, near.observations)
     e_far = _probability_weighted_exposure(far_problem, far.observations)
     assert e_far > e_near + 60.0, (e_near, e_far)
+
+
+def test_make_plan_with_a_menu_plans_checks_and_bounds_the_coverage_for_the_shortest_exposure(data_dir) -> None:
+    """The whole planner with a menu: the coverage stage plans exposure_s, the bound is the shortest exposure's."""
+    from mushrooms.scheduler_core.planner import make_plan
+
+    sm = _map(data_dir)
+    cfg = PlanningConfig(nside=64, time_limit_s=6.0, detection_time_limit_s=3.0, exposure_menu_s=MENU)
+    plan = make_plan(sm, cfg, solver="slots")
+    assert plan.config["exposure_menu_s"] == list(MENU)
+    assert {o.exposure_s for o in plan.observations} <= set(MENU)
+    fixed = make_plan(sm, dataclasses.replace(cfg, exposure_menu_s=()), solver="slots")
+    # a plan of 30 s exposures could cover more than one of 300 s: the menu's certified bound is not the fixed one's
+    assert plan.metrics.upper_bound >= fixed.metrics.upper_bound
+    assert plan.metrics.upper_bound >= plan.metrics.coverage - 1e-9
