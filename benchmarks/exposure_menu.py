@@ -44,15 +44,25 @@ MAPS = Path("/work/shared/data/skymaps/simulated")
 CURVES = ("optimistic", "conservative", "nsbh")
 
 
-def run_map(path: Path, cfg: PlanningConfig, menu: tuple[float, ...], solver: str) -> dict:
+def scaled(sm, k: float):
+    """The map with every distance times k (DISTNORM / k²: each pixel's posterior scaled)."""
+    return dataclasses.replace(sm, distmu=sm.distmu * k, distsigma=sm.distsigma * k, distnorm=sm.distnorm / k ** 2,
+                               distmean=sm.distmean * k, sha256=f"{sm.sha256}-x{k:g}")
+
+
+def run_map(path: Path, cfg: PlanningConfig, menu: tuple[float, ...], solver: str, scale: float | None = None
+            ) -> dict:
     """One map: the coverage plan, then the detection stage without and with the menu."""
     sm = read_skymap(path, nside=cfg.nside)
+    if scale is not None:  # a sweep: the map with its distances scaled (its rows named sweep/<map> x<k>)
+        sm = scaled(sm, scale)
     problem = prepare_problem(sm, cfg, sm.event_time)
     covering = dataclasses.replace(problem, config=dataclasses.replace(
         cfg, objective="coverage", time_limit_s=cfg.time_limit_s - cfg.detection_time_limit_s))
     t0 = time.perf_counter()
     cov = run_scheduler(covering, solver)
-    row = {"skymap": str(path.relative_to(MAPS)) if path.is_relative_to(MAPS) else path.name, "distmean_mpc": round(float(sm.distmean), 1),
+    name = str(path.relative_to(MAPS)) if path.is_relative_to(MAPS) else path.name
+    row = {"skymap": name if scale is None else f"sweep/{name} x{scale:g}", "distmean_mpc": round(float(sm.distmean), 1),
            "coverage_s": round(time.perf_counter() - t0, 2)}
     kilonovae = {c: load_kilonova(c) for c in CURVES}
     for tag, m in (("fixed", ()), ("menu", menu)):
@@ -81,9 +91,12 @@ def summary(rows: list[dict], min_gain: float) -> list[str]:
     out = []
     for pop in sorted({r["skymap"].split("/")[0] for r in rows}) + ["all"]:
         sel = [r for r in rows if pop == "all" or r["skymap"].startswith(pop + "/")]
-        out.append(f"{pop}: {len(sel)} maps; menu plans valid {sum(r['menu_valid'] for r in sel)}/{len(sel)}, "
-                   f"fixed valid {sum(r['fixed_valid'] for r in sel)}/{len(sel)}; menu kept its plan on "
-                   f"{sum(r['menu_choice'] == 'detection' for r in sel)}")
+        mixed = sum(any(not e.startswith("300:") for e in str(r["menu_exposures"]).split()) for r in sel)
+        out.append(f"{pop}: {len(sel)} maps; plans valid under the checker: menu {sum(r['menu_valid'] for r in sel)}"
+                   f"/{len(sel)}, fixed {sum(r['fixed_valid'] for r in sel)}/{len(sel)}; the menu run published "
+                   f"exposures other than 300 s on {mixed} maps (a detection-stage plan on "
+                   f"{sum(r['menu_choice'] == 'detection' for r in sel)}, fixed run on "
+                   f"{sum(r['fixed_choice'] == 'detection' for r in sel)})")
         for c in CURVES:
             a = np.array([r[f"fixed_E_{c}"] for r in sel], float)
             b = np.array([r[f"menu_E_{c}"] for r in sel], float)
@@ -106,29 +119,54 @@ def summary(rows: list[dict], min_gain: float) -> list[str]:
 
 
 def plot(rows: list[dict], path: Path) -> None:
+    """Chosen exposure (probability-weighted over a plan's fields) against the map's mean distance."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for pop, marker in (("bns_o3", "o"), ("nsbh_o3", "s"), ("bns_o3_pipeline", "^")):
-        sel = [r for r in rows if r["skymap"].startswith(pop + "/")]
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    for pop, colour in (("bns_o3", "tab:blue"), ("nsbh_o3", "tab:orange"), ("bns_o3_pipeline", "tab:green")):
+        sel = [r for r in rows if r["skymap"].startswith(pop + "/") and int(r["menu_n_fields"]) > 0]
         if not sel:
             continue
-        x = [r["distmean_mpc"] for r in sel]
-        ax.scatter(x, [r["menu_exposure_pw_s"] for r in sel], marker=marker, label=f"{pop}: menu")
-    ax.axhline(300.0, color="grey", ls="--", lw=1, label="fixed 300 s")
+        mixed = [r for r in sel if str(r["menu_exposures"]).count(":") > 1 or "300:" not in str(r["menu_exposures"])]
+        fixed = [r for r in sel if r not in mixed]
+        ax.scatter([float(r["distmean_mpc"]) for r in mixed], [float(r["menu_exposure_pw_s"]) for r in mixed],
+                   color=colour, label=f"{pop}: menu plan published")
+        ax.scatter([float(r["distmean_mpc"]) for r in fixed], [float(r["menu_exposure_pw_s"]) for r in fixed],
+                   facecolors="none", edgecolors=colour, label=f"{pop}: a 300 s plan kept")
+    ax.axhline(300.0, color="grey", ls="--", lw=1)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    ax.set_ylim(25, 700)
     ax.set_yticks([30, 60, 120, 300, 600])
     ax.set_yticklabels(["30", "60", "120", "300", "600"])
+    ax.minorticks_off()
+    ax.set_xlim(25, 800)
+    ax.set_xticks([30, 50, 100, 200, 300, 500, 800])
+    ax.set_xticklabels(["30", "50", "100", "200", "300", "500", "800"])
     ax.set_xlabel("map's posterior mean distance (Mpc)")
-    ax.set_ylabel("chosen exposure (s), probability-weighted mean over fields")
-    ax.set_title("Exposure menu [30, 60, 120, 300, 600] s: chosen exposure vs distance")
-    ax.legend(fontsize=8)
+    ax.set_ylabel("exposure (s), probability-weighted\nmean over the plan's fields")
+    ax.set_title("Menu [30, 60, 120, 300, 600] s: exposure chosen vs distance (shared O3 maps)")
+    sweep = sorted((r for r in rows if r["skymap"].startswith("sweep/") and int(r["menu_n_fields"]) > 0),
+                   key=lambda r: float(r["distmean_mpc"]))
+    if sweep:
+        ax.plot([float(r["distmean_mpc"]) for r in sweep], [float(r["menu_exposure_pw_s"]) for r in sweep], "k-^",
+                label=f"{sweep[0]['skymap'].split(' ')[0][6:]} with distances scaled")
+    ax.legend(fontsize=8, loc="upper left")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
+
+
+def _typed(v: str):
+    """A CSV cell back as bool, number or text."""
+    if v in ("True", "False"):
+        return v == "True"
+    try:
+        return float(v)
+    except ValueError:
+        return v
 
 
 def main() -> None:
@@ -138,9 +176,22 @@ def main() -> None:
     ap.add_argument("--nside", type=int, default=128)
     ap.add_argument("--solver", default="hybrid")
     ap.add_argument("--menu", default="30,60,120,300,600")
-    ap.add_argument("-o", "--output", type=Path, required=True)
+    ap.add_argument("--sweep", help="one map (path) planned with its distances scaled by --factors")
+    ap.add_argument("--factors", default="0.25,0.5,1,1.5,2,3")
+    ap.add_argument("-o", "--output", type=Path, required=True, help="CSV of the rows (--replot: CSVs, comma-separated)")
+    ap.add_argument("--replot", action="store_true", help="only redraw --plot from the rows in --output")
     ap.add_argument("--plot", type=Path)
     args = ap.parse_args()
+    if args.replot:  # the rows of one or more CSVs (comma-separated --output), typed again
+        rows = []
+        for name in str(args.output).split(","):
+            with open(name) as fh:
+                rows += [{k: _typed(v) for k, v in r.items()} for r in csv.DictReader(fh)]
+        if args.plot:
+            plot(rows, args.plot)
+        lines = summary([r for r in rows if not r["skymap"].startswith("sweep/")], PlanningConfig().min_gain)
+        print("\n".join(lines))
+        return
     cfg = PlanningConfig(nside=args.nside)
     menu = tuple(float(x) for x in args.menu.split(","))
     paths = []
@@ -148,9 +199,12 @@ def main() -> None:
         found = sorted((MAPS / name).rglob("*.fits"),
                        key=lambda p: (str(p.parent), int(p.stem) if p.stem.isdigit() else 0))
         paths += found[:args.limit] if args.limit else found
+    jobs = [(p, None) for p in paths]
+    if args.sweep:
+        jobs = [(Path(args.sweep), float(k)) for k in args.factors.split(",")]
     rows = []
-    for path in paths:
-        rows.append(run_map(path, cfg, menu, args.solver))
+    for path, k in jobs:
+        rows.append(run_map(path, cfg, menu, args.solver, k))
         r = rows[-1]
         print(f"{r['skymap']:18s} {r['distmean_mpc']:6.0f} Mpc  E_cons fixed {r['fixed_E_conservative']:.4f} menu "
               f"{r['menu_E_conservative']:.4f}  cov {r['fixed_coverage']:.3f}/{r['menu_coverage']:.3f}  "
