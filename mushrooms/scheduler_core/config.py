@@ -8,6 +8,7 @@ reading the configuration loads no numpy or astropy.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -204,6 +205,13 @@ class PlanningConfig:
         (relative; after real-overhead timing and the least-gain rule),
         else the coverage plan is kept.  The daemon's supersede rule uses
         the same floor against revision 1.
+    exposure_menu_s : tuple of float
+        Exposure times (s) the detection stage may give a field (both its
+        visits the same), trading area against depth by expected
+        detections (``docs/design/detection.md``, section 6).  Empty (the
+        default): every visit lasts ``exposure_s``, as before.  Needs
+        ``objective = "detection"``; the coverage scheduler before it
+        still plans ``exposure_s``.
     """
 
     nside: int = setting(256, 16, 1024, power_of_two=True,
@@ -245,6 +253,7 @@ class PlanningConfig:
     detection_coverage_weight: float = setting(0.05, 0, 10)
     detection_time_limit_s: float = setting(4.0, 0, 3600, "s", lo_open=True, why="less than time_limit_s")
     detection_max_coverage_loss: float = setting(0.02, 0, 1, hi_open=True, why="relative")
+    exposure_menu_s: tuple[float, ...] = setting((), 1, 3600, "s", why="each element; empty: every visit exposure_s")
 
     def __post_init__(self) -> None:
         require_finite(self, "scheduler")
@@ -299,10 +308,29 @@ class PlanningConfig:
         elif self.objective == "detection" and self.detection_time_limit_s >= self.time_limit_s:
             problems.append(f"detection_time_limit_s ({self.detection_time_limit_s:g} s) must be less than "
                             f"time_limit_s ({self.time_limit_s:g} s): it is the detection stage's share of it")
+        menu = tuple(self.exposure_menu_s)
+        if any(not (1.0 <= float(e) <= 3600.0) for e in menu):
+            problems.append(f"exposure_menu_s must hold exposures in [1, 3600] s, got {list(menu)!r}")
+        elif list(menu) != sorted(set(float(e) for e in menu)):
+            problems.append(f"exposure_menu_s must be increasing without repeats, got {list(menu)!r}")
+        if menu and self.objective != "detection":
+            problems.append("exposure_menu_s needs objective = \"detection\" (exposures are chosen by expected "
+                            f"detections), got objective = {self.objective!r}")
         if not 0.0 <= self.detection_max_coverage_loss < 1.0:
             problems.append(f"detection_max_coverage_loss must be in [0, 1), got {self.detection_max_coverage_loss}")
         if problems:
             raise ValueError("[scheduler] " + "; ".join(problems))
+
+    def record(self) -> dict[str, Any]:
+        """The configuration as the plan records it (and its plan id hashes).
+
+        ``exposure_menu_s`` appears only when set, so a plan without a menu
+        has the same document and the same plan id as before the menu existed.
+        """
+        out = dataclasses.asdict(self)
+        if not out["exposure_menu_s"]:
+            del out["exposure_menu_s"]
+        return out
 
     @property
     def horizon_s(self) -> float:

@@ -101,13 +101,30 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
 
     t0 = time.perf_counter()
     share = cfg.detection_time_limit_s
-    covering = dataclasses.replace(problem, config=dataclasses.replace(
-        cfg, objective="coverage", time_limit_s=cfg.time_limit_s - share))
+    covering = dataclasses.replace(problem, config=dataclasses.replace(  # the coverage stage plans exposure_s
+        cfg, objective="coverage", time_limit_s=cfg.time_limit_s - share, exposure_menu_s=()))
     result = scheduler(covering, solver, should_stop)
     bound_s = 0.0 if result.upper_bound is None else round(result.upper_bound.runtime_s, 3)
     spent = time.perf_counter() - t0 - bound_s  # the bound comes on top
     left = min(share, cfg.time_limit_s - spent)
+    if cfg.exposure_menu_s and result.upper_bound is not None:
+        result = dataclasses.replace(result, upper_bound=_menu_upper_bound(problem))
     return detection_stage(problem, skymap, result, should_stop, time_limit_s=max(left, 0.0))
+
+
+def _menu_upper_bound(problem: PlanningProblem):
+    """The certified coverage bound of plans whose exposures come from the menu: that of its shortest exposure.
+
+    Every menu exposure lasts at least ``min(exposure_menu_s)``, so a plan of
+    menu exposures has no more pairable fields (U1) and fits no more
+    exposures in a segment (U2) than one of the shortest: the bound of the
+    shortest bounds them all.
+    """
+    from .schedulers.bound import coverage_upper_bound
+
+    cfg = problem.config
+    shortest = dataclasses.replace(cfg, exposure_s=float(min(cfg.exposure_menu_s)), exposure_menu_s=())
+    return coverage_upper_bound(dataclasses.replace(problem, config=shortest))
 
 
 def make_plan(
@@ -240,7 +257,7 @@ def build_plan(
         upper_bound=None if upper is None else round(float(upper), 6),
     )
     plan_id = make_plan_id(
-        skymap.sha256, iso_utc(start), dataclasses.asdict(config), solver, event.superevent_id,
+        skymap.sha256, iso_utc(start), config.record(), solver, event.superevent_id,
     )
     plan = Plan(
         plan_id=plan_id,
@@ -250,7 +267,7 @@ def build_plan(
         metrics=metrics,
         event=event,
         supersedes=supersedes,
-        config=json.loads(json.dumps(dataclasses.asdict(config))),  # JSON types (tuples become lists)
+        config=json.loads(json.dumps(config.record())),  # JSON types (tuples become lists)
     )
     return plan.with_(metrics=dataclasses.replace(
         metrics, expected_detections=_expected_detections(plan, problem, skymap, result)))

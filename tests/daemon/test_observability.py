@@ -114,8 +114,10 @@ def test_metrics_health_and_status_through_the_daemon(broker, daemons, tmp_path:
         d = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state)], gate=gate)
         daemons.append(d)
 
-        # warm-up held: alive, not ready, and the body says why
+        # warm-up held: alive, not ready, and the body says why (the listener opens a moment
+        # before the warm-up starts: under load /healthz may still say "starting" at first)
         d.wait_log("event=metrics_listening", 120)
+        _wait(lambda: json.loads(_get(port, "/healthz")[1]).get("phase") == "warming", 60, d, "warming")
         code, body = _get(port, "/readyz")
         assert code == 503, body
         ready = json.loads(body)

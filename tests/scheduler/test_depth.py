@@ -87,3 +87,44 @@ def test_depth_follows_exposure_time_airmass_moon_and_twilight() -> None:
     assert tw[0] == pytest.approx(m30) and tw[1] < tw[0] and tw[0] - tw[2] == pytest.approx(1.2, abs=0.1)
     with pytest.raises(ValueError, match="no band z"):
         limiting_magnitude("z", 30.0, base)
+
+
+#: Published ZTF 5-sigma depths (docs/design/detection.md, section 2.1), as read in the sources.
+GCN_25418_30S_TYPICAL = 20.5      # GCN Circ. 25418: "exposures of 30s and a typical depth of ~20.5 mag"
+ZTF_SPEC_30S_MEDIAN_R = 20.4      # ZTF technical specification: 30 s, median single visit 20.4 (R, all lunar phases)
+GW190425_DEPTH_GR = 21.0          # Coughlin et al. 2019 ApJL 885 L19, abstract: "a depth of ≈ 21 m_AB in g- and r-bands"
+O3_MEDIAN_DEPTH = 20.8            # Kasliwal et al. 2020 ApJ 905 145, abstract: "median depth of 20.8 mag"
+
+
+def _median_depths(jd: np.ndarray, exposures: tuple[float, ...], bands: str = "gr") -> dict[tuple[str, float], float]:
+    """Median (D1) over ZTF-like pointings at the times jd (Sun < -12 deg, airmass <= 2, Moon >= 20 deg away)."""
+    grid = load_ztf_fields()
+    cond = sky_conditions(grid.ra[:, None], grid.dec[:, None], Time(jd, format="jd", scale="utc"))
+    ok = (cond.sun_alt_deg < -12) & (cond.airmass <= 2.0) & (cond.moon_sep_deg >= 20)
+    sel = SkyConditions(*(np.asarray(getattr(cond, f))[ok] for f in
+                          ("airmass", "moon_alt_deg", "moon_sep_deg", "moon_phase_deg", "sun_alt_deg")))
+    return {(b, t): float(np.median(limiting_magnitude(np.full(ok.sum(), b), t, sel))) for b in bands for t in exposures}
+
+
+def test_d1_against_published_depths_beyond_30_s() -> None:
+    """D1 agrees at 30 s (within 0.3 mag) and is ~1 mag deeper than the GW campaigns' medians at 300 s.
+
+    The second half pins a disagreement, not an agreement (the campaigns'
+    exposure times are not in the text read): D1 at 300 s is 0.8-1.5 mag
+    deeper than the published medians, and D1 at 30-60 s within 0.3 mag of
+    them.  A change of D1's exposure scaling that moves either shows here.
+    """
+    rng = np.random.default_rng(2019)
+    year = Time("2019-01-01T00:00:00", scale="utc").jd + rng.random(300) * 365.25
+    med = _median_depths(year, (30.0, 60.0, 300.0))
+    assert abs(med["r", 30.0] - ZTF_SPEC_30S_MEDIAN_R) <= 0.3
+    assert abs(med["r", 30.0] - GCN_25418_30S_TYPICAL) <= 0.3 and abs(med["g", 30.0] - GCN_25418_30S_TYPICAL) <= 0.4
+    # the two nights after GW190425 (2019-04-25 08:18 UTC): 04:00-11:12 UTC on 04-25 and 04-26
+    nights = np.concatenate([Time(d, scale="utc").jd + np.linspace(0.0, 0.30, 40)
+                             for d in ("2019-04-25T04:00:00", "2019-04-26T04:00:00")])
+    gw = _median_depths(nights, (30.0, 300.0))
+    for band in "gr":
+        assert abs(gw[band, 30.0] - GW190425_DEPTH_GR) <= 0.3, band
+        assert 0.8 <= gw[band, 300.0] - GW190425_DEPTH_GR <= 1.5, band
+        assert abs(med[band, 60.0] - O3_MEDIAN_DEPTH) <= 0.45, band
+        assert 0.8 <= med[band, 300.0] - O3_MEDIAN_DEPTH <= 1.5, band

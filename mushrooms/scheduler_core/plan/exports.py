@@ -198,7 +198,7 @@ def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization
             "start_date": _iso_space(plan.start),
             "end_date": _iso_space(plan.end),
             "filter_strategy": "block",
-            "exposure_time": int(round(plan.observations[0].exposure_s)),
+            "exposure_time": _plan_exposure_s(plan),
             "filters": ",".join(dict.fromkeys(o.filter for o in plan.observations)),
             "field_ids": ",".join(str(f) for f in plan.field_ids),
         },
@@ -209,3 +209,18 @@ def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization
             "planned_observations": planned,
         }],
     }
+
+
+def _plan_exposure_s(plan: "Plan") -> int:
+    """One exposure (s) for SkyPortal's payload: that of most fields (ties: the longest).
+
+    Each planned observation carries its own ``exposure_time``; a plan
+    whose fields all share one exposure gives that one.
+    """
+    per_field: dict[int, float] = {}
+    for o in plan.observations:
+        per_field.setdefault(o.field_id, float(o.exposure_s))
+    counts: dict[float, int] = {}
+    for e in per_field.values():
+        counts[e] = counts.get(e, 0) + 1
+    return int(round(max(counts, key=lambda e: (counts[e], e))))

@@ -63,6 +63,7 @@ from ..plan.document import Observation, Plan, PlanMetrics
 from ..sky.footprints import Footprints
 from ..problem import DetectionReport, PlanningProblem, ScheduleResult, StopCheck
 from ..sky.skymap import SkyMap
+from .exposure_menu import dominated_pairs, map_start_menu, menu_instance, menu_portfolio, menu_positions
 from .slots import SlotInstance, SlotModel, build_slot_model, slot_instance, start_vector
 from .solvers import MilpModel, resolve_backend, solve_milp
 
@@ -78,16 +79,22 @@ MIN_SOLVE_S = 0.3
 #: on 12 shared maps 0.9 found more than 0.5 (solving one grid well beats a wide, shallow portfolio).
 FIRST_GRID_SHARE = 0.9
 
+#: With an exposure menu: share of the stage's time left given to the fixed exposure's own grid, solved
+#: first (small, fast); the first menu grid, warm-started from the best plan so far, gets FIRST_GRID_SHARE
+#: of what is left after it.
+MENU_FIXED_SHARE = 0.3
+
 
 def pair_reach(problem: PlanningProblem, inst: SlotInstance, kilonova: Kilonova, merger_time: Time,
                depth: DepthModel = ZTF_DEPTH) -> np.ndarray:
     """(K,) reach (Mpc) of each eligible pair: the deeper of its two exposures (X2).
 
     Each exposure is taken at the slot's fixed time, at mid-exposure, with
-    the field centre's airmass, Moon and twilight.
+    the field centre's airmass, Moon and twilight, and lasts the pair's own
+    exposure (``inst.pair_exposure`` on a menu grid, else ``exposure_s``).
     """
     cfg = problem.config
-    e = cfg.exposure_s
+    e = inst.exposures(cfg.exposure_s)  # each pair's own exposure (a menu's, or exposure_s)
     rows = inst.rows[inst.pair_field]
     ra, dec = problem.ra[rows], problem.dec[rows]
     offset_d = float((Time(problem.start) - Time(merger_time)).to_value("day"))
@@ -447,53 +454,86 @@ class _Stage:
         self.backend = resolve_backend(problem.config.milp_backend)
         field_of_row = {int(problem.field_ids[r]): f for f, r in enumerate(rows)}
         self.start_f = {field_of_row[fid]: t for fid, t in start_first.items() if fid in field_of_row}
-        grids = slot_portfolio(problem, rows)
-        grids.sort(key=lambda g: g.name != coverage.grid)  # the coverage plan's own grid first
+        self.start_exp = {f: problem.config.exposure_s for f in self.start_f}
+        self.field_of_row = field_of_row
+        grids = [(g, False) for g in slot_portfolio(problem, rows)]
+        grids.sort(key=lambda g: g[0].name != coverage.grid)  # the coverage plan's own grid first
+        self.menu = bool(problem.config.exposure_menu_s)
+        if self.menu:  # the fixed exposure's own grid, then the menu grids (their own first), each from the best so far
+            own = _grid_name(coverage.grid, problem.config)
+            menu = sorted(menu_portfolio(problem, rows), key=lambda g: _grid_name(g.name, problem.config) != own)
+            grids = grids[:1] + [(g, True) for g in menu]
         runs: list[dict] = []
-        for i, grid in enumerate(grids):
+        for i, (grid, on_menu) in enumerate(grids):
             if self.should_stop is not None and self.should_stop():
                 break
             if self.left_s() < MIN_SOLVE_S:
                 runs.append({"grid": grid.name, "status": "no time left"})
                 break
-            run, found, stop = self._solve_grid(grid, i, len(grids))
+            run, found, stop = self._solve_grid(grid, i, len(grids), on_menu)
             if run is not None:
                 runs.append(run)
             if found is not None and is_preferred(found[3], found[0], best[3], best[0], problem.config.min_gain,
                                                   "detection", coverage_floor=floor):
                 best = found  # R2, or R3: a tie in expected detections and more coverage
+                if self.menu:
+                    self._start_from(best[1])
             if stop:
                 break
         return best, runs
 
-    def _solve_grid(self, grid, i: int, n_grids: int) -> tuple[dict | None, tuple | None, bool]:
+    def _start_from(self, observations) -> None:
+        """The next grids start from these exposures: each field's first start and its exposure."""
+        start: dict[int, float] = {}
+        exp: dict[int, float] = {}
+        for o in observations:
+            f = self.field_of_row.get(o.field_id)
+            if f is not None and o.start < start.get(f, np.inf):
+                start[f], exp[f] = o.start, o.exposure_s
+        self.start_f, self.start_exp = start, exp
+
+    def _solve_grid(self, grid, i: int, n_grids: int, on_menu: bool = False
+                    ) -> tuple[dict | None, tuple | None, bool]:
         """Solve one grid: (its run record or None, its (e, obs, res, c) when above the floor, stop after it)."""
         from .slot_schedule import map_start, time_slot_plan
 
         problem, cfg = self.problem, self.problem.config
-        inst = slot_instance(problem, self.rows, grid, cells=self.cells)
+        if on_menu:
+            inst = menu_instance(problem, self.rows, grid, self.cells)
+        else:
+            inst = slot_instance(problem, self.rows, grid, cells=self.cells)
         if inst.n_pairs == 0:
             return None, None, False
         reach = pair_reach(problem, inst, self.kilonova, self.skymap.event_time, self.depth)
         if self.levels is None:  # placed once, on the first grid's reaches, for every grid
-            self.levels = distance_levels(self.skymap, np.unique(self.fp.indices), float(reach.max(initial=0.0)),
-                                          cfg.detection_levels)
+            r_max = float(reach.max(initial=0.0))
+            if self.menu and not on_menu:  # up to the longest menu exposure's reach: (D1), (X2) at equal sky
+                r_max *= max(float(max(cfg.exposure_menu_s)) / cfg.exposure_s, 1.0) ** 0.25
+            self.levels = distance_levels(self.skymap, np.unique(self.fp.indices), r_max, cfg.detection_levels)
             if self.levels.size == 0:
                 return None, None, True
             self.W = level_weights(self.skymap, self.fp, self.cells, self.levels)
         plev = pair_levels(reach, self.levels)
+        n_offered = inst.n_pairs
+        if on_menu:  # a longer exposure that reaches no farther than a shorter one at the same start only costs time
+            keep = ~dominated_pairs(inst, plev)
+            inst, plev, reach = inst.subset(keep), plev[keep], reach[keep]
         dm = build_detection_model(inst, self.W, plev, cfg.penalty, cfg.detection_coverage_weight,
                                    coverage_floor=self.floor)
         model = dm.model
         x0 = None
         if self.start_f:
-            pairs = map_start(inst, self.start_f)
+            pairs = (map_start_menu(inst, self.start_f, self.start_exp) if on_menu
+                     else map_start(inst, self.start_f))
             if pairs.size and inst.cells.weight[_covered_cells(inst, pairs)].sum() >= self.floor:
                 x0 = detection_start_vector(dm, pairs)  # a start below the floor (X6) would be refused
         left = self.left_s()
         if left < MIN_SOLVE_S:
             return {"grid": grid.name, "status": "no time left"}, None, True
-        limit = left * FIRST_GRID_SHARE if i == 0 else left / max(n_grids - i, 1)
+        if self.menu:  # the fixed grid a share, the first menu grid most of the rest
+            limit = left * MENU_FIXED_SHARE if i == 0 else left * FIRST_GRID_SHARE if i == 1 else left / (n_grids - i)
+        else:
+            limit = left * FIRST_GRID_SHARE if i == 0 else left / max(n_grids - i, 1)
         limit = max(limit, min(left, MIN_SOLVE_S))
         res = solve_milp(model.milp, self.backend, limit, cfg.mip_gap, cfg.threads, self.should_stop, start=x0)
         if not res.has_solution:
@@ -506,7 +546,30 @@ class _Stage:
         run = {"grid": grid.name, "status": res.status, "levels": int(self.levels.size), "pairs": inst.n_pairs,
                "objective": res.objective, "bound": res.bound, "expected_detections": e, "coverage": c,
                "above_floor": ok, "dropped": len(dropped), "runtime_s": round(res.runtime_s, 3)}
+        if on_menu:
+            run["pairs_offered"] = n_offered
+            run["exposures"] = _exposure_counts(obs)
         return run, ((e, obs, res, c) if ok else None), False
+
+
+def _grid_name(name: str | None, config) -> str | None:
+    """The portfolio's ``n<k>/<phase>`` a grid stands for (a menu grid of n' positions stands for its n)."""
+    if not name or not name.startswith("n") or "/" not in name:
+        return name
+    n_txt, phase = name[1:].split("/", 1)
+    if not n_txt.isdigit():
+        return name
+    for n in config.slot_positions:
+        if int(n_txt) in (int(n), menu_positions(int(n), config)):
+            return f"n{int(n)}/{phase}"
+    return name
+
+
+def _exposure_counts(obs: list[Observation]) -> dict[str, int]:
+    """Fields per exposure time of a plan, e.g. ``{"60": 12, "300": 4}``."""
+    per_field = {o.field_id: o.exposure_s for o in obs}
+    vals, counts = np.unique(np.array(list(per_field.values()), float), return_counts=True)
+    return {f"{v:g}": int(c) for v, c in zip(vals, counts)}
 
 
 def _covered_cells(inst: SlotInstance, pairs: np.ndarray) -> np.ndarray:

@@ -119,12 +119,11 @@ class GridSolution:
 
 
 def _block_times(problem: PlanningProblem, order: np.ndarray, lb1: np.ndarray, lb2: np.ndarray,
-                 block_start: float, prev: tuple[float, float, str, float] | None
+                 block_start: float, prev: tuple[float, float, str, float] | None, exp: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Earliest real starts of a block's two passes in the given field order."""
+    """Earliest real starts of a block's two passes in the given field order (``exp``: each field's exposure, s)."""
     cfg = problem.config
     f1, f2 = cfg.filters
-    exp = cfg.exposure_s
     ra, dec = problem.ra[order], problem.dec[order]
     first, second = np.empty(order.size), np.empty(order.size)
     for flt, times, lbs in ((f1, first, lb1), (f2, second, lb2)):
@@ -135,7 +134,7 @@ def _block_times(problem: PlanningProblem, order: np.ndarray, lb1: np.ndarray, l
             if flt == f2:
                 t = max(t, first[m] + cfg.cadence_s)
             times[m] = t
-            prev = (float(ra[m]), float(dec[m]), flt, t + exp)
+            prev = (float(ra[m]), float(dec[m]), flt, t + float(exp[m]))
     return first, second
 
 
@@ -161,8 +160,8 @@ def time_slot_plan(problem: PlanningProblem, model: SlotModel, x: np.ndarray
     """
     cfg = problem.config
     f1, f2 = cfg.filters
-    exp = cfg.exposure_s
     inst = model.instance
+    pair_exp = inst.exposures(cfg.exposure_s)  # each pair's own exposure (the menu's, or exposure_s)
     w = problem.windows
     obs: list[Observation] = []
     dropped: list[int] = []
@@ -181,8 +180,10 @@ def time_slot_plan(problem: PlanningProblem, model: SlotModel, x: np.ndarray
                 if not np.array_equal(tsp, orders[0]):
                     orders.insert(0, tsp)
             chosen = None
+            kexp = pair_exp[k]
             for o in orders:
-                first, second = _block_times(problem, prow[o], w.start[w1[o]], w.start[w2[o]], T, prev)
+                exp = kexp[o]
+                first, second = _block_times(problem, prow[o], w.start[w1[o]], w.start[w2[o]], T, prev, exp)
                 bad = (first + exp > np.minimum(w.end[w1[o]], problem.horizon_s) + 1e-6) | (
                     second + exp > np.minimum(w.end[w2[o]], problem.horizon_s) + 1e-6)
                 if not bad.any():
@@ -200,12 +201,13 @@ def time_slot_plan(problem: PlanningProblem, model: SlotModel, x: np.ndarray
         if len(orders) == 2 and o is orders[0]:
             n_tsp += 1
         rows_o = prow[o]
+        exp = kexp[o]
         for m, r in enumerate(rows_o):
             fid, ra, dec = int(problem.field_ids[r]), float(problem.ra[r]), float(problem.dec[r])
-            obs.append(Observation(fid, ra, dec, f1, float(first[m]), exp, b))
-            obs.append(Observation(fid, ra, dec, f2, float(second[m]), exp, b))
+            obs.append(Observation(fid, ra, dec, f1, float(first[m]), float(exp[m]), b))
+            obs.append(Observation(fid, ra, dec, f2, float(second[m]), float(exp[m]), b))
         last = rows_o[-1]
-        prev = (float(problem.ra[last]), float(problem.dec[last]), f2, float(second[-1] + exp))
+        prev = (float(problem.ra[last]), float(problem.dec[last]), f2, float(second[-1] + exp[-1]))
     obs.sort(key=lambda ob: ob.start)
     return obs, dropped, n_tsp
 

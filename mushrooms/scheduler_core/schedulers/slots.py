@@ -199,7 +199,7 @@ def make_slot_grid(segments: list[tuple[float, float]], config: PlanningConfig, 
     return SlotGrid(n, phase, T, size, slot_block, slot_position.astype(np.int64), t1, t2)
 
 
-def eligible_pairs(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid
+def eligible_pairs(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, exposure_s: float | None = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(field, slot) pairs whose two exposures each lie inside a window of the field.
 
@@ -210,6 +210,9 @@ def eligible_pairs(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid
         Rows of ``problem.field_ids`` taking part (the model's fields are
         ``0..len(rows)-1`` in this order).
     grid : SlotGrid
+    exposure_s : float, optional
+        Length (s) of each of the pair's two exposures; default
+        ``config.exposure_s``.
 
     Returns
     -------
@@ -220,7 +223,7 @@ def eligible_pairs(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid
         and the second exposure.
     """
     w = problem.windows
-    e = problem.config.exposure_s
+    e = problem.config.exposure_s if exposure_s is None else float(exposure_s)
     ids = problem.field_ids[np.asarray(rows, np.int64)]
     lookup = {int(f): i for i, f in enumerate(ids)}
     w_field = np.array([lookup.get(int(f), -1) for f in w.field_ids], np.int64)
@@ -257,6 +260,12 @@ class SlotInstance:
         (K,) eligible pairs.
     pair_window1, pair_window2 : numpy.ndarray
         (K,) windows (indices into ``problem.windows``) holding each exposure.
+    pair_exposure : numpy.ndarray or None
+        (K,) exposure (s) of each pair's two visits; None: every pair
+        ``config.exposure_s`` (the grid's own).
+    pair_span : numpy.ndarray or None
+        (K,) consecutive positions, from ``pair_slot`` on, each pair
+        occupies in both passes (X7); None: one each.
     """
 
     rows: np.ndarray
@@ -266,6 +275,21 @@ class SlotInstance:
     pair_slot: np.ndarray
     pair_window1: np.ndarray
     pair_window2: np.ndarray
+    pair_exposure: np.ndarray | None = None
+    pair_span: np.ndarray | None = None
+
+    def exposures(self, default_s: float) -> np.ndarray:
+        """(K,) exposure (s) of every pair (``default_s`` without a menu)."""
+        if self.pair_exposure is None:
+            return np.full(self.n_pairs, float(default_s))
+        return np.asarray(self.pair_exposure, float)
+
+    def subset(self, keep: np.ndarray) -> "SlotInstance":
+        """The same instance with only the pairs ``keep`` (indices or a mask)."""
+        pick = (lambda a: None if a is None else np.asarray(a)[keep])
+        return SlotInstance(self.rows, self.grid, self.cells, self.pair_field[keep], self.pair_slot[keep],
+                            self.pair_window1[keep], self.pair_window2[keep], pick(self.pair_exposure),
+                            pick(self.pair_span))
 
     @property
     def n_fields(self) -> int:
@@ -367,8 +391,16 @@ def build_slot_model(instance: SlotInstance, penalty: float = 0.0,
         n_rows += n_new
 
     k = np.arange(K)
-    # (S1) one field per position: Σ_{k ∋ slot} x_k <= 1
-    block(instance.pair_slot, k, 1.0, S, -np.inf, 1.0)
+    if instance.pair_span is None:
+        # (S1) one field per position: Σ_{k ∋ slot} x_k <= 1
+        block(instance.pair_slot, k, 1.0, S, -np.inf, 1.0)
+    else:
+        # (X7) one field per position, a pair holding its span: Σ_{k : s_k <= slot < s_k + n_k} x_k <= 1
+        span = np.asarray(instance.pair_span, np.int64)
+        kk = np.repeat(k, span)
+        first = np.concatenate([[0], np.cumsum(span)[:-1]])
+        held = instance.pair_slot[kk] + np.arange(kk.size) - np.repeat(first, span)
+        block(held, kk, 1.0, S, -np.inf, 1.0)
     # (S2) each field at most once: z_f - Σ_{k ∋ f} x_k = 0  (z_f <= 1 is its bound)
     block(np.concatenate([np.arange(F), instance.pair_field]),
           np.concatenate([oz + np.arange(F), k]),

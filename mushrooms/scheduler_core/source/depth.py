@@ -42,6 +42,23 @@ draw and checks it.  The dark-sky zenith brightnesses below (Palomar, g
 21.8, r 21.0, i 20.2 mag/arcsec²) only set how strongly moonlight and
 twilight compete with the night sky: the absolute depth comes from the
 calibration.
+
+Checked against published depths beyond 30 s (``docs/design/detection.md``,
+section 2.1; ``tests/scheduler/test_depth.py``).  At 30 s (D1) agrees with
+what ZTF reports (GCN Circ. 25418: "exposures of 30s and a typical depth of
+~20.5 mag"; the ZTF technical specification, ptf.caltech.edu/page/ztf_technical:
+30 s, median single-visit depth 20.4 mag in R over all lunar phases) to
+0.1-0.2 mag.  The GW follow-up campaigns report shallower depths than (D1)
+gives for their ToO exposures: Coughlin et al. 2019 (ApJL 885 L19,
+abstract) "a depth of ≈ 21 m_AB in g- and r-bands" over the two nights
+after GW190425, where (D1) gives a median of g 22.2, r 22.0 in 300 s (g
+21.9, r 21.7 in 180 s) and g 21.0, r 20.8 in 30 s; Kasliwal et al. 2020
+(ApJ 905 145, abstract) a median depth of 20.8 mag over 13 O3 events, where
+the year median of (D1) is g 22.1, r 21.9 in 300 s.  The text read gives no
+exposure time for those medians (only the abstracts were available), so
+either those campaigns' depths were not reached in 300 s, or (D1)'s
+``1.25 log10(t / 30 s)`` overstates the gain of long ZTF exposures by about
+1 mag at 300 s; (D1) is not re-fitted to hide it.
 """
 
 from __future__ import annotations
