@@ -55,10 +55,16 @@ def event_nights(store: "Store", planning: "PlanningConfig", superevent_id: str)
     """
     if planning.nights <= 1:
         return ()
-    row = store._conn().execute("SELECT MIN(start) FROM jobs WHERE superevent_id=?", (superevent_id,)).fetchone()
-    if row is None or row[0] is None:
+    first = _first_start(store, superevent_id)
+    if first is None:
         return ()
-    return _windows(str(row[0]), float(planning.sun_alt_max_deg), int(planning.nights))
+    return _windows(first, float(planning.sun_alt_max_deg), int(planning.nights))
+
+
+def _first_start(store: "Store", superevent_id: str) -> str | None:
+    """The event's first job's horizon start (ISO-8601 UTC), or None."""
+    row = store._conn().execute("SELECT MIN(start) FROM jobs WHERE superevent_id=?", (superevent_id,)).fetchone()
+    return None if row is None or row[0] is None else str(row[0])
 
 
 def night_of(nights: tuple[tuple[float, float], ...], when_unix: float) -> int | None:
@@ -84,8 +90,14 @@ def due_nights(store: "Store", planning: "PlanningConfig", now: "Time") -> list[
     """(L9) The events whose night ``n >= 2`` is under way at ``now`` and not re-planned yet: ``(sid, n, s_n, e_n)``."""
     if planning.nights <= 1:
         return []
+    from ..scheduler_core.plan.document import parse_time
+
     out = []
     for sid in live_events(store):
+        first = _first_start(store, sid)
+        # an event whose nights are all over (they lie within nights + 2 days of its start) costs no twilight
+        if first is None or float(now.unix) - float(parse_time(first).unix) > (planning.nights + 2) * 86400.0:
+            continue
         nights = event_nights(store, planning, sid)
         n = night_of(nights, float(now.unix))
         if n is not None and n >= 2 and not night_replanned(store, sid, n):

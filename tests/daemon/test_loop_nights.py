@@ -165,3 +165,27 @@ def test_without_a_source_night_two_counts_night_one_plan_as_done(planned_two, t
         assert min(t(o["start"]).unix for o in new["observations"]) >= evening.unix - 1e-3
     finally:
         p.store.close()
+
+
+def test_without_a_source_each_revision_counts_until_the_next_one_starts(planned_two, tmp_path, nights):
+    """(L11) A closure re-plan on night 1 with no source: revision 1 counts before the reopening, 2 after."""
+    p = pipeline(copy_state(planned_two, tmp_path), LoopConfig())
+    try:
+        first = the_plan(p)
+        obs = first["observations"]
+        reopening = at(t(obs[9]["end"]), 7200.0)
+        acc = p.replan_closure(SUPEREVENT, reopening.isot + "Z", "test:closure", now=t(obs[9]["end"]).to_datetime())
+        out = p.run_job(acc.job)
+        assert out.decision == "replan" and out.plan_id, out
+        second = the_plan(p)
+        before = [o for o in obs if t(o["start"]).unix < reopening.unix]
+        # night 1's re-plan took revision 1's exposures before the reopening as done: no done pair again
+        pairs = done_pairs(executed_like(before), ("g", "r"), cadence_s=CADENCE_S)
+        assert pairs.both and not [o for o in second["observations"] if o["field_id"] in pairs.both]
+        assert t(second["end"]).unix <= nights[0][1].unix + 1.0  # the rest of night 1 (L10)
+        done = plans_as_done(p.store, SUPEREVENT, float(at(nights[1][0], 120.0).unix))
+        key = lambda o: (int(o["field_id"]), o["filter"], round(t(o["start"]).unix, 3))  # noqa: E731
+        assert sorted((e.field_id, e.filter, round(float(e.start.unix), 3)) for e in done) == sorted(
+            key(o) for o in before + second["observations"])
+    finally:
+        p.store.close()
