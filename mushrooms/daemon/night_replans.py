@@ -121,14 +121,14 @@ def record_night_replans(pipeline: Any, now: "Time") -> list[Any]:
         One per due event: ``replan`` with its job, or ``ignore`` (a job of
         the event is open: the next poll tries again, the night is not marked).
     """
+    from astropy.time import Time
+
     from ..handlers.instants import iso_z
     from ..scheduler_core.plan.document import iso_utc as iso
     from .replans import record_replan
 
     out = []
     for sid, n, s, e in due_nights(pipeline.store, pipeline.planning, now):
-        from astropy.time import Time
-
         reason = (f"night {n} of {pipeline.planning.nights} began at {iso(Time(s, format='unix'))}: re-planned "
                   f"to {iso(Time(e, format='unix'))} from the executed record")
         start = iso_z(now.utc.to_datetime(_utc()))
