@@ -8,6 +8,7 @@
         ▸ store_executed: one row per exposure (E2)           (L2)
         ▸ per event: slip_of(current plan, executed, now)     (L3-L5)
         ▸ replan_event ─► a ``replan`` job for the JobRunner  (L7, guards L8)
+      [scheduler] nights > 1: an event's later night begun ─► its night re-plan first (L9, L10)
 
 A poll that cannot read its source (unreachable, refused, not the source's
 shape) logs one line and changes nothing; the next poll tries again.  A
@@ -23,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 from .executed_fetch import ExecutedReader, FetchError
 from .executed_table import Stored, executed_between, store_executed
+from .night_replans import due_nights, record_night_replans
 from .remote import Unreachable
 from .replans import current_plan, live_events
 
@@ -98,10 +100,18 @@ class ExecutedLoop:
         plans = {sid: p for sid in live_events(store) if (p := current_plan(store, sid)) is not None
                  and p["document"].get("type", "plan") == "plan"
                  and Time(str(p["document"]["end"]).rstrip("Z"), scale="utc") > now}
-        if not plans:
+        # (L9) [scheduler] nights > 1: the events whose later night has begun are read for too
+        due = due_nights(store, self.pipeline.planning, now)
+        if not plans and not due:
             log.debug("event=executed_poll_skipped reason='no event has a current plan in its window'")
             return Poll()
-        begin = min(Time(str(p["document"]["start"]).rstrip("Z"), scale="utc") for p in plans.values())
+        begin = min([Time(str(p["document"]["start"]).rstrip("Z"), scale="utc") for p in plans.values()]
+                    + [Time(s, format="unix", scale="utc") for _, _, s, _ in due])
+        if due:
+            first = store._conn().execute(
+                f"SELECT MIN(start) FROM jobs WHERE superevent_id IN ({','.join('?' * len(due))})",
+                [sid for sid, *_ in due]).fetchone()[0]
+            begin = min(begin, Time(str(first).rstrip("Z"), scale="utc"))
         source = self.reader.describe()
         try:
             exposures = self.reader.read(min(begin, now), now)
@@ -112,8 +122,12 @@ class ExecutedLoop:
         stored = store_executed(store, exposures, source)
         log.info("event=executed_read source=%s exposures=%d added=%d updated=%d unchanged=%d events=%d", source,
                  len(exposures), stored.added, stored.updated, stored.unchanged, len(plans))
-        replans: list[Any] = []
+        # (L10) a later night's re-plan first: it replaces the slip check of that event in this poll
+        replans: list[Any] = record_night_replans(self.pipeline, now) if due else []
+        nighted = {a.ref.superevent_id for a in replans}
         for sid, plan in plans.items():
+            if sid in nighted:
+                continue
             doc = plan["document"]
             start = Time(str(doc["start"]).rstrip("Z"), scale="utc")
             executed = executed_between(store, float(start.unix) - 1.0, float(now.unix))

@@ -27,6 +27,7 @@ from ..handlers.policy import PolicyConfig
 from ..scheduler_core.errors import InputError, PlanCheckError
 from ..scheduler_core.plan.messages import combined_map_incident, revision_document
 from ..scheduler_core.sky.sniff import is_fits
+from .night_replans import night_one
 from .outcomes import Outcome
 from .store import Job, Store
 
@@ -193,6 +194,7 @@ class JobPlanner:
         lap("read")
         stage("preparing the problem")
         start = parse_time(job.start)
+        sched = night_one(sched, start)  # (L9) nights > 1: the alert's plan is night 1's, to its morning twilight
         if self.cache is not None:
             problem = self.cache.prepare(skymap, sched, start)
         else:

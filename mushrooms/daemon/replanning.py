@@ -7,7 +7,9 @@
 
 The plan covers ``[start, end of the plan it supersedes]`` (at least an
 hour: ``[scheduler] horizon_h``'s floor), so the re-plan fills the rest of
-the queue's validity window and no more.  It is published as the event's
+the queue's validity window and no more; with ``[scheduler] nights > 1`` a
+re-plan starting inside one of the event's nights covers the rest of that
+night, ``[start, e_n]`` (L10).  It is published as the event's
 next revision (one more than any it stored, ``final: true``) through the
 same store and outbox path as every plan, so the submitter puts it in ZTF's
 queue when ``[submit]`` is on.  A re-plan with nothing left to observe
@@ -22,6 +24,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from .executed_table import executed_between
 from .outcomes import Outcome
+from .night_replans import night_end, plans_as_done
 from .replans import close_without_plan, current_plan, next_revision
 
 if TYPE_CHECKING:
@@ -65,6 +68,8 @@ def run_replan(planner: Any, job: "Job", stage: Callable[[str], None],
     """
     from ..scheduler_core import make_plan_id
     from ..scheduler_core.clock import on_merger_clock
+    from astropy.time import Time
+
     from ..scheduler_core.plan.document import parse_time
     store, sched = planner.store, planner.planning
     skymap, event = planner._read_skymap(job, stage)
@@ -74,12 +79,19 @@ def run_replan(planner: Any, job: "Job", stage: Callable[[str], None],
     if old is None:
         return _nothing(planner, job, "the event has no current plan any more")
     end = parse_time(old["document"]["end"])
+    night = night_end(store, sched, job.superevent_id, start)  # (L10) nights > 1: the night holding the start
+    if night is not None:
+        end = Time(night, format="unix", scale="utc")
     left_s = float((end - start).to_value("s"))
     if left_s <= 0:
         return _nothing(planner, job, f"the window of {job.supersedes} ends before the re-plan's start {job.start}")
-    # (L7) the rest of the superseded plan's window, with what was executed since the event's first plan
+    # (L7) the rest of the superseded plan's window (L10: of the night), with what was executed since the
+    # event's first plan; (L11) with nights > 1 and no executed source, the earlier revisions taken as done
     config = dataclasses.replace(sched, horizon_h=min(sched.horizon_h, max(1.0, left_s / 3600.0)))
-    executed = executed_between(store, _since_unix(store, job.superevent_id))
+    if sched.nights > 1 and not planner.loop.enabled:
+        executed = list(plans_as_done(store, job.superevent_id, float(start.unix)))
+    else:
+        executed = executed_between(store, _since_unix(store, job.superevent_id))
     stage("planning what is left")
     plan = planner.replanner(skymap, config, start, executed, event=event,
                              min_processed_fraction=planner.loop.min_processed_fraction,

@@ -56,7 +56,7 @@ def next_revision(store: Store, superevent_id: str) -> int:
 
 
 def record_replan(store: Store, superevent_id: str, start: str, reason: str, origin: str,
-                  operator: bool = False) -> Accepted:
+                  operator: bool = False, night: bool = False) -> Accepted:
     """Record a re-plan job of an event from ``start``, atomically (guards L8).
 
     Parameters
@@ -72,6 +72,9 @@ def record_replan(store: Store, superevent_id: str, start: str, reason: str, ori
     operator : bool
         An operator's request: an open job of the event is superseded
         instead of blocking, and an already re-planned plan is re-planned again.
+    night : bool
+        A later night's re-plan (L10): an already re-planned plan is
+        re-planned again (a new night is new work); an open job still blocks.
 
     Returns
     -------
@@ -97,7 +100,7 @@ def record_replan(store: Store, superevent_id: str, start: str, reason: str, ori
         why = None
         if open_jobs and not operator:
             why = f"job {open_jobs[-1]} of the event is open; its plan will supersede {plan['plan_id']}"
-        elif not operator and c.execute("SELECT 1 FROM jobs WHERE decision='replan' AND supersedes=?",
+        elif not operator and not night and c.execute("SELECT 1 FROM jobs WHERE decision='replan' AND supersedes=?",
                                         (plan["plan_id"],)).fetchone():
             why = f"plan {plan['plan_id']} was re-planned already"
         if why is not None:

@@ -452,6 +452,14 @@ class Service:
     def _start_loop(self, token: str | None) -> None:
         """With ``[loop] executed_source`` set: poll it every ``poll_interval_s`` on the timer thread (and now)."""
         loop = getattr(self.config, "loop", None)
+        nights = int(getattr(self.pipeline.planning, "nights", 1))
+        if (loop is None or not loop.enabled) and nights > 1:
+            # (L9) no executed source: the later nights are still re-planned at their twilights (L11)
+            every = loop.poll_interval_s if loop is not None else 300.0
+            self.scheduler.add_job(self._poll_nights, "interval", seconds=every, id="nights",
+                                   next_run_time=datetime.now(timezone.utc), misfire_grace_time=None, coalesce=True,
+                                   max_instances=1)
+            log.info("event=night_replans nights=%d poll_interval_s=%g source=none", nights, every)
         if loop is None or not loop.enabled:
             return
         from .loop import ExecutedLoop
@@ -463,6 +471,24 @@ class Service:
         log.info("event=executed_loop source=%s poll_interval_s=%g max_slip_s=%g min_processed_fraction=%g",
                  self.executed_loop.reader.describe(), loop.poll_interval_s, loop.max_slip_s,
                  loop.min_processed_fraction)
+
+    def _poll_nights(self) -> None:
+        """Without an executed source: re-plan each event's later night once it has begun (never raises)."""
+        if self._closing.is_set() or self._stop.is_set():
+            return
+        from astropy.time import Time
+
+        from .night_replans import record_night_replans
+
+        try:
+            accepted = record_night_replans(self.pipeline, Time.now())
+        except Exception:
+            log.exception("event=night_replans_failed")
+            return
+        for a in accepted:
+            if a.job is not None:
+                self.metrics.notice(a, source="loop")
+                self._start_jobs(a, time.time())
 
     def _poll_executed(self) -> None:
         """One poll: read and store what was executed, start the re-plans it calls for (never raises)."""
