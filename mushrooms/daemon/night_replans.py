@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from .store import Store
 
 __all__ = ["event_nights", "night_of", "due_nights", "night_origin", "night_replanned", "record_night_replans",
-           "night_one", "plans_as_done", "night_end"]
+           "night_one", "plans_as_done", "night_bounds"]
 
 log = logging.getLogger("mushrooms.daemon.loop")
 
@@ -136,11 +136,12 @@ def record_night_replans(pipeline: Any, now: "Time") -> list[Any]:
     return out
 
 
-def night_end(store: "Store", planning: "PlanningConfig", superevent_id: str, start: "Time") -> float | None:
-    """(L10) With ``nights > 1``, the unix end ``e_n`` of the event's night holding ``start``; else None."""
+def night_bounds(store: "Store", planning: "PlanningConfig", superevent_id: str,
+                 start: "Time") -> tuple[float, float] | None:
+    """With ``nights > 1``, the unix ``(s_n, e_n)`` of the event's night holding ``start``; else None."""
     nights = event_nights(store, planning, superevent_id)
     n = night_of(nights, float(start.unix))
-    return None if n is None else nights[n - 1][1]
+    return None if n is None else (nights[n - 1][0], nights[n - 1][1])
 
 
 def night_one(planning: "PlanningConfig", start: "Time") -> "PlanningConfig":

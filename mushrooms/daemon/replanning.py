@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from .executed_table import executed_between
 from .outcomes import Outcome
-from .night_replans import night_end, plans_as_done
+from .night_replans import night_bounds, plans_as_done
 from .replans import close_without_plan, current_plan, next_revision
 
 if TYPE_CHECKING:
@@ -79,9 +79,9 @@ def run_replan(planner: Any, job: "Job", stage: Callable[[str], None],
     if old is None:
         return _nothing(planner, job, "the event has no current plan any more")
     end = parse_time(old["document"]["end"])
-    night = night_end(store, sched, job.superevent_id, start)  # (L10) nights > 1: the night holding the start
+    night = night_bounds(store, sched, job.superevent_id, start)  # (L10) nights > 1: the night holding the start
     if night is not None:
-        end = Time(night, format="unix", scale="utc")
+        end = Time(night[1], format="unix", scale="utc")
     left_s = float((end - start).to_value("s"))
     if left_s <= 0:
         return _nothing(planner, job, f"the window of {job.supersedes} ends before the re-plan's start {job.start}")
@@ -92,6 +92,10 @@ def run_replan(planner: Any, job: "Job", stage: Callable[[str], None],
         executed = list(plans_as_done(store, job.superevent_id, float(start.unix)))
     else:
         executed = executed_between(store, _since_unix(store, job.superevent_id))
+    if sched.revisit and night is not None:  # (N4) revisit: the earlier nights' fields may be observed again
+        from ..scheduler_core.nights import counted_for_night
+
+        executed = counted_for_night(executed, Time(night[0], format="unix", scale="utc"), True)
     stage("planning what is left")
     plan = planner.replanner(skymap, config, start, executed, event=event,
                              min_processed_fraction=planner.loop.min_processed_fraction,

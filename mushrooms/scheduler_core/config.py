@@ -86,6 +86,12 @@ class PlanningConfig:
         Nights planned, one plan document each over its own validity window
         (that night's twilights, :func:`~.nights.plan_nights`); 1 (the
         default): one plan over ``horizon_h`` from the start, as before.
+    revisit : bool
+        With ``nights > 1``: each later night is planned on the whole map
+        again, re-observing earlier nights' fields for the light curve (as
+        ZTF's GW programme did), counting only that night's own executed
+        exposures as done (``docs/design/replan.md`` N4).  False (the
+        default): a later night covers what is still uncovered (N3).
     time_step_s : float
         Step (s) of the time grid on which observability windows are found.
     sun_alt_max_deg : float
@@ -218,6 +224,7 @@ class PlanningConfig:
                          why="16: 3.7 deg pixels, still finer than a ZTF field (6.9 deg); 1024: 12.6 M pixels, 0.1 GB per sky array")
     horizon_h: float = setting(24.0, 1, 168, "h", why="at least the two visits of a block; a kilonova fades within a week")
     nights: int = setting(1, 1, 7, why="1: one plan over horizon_h; a kilonova fades within a week")
+    revisit: bool = False
     time_step_s: float = setting(120.0, 10, 900, "s",
                                  why="windows to 10 s are finer than any exposure; 900 s is three 300 s exposures")
     sun_alt_max_deg: float = setting(-12.0, -18, 0, "deg", why="astronomical twilight to sunset")
@@ -324,12 +331,15 @@ class PlanningConfig:
     def record(self) -> dict[str, Any]:
         """The configuration as the plan records it (and its plan id hashes).
 
-        ``exposure_menu_s`` appears only when set, so a plan without a menu
-        has the same document and the same plan id as before the menu existed.
+        ``exposure_menu_s`` appears only when set and ``revisit`` only when
+        true, so a plan without them has the same document and the same plan
+        id as before they existed.
         """
         out = dataclasses.asdict(self)
         if not out["exposure_menu_s"]:
             del out["exposure_menu_s"]
+        if not out["revisit"]:
+            del out["revisit"]
         return out
 
     @property

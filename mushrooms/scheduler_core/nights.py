@@ -24,7 +24,7 @@ from .problem import StopCheck
 from .sky.fields import FieldGrid
 from .sky.skymap import SkyMap
 
-__all__ = ["plan_nights", "as_planned"]
+__all__ = ["plan_nights", "as_planned", "counted_for_night"]
 
 log = logging.getLogger(__name__)
 
@@ -33,6 +33,29 @@ def as_planned(plan: Plan) -> tuple[ExecutedExposure, ...]:
     """A plan's exposures as if the telescope had done them all (N2): fully reduced, at their planned times."""
     return tuple(ExecutedExposure(o.field_id, o.filter, plan.absolute_time(o.start), o.exposure_s, 1.0, "processed")
                  for o in plan.observations)
+
+
+def counted_for_night(done: Sequence[ExecutedExposure], evening: Time, revisit: bool) -> list[ExecutedExposure]:
+    """What a night's plan counts as done: (N2) everything before it, or (N4) with ``revisit`` only its own night's.
+
+    Parameters
+    ----------
+    done : sequence of ExecutedExposure
+        Executed exposures and the earlier nights' plans taken as done.
+    evening : astropy.time.Time
+        The night's start ``s_n`` (its evening twilight, or the start when the night is under way).
+    revisit : bool
+        ``[scheduler] revisit``: the earlier nights' fields may be observed again.
+
+    Returns
+    -------
+    list of ExecutedExposure
+        ``done`` (N2), or the exposures of ``done`` starting at or after ``evening`` (N4).
+    """
+    if not revisit:
+        return list(done)
+    cut = float(Time(evening, scale="utc").unix)
+    return [e for e in done if float(e.start.unix) >= cut]
 
 
 def plan_nights(skymap: SkyMap, config: PlanningConfig, start: Time | None = None,
@@ -92,7 +115,8 @@ def plan_nights(skymap: SkyMap, config: PlanningConfig, start: Time | None = Non
     for n, (evening, morning) in enumerate(windows, 1):
         night = dataclasses.replace(config, horizon_h=float((morning - evening).to_value("h")))
         # (N2) night n on what nights < n achieved: the executed record, the earlier plans as done
-        plan = plan_remaining(skymap, night, evening, done, event=event, solver=solver, should_stop=should_stop,
+        counted = counted_for_night(done, evening, config.revisit)  # (N4) revisit: this night's own only
+        plan = plan_remaining(skymap, night, evening, counted, event=event, solver=solver, should_stop=should_stop,
                               grid=grid, min_processed_fraction=min_processed_fraction)
         log.info("night %d of %d, %s to %s: %d fields, %d exposures, adds %.4f to %.4f",
                  n, len(windows), evening.isot[:16], morning.isot[:16], plan.metrics.n_fields,

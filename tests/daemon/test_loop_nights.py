@@ -189,3 +189,24 @@ def test_without_a_source_each_revision_counts_until_the_next_one_starts(planned
             key(o) for o in before + second["observations"])
     finally:
         p.store.close()
+
+
+def test_with_revisit_night_two_observes_night_one_fields_again(planned_two, tmp_path, nights):
+    """(N4) revisit = true: night 2 is planned on the whole map again, night 1's fields re-observed."""
+    from mushrooms.daemon.night_replans import record_night_replans
+
+    # the state was planned with revisit = false; the re-plan reads [scheduler] as configured now
+    p = pipeline(copy_state(planned_two, tmp_path), LoopConfig(), planning=dataclasses.replace(TWO, revisit=True))
+    try:
+        first = the_plan(p)
+        evening = at(nights[1][0], 120.0)
+        (acc,) = record_night_replans(p, evening)
+        out = p.run_job(acc.job)
+        assert out.decision == "replan" and out.plan_id, out
+        new = the_plan(p)
+        assert not new["metrics"]["coverage_executed"]  # nothing of night 1 counted as done
+        assert {o["field_id"] for o in new["observations"]} & {o["field_id"] for o in first["observations"]}
+        assert min(t(o["start"]).unix for o in new["observations"]) >= evening.unix - 1e-3
+        validate_document(new)
+    finally:
+        p.store.close()

@@ -81,3 +81,34 @@ def test_the_second_night_is_planned_on_what_the_first_achieved(two_nights, skym
     assert set(pairs.both) == set(first.field_ids)
     assert not set(second.field_ids) & set(first.field_ids)  # (N3) no field of night 1 again
     assert second.metrics.coverage_executed == pytest.approx(first.metrics.coverage, abs=1e-5)
+
+
+def test_revisit_counts_only_the_night_s_own_exposures():
+    # (N4) the pure rule both plan_nights and the daemon's night re-plans apply
+    from mushrooms.scheduler_core.executed import ExecutedExposure
+    from mushrooms.scheduler_core.nights import counted_for_night
+
+    evening = Time("2022-07-23T04:00:00", scale="utc")
+    earlier = ExecutedExposure(818, "g", evening - TimeDelta(20 * 3600, format="sec"), 300.0, 1.0, "processed")
+    tonight = ExecutedExposure(818, "r", evening + TimeDelta(600, format="sec"), 300.0, 1.0, "processed")
+    assert counted_for_night([earlier, tonight], evening, revisit=False) == [earlier, tonight]  # (N2)
+    assert counted_for_night([earlier, tonight], evening, revisit=True) == [tonight]
+
+
+def test_revisit_plans_the_second_night_on_the_whole_map_again(two_nights, skymap_220722v):
+    first, second = two_nights
+    again = plan_nights(skymap_220722v, dataclasses.replace(CFG, revisit=True))
+    assert again[0].observations == first.observations  # night 1 the same plan
+    night2 = again[1]
+    report = check_plan(night2, skymap_220722v, PlanningConfig.from_mapping(night2.config))
+    assert report.ok, report.problems  # a whole plan on its own: nothing of night 1 counted
+    assert night2.config["revisit"] is True and "revisit" not in second.config
+    assert set(night2.field_ids) & set(first.field_ids)  # (N4) night 1's fields observed again
+    assert night2.metrics.coverage > second.metrics.coverage  # it covers anew what night 1 had covered
+    assert not night2.metrics.coverage_executed  # nothing counted as done before the night
+
+
+def test_revisit_false_keeps_plan_ids():
+    # revisit is recorded only when true: the documents (and plan ids) of other plans do not change
+    assert "revisit" not in PlanningConfig().record()
+    assert PlanningConfig(revisit=True).record()["revisit"] is True
