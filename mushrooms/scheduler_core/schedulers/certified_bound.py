@@ -36,6 +36,7 @@ def certified_upper_bound(problem: PlanningProblem, time_limit_s: float | None =
         ``method`` says which bound it is: ``interval`` when V is below U4,
         else ``online`` (U4's result, unchanged but for the wall time).
     """
+    # (V5) min(U4, V): interval_upper_bound never returns more than U4, and U4 alone with no budget
     limit = problem.config.bound_time_limit_s if time_limit_s is None else float(time_limit_s)
     if limit <= 0:
         return coverage_upper_bound(problem)

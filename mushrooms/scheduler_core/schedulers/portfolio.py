@@ -141,6 +141,7 @@ class Portfolio:
         bound_s = 0.0  # the bound's wall time, not charged to the stages
         skipped: list[str] = []
         for i, stage in enumerate(self.stages):
+            # (V6) the best plan so far reaches the certified bound: no stage left can beat it
             if upper is not None and covs and reaches_bound(max(covs.values()), upper):
                 skipped = [s.name for s in self.stages[i:]]
                 log.info("%s: %s's plan covers %.4f, the certified bound is %.4f (%s): it is optimal, "
