@@ -103,3 +103,8 @@ def test_the_interval_bound_after_a_solve_of_the_process_thread_setting():
     run_scheduler(_with(problem, bound_time_limit_s=0.0), "slots")
     got = certified_upper_bound(problem)
     assert got.method == "interval" and got.value == pytest.approx(0.62, abs=1e-6)
+    # another thread count in the same process: the solver resets its pool, the solves stay valid
+    for threads in (1, 0):
+        other = _with(problem, threads=threads)
+        assert certified_upper_bound(other).value == pytest.approx(0.62, abs=1e-6), threads
+        assert run_scheduler(_with(other, bound_time_limit_s=0.0), "slots").status == "optimal", threads
