@@ -169,8 +169,8 @@ def interval_upper_bound(problem: PlanningProblem, time_limit_s: float = 2.0) ->
         A = sp.vstack([base] + [sp.csr_matrix(np.concatenate([k, np.zeros(C)])[None, :]) for k, _ in cuts]).tocsr()
         hi = np.concatenate([base_hi, [b for _, b in cuts]])
         model = MilpModel(c, A, np.full(hi.size, -np.inf), hi, np.zeros(F + C), np.ones(F + C), integer)
-        # the process's thread setting: HiGHS sizes one thread pool per process, and a solve asking
-        # for another count fails (its dual bound is then no bound at all)
+        # the process's thread setting: HiGHS sizes one thread pool per process (solve_milp resets it
+        # when the count changes); a failed solve's dual bound is no bound at all
         res = solve_milp(model, "highs", left, mip_gap=1e-6, threads=problem.config.threads)
         if res.status in PROVEN and res.bound is not None and math.isfinite(res.bound):
             best = min(best, float(res.bound))  # (V4) every solve's proven bound is a bound
