@@ -255,6 +255,7 @@ def build_plan(
         n_fields=len(ids),
         n_exposures=len(observations),
         upper_bound=None if upper is None else round(float(upper), 6),
+        upper_bound_method=None if result.upper_bound is None else result.upper_bound.method,
     )
     plan_id = make_plan_id(
         skymap.sha256, iso_utc(start), config.record(), solver, event.superevent_id,

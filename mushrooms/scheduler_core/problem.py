@@ -70,7 +70,11 @@ class PlanningProblem:
 
 @dataclass(frozen=True)
 class UpperBound:
-    """The certified coverage upper bound (:func:`~.schedulers.bound.coverage_upper_bound`) and how it was obtained.
+    """A certified coverage upper bound and how it was obtained.
+
+    The published one is :func:`~.schedulers.certified_bound.certified_upper_bound`:
+    the least of the online bound (U4) and, within ``bound_time_limit_s``,
+    the interval bound (V1-V4).
 
     Attributes
     ----------
@@ -87,6 +91,11 @@ class UpperBound:
         K, most fields the observable time holds.
     runtime_s : float
         Wall time (s).
+    method : str
+        Which bound ``value`` is: ``online`` (U4, :func:`~.schedulers.bound.coverage_upper_bound`;
+        also its ``empty`` and ``all_fields`` cases), ``milp`` (U0 solved) or
+        ``interval`` (V1-V4, :func:`~.schedulers.interval_bound.interval_upper_bound`,
+        when it is below U4).
     """
 
     value: float
@@ -94,6 +103,7 @@ class UpperBound:
     n_pairable: int
     max_fields: int
     runtime_s: float
+    method: str = "online"
 
 
 @dataclass(frozen=True)

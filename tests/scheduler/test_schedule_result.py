@@ -12,9 +12,10 @@ from mushrooms.scheduler_core.errors import InputError
 from mushrooms.scheduler_core.planner import run_scheduler
 from mushrooms.scheduler_core.problem import ScheduleResult
 from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound
+from mushrooms.scheduler_core.schedulers.certified_bound import certified_upper_bound
 from mushrooms.scheduler_core.schedulers.gain import published_coverage
 from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
-from mushrooms.scheduler_core.schedulers.portfolio import MIN_BLOCKS_S, Stage, best_of
+from mushrooms.scheduler_core.schedulers.portfolio import MIN_BLOCKS_S, Stage, best_of, reaches_bound
 from mushrooms.scheduler_core.solvers_registry import SOLVER_NAMES, get_scheduler, register, registered
 
 
@@ -39,14 +40,15 @@ def test_the_registry_names_every_scheduler_and_refuses_others_with_the_old_mess
 
 def test_every_milp_scheduler_fills_the_certified_bound_and_its_own_mip_bound():
     problem = _problem(1)
-    exact = coverage_upper_bound(problem)
+    exact = certified_upper_bound(problem)  # min(U4, V), as plans publish it
     greedy = run_scheduler(problem, "greedy")
     assert greedy.upper_bound is None and greedy.mip_bound is None  # as published before: greedy has neither
     assert greedy.dropped_by_slews == () and greedy.portfolio == () and greedy.detection is None
     for name in ("slots", "blocks", "milp", "hybrid"):
         result = run_scheduler(problem, name)
         assert result.upper_bound is not None, name
-        assert result.upper_bound.value == pytest.approx(exact.value) and result.upper_bound.status == exact.status
+        assert result.upper_bound.value == pytest.approx(exact.value) and result.upper_bound.method == exact.method
+        assert result.upper_bound.value <= coverage_upper_bound(problem).value
         assert published_coverage(problem, result) <= result.upper_bound.value + 1e-9
         assert isinstance(result.dropped_by_slews, tuple)
         if name != "hybrid" or result.portfolio_choice != "greedy":
@@ -81,7 +83,11 @@ def test_the_hybrid_composition_keeps_the_winner_the_string_branch_kept(seed):
     name, best = _old_hybrid(problem)
     assert best.status in ("optimal", "greedy")  # solved to the end: the comparison is deterministic
     result = run_scheduler(problem, "hybrid")
-    assert [e.name for e in result.portfolio] == ["greedy", "slots", "blocks"]
+    # the stages left once a plan reaches the certified bound are skipped; the winner is the same
+    skipped = result.details.get("skipped_at_bound", [])
+    assert [e.name for e in result.portfolio] + skipped == ["greedy", "slots", "blocks"]
+    if skipped:
+        assert reaches_bound(max(e.coverage for e in result.portfolio), result.upper_bound)
     assert all(e.status in ("optimal", "greedy") for e in result.portfolio)
     assert result.portfolio_choice == name
     assert result.solver == f"hybrid({best.solver})"

@@ -219,7 +219,7 @@ def _prepare(scene: MapScene, settings: BenchSettings, raise_errors: bool) -> No
     """Prepare the map's one problem and its coverage bound (every row needs it: ours to plan, gwemopt's
     for the repair and the bound); a failure is kept in ``prep_error`` for each row to report."""
     from ...scheduler_core.prepare import prepare_problem
-    from ...scheduler_core.schedulers.bound import coverage_upper_bound
+    from ...scheduler_core.schedulers.certified_bound import certified_upper_bound
 
     t0 = time.perf_counter()
     try:
@@ -229,7 +229,8 @@ def _prepare(scene: MapScene, settings: BenchSettings, raise_errors: bool) -> No
             raise
         scene.prep_error = f"prepare_error: {type(exc).__name__}: {exc}"
     scene.prepare_s = time.perf_counter() - t0
-    scene.bound = coverage_upper_bound(scene.problem).value if scene.problem is not None else None
+    # the bound plans publish: min(U4, V) within [scheduler] bound_time_limit_s
+    scene.bound = certified_upper_bound(scene.problem).value if scene.problem is not None else None
     if scene.bound is not None:
         scene.common.update(bound=fmt(scene.bound))
 

@@ -38,7 +38,7 @@ EVENT_KEYS = ("superevent_id", "alert_type", "time_created", "skymap_sha256", "l
               "event_time", "skymap_name", "merger_time_source")
 METRIC_KEYS = (
     "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
-    "n_fields", "n_exposures", "latency_s", "upper_bound",
+    "n_fields", "n_exposures", "latency_s", "upper_bound", "upper_bound_method",
     "expected_detections", "coverage_executed",
 )
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
@@ -167,7 +167,12 @@ class PlanMetrics:
         Alert receipt to plan published (s), filled in by the service.
     upper_bound : float or None
         Certified upper bound on the coverage any rule-abiding plan of this
-        problem reaches (:mod:`.bound`; None when not computed, e.g. greedy).
+        problem reaches (:mod:`..schedulers.certified_bound`: the least of the
+        online bound U4 and the interval bound V; None when not computed,
+        e.g. greedy).
+    upper_bound_method : str or None
+        Which bound ``upper_bound`` is: ``online`` (U4), ``interval`` (V,
+        when below U4) or ``milp`` (U0 solved); None with no bound.
     expected_detections : float or None
         Probability that the plan detects a kilonova of the configured light
         curve (``detection_lightcurve``), from the sky map's distance
@@ -192,6 +197,7 @@ class PlanMetrics:
     latency_s: float | None = None
     mip_bound: float | None = None
     upper_bound: float | None = None
+    upper_bound_method: str | None = None
     expected_detections: float | None = None
     coverage_executed: float | None = None
 

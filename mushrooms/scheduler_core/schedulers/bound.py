@@ -161,8 +161,8 @@ def coverage_upper_bound(problem: PlanningProblem, method: str = "online", time_
     model = MilpModel(c, A, np.full(C + 1, -np.inf), np.concatenate([np.zeros(C), [float(K)]]),
                       np.zeros(F + C), np.ones(F + C), integer)
     res = solve_milp(model, backend, time_limit_s, mip_gap=1e-6)
-    if res.bound is not None and math.isfinite(res.bound):
+    if res.status in ("optimal", "time_limit", "interrupted") and res.bound is not None and math.isfinite(res.bound):
         value, status = float(res.bound), "optimal" if res.status == "optimal" else "dual_bound"
     else:
         value, status = everything, "all_fields"
-    return UpperBound(min(value + 1e-9, everything), status, F, K, time.perf_counter() - t0)
+    return UpperBound(min(value + 1e-9, everything), status, F, K, time.perf_counter() - t0, method="milp")

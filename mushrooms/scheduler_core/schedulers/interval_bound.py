@@ -38,6 +38,9 @@ from .solvers import MilpModel, solve_milp
 
 __all__ = ["field_spans", "interval_violation", "interval_upper_bound"]
 
+#: Solver statuses whose dual bound is proven (an ``error: ...`` status carries none).
+PROVEN = ("optimal", "time_limit", "interrupted")
+
 #: Rows added per separation round, and most rounds.
 ROWS_PER_ROUND = 40
 MAX_ROUNDS = 12
@@ -130,8 +133,8 @@ def interval_upper_bound(problem: PlanningProblem, time_limit_s: float = 2.0) ->
     UpperBound
         Status ``interval`` (V3 solved with no V2 row violated at its
         optimum: the relaxation's optimum), ``interval_dual_bound`` (budget
-        or rounds ran out: the least proven bound), or U4's own status when
-        U4 is lower.
+        or rounds ran out: the least proven bound), both with ``method``
+        ``interval``; or U4 itself (``method`` ``online``) when it is not above V.
     """
     from ..sky.cells import merge_cells
     from .block_schedule import shortlist_footprints
@@ -166,10 +169,12 @@ def interval_upper_bound(problem: PlanningProblem, time_limit_s: float = 2.0) ->
         A = sp.vstack([base] + [sp.csr_matrix(np.concatenate([k, np.zeros(C)])[None, :]) for k, _ in cuts]).tocsr()
         hi = np.concatenate([base_hi, [b for _, b in cuts]])
         model = MilpModel(c, A, np.full(hi.size, -np.inf), hi, np.zeros(F + C), np.ones(F + C), integer)
-        res = solve_milp(model, "highs", left, mip_gap=1e-6, threads=1)
-        if res.bound is not None and math.isfinite(res.bound):
+        # the process's thread setting: HiGHS sizes one thread pool per process (solve_milp resets it
+        # when the count changes); a failed solve's dual bound is no bound at all
+        res = solve_milp(model, "highs", left, mip_gap=1e-6, threads=problem.config.threads)
+        if res.status in PROVEN and res.bound is not None and math.isfinite(res.bound):
             best = min(best, float(res.bound))  # (V4) every solve's proven bound is a bound
-        if res.x is None:
+        if res.x is None or res.status not in PROVEN:
             break
         v = iv.violation(np.round(res.x[:F]))
         order = np.argsort(v, axis=None)[::-1][:ROWS_PER_ROUND]
@@ -178,6 +183,7 @@ def interval_upper_bound(problem: PlanningProblem, time_limit_s: float = 2.0) ->
             status = "interval" if res.status == "optimal" else status
             break
         cuts += [iv.row(int(a), int(b)) for a, b in new]
-    if not best < u4.value:
+    value = best + 1e-9  # the margin every published bound carries (U4 too)
+    if not value < u4.value:  # never above U4: min(U4, V)
         return dataclasses.replace(u4, runtime_s=time.perf_counter() - t0)
-    return UpperBound(best + 1e-9, status, F, K, time.perf_counter() - t0)
+    return UpperBound(value, status, F, K, time.perf_counter() - t0, method="interval")

@@ -7,7 +7,10 @@ budget (s) left of ``config.time_limit_s``.  :func:`best_of` runs stages in
 turn and keeps the plan that, as it will be published (after the
 least-gain rule), covers the most probability, the earliest stage winning
 a tie; :func:`with_upper_bound` attaches the certified coverage bound
-(:mod:`.bound`) to a scheduler's result.  The named schedulers of
+(:mod:`.certified_bound`: the least of U4 and the interval bound V) to a
+scheduler's result.  A portfolio given a ``bound`` computes it after its
+first stage and skips the stages left once a plan reaches it (within
+:data:`BOUND_RTOL`): that plan is then optimal, no stage can beat it.  The named schedulers of
 :mod:`..solvers_registry` are built from these, and this module registers them there
 (``greedy``, ``slots``, ``blocks`` / ``milp``, ``hybrid``).
 
@@ -18,20 +21,33 @@ there, so a test can replace ``slot_schedule.slot_schedule``).
 from __future__ import annotations
 
 import dataclasses
+import logging
 import time
 from dataclasses import dataclass
 from typing import Callable, Mapping
 
-from ..problem import PlanningProblem, PortfolioEntry, ScheduleResult, Scheduler, StopCheck
+from ..problem import PlanningProblem, PortfolioEntry, ScheduleResult, Scheduler, StopCheck, UpperBound
 from ..solvers_registry import register
 from .gain import published_coverage
 from .greedy import greedy_schedule
 
 __all__ = ["Stage", "StageRun", "Portfolio", "best_of", "with_upper_bound", "greedy_stage", "slots_stage",
-           "blocks_stage", "slots_from_greedy", "blocks", "hybrid", "MIN_BLOCKS_S"]
+           "blocks_stage", "slots_from_greedy", "blocks", "hybrid", "MIN_BLOCKS_S", "BOUND_RTOL", "reaches_bound",
+           "published_bound"]
+
+log = logging.getLogger(__name__)
 
 #: The hybrid runs the block MILP only when at least this much (s) of its budget is left.
 MIN_BLOCKS_S = 3.0
+
+#: A plan covering at least ``(1 - BOUND_RTOL)`` of the certified bound (less its 1e-9 margin) is optimal to
+#: within that: the portfolio skips its remaining stages.  Tight on purpose: a plan one small pixel short
+#: of the bound (a few 1e-6 of coverage on a random test problem) is not optimal, and a later stage finds
+#: the pixel; a plan the skip keeps is at most this far (relative) from what the full run would keep.
+BOUND_RTOL = 1e-7
+
+#: ``bound(problem) -> UpperBound``: a certified bound on every plan's coverage.
+BoundRun = Callable[[PlanningProblem], UpperBound]
 
 #: ``run(problem, should_stop, earlier, left_s)``: ``earlier`` maps the stages already run to their
 #: results (in order), ``left_s`` is what is left (s) of ``config.time_limit_s``, possibly negative.
@@ -88,6 +104,11 @@ def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     return milp_schedule(timed, should_stop)
 
 
+def reaches_bound(coverage: float, bound: UpperBound) -> bool:
+    """True when ``coverage`` is within :data:`BOUND_RTOL` (relative) of the certified ``bound``."""
+    return coverage >= (1.0 - BOUND_RTOL) * (bound.value - 1e-9)
+
+
 @dataclass(frozen=True)
 class Portfolio:
     """Run stages in turn; keep the plan covering the most as published (a tie: the earlier stage).
@@ -96,34 +117,61 @@ class Portfolio:
     winner's, with ``solver`` ``<label>(<winner's solver>)``, the whole
     wall time, ``portfolio`` (each candidate's solver, status, gap and
     published coverage) and ``portfolio_choice`` (the winning stage).
+
+    With a ``bound``, it is computed once after the first stage (its wall
+    time is not taken from the stages' budget: the bound comes on top of
+    ``time_limit_s``, as it did after the scheduler) and is the result's
+    ``upper_bound``; when the best plan so far reaches it
+    (:func:`reaches_bound`) the stages left are skipped, logged and listed
+    in ``details["skipped_at_bound"]``.  The plan is the one the full run
+    would keep: no later stage can cover more, and a tie goes to the
+    earlier stage.
     """
 
     label: str
     stages: tuple[Stage, ...]
+    bound: BoundRun | None = None
 
     def __call__(self, problem: PlanningProblem, should_stop: StopCheck | None = None) -> ScheduleResult:
         t0 = time.perf_counter()
         budget = problem.config.time_limit_s
         ran: dict[str, ScheduleResult] = {}
-        for stage in self.stages:
-            left = budget - (time.perf_counter() - t0)
+        covs: dict[str, float] = {}
+        upper: UpperBound | None = None
+        bound_s = 0.0  # the bound's wall time, not charged to the stages
+        skipped: list[str] = []
+        for i, stage in enumerate(self.stages):
+            # (V6) the best plan so far reaches the certified bound: no stage left can beat it
+            if upper is not None and covs and reaches_bound(max(covs.values()), upper):
+                skipped = [s.name for s in self.stages[i:]]
+                log.info("%s: %s's plan covers %.4f, the certified bound is %.4f (%s): it is optimal, "
+                         "skipping %s", self.label, max(covs, key=covs.get), max(covs.values()), upper.value,
+                         upper.method, ", ".join(skipped))
+                break
+            left = budget - (time.perf_counter() - t0 - bound_s)
             if stage.min_left_s is not None:
                 stopped = should_stop is not None and should_stop()
                 if left < stage.min_left_s or stopped:
                     continue
             ran[stage.name] = stage.run(problem, should_stop, ran, left)
+            covs[stage.name] = published_coverage(problem, ran[stage.name])
+            if self.bound is not None and upper is None:
+                t_bound = time.perf_counter()
+                upper = self.bound(problem)
+                bound_s = time.perf_counter() - t_bound
         names = list(ran)
-        covs = {name: published_coverage(problem, r) for name, r in ran.items()}
         name = max(names, key=lambda n: (covs[n], -names.index(n)))
         best = ran[name]
         entries = tuple(PortfolioEntry(n, r.solver, r.status, r.mip_gap, covs[n]) for n, r in ran.items())
+        details = dict(best.details, skipped_at_bound=skipped) if skipped else best.details
         return dataclasses.replace(best, solver=f"{self.label}({best.solver})", runtime_s=time.perf_counter() - t0,
-                                   portfolio=entries, portfolio_choice=name)
+                                   portfolio=entries, portfolio_choice=name, details=details,
+                                   upper_bound=upper if upper is not None else best.upper_bound)
 
 
-def best_of(label: str, *stages: Stage) -> Portfolio:
-    """The :class:`Portfolio` of ``stages``, its results' solver named ``label(...)``."""
-    return Portfolio(label, tuple(stages))
+def best_of(label: str, *stages: Stage, bound: BoundRun | None = None) -> Portfolio:
+    """The :class:`Portfolio` of ``stages``, its results' solver named ``label(...)``; ``bound``: stop at it."""
+    return Portfolio(label, tuple(stages), bound)
 
 
 def slots_from_greedy(problem: PlanningProblem, should_stop: StopCheck | None = None) -> ScheduleResult:
@@ -151,14 +199,24 @@ def blocks(problem: PlanningProblem, should_stop: StopCheck | None = None) -> Sc
     return milp_schedule(problem, should_stop)
 
 
+def published_bound(problem: PlanningProblem) -> UpperBound:
+    """The certified bound plans publish: ``min(U4, V)`` within ``config.bound_time_limit_s`` (:mod:`.certified_bound`)."""
+    from .certified_bound import certified_upper_bound
+
+    return certified_upper_bound(problem)
+
+
 def with_upper_bound(scheduler: Scheduler) -> Scheduler:
-    """``scheduler`` whose result carries the certified coverage upper bound of the problem (:mod:`.bound`)."""
+    """``scheduler`` whose result carries the certified coverage upper bound of the problem (:func:`published_bound`).
+
+    A result that already holds one (a portfolio with a ``bound``) keeps it.
+    """
 
     def bounded(problem: PlanningProblem, should_stop: StopCheck | None = None) -> ScheduleResult:
-        from .bound import coverage_upper_bound
-
         result = scheduler(problem, should_stop)
-        return dataclasses.replace(result, upper_bound=coverage_upper_bound(problem))
+        if result.upper_bound is not None:
+            return result
+        return dataclasses.replace(result, upper_bound=published_bound(problem))
 
     bounded.__name__ = bounded.__qualname__ = f"with_upper_bound({getattr(scheduler, '__name__', scheduler)!s})"
     bounded.__doc__ = scheduler.__doc__
@@ -167,8 +225,9 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
 
 #: The hybrid: greedy, the slot portfolio from it, then (when at least :data:`MIN_BLOCKS_S` is left) the
 #: block MILP with the time left; the plan covering the most as published (ties: greedy, slots, blocks).
+#: The certified bound is computed after greedy, and the stages left are skipped once a plan reaches it.
 hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage),
-                 Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S))
+                 Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S), bound=published_bound)
 
 register("greedy", greedy_schedule)
 register("slots", with_upper_bound(slots_from_greedy))

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -33,6 +34,12 @@ log = logging.getLogger(__name__)
 REPORT_GAP = 0.01
 #: Variable/constraint limit of Gurobi's size-limited (pip) licence.
 GUROBI_PIP_LIMIT = 2000
+
+#: HiGHS keeps one thread pool per process, sized by the first solve's ``threads``; a later solve asking for
+#: another count fails (status "Not Set", no solution, a dual bound of 0).  The count the pool was sized
+#: for, and the lock around resizing it: a solve asking for another count resets the pool first.
+_highs_pool = {"threads": None}
+_highs_pool_lock = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -213,6 +220,13 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
     import highspy
 
     t0 = time.perf_counter()
+    with _highs_pool_lock:
+        if _highs_pool["threads"] not in (None, int(threads)):
+            # a sequential change of the thread count (tests, benchmarks): the one config of a service
+            # never changes it, so no solve is running in another thread when this happens
+            log.debug("HiGHS thread pool: %s -> %s thread(s), resetting it", _highs_pool["threads"], threads)
+            highspy.Highs.resetGlobalScheduler(True)
+        _highs_pool["threads"] = int(threads)
     h = highspy.Highs()
     h.setOptionValue("output_flag", False)
     h.setOptionValue("time_limit", float(max(time_limit_s, 0.01)))
