@@ -16,7 +16,7 @@ Each arm is scored by its achieved coverage (Q6: fields done in both
 filters) and expected detections (X1, the plans' own metric, on the done
 exposures).  Night 2 is then planned by ``plan_remaining`` on each arm's
 executed record; its ``metrics.coverage`` is what the second night adds.
-Equations: ``docs/design/executed.md`` (section 5).
+Equations (W1)-(W5): ``docs/design/executed.md``, section 5.
 """
 
 from __future__ import annotations
@@ -169,6 +169,7 @@ def _plan_windows(plan: Plan, config: PlanningConfig, grid: FieldGrid):
 
 def _arm(executed: tuple[ExecutedExposure, ...], plan: Plan, skymap: SkyMap, config: PlanningConfig,
          footprints: Footprints, grid: FieldGrid) -> LoopArm:
+    """(W4) an arm's scores: coverage (Q6) at any separation and at the cadence, expected detections (X1)."""
     filters = tuple(config.filters)
     return LoopArm(executed=executed,
                    coverage=achieved_coverage(executed, skymap, footprints, filters),
@@ -180,7 +181,7 @@ def _arm(executed: tuple[ExecutedExposure, ...], plan: Plan, skymap: SkyMap, con
 
 def _night2(arm: LoopArm, skymap: SkyMap, config: PlanningConfig, start: Time, solver: str,
             grid: FieldGrid) -> LoopArm:
-    """Night 2 planned on the arm's night-1 record (N2): what it adds."""
+    """(W5) night 2 planned on the arm's night-1 record (N2): what it adds."""
     from ..scheduler_core.replan import plan_remaining
     from ..scheduler_core.sky.twilight import night_windows
 
@@ -231,6 +232,7 @@ def loop_map(skymap: SkyMap, config: PlanningConfig, start: Time, closure: Closu
 
     grid = grid if grid is not None else load_ztf_fields()
     footprints = footprints if footprints is not None else field_footprints(grid, config.nside)
+    # (W1) night 1's window, the original plan over it, the closure in it
     evening, morning = first_night(start, config)
     night = dataclasses.replace(config, horizon_h=float((morning - evening).to_value("h")))
     problem = prepare_problem(skymap, night, evening, grid=grid, footprints=footprints)
@@ -239,10 +241,10 @@ def loop_map(skymap: SkyMap, config: PlanningConfig, start: Time, closure: Closu
         raise ValueError("the original plan observes nothing")
     if not isinstance(closure, Closure):
         closure = random_closure(evening, morning, closure)
-    # (a) the list queue alone, through the closure
+    # (W2) arm (a): the list queue alone, through the closure
     executed_a = execute_plan(plan, problem.windows, night, closures=[closure])
     queue = _arm(executed_a, plan, skymap, night, footprints, grid)
-    # (b) the same until the closure, then the daemon's re-plan from the reopening (L6, L7)
+    # (W3) arm (b): the same until the closure, then the daemon's re-plan from the reopening (L6, L7)
     before = tuple(e for e in executed_a if e.start < closure.start)
     left_h = float((plan.end - closure.end).to_value("h"))
     replan, executed_b, repeats = None, before, 0
