@@ -55,6 +55,10 @@ class LoopArm:
         (X1) of the done exposures; None without distance layers.
     night2_coverage : float or None
         What night 2's plan on this record adds (``metrics.coverage``); None when not asked.
+    night2_coverage_executed : float or None
+        What night 2's plan counts as done before it (``metrics.coverage_executed``: the
+        pairs at least ``cadence_s`` apart, so ``coverage_cadence``); None when not asked.
+        The coverage after two nights is ``coverage_cadence + night2_coverage``.
     """
 
     executed: tuple[ExecutedExposure, ...]
@@ -62,6 +66,7 @@ class LoopArm:
     coverage_cadence: float
     expected_detections: float | None
     night2_coverage: float | None = None
+    night2_coverage_executed: float | None = None
 
     @property
     def n_done(self) -> int:
@@ -188,7 +193,8 @@ def _night2(arm: LoopArm, skymap: SkyMap, config: PlanningConfig, start: Time, s
     evening, morning = night_windows(start, config, 2)[1]
     night = dataclasses.replace(config, horizon_h=float((morning - evening).to_value("h")))
     plan = plan_remaining(skymap, night, evening, arm.executed, solver=solver, grid=grid)
-    return dataclasses.replace(arm, night2_coverage=float(plan.metrics.coverage))
+    return dataclasses.replace(arm, night2_coverage=float(plan.metrics.coverage),
+                               night2_coverage_executed=float(plan.metrics.coverage_executed))
 
 
 def loop_map(skymap: SkyMap, config: PlanningConfig, start: Time, closure: Closure | int, *,
