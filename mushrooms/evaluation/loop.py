@@ -92,6 +92,9 @@ class LoopOutcome:
         The re-plan (None when the closure ends after the night or nothing was left).
     repeats : int
         Exposures of (b)'s re-plan in a field already done in both filters before the closure (0 by P1).
+    clear : LoopArm or None
+        The original plan through the list queue on a clear night (no closure, no night 2): what
+        the queue alone loses without weather.
     """
 
     plan: Plan
@@ -100,6 +103,7 @@ class LoopOutcome:
     loop: LoopArm
     replan: Plan | None
     repeats: int
+    clear: LoopArm | None = None
 
 
 def first_night(start: Time, config: PlanningConfig) -> tuple[Time, Time]:
@@ -266,4 +270,6 @@ def loop_map(skymap: SkyMap, config: PlanningConfig, start: Time, closure: Closu
     if second_night:
         queue = _night2(queue, skymap, config, start, solver, grid)
         loop = _night2(loop, skymap, config, start, solver, grid)
-    return LoopOutcome(plan=plan, closure=closure, queue=queue, loop=loop, replan=replan, repeats=repeats)
+    clear = _arm(execute_plan(plan, problem.windows, night), plan, skymap, night, footprints, grid)
+    return LoopOutcome(plan=plan, closure=closure, queue=queue, loop=loop, replan=replan, repeats=repeats,
+                       clear=clear)
