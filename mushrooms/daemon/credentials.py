@@ -138,8 +138,28 @@ def load_outbound_password(environ: Mapping[str, str] | None = None) -> tuple[st
 def load_submit_token(environ: Mapping[str, str] | None = None) -> tuple[str, str]:
     """Find the bearer token of the submission target (Kowalski or SkyPortal).
 
-    First match wins: the systemd credential ``submit_token``
-    (``$CREDENTIALS_DIRECTORY/submit_token``), else ``$MUSHROOMS_SUBMIT_TOKEN``.
+    The systemd credential ``submit_token`` first, else ``$MUSHROOMS_SUBMIT_TOKEN``
+    (:func:`_token`: never from ``config.toml``, never logged nor stored).
+    """
+    return _token("submit_token", "MUSHROOMS_SUBMIT_TOKEN", "submission token",
+                  "or set [submit] target = \"none\" or dry_run = true", environ)
+
+
+def load_executed_token(environ: Mapping[str, str] | None = None) -> tuple[str, str]:
+    """Find the token of a URL source of executed observations (``[loop] executed_source``).
+
+    The systemd credential ``executed_token`` first, else ``$MUSHROOMS_EXECUTED_TOKEN``
+    (:func:`_token`).  SkyPortal takes it as ``Authorization: token <token>``;
+    ZTF's depot as HTTP basic auth, the token being ``USER:PASSWORD``.
+    """
+    return _token("executed_token", "MUSHROOMS_EXECUTED_TOKEN", "executed-observations token",
+                  "or use a file: or depot:DIR source in [loop] executed_source", environ)
+
+
+def _token(credential: str, variable: str, what: str, otherwise: str,
+           environ: Mapping[str, str] | None) -> tuple[str, str]:
+    """A service token: the systemd credential ``credential`` (``$CREDENTIALS_DIRECTORY/<credential>``), else ``$variable``.
+
     Never from ``config.toml``; the value is never logged nor stored.
 
     Returns
@@ -152,30 +172,5 @@ def load_submit_token(environ: Mapping[str, str] | None = None) -> tuple[str, st
     CredentialsError
         With a one-line hint when it is missing.
     """
-    return _secret("submit_token", "MUSHROOMS_SUBMIT_TOKEN",
-                   "submission token not found: set MUSHROOMS_SUBMIT_TOKEN or the systemd credential submit_token "
-                   "(or set [submit] target = \"none\" or dry_run = true)", environ)
-
-
-def load_executed_token(environ: Mapping[str, str] | None = None) -> tuple[str, str]:
-    """Find the token of a URL source of executed observations (``[loop] executed_source``).
-
-    First match wins: the systemd credential ``executed_token``
-    (``$CREDENTIALS_DIRECTORY/executed_token``), else ``$MUSHROOMS_EXECUTED_TOKEN``.
-    SkyPortal takes it as ``Authorization: token <token>``; ZTF's depot as HTTP
-    basic auth, the token being ``USER:PASSWORD``.  Never from ``config.toml``;
-    the value is never logged nor stored.
-
-    Returns
-    -------
-    token, source : str
-        The token and where it came from (for logs; never the value).
-
-    Raises
-    ------
-    CredentialsError
-        With a one-line hint when it is missing.
-    """
-    return _secret("executed_token", "MUSHROOMS_EXECUTED_TOKEN",
-                   "executed-observations token not found: set MUSHROOMS_EXECUTED_TOKEN or the systemd credential "
-                   "executed_token (or use a file: or depot:DIR source in [loop] executed_source)", environ)
+    return _secret(credential, variable,
+                   f"{what} not found: set {variable} or the systemd credential {credential} ({otherwise})", environ)

@@ -33,8 +33,9 @@ names below are imported on first use (PEP 562): reading ``[bench]``
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from ...scheduler_core.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the same names, for type checkers and editors
     from .compare import SIMILAR_LENGTH, TIE_COVERAGE, TIE_EFFICIENCY, best_of
@@ -60,14 +61,4 @@ _EXPORTS = {
 __all__ = list(_EXPORTS)
 
 
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(module, __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, __all__)
