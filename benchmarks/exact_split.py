@@ -26,11 +26,12 @@ Not a test: nothing here asserts.
 from __future__ import annotations
 
 import argparse
-import csv
 import statistics
 import sys
 import time
 from pathlib import Path
+
+from csv_rows import write_rows  # benchmarks/csv_rows.py (the script's own folder is on sys.path)
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_CANDIDATES = [ROOT.parent / "shared" / "data" / "skymaps", Path("/work/shared/data/skymaps")]
@@ -178,10 +179,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(r)
         print(line(r), flush=True)
         if args.output:
-            with open(args.output, "w", newline="") as fh:
-                w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-                w.writeheader()
-                w.writerows(rows)
+            write_rows(args.output, rows)
     for text in summary(rows):
         print(text)
     print(f"wall {time.perf_counter() - t0:.0f} s")

@@ -26,6 +26,8 @@ import sys
 import time
 from pathlib import Path
 
+from csv_rows import write_rows  # benchmarks/csv_rows.py (the script's own folder is on sys.path)
+
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -210,10 +212,7 @@ def main() -> None:
               f"{r['menu_E_conservative']:.4f}  cov {r['fixed_coverage']:.3f}/{r['menu_coverage']:.3f}  "
               f"exp {r['menu_exposure_pw_s']:.0f} s  [{r['menu_exposures']}]  valid {r['fixed_valid']}/{r['menu_valid']}",
               flush=True)
-        with args.output.open("w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
+        write_rows(args.output, rows)
     lines = summary(rows, cfg.min_gain)
     print("\n".join(lines))
     args.output.with_suffix(".txt").write_text("\n".join(lines) + "\n")

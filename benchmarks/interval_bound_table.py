@@ -15,11 +15,12 @@ U4.  Not a test: nothing here asserts.
 from __future__ import annotations
 
 import argparse
-import csv
 import statistics
 import sys
 import time
 from pathlib import Path
+
+from csv_rows import write_rows  # benchmarks/csv_rows.py (the script's own folder is on sys.path)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from exact_split import shared_root  # noqa: E402
@@ -72,10 +73,7 @@ def main(argv: list[str] | None = None) -> int:
               + " ".join(f"V{x:g} {r[f'V{x:g}']:.4f} ({r[f'V{x:g}_s']:.1f} s, {r[f'V{x:g}_status']})" for x in limits),
               flush=True)
         if args.output:
-            with open(args.output, "w", newline="") as fh:
-                w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-                w.writeheader()
-                w.writerows(rows)
+            write_rows(args.output, rows)
     if rows:
         print(f"{len(rows)} maps: mean greedy {statistics.mean(r['greedy'] for r in rows):.4f}, "
               f"mean U4 {statistics.mean(r['U4'] for r in rows):.4f}")

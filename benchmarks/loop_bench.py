@@ -27,12 +27,13 @@ and ``loop_gain.png`` (per-map coverage gain (b)-(a), sorted) into
 from __future__ import annotations
 
 import argparse
-import csv
 import hashlib
 import math
 import sys
 import time
 from pathlib import Path
+
+from csv_rows import write_rows  # benchmarks/csv_rows.py (the script's own folder is on sys.path)
 
 ROOT = Path(__file__).resolve().parents[1]
 MAPS = Path("/work/shared/data/skymaps")
@@ -232,10 +233,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(one_map(p, root, config, args.solver, args.seed, grid, footprints))
         r = rows[-1]
         bar.set_postfix_str(f"{p.name}: {r['coverage_gain']:+.4f}" if r.get("status") == "ok" else p.name)
-        with open(out / "loop_bench.csv", "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=COLUMNS, restval="")
-            w.writeheader()
-            w.writerows(rows)
+        write_rows(out / "loop_bench.csv", rows, COLUMNS)
     wall = time.perf_counter() - t0
     text = summary(rows, settings) + f"\nwall time {wall:.0f} s\n"
     (out / "loop_bench.txt").write_text(text + "\n" + table(rows) + "\n")

@@ -20,13 +20,14 @@ wall time.  Not a test: nothing here asserts.
 from __future__ import annotations
 
 import argparse
-import csv
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from csv_rows import write_rows  # benchmarks/csv_rows.py (the script's own folder is on sys.path)
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "data" / "skymaps"
@@ -157,10 +158,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(r)
         print(row_line(r), flush=True)
         if args.output:
-            with open(args.output, "w", newline="") as fh:
-                w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-                w.writeheader()
-                w.writerows(rows)
+            write_rows(args.output, rows)
     if rows:
         sg, sm, sh = (sum(r[k] for r in rows) for k in ("cov_greedy", "cov_milp", "cov_hybrid"))
         wins = sum(r["cov_milp"] > r["cov_greedy"] + 1e-4 for r in rows)

@@ -24,11 +24,12 @@ for orientation only.  Not a test: nothing here asserts.
 from __future__ import annotations
 
 import argparse
-import csv
 import statistics
 import sys
 import time
 from pathlib import Path
+
+from csv_rows import write_rows  # benchmarks/csv_rows.py (the script's own folder is on sys.path)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from exact_split import shared_root  # noqa: E402
@@ -109,11 +110,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{sum(bool(r['hybrid_skipped']) for r in hy)}")
     print(f"wall {time.perf_counter() - t0:.0f} s")
     if args.output:
-        keys = sorted({k for r in rows for k in r}, key=lambda k: list(rows[0]).index(k) if k in rows[0] else 99)
-        with open(args.output, "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=keys)
-            w.writeheader()
-            w.writerows(rows)
+        write_rows(args.output, rows)
     return 0
 
 
