@@ -50,14 +50,14 @@ def loop_config(executed: Path, **changes: Any) -> LoopConfig:
     return LoopConfig(executed_source=f"file:{executed}", **changes)
 
 
-def open_pipeline(state: Path, loop: LoopConfig) -> NoticePipeline:
-    return NoticePipeline(POLICY, PLANNING, Store(state), MemorySink(), loop=loop)
+def open_pipeline(state: Path, loop: LoopConfig, planning: PlanningConfig = PLANNING) -> NoticePipeline:
+    return NoticePipeline(POLICY, planning, Store(state), MemorySink(), loop=loop)
 
 
-def planned_state(directory: Path) -> Path:
+def planned_state(directory: Path, planning: PlanningConfig = PLANNING) -> Path:
     """A state file holding the notice and its plan (revision 1), made once by the real pipeline."""
     state = directory / "planned.sqlite"
-    p = open_pipeline(state, LoopConfig())
+    p = open_pipeline(state, LoopConfig(), planning)
     try:
         out = p.handle(notice_bytes(), "test:notice", RECEIVED)
         assert out.decision == "plan" and out.plan_id, out

@@ -19,34 +19,25 @@ from mushrooms.daemon.loop_settings import LoopConfig
 from mushrooms.daemon.night_replans import plans_as_done
 from mushrooms.daemon.pipeline import NoticePipeline
 from mushrooms.daemon.replans import replan_jobs
-from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store
 from mushrooms.scheduler_core.executed import done_pairs
 from mushrooms.scheduler_core.plan.schema import validate_document
 from mushrooms.scheduler_core.sky.twilight import night_windows
 
-from loop_helpers import (PLANNING, POLICY, RECEIVED, SENT, SUPEREVENT, copy_state, executed_like, loop_config,
-                          notice_bytes, t, the_plan, write_executed)
+from loop_helpers import (PLANNING, SENT, SUPEREVENT, copy_state, executed_like, loop_config, open_pipeline,
+                          planned_state, t, the_plan, write_executed)
 
 CADENCE_S = 1800.0
 TWO = dataclasses.replace(PLANNING, nights=2)
 
 
 def pipeline(state, loop: LoopConfig, planning=TWO) -> NoticePipeline:
-    return NoticePipeline(POLICY, planning, Store(state), MemorySink(), loop=loop)
+    return open_pipeline(state, loop, planning)
 
 
 @pytest.fixture(scope="module")
 def planned_two(tmp_path_factory):
     """The notice planned with nights = 2 (revision 1: night 1's plan), once."""
-    state = tmp_path_factory.mktemp("two") / "planned.sqlite"
-    p = pipeline(state, LoopConfig())
-    try:
-        out = p.handle(notice_bytes(), "test:notice", RECEIVED)
-        assert out.decision == "plan" and out.plan_id, out
-    finally:
-        p.store.close()
-    return state
+    return planned_state(tmp_path_factory.mktemp("two"), TWO)
 
 
 @pytest.fixture(scope="module")
