@@ -141,7 +141,7 @@ def night_bounds(store: "Store", planning: "PlanningConfig", superevent_id: str,
     """With ``nights > 1``, the unix ``(s_n, e_n)`` of the event's night holding ``start``; else None."""
     nights = event_nights(store, planning, superevent_id)
     n = night_of(nights, float(start.unix))
-    return None if n is None else (nights[n - 1][0], nights[n - 1][1])
+    return None if n is None else nights[n - 1]
 
 
 def night_one(planning: "PlanningConfig", start: "Time") -> "PlanningConfig":
