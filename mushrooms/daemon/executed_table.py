@@ -93,7 +93,7 @@ def store_executed(store: Any, exposures: Iterable["ExecutedExposure"], source: 
 
     added = updated = unchanged = 0  # (L2)
     now = _now()
-    with store._tx() as c:
+    with store.transaction() as c:
         for e in exposures:
             t = float(e.start.unix)
             row = c.execute(
@@ -125,7 +125,7 @@ def executed_between(store: Any, start_unix: float | None = None,
 
     lo = float("-inf") if start_unix is None else float(start_unix)
     hi = float("inf") if end_unix is None else float(end_unix)
-    rows = store._conn().execute(
+    rows = store.connection().execute(
         "SELECT field_id, filter, start, exposure_s, processed_fraction, status FROM executed"
         " WHERE start_unix>=? AND start_unix<=? ORDER BY start_unix, field_id, filter", (lo, hi)).fetchall()
     return tuple(ExecutedExposure(int(r[0]), str(r[1]), Time(str(r[2]).rstrip("Z"), scale="utc"), float(r[3]),
@@ -134,4 +134,4 @@ def executed_between(store: Any, start_unix: float | None = None,
 
 def count_executed(store: Any) -> int:
     """Rows of the ``executed`` table."""
-    return int(store._conn().execute("SELECT COUNT(*) FROM executed").fetchone()[0])
+    return int(store.connection().execute("SELECT COUNT(*) FROM executed").fetchone()[0])

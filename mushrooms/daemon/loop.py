@@ -108,10 +108,9 @@ class ExecutedLoop:
         begin = min([Time(str(p["document"]["start"]).rstrip("Z"), scale="utc") for p in plans.values()]
                     + [Time(s, format="unix", scale="utc") for _, _, s, _ in due])
         if due:
-            first = store._conn().execute(
-                f"SELECT MIN(start) FROM jobs WHERE superevent_id IN ({','.join('?' * len(due))})",
-                [sid for sid, *_ in due]).fetchone()[0]
-            begin = min(begin, Time(str(first).rstrip("Z"), scale="utc"))
+            first = store.first_start(*(sid for sid, *_ in due))
+            if first is not None:
+                begin = min(begin, Time(first.rstrip("Z"), scale="utc"))
         source = self.reader.describe()
         try:
             exposures = self.reader.read(min(begin, now), now)

@@ -55,16 +55,10 @@ def event_nights(store: "Store", planning: "PlanningConfig", superevent_id: str)
     """
     if planning.nights <= 1:
         return ()
-    first = _first_start(store, superevent_id)
+    first = store.first_start(superevent_id)
     if first is None:
         return ()
     return _windows(first, float(planning.sun_alt_max_deg), int(planning.nights))
-
-
-def _first_start(store: "Store", superevent_id: str) -> str | None:
-    """The event's first job's horizon start (ISO-8601 UTC), or None."""
-    row = store._conn().execute("SELECT MIN(start) FROM jobs WHERE superevent_id=?", (superevent_id,)).fetchone()
-    return None if row is None or row[0] is None else str(row[0])
 
 
 def night_of(nights: tuple[tuple[float, float], ...], when_unix: float) -> int | None:
@@ -82,7 +76,7 @@ def night_origin(n: int) -> str:
 
 def night_replanned(store: "Store", superevent_id: str, n: int) -> bool:
     """Whether night ``n`` of the event was re-planned already (its ``night:n`` notice is in the state file)."""
-    return store._conn().execute("SELECT 1 FROM notices WHERE superevent_id=? AND origin=? LIMIT 1",
+    return store.connection().execute("SELECT 1 FROM notices WHERE superevent_id=? AND origin=? LIMIT 1",
                                  (superevent_id, night_origin(n))).fetchone() is not None
 
 
@@ -94,7 +88,7 @@ def due_nights(store: "Store", planning: "PlanningConfig", now: "Time") -> list[
 
     out = []
     for sid in live_events(store):
-        first = _first_start(store, sid)
+        first = store.first_start(sid)
         # an event whose nights are all over (they lie within nights + 2 days of its start) costs no twilight
         if first is None or float(now.unix) - float(parse_time(first).unix) > (planning.nights + 2) * 86400.0:
             continue

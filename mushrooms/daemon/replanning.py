@@ -42,8 +42,8 @@ def _since_unix(store: Any, superevent_id: str) -> float | None:
     """Unix time of the event's first job's horizon start: exposures before it are not this event's follow-up."""
     from ..scheduler_core.plan.document import parse_time
 
-    row = store._conn().execute("SELECT MIN(start) FROM jobs WHERE superevent_id=?", (superevent_id,)).fetchone()
-    return None if row is None or row[0] is None else float(parse_time(row[0]).unix)
+    first = store.first_start(superevent_id)
+    return None if first is None else float(parse_time(first).unix)
 
 
 def run_replan(planner: Any, job: "Job", stage: Callable[[str], None],

@@ -25,7 +25,8 @@ import time
 from typing import Any
 
 from .outcomes import Accepted, EventRef
-from .store import Store, _job, _now
+from .store import Store
+from .store_records import job_from_row, now_iso
 
 __all__ = ["record_replan", "close_without_plan", "next_revision", "current_plan", "live_events", "replan_jobs"]
 
@@ -34,7 +35,7 @@ log = logging.getLogger("mushrooms.daemon.loop")
 
 def current_plan(store: Store, superevent_id: str) -> dict[str, Any] | None:
     """The event's newest plan not withdrawn: ``plan_id``, ``job_id``, ``revision``, ``document`` (parsed); or None."""
-    row = store._conn().execute(
+    row = store.connection().execute(
         "SELECT plan_id, job_id, revision, document FROM plans WHERE superevent_id=? AND withdrawn=0"
         " ORDER BY seq DESC LIMIT 1", (superevent_id,)).fetchone()
     return None if row is None else dict(row) | {"document": json.loads(row["document"])}
@@ -42,7 +43,7 @@ def current_plan(store: Store, superevent_id: str) -> dict[str, Any] | None:
 
 def live_events(store: Store) -> list[str]:
     """Superevents with a current plan and no retraction, in the order their plans were stored."""
-    rows = store._conn().execute(
+    rows = store.connection().execute(
         "SELECT p.superevent_id, MAX(p.seq) AS last FROM plans p JOIN events e USING(superevent_id)"
         " WHERE p.withdrawn=0 AND e.retracted=0 GROUP BY p.superevent_id ORDER BY last").fetchall()
     return [str(r[0]) for r in rows]
@@ -50,7 +51,7 @@ def live_events(store: Store) -> list[str]:
 
 def next_revision(store: Store, superevent_id: str) -> int:
     """The revision number of the event's next plan: one more than any it stored."""
-    row = store._conn().execute("SELECT COALESCE(MAX(revision), 0) + 1 FROM plans WHERE superevent_id=?",
+    row = store.connection().execute("SELECT COALESCE(MAX(revision), 0) + 1 FROM plans WHERE superevent_id=?",
                                 (superevent_id,)).fetchone()
     return int(row[0])
 
@@ -84,7 +85,7 @@ def record_replan(store: Store, superevent_id: str, start: str, reason: str, ori
     """
     sid = superevent_id.strip()
     ref = EventRef(sid or None)
-    with store._tx() as c:
+    with store.transaction() as c:
         plan = c.execute("SELECT p.plan_id, p.job_id FROM plans p JOIN events e USING(superevent_id)"
                          " WHERE p.superevent_id=? AND p.withdrawn=0 AND e.retracted=0 ORDER BY p.seq DESC LIMIT 1",
                          (sid,)).fetchone()
@@ -106,7 +107,7 @@ def record_replan(store: Store, superevent_id: str, start: str, reason: str, ori
         if why is not None:
             log.info("replan superevent_id=%s origin=%s decision=ignore reason=%r", sid, origin, why)
             return Accepted("ignore", ref, why)
-        now = _now()
+        now = now_iso()
         if open_jobs:
             c.execute("UPDATE jobs SET status='superseded', reason='operator closure', finished_at=?"
                       " WHERE superevent_id=? AND status IN ('pending','running')", (now, sid))
@@ -120,7 +121,7 @@ def record_replan(store: Store, superevent_id: str, start: str, reason: str, ori
             " supersedes, received_wall, status, created_at) VALUES (?,?,?,?,?,?,?,?,?,?,?)",
             (source["notice_id"], sid, source["alert_type"], source["time_created"], source["skymap_sha256"],
              "replan", start, plan["plan_id"], time.time(), "pending", now))
-        job = _job(c.execute("SELECT * FROM jobs WHERE job_id=?", (cur.lastrowid,)).fetchone())
+        job = job_from_row(c.execute("SELECT * FROM jobs WHERE job_id=?", (cur.lastrowid,)).fetchone())
         c.execute("INSERT INTO decisions(notice_id, superevent_id, alert_type, decision, reason, job_id, created_at)"
                   " VALUES (?,?,?,?,?,?,?)", (nid, sid, source["alert_type"], "replan", reason[:2000], job.job_id,
                                               now))
@@ -131,9 +132,9 @@ def record_replan(store: Store, superevent_id: str, start: str, reason: str, ori
 
 def close_without_plan(store: Store, job_id: int, reason: str) -> bool:
     """Close a running re-plan job that found nothing left to observe (the current plan stays); False if not running."""
-    with store._tx() as c:
+    with store.transaction() as c:
         done = c.execute("UPDATE jobs SET status='done', reason=?, finished_at=? WHERE job_id=? AND status='running'",
-                         (reason[:500], _now(), job_id)).rowcount
+                         (reason[:500], now_iso(), job_id)).rowcount
         store._started.discard(job_id)
         store._parked.discard(job_id)
     return bool(done)
@@ -141,7 +142,7 @@ def close_without_plan(store: Store, job_id: int, reason: str) -> bool:
 
 def replan_jobs(store: Store, superevent_id: str) -> list[dict[str, Any]]:
     """The event's re-plan jobs, oldest first (id, status, start, supersedes, plan_id, reason)."""
-    rows = store._conn().execute(
+    rows = store.connection().execute(
         "SELECT job_id, status, start, supersedes, plan_id, reason FROM jobs WHERE superevent_id=?"
         " AND decision='replan' ORDER BY job_id", (superevent_id,)).fetchall()
     return [dict(r) for r in rows]

@@ -51,17 +51,13 @@ not finished) and calls :meth:`~mushrooms.daemon.pipeline.NoticePipeline.flush_o
 
 from __future__ import annotations
 
-import errno
-import fcntl
 import hashlib
 import json
 import logging
-import os
 import sqlite3
 import threading
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -71,133 +67,14 @@ from ..handlers.instants import now_iso_z
 from ..handlers.text import storable
 from ..scheduler_core.plan import strict_json
 from ..scheduler_core.plan.messages import plan_final_message
-from .executed_table import EXECUTED_TABLE
-from .outcomes import EventRef
+from .state_file import StateInUse, StateLock, StoreError, create_or_check_file, lock_state
+from .store_records import Job, NoticeRecord, OutboxMessage, job_from_row, now_iso, without_raw
+from .store_schema import SCHEMA, SCHEMA_VERSION, missing_steps
 
 __all__ = ["Store", "StoreError", "StateInUse", "StateLock", "lock_state", "Job", "OutboxMessage", "NoticeRecord",
            "SCHEMA_VERSION", "RAW_PREFIX_BYTES", "plan_final_message"]
 
 log = logging.getLogger(__name__)
-
-SCHEMA_VERSION = 5
-
-#: Plans submitted to ZTF's queue (Kowalski or SkyPortal): one row per plan id (:mod:`.submissions`).
-_SUBMISSIONS = """
-CREATE TABLE IF NOT EXISTS submissions (
-    plan_id       TEXT PRIMARY KEY,
-    superevent_id TEXT NOT NULL,
-    target        TEXT NOT NULL,
-    revision      INTEGER,
-    queue_name    TEXT UNIQUE,
-    state         TEXT NOT NULL,
-    reason        TEXT,
-    body          TEXT,
-    remote_id     TEXT,
-    http_status   INTEGER,
-    answer        TEXT,
-    attempts      INTEGER NOT NULL DEFAULT 0,
-    created_at    TEXT NOT NULL,
-    attempted_at  TEXT,
-    submitted_at  TEXT,
-    finished_at   TEXT
-);
-CREATE INDEX IF NOT EXISTS submissions_event ON submissions(superevent_id, state);
-"""
-
-_SCHEMA = """
-CREATE TABLE IF NOT EXISTS notices (
-    notice_id     INTEGER PRIMARY KEY AUTOINCREMENT,
-    received_at   TEXT NOT NULL,
-    origin        TEXT NOT NULL,
-    sha256        TEXT NOT NULL,
-    size          INTEGER NOT NULL,
-    superevent_id TEXT,
-    alert_type    TEXT,
-    time_created  TEXT,
-    raw           BLOB
-);
-CREATE INDEX IF NOT EXISTS notices_sha ON notices(sha256);
-CREATE TABLE IF NOT EXISTS decisions (
-    decision_id   INTEGER PRIMARY KEY AUTOINCREMENT,
-    notice_id     INTEGER NOT NULL REFERENCES notices(notice_id),
-    superevent_id TEXT,
-    alert_type    TEXT,
-    decision      TEXT NOT NULL,
-    reason        TEXT NOT NULL,
-    job_id        INTEGER,
-    created_at    TEXT NOT NULL
-);
-CREATE TABLE IF NOT EXISTS events (
-    superevent_id TEXT PRIMARY KEY,
-    skymap_sha256 TEXT,
-    retracted     INTEGER NOT NULL DEFAULT 0,
-    updated_at    TEXT NOT NULL,
-    localization  TEXT,
-    latest_created TEXT
-);
-CREATE TABLE IF NOT EXISTS jobs (
-    job_id        INTEGER PRIMARY KEY AUTOINCREMENT,
-    notice_id     INTEGER NOT NULL REFERENCES notices(notice_id),
-    superevent_id TEXT NOT NULL,
-    alert_type    TEXT NOT NULL,
-    time_created  TEXT,
-    skymap_sha256 TEXT NOT NULL,
-    decision      TEXT NOT NULL,
-    start         TEXT NOT NULL,
-    supersedes    TEXT,
-    received_wall REAL NOT NULL,
-    status        TEXT NOT NULL,
-    attempts      INTEGER NOT NULL DEFAULT 0,
-    plan_id       TEXT,
-    coverage      REAL,
-    latency_s     REAL,
-    reason        TEXT,
-    created_at    TEXT NOT NULL,
-    finished_at   TEXT
-);
-CREATE INDEX IF NOT EXISTS jobs_status ON jobs(status);
-CREATE INDEX IF NOT EXISTS jobs_event ON jobs(superevent_id);
-CREATE TABLE IF NOT EXISTS plans (
-    plan_id       TEXT PRIMARY KEY,
-    superevent_id TEXT,
-    job_id        INTEGER,
-    created_at    TEXT NOT NULL,
-    seq           INTEGER NOT NULL,
-    withdrawn     INTEGER NOT NULL DEFAULT 0,
-    document      TEXT NOT NULL
-);
-CREATE INDEX IF NOT EXISTS plans_event ON plans(superevent_id);
-CREATE TABLE IF NOT EXISTS outbox (
-    outbox_id     INTEGER PRIMARY KEY AUTOINCREMENT,
-    key           TEXT NOT NULL,
-    kind          TEXT NOT NULL,
-    body          TEXT NOT NULL,
-    created_at    TEXT NOT NULL,
-    published_at  TEXT,
-    attempts      INTEGER NOT NULL DEFAULT 0,
-    last_error    TEXT
-);
-CREATE INDEX IF NOT EXISTS outbox_pending ON outbox(published_at);
-""" + _SUBMISSIONS
-
-#: How older state files are brought up to date: one list, in the order the schema grew.  Each step
-#: is a table created when missing or a column (table, name, declaration) added when missing; every
-#: open applies what a file lacks, whatever its ``user_version`` says (a file of any earlier release,
-#: or one whose version and tables disagree, ends with the same tables).  ``user_version`` is then
-#: raised to :data:`SCHEMA_VERSION`; a file with a newer one is refused.  A new file gets
-#: :data:`_SCHEMA` and then the same steps.
-_UPGRADES: tuple[tuple[int, str | tuple[str, str, str]], ...] = (
-    (2, ("plans", "revision", "INTEGER NOT NULL DEFAULT 1")),  # a job's revisions (anytime plans)
-    (2, ("plans", "final", "INTEGER NOT NULL DEFAULT 1")),
-    (2, ("events", "localization", "TEXT")),  # gw | combined (issue 17)
-    # things an operator must hear of that are not notices, e.g. the consumer's offset jumps
-    # (:meth:`Store.record_incident`, ``mushrooms status``); an older program ignores the table
-    (3, "CREATE TABLE IF NOT EXISTS incidents (incident_id INTEGER PRIMARY KEY AUTOINCREMENT,"
-        " kind TEXT NOT NULL, detail TEXT NOT NULL, created_at TEXT NOT NULL)"),
-    (3, _SUBMISSIONS),  # plans submitted to ZTF's queue (issue 27, :mod:`.submissions`)
-    (4, ("events", "latest_created", "TEXT")),  # creation order of notices (issue 25)
-    (5, EXECUTED_TABLE),  # exposures the telescope took ([loop], issue 28, :mod:`.executed_table`)
-)
 
 _OPEN = ("pending", "running")
 
@@ -206,154 +83,6 @@ RAW_PREFIX_BYTES = 1024
 
 #: Starts of a job that died with the fast scheduler after the optimiser's ``max_attempts``.
 FALLBACK_ATTEMPTS = 2
-
-
-class StoreError(RuntimeError):
-    """The state file cannot be used (newer schema, not a database, empty, damaged ...)."""
-
-
-class StateInUse(StoreError):
-    """Another process holds the state file's lock (a second daemon)."""
-
-
-class StateLock:
-    """An exclusive ``flock`` on the state database file, held while a daemon runs."""
-
-    def __init__(self, path: Path, fd: int) -> None:
-        self.path = path
-        self._fd: int | None = fd
-
-    def release(self) -> None:
-        """Drop the lock (closing our descriptor of the file)."""
-        if self._fd is not None:
-            os.close(self._fd)
-            self._fd = None
-
-
-def lock_state(path: str | Path) -> StateLock:
-    """Take the single-instance lock of a state file, whatever the pid file.
-
-    Call it after :class:`Store` has opened (or created) the file, and keep
-    the returned lock until the store is closed.
-
-    Raises
-    ------
-    StateInUse
-        Another process holds it (its pid in the message when known).
-    StoreError
-        The file cannot be opened.
-    """
-    p = Path(path)
-    try:
-        fd = os.open(p, os.O_RDWR | os.O_NOFOLLOW | os.O_CLOEXEC)
-    except OSError as exc:
-        raise StoreError(f"{p}: cannot open the state file to lock it ({exc.strerror or exc})") from None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError as exc:
-        os.close(fd)
-        if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
-            raise StoreError(f"{p}: cannot lock the state file ({exc.strerror or exc})") from None
-        raise StateInUse(f"state file {p} is in use by another mushrooms daemon{_holder(p)}") from None
-    return StateLock(p, fd)
-
-
-def _holder(path: Path) -> str:
-    """`` (pid N)`` of the process holding ``path``'s flock, from /proc/locks, or ``""``."""
-    try:
-        st = path.stat()
-        with open("/proc/locks") as fh:
-            for line in fh:
-                f = line.split()
-                if len(f) >= 6 and f[1] == "FLOCK" and f[5].endswith(f":{st.st_ino}"):
-                    dev = f[5].split(":")
-                    if int(dev[0], 16) == os.major(st.st_dev) and int(dev[1], 16) == os.minor(st.st_dev):
-                        return f" (pid {f[4]})"
-    except (OSError, ValueError, IndexError):
-        pass
-    return ""
-
-
-def _now() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
-
-
-@dataclass(frozen=True)
-class Job:
-    """A planning job accepted but maybe not finished.
-
-    Attributes
-    ----------
-    job_id : int
-        Store id (stable across restarts).
-    notice_id : int
-        The notice whose sky map is planned (raw bytes kept in the store).
-    superevent_id, alert_type : str
-    time_created : str or None
-        The notice's ``time_created`` (ISO-8601 UTC).
-    skymap_sha256 : str
-    decision : str
-        ``plan`` or ``rerun``.
-    start : str
-        Horizon start (ISO-8601 UTC), fixed at accept time.
-    supersedes : str or None
-        Plan this job replaces (set when the job starts).
-    received_wall : float
-        Unix time (s) the notice was received: latency is measured from it.
-    attempts : int
-        Starts that died (a crash or kill leaves the job ``running``; a
-        clean stop gives the start back, :meth:`Store.release_unfinished`).
-    status : str
-    fallback : bool
-        Set by :meth:`Store.start_job` when the optimiser died too often:
-        this run uses the fast scheduler only (degrade, never drop).
-    """
-
-    job_id: int
-    notice_id: int
-    superevent_id: str
-    alert_type: str
-    time_created: str | None
-    skymap_sha256: str
-    decision: str
-    start: str
-    supersedes: str | None
-    received_wall: float
-    attempts: int
-    status: str
-    fallback: bool = False
-
-    @property
-    def ref(self) -> EventRef:
-        """The job's event, notice and job ids (what every :class:`~.outcomes.Outcome` of it carries)."""
-        return EventRef(self.superevent_id, self.alert_type, self.notice_id, self.job_id)
-
-
-@dataclass(frozen=True)
-class OutboxMessage:
-    """A message waiting in (or published from) the outbox."""
-
-    outbox_id: int
-    key: str
-    kind: str
-    message: dict[str, Any]
-    attempts: int
-    published_at: str | None
-    created_at: str | None = None
-
-
-@dataclass(frozen=True)
-class NoticeRecord:
-    """What is stored about one received message (before or without parsing)."""
-
-    origin: str
-    sha256: str
-    size: int
-    received_at: str
-    superevent_id: str | None = None
-    alert_type: str | None = None
-    time_created: str | None = None
-    raw: bytes | None = None
 
 
 class _TxLedger:
@@ -379,16 +108,6 @@ def _event_state(conn: sqlite3.Connection, sid: str) -> EventState | None:
                       latest_created=row[3])
 
 
-def _job(row: sqlite3.Row, fallback: bool = False) -> Job:
-    return Job(
-        job_id=row["job_id"], notice_id=row["notice_id"], superevent_id=row["superevent_id"],
-        alert_type=row["alert_type"], time_created=row["time_created"],
-        skymap_sha256=row["skymap_sha256"], decision=row["decision"], start=row["start"],
-        supersedes=row["supersedes"], received_wall=row["received_wall"],
-        attempts=row["attempts"], status=row["status"], fallback=fallback,
-    )
-
-
 class Store:
     """SQLite state of the service; implements the handlers' ``Ledger``.
 
@@ -412,7 +131,7 @@ class Store:
 
     def __init__(self, path: str | Path, busy_timeout_s: float = 30.0, group_readable: bool = False):
         self.path = Path(path)
-        _create_or_check_file(self.path, 0o640 if group_readable else 0o600)
+        create_or_check_file(self.path, 0o640 if group_readable else 0o600)
         self._busy_ms = int(busy_timeout_s * 1000)
         self._local = threading.local()
         self._lock = threading.RLock()
@@ -423,7 +142,7 @@ class Store:
         self._closed = False
         self._started: set[int] = set()  # jobs this process started and has not finished
         self._parked: set[int] = set()  # first plan stored, waiting for an optimisation slot (start given back)
-        conn = self._conn()
+        conn = self.connection()
         try:
             version = conn.execute("PRAGMA user_version").fetchone()[0]
             problems = [r[0] for r in conn.execute("PRAGMA quick_check(5)")]
@@ -442,17 +161,17 @@ class Store:
                 # pruned raw bytes go back to the file system (before any table exists; issue 25)
                 conn.execute("PRAGMA auto_vacuum=INCREMENTAL")
                 conn.execute("VACUUM")  # the file is empty: this only makes the setting take effect
-                conn.executescript("BEGIN IMMEDIATE;" + _SCHEMA + "COMMIT;")
+                conn.executescript("BEGIN IMMEDIATE;" + SCHEMA + "COMMIT;")
         self._upgrade(conn, version)
 
     def _upgrade(self, conn: sqlite3.Connection, version: int) -> None:
-        """Apply the :data:`_UPGRADES` the file lacks and set ``user_version`` (one transaction)."""
-        if version == SCHEMA_VERSION and not _missing(conn):
+        """Apply the :data:`~.store_schema.UPGRADES` the file lacks and set ``user_version`` (one transaction)."""
+        if version == SCHEMA_VERSION and not missing_steps(conn):
             return
         with self._lock:
             conn.execute("BEGIN IMMEDIATE")
             try:
-                for step in _missing(conn):  # again under the write lock: another process may have done it
+                for step in missing_steps(conn):  # again under the write lock: another process may have done it
                     for sql in filter(str.strip, step.split(";")):
                         conn.execute(sql)
                 conn.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
@@ -464,7 +183,18 @@ class Store:
             log.info("state %s migrated from schema %d to %d", self.path, version, SCHEMA_VERSION)
 
     # ------------------------------------------------------------ connections
-    def _conn(self) -> sqlite3.Connection:
+    def connection(self) -> sqlite3.Connection:
+        """This thread's connection (autocommit; reads see committed state).
+
+        The seam for the modules that own a table of their own
+        (:mod:`.submissions`, :mod:`.executed_table`, :mod:`.replans`):
+        they read with it and write inside :meth:`transaction`.
+
+        Raises
+        ------
+        StoreError
+            The store is closed, or the file is not a usable database.
+        """
         if self._closed:
             raise StoreError(f"{self.path}: store is closed")
         conn = getattr(self._local, "conn", None)
@@ -486,9 +216,12 @@ class Store:
         return conn
 
     @contextmanager
-    def _tx(self) -> Iterator[sqlite3.Connection]:
-        """One write transaction (BEGIN IMMEDIATE ... COMMIT, ROLLBACK on error)."""
-        conn = self._conn()
+    def transaction(self) -> Iterator[sqlite3.Connection]:
+        """One write transaction (BEGIN IMMEDIATE ... COMMIT, ROLLBACK on error).
+
+        Inside a transaction of the same thread it joins that transaction.
+        """
+        conn = self.connection()
         with self._lock:
             if conn.in_transaction:  # nested use inside a transaction of this thread
                 yield conn
@@ -521,7 +254,7 @@ class Store:
     # ------------------------------------------------------------ ledger
     def event_state(self, superevent_id: str) -> EventState | None:
         """State of a superevent (the handlers' ``Ledger`` protocol)."""
-        return _event_state(self._conn(), superevent_id)
+        return _event_state(self.connection(), superevent_id)
 
     # ------------------------------------------------------------ accept
     def record_rejected(self, notice: NoticeRecord, reason: str) -> int:
@@ -534,12 +267,12 @@ class Store:
             notice = NoticeRecord(notice.origin, notice.sha256, notice.size, notice.received_at,
                                   notice.superevent_id, notice.alert_type, notice.time_created,
                                   notice.raw[:RAW_PREFIX_BYTES])
-        with self._tx() as c:
+        with self.transaction() as c:
             nid = self._insert_notice(c, notice)
             c.execute("INSERT INTO decisions(notice_id, superevent_id, alert_type, decision, reason, created_at)"
                       " VALUES (?,?,?,?,?,?)",
                       (nid, _opt(notice.superevent_id), _opt(notice.alert_type), "rejected", storable(reason),
-                       _now()))
+                       now_iso()))
         return nid
 
     def prune_raw(self, older_than_s: float, planned_older_than_s: float | None = None) -> int:
@@ -561,7 +294,7 @@ class Store:
         def cutoff(age_s: float) -> str:
             return datetime.fromtimestamp(time.time() - age_s, timezone.utc).isoformat(timespec="milliseconds")
 
-        with self._tx() as c:
+        with self.transaction() as c:
             cur = c.execute(
                 "UPDATE notices SET raw=NULL WHERE raw IS NOT NULL AND notice_id IN"
                 " (SELECT notice_id FROM decisions WHERE decision='rejected' AND created_at<=?)"
@@ -581,7 +314,7 @@ class Store:
         if n:
             try:
                 with self._lock:  # executescript steps the pragma to the end (execute frees one page)
-                    self._conn().executescript("PRAGMA incremental_vacuum;")
+                    self.connection().executescript("PRAGMA incremental_vacuum;")
             except sqlite3.Error as exc:  # reclaiming space is a courtesy
                 log.warning("state %s: incremental_vacuum failed: %s", self.path, exc)
         return n
@@ -614,7 +347,7 @@ class Store:
         -------
         notice_id, decision, job, cancelled_job_ids, outbox_key
         """
-        with self._tx() as c:
+        with self.transaction() as c:
             decision = decide(_TxLedger(c))
             job: Job | None = None
             cancelled: list[int] = []
@@ -624,8 +357,8 @@ class Store:
                 decision = Decision("rejected", decision.superevent_id, "no sky map bytes to plan from "
                                     "(VOEvent sky maps are URLs; fetching is not supported)", decision.alert_type)
             keep_raw = decision.needs_plan
-            nid = self._insert_notice(c, notice if keep_raw else _without_raw(notice))
-            now = _now()
+            nid = self._insert_notice(c, notice if keep_raw else without_raw(notice))
+            now = now_iso()
             sid = decision.superevent_id
             if decision.needs_plan:
                 cancelled = [r[0] for r in c.execute(
@@ -643,7 +376,7 @@ class Store:
                     (nid, sid, decision.alert_type, notice.time_created, decision.skymap_sha256,
                      decision.action, begin, decision.supersedes, received_wall, "pending", now))
                 row = c.execute("SELECT * FROM jobs WHERE job_id=?", (cur.lastrowid,)).fetchone()
-                job = _job(row)
+                job = job_from_row(row)
             elif decision.action == "withdraw":
                 cancelled = [r[0] for r in c.execute(
                     "SELECT job_id FROM jobs WHERE superevent_id=? AND status IN ('pending','running')", (sid,))]
@@ -689,7 +422,7 @@ class Store:
     @staticmethod
     def _insert_outbox(c: sqlite3.Connection, key: str, kind: str, message: dict[str, Any]) -> int:
         cur = c.execute("INSERT INTO outbox(key, kind, body, created_at) VALUES (?,?,?,?)",
-                        (key, kind, strict_json.dumps(message, sort_keys=False), _now()))
+                        (key, kind, strict_json.dumps(message, sort_keys=False), now_iso()))
         return int(cur.lastrowid)
 
     # ------------------------------------------------------------ jobs
@@ -701,14 +434,14 @@ class Store:
         started too often (it crashed the process each time) is refused by
         :meth:`start_job`.
         """
-        rows = self._conn().execute(
+        rows = self.connection().execute(
             "SELECT * FROM jobs WHERE status IN ('pending','running') ORDER BY job_id").fetchall()
-        return [_job(r) for r in rows]
+        return [job_from_row(r) for r in rows]
 
     def job(self, job_id: int) -> Job | None:
         """One job by id."""
-        row = self._conn().execute("SELECT * FROM jobs WHERE job_id=?", (job_id,)).fetchone()
-        return None if row is None else _job(row)
+        row = self.connection().execute("SELECT * FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+        return None if row is None else job_from_row(row)
 
     def start_job(self, job_id: int, max_attempts: int = 3) -> Job | None:
         """Mark a job running (attempts + 1) and fix what it supersedes.
@@ -723,7 +456,7 @@ class Store:
         Returns None when the job is no longer runnable: superseded, cancelled
         by a retraction, finished, or given up.  :meth:`job_status` tells which.
         """
-        with self._tx() as c:
+        with self.transaction() as c:
             row = c.execute("SELECT * FROM jobs WHERE job_id=?", (job_id,)).fetchone()
             if row is None or row["status"] not in _OPEN:
                 return None
@@ -736,7 +469,7 @@ class Store:
                     self._close_with(c, job_id, first[0], row["superevent_id"], why)
                     return None
                 c.execute("UPDATE jobs SET status='failed', reason=?, finished_at=? WHERE job_id=?",
-                          (why, _now(), job_id))
+                          (why, now_iso(), job_id))
                 return None
             fallback = row["attempts"] >= max_attempts
             prev = c.execute("SELECT plan_id FROM plans WHERE superevent_id=? AND withdrawn=0"
@@ -747,7 +480,7 @@ class Store:
                       (supersedes, job_id))
             row = c.execute("SELECT * FROM jobs WHERE job_id=?", (job_id,)).fetchone()
             self._started.add(job_id)
-        return _job(row, fallback=fallback)
+        return job_from_row(row, fallback=fallback)
 
     def park_job(self, job_id: int) -> None:
         """The job's first plan is stored and it now only waits for an optimisation slot: give its start back.
@@ -757,7 +490,7 @@ class Store:
         :meth:`resume_job` counts the start again when the optimisation
         begins.
         """
-        with self._tx() as c:
+        with self.transaction() as c:
             if c.execute("UPDATE jobs SET attempts=MAX(attempts-1, 0) WHERE job_id=? AND status='running'",
                          (job_id,)).rowcount:
                 self._started.discard(job_id)
@@ -765,7 +498,7 @@ class Store:
 
     def resume_job(self, job_id: int) -> bool:
         """A parked job's optimisation begins: count the start (False when the job is no longer running)."""
-        with self._tx() as c:
+        with self.transaction() as c:
             ok = bool(c.execute("UPDATE jobs SET attempts=attempts+1 WHERE job_id=? AND status='running'",
                                 (job_id,)).rowcount)
             self._parked.discard(job_id)
@@ -781,7 +514,7 @@ class Store:
         Parked jobs (start already given back) just become ``pending``.
         Returns their ids.
         """
-        with self._tx() as c:
+        with self.transaction() as c:
             released = [j for j in sorted(self._started) if c.execute(
                 "UPDATE jobs SET status='pending', attempts=MAX(attempts-1, 0) WHERE job_id=? AND status='running'",
                 (j,)).rowcount]
@@ -797,33 +530,46 @@ class Store:
         Fixed once the job is accepted, so a job re-run after a crash gets
         the same plan ids; the pipeline salts the plan id with it.
         """
-        row = self._conn().execute(
+        row = self.connection().execute(
             "SELECT COUNT(*) FROM decisions d JOIN jobs j ON d.superevent_id=j.superevent_id"
             " WHERE j.job_id=? AND d.decision='withdraw' AND d.notice_id<j.notice_id", (job_id,)).fetchone()
         return int(row[0]) if row else 0
 
     def job_status(self, job_id: int) -> str | None:
         """``pending``, ``running``, ``done``, ``failed``, ``superseded``, ``cancelled`` (None: no such job)."""
-        row = self._conn().execute("SELECT status FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+        row = self.connection().execute("SELECT status FROM jobs WHERE job_id=?", (job_id,)).fetchone()
         return None if row is None else str(row[0])
 
     def describe_job(self, job_id: int) -> str:
         """Status with its reason, e.g. ``superseded (newer sky map)``, for log lines."""
-        row = self._conn().execute("SELECT status, reason FROM jobs WHERE job_id=?", (job_id,)).fetchone()
+        row = self.connection().execute("SELECT status, reason FROM jobs WHERE job_id=?", (job_id,)).fetchone()
         if row is None:
             return "unknown job"
         return str(row[0]) + (f" ({row[1]})" if row[1] and row[0] in ("failed", "superseded", "cancelled") else "")
 
     def latest_planned_notice(self, superevent_id: str) -> tuple[int, bytes] | None:
         """The newest notice of a superevent that was accepted for planning, with its raw bytes."""
-        row = self._conn().execute(
+        row = self.connection().execute(
             "SELECT n.notice_id, n.raw FROM jobs j JOIN notices n USING(notice_id) WHERE j.superevent_id=?"
             " AND n.raw IS NOT NULL ORDER BY j.job_id DESC LIMIT 1", (superevent_id,)).fetchone()
         return None if row is None else (int(row[0]), bytes(row[1]))
 
+    def first_start(self, *superevent_ids: str) -> str | None:
+        """The earliest horizon start (ISO-8601 UTC) of the jobs of these superevents, or None if they have none.
+
+        An event's follow-up begins there: the loop reads executed exposures
+        from it, and its night re-plans count nights from it.
+        """
+        if not superevent_ids:
+            return None
+        row = self.connection().execute(
+            f"SELECT MIN(start) FROM jobs WHERE superevent_id IN ({','.join('?' * len(superevent_ids))})",
+            superevent_ids).fetchone()
+        return None if row is None or row[0] is None else str(row[0])
+
     def notice_raw(self, notice_id: int) -> bytes | None:
         """Raw bytes of a stored notice (kept for notices that need planning)."""
-        row = self._conn().execute("SELECT raw FROM notices WHERE notice_id=?", (notice_id,)).fetchone()
+        row = self.connection().execute("SELECT raw FROM notices WHERE notice_id=?", (notice_id,)).fetchone()
         return None if row is None or row[0] is None else bytes(row[0])
 
     def finish_job(self, job_id: int, plan_id: str, document: dict[str, Any],
@@ -864,11 +610,11 @@ class Store:
             the job was superseded or cancelled meanwhile (nothing stored).
         """
         revision = int(revision if revision is not None else document.get("revision", 1))
-        with self._tx() as c:
+        with self.transaction() as c:
             row = c.execute("SELECT status, superevent_id FROM jobs WHERE job_id=?", (job_id,)).fetchone()
             if row is None or row["status"] != "running":
                 return None
-            now = _now()
+            now = now_iso()
             mine = c.execute("SELECT 1 FROM plans WHERE plan_id=? AND job_id=?", (plan_id, job_id)).fetchone()
             outbox_id = None
             if mine is not None:
@@ -900,7 +646,7 @@ class Store:
         Returns the outbox id (the earlier one after a restart), or None when
         the job is no longer running (superseded, cancelled: nothing queued).
         """
-        with self._tx() as c:
+        with self.transaction() as c:
             row = c.execute("SELECT status, superevent_id FROM jobs WHERE job_id=?", (job_id,)).fetchone()
             if row is None or row["status"] != "running":
                 return None
@@ -910,7 +656,7 @@ class Store:
         """Mark the job done on ``plan_id`` (its revisions final) and queue ``plan_final`` once (lock held)."""
         c.execute("UPDATE plans SET final=1 WHERE job_id=?", (job_id,))
         c.execute("UPDATE jobs SET status='done', plan_id=?, reason=?, finished_at=? WHERE job_id=?",
-                  (plan_id, reason[:500], _now(), job_id))
+                  (plan_id, reason[:500], now_iso(), job_id))
         self._started.discard(job_id)
         self._parked.discard(job_id)
         key = f"{plan_id}-final"
@@ -922,7 +668,7 @@ class Store:
 
     def job_plans(self, job_id: int) -> list[dict[str, Any]]:
         """The revisions a job stored, oldest first (documents parsed)."""
-        rows = self._conn().execute(
+        rows = self.connection().execute(
             "SELECT plan_id, revision, final, withdrawn, document FROM plans WHERE job_id=? ORDER BY seq",
             (job_id,)).fetchall()
         return [dict(r) | {"document": json.loads(r["document"])} for r in rows]
@@ -934,51 +680,51 @@ class Store:
         superevent forgets the job's sky map, so the next notice carrying the
         same map is planned again instead of being a ``duplicate``.
         """
-        with self._tx() as c:
+        with self.transaction() as c:
             row = c.execute("SELECT superevent_id, skymap_sha256 FROM jobs WHERE job_id=?", (job_id,)).fetchone()
             c.execute("UPDATE jobs SET status='failed', reason=?, finished_at=? WHERE job_id=?"
-                      " AND status IN ('pending','running')", (storable(reason, 2000), _now(), job_id))
+                      " AND status IN ('pending','running')", (storable(reason, 2000), now_iso(), job_id))
             self._started.discard(job_id)
             self._parked.discard(job_id)
             if retry_same_map and row is not None:
                 c.execute("UPDATE events SET skymap_sha256=NULL, updated_at=? WHERE superevent_id=?"
-                          " AND skymap_sha256=?", (_now(), row[0], row[1]))
+                          " AND skymap_sha256=?", (now_iso(), row[0], row[1]))
 
     # ------------------------------------------------------------ outbox
     def pending_outbox(self, limit: int = 1000) -> list[OutboxMessage]:
         """Messages not yet published, oldest first."""
-        rows = self._conn().execute(
+        rows = self.connection().execute(
             "SELECT * FROM outbox WHERE published_at IS NULL ORDER BY outbox_id LIMIT ?", (limit,)).fetchall()
         return [OutboxMessage(r["outbox_id"], r["key"], r["kind"], json.loads(r["body"]), r["attempts"], None,
                               r["created_at"]) for r in rows]
 
     def mark_published(self, outbox_id: int) -> None:
-        with self._tx() as c:
+        with self.transaction() as c:
             c.execute("UPDATE outbox SET published_at=?, attempts=attempts+1, last_error=NULL WHERE outbox_id=?",
-                      (_now(), outbox_id))
+                      (now_iso(), outbox_id))
 
     def mark_publish_failed(self, outbox_id: int, error: str) -> None:
-        with self._tx() as c:
+        with self.transaction() as c:
             c.execute("UPDATE outbox SET attempts=attempts+1, last_error=? WHERE outbox_id=?",
                       (storable(error, 500), outbox_id))
 
     # ------------------------------------------------------------ incidents
     def record_incident(self, kind: str, detail: dict[str, Any]) -> int:
         """Keep a small record of something the operator must hear of (``mushrooms status`` shows it)."""
-        with self._tx() as c:
+        with self.transaction() as c:
             return int(c.execute("INSERT INTO incidents(kind, detail, created_at) VALUES (?,?,?)",
-                                 (kind, json.dumps(detail), _now())).lastrowid)
+                                 (kind, json.dumps(detail), now_iso())).lastrowid)
 
     def received_wall(self, plan_id: str) -> float | None:
         """When the notice of the job that made ``plan_id`` was received (Unix s), or None."""
-        row = self._conn().execute("SELECT j.received_wall FROM plans p JOIN jobs j USING(job_id)"
+        row = self.connection().execute("SELECT j.received_wall FROM plans p JOIN jobs j USING(job_id)"
                                    " WHERE p.plan_id=?", (plan_id,)).fetchone()
         return None if row is None else float(row[0])
 
     # ------------------------------------------------------------ inspection
     def decisions(self) -> list[dict[str, Any]]:
         """Every decision, oldest first (for tests and operators)."""
-        rows = self._conn().execute(
+        rows = self.connection().execute(
             "SELECT d.*, n.origin, j.status AS job_status, j.plan_id FROM decisions d"
             " JOIN notices n USING(notice_id) LEFT JOIN jobs j USING(job_id) ORDER BY decision_id").fetchall()
         return [dict(r) for r in rows]
@@ -990,12 +736,12 @@ class Store:
         if superevent_id is not None:
             q += " WHERE superevent_id=?"
             args = (superevent_id,)
-        rows = self._conn().execute(q + " ORDER BY seq", args).fetchall()
+        rows = self.connection().execute(q + " ORDER BY seq", args).fetchall()
         return [dict(r) | {"document": json.loads(r["document"])} for r in rows]
 
     def counts(self) -> dict[str, int]:
         """Row counts and open work (for the heartbeat)."""
-        c = self._conn()
+        c = self.connection()
         out = {t: c.execute(f"SELECT COUNT(*) FROM {t}").fetchone()[0]
                for t in ("notices", "decisions", "events", "jobs", "plans", "outbox")}
         out["jobs_open"] = c.execute("SELECT COUNT(*) FROM jobs WHERE status IN ('pending','running')").fetchone()[0]
@@ -1003,50 +749,8 @@ class Store:
         return out
 
 
-def _tables(conn: sqlite3.Connection) -> set[str]:
-    return {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
-
-
-def _missing(conn: sqlite3.Connection) -> list[str]:
-    """The statements of the :data:`_UPGRADES` steps the file has not had."""
-    tables = _tables(conn)
-    out: list[str] = []
-    for _, step in _UPGRADES:
-        if isinstance(step, str):
-            names = [w.split("(")[0] for w in step.split("CREATE TABLE IF NOT EXISTS ")[1:]]
-            if not set(n.strip() for n in names) <= tables:
-                out.append(step)
-            continue
-        table, column, decl = step
-        if column not in {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}:
-            out.append(f"ALTER TABLE {table} ADD COLUMN {column} {decl}")
-    return out
-
-
 def _opt(text: str | None) -> str | None:
     return None if text is None else storable(text)
-
-
-def _create_or_check_file(path: Path, mode: int) -> None:
-    """Create a missing state file with ``mode``; refuse an existing empty one or a link."""
-    if path.is_symlink():
-        raise StoreError(f"{path}: the state file is a symbolic link; give the real path")
-    try:
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, mode)
-    except FileExistsError:
-        if path.is_file() and path.stat().st_size == 0:
-            raise StoreError(f"{path}: the state file exists but is empty (0 bytes); refusing to start "
-                             "from nothing: restore it, or remove it to start a new history") from None
-        return
-    except OSError as exc:
-        raise StoreError(f"{path}: cannot create the state file ({exc.strerror or exc})") from None
-    os.fchmod(fd, mode)  # whatever the umask
-    os.close(fd)
-
-
-def _without_raw(n: NoticeRecord) -> NoticeRecord:
-    return NoticeRecord(n.origin, n.sha256, n.size, n.received_at, n.superevent_id, n.alert_type,
-                        n.time_created, None)
 
 
 def sha256_hex(data: bytes) -> str:

@@ -94,7 +94,7 @@ def submissions(store: Store, superevent_id: str | None = None) -> list[Submissi
     q, args = "SELECT * FROM submissions", ()
     if superevent_id is not None:
         q, args = q + " WHERE superevent_id=?", (superevent_id,)
-    return [_row(r) for r in store._conn().execute(q + " ORDER BY created_at, rowid", args)]
+    return [_row(r) for r in store.connection().execute(q + " ORDER BY created_at, rowid", args)]
 
 
 def _now_iso() -> str:
@@ -284,7 +284,7 @@ class Submitter:
         """Give every stored plan without a submission row one: ``pending`` or ``skipped`` (returns the new rows)."""
         created: list[Submission] = []
         failed: list[tuple[Submission, str]] = []
-        with self.store._tx() as c:
+        with self.store.transaction() as c:
             rows = c.execute("SELECT p.plan_id, COALESCE(p.superevent_id, p.plan_id) AS sid, p.withdrawn,"
                              " p.document FROM plans p LEFT JOIN submissions s USING(plan_id)"
                              " WHERE s.plan_id IS NULL ORDER BY p.seq").fetchall()
@@ -347,13 +347,13 @@ class Submitter:
         return created
 
     def _open_events(self) -> list[str]:
-        rows = self.store._conn().execute(
+        rows = self.store.connection().execute(
             "SELECT superevent_id, MIN(created_at) FROM submissions WHERE state IN ('pending','submitted')"
             " GROUP BY superevent_id ORDER BY 2").fetchall()
         return [r[0] for r in rows]
 
     def _settle(self, sid: str) -> int:
-        conn = self.store._conn()
+        conn = self.store.connection()
         rows = [_row(r) for r in conn.execute(
             "SELECT * FROM submissions WHERE superevent_id=? AND state IN ('pending','submitted')"
             " ORDER BY revision", (sid,))]
@@ -453,7 +453,7 @@ class Submitter:
 
     # ------------------------------------------------------------ rows
     def _plan_end(self, plan_id: str) -> float | None:
-        row = self.store._conn().execute("SELECT document FROM plans WHERE plan_id=?", (plan_id,)).fetchone()
+        row = self.store.connection().execute("SELECT document FROM plans WHERE plan_id=?", (plan_id,)).fetchone()
         if row is None:
             return None
         try:
@@ -463,13 +463,13 @@ class Submitter:
 
     def _mark_attempt(self, sub: Submission) -> Submission:
         """Count the attempt durably *before* the HTTP call (a crash after it is then known to the restart)."""
-        with self.store._tx() as c:
+        with self.store.transaction() as c:
             c.execute("UPDATE submissions SET attempts=attempts+1, attempted_at=? WHERE plan_id=?",
                       (_now_iso(), sub.plan_id))
             return _row(c.execute("SELECT * FROM submissions WHERE plan_id=?", (sub.plan_id,)).fetchone())
 
     def _retry(self, sub: Submission, status: int | None, error: str) -> None:
-        with self.store._tx() as c:
+        with self.store.transaction() as c:
             c.execute("UPDATE submissions SET http_status=?, answer=? WHERE plan_id=?",
                       (status, error[:2000], sub.plan_id))
         log.warning("event=submission_retry superevent_id=%s plan_id=%s queue_name=%s state=%s attempts=%d "
@@ -482,7 +482,7 @@ class Submitter:
         """Move a row from its state to ``state`` (and queue its status document), atomically."""
         now = _now_iso()
         terminal = state not in OPEN
-        with self.store._tx() as c:
+        with self.store.transaction() as c:
             cur = c.execute(
                 "UPDATE submissions SET state=?, reason=?, http_status=COALESCE(?, http_status),"
                 " answer=COALESCE(?, answer), remote_id=COALESCE(?, remote_id),"

@@ -30,7 +30,7 @@ def test_every_hostile_message_gets_exactly_one_decision_row(tmp_path) -> None:
         outcomes[name] = acc.action
         if acc.job is not None:  # the bad-map ones are caught when the job reads the map
             assert p.run_job(acc.job).decision in ("plan", "rejected", "ignore")
-    counts = store._conn().execute(
+    counts = store.connection().execute(
         "SELECT n.notice_id, COUNT(d.decision_id) FROM notices n LEFT JOIN decisions d USING(notice_id)"
         " GROUP BY n.notice_id").fetchall()
     assert len(counts) == len(corpus) and all(c == 1 for _, c in counts)

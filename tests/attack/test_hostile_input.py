@@ -33,7 +33,7 @@ def pipeline(tmp_path):
 
 
 def one_decision_per_notice(store: Store) -> None:
-    rows = store._conn().execute(
+    rows = store.connection().execute(
         "SELECT n.notice_id, COUNT(d.decision_id) FROM notices n LEFT JOIN decisions d USING(notice_id)"
         " GROUP BY n.notice_id").fetchall()
     assert rows and all(count == 1 for _, count in rows), [tuple(r) for r in rows]

@@ -80,7 +80,7 @@ def test_a_state_file_of_schema_2_is_migrated(tmp_path: Path) -> None:
     with sqlite3.connect(path) as c:  # make it look like a schema-2 file: no latest_created column
         c.executescript("ALTER TABLE events DROP COLUMN latest_created; PRAGMA user_version=2;")
     s = Store(path)
-    cols = [r[1] for r in s._conn().execute("PRAGMA table_info(events)")]
+    cols = [r[1] for r in s.connection().execute("PRAGMA table_info(events)")]
     assert "latest_created" in cols
 
 
@@ -193,7 +193,7 @@ def test_raw_bytes_of_planned_notices_are_pruned_once_not_needed(tmp_path: Path)
     b = p.handle(notice("MS181102ab"), "kafka:t:0:3", LATER)
     pending = p.accept(notice("MS181103ab"), "kafka:t:0:4", LATER)  # its job has not run
     assert a2.decision == "rerun"
-    pages_before = p.store._conn().execute("PRAGMA page_count").fetchone()[0]
+    pages_before = p.store.connection().execute("PRAGMA page_count").fetchone()[0]
     # superseded notice: pruned at once; each event's newest kept for the retention; an open job's never
     assert p.store.prune_raw(older_than_s=0, planned_older_than_s=3600) == 1
     assert p.store.notice_raw(a1.notice_id) is None
@@ -207,7 +207,7 @@ def test_raw_bytes_of_planned_notices_are_pruned_once_not_needed(tmp_path: Path)
     assert p.store.notice_raw(a2.notice_id) is None and p.store.notice_raw(pending.notice_id) is None
     assert len(p.store.decisions()) == 5
     # the file gives the pages back (incremental auto-vacuum): fewer pages than with four notices' bytes
-    conn = p.store._conn()
+    conn = p.store.connection()
     assert conn.execute("PRAGMA auto_vacuum").fetchone()[0] == 2  # incremental
     assert conn.execute("PRAGMA freelist_count").fetchone()[0] == 0
     assert conn.execute("PRAGMA page_count").fetchone()[0] < pages_before

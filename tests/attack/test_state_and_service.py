@@ -198,7 +198,7 @@ def test_rejected_messages_keep_only_a_prefix_and_are_pruned(tmp_path: Path) -> 
     junk = b"{" + os.urandom(2_000_000)
     acc = p.accept(junk, "attack:junk", received_at())
     assert acc.action == "rejected"
-    (size, kept) = p.store._conn().execute("SELECT size, length(raw) FROM notices").fetchone()
+    (size, kept) = p.store.connection().execute("SELECT size, length(raw) FROM notices").fetchone()
     assert size == len(junk) and kept == 1024
     planned = p.accept(notice_with("MS181101ab"), "attack:ok", received_at())
     assert p.store.prune_raw(older_than_s=0) == 1

@@ -84,7 +84,7 @@ class World:
         return [(s.queue_name, s.state) for s in submissions(self.store) if s.state != "skipped"]
 
     def documents(self) -> list[dict]:
-        rows = self.store._conn().execute("SELECT body FROM outbox WHERE kind='submission' ORDER BY outbox_id")
+        rows = self.store.connection().execute("SELECT body FROM outbox WHERE kind='submission' ORDER BY outbox_id")
         return [json.loads(r[0]) for r in rows]
 
     def restart(self) -> None:

@@ -84,7 +84,7 @@ def test_a_corrupted_joint_map_falls_back_to_the_gw_map_with_one_logged_reason(s
     warnings = [r.getMessage() for r in caplog.records if "combined sky map unusable" in r.getMessage()]
     assert len(warnings) == 1 and "MS181101ab" in warnings[0]
     # the decision is taken on the combined map's headers; the job decodes it, falls back and keeps why
-    [incident] = [r for r in store._conn().execute("SELECT kind, detail FROM incidents")]
+    [incident] = [r for r in store.connection().execute("SELECT kind, detail FROM incidents")]
     assert incident[0] == "combined_map_unusable" and "combined sky map unusable" in incident[1]
     assert json.loads(incident[1])["superevent_id"] == "MS181101ab"
     assert [p["document"]["event"]["localization"] for p in store.plans("MS181101ab")] == ["gw"]

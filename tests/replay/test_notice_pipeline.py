@@ -185,7 +185,7 @@ def test_bad_input_is_one_rejected_outcome_and_one_log_line(store, caplog, case)
     else:
         assert recorded == ["rejected"]
     if case == "huge":
-        row = store._conn().execute("SELECT size, raw FROM notices").fetchone()
+        row = store.connection().execute("SELECT size, raw FROM notices").fetchone()
         assert row[0] > 50 * 1024 * 1024 and row[1] is None  # the payload itself is not stored
     # the pipeline carries on with the next, good notice (a retraction: no planning, same path)
     nxt = handle(p, "live/MS230425k-retraction.json")
