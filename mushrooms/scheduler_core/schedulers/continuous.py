@@ -14,7 +14,7 @@ for time.
 
 Two users: the exact optimum of reduced instances
 (``mushrooms.evaluation.exact``, benchmark only) and the large-neighbourhood
-re-solves of the hybrid (:mod:`.lns`, equations L1–L5), which solve it on a
+re-solves of the hybrid (:mod:`.lns`, equations H1–H5), which solve it on a
 time slice of the night with the rest of the plan fixed.
 """
 
