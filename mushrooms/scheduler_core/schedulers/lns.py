@@ -131,10 +131,24 @@ def _pairs_of(problem: PlanningProblem, observations: Sequence[Observation]) -> 
     return by
 
 
-def _slices(problem: PlanningProblem, state: _State, lo: float, hi: float, length: float) -> list[tuple[float, float]]:
-    """Slices of ``[lo, hi]`` of ``length`` (s) every half length, those where the incumbent idles most first."""
+Slice = tuple[tuple[float, float], ...]
+
+
+def _name(intervals: Slice) -> str:
+    return " + ".join(f"[{a:.0f}, {b:.0f}]" for a, b in intervals)
+
+
+def _slices(problem: PlanningProblem, state: _State, lo: float, hi: float, length: float,
+            field_prob: np.ndarray) -> list[Slice]:
+    """The slices of a round: single intervals, then pairs of intervals.
+
+    Single: ``[lo, hi]`` cut in intervals of ``length`` (s) every half length, those where the
+    incumbent idles most first (only those where a field is visible).  Pairs: each interval with the
+    one not overlapping it that shares the most probability of fields visible in both (a pair of
+    exposures split between them), most shared first.
+    """
     if hi - lo <= length:
-        return [(lo, hi)]
+        return [((lo, hi),)]
     starts = np.arange(lo, hi - length + 1e-9, length / 2.0)
     if starts[-1] < hi - length - 1e-9:
         starts = np.append(starts, hi - length)
@@ -142,8 +156,29 @@ def _slices(problem: PlanningProblem, state: _State, lo: float, hi: float, lengt
     for o in state.observations:
         a, b = o.start, o.start + o.exposure_s
         busy += np.clip(np.minimum(b, starts + length) - np.maximum(a, starts), 0.0, None)
-    order = np.argsort(busy, kind="stable")  # idle first
-    return [(float(starts[i]), float(starts[i] + length)) for i in order]
+    w = problem.windows
+    exp = problem.config.exposure_s
+    rows = np.searchsorted(problem.field_ids, w.field_ids, sorter=np.argsort(problem.field_ids))
+    rows = np.argsort(problem.field_ids)[np.clip(rows, 0, len(problem.field_ids) - 1)]
+    vis = np.zeros((starts.size, len(problem.field_ids)), bool)
+    for k, a in enumerate(starts):
+        ok = np.minimum(w.end, a + length) - np.maximum(w.start, a) >= exp
+        vis[k, rows[ok]] = True
+    seen = vis.any(axis=1)
+    order = [int(i) for i in np.argsort(busy, kind="stable") if seen[i]]  # idle first
+    singles: list[Slice] = [((float(starts[i]), float(starts[i] + length)),) for i in order]
+    shared = (vis.astype(float) * field_prob) @ vis.T.astype(float)
+    apart = np.abs(starts[:, None] - starts[None, :]) >= length
+    shared = np.where(apart, shared, 0.0)
+    pairs: dict[tuple[int, int], float] = {}
+    for i in range(starts.size):
+        j = int(np.argmax(shared[i]))
+        if shared[i, j] > 0.0:
+            pairs[(min(i, j), max(i, j))] = float(shared[i, j])
+    ranked = sorted(pairs, key=lambda ij: -pairs[ij])
+    doubles: list[Slice] = [((float(starts[i]), float(starts[i] + length)), (float(starts[j]), float(starts[j] + length)))
+                            for i, j in ranked]
+    return singles + doubles
 
 
 def _earliest_times(sub: PlanningProblem, model, x: np.ndarray, fixed: np.ndarray) -> dict[int, float]:
@@ -175,37 +210,55 @@ def _earliest_times(sub: PlanningProblem, model, x: np.ndarray, fixed: np.ndarra
     return out
 
 
+def _inside(t: float, exp: float, intervals: tuple[tuple[float, float], ...]) -> bool:
+    """True when the exposure ``[t, t + exp]`` lies in one of the slice's intervals."""
+    return any(a <= t and t + exp <= b for a, b in intervals)
+
+
 def _resolve_slice(problem: PlanningProblem, state: _State, pairs: dict[int, list[Observation]],
-                   a_s: float, b_s: float, row_of: dict[int, int], pool: np.ndarray, pool_ok: np.ndarray,
-                   time_limit_s: float, should_stop: StopCheck | None, max_free: int) -> list[Observation] | None:
-    """One slice's re-solve: the new whole plan when it covers strictly more and keeps every rule, else None."""
+                   intervals: tuple[tuple[float, float], ...], row_of: dict[int, int], pool: np.ndarray,
+                   pool_ok: np.ndarray, time_limit_s: float, should_stop: StopCheck | None,
+                   max_free: int) -> list[Observation] | None:
+    """One slice's re-solve: the new whole plan when it covers strictly more and keeps every rule, else None.
+
+    A slice is one interval of the night or two (a field's two filters may lie hours apart, e.g. at
+    the end of one night and the start of the next: the cadence is a least separation).
+    """
     cfg = problem.config
     exp = cfg.exposure_s
-    free_ids = [fid for fid, os_ in pairs.items() if all(a_s <= o.start and o.start + exp <= b_s for o in os_)]
-    fixed_ids = [fid for fid in pairs if fid not in set(free_ids)]
+    free_ids = [fid for fid, os_ in pairs.items() if all(_inside(o.start, exp, intervals) for o in os_)]
+    free_set = set(free_ids)
+    fixed_ids = [fid for fid in pairs if fid not in free_set]
     fixed_obs = sorted((o for fid in fixed_ids for o in pairs[fid]), key=lambda o: o.start)
     starts = np.array([o.start for o in fixed_obs])
-    # (H2) the fixed exposures a free one may meet: from the last one starting before A to the first after B - exp
-    before = np.flatnonzero(starts < a_s)
-    after = np.flatnonzero(starts > b_s - exp)
-    i0 = int(before[-1]) if before.size else 0
-    i1 = int(after[0]) if after.size else len(fixed_obs) - 1
-    near_ids = sorted({int(o.field_id) for o in fixed_obs[i0:i1 + 1]}) if fixed_obs else []
+    # (H2) the fixed exposures a free one may meet: per interval, from the last one starting before A to
+    # the first one starting after B - exp
+    near: set[int] = set()
+    for a_s, b_s in intervals:
+        before = np.flatnonzero(starts < a_s)
+        after = np.flatnonzero(starts > b_s - exp)
+        i0 = int(before[-1]) if before.size else 0
+        i1 = int(after[0]) if after.size else len(fixed_obs) - 1
+        near.update(int(o.field_id) for o in fixed_obs[i0:i1 + 1])
+    near_ids = sorted(near)
     # (H4) objective weights: the probability the fixed fields leave uncovered
     fp = problem.footprints
     prob = np.asarray(problem.prob, float).copy()
     fixed_rows = np.array([row_of[f] for f in fixed_ids], np.int64)
     if fixed_rows.size:
         prob[fp.union(fp.field_ids[fixed_rows])] = 0.0
-    # (H3) candidates: unplanned fields that can hold a pair inside the slice, by probability left
-    lo_c = np.maximum(problem.windows.start, a_s)
-    hi_c = np.minimum(problem.windows.end, b_s)
+    # (H3) candidates: unplanned fields whose windows inside the slice span a pair, by probability left
+    w = problem.windows
+    w_row = np.array([row_of.get(int(f), -1) for f in w.field_ids], np.int64)
+    first = np.full(len(problem.field_ids), np.inf)
+    last = np.full(len(problem.field_ids), -np.inf)
+    for a_s, b_s in intervals:
+        lo_c, hi_c = np.maximum(w.start, a_s), np.minimum(w.end, b_s)
+        ok = (hi_c - lo_c >= exp) & (w_row >= 0)
+        np.minimum.at(first, w_row[ok], lo_c[ok])
+        np.maximum.at(last, w_row[ok], hi_c[ok])
+    fits = last - first >= cfg.cadence_s + exp
     planned = np.isin(problem.field_ids[pool], np.fromiter(pairs, np.int64, len(pairs)))
-    fits = np.zeros(len(problem.field_ids), bool)
-    long_enough = hi_c - lo_c >= cfg.cadence_s + exp
-    if long_enough.any():
-        fits = np.isin(problem.field_ids, problem.windows.field_ids[long_enough])
-    # a pair across two windows of the slice: the span is enough, C2 places each exposure in one
     cand = pool[pool_ok & ~planned & fits[pool]]
     n_new = max_free - len(free_ids)
     if cand.size and n_new > 0:
@@ -221,18 +274,17 @@ def _resolve_slice(problem: PlanningProblem, state: _State, pairs: dict[int, lis
     near_rows = np.array([row_of[f] for f in near_ids], np.int64)
     rows = np.concatenate([near_rows, free_rows, cand]).astype(np.int64)
     n_fixed = near_rows.size
-    # (H1) the free fields' windows clipped to the slice, the fixed ones' kept
-    w = problem.windows
+    # (H1) the free fields' windows clipped to the slice's intervals, the fixed ones' kept
     ws_id, ws_a, ws_b = [], [], []
     for k, r in enumerate(rows):
         fid = int(problem.field_ids[r])
-        for a, b in w.for_field(fid):
-            if k >= n_fixed:
-                a, b = max(a, a_s), min(b, b_s)
-            if b - a >= exp:
-                ws_id.append(fid)
-                ws_a.append(a)
-                ws_b.append(b)
+        for a0, b0 in w.for_field(fid):
+            pieces = [(a0, b0)] if k < n_fixed else [(max(a0, a_s), min(b0, b_s)) for a_s, b_s in intervals]
+            for a, b in pieces:
+                if b - a >= exp:
+                    ws_id.append(fid)
+                    ws_a.append(a)
+                    ws_b.append(b)
     sub = dataclasses.replace(problem, prob=prob, field_ids=problem.field_ids[rows], ra=problem.ra[rows],
                               dec=problem.dec[rows], footprints=shortlist_footprints(fp, rows),
                               windows=Windows(np.asarray(ws_id, np.int64), np.asarray(ws_a), np.asarray(ws_b)))
@@ -276,7 +328,7 @@ def _resolve_slice(problem: PlanningProblem, state: _State, pairs: dict[int, lis
     plan = sorted([o for fid in fixed_ids for o in pairs[fid]] + new_obs, key=lambda o: o.start)
     bad = plan_rule_problems(problem, plan)
     if bad:
-        log.info("lns: slice [%.0f, %.0f] s rejected: %s", a_s, b_s, bad[0])
+        log.info("lns: slice %s rejected: %s", _name(intervals), bad[0])
         return None
     return plan
 
@@ -338,7 +390,8 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
     hi = min(problem.horizon_s, float(w.end.max()))
     state = seed_state = _state(problem, seed.observations)
     interrupted = False
-    slices = _slices(problem, state, lo, hi, slice_s)
+    field_prob = fp.field_probability(problem.prob)
+    slices = _slices(problem, state, lo, hi, slice_s, field_prob)
     i = since_gain = 0
     while since_gain < len(slices):  # a full round of slices without a gain ends the search
         left = budget - (time.perf_counter() - t0)
@@ -347,16 +400,16 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
             break
         if left < MIN_SLICE_S:
             break
-        a_s, b_s = slices[i]
+        intervals = slices[i]
         i += 1
         if i == len(slices):  # a new round, the idlest slices of the incumbent first
-            slices, i = _slices(problem, state, lo, hi, slice_s), 0
+            slices, i = _slices(problem, state, lo, hi, slice_s, field_prob), 0
         details["slices_tried"] += 1
-        plan = _resolve_slice(problem, state, pairs, a_s, b_s, row_of, pool, pool_ok,
+        plan = _resolve_slice(problem, state, pairs, intervals, row_of, pool, pool_ok,
                               min(SLICE_LIMIT_S, left), should_stop, max_free)
         new = _state(problem, plan) if plan is not None else None
         if new is not None and state.beaten_by(new):  # (H5) strictly better only
-            log.info("lns: slice [%.0f, %.0f] s: coverage %.5f -> %.5f", a_s, b_s, state.coverage, new.coverage)
+            log.info("lns: slice %s s: coverage %.5f -> %.5f", _name(intervals), state.coverage, new.coverage)
             state = new
             pairs = _pairs_of(problem, plan)
             details["slices_improved"] += 1
