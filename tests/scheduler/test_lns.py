@@ -118,6 +118,20 @@ def test_a_slice_keeps_the_exposures_outside_it_where_they_are():
     assert coverage(problem, out.observations) >= coverage(problem, seed.observations)
 
 
+def test_a_slice_of_two_intervals_places_a_pair_hours_apart():
+    # field 1 is visible in [0, 150] and [1300, 1400] s only: its pair spans the two (the cadence is a least
+    # separation); field 2 in [500, 1000] s.  A 300 s interval holds no pair (cadence + exposure = 350 s), so
+    # only the slices of two intervals add them
+    problem = small_problem([0.5, 0.2] + [0.3 / 10] * 10, [[0], [1]], [[(0.0, 150.0), (1300.0, 1400.0)],
+                                                                      [(500.0, 1000.0)]], [0.0, 5.0])
+    out = lns_improve(problem, as_result(()), time_limit_s=30.0, slice_s=300.0)
+    assert {o.field_id for o in out.observations} == {1, 2}
+    assert coverage(problem, out.observations) == pytest.approx(0.7, abs=1e-9)
+    assert plan_rule_problems(problem, out.observations) == []
+    t1 = sorted(o.start for o in out.observations if o.field_id == 1)
+    assert t1[0] + 100.0 <= 150.0 + 1e-9 and t1[1] >= 1300.0 - 1e-9
+
+
 def test_an_optimal_seed_comes_back_unchanged():
     problem = hand_problem()
     best = lns_improve(problem, as_result(()), time_limit_s=30.0, slice_s=10_000.0)

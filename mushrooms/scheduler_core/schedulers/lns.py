@@ -5,8 +5,11 @@ a pair placed at the very edge of a short window, or blocks that do not
 line up with when fields rise and set, cannot be expressed.  This stage
 takes the best plan so far and repeatedly
 
-1. picks a slice ``[A, B]`` of the night (:data:`SLICE_S` long; first the
-   slices where the incumbent idles most, then rotating by half a slice);
+1. picks a slice of the night: one interval ``[A, B]`` (:data:`SLICE_S`
+   long; those where the incumbent idles most first, every half interval)
+   or two (a field's filters may be hours apart, e.g. across the day on a
+   24 h horizon: each interval with the one sharing the most visible
+   probability);
 2. frees the incumbent's fields whose two exposures both lie inside it,
    keeps every other exposure where it is (a field whose pair straddles a
    slice boundary stays fixed, both exposures), and adds the unplanned
