@@ -24,8 +24,9 @@ takes the best plan so far and repeatedly
    cadence, both filters, checked again on the whole plan) and it covers
    strictly more (H5): the incumbent is never worse.
 
-It stops when the budget ends, ``should_stop`` says so, or a full round of
-slices brings nothing.
+It stops when the budget ends, ``should_stop`` says so, or
+:data:`MAX_IDLE_SLICES` slices in a row (a whole round, if shorter) bring
+nothing.
 """
 
 from __future__ import annotations
@@ -48,7 +49,8 @@ from .gain import published_coverage
 from .slew import overhead_time
 from .solvers import solve_milp
 
-__all__ = ["lns_improve", "plan_rule_problems", "SLICE_S", "MAX_FREE_FIELDS", "SLICE_LIMIT_S", "MIN_SLICE_S"]
+__all__ = ["lns_improve", "plan_rule_problems", "SLICE_S", "MAX_FREE_FIELDS", "SLICE_LIMIT_S", "MIN_SLICE_S",
+           "MAX_IDLE_SLICES"]
 
 log = logging.getLogger(__name__)
 
@@ -60,6 +62,8 @@ MAX_FREE_FIELDS = 22
 SLICE_LIMIT_S = 2.0
 #: No slice is started with less than this (s) of the budget left.
 MIN_SLICE_S = 0.3
+#: The search stops after this many slices in a row without a gain (or a whole round of them, if fewer).
+MAX_IDLE_SLICES = 8
 #: Relative gap at which a slice's solve stops.
 SLICE_GAP = 1e-4
 #: Least coverage gain (absolute probability) for a slice's plan to replace the incumbent (H5).
@@ -372,7 +376,8 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
     budget = cfg.time_limit_s if time_limit_s is None else float(time_limit_s)
     fp = problem.footprints
     seed_cov = fp.coverage({o.field_id for o in seed.observations}, problem.prob)
-    details: dict = {"seed_coverage": seed_cov, "slices_tried": 0, "slices_improved": 0, "slice_s": slice_s}
+    details: dict = {"seed_coverage": seed_cov, "slices_tried": 0, "slices_improved": 0, "slice_s": slice_s,
+                     "improved_at": [], "elapsed_at": []}
 
     def result(obs, status, cov):
         details.update(coverage=cov)
@@ -396,7 +401,7 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
     field_prob = fp.field_probability(problem.prob)
     slices = _slices(problem, state, lo, hi, slice_s, field_prob)
     i = since_gain = 0
-    while since_gain < len(slices):  # a full round of slices without a gain ends the search
+    while since_gain < min(len(slices), MAX_IDLE_SLICES):  # a few slices in a row without a gain end it
         left = budget - (time.perf_counter() - t0)
         if should_stop is not None and should_stop():
             interrupted = True
@@ -416,6 +421,8 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
             state = new
             pairs = _pairs_of(problem, plan)
             details["slices_improved"] += 1
+            details["improved_at"].append(details["slices_tried"])
+            details["elapsed_at"].append(round(time.perf_counter() - t0, 2))
             since_gain = 0
         else:
             since_gain += 1
