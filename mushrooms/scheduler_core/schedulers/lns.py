@@ -147,7 +147,7 @@ def _name(intervals: Slice) -> str:
 
 def _slices(problem: PlanningProblem, state: _State, lo: float, hi: float, length: float,
             field_prob: np.ndarray) -> list[Slice]:
-    """The slices of a round: single intervals, then pairs of intervals.
+    """The slices of a round: single intervals and pairs of intervals, alternating.
 
     Single: ``[lo, hi]`` cut in intervals of ``length`` (s) every half length, those where the
     incumbent idles most first (only those where a field is visible).  Pairs: each interval with the
@@ -185,7 +185,10 @@ def _slices(problem: PlanningProblem, state: _State, lo: float, hi: float, lengt
     ranked = sorted(pairs, key=lambda ij: -pairs[ij])
     doubles: list[Slice] = [((float(starts[i]), float(starts[i] + length)), (float(starts[j]), float(starts[j] + length)))
                             for i, j in ranked]
-    return singles + doubles
+    out: list[Slice] = []  # interleaved: a round cut short by MAX_IDLE_SLICES still tries both kinds
+    for k in range(max(len(singles), len(doubles))):
+        out += singles[k:k + 1] + doubles[k:k + 1]
+    return out
 
 
 def _earliest_times(sub: PlanningProblem, model, x: np.ndarray, fixed: np.ndarray) -> dict[int, float]:
