@@ -186,8 +186,8 @@ def _slices(problem: PlanningProblem, state: _State, lo: float, hi: float, lengt
         if shared[i, j] > 0.0:
             pairs[(min(i, j), max(i, j))] = float(shared[i, j])
     ranked = sorted(pairs, key=lambda ij: -pairs[ij])
-    doubles: list[Slice] = [((float(starts[i]), float(starts[i] + length)), (float(starts[j]), float(starts[j] + length)))
-                            for i, j in ranked]
+    doubles: list[Slice] = [((float(starts[i]), float(starts[i] + length)),
+                             (float(starts[j]), float(starts[j] + length))) for i, j in ranked]
     out: list[Slice] = []  # interleaved: a round cut short by MAX_IDLE_SLICES still tries both kinds
     for k in range(max(len(singles), len(doubles))):
         out += singles[k:k + 1] + doubles[k:k + 1]
