@@ -145,7 +145,8 @@ class PlanningConfig:
         portfolio, the time left to the LNS re-solves (which stop early
         when 8 slices in a row or 5 s bring nothing) and what is then
         left (if at least ``MIN_BLOCKS_S``) to the block MILP.  With
-        ``objective = "detection"`` it is the budget of the whole optimisation: the scheduler gets ``time_limit_s -
+        ``objective = "detection"`` it is the budget of the whole
+        optimisation: the scheduler gets ``time_limit_s -
         detection_time_limit_s``, the detection stage the rest.
         Default 14 s = 10 s for the scheduler + 4 s detection share.
         Preparation, greedy, the upper bound and the checker
