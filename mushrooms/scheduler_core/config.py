@@ -134,17 +134,19 @@ class PlanningConfig:
     solver : str
         Default scheduler: ``greedy``, ``slots`` (slot-assignment MILP
         portfolio), ``blocks`` (the paper's block MILP; ``milp`` is an
-        alias) or ``hybrid`` (best of greedy, slots and, when time is left,
-        blocks).
+        alias) or ``hybrid`` (best of greedy, slots, the LNS re-solves of
+        the best plan and, when time is left, blocks).
     milp_backend : str
         ``auto`` (Gurobi if fully licensed, else HiGHS), ``highs`` or ``gurobi``.
     time_limit_s : float
         Wall-clock budget (s) of the optimisation in one plan: ``slots``
         shares it over its grids; ``blocks`` gives it to its first solve
         (a re-solve gets a third); ``hybrid`` gives it to the slot
-        portfolio and the time left (if at least ``MIN_BLOCKS_S``) to the
-        block MILP.  With ``objective = "detection"`` it is the budget of
-        the whole optimisation: the scheduler gets ``time_limit_s -
+        portfolio, the time left to the LNS re-solves (which stop early
+        when a round of slices or 5 s bring nothing) and what is then
+        left (if at least ``MIN_BLOCKS_S``) to the block MILP.  With
+        ``objective = "detection"`` it is the budget of the whole
+        optimisation: the scheduler gets ``time_limit_s -
         detection_time_limit_s``, the detection stage the rest.
         Default 14 s = 10 s for the scheduler + 4 s detection share.
         Preparation, greedy, the upper bound and the checker

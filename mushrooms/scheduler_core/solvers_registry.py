@@ -15,7 +15,7 @@ validate against it): the schedulers register themselves
 ``slots``     greedy, then the slot-assignment MILP portfolio started from it
               (:func:`~.schedulers.portfolio.slots_from_greedy`), with the bound
 ``blocks``    the paper's block MILP (:func:`~.schedulers.portfolio.blocks`), with the bound
-``hybrid``    ``best_of(greedy, slots, blocks)`` (:data:`~.schedulers.portfolio.hybrid`),
+``hybrid``    ``best_of(greedy, slots, lns, blocks)`` (:data:`~.schedulers.portfolio.hybrid`),
               with the bound
 ``milp``      the old name of ``blocks`` (kept for old configs)
 ============  ===============================================================

@@ -33,9 +33,14 @@ def test_hybrid_under_a_detection_config_gives_its_blocks_stage_what_is_left(sky
     """run_scheduler with the default objective (detection): the blocks MILP's budget may be shorter than
     the detection stage's share (found by `mushrooms study`: 'detection_time_limit_s (4 s) must be less
     than time_limit_s (3.65 s)'); the blocks stage is a coverage scheduler and must still run."""
+    import mushrooms.scheduler_core.schedulers.lns as lns_module
     import mushrooms.scheduler_core.schedulers.slot_schedule as slot_module
 
     real = slot_module.slot_schedule
+    real_lns = lns_module.lns_improve
+    # the LNS stage after the slots gets 0.5 s, so that more than MIN_BLOCKS_S is left for blocks
+    monkeypatch.setattr(lns_module, "lns_improve", lambda problem, seed, should_stop=None, time_limit_s=None:
+                        real_lns(problem, seed, should_stop, time_limit_s=0.5))
     monkeypatch.setattr(slot_module, "slot_schedule",
                         lambda problem, should_stop=None, start=None, time_limit_s=None:
                         real(problem, should_stop, start=start, time_limit_s=0.5))

@@ -68,9 +68,9 @@ def test_hybrid_stops_when_greedy_reaches_the_bound_and_keeps_the_same_plan(gree
     assert reaches_bound(published_coverage(problem, greedy), bound)  # the premise: greedy is optimal here
     with caplog.at_level(logging.INFO, logger="mushrooms.scheduler_core.schedulers.portfolio"):
         stopped = run_scheduler(problem, "hybrid")
-    assert stopped.details["skipped_at_bound"] == ["slots", "blocks"]
+    assert stopped.details["skipped_at_bound"] == ["slots", "lns", "blocks"]
     assert [e.name for e in stopped.portfolio] == ["greedy"]
-    assert "it is optimal, skipping slots, blocks" in caplog.text
+    assert "it is optimal, skipping slots, lns, blocks" in caplog.text
     assert stopped.upper_bound.value == pytest.approx(bound.value, abs=1e-9)
     # the same portfolio without the bound runs on (blocks too when 3 s are left) and keeps the same plan
     full = Portfolio("hybrid", hybrid.stages)(problem)
@@ -84,14 +84,14 @@ def test_hybrid_stops_when_greedy_reaches_the_bound_and_keeps_the_same_plan(gree
 
 
 def test_hybrid_runs_on_until_a_stage_reaches_the_bound():
-    # greedy is below V = .62 here; the slot portfolio reaches the optimum .62, so blocks is skipped
+    # greedy is below V = .62 here; the slot portfolio reaches the optimum .62, so lns and blocks are skipped
     problem = _crowded_problem()
     result = run_scheduler(problem, "hybrid")
     covs = {e.name: e.coverage for e in result.portfolio}
     assert not reaches_bound(covs["greedy"], result.upper_bound)
     assert list(covs) == ["greedy", "slots"]
     assert reaches_bound(covs["slots"], result.upper_bound)
-    assert result.details["skipped_at_bound"] == ["blocks"]
+    assert result.details["skipped_at_bound"] == ["lns", "blocks"]
     assert result.portfolio_choice == "slots"
 
 

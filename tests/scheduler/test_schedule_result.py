@@ -85,10 +85,15 @@ def test_the_hybrid_composition_keeps_the_winner_the_string_branch_kept(seed):
     result = run_scheduler(problem, "hybrid")
     # the stages left once a plan reaches the certified bound are skipped; the winner is the same
     skipped = result.details.get("skipped_at_bound", [])
-    assert [e.name for e in result.portfolio] + skipped == ["greedy", "slots", "blocks"]
+    assert [e.name for e in result.portfolio] + skipped == ["greedy", "slots", "lns", "blocks"]
     if skipped:
         assert reaches_bound(max(e.coverage for e in result.portfolio), result.upper_bound)
-    assert all(e.status in ("optimal", "greedy") for e in result.portfolio)
+    assert all(e.status in ("optimal", "greedy") for e in result.portfolio if e.name != "lns")
+    lns = [e for e in result.portfolio if e.name == "lns"]
+    if lns and lns[0].status == "improved":  # the LNS re-solves beat every plan of the old hybrid
+        assert result.portfolio_choice == "lns" and lns[0].coverage > published_coverage(problem, best)
+        return
+    assert all(e.status == "no_improvement" for e in lns)  # its plan is then its seed: the winner stays
     assert result.portfolio_choice == name
     assert result.solver == f"hybrid({best.solver})"
     assert result.observations == best.observations

@@ -12,7 +12,8 @@ scheduler's result.  A portfolio given a ``bound`` computes it after its
 first stage and skips the stages left once a plan reaches it (within
 :data:`BOUND_RTOL`): that plan is then optimal, no stage can beat it.  The named schedulers of
 :mod:`..solvers_registry` are built from these, and this module registers them there
-(``greedy``, ``slots``, ``blocks`` / ``milp``, ``hybrid``).
+(``greedy``, ``slots``, ``blocks`` / ``milp``, ``hybrid``; the hybrid's ``lns`` stage is
+:mod:`.lns`, equations H1-H5).
 
 The MILP modules are imported by the stages when they run (and looked up
 there, so a test can replace ``slot_schedule.slot_schedule``).
@@ -39,6 +40,12 @@ log = logging.getLogger(__name__)
 
 #: The hybrid runs the block MILP only when at least this much (s) of its budget is left.
 MIN_BLOCKS_S = 3.0
+
+#: The hybrid runs the LNS re-solves (:mod:`.lns`) only when at least this much (s) of its budget is left.
+MIN_LNS_S = 0.5
+
+#: Share of the hybrid's budget the slot portfolio leaves to the LNS stage (the slots stop earlier by that).
+LNS_SHARE = 0.0
 
 #: A plan covering at least ``(1 - BOUND_RTOL)`` of the certified bound (less its 1e-9 margin) is optimal to
 #: within that: the portfolio skips its remaining stages.  Tight on purpose: a plan one small pixel short
@@ -87,6 +94,22 @@ def slots_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     from .slot_schedule import slot_schedule
 
     return slot_schedule(problem, should_stop, start=earlier.get("greedy"), time_limit_s=max(left_s, 0.0))
+
+
+def slots_before_lns_stage(problem: PlanningProblem, should_stop: StopCheck | None,
+                           earlier: Mapping[str, ScheduleResult], left_s: float) -> ScheduleResult:
+    """:func:`slots_stage` leaving :data:`LNS_SHARE` of ``config.time_limit_s`` to the LNS stage after it."""
+    return slots_stage(problem, should_stop, earlier, left_s - LNS_SHARE * problem.config.time_limit_s)
+
+
+def lns_stage(problem: PlanningProblem, should_stop: StopCheck | None,
+              earlier: Mapping[str, ScheduleResult], left_s: float) -> ScheduleResult:
+    """Large-neighbourhood re-solves (:mod:`.lns`, H1-H5) of the best plan so far with what is left."""
+    from .lns import lns_improve
+
+    names = list(earlier)
+    seed = max(names, key=lambda n: (published_coverage(problem, earlier[n]), -names.index(n)))
+    return lns_improve(problem, earlier[seed], should_stop, time_limit_s=max(left_s, 0.0))
 
 
 def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
@@ -223,10 +246,13 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
     return bounded
 
 
-#: The hybrid: greedy, the slot portfolio from it, then (when at least :data:`MIN_BLOCKS_S` is left) the
-#: block MILP with the time left; the plan covering the most as published (ties: greedy, slots, blocks).
+#: The hybrid: greedy, the slot portfolio from it, the LNS re-solves (:mod:`.lns`) of the best plan so far with
+#: the time left (they stop early once a round of slices or 5 s bring nothing), then (when at least
+#: :data:`MIN_BLOCKS_S` is left) the block MILP with the time left; the plan covering the most as published
+#: (ties: greedy, slots, lns, blocks; the LNS only returns a plan other than its seed when it covers more).
 #: The certified bound is computed after greedy, and the stages left are skipped once a plan reaches it.
-hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage),
+hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_before_lns_stage),
+                 Stage("lns", lns_stage, min_left_s=MIN_LNS_S),
                  Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S), bound=published_bound)
 
 register("greedy", greedy_schedule)

@@ -1,0 +1,64 @@
+"""The hybrid with and without its LNS stage (issue 30 item 3), per map: each stage's published coverage.
+
+Usage::
+
+    python benchmarks/lns_stage.py [--without-lns] [--lns-share F] [--time-limit 10] MAP ...
+
+Coverage objective, ``threads = 1``, the default ``min_gain``; ``MAP`` relative to the shared sky-map
+folder or a path.  Printed per map: the winning stage, every stage's published coverage, the wall time
+(s, the bound's included), the certified bound, the rule problems of the plan (0), and, when the LNS
+wins, after how many slices (and seconds) it improved.  Not a test: nothing here asserts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = next((p for p in (ROOT.parent / "shared" / "data" / "skymaps", Path("/work/shared/data/skymaps"))
+               if p.is_dir()), Path("/work/shared/data/skymaps"))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("maps", nargs="+")
+    ap.add_argument("--without-lns", action="store_true", help="the hybrid of before the LNS stage")
+    ap.add_argument("--lns-share", type=float, default=None, help="portfolio.LNS_SHARE (default: as shipped)")
+    ap.add_argument("--time-limit", type=float, default=10.0, help="time_limit_s (the coverage hybrid's 10 s)")
+    args = ap.parse_args(argv)
+
+    from astropy.time import Time
+
+    from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
+    from mushrooms.scheduler_core.planner import run_scheduler
+    from mushrooms.scheduler_core.schedulers import portfolio as pf
+    from mushrooms.scheduler_core.schedulers.lns import plan_rule_problems
+
+    if args.without_lns:
+        pf.register("hybrid", pf.with_upper_bound(dataclasses.replace(
+            pf.hybrid, stages=tuple(s for s in pf.hybrid.stages if s.name != "lns"))))
+    if args.lns_share is not None:
+        pf.LNS_SHARE = args.lns_share
+    label = "without-lns" if args.without_lns else f"lns-share={pf.LNS_SHARE:g}"
+    for m in args.maps:
+        path = Path(m) if Path(m).exists() else SHARED / m
+        cfg = PlanningConfig(objective="coverage", threads=1, time_limit_s=args.time_limit, milp_backend="highs")
+        sm = read_skymap(path, nside=cfg.nside)
+        problem = prepare_problem(sm, cfg, Time(sm.event_time, scale="utc"))
+        t = time.perf_counter()
+        r = run_scheduler(problem, "hybrid")
+        wall = time.perf_counter() - t
+        stages = " ".join(f"{e.name}={e.coverage:.4f}" for e in r.portfolio)
+        lns = r.details if r.portfolio_choice == "lns" else {}
+        when = f" improved_at={lns.get('improved_at')} s={lns.get('elapsed_at')}" if lns else ""
+        print(f"{label} {m} choice={r.portfolio_choice} {stages} wall={wall:.1f} bound={r.upper_bound.value:.4f} "
+              f"rules={len(plan_rule_problems(problem, r.observations))}{when}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

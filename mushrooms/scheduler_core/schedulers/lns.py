@@ -1,0 +1,439 @@
+"""Large-neighbourhood search: re-solve time slices of an incumbent plan exactly.
+
+The slot grids (:mod:`.slot_schedule`) are one restricted family of plans:
+a pair placed at the very edge of a short window, or blocks that do not
+line up with when fields rise and set, cannot be expressed.  This stage
+takes the best plan so far and repeatedly
+
+1. picks a slice of the night: one interval ``[A, B]`` (:data:`SLICE_S`
+   long; those where the incumbent idles most first, every half interval)
+   or two (a field's filters may be hours apart, e.g. across the day on a
+   24 h horizon: each interval with the one sharing the most visible
+   probability);
+2. frees the incumbent's fields whose two exposures both lie inside it,
+   keeps every other exposure where it is (a field whose pair straddles a
+   slice boundary stays fixed, both exposures), and adds the unplanned
+   fields that can hold a pair inside the slice with the largest
+   probability not already covered by the fixed fields;
+3. solves the continuous-time model (:mod:`.continuous`, C0–C6) of the
+   free fields, their windows clipped to the slice, together with the fixed
+   exposures the free ones may meet (variables fixed at their times), the
+   objective being the probability the fixed fields leave uncovered
+   (``docs/design/milp.md`` section 6, H1–H5);
+4. keeps the new plan only when every rule holds (windows, overheads,
+   cadence, both filters, checked again on the whole plan) and it covers
+   strictly more (H5): the incumbent is never worse.
+
+It stops when the budget ends, ``should_stop`` says so, or
+a whole round of slices or :data:`MAX_IDLE_S` seconds bring nothing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..plan.document import Observation
+from ..problem import PlanningProblem, ScheduleResult, StopCheck
+from ..sky.windows import Windows
+from .block_schedule import shortlist_footprints
+from .continuous import build_exact_model, exact_data, start_from_plan
+from .gain import published_coverage
+from .slew import overhead_time
+from .solvers import solve_milp
+
+__all__ = ["lns_improve", "plan_rule_problems", "SLICE_S", "MAX_FREE_FIELDS", "SLICE_LIMIT_S", "MIN_SLICE_S",
+           "MAX_IDLE_S"]
+
+log = logging.getLogger(__name__)
+
+#: Length (s) of a re-solved slice of the night.
+SLICE_S = 4500.0
+#: Most fields (incumbent's and new) free in one slice.
+MAX_FREE_FIELDS = 22
+#: Time limit (s) of one slice's solve (less when the budget left is shorter).
+SLICE_LIMIT_S = 2.0
+#: No slice is started with less than this (s) of the budget left.
+MIN_SLICE_S = 0.3
+#: The search stops after a whole round of slices without a gain, or after this long (s) without one
+#: (measured: the gains on the shared maps came within 4.1 s of the previous one; on a map the slots already
+#: solved well the slices take their whole limit for nothing).  A count of slices is no stop: on a reduced
+#: bns_o3/11 the gains come after 8 quick slices without one.
+MAX_IDLE_S = 5.0
+#: Relative gap at which a slice's solve stops.
+SLICE_GAP = 1e-4
+#: Least coverage gain (absolute probability) for a slice's plan to replace the incumbent (H5).
+MIN_IMPROVEMENT = 1e-9
+#: Time tolerance (s) of the rule check (the checker's is 1e-3 s).
+RULE_TOL_S = 1e-6
+
+
+def plan_rule_problems(problem: PlanningProblem, observations: Sequence[Observation]) -> list[str]:
+    """The timing rules of a plan on the problem's windows: what is wrong (empty: every rule holds).
+
+    Every exposure inside one window of its field and inside the horizon;
+    consecutive exposures apart by the exposure plus the true overhead
+    (slew, readout, filter change); every field in both filters, once each,
+    the cadence apart.
+    """
+    cfg = problem.config
+    obs = sorted(observations, key=lambda o: o.start)
+    bad: list[str] = []
+    for o in obs:
+        if o.start < -RULE_TOL_S or o.start + o.exposure_s > problem.horizon_s + RULE_TOL_S:
+            bad.append(f"horizon {o.field_id} {o.filter} {o.start:.3f}")
+        elif not problem.windows.contains(o.field_id, o.start + RULE_TOL_S, o.start + o.exposure_s - RULE_TOL_S):
+            bad.append(f"window {o.field_id} {o.filter} {o.start:.3f}")
+    for a, b in zip(obs[:-1], obs[1:]):
+        need = float(overhead_time(a.ra, a.dec, b.ra, b.dec, cfg.slew,
+                                   cfg.filter_change_s if a.filter != b.filter else 0.0))
+        if b.start < a.start + a.exposure_s + need - RULE_TOL_S:
+            bad.append(f"overhead {a.field_id} -> {b.field_id} at {b.start:.3f}")
+    starts: dict[int, list[Observation]] = {}
+    for o in obs:
+        starts.setdefault(o.field_id, []).append(o)
+    for fid, os_ in starts.items():
+        if sorted(o.filter for o in os_) != sorted(cfg.filters):
+            bad.append(f"filters {fid}")
+        elif abs(os_[0].start - os_[1].start) < cfg.cadence_s - RULE_TOL_S:
+            bad.append(f"cadence {fid}")
+    return bad
+
+
+@dataclass
+class _State:
+    """The incumbent: its observations and what they cover (as published, after the least-gain rule; raw)."""
+
+    observations: list[Observation]
+    published: float
+    coverage: float
+
+    def beaten_by(self, other: "_State") -> bool:
+        """(H5) ``other`` publishes more, or as much (within :data:`MIN_IMPROVEMENT`) and covers more raw."""
+        if other.published > self.published + MIN_IMPROVEMENT:
+            return True
+        return other.published >= self.published - MIN_IMPROVEMENT and other.coverage > self.coverage + MIN_IMPROVEMENT
+
+
+def _state(problem: PlanningProblem, observations: Sequence[Observation]) -> _State:
+    obs = sorted(observations, key=lambda o: o.start)
+    res = ScheduleResult(tuple(obs), "lns", "", None, 0.0)
+    return _State(obs, published_coverage(problem, res),
+                  problem.footprints.coverage({o.field_id for o in obs}, problem.prob))
+
+
+def _pairs_of(problem: PlanningProblem, observations: Sequence[Observation]) -> dict[int, list[Observation]] | None:
+    """Field ID -> its two exposures (one per filter), or None when the plan is not of that shape."""
+    cfg = problem.config
+    by: dict[int, list[Observation]] = {}
+    for o in observations:
+        by.setdefault(int(o.field_id), []).append(o)
+    for os_ in by.values():
+        if sorted(o.filter for o in os_) != sorted(cfg.filters) or any(o.exposure_s != cfg.exposure_s for o in os_):
+            return None
+    return by
+
+
+Slice = tuple[tuple[float, float], ...]
+
+
+def _name(intervals: Slice) -> str:
+    return " + ".join(f"[{a:.0f}, {b:.0f}]" for a, b in intervals)
+
+
+def _slices(problem: PlanningProblem, state: _State, lo: float, hi: float, length: float,
+            field_prob: np.ndarray) -> list[Slice]:
+    """The slices of a round: single intervals and pairs of intervals, alternating.
+
+    Single: ``[lo, hi]`` cut in intervals of ``length`` (s) every half length, those where the
+    incumbent idles most first (only those where a field is visible).  Pairs: each interval with the
+    one not overlapping it that shares the most probability of fields visible in both (a pair of
+    exposures split between them), most shared first.
+    """
+    if hi - lo <= length:
+        return [((lo, hi),)]
+    starts = np.arange(lo, hi - length + 1e-9, length / 2.0)
+    if starts[-1] < hi - length - 1e-9:
+        starts = np.append(starts, hi - length)
+    busy = np.zeros(starts.size)
+    for o in state.observations:
+        a, b = o.start, o.start + o.exposure_s
+        busy += np.clip(np.minimum(b, starts + length) - np.maximum(a, starts), 0.0, None)
+    w = problem.windows
+    exp = problem.config.exposure_s
+    rows = np.searchsorted(problem.field_ids, w.field_ids, sorter=np.argsort(problem.field_ids))
+    rows = np.argsort(problem.field_ids)[np.clip(rows, 0, len(problem.field_ids) - 1)]
+    vis = np.zeros((starts.size, len(problem.field_ids)), bool)
+    for k, a in enumerate(starts):
+        ok = np.minimum(w.end, a + length) - np.maximum(w.start, a) >= exp
+        vis[k, rows[ok]] = True
+    seen = vis.any(axis=1)
+    order = [int(i) for i in np.argsort(busy, kind="stable") if seen[i]]  # idle first
+    singles: list[Slice] = [((float(starts[i]), float(starts[i] + length)),) for i in order]
+    shared = (vis.astype(float) * field_prob) @ vis.T.astype(float)
+    apart = np.abs(starts[:, None] - starts[None, :]) >= length
+    shared = np.where(apart, shared, 0.0)
+    pairs: dict[tuple[int, int], float] = {}
+    for i in range(starts.size):
+        j = int(np.argmax(shared[i]))
+        if shared[i, j] > 0.0:
+            pairs[(min(i, j), max(i, j))] = float(shared[i, j])
+    ranked = sorted(pairs, key=lambda ij: -pairs[ij])
+    doubles: list[Slice] = [((float(starts[i]), float(starts[i] + length)),
+                             (float(starts[j]), float(starts[j] + length))) for i, j in ranked]
+    out: list[Slice] = []  # interleaved: a round cut short by MAX_IDLE_S still tries both kinds
+    for k in range(max(len(singles), len(doubles))):
+        out += singles[k:k + 1] + doubles[k:k + 1]
+    return out
+
+
+def _earliest_times(sub: PlanningProblem, model, x: np.ndarray, fixed: np.ndarray) -> dict[int, float]:
+    """Exposure -> start: fixed exposures keep theirs, free ones start as early as the solution's order allows."""
+    data, cfg = model.data, sub.config
+    F = data.n_fields
+    chosen = np.flatnonzero(x[:F] > 0.5)
+    t = x[model.off_t:model.off_t + 2 * F]
+    win = {}
+    for k, (e, w) in enumerate(zip(model.u_exposure, model.u_window)):
+        if x[model.off_u + k] > 0.5:
+            win[int(e)] = data.windows[e // 2][w]
+    exposures = sorted((2 * f + p for f in chosen for p in (0, 1)), key=lambda e: (t[e], e))
+    out: dict[int, float] = {}
+    first_at: dict[int, float] = {}
+    prev, free_at = None, -math.inf
+    for e in exposures:
+        f = e // 2
+        if fixed[f]:
+            start = float(t[e])
+        else:
+            a, _ = win.get(e, data.windows[f][0])
+            start = max(a, free_at + (0.0 if prev is None else float(data.overhead[prev, e])))
+            if f in first_at:
+                start = max(start, first_at[f] + cfg.cadence_s)
+        first_at.setdefault(f, start)
+        out[e] = start
+        prev, free_at = e, start + cfg.exposure_s
+    return out
+
+
+def _inside(t: float, exp: float, intervals: tuple[tuple[float, float], ...]) -> bool:
+    """True when the exposure ``[t, t + exp]`` lies in one of the slice's intervals."""
+    return any(a <= t and t + exp <= b for a, b in intervals)
+
+
+def _resolve_slice(problem: PlanningProblem, state: _State, pairs: dict[int, list[Observation]],
+                   intervals: tuple[tuple[float, float], ...], row_of: dict[int, int], pool: np.ndarray,
+                   pool_ok: np.ndarray, time_limit_s: float, should_stop: StopCheck | None,
+                   max_free: int) -> list[Observation] | None:
+    """One slice's re-solve: the new whole plan when it covers strictly more and keeps every rule, else None.
+
+    A slice is one interval of the night or two (a field's two filters may lie hours apart, e.g. at
+    the end of one night and the start of the next: the cadence is a least separation).
+    """
+    cfg = problem.config
+    exp = cfg.exposure_s
+    free_ids = [fid for fid, os_ in pairs.items() if all(_inside(o.start, exp, intervals) for o in os_)]
+    free_set = set(free_ids)
+    fixed_ids = [fid for fid in pairs if fid not in free_set]
+    fixed_obs = sorted((o for fid in fixed_ids for o in pairs[fid]), key=lambda o: o.start)
+    starts = np.array([o.start for o in fixed_obs])
+    # (H2) the fixed exposures a free one may meet: per interval, from the last one starting before A to
+    # the first one starting after B - exp
+    near: set[int] = set()
+    for a_s, b_s in intervals:
+        before = np.flatnonzero(starts < a_s)
+        after = np.flatnonzero(starts > b_s - exp)
+        i0 = int(before[-1]) if before.size else 0
+        i1 = int(after[0]) if after.size else len(fixed_obs) - 1
+        near.update(int(o.field_id) for o in fixed_obs[i0:i1 + 1])
+    near_ids = sorted(near)
+    # (H4) objective weights: the probability the fixed fields leave uncovered
+    fp = problem.footprints
+    prob = np.asarray(problem.prob, float).copy()
+    fixed_rows = np.array([row_of[f] for f in fixed_ids], np.int64)
+    if fixed_rows.size:
+        prob[fp.union(fp.field_ids[fixed_rows])] = 0.0
+    # (H3) candidates: unplanned fields whose windows inside the slice span a pair, by probability left
+    w = problem.windows
+    w_row = np.array([row_of.get(int(f), -1) for f in w.field_ids], np.int64)
+    first = np.full(len(problem.field_ids), np.inf)
+    last = np.full(len(problem.field_ids), -np.inf)
+    for a_s, b_s in intervals:
+        lo_c, hi_c = np.maximum(w.start, a_s), np.minimum(w.end, b_s)
+        ok = (hi_c - lo_c >= exp) & (w_row >= 0)
+        np.minimum.at(first, w_row[ok], lo_c[ok])
+        np.maximum.at(last, w_row[ok], hi_c[ok])
+    fits = last - first >= cfg.cadence_s + exp
+    planned = np.isin(problem.field_ids[pool], np.fromiter(pairs, np.int64, len(pairs)))
+    cand = pool[pool_ok & ~planned & fits[pool]]
+    n_new = max_free - len(free_ids)
+    if cand.size and n_new > 0:
+        gain = np.add.reduceat(prob[fp.indices], fp.indptr[cand]) if fp.indices.size else np.zeros(cand.size)
+        gain = np.where(fp.indptr[cand + 1] > fp.indptr[cand], gain, 0.0)
+        keep = np.argsort(-gain, kind="stable")[:n_new]
+        cand = cand[keep][gain[keep] > 0.0]
+    else:
+        cand = cand[:0]
+    free_rows = np.array([row_of[f] for f in free_ids], np.int64)
+    if free_rows.size + cand.size == 0:
+        return None
+    near_rows = np.array([row_of[f] for f in near_ids], np.int64)
+    rows = np.concatenate([near_rows, free_rows, cand]).astype(np.int64)
+    n_fixed = near_rows.size
+    # (H1) the free fields' windows clipped to the slice's intervals, the fixed ones' kept
+    ws_id, ws_a, ws_b = [], [], []
+    for k, r in enumerate(rows):
+        fid = int(problem.field_ids[r])
+        for a0, b0 in w.for_field(fid):
+            pieces = [(a0, b0)] if k < n_fixed else [(max(a0, a_s), min(b0, b_s)) for a_s, b_s in intervals]
+            for a, b in pieces:
+                if b - a >= exp:
+                    ws_id.append(fid)
+                    ws_a.append(a)
+                    ws_b.append(b)
+    sub = dataclasses.replace(problem, prob=prob, field_ids=problem.field_ids[rows], ra=problem.ra[rows],
+                              dec=problem.dec[rows], footprints=shortlist_footprints(fp, rows),
+                              windows=Windows(np.asarray(ws_id, np.int64), np.asarray(ws_a), np.asarray(ws_b)))
+    data = exact_data(sub)
+    if n_fixed and not data.pairable[:n_fixed].all():
+        return None
+    if data.overhead.size and float(data.overhead.max()) > exp:
+        return None  # the pairwise model is exact only when an exposure outlasts every overhead
+    model = build_exact_model(sub, data)
+    milp = model.milp
+    col_lo, col_hi = milp.col_lo.copy(), milp.col_hi.copy()
+    sub_obs = [o for f in near_ids + free_ids for o in pairs[f]]
+    x0 = start_from_plan(model, sub, sub_obs)
+    if x0 is None:
+        return None
+    phi = {cfg.filters[0]: 0, cfg.filters[1]: 1}
+    for f, fid in enumerate(near_ids):  # (H2) fixed: observed, at their times, in their filter order
+        col_lo[f] = col_hi[f] = 1.0
+        col_lo[model.off_d + f] = col_hi[model.off_d + f] = x0[model.off_d + f]
+        for o in pairs[fid]:
+            e = model.off_t + 2 * f + phi[o.filter]
+            col_lo[e] = col_hi[e] = x0[e]
+    milp = dataclasses.replace(milp, col_lo=col_lo, col_hi=col_hi)
+    start_obj = float(milp.c @ x0)
+    res = solve_milp(milp, "highs", time_limit_s, SLICE_GAP, cfg.threads, should_stop, start=x0)
+    if res.x is None or res.objective is None or res.objective <= start_obj + MIN_IMPROVEMENT:
+        return None
+    fixed_mask = np.zeros(data.n_fields, bool)
+    fixed_mask[:n_fixed] = True
+    times = _earliest_times(sub, model, res.x, fixed_mask)
+    block_after = sorted(((o.start, o.block) for o in state.observations))
+    new_obs: list[Observation] = []
+    for e, start in times.items():
+        f = e // 2
+        if f < n_fixed:
+            continue
+        r = rows[f]
+        blocks = [b for s, b in block_after if s <= start]
+        new_obs.append(Observation(int(problem.field_ids[r]), float(problem.ra[r]), float(problem.dec[r]),
+                                   cfg.filters[e % 2], float(start), exp, blocks[-1] if blocks else 0))
+    plan = sorted([o for fid in fixed_ids for o in pairs[fid]] + new_obs, key=lambda o: o.start)
+    bad = plan_rule_problems(problem, plan)
+    if bad:
+        log.info("lns: slice %s rejected: %s", _name(intervals), bad[0])
+        return None
+    return plan
+
+
+def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: StopCheck | None = None,
+                time_limit_s: float | None = None, pool: np.ndarray | None = None,
+                slice_s: float = SLICE_S, max_free: int = MAX_FREE_FIELDS) -> ScheduleResult:
+    """Improve ``seed`` by exact re-solves of slices of the night (H1–H5); never worse than the seed.
+
+    Parameters
+    ----------
+    problem : PlanningProblem
+        Uses ``config.exposure_s``, ``cadence_s``, ``filters``, ``slew``,
+        ``filter_change_s``, ``threads`` and ``time_limit_s``.
+    seed : ScheduleResult
+        A rule-abiding plan, every field once per filter at ``exposure_s``
+        (else it comes back unchanged, status ``unsupported_seed``).
+    should_stop : callable, optional
+        Polled between slices and by the solver.
+    time_limit_s : float, optional
+        Wall-clock budget (s); default ``config.time_limit_s``.
+    pool : numpy.ndarray, optional
+        Rows of ``problem.field_ids`` the new fields come from (default all).
+    slice_s : float
+        Slice length (s).
+    max_free : int
+        Most free fields per slice.
+
+    Returns
+    -------
+    ScheduleResult
+        ``solver`` ``lns:highs``; status ``improved`` or ``no_improvement``
+        (``interrupted`` when ``should_stop`` ended it); ``details`` hold the
+        slices tried and accepted and the coverage of seed and result.
+    """
+    t0 = time.perf_counter()
+    cfg = problem.config
+    budget = cfg.time_limit_s if time_limit_s is None else float(time_limit_s)
+    fp = problem.footprints
+    seed_cov = fp.coverage({o.field_id for o in seed.observations}, problem.prob)
+    details: dict = {"seed_coverage": seed_cov, "slices_tried": 0, "slices_improved": 0, "slice_s": slice_s,
+                     "improved_at": [], "elapsed_at": []}
+
+    def result(obs, status, cov):
+        details.update(coverage=cov)
+        return ScheduleResult(tuple(obs), "lns:highs", status, None, time.perf_counter() - t0, details)
+
+    pairs = _pairs_of(problem, seed.observations)
+    if pairs is None:
+        return result(seed.observations, "unsupported_seed", seed_cov)
+    row_of = {int(f): i for i, f in enumerate(problem.field_ids)}
+    if any(f not in row_of for f in pairs):
+        return result(seed.observations, "unsupported_seed", seed_cov)
+    pool = np.arange(len(problem.field_ids)) if pool is None else np.asarray(pool, np.int64)
+    w = problem.windows
+    pool_ok = np.isin(problem.field_ids[pool], w.field_ids)
+    if w.start.size == 0:
+        return result(seed.observations, "no_improvement", seed_cov)
+    lo = max(0.0, float(w.start.min()))
+    hi = min(problem.horizon_s, float(w.end.max()))
+    state = seed_state = _state(problem, seed.observations)
+    interrupted = False
+    field_prob = fp.field_probability(problem.prob)
+    slices = _slices(problem, state, lo, hi, slice_s, field_prob)
+    i = since_gain = 0
+    last_gain = time.perf_counter()
+    while since_gain < len(slices):  # a whole round without a gain ends it
+        left = budget - (time.perf_counter() - t0)
+        if should_stop is not None and should_stop():
+            interrupted = True
+            break
+        if left < MIN_SLICE_S or time.perf_counter() - last_gain > MAX_IDLE_S:
+            break
+        intervals = slices[i]
+        i += 1
+        if i == len(slices):  # a new round, the idlest slices of the incumbent first
+            slices, i = _slices(problem, state, lo, hi, slice_s, field_prob), 0
+        details["slices_tried"] += 1
+        plan = _resolve_slice(problem, state, pairs, intervals, row_of, pool, pool_ok,
+                              min(SLICE_LIMIT_S, left), should_stop, max_free)
+        new = _state(problem, plan) if plan is not None else None
+        if new is not None and state.beaten_by(new):  # (H5) strictly better only
+            log.info("lns: slice %s s: coverage %.5f -> %.5f", _name(intervals), state.coverage, new.coverage)
+            state = new
+            pairs = _pairs_of(problem, plan)
+            details["slices_improved"] += 1
+            details["improved_at"].append(details["slices_tried"])
+            details["elapsed_at"].append(round(time.perf_counter() - t0, 2))
+            since_gain = 0
+            last_gain = time.perf_counter()
+        else:
+            since_gain += 1
+    status = "interrupted" if interrupted else ("improved" if state is not seed_state else "no_improvement")
+    if state is seed_state:  # unchanged: the seed's own observations, in its order
+        return result(seed.observations, status, seed_cov)
+    return result(state.observations, status, state.coverage)
