@@ -228,6 +228,12 @@ class PlanningConfig:
         it.  0 publishes the online bound U4 alone.  Default 2 s: on the 56
         shared maps V takes a median 0.05 s, and 9 maps reach 2 s (a time
         limit only loosens V: it is still a bound).
+    bound_refine_ends : bool
+        The interval bound widens each window only to where the observing
+        conditions (loosened by the checker's tolerances) fail, sampled
+        every eighth of a time step, instead of by a whole step (V7,
+        ``docs/design/milp.md``): a tighter bound (``bns_o3/14``: 0.640 to
+        0.566) for 0.1-1 s more of Sun and Moon positions.  Default false.
     """
 
     nside: int = setting(256, 16, 1024, power_of_two=True,
@@ -272,6 +278,7 @@ class PlanningConfig:
     detection_max_coverage_loss: float = setting(0.02, 0, 1, hi_open=True, why="relative")
     exposure_menu_s: tuple[float, ...] = setting((), 1, 3600, "s", why="each element; empty: every visit exposure_s")
     bound_time_limit_s: float = setting(2.0, 0, 600, "s", why="0: the online bound U4 alone")
+    bound_refine_ends: bool = False
 
     def __post_init__(self) -> None:
         require_finite(self, "scheduler")
@@ -345,15 +352,17 @@ class PlanningConfig:
     def record(self) -> dict[str, Any]:
         """The configuration as the plan records it (and its plan id hashes).
 
-        ``exposure_menu_s`` appears only when set and ``revisit`` only when
-        true, so a plan without them has the same document and the same plan
-        id as before they existed.
+        ``exposure_menu_s`` appears only when set, ``revisit`` and
+        ``bound_refine_ends`` only when true, so a plan without them has the
+        same document and the same plan id as before they existed.
         """
         out = dataclasses.asdict(self)
         if not out["exposure_menu_s"]:
             del out["exposure_menu_s"]
         if not out["revisit"]:
             del out["revisit"]
+        if not out["bound_refine_ends"]:
+            del out["bound_refine_ends"]
         return out
 
     @property

@@ -57,10 +57,13 @@ def _widened(problem: PlanningProblem) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return w.field_ids, a, b
 
 
-def pairable_rows(problem: PlanningProblem) -> np.ndarray:
-    """(U1) Rows of fields whose (widened) windows can hold two exposures the cadence apart."""
+def pairable_rows(problem: PlanningProblem, windows: tuple | None = None) -> np.ndarray:
+    """(U1) Rows of fields whose (widened) windows can hold two exposures the cadence apart.
+
+    ``windows``: ``(field_ids, start, end)`` widened otherwise (the outer windows, V7); default one step (U1).
+    """
     cfg = problem.config
-    fid, a, b = _widened(problem)
+    fid, a, b = _widened(problem) if windows is None else windows
     ok = b - a >= cfg.exposure_s
     earliest: dict[int, float] = {}
     latest: dict[int, float] = {}
@@ -71,10 +74,10 @@ def pairable_rows(problem: PlanningProblem) -> np.ndarray:
     return np.flatnonzero(np.isin(problem.field_ids, good))
 
 
-def max_fields(problem: PlanningProblem, rows: np.ndarray) -> int:
-    """(U2) K: most fields whose 2 K exposures fit the observable time of these rows."""
+def max_fields(problem: PlanningProblem, rows: np.ndarray, windows: tuple | None = None) -> int:
+    """(U2) K: most fields whose 2 K exposures fit the observable time of these rows (``windows`` as in pairable_rows)."""
     cfg = problem.config
-    fid, a, b = _widened(problem)
+    fid, a, b = _widened(problem) if windows is None else windows
     sel = np.isin(fid, problem.field_ids[rows]) & (b - a >= cfg.exposure_s)
     if not sel.any():
         return 0

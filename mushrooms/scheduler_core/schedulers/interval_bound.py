@@ -46,10 +46,11 @@ ROWS_PER_ROUND = 40
 MAX_ROUNDS = 12
 
 
-def field_spans(problem: PlanningProblem, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(V1) ``lo``, ``end`` (s): hull of each field's widened windows that hold one exposure."""
+def field_spans(problem: PlanningProblem, rows: np.ndarray,
+                windows: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(V1) ``lo``, ``end`` (s): hull of each field's widened windows that hold one exposure (``windows``: V7)."""
     exp = problem.config.exposure_s
-    fid, a, b = _widened(problem)
+    fid, a, b = _widened(problem) if windows is None else windows
     ok = b - a >= exp
     ids = problem.field_ids[rows]
     lo = np.full(ids.size, np.inf)
@@ -62,9 +63,18 @@ def field_spans(problem: PlanningProblem, rows: np.ndarray) -> tuple[np.ndarray,
     return lo, end
 
 
-def _intervals(problem: PlanningProblem, rows: np.ndarray) -> "_Intervals":
+def bound_windows(problem: PlanningProblem) -> tuple | None:
+    """(V7) The outer windows when ``config.bound_refine_ends``, else None (the one-step widening, U1)."""
+    if not problem.config.bound_refine_ends:
+        return None
+    from .outer_windows import refined_windows
+
+    return refined_windows(problem, "outer")
+
+
+def _intervals(problem: PlanningProblem, rows: np.ndarray, windows: tuple | None = None) -> "_Intervals":
     cfg = problem.config
-    lo, end = field_spans(problem, rows)
+    lo, end = field_spans(problem, rows, windows)
     return _Intervals(lo, end, cfg.exposure_s, cfg.cadence_s, cfg.slew.readout_s, cfg.filter_change_s)
 
 
@@ -111,8 +121,9 @@ class _Intervals:
 
 def interval_violation(problem: PlanningProblem, chosen_ids) -> float:
     """Largest V2 violation (s) of a set of fields over the pairable fields; <= 0 for every rule-abiding plan."""
-    rows = pairable_rows(problem)
-    iv = _intervals(problem, rows)
+    windows = bound_windows(problem)
+    rows = pairable_rows(problem, windows)
+    iv = _intervals(problem, rows, windows)
     z = np.isin(problem.field_ids[rows], np.asarray(list(chosen_ids))).astype(float)
     v = iv.violation(z)
     return float(v.max()) if v.size else -math.inf
@@ -141,11 +152,12 @@ def interval_upper_bound(problem: PlanningProblem, time_limit_s: float = 2.0) ->
 
     t0 = time.perf_counter()
     u4 = coverage_upper_bound(problem)
-    rows = pairable_rows(problem)
-    K = max_fields(problem, rows)
+    windows = bound_windows(problem)  # (V7) the outer windows, or None: the one-step widening
+    rows = pairable_rows(problem, windows)
+    K = max_fields(problem, rows, windows)
     if rows.size == 0 or K == 0:
         return u4
-    iv = _intervals(problem, rows)
+    iv = _intervals(problem, rows, windows)
     cells = merge_cells(shortlist_footprints(problem.footprints, rows), problem.prob)
     F, C = int(rows.size), cells.n_cells
     cell_of = np.repeat(np.arange(C), np.diff(cells.indptr))
