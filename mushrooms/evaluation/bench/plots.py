@@ -92,10 +92,12 @@ def _paired_figure(pairs: Pairs, ref: str, arm: str, out: Path) -> Path:
     for ax, what in zip(axes, ("injection efficiency (Monte Carlo, 2$\\sigma$ bars)", "exact expected detections (X1)")):
         ax.axhline(0, color="grey", lw=0.8)
         ax.set_xscale("log")
+        ax.set_yscale("symlog", linthresh=1e-2)  # most maps differ by < 0.01, a few by most of the probability
+        ax.grid(True, which="major", axis="y", lw=0.3, alpha=0.6)
         ax.set_xlabel("map's mean distance (Mpc)")
         ax.set_title(what, fontsize=10)
         ax.legend(fontsize=8)
-    axes[0].set_ylabel(f"{arm} $-$ {ref}, paired per map")
+    axes[0].set_ylabel(f"{arm} $-$ {ref}, paired per map\n(symmetric log: linear within $\\pm$0.01)")
     fig.suptitle(f"{len(pairs)} sky maps: above 0, {arm} detects more", fontsize=11)
     fig.tight_layout()
     fig.savefig(out, dpi=120)
@@ -120,8 +122,17 @@ def _exposure_figure(pairs: Pairs, ref: str, arm: str, out: Path) -> Path:
             x.append(num(r.get("distmean_mpc"))), y.append(mean)
             lo.append(mean - min(lengths)), hi.append(max(lengths) - mean)
         ax.errorbar(x, y, yerr=[lo, hi], ms=4, capsize=2, alpha=0.8, lw=0.8, label=name, **style)
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+
     ax.set_xscale("log")
     ax.set_yscale("log")
+    seen = sorted({float(p.split(":")[0]) for _, b in pairs for p in str(b.get("exposure_mix") or "").split()}
+                  | {float(p.split(":")[0]) for a, _ in pairs for p in str(a.get("exposure_mix") or "").split()})
+    if seen:
+        ax.set_yticks(seen)
+        ax.yaxis.set_major_formatter(ScalarFormatter())
+        ax.yaxis.set_minor_formatter(NullFormatter())
+        ax.set_ylim(min(seen) / 1.3, max(seen) * 1.3)
     ax.set_xlabel("map's mean distance (Mpc)")
     ax.set_ylabel("exposure (s): probability-weighted mean\nbars: shortest to longest in the plan")
     ax.set_title(f"{len(pairs)} sky maps: exposures {arm} chose", fontsize=11)

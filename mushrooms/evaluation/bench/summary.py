@@ -260,6 +260,9 @@ def paired_table(rows: Rows, solvers: Sequence[str], eff_keys: Sequence[str]) ->
                      f"B {np.median(em) if em else float('nan'):.0f} s; solve time median A "
                      f"{np.median(_values([a for a, _ in pairs], 'solve_s') or [np.nan]):.2f} s, B "
                      f"{np.median(_values([b for _, b in pairs], 'solve_s') or [np.nan]):.2f} s")
+        starved = [sum(_no_grid(r) for r in side) for side in ([a for a, _ in pairs], [b for _, b in pairs])]
+        lines.append(f"    {'clock':<13} detection stage solved no grid in its time (kept the coverage plan): "
+                     f"A {starved[0]}, B {starved[1]} maps (a clock-limited stage depends on the machine's load)")
     return lines
 
 
@@ -270,3 +273,8 @@ def _ok(row: Mapping[str, Any]) -> bool:
 def _lengths(row: Mapping[str, Any]) -> set[str]:
     """The exposure lengths of a row's plan (from ``exposure_mix``)."""
     return {p.split(":")[0] for p in str(row.get("exposure_mix") or "").split()}
+
+
+def _no_grid(row: Mapping[str, Any]) -> bool:
+    """The row's detection stage ran but solved no grid (``detection_stage`` says ``0 grid(s) solved``)."""
+    return "; 0 grid(s) solved" in str(row.get("detection_stage") or "")
