@@ -38,7 +38,14 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--solvers", default="greedy,slots,blocks,hybrid",
                    help="comma list of greedy,slots,blocks,hybrid,milp,gwemopt,gwemopt-repaired; ours as "
                         "make_plan publishes them under the config (objective included), or with the "
-                        "objective forced by -coverage / -detection (hybrid-coverage)")
+                        "objective forced by -coverage / -detection (hybrid-coverage); any of ours under an "
+                        "arm as ROW@ARM (hybrid@menu: the plan make_plan publishes under the config with the "
+                        "arm's [scheduler] keys, see --arm); paired differences are against the first row")
+    p.add_argument("--arm", action="append", default=[], metavar="ARM:KEY=VALUE",
+                   help="define (or extend) an arm: a [scheduler] key replaced for the rows ROW@ARM, VALUE in "
+                        "TOML (repeatable; adds to [bench.arms.ARM]). Fixed 300 s vs the exposure menu: "
+                        "--solvers hybrid,hybrid@menu --arm 'menu:exposure_menu_s=[30,60,120,300,600]' "
+                        "(expected detections, efficiency and coverage of hybrid@menu paired against hybrid)")
     p.add_argument("--jobs", type=int, default=1, metavar="N", help="maps in parallel processes")
     p.add_argument("--injections", type=int, default=10000, metavar="N", help="kilonova injections per map")
     p.add_argument("--plots", metavar="DIR", help="write the summary figures here")
@@ -73,8 +80,40 @@ def bench_settings(args: argparse.Namespace, config: "Config") -> "BenchSettings
         from ..scheduler_core.times import parse_time
 
         start_iso = parse_time(args.start, "--start", mjd=True).isot
-    return BenchSettings(config=config.scheduler, bench=config.bench, solvers=solvers, start_iso=start_iso,
-                         n_injections=int(args.injections))
+    bench = with_arms(config.bench, getattr(args, "arm", None) or [])
+    try:
+        return BenchSettings(config=config.scheduler, bench=bench, solvers=solvers, start_iso=start_iso,
+                             n_injections=int(args.injections))
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+
+
+def with_arms(bench: Any, specs: Sequence[str]) -> Any:
+    """``[bench]`` with the arms of ``--arm ARM:KEY=VALUE`` added (VALUE is TOML: ``[30, 60]``, ``120.0``,
+    ``"slots"``); :class:`~mushrooms.scheduler_core.errors.InputError` naming the option when one is wrong."""
+    import dataclasses
+    import tomllib
+
+    from ..scheduler_core.errors import InputError
+    from ..scheduler_core.tables import TableError
+
+    if not specs:
+        return bench
+    arms = {k: dict(v) for k, v in bench.arms.items()}
+    for spec in specs:
+        name, colon, assignment = str(spec).partition(":")
+        key, eq, value = assignment.partition("=")
+        if not (colon and eq and name.strip() and key.strip()):
+            raise InputError(f"--arm {spec!r}: expected ARM:KEY=VALUE (e.g. menu:exposure_menu_s=[30,60,120,300,600])")
+        try:
+            parsed = tomllib.loads(f"v = {value.strip()}")["v"]
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"--arm {spec!r}: VALUE is not TOML ({exc})") from None
+        arms.setdefault(name.strip(), {})[key.strip()] = parsed
+    try:
+        return dataclasses.replace(bench, arms=arms)
+    except (TableError, ValueError) as exc:
+        raise InputError(f"--arm: {exc}") from None
 
 
 def load_settings(args: argparse.Namespace) -> "BenchSettings":

@@ -26,7 +26,7 @@ import numpy as np
 
 from .rows import fmt, make_row, num
 from .scoring import pair_with_reference, score_plan
-from .settings import GWEMOPT_ROWS, BenchSettings, row_solver
+from .settings import GWEMOPT_ROWS, BenchSettings, arm_config, row_arm, row_solver
 
 __all__ = ["MapScene", "bench_map", "open_map"]
 
@@ -92,7 +92,7 @@ class MapScene:
 
     def row(self, solver: str, **values: Any) -> Row:
         """A row of this map with its common cells."""
-        return make_row(self.name, solver, **values, **self.common)
+        return make_row(self.name, solver, **{**self.common, **values})
 
     def failed(self, solver: str, status: str, **values: Any) -> Row:
         """A row without a plan."""
@@ -244,9 +244,13 @@ def row_config(config: Any, solver: str, settings: BenchSettings) -> tuple[str, 
     A forced objective (``-coverage``, ``-detection``) replaces the
     configuration's; ``-detection`` rows get ``[bench] detection_extra_s``
     on top of ``time_limit_s``.  ``greedy`` rows are coverage rows whatever
-    the objective.
+    the objective.  A row ``<row>@<arm>`` is planned under the configuration
+    with ``[bench.arms.<arm>]``'s keys replaced (before the forced objective).
     """
     base, forced = row_solver(solver)
+    arm = row_arm(solver)[1]
+    if arm is not None:
+        config = arm_config(config, arm, settings.bench.arms[arm])
     rcfg = config if forced is None else dataclasses.replace(config, objective=forced)
     extra = settings.bench.detection_extra_s
     if forced == "detection" and extra > 0:
@@ -269,12 +273,20 @@ def _our_row(scene: MapScene, solver: str, settings: BenchSettings) -> tuple[Row
         return scene.failed(solver, "unavailable", note=f"{exc}"), None
     stage = detection_stage_text(result) if objective == "detection" else ""
     plan = build_plan(planned, result, scene.skymap, base)
-    scores, hits = score_plan(plan, scene.skymap, settings, scene.footprints, scene.injections, scene.lightcurves,
-                              scene.merger)
-    row = scene.row(solver, status=result.status, mip_gap=fmt(result.mip_gap),
+    scores, hits = score_plan(plan, scene.skymap, dataclasses.replace(settings, config=rcfg), scene.footprints,
+                              scene.injections, scene.lightcurves, scene.merger)
+    arm = row_arm(solver)[1]
+    if arm is not None and result.upper_bound is not None:  # the arm's own bound (a menu's is its shortest exposure's)
+        cov = num(scores.get("coverage"))
+        scores.update(bound=fmt(result.upper_bound.value))
+        if cov is not None and result.upper_bound.value > 0:
+            scores["coverage_over_bound"] = fmt(cov / result.upper_bound.value, 4)
+    else:
+        scores = scene.with_bound(scores)
+    row = scene.row(solver, status=result.status, mip_gap=fmt(result.mip_gap), arm=arm or "",
                     runtime_s=fmt(scene.prepare_s + solve_s, 3), prepare_s=fmt(scene.prepare_s, 3),
                     solve_s=fmt(solve_s, 3), solver_detail=result.solver, note=scene.note, detection_stage=stage,
-                    objective=objective, **scene.with_bound(scores))
+                    objective=objective, **scores)
     return row, hits
 
 

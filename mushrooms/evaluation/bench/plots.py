@@ -4,6 +4,12 @@
 slots, blocks, greedy) against the baseline (gwemopt, else greedy), with
 y = x.  ``efficiency_vs_area.png``: percent improvement in efficiency of
 best-of(MUSHROOMS, baseline) over the baseline against the 90 % area.
+For each row under an arm (``hybrid@menu``) and its row without it
+(``hybrid``): ``paired_<row>.png``, the per-map paired difference against the
+map's mean distance (the injection efficiency with its 2-sigma Monte Carlo
+error, and the exact expected detections, per light curve), and
+``exposure_vs_distance_<row>.png``, the plan's probability-weighted mean
+exposure (and the shortest and longest it took) against the mean distance.
 """
 
 from __future__ import annotations
@@ -34,14 +40,107 @@ def make_plots(rows: Sequence[Mapping[str, Any]], directory: str | Path) -> list
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     solvers = set(str(r["solver"]) for r in rows if scored(r))
+    out = _arm_plots(rows, solvers, directory)
     ours = next((s for s in ("hybrid", "slots", "blocks", "milp", "greedy") if s in solvers), None)
     base = next((s for s in ("gwemopt", "greedy") if s in solvers and s != ours), None)
     if ours is None or base is None:
-        return []
+        return out
     pairs = [(sol[ours], sol[base]) for sol in by_map(rows).values()
              if scored(sol.get(ours)) and scored(sol.get(base))]
     return [_coverage_scatter(pairs, ours, base, directory / "coverage_scatter.png"),
-            _efficiency_vs_area(pairs, ours, base, directory / "efficiency_vs_area.png")]
+            _efficiency_vs_area(pairs, ours, base, directory / "efficiency_vs_area.png")] + out
+
+
+#: Light curves of the arm figures: (column suffix, marker, colour).
+CURVES = (("optimistic", "^", "C0"), ("conservative", "o", "C1"), ("nsbh", "s", "C2"))
+
+
+def _arm_plots(rows: Sequence[Mapping[str, Any]], solvers: set[str], directory: Path) -> list[Path]:
+    """The two figures of every ``<row>@<arm>`` whose ``<row>`` was run too (pairs: (row, arm row) per map)."""
+    out = []
+    for s in sorted(solvers):
+        ref, sep, arm = s.partition("@")
+        if not sep or ref not in solvers:
+            continue
+        pairs = [(sol[ref], sol[s]) for sol in by_map(rows).values()
+                 if scored(sol.get(ref)) and scored(sol.get(s)) and num(sol[s].get("distmean_mpc")) is not None]
+        if not pairs:
+            continue
+        tag = s.replace("@", "_at_")
+        out.append(_paired_figure(pairs, ref, s, directory / f"paired_{tag}.png"))
+        out.append(_exposure_figure(pairs, ref, s, directory / f"exposure_vs_distance_{tag}.png"))
+    return out
+
+
+def _paired_figure(pairs: Pairs, ref: str, arm: str, out: Path) -> Path:
+    """Per map: paired efficiency difference (2-sigma bars) and exact expected-detection difference vs distance."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.3), sharey=True)
+    for k, marker, colour in CURVES:
+        x, d, e, dx = [], [], [], []
+        for a, b in pairs:
+            dist = num(a.get("distmean_mpc"))
+            diff, err = num(b.get(f"efficiency_{k}_diff")), num(b.get(f"efficiency_{k}_differr"))
+            if diff is not None and err is not None:
+                x.append(dist), d.append(diff), e.append(2 * err)
+            ea, eb = num(a.get(f"expected_{k}")), num(b.get(f"expected_{k}"))
+            if ea is not None and eb is not None:
+                dx.append((dist, eb - ea))
+        axes[0].errorbar(x, d, yerr=e, fmt=marker, color=colour, ms=4, capsize=2, alpha=0.8, label=k)
+        axes[1].scatter([p for p, _ in dx], [q for _, q in dx], marker=marker, color=colour, s=18, alpha=0.8, label=k)
+    for ax, what in zip(axes, ("injection efficiency (Monte Carlo, 2$\\sigma$ bars)", "exact expected detections (X1)")):
+        ax.axhline(0, color="grey", lw=0.8)
+        ax.set_xscale("log")
+        ax.set_yscale("symlog", linthresh=1e-2)  # most maps differ by < 0.01, a few by most of the probability
+        ax.grid(True, which="major", axis="y", lw=0.3, alpha=0.6)
+        ax.set_xlabel("map's mean distance (Mpc)")
+        ax.set_title(what, fontsize=10)
+        ax.legend(fontsize=8)
+    axes[0].set_ylabel(f"{arm} $-$ {ref}, paired per map\n(symmetric log: linear within $\\pm$0.01)")
+    fig.suptitle(f"{len(pairs)} sky maps: above 0, {arm} detects more", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
+def _exposure_figure(pairs: Pairs, ref: str, arm: str, out: Path) -> Path:
+    """The arm's probability-weighted mean exposure per map (bars: shortest to longest taken) vs distance."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for rows_of, name, style in ((lambda a, b: b, arm, dict(fmt="o", color="C3")),
+                                 (lambda a, b: a, ref, dict(fmt="x", color="grey"))):
+        x, y, lo, hi = [], [], [], []
+        for a, b in pairs:
+            r = rows_of(a, b)
+            mean = num(r.get("exposure_mean_s"))
+            lengths = [float(p.split(":")[0]) for p in str(r.get("exposure_mix") or "").split()]
+            if mean is None or not lengths:
+                continue
+            x.append(num(r.get("distmean_mpc"))), y.append(mean)
+            lo.append(mean - min(lengths)), hi.append(max(lengths) - mean)
+        ax.errorbar(x, y, yerr=[lo, hi], ms=4, capsize=2, alpha=0.8, lw=0.8, label=name, **style)
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    seen = sorted({float(p.split(":")[0]) for _, b in pairs for p in str(b.get("exposure_mix") or "").split()}
+                  | {float(p.split(":")[0]) for a, _ in pairs for p in str(a.get("exposure_mix") or "").split()})
+    if seen:
+        ax.set_yticks(seen)
+        ax.yaxis.set_major_formatter(ScalarFormatter())
+        ax.yaxis.set_minor_formatter(NullFormatter())
+        ax.set_ylim(min(seen) / 1.3, max(seen) * 1.3)
+    ax.set_xlabel("map's mean distance (Mpc)")
+    ax.set_ylabel("exposure (s): probability-weighted mean\nbars: shortest to longest in the plan")
+    ax.set_title(f"{len(pairs)} sky maps: exposures {arm} chose", fontsize=11)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
 
 
 def _valid(row: Mapping[str, Any]) -> bool:

@@ -28,22 +28,27 @@ COLUMNS = (
     "expected_detections",
     "detection_stage",
     "objective",
+    "coverage_diff", "exposure_mix", "exposure_mean_s", "arm",
 )
 
 #: Columns :func:`read_csv` keeps as text.
 TEXT_COLUMNS = frozenset({"skymap", "solver", "status", "solver_detail", "first_problem", "start", "note",
-                          "distance_source", "objective", "detection_stage"})
+                          "distance_source", "objective", "detection_stage", "exposure_mix", "arm"})
+
+#: Prefixes of further columns kept by :func:`make_row` and written after the nine required ones: each light
+#: curve's efficiency (and its paired differences) and exact expected detections (``expected_<lc>``).
+EXTRA_PREFIXES = ("efficiency_", "expected_")
 
 
 def make_row(skymap: str, solver: str, **values: Any) -> dict[str, Any]:
     """A row of :data:`COLUMNS` (empty cells) with ``values`` filled in; unknown keys are dropped.
 
-    Keys starting with ``efficiency_`` are kept even when not in :data:`COLUMNS`
-    (the columns of further light curves and the paired differences).
+    Keys starting with ``efficiency_`` or ``expected_`` are kept even when not in
+    :data:`COLUMNS` (the columns of further light curves and the paired differences).
     """
     row = {c: "" for c in COLUMNS}
     row.update(skymap=skymap, solver=solver)
-    row.update({k: v for k, v in values.items() if k in row or k.startswith("efficiency_")})
+    row.update({k: v for k, v in values.items() if k in row or k.startswith(EXTRA_PREFIXES)})
     return row
 
 
@@ -70,11 +75,12 @@ def num(v: Any) -> float | None:
 def write_csv(rows: Iterable[Mapping[str, Any]], path: str | Path) -> None:
     """Write rows with the :data:`COLUMNS` header (atomic replace).
 
-    Efficiency columns of extra light curves and the paired differences
-    (``efficiency_<name>...``) follow the nine required columns.
+    Efficiency and expected-detection columns of the light curves and the
+    paired differences (``efficiency_<name>...``, ``expected_<name>...``)
+    follow the nine required columns.
     """
     rows = list(rows)
-    extra = [k for k in dict.fromkeys(k for r in rows for k in r) if k.startswith("efficiency_") and k not in COLUMNS]
+    extra = [k for k in dict.fromkeys(k for r in rows for k in r) if k.startswith(EXTRA_PREFIXES) and k not in COLUMNS]
     columns = list(COLUMNS[:9]) + extra + list(COLUMNS[9:])
     path = Path(path)
     if path.parent and not path.parent.exists():

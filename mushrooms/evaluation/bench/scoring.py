@@ -10,6 +10,14 @@ error: ``efficiency_<lc>_diff`` / ``_differr`` against the reference row,
 and, with ``[bench] legacy_scoring``, the first release's score of the same
 plan (``efficiency_<lc>_v1``: flat 300 s limits, light curve dark before
 0.202 d) with the paired change ``efficiency_<lc>_v1diff`` / ``_v1differr``.
+
+Beside the Monte Carlo efficiency, ``expected_<lc>`` is the plan's exact
+expected detections (X1, the efficiency's expectation over the posterior:
+no Monte Carlo error), and ``expected_<lc>_diff`` / ``coverage_diff`` its and
+the coverage's paired change against the reference row; ``exposure_mix``
+(``30:4 300:20``: exposures of that length) and ``exposure_mean_s`` (mean
+exposure of the planned fields weighted by their probability) say which
+exposures a plan took.
 """
 
 from __future__ import annotations
@@ -63,7 +71,35 @@ def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any,
             continue
         hits[key], cells = _efficiency_cells(key, lc, plan, settings, footprints, injections, merger_time)
         out.update(cells)
+        out[f"expected_{key}"] = _expected(plan, skymap, footprints, lc, merger_time)
+    out.update(_exposure_cells(plan, footprints, skymap.prob))
     return out, hits
+
+
+def _expected(plan: Any, skymap: Any, footprints: Any, lc: Any, merger_time: Any) -> Any:
+    """The plan's exact expected detections (X1) of one light curve (empty without distance layers)."""
+    from ...scheduler_core.source.depth import ZTF_DEPTH
+    from ...scheduler_core.source.detection import expected_detections
+    from ...scheduler_core.source.kilonova import Kilonova
+
+    e = expected_detections(plan, skymap, footprints, Kilonova(lc), merger_time, ZTF_DEPTH)
+    return fmt(None if e is None else float(e))
+
+
+def _exposure_cells(plan: Any, footprints: Any, prob: np.ndarray) -> dict[str, Any]:
+    """``exposure_mix`` (``length:count`` of the plan's exposures) and ``exposure_mean_s`` (per field, weighted
+    by the field's probability; the longest of a field's exposures)."""
+    obs = plan.observations
+    if not obs:
+        return dict(exposure_mix="", exposure_mean_s="")
+    lengths, counts = np.unique([float(o.exposure_s) for o in obs], return_counts=True)
+    per: dict[int, float] = {}
+    for o in obs:
+        per[o.field_id] = max(per.get(o.field_id, 0.0), float(o.exposure_s))
+    w = np.array([footprints.coverage({f}, prob) for f in per])
+    e = np.array(list(per.values()))
+    mean = float((w * e).sum() / w.sum()) if w.sum() > 0 else float(e.mean())
+    return dict(exposure_mix=" ".join(f"{x:g}:{n}" for x, n in zip(lengths, counts)), exposure_mean_s=fmt(mean, 1))
 
 
 def _plan_cells(plan: Any, report: Any) -> dict[str, Any]:
@@ -102,11 +138,14 @@ def _efficiency_cells(key: str, lc: Any, plan: Any, settings: BenchSettings, foo
 
 def pair_with_reference(rows: list[dict[str, Any]], hits: Mapping[str, Mapping[str, np.ndarray]],
                         reference: str) -> None:
-    """Add ``efficiency_<lc>_diff`` / ``_differr`` (paired, vs ``reference``) to each row in place."""
+    """Add ``efficiency_<lc>_diff`` / ``_differr`` (paired, vs ``reference``), ``expected_<lc>_diff`` and
+    ``coverage_diff`` to each row in place."""
     from ..efficiency import paired_difference
+    from .rows import num
 
     ref = hits.get(reference)
-    if not ref:
+    ref_row = next((r for r in rows if r["solver"] == reference), None)
+    if not ref or ref_row is None:
         return
     for row in rows:
         mine = hits.get(str(row["solver"]))
@@ -117,3 +156,9 @@ def pair_with_reference(rows: list[dict[str, Any]], hits: Mapping[str, Mapping[s
                 d, e = paired_difference(h, ref[key])
                 row[f"efficiency_{key}_diff"] = fmt(d)
                 row[f"efficiency_{key}_differr"] = fmt(e)
+            a, b = num(row.get(f"expected_{key}")), num(ref_row.get(f"expected_{key}"))
+            if a is not None and b is not None:
+                row[f"expected_{key}_diff"] = fmt(a - b)
+        a, b = num(row.get("coverage")), num(ref_row.get("coverage"))
+        if a is not None and b is not None:
+            row["coverage_diff"] = fmt(a - b)

@@ -6,7 +6,10 @@ other sections); :class:`BenchSettings` is one run: the planning
 configuration, that section, and what the command line chose (rows, start,
 injections).  A row name is a scheduler of the registry
 (:mod:`~mushrooms.scheduler_core.solvers_registry`), optionally with its
-objective forced (``hybrid-coverage``), or one of gwemopt's rows.
+objective forced (``hybrid-coverage``), or one of gwemopt's rows; any of our
+rows may name an arm, ``<row>@<arm>`` (``hybrid@menu``): the same row planned
+under the configuration with the arm's ``[scheduler]`` keys replaced
+(``[bench.arms.<arm>]``, or ``mushrooms bench --arm``), e.g. an exposure menu.
 
 A leaf of the evaluation: the standard library and the scheduler's light
 modules only, so loading a config imports no numpy.
@@ -21,7 +24,7 @@ from ...scheduler_core.ranges import Range, setting
 from ...scheduler_core.solvers_registry import SOLVER_NAMES
 from ...scheduler_core.tables import TableError, check_value, dataclass_from_table
 
-__all__ = ["OURS", "SOLVERS", "GWEMOPT_ROWS", "OBJECTIVE_SUFFIXES", "ROW_NAMES_VERSION", "MAGLIM_RANGE",
+__all__ = ["OURS", "SOLVERS", "GWEMOPT_ROWS", "OBJECTIVE_SUFFIXES", "ARM_SEPARATOR", "row_arm", "ROW_NAMES_VERSION", "MAGLIM_RANGE",
            "BenchConfig", "BenchSettings", "row_solver", "is_row_name", "check_rows"]
 
 #: Our schedulers (the registry's, :mod:`~mushrooms.scheduler_core.solvers_registry`); the others are gwemopt's rows.
@@ -35,6 +38,8 @@ SOLVERS = OURS + GWEMOPT_ROWS
 #: ``<solver>-coverage`` and ``<solver>-detection`` force that objective (``-detection`` rows get
 #: ``detection_extra_s``).  ``greedy`` is a coverage heuristic under either objective.
 OBJECTIVE_SUFFIXES = {"-coverage": "coverage", "-detection": "detection"}
+#: ``<row>@<arm>``: one of our rows under the configuration of ``[bench.arms.<arm>]``.
+ARM_SEPARATOR = "@"
 #: What the rows mean; part of the study's result keys, so rows made under older names are not reused
 #: (1: plain rows were the coverage scheduler whatever the objective; 2: issue 24).
 ROW_NAMES_VERSION = 2
@@ -81,6 +86,11 @@ class BenchConfig:
         ``time_limit_s`` raised by this much and ``detection_time_limit_s``
         set to it, so the coverage scheduler keeps the ``-coverage`` rows'
         whole budget.  Plain rows never get it (they are what is published).
+    arms : mapping
+        Arm name -> ``[scheduler]`` keys that replace the configuration's for
+        the rows ``<row>@<arm>`` (``[bench.arms.menu] exposure_menu_s =
+        [30, 60, 120, 300, 600]``: ``hybrid@menu`` is the plan ``make_plan``
+        publishes under the configuration with that menu).  Empty by default.
     """
 
     lightcurves: Mapping[str, str] = field(default_factory=lambda: {
@@ -94,9 +104,13 @@ class BenchConfig:
     legacy_scoring: bool = True
     reference_solver: str | None = None
     detection_extra_s: float = setting(0.0, 0, 3600, "s")
+    arms: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         _check_names("lightcurves", self.lightcurves, str, "a string")
+        _check_names("arms", self.arms, Mapping, "a table of [scheduler] keys")
+        for name, keys in self.arms.items():
+            arm_config(None, name, keys)  # refused here, at load time, not in a worker hours later
         _check_names("maglim", self.maglim, (int, float), "a number")
         for band, mag in self.maglim.items():
             check_value("bench", f"maglim.{band}", mag, MAGLIM_RANGE)
@@ -152,6 +166,20 @@ class BenchSettings:
 
     def __post_init__(self) -> None:
         check_rows(self.solvers)
+        unknown = sorted({a for a in (row_arm(s)[1] for s in self.solvers) if a is not None} - set(self.bench.arms))
+        if unknown:
+            raise ValueError(f"row arm(s) {', '.join(unknown)} not defined: give [bench.arms.<arm>] or --arm "
+                             f"ARM:KEY=VALUE (defined: {', '.join(self.bench.arms) or 'none'})")
+        import dataclasses
+
+        for name in self.solvers:  # an arm with a forced objective must make a configuration (a menu: detection)
+            row, arm = row_arm(name)
+            forced = row_solver(row)[1]
+            if arm is not None and forced is not None and self.config is not None:
+                try:
+                    dataclasses.replace(arm_config(self.config, arm, self.bench.arms[arm]), objective=forced)
+                except ValueError as exc:
+                    raise ValueError(f"row {name}: {exc}") from None
         if self.n_injections < 1:
             raise ValueError(f"n_injections must be >= 1, got {self.n_injections}")
 
@@ -161,12 +189,45 @@ class BenchSettings:
         return self.bench.reference_solver or self.solvers[0]
 
 
+def row_arm(name: str) -> tuple[str, str | None]:
+    """``(row, arm)`` of a row name: ``hybrid-coverage@menu`` -> ``("hybrid-coverage", "menu")``; arm None
+    without ``@``."""
+    row, sep, arm = name.partition(ARM_SEPARATOR)
+    return (row, arm) if sep else (name, None)
+
+
+def arm_config(config: Any, name: str, keys: Mapping[str, Any]) -> Any:
+    """``config`` with the arm's ``[scheduler]`` keys replaced (checked as ``[bench.arms.<name>]``).
+
+    The keys are checked (names, TOML types, ranges, the configuration's own
+    rules) on the default configuration with them; ``config`` None returns
+    that configuration (the check alone).
+
+    Raises
+    ------
+    TableError, ValueError
+        An unknown key or a value the ``[scheduler]`` section refuses.
+    """
+    import dataclasses
+
+    from ...scheduler_core.config import PlanningConfig
+
+    if "slew" in keys:
+        raise TableError(f"[bench.arms.{name}] slew: an arm replaces top-level [scheduler] keys only",
+                         section=f"bench.arms.{name}", key="slew")
+    checked = dataclass_from_table(PlanningConfig, keys, f"bench.arms.{name}")
+    if config is None:
+        return checked
+    return dataclasses.replace(config, **{k: getattr(checked, k) for k in keys})
+
+
 def row_solver(name: str) -> tuple[str, str | None]:
     """``(scheduler, objective)`` of a row name: ``hybrid-coverage`` -> ``("hybrid", "coverage")``.
 
     The objective is None for a plain name (the configuration's) and for
-    gwemopt's rows.
+    gwemopt's rows.  An arm (``@menu``) is ignored here (:func:`row_arm`).
     """
+    name = row_arm(name)[0]
     for suffix, objective in OBJECTIVE_SUFFIXES.items():
         if name.endswith(suffix) and name[:-len(suffix)] in OURS:
             return name[:-len(suffix)], objective
@@ -174,8 +235,11 @@ def row_solver(name: str) -> tuple[str, str | None]:
 
 
 def is_row_name(name: str) -> bool:
-    """A row name ``mushrooms bench --solvers`` accepts."""
-    return name in SOLVERS or row_solver(name)[1] is not None
+    """A row name ``mushrooms bench --solvers`` accepts (an arm only on our rows, its name not checked here)."""
+    row, arm = row_arm(name)
+    if arm is not None and (not arm or row in GWEMOPT_ROWS):
+        return False
+    return row in SOLVERS or row_solver(row)[1] is not None
 
 
 def check_rows(names: Sequence[str]) -> None:
@@ -189,4 +253,5 @@ def check_rows(names: Sequence[str]) -> None:
     bad = [s for s in names if not is_row_name(s)]
     if bad or not names:
         raise ValueError(f"unknown solver(s) {', '.join(bad) or '(none)'}; choose from {', '.join(SOLVERS)} "
-                         f"(ours also as <solver>{' or <solver>'.join(OBJECTIVE_SUFFIXES)})")
+                         f"(ours also as <solver>{' or <solver>'.join(OBJECTIVE_SUFFIXES)}, and any of ours "
+                         f"under an arm as <row>@<arm>)")

@@ -49,6 +49,7 @@ def summarize(rows: Rows, eff_keys: Sequence[str] = ("optimistic", "conservative
     lines += _missing_lines(rows)
     lines += _versus_lines(all_rows, names, eff_keys)
     lines += _paired_lines(rows, solvers, eff_keys)
+    lines += paired_table(rows, solvers, eff_keys)
     if "gwemopt" in solvers:
         lines += _similar_length_lines(all_rows, names, eff_keys)
     return "\n".join(lines)
@@ -199,3 +200,81 @@ def _similar_length_lines(rows: Rows, names: Sequence[str], eff_keys: Sequence[s
                 parts.append(f"eff_{k[:4]} {np.mean([x for x, _ in both]):.4f} vs {np.mean([y for _, y in both]):.4f}")
         lines.append(f"  {s}: " + ", ".join(parts))
     return lines
+
+
+def _exact_diff(values: list[float], tie: float) -> tuple[float, float, int, int, int]:
+    """Mean of exact per-map differences, its paired standard error over maps, maps above / below ``tie``, maps."""
+    d = np.array(values)
+    se = float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("nan")
+    return float(d.mean()), se, int(np.sum(d > tie)), int(np.sum(d < -tie)), d.size
+
+
+def paired_table(rows: Rows, solvers: Sequence[str], eff_keys: Sequence[str]) -> list[str]:
+    """Each row against the reference, per light curve: the injection efficiency and the exact expected
+    detections of both, their paired difference and its standard error, the maps better / worse beyond
+    their error, and the coverage beside them (rows with ``expected_<lc>_diff``: an arm against its
+    fixed configuration, ``hybrid@menu`` against ``hybrid``).
+
+    Efficiency: Monte Carlo per map (same injections), error of the mean sqrt(sum err^2)/maps, a map better
+    / worse beyond 2 sigma of its own paired error.  Expected detections (X1) and coverage are exact per map:
+    the error is the paired standard error over maps, a map better / worse beyond 1e-3 (coverage 1e-4).
+    """
+    paired = [s for s in solvers if any(num(r.get(f"expected_{k}_diff")) is not None
+                                        for r in rows if r["solver"] == s for k in eff_keys)]
+    if not paired:
+        return []
+    ref = next((s for s in solvers if s not in paired
+                and any(num(r.get(f"expected_{k}")) is not None for r in rows if r["solver"] == s for k in eff_keys)),
+               "the reference")
+    per_map = by_map(rows)
+    lines = ["", f"paired against {ref} (same maps, same injections): A = {ref}, B = the row; efficiency: "
+                 "Monte Carlo, +- error of the mean, better/worse beyond 2 sigma on that map; E = exact expected "
+                 f"detections (X1) and coverage: +- paired standard error over maps, better/worse beyond "
+                 f"{TIE_EFFICIENCY:g} ({TIE_COVERAGE:g} coverage):"]
+    for s in paired:
+        pairs = [(m[ref], m[s]) for m in per_map.values() if scored(m.get(ref)) and scored(m.get(s))]
+        lines.append(f"  {s} vs {ref}: {len(pairs)} maps, plans valid {sum(_ok(b) for _, b in pairs)}/{len(pairs)} "
+                     f"(A {sum(_ok(a) for a, _ in pairs)}/{len(pairs)})")
+        for k in eff_keys:
+            a_eff = [num(a.get(f"efficiency_{k}")) for a, b in pairs if num(b.get(f"efficiency_{k}_diff")) is not None]
+            m = _mean_err([b for _, b in pairs], f"efficiency_{k}_diff")
+            ex = [(num(a.get(f"expected_{k}")), num(b.get(f"expected_{k}"))) for a, b in pairs]
+            ex = [(x, y) for x, y in ex if x is not None and y is not None]
+            if m is None or not ex:
+                continue
+            d = _exact_diff([y - x for x, y in ex], TIE_EFFICIENCY)
+            ea, eb = float(np.mean([x for x, _ in ex])), float(np.mean([y for _, y in ex]))
+            lines.append(f"    {k:<13} efficiency A {np.mean(a_eff):.4f} B {np.mean(a_eff) + m[0]:.4f} "
+                         f"diff {m[0]:+.4f} ± {m[1]:.4f} (better {m[2]}, worse {m[3]} of {m[4]}) | "
+                         f"E A {ea:.4f} B {eb:.4f} diff {d[0]:+.4f} ± {d[1]:.4f} x{eb / ea if ea > 0 else float('nan'):.3f} "
+                         f"(better {d[2]}, worse {d[3]} of {d[4]})")
+        cov = [(num(a["coverage"]), num(b["coverage"])) for a, b in pairs]
+        d = _exact_diff([y - x for x, y in cov], TIE_COVERAGE)
+        lines.append(f"    {'coverage':<13} A {np.mean([x for x, _ in cov]):.4f} B {np.mean([y for _, y in cov]):.4f} "
+                     f"diff {d[0]:+.4f} ± {d[1]:.4f} (better {d[2]}, worse {d[3]} of {d[4]})")
+        other = sum(bool(_lengths(b) - _lengths(a)) for a, b in pairs)
+        em = _values([b for _, b in pairs], "exposure_mean_s")
+        ea = _values([a for a, _ in pairs], "exposure_mean_s")
+        lines.append(f"    {'exposures':<13} maps where B took exposures A did not {other}/{len(pairs)}; "
+                     f"probability-weighted mean exposure median A {np.median(ea) if ea else float('nan'):.0f} s, "
+                     f"B {np.median(em) if em else float('nan'):.0f} s; solve time median A "
+                     f"{np.median(_values([a for a, _ in pairs], 'solve_s') or [np.nan]):.2f} s, B "
+                     f"{np.median(_values([b for _, b in pairs], 'solve_s') or [np.nan]):.2f} s")
+        starved = [sum(_no_grid(r) for r in side) for side in ([a for a, _ in pairs], [b for _, b in pairs])]
+        lines.append(f"    {'clock':<13} detection stage solved no grid in its time (kept the coverage plan): "
+                     f"A {starved[0]}, B {starved[1]} maps (a clock-limited stage depends on the machine's load)")
+    return lines
+
+
+def _ok(row: Mapping[str, Any]) -> bool:
+    return row.get("valid") in (True, "True")
+
+
+def _lengths(row: Mapping[str, Any]) -> set[str]:
+    """The exposure lengths of a row's plan (from ``exposure_mix``)."""
+    return {p.split(":")[0] for p in str(row.get("exposure_mix") or "").split()}
+
+
+def _no_grid(row: Mapping[str, Any]) -> bool:
+    """The row's detection stage ran but solved no grid (``detection_stage`` says ``0 grid(s) solved``)."""
+    return "; 0 grid(s) solved" in str(row.get("detection_stage") or "")
