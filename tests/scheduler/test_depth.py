@@ -110,7 +110,8 @@ def test_d1_against_published_depths_beyond_30_s() -> None:
     """D1 agrees at 30 s (within 0.3 mag) and is ~1 mag deeper than the GW campaigns' medians at 300 s.
 
     The second half pins a disagreement, not an agreement (the campaigns'
-    exposure times are not in the text read): D1 at 300 s is 0.8-1.5 mag
+    exposure times are not in the text read; detection.md section 2.1 lists
+    what was searched and found, 2026-12-03): D1 at 300 s is 0.8-1.5 mag
     deeper than the published medians, and D1 at 30-60 s within 0.3 mag of
     them.  A change of D1's exposure scaling that moves either shows here.
     """

@@ -222,3 +222,45 @@ def test_make_plan_with_a_menu_plans_checks_and_bounds_the_coverage_for_the_shor
     # a plan of 30 s exposures could cover more than one of 300 s: the menu's certified bound is not the fixed one's
     assert plan.metrics.upper_bound >= fixed.metrics.upper_bound
     assert plan.metrics.upper_bound >= plan.metrics.coverage - 1e-9
+
+
+def _greedy_case(sm: SkyMap):
+    """A menu grid of the real map, its levels and weights, the seed (every field at 300 s) and the greedy start."""
+    from mushrooms.scheduler_core.schedulers.block_schedule import shortlist_footprints
+    from mushrooms.scheduler_core.schedulers.detection_slots import (distance_levels, level_weights, pair_levels,
+                                                                     pair_reach)
+    from mushrooms.scheduler_core.schedulers.exposure_menu import _menu_value, menu_start_pairs
+    from mushrooms.scheduler_core.sky.cells import merge_cells
+    from mushrooms.scheduler_core.source.kilonova import load_kilonova
+
+    cfg = PlanningConfig(nside=64, exposure_menu_s=MENU, objective="detection")
+    problem = prepare_problem(sm, cfg, sm.event_time)
+    rows = np.argsort(-np.array([problem.footprints.coverage({int(f)}, problem.prob)
+                                 for f in problem.field_ids]))[:40]
+    fp = shortlist_footprints(problem.footprints, rows)
+    cells = merge_cells(fp, problem.prob)
+    grid = menu_portfolio(problem, rows)[0]
+    inst = menu_instance(problem, rows, grid, cells)
+    reach = pair_reach(problem, inst, load_kilonova(cfg.detection_lightcurve), sm.event_time)
+    levels = distance_levels(sm, np.unique(fp.indices), float(reach.max()), cfg.detection_levels)
+    W = level_weights(sm, fp, cells, levels)
+    lev = pair_levels(reach, levels)
+    start = {int(f): float(grid.t1[inst.pair_slot[inst.pair_field == f]].min()) for f in np.unique(inst.pair_field)}
+    seed = map_start_menu(inst, start, {f: 300.0 for f in start})
+    args = (inst, lev, W, cfg.detection_coverage_weight, cfg.penalty)
+    pairs = menu_start_pairs(*args, seed, None)
+    return inst, pairs, _menu_value(*args, seed), _menu_value(*args, pairs)
+
+
+def test_the_greedy_menu_start_is_feasible_never_worse_than_its_seed_and_shorter_when_near(data_dir) -> None:
+    """(X9) on a real map: one pair per field, no position held twice, (X5) >= the 300 s seed's; near -> shorter."""
+    sm = _map(data_dir)
+    exposure = {}
+    for k in (0.35, 2.5):
+        inst, pairs, v_seed, v = _greedy_case(scaled(sm, k))
+        assert pairs.size and v >= v_seed - 1e-12
+        assert np.unique(inst.pair_field[pairs]).size == pairs.size
+        held = np.concatenate([np.arange(s, s + n) for s, n in zip(inst.pair_slot[pairs], inst.pair_span[pairs])])
+        assert held.size == np.unique(held).size
+        exposure[k] = float(np.mean(inst.pair_exposure[pairs]))
+    assert exposure[0.35] < exposure[2.5], exposure

@@ -63,7 +63,8 @@ from ..plan.document import Observation, Plan, PlanMetrics
 from ..sky.footprints import Footprints
 from ..problem import DetectionReport, PlanningProblem, ScheduleResult, StopCheck
 from ..sky.skymap import SkyMap
-from .exposure_menu import dominated_pairs, map_start_menu, menu_instance, menu_portfolio, menu_positions
+from .exposure_menu import (dominated_pairs, map_start_menu, menu_instance, menu_portfolio, menu_positions,
+                            menu_start_pairs)
 from .slots import SlotInstance, SlotModel, build_slot_model, slot_instance, start_vector
 from .solvers import MilpModel, resolve_backend, solve_milp
 
@@ -525,6 +526,9 @@ class _Stage:
         if self.start_f:
             pairs = (map_start_menu(inst, self.start_f, self.start_exp) if on_menu
                      else map_start(inst, self.start_f))
+            if on_menu:  # (X9) the seed, filled or replaced greedily by gain per position held
+                pairs = menu_start_pairs(inst, plev, self.W, cfg.detection_coverage_weight, cfg.penalty, pairs,
+                                         self.floor)
             if pairs.size and inst.cells.weight[_covered_cells(inst, pairs)].sum() >= self.floor:
                 x0 = detection_start_vector(dm, pairs)  # a start below the floor (X6) would be refused
         left = self.left_s()

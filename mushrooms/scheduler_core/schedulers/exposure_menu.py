@@ -30,6 +30,7 @@ import dataclasses
 import math
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..config import PlanningConfig
 from ..problem import PlanningProblem
@@ -37,7 +38,7 @@ from ..sky.cells import Cells
 from .slots import SlotGrid, SlotInstance, eligible_pairs, make_slot_grid, observable_segments
 
 __all__ = ["menu_pitch_s", "menu_spans", "menu_positions", "menu_portfolio", "menu_instance", "dominated_pairs",
-           "map_start_menu"]
+           "map_start_menu", "greedy_menu_pairs", "menu_start_pairs"]
 
 
 def menu_pitch_s(config: PlanningConfig) -> float:
@@ -173,3 +174,103 @@ def map_start_menu(inst: SlotInstance, start: dict[int, float], exposure: dict[i
         taken[inst.pair_slot[best]:inst.pair_slot[best] + span[best]] = True
         chosen.append(int(best))
     return np.asarray(chosen, np.int64)
+
+
+def _menu_value(inst: SlotInstance, level: np.ndarray, W: np.ndarray, coverage_weight: float, penalty: float,
+                pairs: np.ndarray) -> float:
+    """The detection model's objective (X5) of a set of pairs: Σ_cl W_cl v_cl + λ Σ w_c y_c - p Σ z_f."""
+    C, L = W.shape
+    cumW = np.concatenate([np.zeros((C, 1)), np.cumsum(W, axis=1)], axis=1)
+    best = np.full(inst.n_fields, -1, np.int64)
+    p = np.asarray(pairs, np.int64)
+    np.maximum.at(best, inst.pair_field[p], np.asarray(level, np.int64)[p])
+    cell_of = np.repeat(np.arange(C), np.diff(inst.cells.indptr))
+    cl = np.full(C, -1, np.int64)
+    np.maximum.at(cl, cell_of, best[inst.cells.fields])
+    cov = cl >= 0
+    return float(cumW[np.flatnonzero(cov), cl[cov]].sum() + coverage_weight * inst.cells.weight[cov].sum()
+                 - penalty * p.size)
+
+
+def greedy_menu_pairs(inst: SlotInstance, level: np.ndarray, W: np.ndarray, coverage_weight: float, penalty: float,
+                      fixed: np.ndarray | None = None) -> np.ndarray:
+    """Pairs added greedily by marginal objective per position held (X9), after the pairs ``fixed``.
+
+    Each step adds the free pair of an unplanned field with the largest
+    ``g_k / n_k``: ``g_k`` the gain of (X5) (detection probability of its
+    cells' sources newly reached, plus λ w_c of the cells newly covered,
+    less p), ``n_k`` the positions it holds (X7, its exposure plus the slew
+    estimate in pitches of ``s0``, X8), so a field's exposure is chosen by
+    expected detections per second of telescope time.  Stops when no free
+    pair gains.  The result satisfies (X7), (S2) and, with ``fixed`` above
+    the floor, (X6) (adding a field never lowers coverage).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``fixed`` then the added pair indices.
+    """
+    C, L = W.shape
+    F = inst.n_fields
+    lev = np.asarray(level, np.int64)
+    span = np.ones(inst.n_pairs, np.int64) if inst.pair_span is None else np.asarray(inst.pair_span, np.int64)
+    cumW = np.concatenate([np.zeros((C, 1)), np.cumsum(W, axis=1)], axis=1)  # (C, L+1)
+    cell_of = np.repeat(np.arange(C), np.diff(inst.cells.indptr))
+    M = sp.csr_matrix((np.ones(cell_of.size), (inst.cells.fields, cell_of)), shape=(F, C))
+    w = np.asarray(inst.cells.weight, float)
+    cl = np.zeros(C, np.int64)  # levels reached per cell
+    cov = np.zeros(C, bool)
+    used = np.zeros(F, bool)
+    taken = np.zeros(inst.grid.n_slots + int(span.max(initial=1)) + 1, bool)
+    chosen = [] if fixed is None else [int(k) for k in np.asarray(fixed, np.int64)]
+
+    def take(k: int) -> None:
+        f = int(inst.pair_field[k])
+        used[f] = True
+        taken[inst.pair_slot[k]:inst.pair_slot[k] + span[k]] = True
+        cells = M.indices[M.indptr[f]:M.indptr[f + 1]]
+        cl[cells] = np.maximum(cl[cells], lev[k])
+        cov[cells] = True
+
+    for k in chosen:
+        take(k)
+    rows = np.arange(C)
+    while True:
+        gain_c = np.maximum(cumW - cumW[rows, cl][:, None], 0.0) + (coverage_weight * w * ~cov)[:, None]
+        G = np.asarray(M @ gain_c)  # (F, L+1) gain of each field observed at each level
+        pre = np.concatenate([[0], np.cumsum(taken)])
+        free = (pre[inst.pair_slot + span] - pre[inst.pair_slot] == 0) & ~used[inst.pair_field]
+        g = G[inst.pair_field, lev] - penalty
+        rate = np.where(free & (g > 1e-12), g / span, -np.inf)
+        k = int(np.argmax(rate)) if rate.size else -1
+        if k < 0 or not np.isfinite(rate[k]):
+            break
+        chosen.append(k)
+        take(k)
+    return np.asarray(chosen, np.int64)
+
+
+def menu_start_pairs(inst: SlotInstance, level: np.ndarray, W: np.ndarray, coverage_weight: float, penalty: float,
+                     seed: np.ndarray, floor: float | None) -> np.ndarray:
+    """The menu MILP's start (X9): the best by (X5) of the seed, the seed filled greedily, and a greedy plan.
+
+    ``seed`` is the best plan so far mapped on the menu grid
+    (:func:`map_start_menu`); the greedy plan built from nothing is only
+    taken when it keeps the floor (X6).  The seed is a candidate, so the
+    start is never worse by (X5) than the seed.
+    """
+    cands = [np.asarray(seed, np.int64), greedy_menu_pairs(inst, level, W, coverage_weight, penalty, seed),
+             greedy_menu_pairs(inst, level, W, coverage_weight, penalty)]
+    best, best_v = cands[0], _menu_value(inst, level, W, coverage_weight, penalty, cands[0])
+    cell_of = np.repeat(np.arange(inst.cells.n_cells), np.diff(inst.cells.indptr))
+    for c in cands[1:]:
+        z = np.zeros(inst.n_fields, bool)
+        z[inst.pair_field[c]] = True
+        hit = np.zeros(inst.cells.n_cells, bool)
+        np.logical_or.at(hit, cell_of, z[inst.cells.fields])
+        if floor is not None and inst.cells.weight[hit].sum() < floor - 1e-12:
+            continue
+        v = _menu_value(inst, level, W, coverage_weight, penalty, c)
+        if v > best_v + 1e-12:
+            best, best_v = c, v
+    return best
