@@ -134,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--min-processed-fraction {fraction:g}: must be in [0, 1]")
     source = regular_file(args.skymap, "sky map")  # never a FIFO nor a device
     skymap = read_skymap(source, nside=cfg.nside)
+    t_load = time.perf_counter() - t0  # config, imports and the sky map
     log.info("read %s: nside %d, 90%% area %.0f deg2, event time %s", source, skymap.nside,
              skymap.credible_area(0.9), skymap.event_time.isot if skymap.event_time else "unknown")
     if executed_spec is not None or cfg.nights > 1:
@@ -143,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
     if deadline is None:
         from ..scheduler_core.plan.messages import revision_document
 
-        plan = make_plan(skymap, cfg, start=start, solver=args.solver)
+        plan = make_plan(skymap, cfg, start=start, solver=args.solver, times_before={"load": t_load})
         doc = revision_document(plan, 1, True)
     else:
         plan, doc = _plan_by_deadline(skymap, cfg, start, args.solver or cfg.solver, float(deadline), t0)
