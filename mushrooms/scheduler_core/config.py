@@ -18,7 +18,7 @@ from .solvers_registry import SOLVER_NAMES  # scheduler names (``milp`` = ``bloc
 from .source.named import PAPER_LIGHTCURVES
 from .tables import dataclass_from_table
 
-__all__ = ["PlanningConfig", "SlewModel", "ZTF_FILTERS", "SOLVER_NAMES"]
+__all__ = ["PlanningConfig", "SlewModel", "ZTF_FILTERS", "SOLVER_NAMES", "RECORDED_WHEN_SET"]
 
 #: The filters of the ZTF camera (its filter exchanger holds g, r and i).
 ZTF_FILTERS = ("g", "r", "i")
@@ -70,6 +70,11 @@ class SlewModel:
 
     def __post_init__(self) -> None:
         require_finite(self, "scheduler.slew")
+
+
+#: Keys a plan records only when set (non-empty, true): added after plan ids existed, they leave the
+#: document and the plan id of a configuration without them as they were (:meth:`PlanningConfig.record`).
+RECORDED_WHEN_SET = ("exposure_menu_s", "revisit", "bound_refine_ends")
 
 
 @dataclass(frozen=True)
@@ -357,12 +362,9 @@ class PlanningConfig:
         same document and the same plan id as before they existed.
         """
         out = dataclasses.asdict(self)
-        if not out["exposure_menu_s"]:
-            del out["exposure_menu_s"]
-        if not out["revisit"]:
-            del out["revisit"]
-        if not out["bound_refine_ends"]:
-            del out["bound_refine_ends"]
+        for key in RECORDED_WHEN_SET:
+            if not out[key]:
+                del out[key]
         return out
 
     @property
