@@ -98,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
     When the plan covers less than ``min_coverage`` the document written is
     a ``not_observable`` answer; no queue nor SkyPortal file is written.
     """
+    t_imports = time.perf_counter()
     from .config import load_config
     from ..inputs import regular_file
     from ..offline import configure_astropy_offline
@@ -107,6 +108,7 @@ def run(args: argparse.Namespace) -> int:
 
     configure_astropy_offline()
     t0 = time.perf_counter()
+    t_imports = t0 - t_imports  # the scheduler's modules (numpy, astropy, healpy, scipy, the checker)
     config = load_config(args.config)
     cfg = config.scheduler
     if not args.skymap:
@@ -144,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
     if deadline is None:
         from ..scheduler_core.plan.messages import revision_document
 
-        plan = make_plan(skymap, cfg, start=start, solver=args.solver, times_before={"load": t_load})
+        plan = make_plan(skymap, cfg, start=start, solver=args.solver, times_before={"imports": t_imports, "load": t_load})
         doc = revision_document(plan, 1, True)
     else:
         plan, doc = _plan_by_deadline(skymap, cfg, start, args.solver or cfg.solver, float(deadline), t0)
