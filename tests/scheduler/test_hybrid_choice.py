@@ -34,11 +34,7 @@ def test_hybrid_under_a_detection_config_gives_its_blocks_stage_what_is_left(sky
     the detection stage's share (found by `mushrooms study`: 'detection_time_limit_s (4 s) must be less
     than time_limit_s (3.65 s)'); the blocks stage is a coverage scheduler and must still run."""
     import mushrooms.scheduler_core.schedulers.lns as lns_module
-    import mushrooms.scheduler_core.schedulers.portfolio as portfolio_module
     import mushrooms.scheduler_core.schedulers.slot_schedule as slot_module
-
-    # about the budget, not blocks_worth_it: 0.5 s slots and LNS may be optimal and fruitless on this map
-    monkeypatch.setattr(portfolio_module, "blocks_worth_it", lambda earlier: True)
 
     real = slot_module.slot_schedule
     real_lns = lns_module.lns_improve
@@ -73,19 +69,3 @@ def test_the_stage_times_name_every_stage_that_ran_in_order(skymap_220722v, capl
                   times_before={"load": 1.25})
     line = next(r.getMessage() for r in caplog.records if r.getMessage().startswith("times: "))
     assert line.startswith("times: load 1.25 s, prepare ") and ", greedy " in line and ", checker " in line
-
-
-def test_blocks_are_not_worth_it_after_optimal_slots_and_a_fruitless_lns():
-    from mushrooms.scheduler_core.problem import ScheduleResult
-    from mushrooms.scheduler_core.schedulers.portfolio import blocks_worth_it, hybrid
-
-    def run(status):
-        return ScheduleResult((), "x", status, None, 0.0)
-
-    assert not blocks_worth_it({"greedy": run("greedy"), "slots": run("optimal"), "lns": run("no_improvement")})
-    assert blocks_worth_it({"greedy": run("greedy"), "slots": run("time_limit"), "lns": run("no_improvement")})
-    assert blocks_worth_it({"greedy": run("greedy"), "slots": run("optimal"), "lns": run("improved")})
-    assert blocks_worth_it({"greedy": run("greedy"), "slots": run("optimal")})  # no LNS ran: blocks may
-    worth = next(s for s in hybrid.stages if s.name == "blocks").worth
-    assert not worth({"greedy": run("greedy"), "slots": run("optimal"), "lns": run("no_improvement")})
-    assert worth({"greedy": run("greedy"), "slots": run("interrupted"), "lns": run("no_improvement")})

@@ -33,8 +33,8 @@ from .gain import published_coverage
 from .greedy import greedy_schedule
 
 __all__ = ["Stage", "StageRun", "Portfolio", "best_of", "with_upper_bound", "greedy_stage", "slots_stage",
-           "blocks_stage", "blocks_worth_it", "slots_from_greedy", "blocks", "hybrid", "MIN_BLOCKS_S", "BOUND_RTOL",
-           "reaches_bound", "published_bound"]
+           "blocks_stage", "slots_from_greedy", "blocks", "hybrid", "MIN_BLOCKS_S", "BOUND_RTOL", "reaches_bound",
+           "published_bound"]
 
 log = logging.getLogger(__name__)
 
@@ -75,15 +75,11 @@ class Stage:
         None: the stage always runs.  Else it runs only when at least this
         much of the budget is left and ``should_stop`` (polled once, before
         it) does not say stop.
-    worth : callable or None
-        ``worth(earlier) -> bool`` on the stages already run: False skips the
-        stage (logged, ``details["skipped_not_worth"]``); None: always worth it.
     """
 
     name: str
     run: StageRun
     min_left_s: float | None = None
-    worth: Callable[[Mapping[str, ScheduleResult]], bool] | None = None
 
 
 def greedy_stage(problem: PlanningProblem, should_stop: StopCheck | None,
@@ -131,19 +127,6 @@ def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     return milp_schedule(timed, should_stop)
 
 
-def blocks_worth_it(earlier: Mapping[str, ScheduleResult]) -> bool:
-    """False when the slot portfolio solved every grid to optimality and the LNS re-solves of it gained nothing.
-
-    Then the incumbent is optimal on every slot grid and no time slice
-    re-solved around it covers more: the block MILP with the seconds left
-    (it starts from nothing) is not worth them (issue 30 item 4; measured:
-    it was not the chosen stage on those maps).
-    """
-    slots, lns = earlier.get("slots"), earlier.get("lns")
-    return not (slots is not None and slots.status == "optimal" and lns is not None
-                and lns.status == "no_improvement")
-
-
 def reaches_bound(coverage: float, bound: UpperBound) -> bool:
     """True when ``coverage`` is within :data:`BOUND_RTOL` (relative) of the certified ``bound``."""
     return coverage >= (1.0 - BOUND_RTOL) * (bound.value - 1e-9)
@@ -182,7 +165,6 @@ class Portfolio:
         bound_s = 0.0  # the bound's wall time, not charged to the stages
         skipped: list[str] = []
         times: dict[str, float] = {}  # wall time (s) of each stage run, and of the bound
-        not_worth: list[str] = []
         for i, stage in enumerate(self.stages):
             # (V6) the best plan so far reaches the certified bound: no stage left can beat it
             if upper is not None and covs and reaches_bound(max(covs.values()), upper):
@@ -196,11 +178,6 @@ class Portfolio:
                 stopped = should_stop is not None and should_stop()
                 if left < stage.min_left_s or stopped:
                     continue
-            if stage.worth is not None and not stage.worth(ran):
-                log.info("%s: skipping %s (%.1f s left): not worth it after %s", self.label, stage.name,
-                         left, ", ".join(f"{n} {r.status}" for n, r in ran.items()))
-                not_worth.append(stage.name)
-                continue
             t_stage = time.perf_counter()
             ran[stage.name] = stage.run(problem, should_stop, ran, left)
             covs[stage.name] = published_coverage(problem, ran[stage.name])
@@ -217,8 +194,6 @@ class Portfolio:
         details = dict(best.details, stage_times_s=times)
         if skipped:
             details["skipped_at_bound"] = skipped
-        if not_worth:
-            details["skipped_not_worth"] = not_worth
         return dataclasses.replace(best, solver=f"{self.label}({best.solver})", runtime_s=time.perf_counter() - t0,
                                    portfolio=entries, portfolio_choice=name, details=details,
                                    upper_bound=upper if upper is not None else best.upper_bound)
@@ -280,15 +255,12 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
 
 #: The hybrid: greedy, the slot portfolio from it, the LNS re-solves (:mod:`.lns`) of the best plan so far with
 #: the time left (they stop early once a round of slices or 5 s bring nothing), then (when at least
-#: :data:`MIN_BLOCKS_S` is left, and unless the slots solved every grid to optimality and the LNS gained nothing:
-#: :func:`blocks_worth_it`) the block MILP with the time left; the plan covering the most as published
+#: :data:`MIN_BLOCKS_S` is left) the block MILP with the time left; the plan covering the most as published
 #: (ties: greedy, slots, lns, blocks; the LNS only returns a plan other than its seed when it covers more).
 #: The certified bound is computed after greedy, and the stages left are skipped once a plan reaches it.
 hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_before_lns_stage),
                  Stage("lns", lns_stage, min_left_s=MIN_LNS_S),
-                 Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S,
-                       worth=lambda earlier: blocks_worth_it(earlier)),  # looked up at each call
-                 bound=published_bound)
+                 Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S), bound=published_bound)
 
 register("greedy", greedy_schedule)
 register("slots", with_upper_bound(slots_from_greedy))
