@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import ast
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from mushrooms import __version__
 from mushrooms.cli import TOOLS, build_parser, main
+
+MAP = Path(__file__).resolve().parent / "data" / "skymaps" / "MS220722v_bayestar.multiorder.fits"
 
 
 def test_the_registry_is_the_parser():
@@ -52,3 +56,35 @@ def test_help_imports_nothing_heavy():
             "or m.startswith('mushrooms.scheduler_core')))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "[]"
+
+
+#: run ``mushrooms`` in this interpreter, then print which modules of a few packages were loaded.
+_LOADED = ("import runpy, sys\n"
+           "sys.argv = ['mushrooms'] + sys.argv[1:]\n"
+           "try:\n    runpy.run_module('mushrooms.cli', run_name='__main__')\n"
+           "except SystemExit:\n    pass\n"
+           "print(sorted(m for m, v in sys.modules.items() if v is not None\n"
+           "             and m.split('.')[0] in ('matplotlib', 'ligo')))\n")
+
+
+def _plan_loads(tmp_path, *extra: str) -> list[str]:
+    out = tmp_path / "plan.json"
+    r = subprocess.run([sys.executable, "-c", _LOADED, "plan", str(MAP), "--solver", "greedy", "-o", str(out),
+                        *extra], capture_output=True, text=True, check=True, cwd=tmp_path)
+    assert out.exists(), r.stderr
+    return ast.literal_eval(r.stdout.strip().splitlines()[-1])
+
+
+def test_a_greedy_plan_imports_no_plotting_nor_gracedb(tmp_path):
+    # issue 30 item 4: matplotlib (through healpy's plotting half) and ligo.skymap.io (GraceDB's client)
+    # were a second of a 3.5 s `mushrooms plan --solver greedy`
+    loaded = _plan_loads(tmp_path)
+    assert "ligo.skymap" in loaded  # the probe sees what the plan loads
+    assert not [m for m in loaded if m.startswith("matplotlib")]
+    assert not [m for m in loaded if m.startswith(("ligo.gracedb", "ligo.skymap.io"))]
+
+
+def test_a_plan_with_plot_still_draws(tmp_path):
+    loaded = _plan_loads(tmp_path, "--plot", str(tmp_path / "plan.png"))
+    assert "matplotlib" in loaded
+    assert (tmp_path / "plan.png").stat().st_size > 10_000

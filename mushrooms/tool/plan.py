@@ -98,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
     When the plan covers less than ``min_coverage`` the document written is
     a ``not_observable`` answer; no queue nor SkyPortal file is written.
     """
+    t_imports = time.perf_counter()
     from .config import load_config
     from ..inputs import regular_file
     from ..offline import configure_astropy_offline
@@ -107,6 +108,7 @@ def run(args: argparse.Namespace) -> int:
 
     configure_astropy_offline()
     t0 = time.perf_counter()
+    t_imports = t0 - t_imports  # the scheduler's modules (numpy, astropy, healpy, scipy, the checker)
     config = load_config(args.config)
     cfg = config.scheduler
     if not args.skymap:
@@ -134,6 +136,7 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--min-processed-fraction {fraction:g}: must be in [0, 1]")
     source = regular_file(args.skymap, "sky map")  # never a FIFO nor a device
     skymap = read_skymap(source, nside=cfg.nside)
+    t_load = time.perf_counter() - t0  # config, imports and the sky map
     log.info("read %s: nside %d, 90%% area %.0f deg2, event time %s", source, skymap.nside,
              skymap.credible_area(0.9), skymap.event_time.isot if skymap.event_time else "unknown")
     if executed_spec is not None or cfg.nights > 1:
@@ -143,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
     if deadline is None:
         from ..scheduler_core.plan.messages import revision_document
 
-        plan = make_plan(skymap, cfg, start=start, solver=args.solver)
+        plan = make_plan(skymap, cfg, start=start, solver=args.solver, times_before={"imports": t_imports, "load": t_load})
         doc = revision_document(plan, 1, True)
     else:
         plan, doc = _plan_by_deadline(skymap, cfg, start, args.solver or cfg.solver, float(deadline), t0)

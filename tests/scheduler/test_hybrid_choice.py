@@ -49,3 +49,23 @@ def test_hybrid_under_a_detection_config_gives_its_blocks_stage_what_is_left(sky
     result = run_scheduler(problem, "hybrid")
     assert "blocks" in [e.name for e in result.portfolio]  # > MIN_BLOCKS_S was left, < 7.99 s
     assert result.observations
+
+
+def test_the_stage_times_name_every_stage_that_ran_in_order(skymap_220722v, caplog):
+    # issue 30 item 4: `mushrooms plan` logs where its seconds go, from the result's details
+    import logging
+
+    from mushrooms.scheduler_core.planner import make_plan, optimise
+
+    cfg = PlanningConfig(time_limit_s=3.0, detection_time_limit_s=1.0, milp_backend="highs", objective="detection")
+    problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
+    result = optimise(problem, skymap_220722v, "hybrid")
+    times = result.details["stage_times_s"]
+    ran = [e.name for e in result.portfolio]
+    assert list(times) == [ran[0], "bound", *ran[1:], "detection"]
+    assert all(t >= 0 for t in times.values())
+    with caplog.at_level(logging.INFO, logger="mushrooms.scheduler_core.planner"):
+        make_plan(skymap_220722v, dataclasses.replace(cfg, objective="coverage"), solver="greedy",
+                  times_before={"load": 1.25})
+    line = next(r.getMessage() for r in caplog.records if r.getMessage().startswith("times: "))
+    assert line.startswith("times: load 1.25 s, prepare ") and ", greedy " in line and ", checker " in line

@@ -116,7 +116,9 @@ def test_best_of_keeps_the_most_covering_plan_the_earlier_on_a_tie_and_polls_the
     calls: list = []
     # a tie: the earlier stage wins
     tie = best_of("pf", Stage("a", _stub("a", obs, calls)), Stage("b", _stub("b", obs, calls)))(problem)
-    assert tie.portfolio_choice == "a" and tie.solver == "pf(stub:a)" and tie.details == {"who": "a"}
+    assert tie.portfolio_choice == "a" and tie.solver == "pf(stub:a)"
+    assert tie.details == {"who": "a", "stage_times_s": tie.details["stage_times_s"]}  # the winner's, + times
+    assert list(tie.details["stage_times_s"]) == ["a", "b"] and min(tie.details["stage_times_s"].values()) >= 0
     assert [c[:2] for c in calls] == [("a", ()), ("b", ("a",))]  # each stage sees the ones before it
     assert all(0 < c[2] <= problem.config.time_limit_s for c in calls)
     # more coverage wins; a stage with a floor on the time left is skipped below it

@@ -284,3 +284,39 @@ def test_negative_probability_is_refused(tmp_path):
     hp.write_map(path, prob, nest=True, column_names=["PROB"], dtype=np.float64)
     with pytest.raises(SkyMapError, match="non-negative"):
         read_skymap(path, nside=16)
+
+
+@pytest.mark.parametrize("header", [
+    {"OBJECT": "M252714", "DATE-OBS": "2022-07-22T21:57:12.384103", "DISTMEAN": 125.96},
+    {"OBJECT": "2", "DATE-OBS": "2012-09-02T03:42:10.277622", "MJD-OBS": 56172.15},
+    {"OBJECT": "coinc_event:coinc_event_id:1234"},
+    {"OBJECT": 17, "DISTMEAN": 40.0, "DISTSTD": 9.0},
+    {},
+])
+def test_header_metadata_are_ligo_skymaps(header):
+    # our reading of the three header keys the plan uses (no ligo.skymap.io import) is ligo.skymap's mapping's
+    import itertools
+
+    from ligo.skymap.io.fits import FITS_META_MAPPING
+
+    from mushrooms.scheduler_core.sky.skymap import _metadata
+
+    h = fits.Header(header)
+    theirs = {}
+    for key, rows in itertools.groupby(FITS_META_MAPPING, lambda row: row[1]):
+        if key in h:
+            for py_key, _, _, _, from_fits in rows:
+                if from_fits is not None:
+                    theirs[py_key] = from_fits(h[key])
+    ours = _metadata(h)
+    assert ours == {k: theirs[k] for k in ("objid", "gps_time", "distmean") if k in theirs}
+    assert {type(v) for v in ours.values()} == {type(theirs[k]) for k in ours}
+
+
+def test_the_map_files_metadata_are_ligo_skymaps():
+    from ligo.skymap.io.fits import read_sky_map
+
+    m = read_skymap(MAP_MULTIORDER, nside=64)
+    meta = read_sky_map(str(MAP_MULTIORDER), moc=True).meta
+    assert m.object_id == str(meta["objid"]) and m.distmean == meta["distmean"]
+    assert m.event_time.gps == pytest.approx(meta["gps_time"], abs=1e-6)

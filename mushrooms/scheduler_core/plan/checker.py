@@ -37,7 +37,6 @@ from dataclasses import dataclass, field
 from importlib import resources
 from typing import Iterable, Sequence
 
-import healpy as hp
 import numpy as np
 from astropy import units as u
 from astropy.coordinates import AltAz, EarthLocation, SkyCoord, get_body
@@ -47,6 +46,7 @@ from scipy.interpolate import CubicSpline
 from ..config import PlanningConfig, SlewModel
 from ..executed import MIN_PROCESSED_FRACTION, ExecutedExposure, done_pairs, is_done
 from .document import Plan
+from ..sky.healpix import hp
 from ..sky.skymap import SkyMap
 
 __all__ = ["CheckReport", "check_plan", "polygon_coverage", "mount_reachable", "slew_seconds",

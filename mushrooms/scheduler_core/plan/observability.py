@@ -27,13 +27,13 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-import healpy as hp
 import numpy as np
 from astropy.coordinates import get_body
 from astropy.time import Time, TimeDelta
 
 from ..config import PlanningConfig
 from .document import Plan
+from ..sky.healpix import hp
 from ..sky.skymap import SkyMap
 from ..sky.visibility import constraint_masks, site
 

@@ -148,7 +148,8 @@ class Portfolio:
     (:func:`reaches_bound`) the stages left are skipped, logged and listed
     in ``details["skipped_at_bound"]``.  The plan is the one the full run
     would keep: no later stage can cover more, and a tie goes to the
-    earlier stage.
+    earlier stage.  ``details["stage_times_s"]``: each stage run's wall
+    time (s), and the bound's (``bound``), in the order they ran.
     """
 
     label: str
@@ -163,6 +164,7 @@ class Portfolio:
         upper: UpperBound | None = None
         bound_s = 0.0  # the bound's wall time, not charged to the stages
         skipped: list[str] = []
+        times: dict[str, float] = {}  # wall time (s) of each stage run, and of the bound
         for i, stage in enumerate(self.stages):
             # (V6) the best plan so far reaches the certified bound: no stage left can beat it
             if upper is not None and covs and reaches_bound(max(covs.values()), upper):
@@ -176,17 +178,22 @@ class Portfolio:
                 stopped = should_stop is not None and should_stop()
                 if left < stage.min_left_s or stopped:
                     continue
+            t_stage = time.perf_counter()
             ran[stage.name] = stage.run(problem, should_stop, ran, left)
             covs[stage.name] = published_coverage(problem, ran[stage.name])
+            times[stage.name] = round(time.perf_counter() - t_stage, 3)
             if self.bound is not None and upper is None:
                 t_bound = time.perf_counter()
                 upper = self.bound(problem)
                 bound_s = time.perf_counter() - t_bound
+                times["bound"] = round(bound_s, 3)
         names = list(ran)
         name = max(names, key=lambda n: (covs[n], -names.index(n)))
         best = ran[name]
         entries = tuple(PortfolioEntry(n, r.solver, r.status, r.mip_gap, covs[n]) for n, r in ran.items())
-        details = dict(best.details, skipped_at_bound=skipped) if skipped else best.details
+        details = dict(best.details, stage_times_s=times)
+        if skipped:
+            details["skipped_at_bound"] = skipped
         return dataclasses.replace(best, solver=f"{self.label}({best.solver})", runtime_s=time.perf_counter() - t0,
                                    portfolio=entries, portfolio_choice=name, details=details,
                                    upper_bound=upper if upper is not None else best.upper_bound)

@@ -20,10 +20,10 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-import healpy as hp
 import numpy as np
 
 from .footprints import Footprints
+from .healpix import hp
 
 __all__ = [
     "FieldGrid",

@@ -10,8 +10,9 @@ combined through the conditional distance moments
 first and second moments, :func:`~ligo.skymap.distance.moments_to_parameters`;
 a child without a finite distance makes the merged pixel ligo.skymap's
 (inf, 1, 0)), so a working pixel's ansatz has the mean and variance of the
-mixture it stands for.  Header metadata go through ligo.skymap's own
-``FITS_META_MAPPING`` (``DATE-OBS`` -> ``gps_time``, ``OBJECT``, ``DISTMEAN``).
+mixture it stands for.  Header metadata are read as ligo.skymap's
+``FITS_META_MAPPING`` reads them (``DATE-OBS`` -> ``gps_time``, ``OBJECT``,
+``DISTMEAN``; :func:`_metadata`, tested against it).
 
 The route is ours (issue 24), because ligo.skymap's costs the map's
 unpacked size: ``read_sky_map`` reads the whole table (astropy), and a
@@ -50,6 +51,7 @@ import hashlib
 import io
 import logging
 import math
+import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -173,18 +175,36 @@ def _check_values(values: np.ndarray, name: str) -> None:
         raise SkyMapError(f"{name}: probabilities must be finite and non-negative")
 
 
+#: ``OBJECT`` values of LIGO_LW row ids (``"table:column:N"``), read as N (ligo.skymap's ``ilwd_to_int``).
+_ILWD = re.compile(r"\s*\w+:\w+:(\d+)\s*")
+
+
+def _object_id(value: Any) -> int | str:
+    """``OBJECT`` as ligo.skymap's ``normalize_objid`` reads it: an integer, a row id's number, or the text."""
+    try:
+        return int(value)
+    except ValueError:
+        match = _ILWD.fullmatch(value)
+        return int(match[1]) if match else str(value)
+
+
 def _metadata(header: Any) -> dict[str, Any]:
-    """The table header's metadata as ligo.skymap's ``read_sky_map`` names them."""
-    import itertools
+    """The table header's metadata the plan uses, as ligo.skymap's ``read_sky_map`` names them.
 
-    from ligo.skymap.io.fits import FITS_META_MAPPING
-
+    ``DATE-OBS`` -> ``gps_time`` (UTC ISO 8601 to GPS seconds), ``OBJECT``
+    -> ``objid``, ``DISTMEAN`` -> ``distmean``: the rows of
+    ``ligo.skymap.io.fits.FITS_META_MAPPING`` the plan reads, done here
+    because importing that module loads all of ``ligo.skymap.io`` (GraceDB's
+    client and LIGO_LW tables, 0.2 s of ``mushrooms plan``; issue 30 item 4).
+    ``MJD-OBS`` is not read (ligo.skymap does not read it either).
+    """
     meta: dict[str, Any] = {}
-    for key, rows in itertools.groupby(FITS_META_MAPPING, lambda row: row[1]):
-        if key in header:
-            for py_key, _, _, _, from_fits in rows:
-                if from_fits is not None:
-                    meta[py_key] = from_fits(header[key])
+    if "OBJECT" in header:
+        meta["objid"] = _object_id(header["OBJECT"])
+    if "DATE-OBS" in header:
+        meta["gps_time"] = Time(header["DATE-OBS"], scale="utc").gps
+    if "DISTMEAN" in header:
+        meta["distmean"] = header["DISTMEAN"]
     return meta
 
 
@@ -422,7 +442,7 @@ def _stream_multiorder(table: BinaryTable, name: str, ordering: str, chunk: int,
 
 
 def _stream_flat(table: BinaryTable, name: str, ordering: str, chunk: int, working: _Working) -> None:
-    import healpy as hp
+    from .healpix import hp
 
     if not ordering:
         # healpy's read_map assumes whatever order its caller asks for; a wrong guess plans a scrambled sky
