@@ -9,18 +9,10 @@ certified bound splits into *bound slack* (bound − optimum) and *optimiser
 loss* (optimum − plan).  ``docs/design/milp.md``, section "Exact model",
 equations C0–C6.
 
-Every field is observed in both filters or not at all, each exposure at a
-continuous start time inside one of the field's windows, the two filters
-the cadence apart in either order, and any two exposures at least the
-exposure plus their true overhead apart (``max(slew, readout, filter
-change)``, the checker's rule), in one of the two orders: m4opt-style
-pairwise disjunctions with big-M taken from the windows (never more than
-the night).  Because an exposure (300 s) outlasts any overhead, "every
-pair apart" is the same as "every consecutive pair apart", so an integral
-solution is exactly a rule-abiding plan and every rule-abiding plan is one:
-the optimum is the optimum of the rules on the problem's windows.
-Interval capacity cuts (C6) make the LP relaxation count the competition
-for time.
+The model's rules and why an integral solution is exactly a rule-abiding
+plan are in that module's docstring; here it is solved whole, started from
+the schedulers' plans, and its optimum is the optimum of the rules on the
+problem's windows.
 """
 
 from __future__ import annotations

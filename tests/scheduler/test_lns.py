@@ -1,4 +1,4 @@
-"""Large-neighbourhood re-solves (schedulers/lns.py, L1-L5): exact on slices, never worse, through the checker."""
+"""Large-neighbourhood re-solves (schedulers/lns.py, H1-H5): exact on slices, never worse, through the checker."""
 
 from __future__ import annotations
 

@@ -364,6 +364,26 @@ def start_from_plan(model: ExactModel, problem: PlanningProblem, observations) -
     return v
 
 
+def solution_parts(model: ExactModel, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[int, tuple[float, float]]]:
+    """What a solution ``x`` of the model chose: the fields observed, each exposure's start and window.
+
+    Returns
+    -------
+    chosen : ndarray of int
+        Indices of the observed fields (``y_f = 1``).
+    t : ndarray of float
+        Start (s from the horizon start) of exposure ``2 f + p`` (filter ``p``), chosen or not.
+    windows : dict
+        Exposure -> the ``(start, end)`` (s) of the window its ``u`` variable selected.
+    """
+    F = model.data.n_fields
+    chosen = np.flatnonzero(x[:F] > 0.5)
+    t = x[model.off_t:model.off_t + 2 * F]
+    win = {int(e): model.data.windows[e // 2][w]
+           for k, (e, w) in enumerate(zip(model.u_exposure, model.u_window)) if x[model.off_u + k] > 0.5}
+    return chosen, t, win
+
+
 def decode_exact(model: ExactModel, problem: PlanningProblem, x: np.ndarray) -> tuple[Observation, ...]:
     """The plan of a solution: its fields in the solution's order, each exposure as early as the rules allow.
 
@@ -375,13 +395,8 @@ def decode_exact(model: ExactModel, problem: PlanningProblem, x: np.ndarray) -> 
     the re-timed plan stays inside every window the solution used.
     """
     data, cfg = model.data, problem.config
-    F, exp = data.n_fields, cfg.exposure_s
-    chosen = np.flatnonzero(x[:F] > 0.5)
-    t = x[model.off_t:model.off_t + 2 * F]
-    win = {}
-    for k, (e, w) in enumerate(zip(model.u_exposure, model.u_window)):
-        if x[model.off_u + k] > 0.5:
-            win[int(e)] = data.windows[e // 2][w]
+    exp = cfg.exposure_s
+    chosen, t, win = solution_parts(model, x)
     exposures = sorted((2 * f + p for f in chosen for p in (0, 1)), key=lambda e: t[e])
     out: list[Observation] = []
     first_at: dict[int, float] = {}

@@ -43,7 +43,7 @@ from ..plan.document import Observation
 from ..problem import PlanningProblem, ScheduleResult, StopCheck
 from ..sky.windows import Windows
 from .block_schedule import shortlist_footprints
-from .continuous import build_exact_model, exact_data, start_from_plan
+from .continuous import build_exact_model, exact_data, solution_parts, start_from_plan
 from .gain import published_coverage
 from .slew import overhead_time
 from .solvers import solve_milp
@@ -196,13 +196,7 @@ def _slices(problem: PlanningProblem, state: _State, lo: float, hi: float, lengt
 def _earliest_times(sub: PlanningProblem, model, x: np.ndarray, fixed: np.ndarray) -> dict[int, float]:
     """Exposure -> start: fixed exposures keep theirs, free ones start as early as the solution's order allows."""
     data, cfg = model.data, sub.config
-    F = data.n_fields
-    chosen = np.flatnonzero(x[:F] > 0.5)
-    t = x[model.off_t:model.off_t + 2 * F]
-    win = {}
-    for k, (e, w) in enumerate(zip(model.u_exposure, model.u_window)):
-        if x[model.off_u + k] > 0.5:
-            win[int(e)] = data.windows[e // 2][w]
+    chosen, t, win = solution_parts(model, x)
     exposures = sorted((2 * f + p for f in chosen for p in (0, 1)), key=lambda e: (t[e], e))
     out: dict[int, float] = {}
     first_at: dict[int, float] = {}
