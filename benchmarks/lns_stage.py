@@ -27,7 +27,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("maps", nargs="+")
     ap.add_argument("--without-lns", action="store_true", help="the hybrid of before the LNS stage")
-    ap.add_argument("--lns-share", type=float, default=None, help="portfolio.LNS_SHARE (default: as shipped)")
+    ap.add_argument("--lns-share", type=float, default=None, help="share of time_limit_s the slots leave to the LNS (default 0, as shipped)")
     ap.add_argument("--time-limit", type=float, default=10.0, help="time_limit_s (the coverage hybrid's 10 s)")
     args = ap.parse_args(argv)
 
@@ -41,9 +41,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.without_lns:
         pf.register("hybrid", pf.with_upper_bound(dataclasses.replace(
             pf.hybrid, stages=tuple(s for s in pf.hybrid.stages if s.name != "lns"))))
-    if args.lns_share is not None:
-        pf.LNS_SHARE = args.lns_share
-    label = "without-lns" if args.without_lns else f"lns-share={pf.LNS_SHARE:g}"
+    share = args.lns_share or 0.0
+    if share:
+        def slots_leaving_share(problem, should_stop, earlier, left_s):
+            return pf.slots_stage(problem, should_stop, earlier, left_s - share * problem.config.time_limit_s)
+
+        pf.register("hybrid", pf.with_upper_bound(dataclasses.replace(pf.hybrid, stages=tuple(
+            dataclasses.replace(s, run=slots_leaving_share) if s.name == "slots" else s for s in pf.hybrid.stages))))
+    label = "without-lns" if args.without_lns else f"lns-share={share:g}"
     for m in args.maps:
         path = Path(m) if Path(m).exists() else SHARED / m
         cfg = PlanningConfig(objective="coverage", threads=1, time_limit_s=args.time_limit, milp_backend="highs")

@@ -44,9 +44,6 @@ MIN_BLOCKS_S = 3.0
 #: The hybrid runs the LNS re-solves (:mod:`.lns`) only when at least this much (s) of its budget is left.
 MIN_LNS_S = 0.5
 
-#: Share of the hybrid's budget the slot portfolio leaves to the LNS stage (the slots stop earlier by that).
-LNS_SHARE = 0.0
-
 #: A plan covering at least ``(1 - BOUND_RTOL)`` of the certified bound (less its 1e-9 margin) is optimal to
 #: within that: the portfolio skips its remaining stages.  Tight on purpose: a plan one small pixel short
 #: of the bound (a few 1e-6 of coverage on a random test problem) is not optimal, and a later stage finds
@@ -94,12 +91,6 @@ def slots_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     from .slot_schedule import slot_schedule
 
     return slot_schedule(problem, should_stop, start=earlier.get("greedy"), time_limit_s=max(left_s, 0.0))
-
-
-def slots_before_lns_stage(problem: PlanningProblem, should_stop: StopCheck | None,
-                           earlier: Mapping[str, ScheduleResult], left_s: float) -> ScheduleResult:
-    """:func:`slots_stage` leaving :data:`LNS_SHARE` of ``config.time_limit_s`` to the LNS stage after it."""
-    return slots_stage(problem, should_stop, earlier, left_s - LNS_SHARE * problem.config.time_limit_s)
 
 
 def lns_stage(problem: PlanningProblem, should_stop: StopCheck | None,
@@ -258,7 +249,7 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
 #: :data:`MIN_BLOCKS_S` is left) the block MILP with the time left; the plan covering the most as published
 #: (ties: greedy, slots, lns, blocks; the LNS only returns a plan other than its seed when it covers more).
 #: The certified bound is computed after greedy, and the stages left are skipped once a plan reaches it.
-hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_before_lns_stage),
+hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage),
                  Stage("lns", lns_stage, min_left_s=MIN_LNS_S),
                  Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S), bound=published_bound)
 
