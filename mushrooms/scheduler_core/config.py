@@ -148,7 +148,7 @@ class PlanningConfig:
         shares it over its grids; ``blocks`` gives it to its first solve
         (a re-solve gets a third); ``hybrid`` gives it to the slot
         portfolio, the time left to the LNS re-solves (which stop early
-        when a round of slices or 5 s bring nothing) and what is then
+        when a round of slices or 3 s bring nothing) and what is then
         left (if at least ``MIN_BLOCKS_S``) to the block MILP.  With
         ``objective = "detection"`` it is the budget of the whole
         optimisation: the scheduler gets ``time_limit_s -

@@ -61,11 +61,13 @@ MAX_FREE_FIELDS = 22
 SLICE_LIMIT_S = 2.0
 #: No slice is started with less than this (s) of the budget left.
 MIN_SLICE_S = 0.3
-#: The search stops after a whole round of slices without a gain, or after this long (s) without one
-#: (measured: the gains on the shared maps came within 4.1 s of the previous one; on a map the slots already
-#: solved well the slices take their whole limit for nothing).  A count of slices is no stop: on a reduced
-#: bns_o3/11 the gains come after 8 quick slices without one.
-MAX_IDLE_S = 5.0
+#: The search stops after a whole round of slices without a gain, or after this long (s) without one.  A count
+#: of slices is no stop: on a reduced bns_o3/11 the gains come after 8 quick slices without one.  Measured on
+#: the 51 shared maps the LNS runs on (``benchmarks/lns_idle_replay.py`` on a run to the budget,
+#: benchmarks/results/issue30/lns_idle_*): it gains +0.0012 coverage on average run to the end of its budget;
+#: a 5 s stop keeps all but 0.00012 of that in a median 7.1 s, 3 s all but 0.0005 in 5.1 s, 1 s all but
+#: 0.0008 in 3.1 s.  3 s: the gains a longer wait still finds are a third of the LNS's, for 2 s of every plan.
+MAX_IDLE_S = 3.0
 #: Relative gap at which a slice's solve stops.
 SLICE_GAP = 1e-4
 #: Least coverage gain (absolute probability) for a slice's plan to replace the incumbent (H5).
@@ -341,7 +343,8 @@ def _resolve_slice(problem: PlanningProblem, state: _State, pairs: dict[int, lis
 
 def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: StopCheck | None = None,
                 time_limit_s: float | None = None, pool: np.ndarray | None = None,
-                slice_s: float = SLICE_S, max_free: int = MAX_FREE_FIELDS) -> ScheduleResult:
+                slice_s: float = SLICE_S, max_free: int = MAX_FREE_FIELDS,
+                max_idle_s: float = MAX_IDLE_S) -> ScheduleResult:
     """Improve ``seed`` by exact re-solves of slices of the night (H1–H5); never worse than the seed.
 
     Parameters
@@ -362,13 +365,17 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
         Slice length (s).
     max_free : int
         Most free fields per slice.
+    max_idle_s : float
+        The search stops after this long (s) without a gain.
 
     Returns
     -------
     ScheduleResult
         ``solver`` ``lns:highs``; status ``improved`` or ``no_improvement``
         (``interrupted`` when ``should_stop`` ended it); ``details`` hold the
-        slices tried and accepted and the coverage of seed and result.
+        slices tried and accepted, the coverage of seed and result, and
+        each gain's slice count (``improved_at``), time (s, ``elapsed_at``)
+        and coverage (``coverage_at``).
     """
     t0 = time.perf_counter()
     cfg = problem.config
@@ -376,7 +383,7 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
     fp = problem.footprints
     seed_cov = fp.coverage({o.field_id for o in seed.observations}, problem.prob)
     details: dict = {"seed_coverage": seed_cov, "slices_tried": 0, "slices_improved": 0, "slice_s": slice_s,
-                     "improved_at": [], "elapsed_at": []}
+                     "improved_at": [], "elapsed_at": [], "coverage_at": []}
 
     def result(obs, status, cov):
         details.update(coverage=cov)
@@ -406,7 +413,7 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
         if should_stop is not None and should_stop():
             interrupted = True
             break
-        if left < MIN_SLICE_S or time.perf_counter() - last_gain > MAX_IDLE_S:
+        if left < MIN_SLICE_S or time.perf_counter() - last_gain > max_idle_s:
             break
         intervals = slices[i]
         i += 1
@@ -423,6 +430,7 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
             details["slices_improved"] += 1
             details["improved_at"].append(details["slices_tried"])
             details["elapsed_at"].append(round(time.perf_counter() - t0, 2))
+            details["coverage_at"].append(round(state.coverage, 6))
             since_gain = 0
             last_gain = time.perf_counter()
         else:

@@ -245,7 +245,7 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
 
 
 #: The hybrid: greedy, the slot portfolio from it, the LNS re-solves (:mod:`.lns`) of the best plan so far with
-#: the time left (they stop early once a round of slices or 5 s bring nothing), then (when at least
+#: the time left (they stop early once a round of slices or 3 s bring nothing), then (when at least
 #: :data:`MIN_BLOCKS_S` is left) the block MILP with the time left; the plan covering the most as published
 #: (ties: greedy, slots, lns, blocks; the LNS only returns a plan other than its seed when it covers more).
 #: The certified bound is computed after greedy, and the stages left are skipped once a plan reaches it.
