@@ -3,6 +3,8 @@
 # per map one run each, alternating, imports included; run it with the machine quiet.
 #   benchmarks/plan_wall_side_by_side.sh            (maps from $SKYMAPS, default ../shared/data/skymaps)
 #   benchmarks/plan_wall_side_by_side.sh MAP...     (these maps instead)
+#   ARM_CONFIG=FILE benchmarks/plan_wall_side_by_side.sh ...   (a third run per map: the default with --config FILE,
+#                                                              e.g. one setting [scheduler] exposure_menu_s; row "config")
 # Each run's stage-times log line (`times: ...`) is printed after its row.
 set -u
 cd "$(dirname "$0")/.."
@@ -13,8 +15,9 @@ maps=(tests/data/skymaps/MS220722v_bayestar.multiorder.fits $data/public/G483432
 py=${PYTHON:-.venv/bin/python}
 for m in "${maps[@]}"; do
   n=$(basename $(dirname $m))_$(basename $m .fits)
-  for s in greedy default; do
-    opt=(); [ $s = greedy ] && opt=(--solver greedy)
+  arms=(greedy default); [ -n "${ARM_CONFIG:-}" ] && arms+=(config)
+  for s in "${arms[@]}"; do
+    opt=(); [ $s = greedy ] && opt=(--solver greedy); [ $s = config ] && opt=(--config "$ARM_CONFIG")
     t0=$(date +%s.%N); $py -m mushrooms.cli plan "$m" "${opt[@]}" -o $out/t_$s.json > $out/t_$s.log 2>&1; rc=$?; t1=$(date +%s.%N)
     python3 -c "
 import json; d=json.load(open('$out/t_$s.json')); m=d['metrics']

@@ -1,6 +1,6 @@
 """Summarise benchmarks/plan_wall_side_by_side.sh output: per-map ratio, medians, coverage / bound (issue 30 item 4).
 
-Usage: python benchmarks/plan_wall_summary.py OUTPUT.txt
+Usage: python benchmarks/plan_wall_summary.py OUTPUT.txt  (with ARM_CONFIG runs: their medians too)
 """
 import sys, statistics as st
 rows = {}
@@ -29,3 +29,10 @@ for n, r in both.items():
 print(f"median wall greedy {st.median(walls_g):.2f} s, default {st.median(walls_d):.2f} s; median ratio {st.median(ratios):.2f}, mean ratio {st.mean(ratios):.2f}")
 print(f"coverage/bound (default, {len(cb)} maps with a bound): mean {st.mean(cb):.3f} median {st.median(cb):.3f}; below 0.8: {below}")
 print(f"mean coverage default {st.mean(r['default']['cov'] for r in both.values()):.4f} vs greedy {st.mean(r['greedy']['cov'] for r in both.values()):.4f}: x{st.mean(r['default']['cov'] for r in both.values())/st.mean(r['greedy']['cov'] for r in both.values()):.3f}; per-map ratio mean x{st.mean(dg):.3f}")
+arm = {n: r for n, r in both.items() if "config" in r}
+if arm:  # the ARM_CONFIG runs: wall time and coverage beside the default's
+    wc = [r["config"]["wall"] for r in arm.values()]
+    print(f"config arm on {len(arm)} maps: median wall {st.median(wc):.2f} s (default {st.median(r['default']['wall'] for r in arm.values()):.2f} s, "
+          f"greedy {st.median(r['greedy']['wall'] for r in arm.values()):.2f} s); median ratio to greedy "
+          f"{st.median(r['config']['wall'] / r['greedy']['wall'] for r in arm.values()):.2f}; mean coverage "
+          f"{st.mean(r['config']['cov'] for r in arm.values()):.4f} (default {st.mean(r['default']['cov'] for r in arm.values()):.4f})")

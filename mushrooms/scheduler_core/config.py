@@ -149,7 +149,8 @@ class PlanningConfig:
         (a re-solve gets a third); ``hybrid`` gives it to the slot
         portfolio, the time left to the LNS re-solves (which stop early
         when a round of slices or 3 s bring nothing) and what is then
-        left (if at least ``MIN_BLOCKS_S``) to the block MILP.  With
+        left (if at least ``MIN_BLOCKS_S``; at most ``BLOCKS_LIMIT_S``, 1 s)
+        to the block MILP.  With
         ``objective = "detection"`` it is the budget of the whole
         optimisation: the scheduler gets ``time_limit_s -
         detection_time_limit_s``, the detection stage the rest.

@@ -15,7 +15,7 @@ from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound
 from mushrooms.scheduler_core.schedulers.certified_bound import certified_upper_bound
 from mushrooms.scheduler_core.schedulers.gain import published_coverage
 from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
-from mushrooms.scheduler_core.schedulers.portfolio import MIN_BLOCKS_S, Stage, best_of, reaches_bound
+from mushrooms.scheduler_core.schedulers.portfolio import BLOCKS_LIMIT_S, MIN_BLOCKS_S, Stage, best_of, reaches_bound
 from mushrooms.scheduler_core.solvers_registry import SOLVER_NAMES, get_scheduler, register, registered
 
 
@@ -71,7 +71,7 @@ def _old_hybrid(problem, should_stop=None):
     left = budget - (time.perf_counter() - t0)
     if left >= MIN_BLOCKS_S:
         timed = dataclasses.replace(problem, config=dataclasses.replace(
-            problem.config, time_limit_s=left, objective="coverage"))
+            problem.config, time_limit_s=min(left, BLOCKS_LIMIT_S), objective="coverage"))
         candidates.append(("blocks", milp_schedule(timed, should_stop)))
     covs = {name: published_coverage(problem, r) for name, r in candidates}
     return max(candidates, key=lambda nr: (covs[nr[0]], -[n for n, _ in candidates].index(nr[0])))

@@ -33,13 +33,19 @@ from .gain import published_coverage
 from .greedy import greedy_schedule
 
 __all__ = ["Stage", "StageRun", "Portfolio", "best_of", "with_upper_bound", "greedy_stage", "slots_stage",
-           "blocks_stage", "slots_from_greedy", "blocks", "hybrid", "MIN_BLOCKS_S", "BOUND_RTOL", "reaches_bound",
+           "blocks_stage", "slots_from_greedy", "blocks", "hybrid", "MIN_BLOCKS_S", "BLOCKS_LIMIT_S", "BOUND_RTOL", "reaches_bound",
            "published_bound"]
 
 log = logging.getLogger(__name__)
 
 #: The hybrid runs the block MILP only when at least this much (s) of its budget is left.
-MIN_BLOCKS_S = 3.0
+MIN_BLOCKS_S = 1.0
+
+#: The hybrid's block MILP gets at most this long (s).  Measured on the 56 shared maps (coverage objective,
+#: 10 s, LNS idle stop 3 s; benchmarks/results/issue30/blocks_stage_56maps.txt): given what was left, it ran
+#: on 34 maps for 87 s in all and beat the stages before it on 7, by at most 0.0026; six of those wins took
+#: under 0.25 s, the seventh (bns_o3/18, +0.0026) 10 s.  On the rest it lost by up to 0.31 after up to 9 s.
+BLOCKS_LIMIT_S = 1.0
 
 #: The hybrid runs the LNS re-solves (:mod:`.lns`) only when at least this much (s) of its budget is left.
 MIN_LNS_S = 0.5
@@ -105,16 +111,16 @@ def lns_stage(problem: PlanningProblem, should_stop: StopCheck | None,
 
 def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
                  earlier: Mapping[str, ScheduleResult], left_s: float) -> ScheduleResult:
-    """The block MILP with what is left.
+    """The block MILP with what is left, at most :data:`BLOCKS_LIMIT_S`.
 
-    It is a coverage scheduler: its budget is what is left, whatever the
-    objective (a detection config would refuse a budget shorter than its
-    detection stage's share).
+    It is a coverage scheduler: its budget is that, whatever the objective
+    (a detection config would refuse a budget shorter than its detection
+    stage's share).
     """
     from .block_schedule import milp_schedule
 
     timed = dataclasses.replace(problem, config=dataclasses.replace(
-        problem.config, time_limit_s=left_s, objective="coverage"))
+        problem.config, time_limit_s=max(min(left_s, BLOCKS_LIMIT_S), 1e-3), objective="coverage"))
     return milp_schedule(timed, should_stop)
 
 
@@ -246,7 +252,7 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
 
 #: The hybrid: greedy, the slot portfolio from it, the LNS re-solves (:mod:`.lns`) of the best plan so far with
 #: the time left (they stop early once a round of slices or 3 s bring nothing), then (when at least
-#: :data:`MIN_BLOCKS_S` is left) the block MILP with the time left; the plan covering the most as published
+#: :data:`MIN_BLOCKS_S` is left) the block MILP with the time left, at most :data:`BLOCKS_LIMIT_S`; the plan covering the most as published
 #: (ties: greedy, slots, lns, blocks; the LNS only returns a plan other than its seed when it covers more).
 #: The certified bound is computed after greedy, and the stages left are skipped once a plan reaches it.
 hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage),
