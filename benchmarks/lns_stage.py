@@ -43,31 +43,23 @@ def main(argv: list[str] | None = None) -> int:
     from mushrooms.scheduler_core.schedulers import portfolio as pf
     from mushrooms.scheduler_core.schedulers.lns import plan_rule_problems
 
+    hybrid_stages = pf.hybrid.stages
     if args.without_lns:
-        pf.register("hybrid", pf.with_upper_bound(dataclasses.replace(
-            pf.hybrid, stages=tuple(s for s in pf.hybrid.stages if s.name != "lns"))))
+        hybrid_stages = tuple(s for s in hybrid_stages if s.name != "lns")
     share = args.lns_share or 0.0
     if share:
         def slots_leaving_share(problem, should_stop, earlier, left_s):
             return pf.slots_stage(problem, should_stop, earlier, left_s - share * problem.config.time_limit_s)
 
-        pf.register("hybrid", pf.with_upper_bound(dataclasses.replace(pf.hybrid, stages=tuple(
-            dataclasses.replace(s, run=slots_leaving_share) if s.name == "slots" else s for s in pf.hybrid.stages))))
+        hybrid_stages = tuple(dataclasses.replace(s, run=slots_leaving_share) if s.name == "slots" else s for s in hybrid_stages)
     lns_runs: dict = {}
     if args.lns_idle is not None:
-        from mushrooms.scheduler_core.schedulers.gain import published_coverage
-        from mushrooms.scheduler_core.schedulers.lns import lns_improve
-
         def lns_idle(problem, should_stop, earlier, left_s):
-            names = list(earlier)
-            seed = max(names, key=lambda n: (published_coverage(problem, earlier[n]), -names.index(n)))
-            lns_runs["last"] = lns_improve(problem, earlier[seed], should_stop, time_limit_s=max(left_s, 0.0),
-                                           max_idle_s=args.lns_idle)
+            lns_runs["last"] = pf.lns_stage(problem, should_stop, earlier, left_s, max_idle_s=args.lns_idle)
             return lns_runs["last"]
 
-        hybrid = pf.hybrid
-        pf.register("hybrid", pf.with_upper_bound(dataclasses.replace(hybrid, stages=tuple(
-            dataclasses.replace(s, run=lns_idle) if s.name == "lns" else s for s in hybrid.stages))))
+        hybrid_stages = tuple(dataclasses.replace(s, run=lns_idle) if s.name == "lns" else s for s in hybrid_stages)
+    pf.register("hybrid", pf.with_upper_bound(dataclasses.replace(pf.hybrid, stages=hybrid_stages)))
     label = "without-lns" if args.without_lns else f"lns-share={share:g}"
     if args.lns_idle is not None:
         label += f",idle={args.lns_idle:g}"

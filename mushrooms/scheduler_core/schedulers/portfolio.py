@@ -100,13 +100,19 @@ def slots_stage(problem: PlanningProblem, should_stop: StopCheck | None,
 
 
 def lns_stage(problem: PlanningProblem, should_stop: StopCheck | None,
-              earlier: Mapping[str, ScheduleResult], left_s: float) -> ScheduleResult:
-    """Large-neighbourhood re-solves (:mod:`.lns`, H1-H5) of the best plan so far with what is left."""
+              earlier: Mapping[str, ScheduleResult], left_s: float,
+              max_idle_s: float | None = None) -> ScheduleResult:
+    """Large-neighbourhood re-solves (:mod:`.lns`, H1-H5) of the best plan so far with what is left.
+
+    ``max_idle_s``: the seconds without a gain that end them (default
+    :data:`.lns.MAX_IDLE_S`).
+    """
     from .lns import lns_improve
 
     names = list(earlier)
     seed = max(names, key=lambda n: (published_coverage(problem, earlier[n]), -names.index(n)))
-    return lns_improve(problem, earlier[seed], should_stop, time_limit_s=max(left_s, 0.0))
+    idle = {} if max_idle_s is None else {"max_idle_s": max_idle_s}
+    return lns_improve(problem, earlier[seed], should_stop, time_limit_s=max(left_s, 0.0), **idle)
 
 
 def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
@@ -120,7 +126,7 @@ def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     from .block_schedule import milp_schedule
 
     timed = dataclasses.replace(problem, config=dataclasses.replace(
-        problem.config, time_limit_s=max(min(left_s, BLOCKS_LIMIT_S), 1e-3), objective="coverage"))
+        problem.config, time_limit_s=min(left_s, BLOCKS_LIMIT_S), objective="coverage"))
     return milp_schedule(timed, should_stop)
 
 
