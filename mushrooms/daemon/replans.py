@@ -14,16 +14,22 @@ whose sky map it re-plans) and a ``decisions`` row with the reason.
 withdrawn, not retracted); the loop re-plans a current plan at most once and
 never while a job of the event is open (that job's plan supersedes the old
 one anyway); an operator's closure supersedes an open job instead.
+
+(L12) What is re-planned: the event's *current map* (:mod:`.current_event`
+C2), which is a newer sky map's open job when there is one (an operator's
+closure supersedes that job and re-plans its map from the reopening, never
+the older map of the current plan); the re-plan supersedes the current plan
+(C1), the queue on the telescope.
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
 import logging
 import time
 from typing import Any
 
+from . import current_event
 from .outcomes import Accepted, EventRef
 from .store import Store
 from .store_records import job_from_row, now_iso
@@ -34,19 +40,13 @@ log = logging.getLogger("mushrooms.daemon.loop")
 
 
 def current_plan(store: Store, superevent_id: str) -> dict[str, Any] | None:
-    """The event's newest plan not withdrawn: ``plan_id``, ``job_id``, ``revision``, ``document`` (parsed); or None."""
-    row = store.connection().execute(
-        "SELECT plan_id, job_id, revision, document FROM plans WHERE superevent_id=? AND withdrawn=0"
-        " ORDER BY seq DESC LIMIT 1", (superevent_id,)).fetchone()
-    return None if row is None else dict(row) | {"document": json.loads(row["document"])}
+    """The event's newest plan not withdrawn (:func:`.current_event.current_plan`, C1), or None."""
+    return current_event.current_plan(store.connection(), superevent_id)
 
 
 def live_events(store: Store) -> list[str]:
-    """Superevents with a current plan and no retraction, in the order their plans were stored."""
-    rows = store.connection().execute(
-        "SELECT p.superevent_id, MAX(p.seq) AS last FROM plans p JOIN events e USING(superevent_id)"
-        " WHERE p.withdrawn=0 AND e.retracted=0 GROUP BY p.superevent_id ORDER BY last").fetchall()
-    return [str(r[0]) for r in rows]
+    """Superevents with a current plan and no retraction, in the order their plans were stored (C1)."""
+    return current_event.live_events(store.connection())
 
 
 def next_revision(store: Store, superevent_id: str) -> int:
@@ -86,18 +86,14 @@ def record_replan(store: Store, superevent_id: str, start: str, reason: str, ori
     sid = superevent_id.strip()
     ref = EventRef(sid or None)
     with store.transaction() as c:
-        plan = c.execute("SELECT p.plan_id, p.job_id FROM plans p JOIN events e USING(superevent_id)"
-                         " WHERE p.superevent_id=? AND p.withdrawn=0 AND e.retracted=0 ORDER BY p.seq DESC LIMIT 1",
-                         (sid,)).fetchone()
-        source = None if plan is None or plan["job_id"] is None else c.execute(
-            "SELECT * FROM jobs WHERE job_id=?", (plan["job_id"],)).fetchone()
+        plan = current_event.current_plan(c, sid, live=True)  # (C1) the queue the re-plan replaces
+        source = None if plan is None else current_event.map_job(c, sid)  # (C2) the map it re-plans
         if source is None:
             why = f"no current plan of {sid!r} to re-plan (never planned, withdrawn or retracted)"
             log.warning("replan superevent_id=%s origin=%s decision=rejected reason=%r", sid or "-", origin, why)
             return Accepted("rejected", ref, why)
         ref = EventRef(sid, source["alert_type"])
-        open_jobs = [int(r[0]) for r in c.execute(
-            "SELECT job_id FROM jobs WHERE superevent_id=? AND status IN ('pending','running')", (sid,))]
+        open_jobs = current_event.open_jobs(c, sid)
         why = None
         if open_jobs and not operator:
             why = f"job {open_jobs[-1]} of the event is open; its plan will supersede {plan['plan_id']}"
@@ -132,12 +128,7 @@ def record_replan(store: Store, superevent_id: str, start: str, reason: str, ori
 
 def close_without_plan(store: Store, job_id: int, reason: str) -> bool:
     """Close a running re-plan job that found nothing left to observe (the current plan stays); False if not running."""
-    with store.transaction() as c:
-        done = c.execute("UPDATE jobs SET status='done', reason=?, finished_at=? WHERE job_id=? AND status='running'",
-                         (reason[:500], now_iso(), job_id)).rowcount
-        store._started.discard(job_id)
-        store._parked.discard(job_id)
-    return bool(done)
+    return store.close_without_plan(job_id, reason)
 
 
 def replan_jobs(store: Store, superevent_id: str) -> list[dict[str, Any]]:

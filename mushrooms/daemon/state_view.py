@@ -86,21 +86,20 @@ def _loads(text: str | None) -> Any:
         return {"text": text}
 
 
+#: The ``submissions`` columns ``mushrooms status`` shows (:data:`~.store_schema.SUBMISSIONS`).
+_SUBMISSION_COLUMNS = ("state", "queue_name", "reason", "attempts", "attempted_at", "submitted_at", "finished_at")
+
+
 def _submissions(conn: sqlite3.Connection) -> dict[str, dict[str, Any]]:
-    """plan_id -> the newest submission row, when the state file has a ``submissions`` table."""
+    """plan_id -> its submission row (one per plan id), when the state file has a ``submissions`` table."""
     if not has_table(conn, "submissions"):
         return {}
-    cols = [r[1] for r in conn.execute("PRAGMA table_info(submissions)")]
-    if "plan_id" not in cols:
+    cols = {r[1] for r in conn.execute("PRAGMA table_info(submissions)")}
+    if "plan_id" not in cols or "state" not in cols:
         return {}
-    state = next((c for c in ("state", "status") if c in cols), None)
-    order = next((c for c in ("submission_id", "updated_at", "created_at") if c in cols), "rowid")
-    out: dict[str, dict[str, Any]] = {}
-    for r in conn.execute(f"SELECT * FROM submissions ORDER BY {order}"):
-        row = dict(r)
-        out[str(row["plan_id"])] = {"state": row.get(state) if state else None,
-                                    **{k: row[k] for k in ("queue_name", "updated_at", "error") if k in row}}
-    return out
+    shown = [c for c in _SUBMISSION_COLUMNS if c in cols]
+    return {str(r["plan_id"]): {c: r[c] for c in shown}
+            for r in conn.execute(f"SELECT plan_id, {', '.join(shown)} FROM submissions ORDER BY created_at")}
 
 
 def recent_events(conn: sqlite3.Connection, limit: int = 10) -> list[dict[str, Any]]:

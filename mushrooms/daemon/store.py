@@ -67,6 +67,7 @@ from ..handlers.instants import now_iso_z
 from ..handlers.text import storable
 from ..scheduler_core.plan import strict_json
 from ..scheduler_core.plan.messages import plan_final_message
+from . import current_event
 from .state_file import StateInUse, StateLock, StoreError, create_or_check_file, lock_state
 from .store_records import Job, NoticeRecord, OutboxMessage, job_from_row, now_iso, without_raw
 from .store_schema import SCHEMA, SCHEMA_VERSION, missing_steps
@@ -92,20 +93,7 @@ class _TxLedger:
         self.conn = conn
 
     def event_state(self, superevent_id: str) -> EventState | None:
-        return _event_state(self.conn, superevent_id)
-
-
-def _event_state(conn: sqlite3.Connection, sid: str) -> EventState | None:
-    row = conn.execute("SELECT skymap_sha256, retracted, localization, latest_created FROM events"
-                       " WHERE superevent_id=?", (sid,)).fetchone()
-    if row is None:
-        return None
-    ids = tuple(r[0] for r in conn.execute(
-        "SELECT plan_id FROM plans WHERE superevent_id=? AND withdrawn=0 ORDER BY seq", (sid,)))
-    open_job = conn.execute("SELECT EXISTS(SELECT 1 FROM jobs WHERE superevent_id=? AND status IN"
-                            " ('pending','running'))", (sid,)).fetchone()[0]
-    return EventState(sid, row[0], ids, bool(row[1]), localization=row[2], open_job=bool(open_job),
-                      latest_created=row[3])
+        return current_event.event_state(self.conn, superevent_id)
 
 
 class Store:
@@ -254,7 +242,7 @@ class Store:
     # ------------------------------------------------------------ ledger
     def event_state(self, superevent_id: str) -> EventState | None:
         """State of a superevent (the handlers' ``Ledger`` protocol)."""
-        return _event_state(self.connection(), superevent_id)
+        return current_event.event_state(self.connection(), superevent_id)
 
     # ------------------------------------------------------------ accept
     def record_rejected(self, notice: NoticeRecord, reason: str) -> int:
@@ -282,10 +270,10 @@ class Store:
           ``older_than_s`` (s) ago.
         * Planned notices (with ``planned_older_than_s``): once none of the
           notice's jobs is open (a job re-reads its sky map from the bytes
-          after a crash), at once when a newer planned notice of the same
-          superevent exists, else (the notice ``mushrooms trigger
-          SUPEREVENT`` would re-plan from) when its last job finished more
-          than ``planned_older_than_s`` (s) ago.
+          after a crash), at once when it is neither its event's current
+          map nor its current plan's notice (:mod:`.current_event` C3),
+          else (re-plans and ``mushrooms trigger SUPEREVENT`` read them)
+          when its last job finished more than ``planned_older_than_s`` (s) ago.
 
         On a state file created with incremental auto-vacuum (every file
         this version creates) the freed pages go back to the file system;
@@ -301,15 +289,14 @@ class Store:
                 " AND notice_id NOT IN (SELECT notice_id FROM jobs)", (cutoff(older_than_s),))
             n = int(cur.rowcount)
             if planned_older_than_s is not None:
+                kept = json.dumps(sorted(current_event.kept_notices(c)))  # (C3)
                 cur = c.execute(
-                    "WITH per_notice AS (SELECT notice_id, superevent_id,"
-                    "   SUM(status IN ('pending','running')) AS open_jobs,"
-                    "   MAX(COALESCE(finished_at, created_at)) AS last_done FROM jobs GROUP BY notice_id),"
-                    " newest AS (SELECT superevent_id, MAX(notice_id) AS notice_id FROM jobs GROUP BY superevent_id)"
+                    "WITH per_notice AS (SELECT notice_id, SUM(status IN ('pending','running')) AS open_jobs,"
+                    "   MAX(COALESCE(finished_at, created_at)) AS last_done FROM jobs GROUP BY notice_id)"
                     " UPDATE notices SET raw=NULL WHERE raw IS NOT NULL AND notice_id IN"
-                    " (SELECT p.notice_id FROM per_notice p JOIN newest n USING(superevent_id)"
-                    "  WHERE p.open_jobs=0 AND (p.notice_id<n.notice_id OR p.last_done<=?))",
-                    (cutoff(planned_older_than_s),))
+                    " (SELECT notice_id FROM per_notice WHERE open_jobs=0 AND (last_done<=?"
+                    "  OR notice_id NOT IN (SELECT value FROM json_each(?))))",
+                    (cutoff(planned_older_than_s), kept))
                 n += int(c.execute("SELECT changes()").fetchone()[0])  # rowcount is -1 for WITH ... UPDATE
         if n:
             try:
@@ -387,7 +374,7 @@ class Store:
                 if withdrawal is not None:
                     msg = withdrawal(decision, nid)
                     key = str(msg["withdrawal_id"])
-                    self._insert_outbox(c, key, "withdrawal", msg)
+                    self.insert_outbox(c, key, "withdrawal", msg)
             elif decision.retracts_unknown and decision.time_created:
                 # a retraction before any notice of its event: remembered, so that an older notice
                 # arriving after it is stale (creation order, issue 25); nothing is withdrawn or sent
@@ -420,7 +407,8 @@ class Store:
         return int(cur.lastrowid)
 
     @staticmethod
-    def _insert_outbox(c: sqlite3.Connection, key: str, kind: str, message: dict[str, Any]) -> int:
+    def insert_outbox(c: sqlite3.Connection, key: str, kind: str, message: dict[str, Any]) -> int:
+        """Queue a message to publish inside the caller's transaction ``c``; returns its outbox id."""
         cur = c.execute("INSERT INTO outbox(key, kind, body, created_at) VALUES (?,?,?,?)",
                         (key, kind, strict_json.dumps(message, sort_keys=False), now_iso()))
         return int(cur.lastrowid)
@@ -548,24 +536,16 @@ class Store:
         return str(row[0]) + (f" ({row[1]})" if row[1] and row[0] in ("failed", "superseded", "cancelled") else "")
 
     def latest_planned_notice(self, superevent_id: str) -> tuple[int, bytes] | None:
-        """The newest notice of a superevent that was accepted for planning, with its raw bytes."""
-        row = self.connection().execute(
-            "SELECT n.notice_id, n.raw FROM jobs j JOIN notices n USING(notice_id) WHERE j.superevent_id=?"
-            " AND n.raw IS NOT NULL ORDER BY j.job_id DESC LIMIT 1", (superevent_id,)).fetchone()
-        return None if row is None else (int(row[0]), bytes(row[1]))
+        """The notice of the event's current map, with its raw bytes (:func:`.current_event.planned_notice`)."""
+        return current_event.planned_notice(self.connection(), superevent_id)
 
     def first_start(self, *superevent_ids: str) -> str | None:
         """The earliest horizon start (ISO-8601 UTC) of the jobs of these superevents, or None if they have none.
 
-        An event's follow-up begins there: the loop reads executed exposures
-        from it, and its night re-plans count nights from it.
+        An event's follow-up begins there (:func:`.current_event.first_start`, C4): the loop reads
+        executed exposures from it, and its night re-plans count nights from it.
         """
-        if not superevent_ids:
-            return None
-        row = self.connection().execute(
-            f"SELECT MIN(start) FROM jobs WHERE superevent_id IN ({','.join('?' * len(superevent_ids))})",
-            superevent_ids).fetchone()
-        return None if row is None or row[0] is None else str(row[0])
+        return current_event.first_start(self.connection(), *superevent_ids)
 
     def notice_raw(self, notice_id: int) -> bytes | None:
         """Raw bytes of a stored notice (kept for notices that need planning)."""
@@ -629,7 +609,7 @@ class Store:
                           " revision=excluded.revision, final=excluded.final",
                           (plan_id, row["superevent_id"], job_id, now, seq, strict_json.dumps(document), revision,
                            int(final)))
-                outbox_id = self._insert_outbox(c, plan_id, "plan", document)
+                outbox_id = self.insert_outbox(c, plan_id, "plan", document)
             if final:
                 c.execute("UPDATE jobs SET status='done', plan_id=?, coverage=?, latency_s=?, reason=NULL,"
                           " finished_at=? WHERE job_id=?", (plan_id, coverage, latency_s, now, job_id))
@@ -664,7 +644,16 @@ class Store:
                           (key,)).fetchone()
         if found is not None:
             return int(found[0])
-        return self._insert_outbox(c, key, "plan_final", plan_final_message(plan_id, superevent_id, reason, now_iso_z()))
+        return self.insert_outbox(c, key, "plan_final", plan_final_message(plan_id, superevent_id, reason, now_iso_z()))
+
+    def close_without_plan(self, job_id: int, reason: str) -> bool:
+        """Close a running job that stores no plan (a re-plan with nothing left): ``done``; False if not running."""
+        with self.transaction() as c:
+            done = c.execute("UPDATE jobs SET status='done', reason=?, finished_at=? WHERE job_id=?"
+                             " AND status='running'", (reason[:500], now_iso(), job_id)).rowcount
+            self._started.discard(job_id)
+            self._parked.discard(job_id)
+        return bool(done)
 
     def job_plans(self, job_id: int) -> list[dict[str, Any]]:
         """The revisions a job stored, oldest first (documents parsed)."""

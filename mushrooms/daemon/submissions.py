@@ -41,6 +41,7 @@ from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, Callable
 
 from ..handlers.instants import now_iso_z
+from . import current_event
 from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
 from .store import Store
 
@@ -290,11 +291,10 @@ class Submitter:
                              " WHERE s.plan_id IS NULL ORDER BY p.seq").fetchall()
             for r in rows:
                 plan_id, sid, doc = r["plan_id"], r["sid"], json.loads(r["document"])
-                latest = c.execute("SELECT plan_id FROM plans WHERE COALESCE(superevent_id, plan_id)=? AND"
-                                   " withdrawn=0 ORDER BY seq DESC LIMIT 1", (sid,)).fetchone()
+                latest = current_event.latest_plan_id(c, sid)
                 if r["withdrawn"]:
                     reason: str | None = "withdrawn before it was submitted"
-                elif latest is None or latest[0] != plan_id:
+                elif latest != plan_id:
                     reason = "superseded before it was submitted"
                 else:
                     try:
@@ -357,9 +357,7 @@ class Submitter:
         rows = [_row(r) for r in conn.execute(
             "SELECT * FROM submissions WHERE superevent_id=? AND state IN ('pending','submitted')"
             " ORDER BY revision", (sid,))]
-        latest = conn.execute("SELECT plan_id FROM plans WHERE COALESCE(superevent_id, plan_id)=? AND withdrawn=0"
-                              " ORDER BY seq DESC LIMIT 1", (sid,)).fetchone()
-        latest_id = latest[0] if latest else None
+        latest_id = current_event.latest_plan_id(conn, sid)
         wanted = next((r for r in rows if r.plan_id == latest_id), None)
         if wanted is not None and wanted.state == "pending":
             wanted = self._submit(wanted)
@@ -511,7 +509,7 @@ class Submitter:
 
     def _queue_document(self, c: Any, sub: Submission) -> None:
         doc = status_document(sub)
-        Store._insert_outbox(c, doc["submission_id"], "submission", doc)
+        Store.insert_outbox(c, doc["submission_id"], "submission", doc)
 
     def _count(self, state: str) -> None:
         self.results[state] = self.results.get(state, 0) + 1
