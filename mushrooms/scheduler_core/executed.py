@@ -32,7 +32,7 @@ from .errors import InputError
 
 __all__ = [
     "ExecutedExposure", "FieldVisits", "DonePairs", "FILTERS", "STATUSES", "RECORD_KEYS",
-    "N_QUADRANTS", "MIN_PROCESSED_FRACTION", "SAME_START_S",
+    "N_QUADRANTS", "MIN_PROCESSED_FRACTION", "SAME_START_S", "FIELD_ID_MAX",
     "is_done", "same_exposure", "unique_exposures", "done_pairs", "to_record", "from_record",
 ]
 
@@ -51,6 +51,10 @@ MIN_PROCESSED_FRACTION = 0.5
 SAME_START_S = 1.0
 #: Longest exposure a record may claim (s): a day.
 _MAX_EXPOSURE_S = 86400.0
+#: (E0) The largest ZTF field id a record may carry: field ids are six-digit numbers (``ZTF_Fields.txt``
+#: writes them ``%06d``; grids 1-4 use 1-3893).  A larger one is not a ZTF field (and would not fit
+#: SQLite's 64-bit integers past 2^63): the record is skipped.
+FIELD_ID_MAX = 999_999
 
 
 @dataclass(frozen=True)
@@ -88,6 +92,8 @@ class ExecutedExposure:
     def __post_init__(self) -> None:
         if isinstance(self.field_id, bool) or not isinstance(self.field_id, (int, np.integer)) or self.field_id < 1:
             raise InputError(f"field_id {self.field_id!r}: not a positive integer")
+        if self.field_id > FIELD_ID_MAX:
+            raise InputError(f"field_id {str(self.field_id)[:24]}: not a ZTF field (at most {FIELD_ID_MAX})")
         object.__setattr__(self, "field_id", int(self.field_id))
         if self.filter not in FILTERS:
             raise InputError(f"filter {self.filter!r}: not one of {', '.join(FILTERS)}")
