@@ -36,7 +36,7 @@ from typing import Any
 from ..handlers.decisions import EventState
 
 __all__ = ["COUNTING", "current_plan", "map_job", "open_jobs", "live_events", "event_state", "planned_notice",
-           "kept_notices", "first_start", "latest_plan_id"]
+           "kept_notices", "first_start", "latest_plan_id", "asked_at"]
 
 #: Job states whose sky map still counts (C2).
 COUNTING = ("pending", "running", "done")
@@ -142,3 +142,22 @@ def first_start(conn: sqlite3.Connection, *superevent_ids: str) -> str | None:
     row = conn.execute(f"SELECT MIN(start) FROM jobs WHERE superevent_id IN ({','.join('?' * len(superevent_ids))})",
                        superevent_ids).fetchone()
     return None if row is None or row[0] is None else str(row[0])
+
+
+def asked_at(conn: sqlite3.Connection, job_id: int) -> float | None:
+    """Unix time the job was asked for: the receipt of the notice (or re-plan request) its decision records.
+
+    An operator's closure is asked for at the closing, its job starts at the
+    reopening; None when the job has no decision row (a job of an old file).
+    """
+    from datetime import datetime, timezone
+
+    row = conn.execute("SELECT n.received_at FROM decisions d JOIN notices n USING(notice_id) WHERE d.job_id=?"
+                       " ORDER BY d.decision_id LIMIT 1", (job_id,)).fetchone()
+    if row is None or not row[0]:
+        return None
+    try:
+        t = datetime.fromisoformat(str(row[0]).replace("Z", "+00:00"))
+    except ValueError:
+        return None
+    return (t if t.tzinfo else t.replace(tzinfo=timezone.utc)).timestamp()

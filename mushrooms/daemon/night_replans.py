@@ -22,7 +22,7 @@ import logging
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
-from .replans import live_events
+from .replans import current_plan, live_events
 
 if TYPE_CHECKING:
     from astropy.time import Time
@@ -94,8 +94,12 @@ def due_nights(store: "Store", planning: "PlanningConfig", now: "Time") -> list[
             continue
         nights = event_nights(store, planning, sid)
         n = night_of(nights, float(now.unix))
-        if n is not None and n >= 2 and not night_replanned(store, sid, n):
-            out.append((sid, n, *nights[n - 1]))
+        if n is None or n < 2 or night_replanned(store, sid, n):
+            continue
+        plan = current_plan(store, sid)
+        if plan is not None and float(parse_time(plan["document"]["start"]).unix) >= nights[n - 1][0]:
+            continue  # (L13) the current plan was planned from inside night n (a closure into it, a slip in it)
+        out.append((sid, n, *nights[n - 1]))
     return out
 
 
@@ -157,19 +161,25 @@ def plans_as_done(store: "Store", superevent_id: str, before_unix: float) -> tup
     """(L11) Without an executed source: the event's revisions' exposures before ``before_unix``, taken as done.
 
     Revision ``i`` was the queue from its start until the next revision's
-    start (it superseded ``i``): its observations starting in that span (and
-    before ``before_unix``) count as executed, fully reduced at their planned
-    times (``as_planned``, N2).  Withdrawn plans and answers that are not
+    start (it superseded ``i``), or until the next revision was asked for
+    when that was earlier (L14: an operator's closure closed the dome then):
+    its observations starting in that span (and before ``before_unix``)
+    count as executed, fully reduced at their planned times (``as_planned``, N2).  Withdrawn plans and answers that are not
     plans count for nothing.
     """
     from ..scheduler_core.executed import ExecutedExposure
     from ..scheduler_core.plan.document import parse_time
 
-    docs = [r["document"] for r in store.plans(superevent_id)
+    rows = [r for r in store.plans(superevent_id)
             if not r["withdrawn"] and r["document"].get("type", "plan") == "plan"]
-    starts = [float(parse_time(d["start"]).unix) for d in docs] + [before_unix]
+    docs = [r["document"] for r in rows]
+    # (L14) a revision is the queue until the next one starts, or until the next one was asked for when that
+    # was earlier (an operator's closure: nothing was observed from the closing to the reopening)
+    asked = [store.asked_at(r["job_id"]) if r["job_id"] is not None else None for r in rows]
+    starts = [float(parse_time(d["start"]).unix) for d in docs]
+    ends = [min(s, a) if a is not None else s for s, a in zip(starts, asked)][1:] + [before_unix]
     done = []
-    for d, until in zip(docs, starts[1:]):
+    for d, until in zip(docs, ends):
         until = min(until, before_unix)
         for o in d.get("observations", []):
             t = parse_time(o["start"])

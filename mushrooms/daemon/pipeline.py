@@ -210,7 +210,8 @@ class NoticePipeline:
             return Accepted("rejected", EventRef(sid or None), why)
         start = max(aware(until), aware(now))  # (L6)
         return record_replan(self.store, sid, iso_z(start), f"telescope closed until {iso_z(aware(until))} "
-                             f"(operator); re-planned from {iso_z(start)}", origin, operator=True)
+                             f"(operator); re-planned from {iso_z(start)}", origin, operator=True,
+                             asked_at=iso_z(aware(now)))
 
     def replan_event(self, superevent_id: str, start: datetime, reason: str, origin: str) -> Accepted:
         """Record the loop's re-plan of an event from ``start`` (the slip rule said so; guards L8)."""

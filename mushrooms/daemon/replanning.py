@@ -5,8 +5,8 @@
     replan job ─ sky map (the event's planned notice) ▸ executed since the event's first plan
                ─ scheduler_core.replan.plan_remaining(start = the job's start) ▸ next revision, final
 
-The plan covers ``[start, end of the plan it supersedes]`` (at least an
-hour: ``[scheduler] horizon_h``'s floor), so the re-plan fills the rest of
+The plan covers ``[start, end of the plan it supersedes]`` (at least one
+``[scheduler] time_step_s``, never past that end: L15), so the re-plan fills the rest of
 the queue's validity window and no more; with ``[scheduler] nights > 1`` a
 re-plan starting inside one of the event's nights covers the rest of that
 night, ``[start, e_n]`` (L10).  It is published as the event's
@@ -85,11 +85,17 @@ def run_replan(planner: Any, job: "Job", stage: Callable[[str], None],
     left_s = float((end - start).to_value("s"))
     if left_s <= 0:
         return _nothing(planner, job, f"the window of {job.supersedes} ends before the re-plan's start {job.start}")
+    if left_s < sched.time_step_s:  # (L15) not one time step of the window left
+        return _nothing(planner, job, f"the window of {job.supersedes} ends {left_s:.0f} s after the re-plan's "
+                        f"start {job.start}, less than one time step")
     # (L7) the rest of the superseded plan's window (L10: of the night), with what was executed since the
     # event's first plan; (L11) with nights > 1 and no executed source, the earlier revisions taken as done
-    config = dataclasses.replace(sched, horizon_h=min(sched.horizon_h, max(1.0, left_s / 3600.0)))
+    # (L15) the horizon never passes the window's end: at least one time step, not an hour
+    config = dataclasses.replace(sched, horizon_h=min(sched.horizon_h, left_s / 3600.0))
     if sched.nights > 1 and not planner.loop.enabled:
-        executed = list(plans_as_done(store, job.superevent_id, float(start.unix)))
+        asked = store.asked_at(job.job_id)  # (L14) a closure: nothing was observed from the closing on
+        before = float(start.unix) if asked is None else min(float(start.unix), asked)
+        executed = list(plans_as_done(store, job.superevent_id, before))
     else:
         executed = executed_between(store, _since_unix(store, job.superevent_id))
     if sched.revisit and night is not None:  # (N4) revisit: the earlier nights' fields may be observed again

@@ -57,7 +57,7 @@ def next_revision(store: Store, superevent_id: str) -> int:
 
 
 def record_replan(store: Store, superevent_id: str, start: str, reason: str, origin: str,
-                  operator: bool = False, night: bool = False) -> Accepted:
+                  operator: bool = False, night: bool = False, asked_at: str | None = None) -> Accepted:
     """Record a re-plan job of an event from ``start``, atomically (guards L8).
 
     Parameters
@@ -76,6 +76,9 @@ def record_replan(store: Store, superevent_id: str, start: str, reason: str, ori
     night : bool
         A later night's re-plan (L10): an already re-planned plan is
         re-planned again (a new night is new work); an open job still blocks.
+    asked_at : str, optional
+        When it was asked for (ISO-8601 UTC; default now): an operator's
+        closure is asked at the closing and starts at the reopening (L14).
 
     Returns
     -------
@@ -110,7 +113,7 @@ def record_replan(store: Store, superevent_id: str, start: str, reason: str, ori
         asked = f"replan {sid} from {start}: {reason}"
         nid = int(c.execute(
             "INSERT INTO notices(received_at, origin, sha256, size, superevent_id, alert_type, time_created, raw)"
-            " VALUES (?,?,?,?,?,?,?,NULL)", (now, origin[:500], hashlib.sha256(asked.encode()).hexdigest(), 0, sid,
+            " VALUES (?,?,?,?,?,?,?,NULL)", (asked_at or now, origin[:500], hashlib.sha256(asked.encode()).hexdigest(), 0, sid,
                                              source["alert_type"], source["time_created"])).lastrowid)
         cur = c.execute(
             "INSERT INTO jobs(notice_id, superevent_id, alert_type, time_created, skymap_sha256, decision, start,"

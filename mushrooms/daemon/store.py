@@ -547,6 +547,10 @@ class Store:
         """
         return current_event.first_start(self.connection(), *superevent_ids)
 
+    def asked_at(self, job_id: int) -> float | None:
+        """Unix time the job was asked for (:func:`.current_event.asked_at`), or None."""
+        return current_event.asked_at(self.connection(), job_id)
+
     def notice_raw(self, notice_id: int) -> bytes | None:
         """Raw bytes of a stored notice (kept for notices that need planning)."""
         row = self.connection().execute("SELECT raw FROM notices WHERE notice_id=?", (notice_id,)).fetchone()

@@ -103,14 +103,18 @@ def test_night_two_is_re_planned_once_at_its_start_without_a_done_pair(planned_t
 
 
 def test_night_two_waits_for_an_open_job_and_then_re_plans(planned_two, tmp_path, nights):
-    """A job of the event open at the twilight: the night is not marked, the next poll re-plans it."""
+    """A job of the event open at the twilight: the night is not marked, the next poll re-plans it.
+
+    The job is a closure of the day between the nights (it reopens before night 2: nothing of night 1 is
+    left, so it ends without a plan and night 1's plan is still the current one at night 2's evening).
+    """
     executed = tmp_path / "executed.jsonl"
     p = pipeline(copy_state(planned_two, tmp_path), loop_config(executed))
     try:
         write_executed(executed, [])
         evening = at(nights[1][0], 60.0)
-        closure = p.replan_closure(SUPEREVENT, at(evening, 1800.0).isot + "Z", "test:closure",
-                                   now=evening.to_datetime())
+        closure = p.replan_closure(SUPEREVENT, at(nights[1][0], -1800.0).isot + "Z", "test:closure",
+                                   now=at(nights[0][1], 3600.0).to_datetime())
         assert closure.job is not None
         loop = ExecutedLoop(p.loop, p)
         assert loop.poll(evening).jobs == []  # the closure's job is open
@@ -159,17 +163,18 @@ def test_without_a_source_night_two_counts_night_one_plan_as_done(planned_two, t
 
 
 def test_without_a_source_each_revision_counts_until_the_next_one_starts(planned_two, tmp_path, nights):
-    """(L11) A closure re-plan on night 1 with no source: revision 1 counts before the reopening, 2 after."""
+    """(L11, L14) A closure re-plan on night 1 with no source: revision 1 counts before the closing, 2 after."""
     p = pipeline(copy_state(planned_two, tmp_path), LoopConfig())
     try:
         first = the_plan(p)
         obs = first["observations"]
-        reopening = at(t(obs[9]["end"]), 7200.0)
-        acc = p.replan_closure(SUPEREVENT, reopening.isot + "Z", "test:closure", now=t(obs[9]["end"]).to_datetime())
+        closing = t(obs[9]["end"])
+        reopening = at(closing, 7200.0)
+        acc = p.replan_closure(SUPEREVENT, reopening.isot + "Z", "test:closure", now=closing.to_datetime())
         out = p.run_job(acc.job)
         assert out.decision == "replan" and out.plan_id, out
         second = the_plan(p)
-        before = [o for o in obs if t(o["start"]).unix < reopening.unix]
+        before = [o for o in obs if t(o["start"]).unix < closing.unix]  # (L14) none while closed
         # night 1's re-plan took revision 1's exposures before the reopening as done: no done pair again
         pairs = done_pairs(executed_like(before), ("g", "r"), cadence_s=CADENCE_S)
         assert pairs.both and not [o for o in second["observations"] if o["field_id"] in pairs.both]
