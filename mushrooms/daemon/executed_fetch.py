@@ -34,7 +34,8 @@ from typing import TYPE_CHECKING, Any
 from urllib.parse import urlencode
 
 from ..handlers.executed_source import ExecutedSource
-from .remote import Unreachable, redact
+from ..handlers.secret_text import redact
+from .remote import Unreachable
 
 if TYPE_CHECKING:
     from astropy.time import Time

@@ -11,6 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from urllib.parse import urlparse
 
+from .secret_text import refuse_url_credentials
+
 __all__ = ["ExecutedSource", "SOURCE_KINDS", "parse_executed_source"]
 
 #: The kinds of ``executed_source`` a configuration may name.
@@ -73,6 +75,9 @@ def parse_executed_source(spec: str) -> ExecutedSource:
         raise ValueError(f"executed source {spec!r}: a depot is an http(s) URL or a directory, not {url.scheme}:")
     if kind == "depot" and is_url and not url.netloc:
         raise ValueError(f"executed source {spec!r}: the depot URL has no host")
+    if is_url:  # (L1) the token comes from the credential, never from the URL (nor into logs and the state)
+        refuse_url_credentials(location, f"executed source {kind}:", "the token comes from "
+                               "MUSHROOMS_EXECUTED_TOKEN or the systemd credential executed_token")
     if kind == "file" and is_url:
         raise ValueError(f"executed source {spec!r}: file: takes a path, not a URL")
     return ExecutedSource(kind, location)

@@ -40,6 +40,7 @@ def run(args: argparse.Namespace) -> int:
     """List or delete; 0 done, 1 refused or not reached, 2 bad input."""
     from ..daemon.credentials import load_submit_token
     from ..daemon.remote import KowalskiQueue, Unreachable
+    from ..handlers.secret_text import refuse_url_credentials
     from ..scheduler_core.errors import InputError
     from .config import ConfigError, load_config
 
@@ -47,6 +48,11 @@ def run(args: argparse.Namespace) -> int:
     url = args.url or config.submit.url
     if not url:
         raise ConfigError("no Kowalski URL: give --url or set [submit] url")
+    try:  # the token comes from the credential; a password in --url would be printed and logged
+        refuse_url_credentials(url, "--url", "the token comes from MUSHROOMS_SUBMIT_TOKEN or the systemd "
+                               "credential submit_token")
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
     if args.action == "delete" and not args.name:
         raise InputError("queue delete needs the NAME of the queue")
     token, _ = load_submit_token()
