@@ -96,6 +96,10 @@ class UpperBound:
         also its ``empty`` and ``all_fields`` cases), ``milp`` (U0 solved) or
         ``interval`` (V1-V4, :func:`~.schedulers.interval_bound.interval_upper_bound`,
         when it is below U4).
+    margin : float
+        What ``value`` carries above the computed bound (``milp.md`` B1, B2):
+        the rounding margin of an exact bound, or the solver's tolerances of
+        a MILP's dual bound.
     """
 
     value: float
@@ -104,6 +108,7 @@ class UpperBound:
     max_fields: int
     runtime_s: float
     method: str = "online"
+    margin: float = 1e-9
 
 
 @dataclass(frozen=True)

@@ -392,6 +392,10 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     reported = plan.metrics.coverage if plan.metrics is not None else None
     if reported is not None and abs(float(reported) - coverage) > coverage_tolerance:
         p.add("coverage", f"reported {reported:.5f} but the footprints hold {coverage:.5f}")
+    bound = None if plan.metrics is None else plan.metrics.upper_bound
+    if reported is not None and bound is not None and float(reported) > float(bound):
+        # (B3) the certified bound (its margin included, milp.md B1, B2) is above every plan's coverage
+        p.add("bound", f"reported coverage {reported:.7f} above the certified upper bound {bound:.7f}")
     reported_executed = None if plan.metrics is None else plan.metrics.coverage_executed
     if reported_executed is not None:
         held = polygon_coverage(pairs.both, skymap.prob)

@@ -46,7 +46,28 @@ from ..problem import PlanningProblem, UpperBound  # UpperBound is defined besid
 from ..sky.windows import union_intervals
 from .solvers import MilpModel, solve_milp
 
-__all__ = ["UpperBound", "pairable_rows", "max_fields", "coverage_upper_bound"]
+__all__ = ["UpperBound", "pairable_rows", "max_fields", "coverage_upper_bound", "solver_margin", "BOUND_MIP_GAP",
+           "HIGHS_PRIMAL_TOL", "ROUNDING_MARGIN"]
+
+#: (B1) The relative MIP gap the bound's solves stop at (HiGHS ``mip_rel_gap``).
+BOUND_MIP_GAP = 1e-6
+#: (B1) HiGHS's primal feasibility tolerance (its default ``primal_feasibility_tolerance``): how far a row
+#: of a solution it accepts may be violated.
+HIGHS_PRIMAL_TOL = 1e-7
+#: (B2) An exact bound's float rounding (sums of at most ~1e5 weights, each rounded to 2^-53 relative).
+ROUNDING_MARGIN = 1e-9
+
+
+def solver_margin(value: float, total_weight: float) -> float:
+    """(B1) What a MILP bound ``value`` (coverage) carries: ``g |v| + tau_p sum_l w_l + 1e-9``.
+
+    ``g`` (:data:`BOUND_MIP_GAP`): a solve stopped at the gap may report its
+    incumbent's objective, up to ``g |v|`` below its dual bound;
+    ``tau_p`` (:data:`HIGHS_PRIMAL_TOL`): each coverage row ``y_l <= sum z_f``
+    may be violated by ``tau_p``, moving ``sum w_l y_l`` by at most
+    ``tau_p sum_l w_l``; and the rounding of :data:`ROUNDING_MARGIN`.
+    """
+    return BOUND_MIP_GAP * abs(float(value)) + HIGHS_PRIMAL_TOL * max(float(total_weight), 0.0) + ROUNDING_MARGIN
 
 
 def _widened(problem: PlanningProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -146,7 +167,8 @@ def coverage_upper_bound(problem: PlanningProblem, method: str = "online", time_
         return UpperBound(everything, "all_fields", int(rows.size), K, time.perf_counter() - t0)
     if method == "online":
         value = _online_bound(fp, problem.prob, K)
-        return UpperBound(min(value + 1e-9, everything), "online", int(rows.size), K, time.perf_counter() - t0)
+        return UpperBound(min(value + ROUNDING_MARGIN, everything), "online", int(rows.size), K,
+                          time.perf_counter() - t0, margin=ROUNDING_MARGIN)  # (B2)
     if method != "milp":
         raise ValueError(f"unknown bound method {method!r}")
     cells = merge_cells(fp, problem.prob)
@@ -163,9 +185,11 @@ def coverage_upper_bound(problem: PlanningProblem, method: str = "online", time_
     integer = np.concatenate([np.ones(F, bool), np.zeros(C, bool)])
     model = MilpModel(c, A, np.full(C + 1, -np.inf), np.concatenate([np.zeros(C), [float(K)]]),
                       np.zeros(F + C), np.ones(F + C), integer)
-    res = solve_milp(model, backend, time_limit_s, mip_gap=1e-6)
+    res = solve_milp(model, backend, time_limit_s, mip_gap=BOUND_MIP_GAP)
     if res.status in ("optimal", "time_limit", "interrupted") and res.bound is not None and math.isfinite(res.bound):
         value, status = float(res.bound), "optimal" if res.status == "optimal" else "dual_bound"
     else:
         value, status = everything, "all_fields"
-    return UpperBound(min(value + 1e-9, everything), status, F, K, time.perf_counter() - t0, method="milp")
+    margin = solver_margin(value, float(cells.weight.sum()))  # (B1)
+    return UpperBound(min(value + margin, everything), status, F, K, time.perf_counter() - t0, method="milp",
+                      margin=margin)

@@ -33,7 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..problem import PlanningProblem, UpperBound
-from .bound import _widened, coverage_upper_bound, max_fields, pairable_rows
+from .bound import BOUND_MIP_GAP, _widened, coverage_upper_bound, max_fields, pairable_rows, solver_margin
 from .solvers import MilpModel, solve_milp
 
 __all__ = ["field_spans", "interval_violation", "interval_upper_bound"]
@@ -183,7 +183,7 @@ def interval_upper_bound(problem: PlanningProblem, time_limit_s: float = 2.0) ->
         model = MilpModel(c, A, np.full(hi.size, -np.inf), hi, np.zeros(F + C), np.ones(F + C), integer)
         # the process's thread setting: HiGHS sizes one thread pool per process (solve_milp resets it
         # when the count changes); a failed solve's dual bound is no bound at all
-        res = solve_milp(model, "highs", left, mip_gap=1e-6, threads=problem.config.threads)
+        res = solve_milp(model, "highs", left, mip_gap=BOUND_MIP_GAP, threads=problem.config.threads)
         if res.status in PROVEN and res.bound is not None and math.isfinite(res.bound):
             best = min(best, float(res.bound))  # (V4) every solve's proven bound is a bound
         if res.x is None or res.status not in PROVEN:
@@ -195,7 +195,8 @@ def interval_upper_bound(problem: PlanningProblem, time_limit_s: float = 2.0) ->
             status = "interval" if res.status == "optimal" else status
             break
         cuts += [iv.row(int(a), int(b)) for a, b in new]
-    value = best + 1e-9  # the margin every published bound carries (U4 too)
+    margin = solver_margin(best, float(cells.weight.sum()))  # (B1) the solver's tolerances
+    value = best + margin
     if not value < u4.value:  # never above U4: min(U4, V)
         return dataclasses.replace(u4, runtime_s=time.perf_counter() - t0)
-    return UpperBound(value, status, F, K, time.perf_counter() - t0, method="interval")
+    return UpperBound(value, status, F, K, time.perf_counter() - t0, method="interval", margin=margin)

@@ -50,7 +50,7 @@ BLOCKS_LIMIT_S = 1.0
 #: The hybrid runs the LNS re-solves (:mod:`.lns`) only when at least this much (s) of its budget is left.
 MIN_LNS_S = 0.5
 
-#: A plan covering at least ``(1 - BOUND_RTOL)`` of the certified bound (less its 1e-9 margin) is optimal to
+#: A plan covering at least ``(1 - BOUND_RTOL)`` of the certified bound (less its margin, B1/B2) is optimal to
 #: within that: the portfolio skips its remaining stages.  Tight on purpose: a plan one small pixel short
 #: of the bound (a few 1e-6 of coverage on a random test problem) is not optimal, and a later stage finds
 #: the pixel; a plan the skip keeps is at most this far (relative) from what the full run would keep.
@@ -132,7 +132,7 @@ def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
 
 def reaches_bound(coverage: float, bound: UpperBound) -> bool:
     """True when ``coverage`` is within :data:`BOUND_RTOL` (relative) of the certified ``bound``."""
-    return coverage >= (1.0 - BOUND_RTOL) * (bound.value - 1e-9)
+    return coverage >= (1.0 - BOUND_RTOL) * (bound.value - bound.margin)
 
 
 @dataclass(frozen=True)
