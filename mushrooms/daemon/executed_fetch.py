@@ -27,6 +27,7 @@ import base64
 import json
 import logging
 import socket
+import time
 import urllib.error
 import urllib.request
 from pathlib import Path
@@ -53,10 +54,28 @@ SKYPORTAL_TELESCOPE = "Palomar 1.2m Oschin"
 SKYPORTAL_INSTRUMENT = "ZTF"
 #: Observations per SkyPortal page: its MAX_OBSERVATIONS.
 PAGE_SIZE = 1000
-#: Most pages read in one poll (a million exposures: far more than a night holds).
-MAX_PAGES = 1000
-#: Largest answer read (bytes): a night's depot file is a few MB.
+#: Most pages read in one poll (100 000 exposures: ZTF takes under a thousand a night).
+MAX_PAGES = 100
+#: Largest answer or file read (bytes) when the caller gives none: a night's depot file is a few MB.
 MAX_BODY_BYTES = 256 * 1024 * 1024
+#: Messages of bad records remembered across polls (each is logged once; L16).
+_REMEMBERED = 10_000
+
+
+class _Once(logging.Filter):
+    """(L16) Let each distinct message through once: a bad record read again at the next poll is not logged again."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.seen: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        key = record.getMessage()
+        if key in self.seen:
+            return False
+        if len(self.seen) < _REMEMBERED:
+            self.seen.add(key)
+        return True
 
 
 class FetchError(RuntimeError):
@@ -74,14 +93,28 @@ class ExecutedReader:
         For a URL source: SkyPortal's token, or the depot's ``USER:PASSWORD``.
     timeout_s : float
         One HTTP request (s).
+    max_bytes : int
+        Largest file or answer read (``[loop] max_source_bytes``); a larger
+        one fails the poll with one line.
+    max_read_s : float
+        Wall-clock budget (s) of one poll's reading (``[loop] max_read_s``):
+        a SkyPortal still paginating past it fails the poll with one line.
+    program_ids : tuple of int
+        A depot's exposures of these programmes only (L18; empty: all).
     """
 
-    def __init__(self, source: ExecutedSource, token: str | None = None, timeout_s: float = 10.0) -> None:
+    def __init__(self, source: ExecutedSource, token: str | None = None, timeout_s: float = 10.0,
+                 max_bytes: int = MAX_BODY_BYTES, max_read_s: float = 120.0,
+                 program_ids: tuple[int, ...] = ()) -> None:
         if source.kind == "none" or not source.location:
             raise ValueError("no executed source to read")
         self.source = source
         self._token = token
         self.timeout_s = float(timeout_s)
+        self.max_bytes = int(max_bytes)
+        self.max_read_s = float(max_read_s)
+        self.program_ids = tuple(program_ids)
+        self._once = _Once()
 
     def __repr__(self) -> str:  # never the token
         return f"ExecutedReader({self.describe()!r}, token=***)"
@@ -107,16 +140,25 @@ class ExecutedReader:
         FetchError
             An HTTP error status.
         """
+        quiet = logging.getLogger("mushrooms.handlers.executed")
+        quiet.addFilter(self._once)
+        try:
+            return self._read(start, end)
+        finally:
+            quiet.removeFilter(self._once)
+
+    def _read(self, start: "Time", end: "Time") -> tuple["ExecutedExposure", ...]:
         from ..handlers import executed as readers
+        from ..scheduler_core.errors import InputError
         from ..scheduler_core.executed import unique_exposures
 
         kind, where = self.source.kind, str(self.source.location)
         if kind == "file":
             path = Path(where)
-            if not path.exists():
+            if not path.exists() and not path.is_symlink():
                 log.info("event=executed_not_yet source=%s reason='no such file yet'", self.describe())
                 return ()
-            return readers.read_jsonl(path)
+            return readers.read_jsonl(self._file(path, "executed file"), what=f"executed file {path.name}")
         if kind == "depot":
             found: list[Any] = []
             from astropy.time import TimeDelta
@@ -125,13 +167,31 @@ class ExecutedReader:
                 if self.is_url:
                     data = self._get(f"{where.rstrip('/')}/{rel}", missing_ok=True)
                     if data is not None:
-                        found += readers.read_depot(data, what=f"depot file {rel}")
-                elif (Path(where) / rel).is_file():
-                    found += readers.read_depot(Path(where) / rel)
+                        found += readers.read_depot(data, what=f"depot file {rel}", program_ids=self.program_ids)
+                    continue
+                path = Path(where) / rel
+                if not path.exists() and not path.is_symlink():
+                    continue  # a night without a file: nothing yet
+                try:
+                    found += readers.read_depot(self._file(path, "depot file"), what=f"depot file {rel}",
+                                                program_ids=self.program_ids)
+                except InputError as exc:  # (L16) a FIFO, a device, a link loop: one line, once
+                    self._warn_once(f"event=executed_file_skipped source={self.describe()} error={str(exc)!r}")
             return unique_exposures(found)
         if kind == "skyportal":
             return unique_exposures(self._skyportal(start, end))
         raise ValueError(f"unknown executed source kind {kind!r}")
+
+    def _file(self, path: Path, what: str) -> bytes:
+        """(L16) A regular file's bytes, at most ``max_bytes`` (never a FIFO or device: nothing blocks)."""
+        from ..inputs import read_regular_file
+
+        return read_regular_file(path, self.max_bytes, what)
+
+    def _warn_once(self, line: str) -> None:
+        if line not in self._once.seen:
+            self._once.seen.add(line)
+            log.warning("%s", line)
 
     # ------------------------------------------------------------ SkyPortal
     def _skyportal(self, start: "Time", end: "Time") -> list[Any]:
@@ -142,7 +202,12 @@ class ExecutedReader:
                   "startDate": start.utc.isot, "endDate": end.utc.isot, "numPerPage": PAGE_SIZE}
         out: list[Any] = []
         seen = 0
-        for page in range(1, MAX_PAGES + 1):
+        began = time.monotonic()
+        for page in range(1, MAX_PAGES + 2):
+            if page > MAX_PAGES or time.monotonic() - began > self.max_read_s:  # (L16) a SkyPortal paging forever
+                raise FetchError(f"SkyPortal still paginating after {page - 1} pages and "
+                                 f"{time.monotonic() - began:.0f} s ({seen} observations; at most {MAX_PAGES} "
+                                 f"pages and [loop] max_read_s = {self.max_read_s:g} s a poll)")
             data = self._get(f"{base}?{urlencode(window | {'pageNumber': page})}")
             assert data is not None
             out += read_skyportal(data, what=f"SkyPortal answer (page {page})")
@@ -167,7 +232,7 @@ class ExecutedReader:
         request = urllib.request.Request(url, method="GET", headers=self._headers())
         try:
             with urllib.request.urlopen(request, timeout=self.timeout_s) as resp:
-                body = resp.read(MAX_BODY_BYTES + 1)
+                body = resp.read(self.max_bytes + 1)
         except urllib.error.HTTPError as exc:
             if exc.code == 404 and missing_ok:
                 return None
@@ -179,8 +244,8 @@ class ExecutedReader:
         except (urllib.error.URLError, OSError, socket.timeout) as exc:
             reason = getattr(exc, "reason", exc)
             raise Unreachable(f"GET {url}: {redact(str(reason), self._token)}") from None
-        if len(body) > MAX_BODY_BYTES:
-            raise FetchError(f"GET {url}: answer larger than {MAX_BODY_BYTES} bytes")
+        if len(body) > self.max_bytes:
+            raise FetchError(f"GET {url}: answer larger than {self.max_bytes} bytes ([loop] max_source_bytes)")
         return body
 
 

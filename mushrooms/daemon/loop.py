@@ -85,7 +85,8 @@ class ExecutedLoop:
                  reader: ExecutedReader | None = None) -> None:
         self.config = config
         self.pipeline = pipeline
-        self.reader = reader if reader is not None else ExecutedReader(config.source, token, config.timeout_s)
+        self.reader = reader if reader is not None else ExecutedReader(
+            config.source, token, config.timeout_s, config.max_source_bytes, config.max_read_s, config.program_ids)
 
     def poll(self, now: "Time | None" = None) -> Poll:
         """Read, store, compare, re-plan (once); ``now`` default the wall clock (tests pass the night's time)."""
@@ -130,7 +131,8 @@ class ExecutedLoop:
             doc = plan["document"]
             start = Time(str(doc["start"]).rstrip("Z"), scale="utc")
             executed = executed_between(store, float(start.unix) - 1.0, float(now.unix))
-            slip = slip_of(doc, executed, now, self.config.max_slip_s, self.config.min_processed_fraction)
+            slip = slip_of(doc, executed, now, self.config.max_slip_s, self.config.min_processed_fraction,
+                           self.config.failed_settle_s)
             log.info("event=slip_check superevent_id=%s plan_id=%s replan=%s executed=%d planned=%d slip_s=%s "
                      "reason=%r", sid, plan["plan_id"], str(slip.replan).lower(), slip.executed, slip.planned,
                      "-" if slip.slip_s is None else f"{slip.slip_s:.0f}", slip.reason)

@@ -49,6 +49,19 @@ class LoopConfig:
     timeout_s : float
         One HTTP request (s) of a URL source before the poll counts as failed
         (the next poll tries again).
+    max_source_bytes : int
+        Largest file or answer read (bytes); a larger one fails the poll (L16).
+    max_read_s : float
+        Wall-clock budget (s) of one poll's reading: a SkyPortal still
+        paginating past it (or past 100 pages) fails the poll (L16).
+    failed_settle_s : float
+        An exposure processed below ``min_processed_fraction`` is still being
+        reduced, not failed, until this long (s) after its end (L17).
+    program_ids : tuple of int
+        Count only exposures of these ZTF programmes (the depot rows'
+        ``programid``: 1 public, 2 partnership, 3 Caltech; empty, the
+        default: every programme's, L18).  Only the depot names an
+        exposure's programme, so ids with another source are refused.
     """
 
     executed_source: str = "none"
@@ -56,6 +69,12 @@ class LoopConfig:
     poll_interval_s: float = setting(300.0, 1, 86400, "s", why="the depot's recentproc file grows as exposures are reduced")
     max_slip_s: float = setting(900.0, 0, 86400, "s", why="0: any delay re-plans; three exposures by default")
     timeout_s: float = setting(10.0, 0.1, 600, "s")
+    max_source_bytes: int = setting(256 * 1024 * 1024, 1024, 16 * 1024 ** 3, "bytes",
+                                    why="a night's depot file is a few MB")
+    max_read_s: float = setting(120.0, 1, 3600, "s", why="a source paging forever must not hold the poll")
+    failed_settle_s: float = setting(1800.0, 0, 86400, "s",
+                                     why="the depot lists an exposure before its reduction ends")
+    program_ids: tuple[int, ...] = setting((), 1, 99, why="each element: a ZTF programme id; empty: every programme")
 
     def __post_init__(self) -> None:
         require_finite(self, "loop")
@@ -63,6 +82,14 @@ class LoopConfig:
             parse_executed_source(self.executed_source)
         except ValueError as exc:
             raise ValueError(f"[loop] {exc}") from None
+        ids = self.program_ids
+        if not isinstance(ids, (tuple, list)) or not all(isinstance(i, int) and not isinstance(i, bool)
+                                                         and 1 <= i <= 99 for i in ids):
+            raise ValueError(f"[loop] program_ids must be a list of ZTF programme ids in [1, 99], got {ids!r}")
+        object.__setattr__(self, "program_ids", tuple(ids))
+        if ids and self.source.kind != "depot":
+            raise ValueError("[loop] program_ids needs a depot: executed_source; only the depot's rows name an "
+                             "exposure's programme (programid)")
 
     @property
     def source(self) -> ExecutedSource:

@@ -138,6 +138,27 @@ def _finite(value: Any, name: str) -> float:
     return float(value)
 
 
+#: (L16) Malformed records logged one by one per read; the rest are counted in one line.
+MAX_WARNINGS = 10
+
+
+class _Skipped:
+    """The malformed records of one read: the first :data:`MAX_WARNINGS` logged, the others counted."""
+
+    def __init__(self, what: str) -> None:
+        self.what, self.count = what, 0
+
+    def __call__(self, where: str, problem: Any) -> None:
+        self.count += 1
+        if self.count <= MAX_WARNINGS:
+            log.warning("%s %s: %s; skipped", self.what, where, problem)
+
+    def done(self) -> None:
+        if self.count > MAX_WARNINGS:
+            log.warning("%s: %d more malformed record(s) skipped (%d in all; the first %d are listed)", self.what,
+                        self.count - MAX_WARNINGS, self.count, MAX_WARNINGS)
+
+
 def _status(fraction: float) -> str:
     """(E0) processed when some of the exposure was reduced, else failed."""
     return "processed" if fraction > 0 else "failed"
@@ -157,7 +178,8 @@ def _depot_rows(doc: Any, what: str) -> list[Any]:
     raise InputError(f"{what}: a JSON {type(doc).__name__}, not a list of quadrant rows")
 
 
-def read_depot(source: bytes | str | os.PathLike, what: str = "depot file") -> tuple[ExecutedExposure, ...]:
+def read_depot(source: bytes | str | os.PathLike, what: str = "depot file",
+               program_ids: Iterable[int] = ()) -> tuple[ExecutedExposure, ...]:
     """Exposures of a ZTF depot ``ztf_recentproc_<YYYYMMDD>.json``.
 
     The file has one row per readout quadrant of an exposure with (among
@@ -176,6 +198,9 @@ def read_depot(source: bytes | str | os.PathLike, what: str = "depot file") -> t
         The file's content, or the file.
     what : str
         Name of the source in messages.
+    program_ids : iterable of int
+        (L18) Keep only rows whose ``programid`` is one of these (a row
+        without one is of no programme and left out); empty: every row.
 
     Returns
     -------
@@ -189,7 +214,11 @@ def read_depot(source: bytes | str | os.PathLike, what: str = "depot file") -> t
     """
     what = _named(source, what)
     rows = _depot_rows(_json(source, what), what)
+    wanted = set(program_ids)
+    if wanted:
+        rows = [r for r in rows if isinstance(r, Mapping) and r.get("programid") in wanted]
     groups: dict[int, list[tuple[int, Mapping[str, Any]]]] = {}
+    skipped = _Skipped(what)
     for i, row in enumerate(rows):
         try:
             if not isinstance(row, Mapping):
@@ -206,7 +235,7 @@ def read_depot(source: bytes | str | os.PathLike, what: str = "depot file") -> t
             _finite(row["obsjd"], "obsjd")
             _finite(row["exposure_time"], "exposure_time")
         except InputError as exc:
-            log.warning("%s row %d: %s; skipped", what, i, exc)
+            skipped(f"row {i}", exc)
             continue
         groups.setdefault(expid, []).append((i, row))
     out = []
@@ -228,7 +257,8 @@ def read_depot(source: bytes | str | os.PathLike, what: str = "depot file") -> t
                 processed_fraction=fraction, status=_status(fraction),
             ))
         except InputError as exc:
-            log.warning("%s exposure_id %d (first row %d): %s; skipped", what, expid, first, exc)
+            skipped(f"exposure_id {expid} (first row {first})", exc)
+    skipped.done()
     return unique_exposures(out)
 
 
@@ -273,6 +303,7 @@ def read_skyportal(source: bytes | str | os.PathLike, what: str = "SkyPortal ans
     """
     what = _named(source, what)
     out = []
+    skipped = _Skipped(what)
     for i, obs in enumerate(_skyportal_list(_json(source, what), what)):
         try:
             if not isinstance(obs, Mapping):
@@ -293,7 +324,8 @@ def read_skyportal(source: bytes | str | os.PathLike, what: str = "SkyPortal ans
                 processed_fraction=fraction, status=_status(fraction),
             ))
         except InputError as exc:
-            log.warning("%s observation %d: %s; skipped", what, i, exc)
+            skipped(f"observation {i}", exc)
+    skipped.done()
     return unique_exposures(out)
 
 
@@ -328,19 +360,21 @@ def read_jsonl(source: bytes | str | os.PathLike, what: str = "executed file") -
     out = []
     lines = [(n, line) for n, line in enumerate(text.splitlines(), start=1) if line.strip()]
     json_lines = 0
+    skipped = _Skipped(what)
     for n, line in lines:
         try:
             record = json.loads(line)
         except json.JSONDecodeError as exc:
-            log.warning("%s line %d: not JSON (%s); skipped", what, n, exc.msg)
+            skipped(f"line {n}", f"not JSON ({exc.msg})")
             continue
         json_lines += 1
         try:
             out.append(from_record(record))
         except InputError as exc:
-            log.warning("%s line %d: %s; skipped", what, n, exc)
+            skipped(f"line {n}", exc)
     if lines and not json_lines:
         raise InputError(f"{what}: not JSON lines (none of its {len(lines)} lines is JSON)")
+    skipped.done()
     return unique_exposures(out)
 
 

@@ -8,7 +8,9 @@ allows.  Compared with what was executed, a plan needs re-planning when
   ToO, a queue that skipped what no longer fit), or
 * (L5) an exposure of it *failed*: a record of one of its (field, filter)
   pairs inside its window that is not done (E1), not made up by a later
-  done exposure of the same pair.
+  done exposure of the same pair; (L17) one ``processed`` below the done
+  threshold is still being reduced, not failed, until ``settle_s`` after
+  its end.
 
 (L3) matching: inside the plan's window, the k-th done exposure of a
 (field, filter) pair executes the pair's k-th planned observation (time
@@ -68,7 +70,7 @@ def document_times(values: Sequence[str]) -> np.ndarray:
 
 
 def slip_of(plan: Mapping[str, Any], exposures: Sequence[ExecutedExposure], now: Time, max_slip_s: float,
-            min_processed_fraction: float = MIN_PROCESSED_FRACTION) -> Slip:
+            min_processed_fraction: float = MIN_PROCESSED_FRACTION, settle_s: float = 0.0) -> Slip:
     """Compare a plan document with the executed record (L3-L5).
 
     Parameters
@@ -84,6 +86,10 @@ def slip_of(plan: Mapping[str, Any], exposures: Sequence[ExecutedExposure], now:
         Allowed lateness (s) of the first observation not executed (L4).
     min_processed_fraction : float
         The done rule's threshold (E1).
+    settle_s : float
+        (L17) An exposure ``processed`` below the threshold that ended less
+        than this (s) before ``now`` is still being reduced: it counts as
+        executed for L3/L4, and as failed (L5) only once it is older.
 
     Returns
     -------
@@ -101,12 +107,14 @@ def slip_of(plan: Mapping[str, Any], exposures: Sequence[ExecutedExposure], now:
         planned.setdefault((int(o["field_id"]), str(o["filter"])), []).append(float(t))
     done: dict[tuple[int, str], int] = {}
     failed_by: dict[tuple[int, str], list[ExecutedExposure]] = {}
+    settling = 0
     for e in exposures:
         key = (e.field_id, e.filter)
         if key not in planned or not t0 - SAME_START_S <= float(e.start.unix) <= t_now:
             continue
-        if is_done(e, min_processed_fraction):
-            done[key] = done.get(key, 0) + 1
+        if is_done(e, min_processed_fraction) or _settling(e, t_now, settle_s):
+            done[key] = done.get(key, 0) + 1  # (L17) an exposure still being reduced was taken: not late
+            settling += 0 if is_done(e, min_processed_fraction) else 1
         else:
             failed_by.setdefault(key, []).append(e)
     # (L3) the first done[key] planned observations of each pair are executed; the rest are not
@@ -123,4 +131,11 @@ def slip_of(plan: Mapping[str, Any], exposures: Sequence[ExecutedExposure], now:
     if slip_s is not None and slip_s > max_slip_s:
         return Slip(True, f"slipped by {slip_s:.0f} s (more than max_slip_s {max_slip_s:g} s; "
                           f"{executed} of {len(obs)} observations executed)", slip_s, executed, len(obs))
-    return Slip(False, f"on time ({executed} of {len(obs)} observations executed)", slip_s, executed, len(obs))
+    being = f"; {settling} still being reduced" if settling else ""
+    return Slip(False, f"on time ({executed} of {len(obs)} observations executed{being})", slip_s, executed,
+                len(obs))
+
+
+def _settling(e: ExecutedExposure, t_now: float, settle_s: float) -> bool:
+    """(L17) ``processed`` but below the done threshold, and ended less than ``settle_s`` before ``t_now``."""
+    return e.status == "processed" and t_now - (float(e.start.unix) + e.exposure_s) < settle_s
