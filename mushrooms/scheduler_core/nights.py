@@ -101,7 +101,7 @@ def plan_nights(skymap: SkyMap, config: PlanningConfig, start: Time | None = Non
     from .clock import on_merger_clock
     from .errors import InputError
     from .replan import plan_remaining
-    from .sky.twilight import night_windows
+    from .sky.twilight import night_evening, night_windows
 
     skymap, event = on_merger_clock(skymap, event)
     if start is None:
@@ -115,7 +115,8 @@ def plan_nights(skymap: SkyMap, config: PlanningConfig, start: Time | None = Non
     for n, (evening, morning) in enumerate(windows, 1):
         night = dataclasses.replace(config, horizon_h=float((morning - evening).to_value("h")))
         # (N2) night n on what nights < n achieved: the executed record, the earlier plans as done
-        counted = counted_for_night(done, evening, config.revisit)  # (N4) revisit: this night's own only
+        # (N4) revisit: this night's own only, (N5) from its real evening when the start is mid-night
+        counted = counted_for_night(done, night_evening(evening, config) if n == 1 else evening, config.revisit)
         plan = plan_remaining(skymap, night, evening, counted, event=event, solver=solver, should_stop=should_stop,
                               grid=grid, min_processed_fraction=min_processed_fraction)
         log.info("night %d of %d, %s to %s: %d fields, %d exposures, adds %.4f to %.4f",

@@ -387,6 +387,11 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     p = _Problems()
     obs = plan.observations
     horizon = float((plan.end - plan.start).to_value(u.s))
+    if config.revisit and executed:  # (N4, N5) revisit: only the plan's own night's exposures count as done
+        from ..nights import counted_for_night
+        from ..sky.twilight import night_evening
+
+        executed = counted_for_night(executed, night_evening(plan.start, config), True)
     pairs = done_pairs(executed, tuple(config.filters), min_processed_fraction, config.cadence_s)
     coverage = polygon_coverage((o.field_id for o in obs), skymap.prob, without=pairs.both)
     reported = plan.metrics.coverage if plan.metrics is not None else None

@@ -18,7 +18,7 @@ from astropy.time import Time, TimeDelta
 from ..config import PlanningConfig
 from .visibility import GRID_ANCHOR, NIGHT_S, site
 
-__all__ = ["night_windows", "NIGHT_GRID_S"]
+__all__ = ["night_windows", "night_evening", "NIGHT_GRID_S"]
 
 #: Step (s) of the grid on which twilights are found.
 NIGHT_GRID_S = 60.0
@@ -70,3 +70,22 @@ def night_windows(start: Time, config: PlanningConfig, nights: int) -> tuple[tup
             return tuple(out)
     raise ValueError(f"only {len(out)} night(s) with the Sun below {config.sun_alt_max_deg:g} deg "
                      f"in the {nights + 2} days from {start.isot[:19]}")
+
+
+def night_evening(start: Time, config: PlanningConfig) -> Time:
+    """(N5) The evening twilight ``s_n`` of the night ``start`` plans: the true one when the night is under way.
+
+    :func:`night_windows` starts a night under way at ``start``; what the
+    night already did (N4: the exposures counted as done with ``revisit``)
+    began at its real evening twilight, found from the noon that opens the
+    block holding ``start``.  In daytime it is the coming night's evening.
+    """
+    start = Time(start, scale="utc")
+    (evening, morning), = night_windows(start, config, 1)
+    block = np.floor(float((start - GRID_ANCHOR).to_value("s")) / NIGHT_S) * NIGHT_S
+    noon = GRID_ANCHOR + TimeDelta(block, format="sec")
+    if noon < start:
+        (real, end), = night_windows(noon, config, 1)
+        if abs(float((end - morning).to_value("s"))) < NIGHT_GRID_S:  # the same night
+            return real
+    return evening
