@@ -74,7 +74,10 @@ class SlewModel:
 
 #: Keys a plan records only when set (non-empty, true): added after plan ids existed, they leave the
 #: document and the plan id of a configuration without them as they were (:meth:`PlanningConfig.record`).
-RECORDED_WHEN_SET = ("exposure_menu_s", "revisit", "bound_refine_ends")
+RECORDED_WHEN_SET = ("exposure_menu_s", "revisit", "bound_refine_ends", "pair_max_s")
+#: (P10) A pair's largest separation when ``pair_max_s = 0``: one night (12 h: longer than any night at
+#: Palomar, shorter than the day to the next one).
+ONE_NIGHT_PAIR_S = 43200.0
 
 
 @dataclass(frozen=True)
@@ -97,6 +100,11 @@ class PlanningConfig:
         ZTF's GW programme did), counting only that night's own executed
         exposures as done (``docs/design/replan.md`` N4).  False (the
         default): a later night covers what is still uncovered (N3).
+    pair_max_s : float
+        (P10) Largest separation (s) of a pair's two filters counted with an
+        executed record: a field done in one filter more than this before
+        has no pending visit (it is planned as a new pair), and a done pair
+        counts only within it.  0 (the default): one night, 12 h.
     time_step_s : float
         Step (s) of the time grid on which observability windows are found.
     sun_alt_max_deg : float
@@ -258,6 +266,7 @@ class PlanningConfig:
     exposure_s: float = setting(300.0, 1, 3600, "s", why="ZTF ToO exposures are 30-300 s")
     filters: tuple[str, str] = ("g", "r")
     cadence_s: float = setting(1800.0, 0, 43200, "s", lo_open=True, why="up to half a day between the two filters")
+    pair_max_s: float = setting(0.0, 600, 604800, "s", off=0, why="0: one night (12 h); at least cadence_s")
     filter_change_s: float = setting(120.0, 0, 900, "s")
     slew_estimate_s: float = setting(10.0, 0, 600, "s")
     n_fields: int | None = setting(None, 1, 5000, why="unset: sized from the horizon; ZTF's grids hold 1 778 fields")
@@ -289,6 +298,9 @@ class PlanningConfig:
     def __post_init__(self) -> None:
         require_finite(self, "scheduler")
         problems = []
+        if self.pair_max_s and self.pair_max_s < self.cadence_s:
+            problems.append(f"pair_max_s ({self.pair_max_s:g} s) must be 0 or at least cadence_s "
+                            f"({self.cadence_s:g} s)")
         if self.dec_min_deg >= self.dec_max_deg:
             problems.append(f"dec_min_deg ({self.dec_min_deg:g}) must be less than dec_max_deg ({self.dec_max_deg:g})")
         if self.time_step_s > 0 and self.horizon_s / self.time_step_s > MAX_TIME_STEPS:
@@ -367,6 +379,11 @@ class PlanningConfig:
             if not out[key]:
                 del out[key]
         return out
+
+    @property
+    def pair_separation_s(self) -> float:
+        """(P10) A pair's largest separation (s): ``pair_max_s``, or one night when it is 0."""
+        return float(self.pair_max_s) if self.pair_max_s else ONE_NIGHT_PAIR_S
 
     @property
     def horizon_s(self) -> float:

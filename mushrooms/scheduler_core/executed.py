@@ -240,7 +240,8 @@ class DonePairs:
 
 
 def done_pairs(exposures: Iterable[ExecutedExposure], filters: tuple[str, str] = ("g", "r"),
-               min_processed_fraction: float = MIN_PROCESSED_FRACTION, cadence_s: float = 0.0) -> DonePairs:
+               min_processed_fraction: float = MIN_PROCESSED_FRACTION, cadence_s: float = 0.0,
+               max_separation_s: float = math.inf) -> DonePairs:
     """Fields done in both filters of a pair, and fields done in one (E3).
 
     Parameters
@@ -255,6 +256,10 @@ def done_pairs(exposures: Iterable[ExecutedExposure], filters: tuple[str, str] =
     cadence_s : float
         Least time (s) between the two filters' exposures for the pair to
         count (``PlanningConfig.cadence_s``); 0 takes any two.
+    max_separation_s : float
+        (P10) Most time (s) between them (``PlanningConfig.pair_separation_s``):
+        a pair counts only with an ``a`` and a ``b`` exposure separated by
+        ``[cadence_s, max_separation_s]``; default any.
 
     Returns
     -------
@@ -276,10 +281,9 @@ def done_pairs(exposures: Iterable[ExecutedExposure], filters: tuple[str, str] =
         per = starts[field_id]
         visits = FieldVisits(field_id, {f: min(v, key=lambda x: x[0])[1] for f, v in per.items()})
         if len(per) == 2:
-            ta = [x[0] for x in per[a]]
-            tb = [x[0] for x in per[b]]
-            # (E3) the widest separation of an a and a b exposure
-            if max(max(ta) - min(tb), max(tb) - min(ta)) >= cadence_s:
+            gaps = np.abs(np.array([x[0] for x in per[a]])[:, None] - np.array([x[0] for x in per[b]])[None, :])
+            # (E3) an a and a b exposure at least the cadence apart, (P10) and at most the largest separation
+            if ((gaps >= cadence_s) & (gaps <= max_separation_s)).any():
                 both[field_id] = visits
                 continue
         one[field_id] = visits

@@ -110,7 +110,8 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
     -------
     ExecutedState
     """
-    pairs = done_pairs(executed, tuple(config.filters), min_processed_fraction, config.cadence_s)
+    pairs = done_pairs(executed, tuple(config.filters), min_processed_fraction, config.cadence_s,
+                       config.pair_separation_s)
     rows = grid.index_of(np.array(sorted(set(pairs.both) | set(pairs.one)), dtype=int))
     known = set(grid.ids[rows[rows >= 0]].tolist())
     unknown = tuple(sorted((set(pairs.both) | set(pairs.one)) - known))
@@ -125,6 +126,8 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
     pending = []
     for field_id in sorted(set(pairs.one) & known):
         visits = pairs.one[field_id]
+        if float((start - visits.earliest).to_value("s")) > config.pair_separation_s:
+            continue  # (P10) its other filter can no longer make a pair with it: planned as a new pair
         first = visits.filters[0]
         other = config.filters[1] if first == config.filters[0] else config.filters[0]
         k = int(grid.index_of(np.array([field_id]))[0])

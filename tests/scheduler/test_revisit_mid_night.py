@@ -53,3 +53,38 @@ def test_the_checker_of_a_later_night_with_revisit_counts_that_night_only(nights
     # without revisit, the same record makes the revisited fields repeats
     strict = check_plan(night2, skymap_220722v, dataclasses.replace(CFG, revisit=False), executed=record)
     assert not strict.ok and "repeat" in {line.split(":")[0] for line in strict.problems}
+
+
+def test_a_half_done_field_of_last_night_is_planned_as_a_new_pair_tonight(nights, skymap_220722v):
+    """(P10) a pair belongs to one night: last night's lone g exposure is not paired with an r tonight."""
+    from mushrooms.scheduler_core.replan import plan_remaining
+    from mushrooms.scheduler_core.sky.twilight import night_windows
+
+    night1 = nights[0]
+    firsts = {}
+    for o in sorted(night1.observations, key=lambda o: o.start):
+        firsts.setdefault(o.field_id, o)
+    half = [ExecutedExposure(o.field_id, o.filter, night1.absolute_time(o.start), o.exposure_s, 1.0, "processed")
+            for o in list(firsts.values())[:8]]  # each field's first exposure only: one filter done
+    cfg = dataclasses.replace(CFG, nights=1, revisit=False)
+    (evening, morning), = night_windows(night1.end + TimeDelta(3600.0, format="sec"), cfg, 1)
+    tonight = plan_remaining(skymap_220722v, dataclasses.replace(cfg, horizon_h=(morning - evening).to_value("h")),
+                             evening, half)
+    planned = {}
+    for o in tonight.observations:
+        planned.setdefault(o.field_id, set()).add(o.filter)
+    again = [e.field_id for e in half if e.field_id in planned]
+    assert again  # the map's best fields are planned again tonight
+    assert all(planned[f] == set(CFG.filters) for f in again), {f: planned[f] for f in again}
+    assert check_plan(tonight, skymap_220722v, cfg, executed=half).ok
+
+
+def test_the_checker_refuses_a_pair_a_day_apart(nights, skymap_220722v):
+    night1, night2 = nights
+    o = sorted(night2.observations, key=lambda o: o.start)[0]
+    other = next(f for f in CFG.filters if f != o.filter)
+    before = ExecutedExposure(o.field_id, other, night2.absolute_time(o.start) - TimeDelta(86400.0, format="sec"),
+                              o.exposure_s, 1.0, "processed")
+    lone = night2.with_(observations=(o,))
+    report = check_plan(lone, skymap_220722v, dataclasses.replace(CFG, revisit=False), executed=[before])
+    assert "cadence" in {line.split(":")[0] for line in report.problems}, report.problems

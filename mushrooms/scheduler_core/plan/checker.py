@@ -392,7 +392,8 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
         from ..sky.twilight import night_evening
 
         executed = counted_for_night(executed, night_evening(plan.start, config), True)
-    pairs = done_pairs(executed, tuple(config.filters), min_processed_fraction, config.cadence_s)
+    pairs = done_pairs(executed, tuple(config.filters), min_processed_fraction, config.cadence_s,
+                       config.pair_separation_s)
     coverage = polygon_coverage((o.field_id for o in obs), skymap.prob, without=pairs.both)
     reported = plan.metrics.coverage if plan.metrics is not None else None
     if reported is not None and abs(float(reported) - coverage) > coverage_tolerance:
@@ -528,6 +529,12 @@ def _check_cadence(p: _Problems, x: _Exposures, config: PlanningConfig,
             p.add("cadence", f"field {fid} is not observed in both {f1} and {f2}")
             continue
         gaps = np.abs(t1[:, None] - t2[None, :])
-        sep = gaps.max() if before else gaps.min()
+        if before:  # (E3, P10) some a and b exposure the cadence apart, and within the largest separation
+            paired = (gaps >= config.cadence_s - TOL_TIME_S) & (gaps <= config.pair_separation_s + TOL_TIME_S)
+            if not paired.any():
+                p.add("cadence", f"field {fid}: no {f1} and {f2} exposure {config.cadence_s:.0f} s to "
+                                 f"{config.pair_separation_s:.0f} s apart (its executed ones included)")
+            continue
+        sep = gaps.min()
         if sep < config.cadence_s - TOL_TIME_S:
             p.add("cadence", f"field {fid}: {f1} and {f2} only {sep:.0f} s apart (cadence {config.cadence_s:.0f} s)")
