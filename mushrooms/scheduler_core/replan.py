@@ -133,7 +133,8 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
         k = int(grid.index_of(np.array([field_id]))[0])
         # (P2) the other filter at least the cadence after the first done exposure, never before the start
         due = max(0.0, float((visits.first[first] - start).to_value("s")) + config.cadence_s)
-        pending.append(PendingVisit(field_id, float(grid.ra[k]), float(grid.dec[k]), other, due))
+        latest = float((visits.first[first] - start).to_value("s")) + config.pair_separation_s  # (P10)
+        pending.append(PendingVisit(field_id, float(grid.ra[k]), float(grid.dec[k]), other, due, latest))
     return ExecutedState(pairs, covered, uncovered, coverage_executed, tuple(pending), unknown)
 
 

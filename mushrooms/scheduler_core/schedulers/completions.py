@@ -54,6 +54,9 @@ class PendingVisit:
     due_s : float
         Earliest start (s since the re-plan's start) keeping the cadence
         after the field's first done exposure; never below 0.
+    latest_s : float
+        (P10) Latest start (s since the re-plan's start) still pairing with
+        the first done exposure: ``pair_max_s`` after it (default no limit).
     """
 
     field_id: int
@@ -61,6 +64,7 @@ class PendingVisit:
     dec: float
     filter: str
     due_s: float
+    latest_s: float = float("inf")
 
 
 def gains_of(visits: Sequence[PendingVisit], footprints: Footprints, uncovered: np.ndarray) -> np.ndarray:
@@ -74,6 +78,12 @@ def gains_of(visits: Sequence[PendingVisit], footprints: Footprints, uncovered: 
 def _worth(gain: np.ndarray, min_gain: float) -> np.ndarray:
     """(P3) a completion is worth an exposure when it adds some probability, at least ``min_gain``."""
     return (gain > 0) & (gain >= min_gain)
+
+
+def _earliest_for(v: PendingVisit, t: float, exposure_s: float, windows: Windows) -> float | None:
+    """The visit's earliest start at or after ``t`` inside a window, and (P10) no later than ``v.latest_s``."""
+    s = _earliest_in_window(v.field_id, t, exposure_s, windows)
+    return None if s is None or s > v.latest_s else s
 
 
 def _earliest_in_window(field_id: int, t: float, exposure_s: float, windows: Windows) -> float | None:
@@ -133,7 +143,7 @@ def completion_pass(visits: Sequence[PendingVisit], footprints: Footprints, unco
             ready = t + overhead_time(prev[0], prev[1], ra, dec, config.slew, change)
         s = np.full(len(left), np.inf)
         for i, v in enumerate(left):
-            at = _earliest_in_window(v.field_id, max(float(ready[i]), v.due_s), exp, windows)
+            at = _earliest_for(v, max(float(ready[i]), v.due_s), exp, windows)
             s[i] = np.inf if at is None else at
         ok = _worth(gain, config.min_gain) & (s <= ready + wait) & (s + exp <= horizon)
         if not ok.any():
@@ -280,7 +290,7 @@ def _place(plan: list[Observation], v: PendingVisit, windows: Windows,
     exp = config.exposure_s
     n = len(plan)
     if n == 0:
-        s = _earliest_in_window(v.field_id, v.due_s, exp, windows)
+        s = _earliest_for(v, v.due_s, exp, windows)
         return None if s is None or s + exp > config.horizon_s else (0, s)
     ra = np.array([o.ra for o in plan])
     dec = np.array([o.dec for o in plan])
@@ -294,7 +304,7 @@ def _place(plan: list[Observation], v: PendingVisit, windows: Windows,
     ready = end + into
     latest_end = np.append(start[1:] - out_of[1:], config.horizon_s)
     for i in np.flatnonzero(latest_end - np.maximum(ready, v.due_s) >= exp):
-        s = _earliest_in_window(v.field_id, max(float(ready[i]), v.due_s), exp, windows)
+        s = _earliest_for(v, max(float(ready[i]), v.due_s), exp, windows)
         if s is not None and s + exp <= latest_end[i]:
             return int(i) + 1, float(s)
     return None
@@ -323,7 +333,8 @@ def drop_repeats(observations: Sequence[Observation], visits: Sequence[PendingVi
     fields: list[int] = []
     for fid, v in by_field.items():
         mine = [i for i, o in enumerate(observations) if o.field_id == fid]
-        other = [i for i in mine if observations[i].filter == v.filter and observations[i].start >= v.due_s]
+        other = [i for i in mine if observations[i].filter == v.filter
+                 and v.due_s <= observations[i].start <= v.latest_s]  # (P10) still a pair with the done one
         repeat = [i for i in mine if observations[i].filter != v.filter]
         if other and repeat:
             drop.update(repeat)
