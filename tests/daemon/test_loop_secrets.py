@@ -6,6 +6,7 @@ import base64
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from astropy.time import Time
@@ -14,7 +15,6 @@ from werkzeug.wrappers import Response
 from mushrooms.daemon.executed_fetch import ExecutedReader, FetchError
 from mushrooms.daemon.loop_settings import LoopConfig
 from mushrooms.handlers.executed_source import parse_executed_source
-from mushrooms.handlers.secret_text import redact
 
 from contract_servers import loopback_server
 
@@ -59,6 +59,8 @@ def test_an_error_answer_echoing_the_basic_header_is_redacted(server):
 
 
 def test_redact_blanks_every_form_of_the_secret():
+    from mushrooms.handlers.secret_text import redact
+
     token = f"u:{PASSWORD}"
     text = (f"raw {token} basic {base64.b64encode(token.encode()).decode()} url http://u:{PASSWORD}@h/x "
             f"quoted u%3A{PASSWORD}")
@@ -68,9 +70,12 @@ def test_redact_blanks_every_form_of_the_secret():
 
 
 def test_queue_list_refuses_a_url_with_a_password(tmp_path):
+    import mushrooms
+
+    code = str(Path(mushrooms.__file__).resolve().parents[1])  # the package under test, from any directory
     r = subprocess.run([sys.executable, "-m", "mushrooms.cli", "queue", "list", "--url",
                         f"http://u:{PASSWORD}@127.0.0.1:9/"], capture_output=True, text=True, timeout=120,
-                       cwd=tmp_path, env={"PATH": "/usr/bin:/bin", "MUSHROOMS_SUBMIT_TOKEN": "t0ken-abc"})
+                       cwd=tmp_path, env={"PATH": "/usr/bin:/bin", "MUSHROOMS_SUBMIT_TOKEN": "t0ken-abc", "PYTHONPATH": code})
     assert r.returncode == 2, (r.returncode, r.stderr)
     assert "must not carry credentials" in r.stderr
     assert PASSWORD not in r.stdout + r.stderr
