@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 from astropy.time import Time, TimeDelta
@@ -33,7 +33,7 @@ from .errors import InputError
 __all__ = [
     "ExecutedExposure", "FieldVisits", "DonePairs", "FILTERS", "STATUSES", "RECORD_KEYS",
     "N_QUADRANTS", "MIN_PROCESSED_FRACTION", "SAME_START_S", "FIELD_ID_MAX",
-    "is_done", "same_exposure", "unique_exposures", "done_pairs", "to_record", "from_record",
+    "is_done", "counted_for_night", "same_exposure", "unique_exposures", "done_pairs", "to_record", "from_record",
 ]
 
 #: The ZTF filters a record may name.
@@ -288,6 +288,29 @@ def done_pairs(exposures: Iterable[ExecutedExposure], filters: tuple[str, str] =
                 continue
         one[field_id] = visits
     return DonePairs((a, b), both, one)
+
+
+def counted_for_night(done: Sequence[ExecutedExposure], evening: Time, revisit: bool) -> list[ExecutedExposure]:
+    """What a night's plan counts as done: (N2) everything before it, or (N4) with ``revisit`` only its own night's.
+
+    Parameters
+    ----------
+    done : sequence of ExecutedExposure
+        Executed exposures and the earlier nights' plans taken as done.
+    evening : astropy.time.Time
+        The night's start ``s_n`` (its evening twilight, or the start when the night is under way).
+    revisit : bool
+        ``[scheduler] revisit``: the earlier nights' fields may be observed again.
+
+    Returns
+    -------
+    list of ExecutedExposure
+        ``done`` (N2), or the exposures of ``done`` starting at or after ``evening`` (N4).
+    """
+    if not revisit:
+        return list(done)
+    cut = float(Time(evening, scale="utc").unix)
+    return [e for e in done if float(e.start.unix) >= cut]
 
 
 def to_record(exposure: ExecutedExposure) -> dict[str, Any]:

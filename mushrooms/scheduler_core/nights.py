@@ -18,7 +18,7 @@ from typing import Sequence
 from astropy.time import Time
 
 from .config import PlanningConfig
-from .executed import MIN_PROCESSED_FRACTION, ExecutedExposure
+from .executed import MIN_PROCESSED_FRACTION, ExecutedExposure, counted_for_night
 from .plan.document import EventInfo, Plan
 from .problem import StopCheck
 from .sky.fields import FieldGrid
@@ -33,29 +33,6 @@ def as_planned(plan: Plan) -> tuple[ExecutedExposure, ...]:
     """A plan's exposures as if the telescope had done them all (N2): fully reduced, at their planned times."""
     return tuple(ExecutedExposure(o.field_id, o.filter, plan.absolute_time(o.start), o.exposure_s, 1.0, "processed")
                  for o in plan.observations)
-
-
-def counted_for_night(done: Sequence[ExecutedExposure], evening: Time, revisit: bool) -> list[ExecutedExposure]:
-    """What a night's plan counts as done: (N2) everything before it, or (N4) with ``revisit`` only its own night's.
-
-    Parameters
-    ----------
-    done : sequence of ExecutedExposure
-        Executed exposures and the earlier nights' plans taken as done.
-    evening : astropy.time.Time
-        The night's start ``s_n`` (its evening twilight, or the start when the night is under way).
-    revisit : bool
-        ``[scheduler] revisit``: the earlier nights' fields may be observed again.
-
-    Returns
-    -------
-    list of ExecutedExposure
-        ``done`` (N2), or the exposures of ``done`` starting at or after ``evening`` (N4).
-    """
-    if not revisit:
-        return list(done)
-    cut = float(Time(evening, scale="utc").unix)
-    return [e for e in done if float(e.start.unix) >= cut]
 
 
 def plan_nights(skymap: SkyMap, config: PlanningConfig, start: Time | None = None,

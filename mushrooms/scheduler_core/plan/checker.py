@@ -388,7 +388,7 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     obs = plan.observations
     horizon = float((plan.end - plan.start).to_value(u.s))
     if config.revisit and executed:  # (N4, N5) revisit: only the plan's own night's exposures count as done
-        from ..nights import counted_for_night
+        from ..executed import counted_for_night
         from ..sky.twilight import night_evening
 
         executed = counted_for_night(executed, night_evening(plan.start, config), True)
