@@ -16,18 +16,9 @@ from mushrooms.daemon.executed_fetch import ExecutedReader, FetchError
 from mushrooms.daemon.loop_settings import LoopConfig
 from mushrooms.handlers.executed_source import parse_executed_source
 
-from contract_servers import loopback_server
 
 PASSWORD = "hunter2-Zq9"
 NIGHT = (Time("2025-05-14T03:00:00", scale="utc"), Time("2025-05-14T06:00:00", scale="utc"))
-
-
-@pytest.fixture
-def server():
-    s = loopback_server()
-    yield s
-    s.clear()
-    s.stop()
 
 
 @pytest.mark.parametrize("spec", [f"skyportal:https://ops:{PASSWORD}@fritz.example.org",
@@ -41,7 +32,8 @@ def test_a_loop_url_with_credentials_is_refused_without_showing_them(spec):
     assert PASSWORD not in message and "ztfuser" not in message and "ops:" not in message
 
 
-def test_an_error_answer_echoing_the_basic_header_is_redacted(server):
+def test_an_error_answer_echoing_the_basic_header_is_redacted(loopback):
+    server = loopback
     def echo(request):
         return Response(json.dumps({"message": f"denied: Authorization: {request.headers.get('Authorization')}"}),
                         status=403, content_type="application/json")

@@ -25,7 +25,6 @@ from mushrooms.handlers.executed_source import parse_executed_source
 from mushrooms.handlers.slip import slip_of
 from mushrooms.scheduler_core.executed import ExecutedExposure
 
-from contract_servers import loopback_server
 from executed_servers import EXECUTED
 
 NIGHT = (Time("2025-05-14T03:00:00", scale="utc"), Time("2025-05-14T06:00:00", scale="utc"))
@@ -111,15 +110,8 @@ def test_a_depot_night_that_is_a_fifo_or_a_link_loop_is_one_line_once(tmp_path, 
     assert source.read(*NIGHT) == () and warnings_of(caplog) == []
 
 
-@pytest.fixture
-def server():
-    s = loopback_server()
-    yield s
-    s.clear()
-    s.stop()
-
-
-def test_a_skyportal_paginating_forever_stops_at_the_page_cap(server):
+def test_a_skyportal_paginating_forever_stops_at_the_page_cap(loopback):
+    server = loopback
     one = json.loads((EXECUTED / "skyportal_observation_answer.json").read_text())["data"]["observations"][0]
     pages = []
 
