@@ -195,7 +195,7 @@ class PlanningConfig:
         ``detection``, from the measurement on the 52 shared maps with
         distance layers, the coverage scheduler keeping its 10 s and the
         detection stage getting 4 s more (``time_limit_s`` 14 s,
-        ``benchmarks/results/issue19/objective_detection_floor_extra4.txt``):
+        ``objective_detection_floor_extra4.txt`` in ``benchmarks/results``):
         mean efficiency x1.20 (optimistic BNS), x1.23 (conservative BNS),
         x1.29 (NSBH) for -0.1 % mean coverage; one map worse beyond its
         Monte Carlo error on one curve (bns_o3/9, optimistic, -0.0016 at
