@@ -27,6 +27,26 @@ def write_lp(model: MilpModel, path) -> None:
         :attr:`~MilpModel.col_families` name the rows and columns.
     path : str or os.PathLike
         Where to write; the suffix ``.lp`` selects HiGHS's LP writer.
+
+    Examples
+    --------
+    One cell seen by two fields, at most one field (``max y``, ``y <= x_0 + x_1``, ``x_0 + x_1 <= 1``):
+
+    >>> import numpy as np, tempfile, pathlib
+    >>> from mushrooms.scheduler_core.schedulers.rows import Columns, RowBuilder
+    >>> cols = Columns()
+    >>> x, y = cols.family("x", 2), cols.family("y", 1)
+    >>> rows = RowBuilder()
+    >>> rows.block("S3 cell coverage", 1, [([0], y[[0]], 1.0), ([0, 0], x[[0, 1]], -1.0)], -np.inf, 0.0)
+    >>> rows.block("K at most one field", 1, [([0, 0], x[[0, 1]], 1.0)], -np.inf, 1.0)
+    >>> A, lo, hi = rows.matrix(cols.n)
+    >>> model = MilpModel(np.array([0.0, 0.0, 1.0]), A, lo, hi, np.zeros(3), np.ones(3),
+    ...                   np.array([True, True, False]), rows.blocks(), cols.families())
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "tiny.lp"
+    >>> write_lp(model, path)
+    >>> text = path.read_text()
+    >>> "S3_cell_coverage.0" in text and "K_at_most_one_field.0" in text and "x.1" in text
+    True
     """
     import highspy
 
@@ -40,6 +60,6 @@ def write_lp(model: MilpModel, path) -> None:
     h = highspy.Highs()
     h.setOptionValue("output_flag", False)
     h.passModel(lp)
-    status = h.writeModel(str(path))
-    if status != highspy.HighsStatus.kOk:
+    status = h.writeModel(str(path))  # a warning: HiGHS named what had no name
+    if status == highspy.HighsStatus.kError:
         raise OSError(f"HiGHS could not write the model to {path} ({status})")

@@ -359,6 +359,22 @@ def read_skymap(source: str | Path | bytes, nside: int = 256, max_bytes: int | N
         hold, bytes beyond the declared table, invalid NUNIQ indices, no
         probability column, probabilities negative, not finite, or not
         summing to 1 within 2 %.
+
+    Examples
+    --------
+    The packaged multi-order BAYESTAR map, at a small working resolution:
+
+    >>> from importlib.resources import files
+    >>> path = files("mushrooms.scheduler_core") / "data" / "MS181101ab_bayestar.multiorder.fits"
+    >>> skymap = read_skymap(path, nside=64)
+    >>> skymap.nside, skymap.prob.size, skymap.object_id
+    (64, 49152, 'MS181101ab')
+    >>> round(float(skymap.prob.sum()), 6)
+    1.0
+    >>> skymap.event_time.isot
+    '2018-11-01T22:22:46.654'
+    >>> round(skymap.distmean, 1)  # Mpc
+    39.8
     """
     if nside < 1 or nside & (nside - 1):
         raise SkyMapError(f"nside must be a power of 2, got {nside}")
