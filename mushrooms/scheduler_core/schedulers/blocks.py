@@ -228,7 +228,6 @@ def build_block_model(candidates: Candidates, cells: Cells, n_fields: int, param
     """
     nb, K, F, C = params.n_blocks, len(candidates), n_fields, cells.n_cells
     H = params.horizon_s
-    s = params.per_visit_s
     b_eff = min(params.b_size, F) if F else params.b_size
     # variable layout (see BlockModel): B, x, y, U, t, d
     cols = Columns()
@@ -237,10 +236,44 @@ def build_block_model(candidates: Candidates, cells: Cells, n_fields: int, param
     n_cols = cols.n
     blk = np.repeat(np.arange(nb), K)          # block of each B column
     cand = np.tile(np.arange(K), nb)           # candidate of each B column
+    ts, te = np.asarray(candidates.start, float), np.asarray(candidates.end, float)
+    extra = np.asarray(params.extra, float)
+    rows = RowBuilder()
+    _block_rows(rows, candidates, cells, params, b_eff, (B, x, y, U, t, d))
+
+    A, lo, hi = rows.matrix(n_cols)
+    # (B0) objective: Σ w_c y_c - p Σ B[i, k]
+    c = np.zeros(n_cols)
+    c[B.columns] = -params.penalty
+    c[y.columns] = cells.weight
+    col_lo = np.zeros(n_cols)
+    col_hi = np.ones(n_cols)
+    col_hi[t.columns] = H
+    col_hi[d.columns] = H
+    if K:
+        # block i cannot start before the least durations of blocks 0..i-1 have passed
+        lb = earliest_block_starts(params, float(ts.min()), b_eff)
+        fits = np.maximum(ts[cand], lb[blk]) + params.least_duration_s(b_eff) + extra[blk] <= te[cand] + 1e-9
+        col_hi[B.columns] = fits.astype(float)
+    integer = np.zeros(n_cols, bool)
+    integer[B.columns] = True
+    integer[U.columns] = True
+    milp = MilpModel(c, A, lo, hi, col_lo, col_hi, integer, rows.blocks(), cols.families())
+    return BlockModel(milp, nb, K, F, C)
+
+
+def _block_rows(rows: RowBuilder, candidates: Candidates, cells: Cells, params: BlockParams, b_eff: int,
+                families: tuple) -> None:
+    """Append the block model's rows (B1-B11) on the columns of ``families`` = (B, x, y, U, t, d)."""
+    B, x, y, U, t, d = families
+    nb, K, F, C = params.n_blocks, len(candidates), x.size, cells.n_cells
+    H, s = params.horizon_s, params.per_visit_s
+    blk = np.repeat(np.arange(nb), K)          # block of each B column
+    cand = np.tile(np.arange(K), nb)           # candidate of each B column
+    ts, te = np.asarray(candidates.start, float), np.asarray(candidates.end, float)
+    extra = np.asarray(params.extra, float)
     ik = np.arange(nb * K)                     # one row per (block, candidate)
     blocks, fields, cells_ = np.arange(nb), np.arange(F), np.arange(C)
-    ts, te = np.asarray(candidates.start, float), np.asarray(candidates.end, float)
-    rows = RowBuilder()
 
     # (B8) each field at most once: x_j - Σ_{i, k of j} B[i, k] = 0
     rows.block("B8 each field at most once", F,
@@ -259,7 +292,6 @@ def build_block_model(candidates: Candidates, cells: Cells, n_fields: int, param
         rows.block("B3 unused blocks last", nb - 1, [(later, U[later + 1], 1.0), (later, U[later], -1.0)],
                    -np.inf, 0.0)
     # (B9) duration: d[i] - 2 s n_i - (t_filt + e_i) U_i >= 0 ;  d[i] - s n_i - (cadence + e_i) U_i >= 0
-    extra = np.asarray(params.extra, float)
     rows.block("B9 duration of both passes and a filter change", nb,
                [(blocks, d[blocks], 1.0), (blk, B.columns, -2.0 * s),
                 (blocks, U[blocks], -(params.filter_change_s + extra))], 0.0, np.inf)
@@ -286,26 +318,6 @@ def build_block_model(candidates: Candidates, cells: Cells, n_fields: int, param
                    [(np.zeros(nb, np.int64), d[blocks], 1.0)], -np.inf, _union_length(ts, te))
     # (B11) horizon: t[i] + d[i] <= H
     rows.block("B11 horizon", nb, [(blocks, t[blocks], 1.0), (blocks, d[blocks], 1.0)], -np.inf, H)
-
-    A, lo, hi = rows.matrix(n_cols)
-    # (B0) objective: Σ w_c y_c - p Σ B[i, k]
-    c = np.zeros(n_cols)
-    c[B.columns] = -params.penalty
-    c[y.columns] = cells.weight
-    col_lo = np.zeros(n_cols)
-    col_hi = np.ones(n_cols)
-    col_hi[t.columns] = H
-    col_hi[d.columns] = H
-    if K:
-        # block i cannot start before the least durations of blocks 0..i-1 have passed
-        lb = earliest_block_starts(params, float(ts.min()), b_eff)
-        fits = np.maximum(ts[cand], lb[blk]) + params.least_duration_s(b_eff) + extra[blk] <= te[cand] + 1e-9
-        col_hi[B.columns] = fits.astype(float)
-    integer = np.zeros(n_cols, bool)
-    integer[B.columns] = True
-    integer[U.columns] = True
-    milp = MilpModel(c, A, lo, hi, col_lo, col_hi, integer, rows.blocks(), cols.families())
-    return BlockModel(milp, nb, K, F, C)
 
 
 def _union_length(start: np.ndarray, end: np.ndarray) -> float:

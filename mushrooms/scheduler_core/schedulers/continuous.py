@@ -178,23 +178,7 @@ def build_exact_model(problem: PlanningProblem, data: ExactData | None = None) -
     u_exposure = np.array([2 * f + p for f in multi for p in (0, 1) for _ in data.windows[f]], np.int64)
     u_window = np.array([w for f in multi for p in (0, 1) for w in range(len(data.windows[f]))], np.int64)
     ok = np.flatnonzero(data.pairable)
-    pairs, forced = [], []  # pairs needing an order binary; (e, e') with only "e before e'" possible
-    apart = []  # field pairs that cannot both be observed
-    for i, f in enumerate(ok):
-        for g in ok[i + 1:]:
-            for e in (2 * f, 2 * f + 1):
-                for e2 in (2 * g, 2 * g + 1):
-                    ab = lo_e[e] + exp + oh[e, e2] <= hi_e[e2]
-                    ba = lo_e[e2] + exp + oh[e2, e] <= hi_e[e]
-                    if ab and ba:
-                        pairs.append((e, e2))
-                    elif ab:
-                        forced.append((e, e2))
-                    elif ba:
-                        forced.append((e2, e))
-                    else:
-                        apart.append((f, g))
-    o_pair = np.array(pairs, np.int64).reshape(-1, 2)
+    o_pair, forced, apart = _exposure_orders(ok, lo_e, hi_e, oh, exp)
     P, U = o_pair.shape[0], u_exposure.size
     cols = Columns()
     x, d, t = cols.family("x", F), cols.family("d", F), cols.family("t", 2 * F)  # t[2f + p]: filter p of f
@@ -259,6 +243,37 @@ def build_exact_model(problem: PlanningProblem, data: ExactData | None = None) -
     A, row_lo, row_hi = rows.matrix(n)
     milp = MilpModel(c_obj, A, row_lo, row_hi, col_lo, col_hi, integer, rows.blocks(), cols.families())
     return ExactModel(milp, data, u_exposure, u_window, o_pair, n_cuts)
+
+
+def _exposure_orders(ok: np.ndarray, lo_e: np.ndarray, hi_e: np.ndarray, oh: np.ndarray,
+                     exp: float) -> tuple[np.ndarray, list, list]:
+    """Which order each two exposures of different fields may take (for C4).
+
+    Returns
+    -------
+    o_pair : numpy.ndarray
+        (P, 2) exposure pairs either order fits: each gets an order binary.
+    forced : list of (e, e')
+        Pairs only "e before e'" fits.
+    apart : list of (f, g)
+        Field pairs that cannot both be observed.
+    """
+    pairs, forced, apart = [], [], []
+    for i, f in enumerate(ok):
+        for g in ok[i + 1:]:
+            for e in (2 * f, 2 * f + 1):
+                for e2 in (2 * g, 2 * g + 1):
+                    ab = lo_e[e] + exp + oh[e, e2] <= hi_e[e2]
+                    ba = lo_e[e2] + exp + oh[e2, e] <= hi_e[e]
+                    if ab and ba:
+                        pairs.append((e, e2))
+                    elif ab:
+                        forced.append((e, e2))
+                    elif ba:
+                        forced.append((e2, e))
+                    else:
+                        apart.append((f, g))
+    return np.array(pairs, np.int64).reshape(-1, 2), forced, apart
 
 
 def _capacity_cuts(rows: RowBuilder, data: ExactData, exp: float, cad: float, r: float, fc: float,
