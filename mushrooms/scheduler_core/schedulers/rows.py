@@ -177,22 +177,19 @@ class RowBuilder:
         return tuple(RowBlock(name, start, stop) for name, start, stop in self._blocks)
 
 
+def _indexed(named: list[tuple[str, int]]) -> list[str]:
+    """``label.i`` for each (name, count), i = 0 .. count-1."""
+    return [f"{lp_label(name)}.{i}" for name, count in named for i in range(count)]
+
+
 def row_names(blocks: tuple[RowBlock, ...] | list[RowBlock]) -> list[str]:
     """One LP identifier per row: the block's label and the row's index within it."""
-    out: list[str] = []
-    for b in blocks:
-        label = lp_label(b.name)
-        out.extend(f"{label}.{i}" for i in range(b.n_rows))
-    return out
+    return _indexed([(b.name, b.n_rows) for b in blocks])
 
 
 def column_names(families: tuple[Family, ...] | list[Family]) -> list[str]:
     """One LP identifier per column: the family's name and the member's index."""
-    out: list[str] = []
-    for f in families:
-        label = lp_label(f.name)
-        out.extend(f"{label}.{i}" for i in range(f.size))
-    return out
+    return _indexed([(f.name, f.size) for f in families])
 
 
 def at_least_when(rows: RowBuilder, name: str, cols, vals, rhs: float, when, big_m: float) -> None:
