@@ -65,7 +65,7 @@ from ..sky.skymap import SkyMap
 from .exposure_menu import (dominated_pairs, map_start_menu, menu_instance, menu_portfolio, menu_positions,
                             menu_start_pairs)
 from .rows import Columns, RowBuilder
-from .slots import SlotInstance, SlotModel, build_slot_model, slot_instance, slot_rows, start_vector
+from .slots import SlotInstance, SlotModel, build_slot_model, slot_instance, slot_model_rows, start_vector
 from .solvers import MilpModel, resolve_backend, solve_milp
 
 __all__ = ["pair_reach", "distance_levels", "pair_levels", "level_weights", "DetectionModel", "build_detection_model",
@@ -269,7 +269,7 @@ def build_detection_model(inst: SlotInstance, W: np.ndarray, pair_level: np.ndar
     u, v = cols.family("u", F * L), cols.family("v", C * L)  # u[f L + l], v[c L + l]
     n0, n = base.milp.n_vars, cols.n
     rows = RowBuilder()
-    slot_rows(rows, inst, x, z, y)  # (S1-S3) on the same columns as the slot model's
+    slot_model_rows(rows, inst, x, z, y)  # (S1-S3) on the same columns as the slot model's
     # (X3) u_fl - Σ_{k ∋ f, lev(k) >= l} x_k = 0
     kk, ll = np.nonzero(np.arange(L)[None, :] < pair_level[:, None])  # pair k reaches level l (0-based)
     rows.block("X3 field level", F * L,

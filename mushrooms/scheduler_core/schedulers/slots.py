@@ -45,7 +45,7 @@ from .solvers import MilpModel
 
 __all__ = ["SlotGrid", "SlotInstance", "SlotModel", "block_length_s", "second_pass_delay_s",
            "observable_segments", "make_slot_grid", "eligible_pairs", "slot_instance", "build_slot_model",
-           "slot_rows", "decode_slots", "start_vector"]
+           "slot_model_rows", "decode_slots", "start_vector"]
 
 #: Phases of the grid: blocks laid out from each segment's start, or ending at its end.
 PHASES = ("start", "end")
@@ -378,7 +378,7 @@ def build_slot_model(instance: SlotInstance, penalty: float = 0.0,
     cols = Columns()
     x, z, y = cols.family("x", K), cols.family("z", F), cols.family("y", C)
     rows = RowBuilder()
-    slot_rows(rows, instance, x, z, y)
+    slot_model_rows(rows, instance, x, z, y)
     A, lo, hi = rows.matrix(cols.n)
     # (S0) objective: Σ w_c y_c + Σ v_k x_k - p Σ z_f
     obj = np.zeros(cols.n)
@@ -392,7 +392,7 @@ def build_slot_model(instance: SlotInstance, penalty: float = 0.0,
     return SlotModel(milp, instance)
 
 
-def slot_rows(rows: RowBuilder, instance: SlotInstance, x: Family, z: Family, y: Family) -> None:
+def slot_model_rows(rows: RowBuilder, instance: SlotInstance, x: Family, z: Family, y: Family) -> None:
     """Append the slot model's rows (S1 or X7, S2, S3) on the columns of pairs ``x``, fields ``z``, cells ``y``."""
     K, F, C = instance.n_pairs, instance.n_fields, instance.cells.n_cells
     S = instance.grid.n_slots
