@@ -47,10 +47,22 @@ def pytest_configure(config: pytest.Config) -> None:
     iers.conf.auto_max_age = None
     # A fresh footprint cache for every session: a disk cache left by an
     # earlier run (keyed on inputs, not on code) would hide a footprint bug.
-    cache = Path(tempfile.mkdtemp(prefix="mushrooms-footprints-"))
-    config.stash[_CACHE_KEY] = cache
+    # Under pytest-xdist the controller makes it and its workers share it
+    # (the cache writes a file under a temporary name, then renames it).
+    workerinput = getattr(config, "workerinput", None)
+    if workerinput is not None and workerinput.get("mushrooms_cache_dir"):
+        cache = Path(workerinput["mushrooms_cache_dir"])
+    else:
+        cache = Path(tempfile.mkdtemp(prefix="mushrooms-footprints-"))
+        config.stash[_CACHE_KEY] = cache  # the process that made it removes it
     os.environ["MUSHROOMS_CACHE_DIR"] = str(cache)
     _validate_every_document()  # every plan and not_observable document must follow the schema
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_configure_node(node) -> None:
+    """pytest-xdist: hand a starting worker the session's footprint cache."""
+    node.workerinput["mushrooms_cache_dir"] = os.environ["MUSHROOMS_CACHE_DIR"]
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

@@ -5,7 +5,7 @@ Layers: ``daemon -> handlers -> scheduler_core``; ``mushrooms.evaluation``
 scheduler.  Every import counts, at module level or inside a function
 (a lazy import is still a dependency), and relative imports are resolved.
 
-Configuration only at the top (issue 26): the config loader
+Configuration only at the top: the config loader
 (:mod:`mushrooms.tool.config`) and ``argparse`` belong to the command layer
 (``mushrooms.tool``, ``mushrooms.cli``); the layers below are handed plain
 objects.  For ``argparse`` the scan also reads imports from outside the

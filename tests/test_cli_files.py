@@ -1,4 +1,4 @@
-"""Files of any kind, and the smaller command-line findings of issue 25 (items 4 and 8), one parser of times.
+"""Files of any kind, and the smaller command-line findings (outputs, paths), one parser of times.
 
 Outputs go only to regular files or new paths, never onto an input, never replacing a FIFO or a
 symbolic link, atomically and with the usual umask; inputs are read only from regular files

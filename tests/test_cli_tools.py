@@ -76,7 +76,7 @@ def _plan_loads(tmp_path, *extra: str) -> list[str]:
 
 
 def test_a_greedy_plan_imports_no_plotting_nor_gracedb(tmp_path):
-    # issue 30 item 4: matplotlib (through healpy's plotting half) and ligo.skymap.io (GraceDB's client)
+    # matplotlib (through healpy's plotting half) and ligo.skymap.io (GraceDB's client)
     # were a second of a 3.5 s `mushrooms plan --solver greedy`
     loaded = _plan_loads(tmp_path)
     assert "ligo.skymap" in loaded  # the probe sees what the plan loads

@@ -1,4 +1,4 @@
-"""Every numeric setting is finite and within its documented range (issue 25, item 2).
+"""Every numeric setting is finite and within its documented range.
 
 The ranges are declared once, beside each field (``mushrooms.scheduler_core.ranges``);
 ``docs/configuration.md`` and ``config.toml`` show the same ones, and every command that loads a
@@ -86,7 +86,7 @@ def test_config_toml_shows_each_range_beside_its_key():
     assert expected - seen == set()
 
 
-# the adversarial run's values (issue 25), and a few more of the same kind
+# the values an adversarial run tried, and a few more of the same kind
 HOSTILE = [
     ("daemon", "job_deadline_s", "1e12"), ("daemon", "job_deadline_s", "inf"), ("daemon", "job_deadline_s", "nan"),
     ("scheduler", "exposure_s", "nan"), ("scheduler", "cadence_s", "nan"), ("scheduler", "airmass_max", "nan"),

@@ -84,13 +84,18 @@ def _function_source(name: str) -> str:
     return found[0]
 
 
-@pytest.mark.parametrize("builder, family", [("build_block_model", "B"), ("build_slot_model", "S")])
-def test_each_milp_constraint_block_is_a_section_named_after_its_equation(builder, family):
-    source = _function_source(builder)
+@pytest.mark.parametrize("builder, rows, family", [("build_block_model", "_block_rows", "B"),
+                                                   ("build_slot_model", "slot_model_rows", "S")])
+def test_each_milp_constraint_block_is_a_section_named_after_its_equation(builder, rows, family):
+    """The builder (objective, bounds) and its row function (the constraint blocks) cite every equation."""
+    source = _function_source(builder) + "\n" + _function_source(rows)
     wanted = {label for label, doc in _doc_labels().items() if label[0] == family and doc == "milp.md"}
     sections = set(re.findall(r"#\s*\((" + family + r"\d+)\)", source))
     assert sections == wanted, f"{builder}: sections {sorted(sections)} vs milp.md {sorted(wanted)}"
-    docstring = ast.get_docstring(ast.parse(source).body[0])
+    # and each constraint block is named after its equation, the number the comment cites
+    named = set(re.findall(r'rows\.block\(\s*"(' + family + r'\d+) ', _function_source(rows)))
+    assert named == wanted - {family + "0"}, f"{rows}: named blocks {sorted(named)} vs milp.md {sorted(wanted)}"
+    docstring = ast.get_docstring(ast.parse(_function_source(builder)).body[0])
     assert "docs/design/milp.md" in docstring
 
 

@@ -1,4 +1,4 @@
-"""Issue 24 item 5: a command that needs a missing optional extra ends in one line naming it, exit 2.
+"""A command that needs a missing optional extra ends in one line naming it, exit 2.
 
 Each test makes the import fail for real (``sys.modules[name] = None``: Python's
 own "import halted"), in-process through the CLI, or in a fresh interpreter.

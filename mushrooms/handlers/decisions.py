@@ -252,7 +252,7 @@ def decide(alert: Alert | BareSkymap, verdict: Verdict, ledger: Ledger,
     if alert.alert_type == "RETRACTION":
         if state is None:
             # nothing to withdraw, but remembered (creation order): a notice of the event created
-            # before it and arriving later must not plan a retracted event (issue 25)
+            # before it and arriving later must not plan a retracted event
             return Decision("ignore", reason="retraction of an event we never planned (remembered: older notices "
                                              "of it stay unplanned)", retracts_unknown=True, **base)
         if state.retracted:

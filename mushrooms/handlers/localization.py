@@ -85,7 +85,7 @@ def check_skymap(data: bytes, max_bytes: int | None = None) -> None:
 def check_skymap_header(data: bytes, max_bytes: int | None = None) -> None:
     """Raise when ``data`` is plainly not a usable sky map, from its FITS headers only.
 
-    The cheap check the consume loop runs on a joint map (issue 25): the
+    The cheap check the consume loop runs on a joint map: the
     sky-map reader's own header parser
     (:func:`~mushrooms.scheduler_core.sky.fitstable.open_table`, plain or
     gzip) reads the headers up to the first binary table and no row

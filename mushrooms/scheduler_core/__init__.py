@@ -1,11 +1,20 @@
 """Pure scheduling library: sky map in, checked ZTF plan out.
 
-No Kafka, no daemon state, no globals: call it from a notebook::
+No Kafka, no daemon state, no globals: call it from a notebook (here the
+packaged map, at a small resolution, on a night its sky is up):
 
-    from mushrooms.scheduler_core import read_skymap, make_plan, PlanningConfig
-    cfg = PlanningConfig(solver="greedy")
-    plan = make_plan(read_skymap("bayestar.multiorder.fits", nside=cfg.nside), cfg)
-    plan.to_document()
+>>> from importlib.resources import files
+>>> from astropy.time import Time
+>>> from mushrooms.scheduler_core import PlanningConfig, check_plan, make_plan, read_skymap
+>>> cfg = PlanningConfig(solver="greedy", nside=64)
+>>> skymap = read_skymap(files("mushrooms.scheduler_core") / "data" / "MS181101ab_bayestar.multiorder.fits",
+...                      nside=cfg.nside)
+>>> plan = make_plan(skymap, cfg, start=Time("2019-05-01T03:00:00", scale="utc"))
+>>> check_plan(plan, skymap, cfg).ok
+True
+>>> doc = plan.to_document()  # the JSON plan document (docs/design/plan-format.md)
+>>> doc["plan_id"] == plan.plan_id, len(doc["observations"]) == len(plan.observations)
+(True, True)
 
 The names below are imported on first use (PEP 562): importing a light
 module of the package (:mod:`.config`, :mod:`.tables`, :mod:`.errors`) does

@@ -203,7 +203,7 @@ class PlanningConfig:
         ``detection``, from the measurement on the 52 shared maps with
         distance layers, the coverage scheduler keeping its 10 s and the
         detection stage getting 4 s more (``time_limit_s`` 14 s,
-        ``benchmarks/results/issue19/objective_detection_floor_extra4.txt``):
+        ``objective_detection_floor_extra4.txt`` in ``benchmarks/results``):
         mean efficiency x1.20 (optimistic BNS), x1.23 (conservative BNS),
         x1.29 (NSBH) for -0.1 % mean coverage; one map worse beyond its
         Monte Carlo error on one curve (bns_o3/9, optimistic, -0.0016 at
@@ -248,6 +248,24 @@ class PlanningConfig:
         every eighth of a time step, instead of by a whole step (V7,
         ``docs/design/milp.md``): a tighter bound (``bns_o3/14``: 0.640 to
         0.566) for 0.1-1 s more of Sun and Moon positions.  Default false.
+
+    Examples
+    --------
+    The defaults, and a changed copy (the config is frozen):
+
+    >>> import dataclasses
+    >>> cfg = PlanningConfig()
+    >>> cfg.solver, cfg.objective, cfg.nside, cfg.filters
+    ('hybrid', 'detection', 256, ('g', 'r'))
+    >>> dataclasses.replace(cfg, solver="greedy", nside=64).solver
+    'greedy'
+
+    A value outside its range is refused, with every problem in one line:
+
+    >>> PlanningConfig(nside=100)
+    Traceback (most recent call last):
+    ...
+    ValueError: [scheduler] nside must be a power of 2, got 100
     """
 
     nside: int = setting(256, 16, 1024, power_of_two=True,

@@ -178,6 +178,26 @@ def make_plan(
         No start time, or an unknown solver.
     PlanCheckError
         The plan failed the checker (a scheduler bug; never published).
+
+    Examples
+    --------
+    A greedy plan of the packaged map for the night of 2019-05-01 (at its
+    own merger time the map is too close to the Sun):
+
+    >>> from importlib.resources import files
+    >>> path = files("mushrooms.scheduler_core") / "data" / "MS181101ab_bayestar.multiorder.fits"
+    >>> from astropy.time import Time
+    >>> from mushrooms.scheduler_core import PlanningConfig, read_skymap
+    >>> config = PlanningConfig(solver="greedy", nside=64)
+    >>> skymap = read_skymap(path, nside=config.nside)
+    >>> plan = make_plan(skymap, config, start=Time("2019-05-01T03:00:00", scale="utc"))
+    >>> plan.metrics.solver, plan.metrics.coverage > 0.9
+    ('greedy', True)
+    >>> sorted({o.filter for o in plan.observations})  # every field in both filters
+    ['g', 'r']
+    >>> doc = plan.to_document()
+    >>> doc["type"], doc["plan_id"] == plan.plan_id
+    ('plan', True)
     """
     t0 = time.perf_counter()
     solver = solver or config.solver

@@ -51,6 +51,21 @@ def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time, grid: F
     Returns
     -------
     PlanningProblem
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> from astropy.time import Time
+    >>> from mushrooms.scheduler_core import PlanningConfig, read_skymap
+    >>> path = files("mushrooms.scheduler_core") / "data" / "MS181101ab_bayestar.multiorder.fits"
+    >>> config = PlanningConfig(solver="greedy", nside=64)
+    >>> skymap = read_skymap(path, nside=config.nside)
+    >>> night = Time("2019-05-01T03:00:00", scale="utc")
+    >>> problem = prepare_problem(skymap, config, night)
+    >>> problem.field_ids.size == problem.footprints.field_ids.size
+    True
+    >>> problem.start.isot, problem.config.solver
+    ('2019-05-01T03:00:00.000', 'greedy')
     """
     if skymap.nside != config.nside:
         raise ValueError(f"sky map nside {skymap.nside} differs from config nside {config.nside}")

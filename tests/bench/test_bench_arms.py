@@ -1,5 +1,5 @@
 """Bench arms: ``<row>@<arm>`` is the same row planned under the configuration with ``[bench.arms.<arm>]``'s keys
-(issue 31 item 4: fixed 300 s against the exposure menu, paired on the same map and injections)."""
+(fixed 300 s against the exposure menu, paired on the same map and injections)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Creation order, not arrival order (issue 25): a stale notice never supersedes a newer one."""
+"""Creation order, not arrival order: a stale notice never supersedes a newer one."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Planning on the joint GW x external localisation (issue 17): choice, fallback, decisions."""
+"""Planning on the joint GW x external localisation: choice, fallback, decisions."""
 
 from __future__ import annotations
 

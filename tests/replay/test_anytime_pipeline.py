@@ -270,7 +270,7 @@ def test_detection_objective_supersedes_by_expected_detections_within_the_floor(
     if above:
         assert kinds == ["plan", "plan"] and out.revision == 2
         assert sink.messages[1]["metrics"]["expected_detections"] >= m1["expected_detections"] + margin - 1e-6
-    else:  # below the margin in detections: a tie, decided by the coverage rule (issue 24)
+    else:  # below the margin in detections: a tie, decided by the coverage rule
         m2_now = sink.messages[1].get("metrics") or {}
         if kinds == ["plan", "plan"]:
             assert m2_now["coverage"] >= m1["coverage"] + margin - 1e-6
@@ -303,13 +303,13 @@ def test_a_plan_with_more_detections_and_a_little_less_coverage_is_better_only_f
     # fewer detections never replace, however much more the plan covers
     assert not is_better(covering(first, c1 + 0.1), second, 0.0, "detection", 0.02)
     assert is_better(covering(first, c1 + 0.1), second, 0.0, "coverage", 0.02)
-    # the same detections and more coverage: the coverage rule decides (issue 24), by its margin
+    # the same detections and more coverage: the coverage rule decides, by its margin
     assert is_better(covering(second, second.metrics.coverage + 0.01), second, 0.005, "detection", 0.02)
     assert not is_better(covering(second, second.metrics.coverage + 0.004), second, 0.005, "detection", 0.02)
     assert is_better(covering(second, second.metrics.coverage + 0.01), second, 0.005, "coverage", 0.02)
 
 
-# ---------------------------------------------------------------- one clock, ties to coverage (issue 24)
+# ---------------------------------------------------------------- one clock, ties to coverage
 
 def with_map(data: bytes, edit) -> bytes:
     """The notice with its embedded sky map rewritten by ``edit(hdul)`` (a FITS edit of the real map)."""
@@ -381,7 +381,7 @@ def test_a_live_notice_with_a_stale_dated_map_counts_the_kilonova_from_the_notic
         p = NoticePipeline.from_config(detecting(margin), store, sink, planner=HalfThenWhole())
         out = p.run_job(p.accept(data, f"test:{name}", when).job)
         store.close()
-        # before issue 24 the stale map's clock was its 2018 header: 0 expected detections, revision 1 final
+        # on the stale map's own clock (its 2018 header): 0 expected detections, revision 1 final
         assert [m["type"] for m in sink.messages] == ["plan", "plan"] and out.revision == 2, \
             [m.get("reason") for m in sink.messages]
         runs[name] = [m for m in sink.messages if m["type"] == "plan"]
@@ -418,7 +418,7 @@ def test_a_distant_event_publishes_the_plan_with_more_coverage(store, gain):
     out = p.run_job(accept(p, PRELIM, with_map(raw(PRELIM), hundred_times_farther)).job)
     plans = [m for m in sink.messages if m["type"] == "plan"]
     assert all(doc["metrics"]["expected_detections"] < 1e-4 for doc in plans)
-    # before issue 24: "hybrid expects 0.0000 detections against 0.0000 (coverage ...)" and revision 1 stayed final
+    # on the map's clock: "hybrid expects 0.0000 detections against 0.0000 (coverage ...)" and revision 1 stayed final
     assert [m["type"] for m in sink.messages] == ["plan", "plan"] and out.revision == 2, \
         [m.get("reason") for m in sink.messages]
     first, final = plans

@@ -1,4 +1,4 @@
-"""The service's path on notices with an external coincidence (issue 17): joint maps planned, fallbacks."""
+"""The service's path on notices with an external coincidence: joint maps planned, fallbacks."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Exposure as a decision (issue 31): the menu grid, its span constraint (X7), and what the menu chooses.
+"""Exposure as a decision: the menu grid, its span constraint (X7), and what the menu chooses.
 
 Real HiGHS, the real test map (MS220722v BAYESTAR, distance layers), the
 checker, the exports and the Kowalski / SkyPortal contract servers.

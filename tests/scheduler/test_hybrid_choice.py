@@ -52,7 +52,7 @@ def test_hybrid_under_a_detection_config_gives_its_blocks_stage_what_is_left(sky
 
 
 def test_the_stage_times_name_every_stage_that_ran_in_order(skymap_220722v, caplog):
-    # issue 30 item 4: `mushrooms plan` logs where its seconds go, from the result's details
+    # `mushrooms plan` logs where its seconds go, from the result's details
     import logging
 
     from mushrooms.scheduler_core.planner import make_plan, optimise

@@ -1,6 +1,6 @@
-"""Issue 24 on real maps with the real HiGHS: the kilonova clock is the notice's, and a tie in expected
-detections is decided by coverage in the detection stage.  Only APIs older than issue 24 are used, so the
-file runs against the code before it (where these tests fail)."""
+"""On real maps with the real HiGHS: the kilonova clock is the notice's, and a tie in expected detections
+is decided by coverage in the detection stage.  Only APIs older than the merger clock are used, so the file
+runs against the code of before (where these tests fail)."""
 
 from __future__ import annotations
 
@@ -56,6 +56,6 @@ def test_detection_stage_on_a_distant_source_keeps_the_plan_with_more_coverage(d
     ran = [g for g in d.grids if "coverage" in g]
     best = max(g["coverage"] for g in ran)
     assert best > c_weak + cfg.min_gain, "the solver found more coverage: the test needs it"
-    # before issue 24 the stage kept the weak coverage plan (no candidate had more expected detections)
+    # with the map's stale clock the stage kept the weak coverage plan (no candidate had more expected detections)
     assert d.choice == "detection"
     assert published_coverage(problem, det) == pytest.approx(best, abs=1e-9)

@@ -1,4 +1,4 @@
-"""Issue 24: the merger clock (scheduler_core.clock) and the rule R1-R3 (scheduler_core.preference)."""
+"""The merger clock (scheduler_core.clock) and the rule R1-R3 (scheduler_core.preference)."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ MAP = "MS220722v_bayestar.multiorder.fits"
 
 @pytest.mark.parametrize("objective", ["coverage", "detection"])
 def test_a_tie_in_expected_detections_is_decided_by_coverage(objective) -> None:
-    # the measured symptom of issue 24: 0.0000 detections against 0.0000, coverage 0.5692 against 0.5556
+    # the symptom measured with the map's stale clock: 0.0000 detections against 0.0000, coverage 0.5692 against 0.5556
     assert is_preferred(0.5692, 0.0, 0.5556, 0.0, 0.005, objective, coverage_floor=0.98 * 0.5556)
     # a tie within the margin (not only exact zeros), either way round
     assert is_preferred(0.60, 0.101, 0.55, 0.104, 0.005, objective, coverage_floor=0.98 * 0.55)
@@ -68,7 +68,7 @@ def test_without_a_notice_the_map_clock_is_used_and_small_disagreements_are_quie
     assert merger_clock(None, None).time is None
 
 
-# ---------------------------------------------------------------- issue 24 item 3, as a property
+# ---------------------------------------------------------------- the rule R1-R3, as a property
 
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402

@@ -1,4 +1,4 @@
-"""The streaming sky-map reader (issue 24): ligo.skymap's meaning, any layout, bounded memory, bombs refused.
+"""The streaming sky-map reader: ligo.skymap's meaning, any layout, bounded memory, bombs refused.
 
 Maps are made here, small (NSIDE 16-256), from the bundled BAYESTAR
 multi-order map (rasterised by ligo.skymap) or from seeded random layers

@@ -41,7 +41,8 @@ OBJECTIVE_SUFFIXES = {"-coverage": "coverage", "-detection": "detection"}
 #: ``<row>@<arm>``: one of our rows under the configuration of ``[bench.arms.<arm>]``.
 ARM_SEPARATOR = "@"
 #: What the rows mean; part of the study's result keys, so rows made under older names are not reused
-#: (1: plain rows were the coverage scheduler whatever the objective; 2: issue 24).
+#: (1: plain rows were the coverage scheduler whatever the objective; 2: a row named after a solver is what the service
+#: publishes under the config, objective included).
 ROW_NAMES_VERSION = 2
 
 #: ``[bench] maglim`` values: AB magnitudes a 300 s ZTF exposure may reach (21.7 in g and r).

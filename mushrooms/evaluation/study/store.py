@@ -29,7 +29,7 @@ def study_config(settings: BenchSettings) -> dict[str, Any]:
     d = dataclasses.asdict(settings.bench)
     d.update(config=dataclasses.asdict(settings.config), start_iso=settings.start_iso,
              n_injections=settings.n_injections)
-    d["row_names"] = ROW_NAMES_VERSION  # a row named after a solver changed meaning (issue 24)
+    d["row_names"] = ROW_NAMES_VERSION  # a row named after a solver became what the service publishes
     return json.loads(json.dumps(d, sort_keys=True, default=str))
 
 

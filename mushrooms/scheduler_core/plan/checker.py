@@ -383,6 +383,33 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     Returns
     -------
     CheckReport
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> from astropy.time import Time
+    >>> from mushrooms.scheduler_core import PlanningConfig, read_skymap
+    >>> path = files("mushrooms.scheduler_core") / "data" / "MS181101ab_bayestar.multiorder.fits"
+    >>> config = PlanningConfig(solver="greedy", nside=64)
+    >>> skymap = read_skymap(path, nside=config.nside)
+    >>> night = Time("2019-05-01T03:00:00", scale="utc")
+    >>> from mushrooms.scheduler_core import make_plan
+    >>> plan = make_plan(skymap, config, start=night)  # checked on the way out too
+    >>> report = check_plan(plan, skymap, config)
+    >>> report.ok, report.problems
+    (True, ())
+    >>> abs(report.coverage - plan.metrics.coverage) < 1e-4
+    True
+
+    A plan that breaks the cadence rule (its second pass moved onto the
+    first) is refused, with one line per problem:
+
+    >>> import dataclasses
+    >>> early = tuple(dataclasses.replace(o, start=o.start - config.cadence_s) if o.filter == "r" else o
+    ...               for o in plan.observations)
+    >>> bad = check_plan(dataclasses.replace(plan, observations=early), skymap, config)
+    >>> bad.ok, len(bad.problems) > 0
+    (False, True)
     """
     p = _Problems()
     obs = plan.observations

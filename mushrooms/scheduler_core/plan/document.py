@@ -317,6 +317,23 @@ class Plan:
         ------
         ValueError
             When a key is missing or a value has the wrong type.
+
+        Examples
+        --------
+        A plan survives its document (JSON and back):
+
+        >>> import json
+        >>> from importlib.resources import files
+        >>> from astropy.time import Time
+        >>> from mushrooms.scheduler_core import PlanningConfig, make_plan, read_skymap
+        >>> path = files("mushrooms.scheduler_core") / "data" / "MS181101ab_bayestar.multiorder.fits"
+        >>> config = PlanningConfig(solver="greedy", nside=64)
+        >>> plan = make_plan(read_skymap(path, nside=64), config, start=Time("2019-05-01T03:00:00", scale="utc"))
+        >>> again = Plan.from_document(json.loads(json.dumps(plan.to_document())))
+        >>> again.plan_id == plan.plan_id, len(again.observations) == len(plan.observations)
+        (True, True)
+        >>> again.to_document() == plan.to_document()
+        True
         """
         try:
             missing = [k for k in PLAN_KEYS if k not in doc]

@@ -47,6 +47,7 @@ import scipy.sparse as sp
 
 from ..sky.cells import Cells
 from ..config import PlanningConfig
+from .rows import Columns, RowBuilder
 from .solvers import MilpModel
 
 __all__ = ["BlockParams", "Candidates", "BlockModel", "block_size", "build_block_model", "decode_blocks",
@@ -207,38 +208,6 @@ class BlockModel:
         return float(self.milp.c @ x)
 
 
-class _Rows:
-    """COO triplets and bounds, appended row family by row family."""
-
-    def __init__(self) -> None:
-        self.r: list[np.ndarray] = []
-        self.c: list[np.ndarray] = []
-        self.v: list[np.ndarray] = []
-        self.lo: list[np.ndarray] = []
-        self.hi: list[np.ndarray] = []
-        self.n = 0
-
-    def add(self, n_rows: int, terms: list[tuple[np.ndarray, np.ndarray, np.ndarray | float]],
-            lo: float | np.ndarray, hi: float | np.ndarray) -> None:
-        """``terms``: (local row, column, coefficient) arrays."""
-        for rr, cc, vv in terms:
-            rr = np.asarray(rr, np.int64)
-            self.r.append(rr + self.n)
-            self.c.append(np.asarray(cc, np.int64))
-            self.v.append(np.broadcast_to(np.asarray(vv, float), rr.shape).copy())
-        self.lo.append(np.broadcast_to(np.asarray(lo, float), (n_rows,)).copy())
-        self.hi.append(np.broadcast_to(np.asarray(hi, float), (n_rows,)).copy())
-        self.n += n_rows
-
-    def matrix(self, n_cols: int) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
-        r = np.concatenate(self.r) if self.r else np.zeros(0, np.int64)
-        c = np.concatenate(self.c) if self.c else np.zeros(0, np.int64)
-        v = np.concatenate(self.v) if self.v else np.zeros(0)
-        A = sp.csr_matrix((v, (r, c)), shape=(self.n, n_cols))
-        A.sum_duplicates()
-        return A, np.concatenate(self.lo), np.concatenate(self.hi)
-
-
 def build_block_model(candidates: Candidates, cells: Cells, n_fields: int, params: BlockParams) -> BlockModel:
     """Assemble the block-division MILP (equations B0-B11 of ``docs/design/milp.md``).
 
@@ -259,80 +228,96 @@ def build_block_model(candidates: Candidates, cells: Cells, n_fields: int, param
     """
     nb, K, F, C = params.n_blocks, len(candidates), n_fields, cells.n_cells
     H = params.horizon_s
-    s = params.per_visit_s
     b_eff = min(params.b_size, F) if F else params.b_size
     # variable layout (see BlockModel): B, x, y, U, t, d
-    oB, ox = 0, nb * K
-    oy = ox + F
-    oU = oy + C
-    ot = oU + nb
-    od = ot + nb
-    n_cols = od + nb
+    cols = Columns()
+    B, x, y = cols.family("B", nb * K), cols.family("x", F), cols.family("y", C)
+    U, t, d = cols.family("U", nb), cols.family("t", nb), cols.family("d", nb)
+    n_cols = cols.n
     blk = np.repeat(np.arange(nb), K)          # block of each B column
     cand = np.tile(np.arange(K), nb)           # candidate of each B column
-    colB = oB + np.arange(nb * K)
     ts, te = np.asarray(candidates.start, float), np.asarray(candidates.end, float)
-    rows = _Rows()
-
-    # (B8) each field at most once: x_j - Σ_{i, k of j} B[i, k] = 0
-    rows.add(F, [(np.arange(F), ox + np.arange(F), 1.0),
-                 (candidates.field[cand], colB, -1.0)], 0.0, 0.0)
-    # (B4) cell coverage: y_c - Σ_{j ∋ c} x_j <= 0
-    cell_of = np.repeat(np.arange(C), np.diff(cells.indptr))
-    rows.add(C, [(np.arange(C), oy + np.arange(C), 1.0),
-                 (cell_of, ox + cells.fields, -1.0)], -np.inf, 0.0)
-    # (B2) a block with an observation is used: B[i, k] - U[i] <= 0
-    rows.add(nb * K, [(np.arange(nb * K), colB, 1.0), (np.arange(nb * K), oU + blk, -1.0)], -np.inf, 0.0)
-    # (B1) least block size: Σ_k B[i, k] - b_size U[i] >= 0
-    rows.add(nb, [(blk, colB, 1.0), (np.arange(nb), oU + np.arange(nb), -float(b_eff))], 0.0, np.inf)
-    # (B3) unused blocks last: U[i] - U[i-1] <= 0
-    if nb > 1:
-        rows.add(nb - 1, [(np.arange(nb - 1), oU + np.arange(1, nb), 1.0),
-                          (np.arange(nb - 1), oU + np.arange(nb - 1), -1.0)], -np.inf, 0.0)
-    # (B9) duration: d[i] - 2 s n_i - (t_filt + e_i) U_i >= 0 ;  d[i] - s n_i - (cadence + e_i) U_i >= 0
     extra = np.asarray(params.extra, float)
-    rows.add(nb, [(np.arange(nb), od + np.arange(nb), 1.0), (blk, colB, -2.0 * s),
-                  (np.arange(nb), oU + np.arange(nb), -(params.filter_change_s + extra))], 0.0, np.inf)
-    rows.add(nb, [(np.arange(nb), od + np.arange(nb), 1.0), (blk, colB, -s),
-                  (np.arange(nb), oU + np.arange(nb), -(params.cadence_s + extra))], 0.0, np.inf)
-    # (B6) start inside every member's window: t[i] - T_s[k] B[i, k] >= 0
-    rows.add(nb * K, [(np.arange(nb * K), ot + blk, 1.0), (np.arange(nb * K), colB, -ts[cand])], 0.0, np.inf)
-    # (B5) end inside every member's window: t[i] + d[i] + (H - T_e[k]) B[i, k] <= H
-    rows.add(nb * K, [(np.arange(nb * K), ot + blk, 1.0), (np.arange(nb * K), od + blk, 1.0),
-                      (np.arange(nb * K), colB, H - te[cand])], -np.inf, H)
-    # (B7) after the previous block ends: t[i] - t[i-1] - d[i-1] - (t_filt + g_{i-1}) U_i >= 0
-    if nb > 1:
-        i = np.arange(1, nb)
-        r = np.arange(nb - 1)
-        rows.add(nb - 1, [(r, ot + i, 1.0), (r, ot + i - 1, -1.0), (r, od + i - 1, -1.0),
-                          (r, oU + i, -(params.filter_change_s + np.asarray(params.gaps, float)))], 0.0, np.inf)
-    # (B10) Σ_i d[i] <= time during which some candidate is observable (blocks are disjoint
-    # and each lies inside a window): a valid cut the big-M rows alone do not give
-    if K:
-        rows.add(1, [(np.zeros(nb, np.int64), od + np.arange(nb), 1.0)], -np.inf,
-                 _union_length(ts, te))
-    # (B11) horizon: t[i] + d[i] <= H
-    rows.add(nb, [(np.arange(nb), ot + np.arange(nb), 1.0), (np.arange(nb), od + np.arange(nb), 1.0)],
-             -np.inf, H)
+    rows = RowBuilder()
+    _block_rows(rows, candidates, cells, params, b_eff, (B, x, y, U, t, d))
 
     A, lo, hi = rows.matrix(n_cols)
     # (B0) objective: Σ w_c y_c - p Σ B[i, k]
     c = np.zeros(n_cols)
-    c[oB:ox] = -params.penalty
-    c[oy:oU] = cells.weight
+    c[B.columns] = -params.penalty
+    c[y.columns] = cells.weight
     col_lo = np.zeros(n_cols)
     col_hi = np.ones(n_cols)
-    col_hi[ot:ot + nb] = H
-    col_hi[od:od + nb] = H
+    col_hi[t.columns] = H
+    col_hi[d.columns] = H
     if K:
         # block i cannot start before the least durations of blocks 0..i-1 have passed
         lb = earliest_block_starts(params, float(ts.min()), b_eff)
         fits = np.maximum(ts[cand], lb[blk]) + params.least_duration_s(b_eff) + extra[blk] <= te[cand] + 1e-9
-        col_hi[oB:ox] = fits.astype(float)
+        col_hi[B.columns] = fits.astype(float)
     integer = np.zeros(n_cols, bool)
-    integer[oB:ox] = True
-    integer[oU:oU + nb] = True
-    return BlockModel(MilpModel(c, A, lo, hi, col_lo, col_hi, integer), nb, K, F, C)
+    integer[B.columns] = True
+    integer[U.columns] = True
+    milp = MilpModel(c, A, lo, hi, col_lo, col_hi, integer, rows.blocks(), cols.families())
+    return BlockModel(milp, nb, K, F, C)
+
+
+def _block_rows(rows: RowBuilder, candidates: Candidates, cells: Cells, params: BlockParams, b_eff: int,
+                families: tuple) -> None:
+    """Append the block model's rows (B1-B11) on the columns of ``families`` = (B, x, y, U, t, d)."""
+    B, x, y, U, t, d = families
+    nb, K, F, C = params.n_blocks, len(candidates), x.size, cells.n_cells
+    H, s = params.horizon_s, params.per_visit_s
+    blk = np.repeat(np.arange(nb), K)          # block of each B column
+    cand = np.tile(np.arange(K), nb)           # candidate of each B column
+    ts, te = np.asarray(candidates.start, float), np.asarray(candidates.end, float)
+    extra = np.asarray(params.extra, float)
+    ik = np.arange(nb * K)                     # one row per (block, candidate)
+    blocks, fields, cells_ = np.arange(nb), np.arange(F), np.arange(C)
+
+    # (B8) each field at most once: x_j - Σ_{i, k of j} B[i, k] = 0
+    rows.block("B8 each field at most once", F,
+               [(fields, x[fields], 1.0), (candidates.field[cand], B.columns, -1.0)], 0.0, 0.0)
+    # (B4) cell coverage: y_c - Σ_{j ∋ c} x_j <= 0
+    cell_of = np.repeat(cells_, np.diff(cells.indptr))
+    rows.block("B4 cell coverage", C, [(cells_, y[cells_], 1.0), (cell_of, x[cells.fields], -1.0)], -np.inf, 0.0)
+    # (B2) a block with an observation is used: B[i, k] - U[i] <= 0
+    rows.block("B2 a block with an observation is used", nb * K,
+               [(ik, B.columns, 1.0), (ik, U[blk], -1.0)], -np.inf, 0.0)
+    # (B1) least block size: Σ_k B[i, k] - b_size U[i] >= 0
+    rows.block("B1 least block size", nb, [(blk, B.columns, 1.0), (blocks, U[blocks], -float(b_eff))], 0.0, np.inf)
+    # (B3) unused blocks last: U[i] - U[i-1] <= 0
+    if nb > 1:
+        later = np.arange(nb - 1)
+        rows.block("B3 unused blocks last", nb - 1, [(later, U[later + 1], 1.0), (later, U[later], -1.0)],
+                   -np.inf, 0.0)
+    # (B9) duration: d[i] - 2 s n_i - (t_filt + e_i) U_i >= 0 ;  d[i] - s n_i - (cadence + e_i) U_i >= 0
+    rows.block("B9 duration of both passes and a filter change", nb,
+               [(blocks, d[blocks], 1.0), (blk, B.columns, -2.0 * s),
+                (blocks, U[blocks], -(params.filter_change_s + extra))], 0.0, np.inf)
+    rows.block("B9 duration of one pass and the cadence", nb,
+               [(blocks, d[blocks], 1.0), (blk, B.columns, -s), (blocks, U[blocks], -(params.cadence_s + extra))],
+               0.0, np.inf)
+    # (B6) start inside every member's window: t[i] - T_s[k] B[i, k] >= 0
+    rows.block("B6 start inside every member's window", nb * K,
+               [(ik, t[blk], 1.0), (ik, B.columns, -ts[cand])], 0.0, np.inf)
+    # (B5) end inside every member's window: t[i] + d[i] + (H - T_e[k]) B[i, k] <= H
+    rows.block("B5 end inside every member's window", nb * K,
+               [(ik, t[blk], 1.0), (ik, d[blk], 1.0), (ik, B.columns, H - te[cand])], -np.inf, H)
+    # (B7) after the previous block ends: t[i] - t[i-1] - d[i-1] - (t_filt + g_{i-1}) U_i >= 0
+    if nb > 1:
+        i = np.arange(1, nb)
+        r = np.arange(nb - 1)
+        rows.block("B7 after the previous block ends", nb - 1,
+                   [(r, t[i], 1.0), (r, t[i - 1], -1.0), (r, d[i - 1], -1.0),
+                    (r, U[i], -(params.filter_change_s + np.asarray(params.gaps, float)))], 0.0, np.inf)
+    # (B10) Σ_i d[i] <= time during which some candidate is observable (blocks are disjoint
+    # and each lies inside a window): a valid cut the big-M rows alone do not give
+    if K:
+        rows.block("B10 total duration within the observable time", 1,
+                   [(np.zeros(nb, np.int64), d[blocks], 1.0)], -np.inf, _union_length(ts, te))
+    # (B11) horizon: t[i] + d[i] <= H
+    rows.block("B11 horizon", nb, [(blocks, t[blocks], 1.0), (blocks, d[blocks], 1.0)], -np.inf, H)
 
 
 def _union_length(start: np.ndarray, end: np.ndarray) -> float:

@@ -24,13 +24,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..plan.document import Observation
 from ..problem import PlanningProblem
 from ..sky.cells import Cells, merge_cells
 from .block_schedule import shortlist_footprints
 from .slew import slew_time
+from .rows import Columns, Family, RowBuilder, at_least_when
 from .solvers import MilpModel
 
 __all__ = ["ExactData", "ExactModel", "exact_data", "build_exact_model", "start_from_plan", "decode_exact",
@@ -153,33 +153,6 @@ class ExactModel:
         return self.off_o + int(self.o_pair.shape[0])
 
 
-class _Rows:
-    """Sparse rows ``lo <= Σ v x <= hi`` collected block by block."""
-
-    def __init__(self) -> None:
-        self.r: list[np.ndarray] = []
-        self.c: list[np.ndarray] = []
-        self.v: list[np.ndarray] = []
-        self.lo: list[float] = []
-        self.hi: list[float] = []
-
-    def add(self, cols, vals, lo: float, hi: float) -> None:
-        n = len(self.lo)
-        self.r.append(np.full(len(cols), n, np.int64))
-        self.c.append(np.asarray(cols, np.int64))
-        self.v.append(np.asarray(vals, float))
-        self.lo.append(lo)
-        self.hi.append(hi)
-
-    def matrix(self, n_cols: int) -> sp.csr_matrix:
-        if not self.lo:
-            return sp.csr_matrix((0, n_cols))
-        A = sp.csr_matrix((np.concatenate(self.v), (np.concatenate(self.r), np.concatenate(self.c))),
-                          shape=(len(self.lo), n_cols))
-        A.sum_duplicates()
-        return A
-
-
 def build_exact_model(problem: PlanningProblem, data: ExactData | None = None) -> ExactModel:
     """Assemble the exact continuous-time MILP (equations C0–C6 of ``docs/design/milp.md``).
 
@@ -205,8 +178,87 @@ def build_exact_model(problem: PlanningProblem, data: ExactData | None = None) -
     u_exposure = np.array([2 * f + p for f in multi for p in (0, 1) for _ in data.windows[f]], np.int64)
     u_window = np.array([w for f in multi for p in (0, 1) for w in range(len(data.windows[f]))], np.int64)
     ok = np.flatnonzero(data.pairable)
-    pairs, forced = [], []  # pairs needing an order binary; (e, e') with only "e before e'" possible
-    apart = []  # field pairs that cannot both be observed
+    o_pair, forced, apart = _exposure_orders(ok, lo_e, hi_e, oh, exp)
+    P, U = o_pair.shape[0], u_exposure.size
+    cols = Columns()
+    x, d, t = cols.family("x", F), cols.family("d", F), cols.family("t", 2 * F)  # t[2f + p]: filter p of f
+    u, o, y = cols.family("u", U), cols.family("o", P), cols.family("y", C)
+    n = cols.n
+    rows = RowBuilder()
+
+    # (C1) window choice: an observed field's exposure lies in one of its windows, Σ_w u_{e,w} = x_f
+    for e in np.unique(u_exposure):
+        k = np.flatnonzero(u_exposure == e)
+        rows.row("C1 window choice", [*u[k], x[f_of[e]]], [*np.ones(k.size), -1.0], 0.0, 0.0)
+
+    # (C2) inside the window chosen: a_w - (a_w - lo)(1 - u) <= t_e <= b_w - exp + (hi - b_w + exp)(1 - u)
+    for k, (e, w) in enumerate(zip(u_exposure, u_window)):
+        a, b = data.windows[f_of[e]][w]
+        rows.row("C2 inside the window chosen", [t[e], u[k]], [1.0, -(a - lo_e[e])], lo_e[e], math.inf)
+        rows.row("C2 inside the window chosen", [t[e], u[k]], [1.0, hi_e[e] - (b - exp)], -math.inf, hi_e[e])
+    # (single-window fields: the bounds lo <= t_e <= hi below are that window)
+
+    # (C3) cadence, either filter first: d_f = 1 -> t_{f,1} >= t_{f,0} + c; d_f = 0 -> t_{f,0} >= t_{f,1} + c
+    for f in ok:
+        M = cad + hi[f] - lo[f]
+        first, second = t[2 * f], t[2 * f + 1]
+        at_least_when(rows, "C3 cadence", [second, first], [1.0, -1.0], cad, [(d[f], 1), (x[f], 1)], M)
+        at_least_when(rows, "C3 cadence", [first, second], [1.0, -1.0], cad, [(d[f], 0), (x[f], 1)], M)
+        rows.row("C3 cadence", [d[f], x[f]], [1.0, -1.0], -math.inf, 0.0)
+
+    # (C4) one exposure at a time: t_e' >= t_e + exp + oh(e, e') or t_e >= t_e' + exp + oh(e', e)
+    for k, (e, e2) in enumerate(o_pair):
+        both = [(x[f_of[e]], 1), (x[f_of[e2]], 1)]
+        for first, second, o_first in ((e, e2, 1), (e2, e, 0)):  # o_k = 1 puts e first, o_k = 0 e2
+            p = exp + oh[first, second]
+            M = p + hi_e[first] - lo_e[second]
+            at_least_when(rows, "C4 one exposure at a time", [t[second], t[first]], [1.0, -1.0], p,
+                          [(o[k], o_first), *both], M)
+    for first, second in forced:  # only "first before second" fits the windows
+        p = exp + oh[first, second]
+        M = p + hi_e[first] - lo_e[second]
+        at_least_when(rows, "C4 one exposure at a time", [t[second], t[first]], [1.0, -1.0], p,
+                      [(x[f_of[first]], 1), (x[f_of[second]], 1)], M)
+    for f, g in sorted(set(apart)):  # neither order fits: not both
+        rows.row("C4 one exposure at a time", [x[f], x[g]], [1.0, 1.0], -math.inf, 1.0)
+
+    # (C5) cell coverage: y_l <= Σ_{f ∋ l} x_f
+    cells = data.cells
+    for c in range(C):
+        members = cells.fields[cells.indptr[c]:cells.indptr[c + 1]]
+        rows.row("C5 cell coverage", [y[c], *x[members]], [1.0, *(-np.ones(members.size))], -math.inf, 0.0)
+
+    # (C6) interval capacity: the exposures the windows and the cadence hold inside [A, B] need (exp + r) each
+    n_cuts = _capacity_cuts(rows, data, exp, cad, r, cfg.filter_change_s, x)
+
+    # (C0) objective: maximise Σ_l w_l y_l
+    c_obj = np.zeros(n)
+    c_obj[y.columns] = cells.weight
+    col_lo, col_hi = np.zeros(n), np.ones(n)
+    col_hi[x.columns] = data.pairable.astype(float)
+    col_lo[t.columns], col_hi[t.columns] = lo_e, hi_e
+    integer = np.zeros(n, bool)
+    integer[x.columns] = integer[d.columns] = True
+    integer[u.columns] = integer[o.columns] = True
+    A, row_lo, row_hi = rows.matrix(n)
+    milp = MilpModel(c_obj, A, row_lo, row_hi, col_lo, col_hi, integer, rows.blocks(), cols.families())
+    return ExactModel(milp, data, u_exposure, u_window, o_pair, n_cuts)
+
+
+def _exposure_orders(ok: np.ndarray, lo_e: np.ndarray, hi_e: np.ndarray, oh: np.ndarray,
+                     exp: float) -> tuple[np.ndarray, list, list]:
+    """Which order each two exposures of different fields may take (for C4).
+
+    Returns
+    -------
+    o_pair : numpy.ndarray
+        (P, 2) exposure pairs either order fits: each gets an order binary.
+    forced : list of (e, e')
+        Pairs only "e before e'" fits.
+    apart : list of (f, g)
+        Field pairs that cannot both be observed.
+    """
+    pairs, forced, apart = [], [], []
     for i, f in enumerate(ok):
         for g in ok[i + 1:]:
             for e in (2 * f, 2 * f + 1):
@@ -221,71 +273,11 @@ def build_exact_model(problem: PlanningProblem, data: ExactData | None = None) -
                         forced.append((e2, e))
                     else:
                         apart.append((f, g))
-    o_pair = np.array(pairs, np.int64).reshape(-1, 2)
-    P, U = o_pair.shape[0], u_exposure.size
-    ox, od, ot, ou = 0, F, 2 * F, 4 * F
-    oo, oy = ou + U, ou + U + P
-    n = oy + C
-    rows = _Rows()
-
-    # (C1) window choice: an observed field's exposure lies in one of its windows, Σ_w u_{e,w} = x_f
-    for e in np.unique(u_exposure):
-        k = np.flatnonzero(u_exposure == e)
-        rows.add([*(ou + k), ox + f_of[e]], [*np.ones(k.size), -1.0], 0.0, 0.0)
-
-    # (C2) inside the window chosen: a_w - (a_w - lo)(1 - u) <= t_e <= b_w - exp + (hi - b_w + exp)(1 - u)
-    for k, (e, w) in enumerate(zip(u_exposure, u_window)):
-        a, b = data.windows[f_of[e]][w]
-        rows.add([ot + e, ou + k], [1.0, -(a - lo_e[e])], lo_e[e], math.inf)
-        rows.add([ot + e, ou + k], [1.0, hi_e[e] - (b - exp)], -math.inf, hi_e[e])
-    # (single-window fields: the bounds lo <= t_e <= hi below are that window)
-
-    # (C3) cadence, either filter first: d_f = 1 -> t_{f,1} >= t_{f,0} + c; d_f = 0 -> t_{f,0} >= t_{f,1} + c
-    for f in ok:
-        M = cad + hi[f] - lo[f]
-        rows.add([ot + 2 * f + 1, ot + 2 * f, od + f, ox + f], [1.0, -1.0, -M, -M], cad - 2 * M, math.inf)
-        rows.add([ot + 2 * f, ot + 2 * f + 1, od + f, ox + f], [1.0, -1.0, M, -M], cad - M, math.inf)
-        rows.add([od + f, ox + f], [1.0, -1.0], -math.inf, 0.0)
-
-    # (C4) one exposure at a time: t_e' >= t_e + exp + oh(e, e') or t_e >= t_e' + exp + oh(e', e)
-    for k, (e, e2) in enumerate(o_pair):
-        for first, second, sign in ((e, e2, 1.0), (e2, e, -1.0)):
-            p = exp + oh[first, second]
-            M = p + hi_e[first] - lo_e[second]
-            # sign 1: o = 1 puts e first; sign -1: o = 0 does
-            rows.add([ot + second, ot + first, oo + k, ox + f_of[e], ox + f_of[e2]],
-                     [1.0, -1.0, -M * sign, -M, -M], p - 3 * M if sign > 0 else p - 2 * M, math.inf)
-    for first, second in forced:
-        p = exp + oh[first, second]
-        M = p + hi_e[first] - lo_e[second]
-        rows.add([ot + second, ot + first, ox + f_of[first], ox + f_of[second]], [1.0, -1.0, -M, -M],
-                 p - 2 * M, math.inf)
-    for f, g in sorted(set(apart)):
-        rows.add([ox + f, ox + g], [1.0, 1.0], -math.inf, 1.0)
-
-    # (C5) cell coverage: y_l <= Σ_{f ∋ l} x_f
-    cells = data.cells
-    for c in range(C):
-        members = cells.fields[cells.indptr[c]:cells.indptr[c + 1]]
-        rows.add([oy + c, *(ox + members)], [1.0, *(-np.ones(members.size))], -math.inf, 0.0)
-
-    # (C6) interval capacity: the exposures the windows and the cadence hold inside [A, B] need (exp + r) each
-    n_cuts = _capacity_cuts(rows, data, exp, cad, r, cfg.filter_change_s, ox)
-
-    # (C0) objective: maximise Σ_l w_l y_l
-    c_obj = np.zeros(n)
-    c_obj[oy:] = cells.weight
-    col_lo, col_hi = np.zeros(n), np.ones(n)
-    col_hi[ox:ox + F] = data.pairable.astype(float)
-    col_lo[ot:ot + 2 * F], col_hi[ot:ot + 2 * F] = lo_e, hi_e
-    integer = np.zeros(n, bool)
-    integer[ox:ot] = True
-    integer[ou:oy] = True
-    milp = MilpModel(c_obj, rows.matrix(n), np.array(rows.lo), np.array(rows.hi), col_lo, col_hi, integer)
-    return ExactModel(milp, data, u_exposure, u_window, o_pair, n_cuts)
+    return np.array(pairs, np.int64).reshape(-1, 2), forced, apart
 
 
-def _capacity_cuts(rows: _Rows, data: ExactData, exp: float, cad: float, r: float, fc: float, ox: int) -> int:
+def _capacity_cuts(rows: RowBuilder, data: ExactData, exp: float, cad: float, r: float, fc: float,
+                   x: Family) -> int:
     """(C6) rows ``Σ_f k_f(A, B) (exp + r) x_f <= B - A + r`` that are not implied.
 
     A field observable in ``[lo, hi + exp]`` has its earlier exposure inside
@@ -319,7 +311,7 @@ def _capacity_cuts(rows: _Rows, data: ExactData, exp: float, cad: float, r: floa
             if key in seen:
                 continue  # a wider interval with the same members is weaker
             seen.add(key)
-            rows.add(ox + ok[inside], k[inside] * (exp + r), -math.inf, cap)
+            rows.row("C6 interval capacity", x[ok[inside]], k[inside] * (exp + r), -math.inf, cap)
             n_cuts += 1
     return n_cuts
 

@@ -50,7 +50,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 from astropy.time import Time, TimeDelta
 
 from ..sky.cells import Cells, merge_cells
@@ -65,7 +64,8 @@ from ..problem import DetectionReport, PlanningProblem, ScheduleResult, StopChec
 from ..sky.skymap import SkyMap
 from .exposure_menu import (dominated_pairs, map_start_menu, menu_instance, menu_portfolio, menu_positions,
                             menu_start_pairs)
-from .slots import SlotInstance, SlotModel, build_slot_model, slot_instance, start_vector
+from .rows import Columns, RowBuilder
+from .slots import SlotInstance, SlotModel, build_slot_model, slot_instance, slot_model_rows, start_vector
 from .solvers import MilpModel, resolve_backend, solve_milp
 
 __all__ = ["pair_reach", "distance_levels", "pair_levels", "level_weights", "DetectionModel", "build_detection_model",
@@ -264,45 +264,34 @@ def build_detection_model(inst: SlotInstance, W: np.ndarray, pair_level: np.ndar
     base = build_slot_model(inst, penalty)
     K, F, C = inst.n_pairs, inst.n_fields, inst.cells.n_cells
     L = W.shape[1]
-    n0 = base.milp.n_vars
-    off_u, off_v = n0, n0 + F * L
-    n = off_v + C * L
+    cols = Columns()
+    x, z, y = cols.family("x", K), cols.family("z", F), cols.family("y", C)
+    u, v = cols.family("u", F * L), cols.family("v", C * L)  # u[f L + l], v[c L + l]
+    n0, n = base.milp.n_vars, cols.n
+    rows = RowBuilder()
+    slot_model_rows(rows, inst, x, z, y)  # (S1-S3) on the same columns as the slot model's
     # (X3) u_fl - Σ_{k ∋ f, lev(k) >= l} x_k = 0
     kk, ll = np.nonzero(np.arange(L)[None, :] < pair_level[:, None])  # pair k reaches level l (0-based)
-    r3 = np.concatenate([np.arange(F * L), inst.pair_field[kk] * L + ll])
-    c3 = np.concatenate([off_u + np.arange(F * L), kk])
-    v3 = np.concatenate([np.ones(F * L), -np.ones(kk.size)])
+    rows.block("X3 field level", F * L,
+               [(np.arange(F * L), u.columns, 1.0), (inst.pair_field[kk] * L + ll, x[kk], -1.0)], 0.0, 0.0)
     # (X4) v_cl - Σ_{f ∋ c} u_fl <= 0
     cell_of = np.repeat(np.arange(C), np.diff(inst.cells.indptr))
     cf_c = np.repeat(cell_of, L)
     cf_f = np.repeat(inst.cells.fields, L)
     cf_l = np.tile(np.arange(L), cell_of.size)
-    r4 = F * L + np.concatenate([np.arange(C * L), cf_c * L + cf_l])
-    c4 = np.concatenate([off_v + np.arange(C * L), off_u + cf_f * L + cf_l])
-    v4 = np.concatenate([np.ones(C * L), -np.ones(cf_c.size)])
-    blocks_r, blocks_c, blocks_v = [r3, r4], [c3, c4], [v3, v4]
-    n_extra = F * L + C * L
+    rows.block("X4 cell level", C * L,
+               [(np.arange(C * L), v.columns, 1.0), (cf_c * L + cf_l, u[cf_f * L + cf_l], -1.0)], -np.inf, 0.0)
     if coverage_floor is not None:  # (X6) Σ_c w_c y_c >= floor
-        blocks_r.append(np.full(C, n_extra))
-        blocks_c.append(base.off_y + np.arange(C))
-        blocks_v.append(np.asarray(inst.cells.weight, float))
-        n_extra += 1
-    extra = sp.csr_matrix((np.concatenate(blocks_v), (np.concatenate(blocks_r), np.concatenate(blocks_c))),
-                          shape=(n_extra, n))
-    A = sp.vstack([sp.hstack([base.milp.A, sp.csr_matrix((base.milp.n_rows, n - n0))]), extra]).tocsr()
+        rows.block("X6 coverage floor", 1, [(np.zeros(C, np.int64), y.columns, np.asarray(inst.cells.weight, float))],
+                   float(coverage_floor), np.inf)
+    A, row_lo, row_hi = rows.matrix(n)
     # (X5) Σ W v + λ Σ w y - p Σ z
     c = np.zeros(n)
     c[:n0] = base.milp.c
-    c[base.off_y:n0] *= coverage_weight
-    c[off_v:] = W.ravel()
-    row_lo = [base.milp.row_lo, np.zeros(F * L), np.full(C * L, -np.inf)]
-    row_hi = [base.milp.row_hi, np.zeros(F * L + C * L)]
-    if coverage_floor is not None:
-        row_lo.append([float(coverage_floor)])
-        row_hi.append([np.inf])
-    row_lo, row_hi = np.concatenate(row_lo), np.concatenate(row_hi)
+    c[y.columns] *= coverage_weight
+    c[v.columns] = W.ravel()
     integer = np.concatenate([base.milp.integer, np.zeros(n - n0, bool)])
-    milp = MilpModel(c, A, row_lo, row_hi, np.zeros(n), np.ones(n), integer)
+    milp = MilpModel(c, A, row_lo, row_hi, np.zeros(n), np.ones(n), integer, rows.blocks(), cols.families())
     return DetectionModel(SlotModel(milp, inst), base, np.asarray(pair_level, np.int64), L)
 
 

@@ -112,6 +112,28 @@ def greedy_schedule(problem: PlanningProblem, should_stop: StopCheck | None = No
     -------
     ScheduleResult
         Status ``greedy`` (or ``interrupted``).
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> from astropy.time import Time
+    >>> from mushrooms.scheduler_core import PlanningConfig, read_skymap
+    >>> path = files("mushrooms.scheduler_core") / "data" / "MS181101ab_bayestar.multiorder.fits"
+    >>> config = PlanningConfig(solver="greedy", nside=64)
+    >>> skymap = read_skymap(path, nside=config.nside)
+    >>> night = Time("2019-05-01T03:00:00", scale="utc")
+    >>> from mushrooms.scheduler_core import prepare_problem
+    >>> result = greedy_schedule(prepare_problem(skymap, config, night))
+    >>> result.status, result.solver
+    ('greedy', 'greedy')
+    >>> starts = [o.start for o in result.observations]  # s since the horizon start
+    >>> starts == sorted(starts) and 0 <= starts[0]
+    True
+
+    A stop asked for at once leaves an empty schedule:
+
+    >>> greedy_schedule(prepare_problem(skymap, config, night), should_stop=lambda: True).status
+    'interrupted'
     """
     t_wall = time.perf_counter()
     cfg: PlanningConfig = problem.config

@@ -64,7 +64,7 @@ MIN_SLICE_S = 0.3
 #: The search stops after a whole round of slices without a gain, or after this long (s) without one.  A count
 #: of slices is no stop: on a reduced bns_o3/11 the gains come after 8 quick slices without one.  Measured on
 #: the 51 shared maps the LNS runs on (``benchmarks/lns_idle_replay.py`` on a run to the budget,
-#: benchmarks/results/issue30/lns_idle_*): it gains +0.0012 coverage on average run to the end of its budget;
+#: ``lns_idle_*`` in benchmarks/results): it gains +0.0012 coverage on average run to the end of its budget;
 #: a 5 s stop keeps all but 0.00012 of that in a median 7.1 s, 3 s all but 0.0005 in 5.1 s, 1 s all but
 #: 0.0008 in 3.1 s.  3 s: the gains a longer wait still finds are a third of the LNS's, for 2 s of every plan.
 MAX_IDLE_S = 3.0

@@ -35,17 +35,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..sky.cells import Cells, merge_cells
 from ..config import PlanningConfig
 from ..problem import PlanningProblem
 from ..sky.windows import union_intervals
+from .rows import Columns, Family, RowBuilder
 from .solvers import MilpModel
 
 __all__ = ["SlotGrid", "SlotInstance", "SlotModel", "block_length_s", "second_pass_delay_s",
            "observable_segments", "make_slot_grid", "eligible_pairs", "slot_instance", "build_slot_model",
-           "decode_slots", "start_vector"]
+           "slot_model_rows", "decode_slots", "start_vector"]
 
 #: Phases of the grid: blocks laid out from each segment's start, or ending at its end.
 PHASES = ("start", "end")
@@ -375,54 +375,46 @@ def build_slot_model(instance: SlotInstance, penalty: float = 0.0,
     SlotModel
     """
     K, F, C = instance.n_pairs, instance.n_fields, instance.cells.n_cells
+    cols = Columns()
+    x, z, y = cols.family("x", K), cols.family("z", F), cols.family("y", C)
+    rows = RowBuilder()
+    slot_model_rows(rows, instance, x, z, y)
+    A, lo, hi = rows.matrix(cols.n)
+    # (S0) objective: Σ w_c y_c + Σ v_k x_k - p Σ z_f
+    obj = np.zeros(cols.n)
+    if pair_weight is not None:
+        obj[x.columns] = np.asarray(pair_weight, float)
+    obj[z.columns] = -float(penalty)
+    obj[y.columns] = instance.cells.weight
+    integer = np.zeros(cols.n, bool)
+    integer[x.columns] = True
+    milp = MilpModel(obj, A, lo, hi, np.zeros(cols.n), np.ones(cols.n), integer, rows.blocks(), cols.families())
+    return SlotModel(milp, instance)
+
+
+def slot_model_rows(rows: RowBuilder, instance: SlotInstance, x: Family, z: Family, y: Family) -> None:
+    """Append the slot model's rows (S1 or X7, S2, S3) on the columns of pairs ``x``, fields ``z``, cells ``y``."""
+    K, F, C = instance.n_pairs, instance.n_fields, instance.cells.n_cells
     S = instance.grid.n_slots
-    oz, oy = K, K + F
-    n = oy + C
-    r, c, v, lo, hi = [], [], [], [], []
-    n_rows = 0
-
-    def block(rr, cc, vv, n_new, lo_v, hi_v):
-        nonlocal n_rows
-        r.append(np.asarray(rr, np.int64) + n_rows)
-        c.append(np.asarray(cc, np.int64))
-        v.append(np.broadcast_to(np.asarray(vv, float), np.shape(rr)).copy())
-        lo.append(np.full(n_new, lo_v, float))
-        hi.append(np.full(n_new, hi_v, float))
-        n_rows += n_new
-
     k = np.arange(K)
     if instance.pair_span is None:
         # (S1) one field per position: Σ_{k ∋ slot} x_k <= 1
-        block(instance.pair_slot, k, 1.0, S, -np.inf, 1.0)
+        rows.block("S1 one field per position", S, [(instance.pair_slot, x[k], 1.0)], -np.inf, 1.0)
     else:
         # (X7) one field per position, a pair holding its span: Σ_{k : s_k <= slot < s_k + n_k} x_k <= 1
         span = np.asarray(instance.pair_span, np.int64)
         kk = np.repeat(k, span)
         first = np.concatenate([[0], np.cumsum(span)[:-1]])
         held = instance.pair_slot[kk] + np.arange(kk.size) - np.repeat(first, span)
-        block(held, kk, 1.0, S, -np.inf, 1.0)
+        rows.block("X7 one field per position over its span", S, [(held, x[kk], 1.0)], -np.inf, 1.0)
     # (S2) each field at most once: z_f - Σ_{k ∋ f} x_k = 0  (z_f <= 1 is its bound)
-    block(np.concatenate([np.arange(F), instance.pair_field]),
-          np.concatenate([oz + np.arange(F), k]),
-          np.concatenate([np.ones(F), -np.ones(K)]), F, 0.0, 0.0)
+    rows.block("S2 each field at most once", F,
+               [(np.arange(F), z[np.arange(F)], 1.0), (instance.pair_field, x[k], -1.0)], 0.0, 0.0)
     # (S3) cell coverage: y_c - Σ_{f ∋ c} z_f <= 0
     cells = instance.cells
     cell_of = np.repeat(np.arange(C), np.diff(cells.indptr))
-    block(np.concatenate([np.arange(C), cell_of]),
-          np.concatenate([oy + np.arange(C), oz + cells.fields]),
-          np.concatenate([np.ones(C), -np.ones(cell_of.size)]), C, -np.inf, 0.0)
-    A = sp.csr_matrix((np.concatenate(v), (np.concatenate(r), np.concatenate(c))), shape=(n_rows, n))
-    A.sum_duplicates()
-    # (S0) objective: Σ w_c y_c + Σ v_k x_k - p Σ z_f
-    obj = np.zeros(n)
-    if pair_weight is not None:
-        obj[:K] = np.asarray(pair_weight, float)
-    obj[oz:oy] = -float(penalty)
-    obj[oy:] = cells.weight
-    integer = np.zeros(n, bool)
-    integer[:K] = True
-    milp = MilpModel(obj, A, np.concatenate(lo), np.concatenate(hi), np.zeros(n), np.ones(n), integer)
-    return SlotModel(milp, instance)
+    rows.block("S3 cell coverage", C, [(np.arange(C), y[np.arange(C)], 1.0), (cell_of, z[cells.fields], -1.0)],
+               -np.inf, 0.0)
 
 
 def decode_slots(model: SlotModel, x: np.ndarray) -> list[tuple[int, np.ndarray]]:

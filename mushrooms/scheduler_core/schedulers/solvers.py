@@ -20,13 +20,15 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
 from ..problem import StopCheck
+from .rows import Family, RowBlock
 
-__all__ = ["MilpModel", "SolveResult", "solve_milp", "gurobi_fully_licensed", "resolve_backend", "relative_gap"]
+__all__ = ["MilpModel", "SolveResult", "solve_milp", "highs_lp", "gurobi_fully_licensed", "resolve_backend", "relative_gap"]
 
 log = logging.getLogger(__name__)
 
@@ -58,6 +60,11 @@ class MilpModel:
         (n,) variable bounds.
     integer : numpy.ndarray
         (n,) True for integer variables.
+    row_blocks : tuple of RowBlock
+        The rows' equations (:mod:`.rows`), in row order; empty for a model
+        built without names.  Only :func:`~.lp_file.write_lp` reads them.
+    col_families : tuple of Family
+        The columns' variable families, in column order (may be empty).
     """
 
     c: np.ndarray
@@ -67,6 +74,8 @@ class MilpModel:
     col_lo: np.ndarray
     col_hi: np.ndarray
     integer: np.ndarray
+    row_blocks: tuple[RowBlock, ...] = ()
+    col_families: tuple[Family, ...] = ()
 
     @property
     def n_vars(self) -> int:
@@ -234,27 +243,7 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
     h.setOptionValue("random_seed", 0)
     if threads > 0:
         h.setOptionValue("threads", int(threads))
-
-    lp = highspy.HighsLp()
-    lp.num_col_ = model.n_vars
-    lp.num_row_ = model.n_rows
-    lp.col_cost_ = np.asarray(model.c, float)
-    lp.col_lower_ = np.asarray(model.col_lo, float)
-    lp.col_upper_ = np.asarray(model.col_hi, float)
-    lp.row_lower_ = np.where(np.isfinite(model.row_lo), model.row_lo, -highspy.kHighsInf)
-    lp.row_upper_ = np.where(np.isfinite(model.row_hi), model.row_hi, highspy.kHighsInf)
-    lp.sense_ = highspy.ObjSense.kMaximize
-    csc = sp.csc_matrix(model.A)
-    csc.sort_indices()
-    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.num_col_ = model.n_vars
-    lp.a_matrix_.num_row_ = model.n_rows
-    lp.a_matrix_.start_ = csc.indptr.astype(np.int32)
-    lp.a_matrix_.index_ = csc.indices.astype(np.int32)
-    lp.a_matrix_.value_ = csc.data.astype(float)
-    lp.integrality_ = [highspy.HighsVarType.kInteger if i else highspy.HighsVarType.kContinuous
-                       for i in model.integer]
-    h.passModel(lp)
+    h.passModel(highs_lp(model, highspy))
     if start is not None:
         sol = highspy.HighsSolution()
         sol.col_value = list(np.asarray(start, float))
@@ -309,6 +298,30 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
         time_to_first_s=progress.first if x is not None else None,
         time_to_gap_s=progress.at_gap, progress=progress.trace,
     )
+
+
+def highs_lp(model: MilpModel, highspy: Any) -> Any:
+    """The model as HiGHS's ``highspy.HighsLp`` (maximisation, column-wise matrix); ``highspy`` the module."""
+    lp = highspy.HighsLp()
+    lp.num_col_ = model.n_vars
+    lp.num_row_ = model.n_rows
+    lp.col_cost_ = np.asarray(model.c, float)
+    lp.col_lower_ = np.asarray(model.col_lo, float)
+    lp.col_upper_ = np.asarray(model.col_hi, float)
+    lp.row_lower_ = np.where(np.isfinite(model.row_lo), model.row_lo, -highspy.kHighsInf)
+    lp.row_upper_ = np.where(np.isfinite(model.row_hi), model.row_hi, highspy.kHighsInf)
+    lp.sense_ = highspy.ObjSense.kMaximize
+    csc = sp.csc_matrix(model.A)
+    csc.sort_indices()
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    lp.a_matrix_.num_col_ = model.n_vars
+    lp.a_matrix_.num_row_ = model.n_rows
+    lp.a_matrix_.start_ = csc.indptr.astype(np.int32)
+    lp.a_matrix_.index_ = csc.indices.astype(np.int32)
+    lp.a_matrix_.value_ = csc.data.astype(float)
+    lp.integrality_ = [highspy.HighsVarType.kInteger if i else highspy.HighsVarType.kContinuous
+                       for i in model.integer]
+    return lp
 
 
 # -------------------------------------------------------------------- Gurobi

@@ -76,7 +76,16 @@ class FieldGrid:
 
 @functools.lru_cache(maxsize=1)
 def load_ztf_fields() -> FieldGrid:
-    """All 1778 ZTF grid fields (primary and secondary) from package data."""
+    """All 1778 ZTF grid fields (primary and secondary) from package data.
+
+    Examples
+    --------
+    >>> grid = load_ztf_fields()
+    >>> len(grid), grid.ids.dtype.kind
+    (1778, 'i')
+    >>> bool((grid.dec >= -90).all() and (grid.ra < 360).all())  # degrees
+    True
+    """
     text = resources.files("mushrooms.scheduler_core").joinpath("data/ZTF_Fields.txt").read_text()
     rows = np.loadtxt(text.splitlines(), comments="%", usecols=(0, 1, 2))
     ids = rows[:, 0].astype(np.int64)

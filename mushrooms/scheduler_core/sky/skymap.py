@@ -14,7 +14,7 @@ mixture it stands for.  Header metadata are read as ligo.skymap's
 ``FITS_META_MAPPING`` reads them (``DATE-OBS`` -> ``gps_time``, ``OBJECT``,
 ``DISTMEAN``; :func:`_metadata`, tested against it).
 
-The route is ours (issue 24), because ligo.skymap's costs the map's
+The route is ours, because ligo.skymap's costs the map's
 unpacked size: ``read_sky_map`` reads the whole table (astropy), and a
 public O3 LALInference map (flat NSIDE 1024, four columns, 1.5 MB gzip)
 unpacks to 384 MiB and cost 2.0 GB of RSS and 11.7 s before a greedy plan.
@@ -195,7 +195,7 @@ def _metadata(header: Any) -> dict[str, Any]:
     -> ``objid``, ``DISTMEAN`` -> ``distmean``: the rows of
     ``ligo.skymap.io.fits.FITS_META_MAPPING`` the plan reads, done here
     because importing that module loads all of ``ligo.skymap.io`` (GraceDB's
-    client and LIGO_LW tables, 0.2 s of ``mushrooms plan``; issue 30 item 4).
+    client and LIGO_LW tables, 0.2 s of ``mushrooms plan``).
     ``MJD-OBS`` is not read (ligo.skymap does not read it either).
     """
     meta: dict[str, Any] = {}
@@ -359,6 +359,22 @@ def read_skymap(source: str | Path | bytes, nside: int = 256, max_bytes: int | N
         hold, bytes beyond the declared table, invalid NUNIQ indices, no
         probability column, probabilities negative, not finite, or not
         summing to 1 within 2 %.
+
+    Examples
+    --------
+    The packaged multi-order BAYESTAR map, at a small working resolution:
+
+    >>> from importlib.resources import files
+    >>> path = files("mushrooms.scheduler_core") / "data" / "MS181101ab_bayestar.multiorder.fits"
+    >>> skymap = read_skymap(path, nside=64)
+    >>> skymap.nside, skymap.prob.size, skymap.object_id
+    (64, 49152, 'MS181101ab')
+    >>> round(float(skymap.prob.sum()), 6)
+    1.0
+    >>> skymap.event_time.isot
+    '2018-11-01T22:22:46.654'
+    >>> round(skymap.distmean, 1)  # Mpc
+    39.8
     """
     if nside < 1 or nside & (nside - 1):
         raise SkyMapError(f"nside must be a power of 2, got {nside}")

@@ -4,8 +4,8 @@ A FITS file starts with the card ``SIMPLE  =`` (FITS 4.0, section 4.4.1.1:
 the keyword in bytes 1-8, ``=`` in byte 9); a gzipped one starts with the
 gzip magic ``1f 8b`` and unpacks to such a start.  The notice parser, the
 pipeline's bare-map path, ``mushrooms trigger`` and the sky-map reader all
-ask :func:`sniff_fits` (they used four different rules before issue 24:
-a file named ``*.gz`` counted as a sky map whatever it held).
+ask :func:`sniff_fits` (they once used four different rules, and a file
+named ``*.gz`` counted as a sky map whatever it held).
 """
 
 from __future__ import annotations
