@@ -30,9 +30,10 @@ SkyPortal (skyportal/skyportal @ 8bd346c, BSD-3-Clause):
 errors are 400 ``{"status": "error", "message": ...}``.
 
 Faults for the tests: :attr:`KowalskiContract.faults` maps a method to a
-list of answers for its next requests (a status code, or ``"hang"``: the
+list of answers for its next requests (a status code; ``"hang"``: the
 request is applied to nothing and answered only after :attr:`release` is set
-or ``hang_s`` passed).  :attr:`KowalskiContract.block_after` holds a method
+or ``hang_s`` passed; ``"drip"``: applied to nothing, answered 200 with a
+body of one byte every 0.1 s for ``hang_s``).  :attr:`KowalskiContract.block_after` holds a method
 *after* applying it, until :attr:`release` (a request that reached the
 server while the client dies).  Every request is appended to :attr:`log`.
 """
@@ -112,6 +113,15 @@ class _Contract:
             fault = queue.pop(0) if queue else None
         if fault is None:
             return None
+        if fault == "drip":  # a 200 whose body comes one byte every 0.1 s for hang_s: no recv ever times out
+            n = max(1, int(self.hang_s / 0.1))
+
+            def trickle():
+                for _ in range(n):
+                    time.sleep(0.1)
+                    yield b" "
+
+            return Response(trickle(), status=200, content_type="application/json")
         if fault == "hang":
             with self._lock:
                 self.hanging += 1
