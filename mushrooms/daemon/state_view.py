@@ -196,14 +196,15 @@ def oldest_pending_submission(conn: sqlite3.Connection, now: datetime | None = N
     """
     now = now or datetime.now(timezone.utc)
     try:
-        row = conn.execute("SELECT queue_name, superevent_id, created_at, attempts, answer FROM submissions"
-                           " WHERE state='pending' ORDER BY created_at LIMIT 1").fetchone()
+        row = conn.execute("SELECT * FROM submissions WHERE state='pending' ORDER BY created_at LIMIT 1").fetchone()
     except sqlite3.OperationalError as exc:
         if "no such table" in str(exc):
             return None
         raise
     if row is None:
         return None
-    age = _age_s(row[2], now)
-    return {"queue_name": row[0], "superevent_id": row[1], "age_s": max(0.0, age or 0.0), "attempts": row[3],
-            "answer": (row[4] or "")[:200] or None}
+    got = dict(zip(row.keys(), tuple(row))) if hasattr(row, "keys") else {}
+    age = _age_s(got.get("created_at"), now)
+    return {"queue_name": got.get("queue_name"), "superevent_id": got.get("superevent_id"),
+            "age_s": max(0.0, age or 0.0), "attempts": got.get("attempts", 0),
+            "answer": (got.get("answer") or "")[:200] or None}
