@@ -17,9 +17,8 @@ the gates): to Kowalski a revision is the ordered list of queues of
 stored or a withdrawal recorded) first ``PUT``\\s every queue of the wanted
 set and only once all were accepted ``DELETE``\\s every queue of the event's
 older sets, so the telescope is never left with nothing; a retraction
-deletes every queue of every revision.  Which queues of a set were accepted
-or removed is recorded per queue (the row's ``progress``), so a pass
-interrupted between two queues goes on where it stopped.
+deletes every queue of every revision.  The row's ``progress`` records each
+accepted or removed queue (an interrupted pass goes on where it stopped).
 
 Crash safety: a queue's name and body are stored before anything is sent,
 and the attempt is committed *before* the HTTP call.  After a kill -9
@@ -36,10 +35,8 @@ the event's submitted revisions from 1 (the row's ``queue_name`` is the name
 base ``..._r<n>``, stored with the row: stable across restarts), ``k`` the
 queue of the set.  A request has a wall-clock deadline (``[submit]
 timeout_s``), so one stuck event costs the others at most that per pass.
-A submitted set whose validity window ended is closed (``finished_at``) and
-no longer looked at.  The planning workers never wait on HTTP: they only
-kick this thread.  The pure rules (names, gates, bodies, verdicts) are in
-:mod:`.submission_rules`.
+A submitted set whose window ended is closed (``finished_at``).  Planning
+workers only kick this thread.  Pure rules: :mod:`.submission_rules`.
 """
 
 from __future__ import annotations
@@ -47,13 +44,12 @@ from __future__ import annotations
 import json
 import logging
 import time
-from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, Callable
 
-from ..handlers.instants import now_iso_z
 from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
 from .store import Store
+from .submission_rows import _PUBLISHED, OPEN, STATES, Submission, _row, status_document, submissions
 from .submission_rules import Verdict, build_body, gate, queue_name, same_content, send_queue, set_of
 from .submission_rules import unix as _unix
 
@@ -65,59 +61,6 @@ __all__ = ["Submission", "Submitter", "Verdict", "send_queue", "queue_name", "ga
            "status_document", "open_submitter", "submissions", "STATES", "OPEN"]
 
 log = logging.getLogger("mushrooms.daemon.submit")
-
-STATES = ("pending", "submitted", "replaced", "deleted", "rejected", "failed", "skipped")
-#: States whose queue may be on the server (the submitter still has work with them).
-OPEN = ("pending", "submitted")
-#: Transitions that are published as a ``submission`` status document.
-_PUBLISHED = ("submitted", "replaced", "deleted", "rejected", "failed")
-
-
-@dataclass(frozen=True)
-class Submission:
-    """One row of the ``submissions`` table."""
-
-    plan_id: str
-    superevent_id: str
-    target: str
-    revision: int | None
-    queue_name: str | None
-    state: str
-    reason: str | None
-    body: Any
-    remote_id: str | None
-    http_status: int | None
-    answer: str | None
-    attempts: int
-    created_at: str
-    attempted_at: str | None
-    submitted_at: str | None
-    finished_at: str | None
-    #: ``{"put": [queue names accepted], "gone": [queue names removed], "rejected": reason}``
-    progress: dict[str, Any] = field(default_factory=dict)
-
-    def queue_names(self) -> list[str]:
-        """The names of the queues of this revision (Kowalski: its set; SkyPortal: the plan name)."""
-        names = [str(q.get("queue_name")) for q in set_of(self.body)] if isinstance(self.body, list) else []
-        if not names and isinstance(self.body, dict) and "queue_name" in self.body and "targets" in self.body:
-            names = [str(self.body["queue_name"])]  # a row written before queue sets
-        return names or ([self.queue_name] if self.queue_name else [])
-
-
-def _row(r: Any) -> Submission:
-    progress = r["progress"] if "progress" in r.keys() else None
-    return Submission(r["plan_id"], r["superevent_id"], r["target"], r["revision"], r["queue_name"], r["state"],
-                      r["reason"], json.loads(r["body"]) if r["body"] else None, r["remote_id"], r["http_status"],
-                      r["answer"], r["attempts"], r["created_at"], r["attempted_at"], r["submitted_at"],
-                      r["finished_at"], json.loads(progress) if progress else {})
-
-
-def submissions(store: Store, superevent_id: str | None = None) -> list[Submission]:
-    """Every submission (of one event), oldest first: for operators and tests."""
-    q, args = "SELECT * FROM submissions", ()
-    if superevent_id is not None:
-        q, args = q + " WHERE superevent_id=?", (superevent_id,)
-    return [_row(r) for r in store.connection().execute(q + " ORDER BY created_at, rowid", args)]
 
 
 def _now_iso() -> str:
@@ -378,8 +321,8 @@ class Submitter:
             return self._remove_plan(sub, end_state)
         if not self._remove_all(sub, end_state, reason):
             return False
-        fresh = self.store.connection().execute("SELECT * FROM submissions WHERE plan_id=?", (sub.plan_id,))
-        current = _row(fresh.fetchone())
+        current = _row(self.store.connection().execute("SELECT * FROM submissions WHERE plan_id=?",
+                                                       (sub.plan_id,)).fetchone())
         if current.state in OPEN:
             self._finish(current, end_state, reason=reason or ("not on the server (already removed)"
                                                                if current.progress.get("absent") else None))
@@ -431,13 +374,11 @@ class Submitter:
         except Unreachable as exc:
             self._retry(sub, None, str(exc))
             return False
-        if answer.ok:
-            self._finish(sub, end_state, answer)
-        elif answer.refused:
-            self._finish(sub, "failed", answer, reason=f"DELETE refused: {answer.message()}")
-        else:
+        if not (answer.ok or answer.refused):
             self._retry(sub, answer.status, answer.message())
             return False
+        self._finish(sub, *((end_state, answer) if answer.ok else ("failed", answer)),
+                     reason=None if answer.ok else f"DELETE refused: {answer.message()}")
         return True
 
     def _note(self, sub: Submission, key: str, value: str, answer: Answer | None = None,
@@ -526,32 +467,6 @@ class Submitter:
                 self._on_result(state, self.target)
             except Exception:
                 log.exception("event=submission_callback_failed")
-
-
-def status_document(sub: Submission) -> dict[str, Any]:
-    """The ``submission`` status document of a row (published beside the plan; docs/design/plan-format.md)."""
-    answer = sub.answer
-    if answer is not None:
-        try:
-            parsed = json.loads(answer)
-            if isinstance(parsed, dict) and isinstance(parsed.get("message"), str):
-                answer = parsed["message"]
-        except ValueError:
-            pass
-    return {
-        "type": "submission",
-        "submission_id": f"{sub.plan_id}-submission-{sub.state}",
-        "plan_id": sub.plan_id,
-        "superevent_id": sub.superevent_id,
-        "target": sub.target,
-        "queue_name": sub.queue_name,
-        "state": sub.state,
-        "http_status": sub.http_status,
-        "answer": None if answer is None else answer[:2000],
-        "reason": sub.reason,
-        "attempts": int(sub.attempts),
-        "created": now_iso_z(),
-    }
 
 
 def open_submitter(submit: SubmitConfig, export: ExportConfig, store: Store, token: str | None,
