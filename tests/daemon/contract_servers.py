@@ -91,6 +91,8 @@ class _Contract:
         self.hang_s = 60.0
         self.blocked = threading.Event()  # set while a request is held by block_after
         self.hanging = 0  # requests held unanswered by a "hang" fault right now
+        self.drip_s = 0.1  # seconds per byte of a "drip" answer
+        self.delay_s = 0.0  # every request is applied only after this (a slow but working server)
         self._lock = threading.Lock()
 
     @property
@@ -114,11 +116,11 @@ class _Contract:
         if fault is None:
             return None
         if fault == "drip":  # a 200 whose body comes one byte every 0.1 s for hang_s: no recv ever times out
-            n = max(1, int(self.hang_s / 0.1))
+            n, step = max(1, int(self.hang_s / self.drip_s)), self.drip_s
 
             def trickle():
                 for _ in range(n):
-                    time.sleep(0.1)
+                    time.sleep(step)
                     yield b" "
 
             return Response(trickle(), status=200, content_type="application/json")
@@ -137,6 +139,8 @@ class _Contract:
             body = json.loads(request.get_data() or b"null")
         except ValueError:
             body = None
+        if self.delay_s:
+            time.sleep(self.delay_s)
         response = self._auth(request) or self._fault(request.method) or self._apply(request, body)
         self._record(request, response.status_code, body)
         if request.method in self.block_after and response.status_code == 200:
