@@ -186,7 +186,7 @@ def kills_child(state: str, url: str) -> None:
     config = _config(url, timeout_s=5.0)
     store = Store(Path(state))
     submitter = Submitter(store, config.submit, config.export, make_client("kowalski", url, TOKEN, 5.0))
-    while submitter.step() or submitter.open_events() and time.sleep(0.2) is None and _has_pending(store):
+    while submitter.step() or _has_pending(store):
         time.sleep(0.05)
     store.close()
 
@@ -209,9 +209,8 @@ def kills(n_kills: int = 10, seed: int = 7) -> dict:
     _notice(pipeline, "MS181101ab-preliminary.json", "S1")
     _notice(pipeline, "MS181101ab-preliminary.json", "S2")
     _notice(pipeline, "MS181101ab-preliminary.json", "S3")
-    _notice(pipeline, "MS230425l-preliminary.json", "S1")  # S1 r2 replaces r1 (if r1 went out)
     cmd = [sys.executable, __file__, "kills-child", str(state), kowalski.url]
-    killed_at = []
+    killed_at, decisions = [], []
     for i in range(n_kills):
         child = subprocess.Popen(cmd)
         wait = rng.uniform(0.5, 3.0)
@@ -220,8 +219,10 @@ def kills(n_kills: int = 10, seed: int = 7) -> dict:
             os.kill(child.pid, signal.SIGKILL)
             child.wait()
             killed_at.append(round(wait, 2))
-        if i == n_kills // 2:
-            _notice(pipeline, "MS181101ab-retraction.json", "S2", "2030-01-01T00:00:00Z")
+        if i == 2:  # an updated map: S1's r2 set replaces r1's while the kills go on
+            decisions.append(_notice(pipeline, "MS230425l-preliminary.json", "S1"))
+        if i == n_kills // 2:  # S2 retracted: every queue of every revision goes
+            decisions.append(_notice(pipeline, "MS181101ab-retraction.json", "S2"))
     child = subprocess.Popen(cmd)
     rc = child.wait(300)
     accepted = [e["queue_name"] for e in kowalski.log if e["method"] == "PUT" and e["status"] == 200]
@@ -229,7 +230,7 @@ def kills(n_kills: int = 10, seed: int = 7) -> dict:
     queued = sorted(kowalski.queues)
     expected = sorted(f"ToO_GW_{sid}_r{r}_{k}" for sid, r, st in rows if st == "submitted" and r
                       for k in (1, 2, 3))
-    out = {"scenario": "kills", "kills": len(killed_at), "killed_after_s": killed_at, "final_rc": rc,
+    out = {"scenario": "kills", "decisions_during_kills": decisions, "kills": len(killed_at), "killed_after_s": killed_at, "final_rc": rc,
            "requests": len(kowalski.log), "accepted_puts": len(accepted),
            "accepted_twice": sorted({n for n in accepted if accepted.count(n) > 1}),
            "rows": rows, "queued": queued, "queued_is_the_submitted_sets": queued == expected,
