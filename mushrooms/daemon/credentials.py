@@ -104,10 +104,24 @@ def load_credentials(environ: Mapping[str, str] | None = None) -> Credentials:
 
 
 def _secret(credential: str, variable: str, missing: str, environ: Mapping[str, str] | None) -> tuple[str, str]:
-    """One secret and where it came from (systemd credential first, then the variable), or ``CredentialsError(missing)``."""
+    """One secret and where it came from (systemd credential first, then the variable), or ``CredentialsError(missing)``.
+
+    A secret that cannot go into an HTTP header or a SASL field as it is
+    (a line break or another control character inside it, or a character
+    outside Latin-1) is refused here, with one line that names where it came
+    from and never shows it: sent, it would be refused on every retry and its
+    text would reach the journal in the error.
+    """
     env = os.environ if environ is None else environ
     value, source = _lookup(credential, variable, env)
     if value and source:
+        bad = next((what for what, test in (
+            ("a line break", lambda ch: ch in "\r\n"),
+            ("a control character", lambda ch: ord(ch) < 32 or ord(ch) == 127),
+            ("a character outside Latin-1", lambda ch: ord(ch) > 255)) if any(map(test, value))), None)
+        if bad:
+            raise CredentialsError(f"the secret from {source} ({len(value)} characters) contains {bad}: refused "
+                                   "(write it on one line, without quotes or other characters around it)")
         return value, source
     raise CredentialsError(missing)
 

@@ -19,8 +19,14 @@ has partitions assigned), ``store`` (the state file takes a write lock and
 its disk has room), ``broker`` (the input cluster answers), ``outbound``
 (the outbox is being published: no failed publish waiting for its back-off,
 no message older than the sink's delivery timeout + 10 s, the outbound
-broker not known down), and whatever :meth:`HealthServer.add_check` added
-(the submission target, issue 27).
+broker not known down), ``submission`` when ``[submit]`` is on
+(:func:`submission_check`: no submission failing and waiting for its
+back-off, none pending longer than ``[submit] max_pending_s``), and
+whatever :meth:`HealthServer.add_check` added.
+
+The listener serves at most :data:`MAX_CONNECTIONS` connections at once,
+each with a socket timeout of :data:`CONNECTION_TIMEOUT_S`; more are
+closed when accepted (a thread per connection is the unit's ``TasksMax``).
 """
 
 from __future__ import annotations
@@ -54,12 +60,51 @@ LIVENESS_DEFAULT_S = 60.0
 MIN_FREE_BYTES = 64 * 2**20
 
 
+#: Connections served at once (one thread each); more are closed at once (threads are the unit's TasksMax).
+MAX_CONNECTIONS = 16
+#: Socket timeout (s) of one connection: an idle or dripping client is dropped after it.
+CONNECTION_TIMEOUT_S = 10.0
+
+
 class _Server(ThreadingMixIn, WSGIServer):
+    """A threaded WSGI server with at most :attr:`max_connections` threads.
+
+    The standard library's ``ThreadingMixIn`` starts a thread per accepted
+    connection without a limit: 256 idle connections took the unit's
+    ``TasksMax=256`` and the next planning job died in OpenMP.  Here a
+    connection beyond the bound is closed as soon as it is accepted, and each
+    served one has a socket timeout (:class:`_Quiet`'s ``timeout``).
+    """
+
     daemon_threads = True  # a stuck scraper never holds the service's exit
     allow_reuse_address = True
+    request_queue_size = 64
+    max_connections = MAX_CONNECTIONS
+
+    def server_activate(self) -> None:
+        self._slots = threading.BoundedSemaphore(self.max_connections)
+        super().server_activate()
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        if not self._slots.acquire(blocking=False):
+            self.shutdown_request(request)  # full: this connection gets no thread
+            return
+        try:
+            super().process_request(request, client_address)
+        except Exception:
+            self._slots.release()
+            raise
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._slots.release()
 
 
 class _Quiet(WSGIRequestHandler):
+    timeout = CONNECTION_TIMEOUT_S  # StreamRequestHandler sets it on the connection's socket
+
     def log_message(self, format: str, *args: Any) -> None:  # scrapes every 15 s are not log lines
         pass
 
@@ -76,14 +121,21 @@ class HealthServer:
         ``() -> (alive, detail dict)`` for ``/healthz``.
     checks : dict
         Readiness checks by name.
+    max_connections : int
+        Connections served at once (a thread each); more are closed when accepted.
+    connection_timeout_s : float
+        Socket timeout (s) of each connection.
     """
 
     def __init__(self, host: str, port: int, metrics: ServiceMetrics, alive: Callable[[], tuple[bool, dict]],
-                 checks: dict[str, Check] | None = None) -> None:
+                 checks: dict[str, Check] | None = None, max_connections: int = MAX_CONNECTIONS,
+                 connection_timeout_s: float = CONNECTION_TIMEOUT_S) -> None:
         self._alive = alive
         self._checks: dict[str, Check] = dict(checks or {})
         self._metrics_app = make_wsgi_app(metrics.registry)
-        self._server = make_server(host, port, self._app, server_class=_Server, handler_class=_Quiet)
+        server_class = type("_BoundServer", (_Server,), {"max_connections": int(max_connections)})
+        handler_class = type("_TimedHandler", (_Quiet,), {"timeout": float(connection_timeout_s)})
+        self._server = make_server(host, port, self._app, server_class=server_class, handler_class=handler_class)
         self.address = self._server.server_address[:2]
         self._thread = threading.Thread(target=self._server.serve_forever, kwargs={"poll_interval": 0.5},
                                         name="metrics-http", daemon=True)
@@ -220,5 +272,30 @@ def service_checks(service: Any) -> dict[str, Check]:
             return False, f"outbox not draining: {where} (limit {limit:.0f} s): {error or 'publish in progress'}"
         return True, where
 
-    return {"warm_up": warm_up, "partitions": partitions, "store": store_check(service.paths.state),
-            "broker": broker, "outbound": outbound}
+    checks = {"warm_up": warm_up, "partitions": partitions, "store": store_check(service.paths.state),
+              "broker": broker, "outbound": outbound}
+    drain = getattr(service, "submit_drain", None)
+    if drain is not None:
+        checks["submission"] = submission_check(service.paths.state, drain, service.config.submit.max_pending_s)
+    return checks
+
+
+def submission_check(state: Path, drain: Any, max_pending_s: float) -> Check:
+    """The plans reach the telescope: no submission failing (back-off), none pending longer than ``max_pending_s``."""
+    from .state_view import oldest_pending_submission
+
+    def check() -> tuple[bool, str]:
+        conn = connect_readonly(state, timeout_s=2.0)
+        try:
+            oldest = oldest_pending_submission(conn)
+        finally:
+            conn.close()
+        where = "no submission pending" if oldest is None else \
+            f"{oldest['queue_name']} pending for {oldest['age_s']:.0f} s: {oldest['answer'] or '-'}"
+        if drain.retry_scheduled:
+            return False, f"submissions failing, retrying with back-off; {where}"
+        if oldest is not None and oldest["age_s"] > max_pending_s:
+            return False, f"{where} (limit [submit] max_pending_s = {max_pending_s:g} s)"
+        return True, where
+
+    return check

@@ -480,7 +480,9 @@ class OutboxDrain:
     returns how many are still pending, or raises).  After a failure it
     waits ``initial_s``, doubling up to ``max_s``, before the next attempt;
     a kick during the back-off does not shorten it (a dead broker is not
-    hammered), except that :meth:`kick` with ``now=True`` does.
+    hammered), except that :meth:`kick` with ``now=True`` does, also when it
+    arrives during a pass that then fails (the next pass runs at once: a
+    retraction's DELETE does not wait for another event's back-off).
 
     Parameters
     ----------
@@ -503,6 +505,7 @@ class OutboxDrain:
         self._cv = threading.Condition()
         self._pending = False
         self._retry_at: float | None = None
+        self._urgent = False  # a kick(now=True) came during the pass in progress
         self._closed = False
         self.attempts = 0
         self.failures = 0
@@ -516,6 +519,7 @@ class OutboxDrain:
             self._pending = True
             if now:
                 self._retry_at = None
+                self._urgent = True
             self._cv.notify()
 
     # the service's previous name for "try now"
@@ -538,6 +542,7 @@ class OutboxDrain:
                     return
                 self._pending = False
                 self._retry_at = None
+                self._urgent = False
             self.attempts += 1
             try:
                 left = self._flush()
@@ -553,6 +558,9 @@ class OutboxDrain:
                 delay = self._delay_s
                 self.delays.append(delay)
                 self._delay_s = min(self._delay_s * 2.0, self._max_s)
+                if self._urgent:  # asked for at once while this pass ran: no back-off before the next
+                    self._urgent = False
+                    delay = 0.0
                 self._retry_at = time.monotonic() + delay
             log.warning("event=%s error=%r retry_in_s=%.1f", self._event, error, delay)
 

@@ -33,7 +33,7 @@ from prometheus_client import CollectorRegistry, Counter, Histogram, Info
 from prometheus_client.core import GaugeMetricFamily
 from prometheus_client.registry import Collector
 
-from .state_view import connect_readonly, outbox_backlog
+from .state_view import connect_readonly, oldest_pending_submission, outbox_backlog
 
 __all__ = ["ServiceMetrics", "ObservedSink", "rejection_class", "REJECTION_CLASSES", "SUBMISSION_RESULTS"]
 
@@ -45,7 +45,7 @@ FINAL_PLAN_BUCKETS = (5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0, 180.
 #: Why a message was rejected, as a small label set (the full reason is in the store and the log).
 REJECTION_CLASSES = ("too_large", "undecodable", "schema", "skymap", "policy_error", "other")
 #: Submission results pre-initialised at 0 (the states of issue 27's submission lifecycle).
-SUBMISSION_RESULTS = ("submitted", "replaced", "deleted", "rejected", "failed")
+SUBMISSION_RESULTS = ("pending", "submitted", "replaced", "deleted", "rejected", "failed")
 
 
 def rejection_class(reason: str) -> str:
@@ -273,6 +273,7 @@ class _Live(Collector):
                 conn = connect_readonly(path, timeout_s=2.0)
                 try:
                     pending, oldest_age, _ = outbox_backlog(conn)
+                    waiting = oldest_pending_submission(conn)
                 finally:
                     conn.close()
             except (sqlite3.Error, OSError):
@@ -282,6 +283,9 @@ class _Live(Collector):
                                 "the sink", value=float(pending))
         yield GaugeMetricFamily("mushrooms_outbox_oldest_pending_age_seconds", "Age of the oldest message waiting "
                                 "in the outbox (0 when it is empty)", value=float(oldest_age or 0.0))
+        yield GaugeMetricFamily("mushrooms_submission_oldest_pending_age_seconds", "Age of the oldest plan "
+                                "submission not yet accepted by the telescope queue (0 when none waits)",
+                                value=float(waiting["age_s"]) if waiting else 0.0)
 
 
 class ObservedSink:

@@ -259,11 +259,11 @@ class NoticePipeline:
         """
         return self.planner.run_job(job, should_stop, staged)
 
-    def _hand_over(self, outbox_id: int) -> bool:
-        """Have the outbox published: by the daemon's drain (``on_outbox``), else here."""
+    def _hand_over(self, outbox_id: int) -> bool | None:
+        """Have the outbox published: by the daemon's drain (``on_outbox``: None, not yet known), else here."""
         if self._on_outbox is not None:
             self._on_outbox()
-            return False
+            return None
         self.flush_outbox()
         return self._published(outbox_id)
 

@@ -335,10 +335,10 @@ class JobPlanner:
         log.info("job superevent_id=%s job=%s decision=%s plan_id=%s revision=%d final=%s coverage=%.4f "
                  "latency_s=%.3f supersedes=%s published=%s solver=%s", job.superevent_id, job.job_id,
                  job.decision, plan.plan_id, revision, str(final).lower(), coverage, latency,
-                 plan.supersedes or "-", published, plan.metrics.solver)
+                 plan.supersedes or "-", _published_word(published), plan.metrics.solver)
         summary = getattr(plan, "summary", None) or f"{plan.metrics.n_fields} fields, {plan.metrics.n_exposures} exposures"
         return Outcome(job.decision, job.ref, summary, plan_id=plan.plan_id, coverage=coverage, latency_s=latency,
-                       supersedes=plan.supersedes, published=published, revision=revision, final=final)
+                       supersedes=plan.supersedes, published=bool(published), revision=revision, final=final)
 
     def _close_with_first(self, work: _Work, why: str) -> Outcome:
         job, first = work.job, work.first
@@ -347,10 +347,10 @@ class JobPlanner:
             return self._dropped(job, "optimisation finished", first.plan_id)
         published = self.hand_over(outbox_id)
         log.info("job superevent_id=%s job=%s decision=%s plan_id=%s revision=1 final=true reason=%r published=%s",
-                 job.superevent_id, job.job_id, job.decision, first.plan_id, why, published)
+                 job.superevent_id, job.job_id, job.decision, first.plan_id, why, _published_word(published))
         return Outcome(job.decision, job.ref, why, plan_id=first.plan_id, coverage=float(first.metrics.coverage),
                        latency_s=work.outcome.latency_s if work.outcome else None, supersedes=first.supersedes,
-                       published=published, revision=1, final=True)
+                       published=bool(published), revision=1, final=True)
 
     def _dropped(self, job: Job, what: str, plan_id: str | None = None) -> Outcome:
         reason = f"{what}: job {self.store.describe_job(job.job_id)}"
@@ -397,3 +397,8 @@ class JobPlanner:
             return None
         data = alert.event.skymap
         return data, dataclasses.replace(event, localization="gw", skymap_sha256=hashlib.sha256(data).hexdigest())
+
+
+def _published_word(published: bool | None) -> str:
+    """``true``, ``false``, or ``queued`` (handed to the daemon's outbox drain, which publishes it and logs that)."""
+    return "queued" if published is None else str(bool(published)).lower()

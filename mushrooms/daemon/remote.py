@@ -9,32 +9,56 @@
   token <token>`` (skyportal/skyportal ``skyportal/handlers/api/observation_plan.py``).
 
 The contracts, with the commits they were read from, are in
-``docs/design/submission.md``.  The standard library's ``urllib.request``
-is enough for three JSON calls (no new dependency); the token is sent
-only in the header, never logged, and blanked out of any server text we keep.
+``docs/design/submission.md``.  The token is sent only in the header, never
+logged, and blanked out of any server text we keep.
+
+What the HTTP library does and what is ours.  The connection, TLS (with
+certificate and host name checks on by default) and the parsing of the
+answer are urllib3's (:class:`urllib3.connection.HTTPConnection` /
+``HTTPSConnection``, one connection per request, no pool).  A connection
+never follows a redirect: a 3xx is an :class:`Answer` like any other and is
+classified as a refusal with its ``Location`` (never followed, so the
+token never goes to another host).  Written here, because urllib3 does not
+give them: (1) a wall-clock *deadline* per request, ``timeout_s`` for
+connect, send and the whole answer: urllib3's timeouts bound each socket
+operation only (``urllib3/util/timeout.py`` @ urllib3 2.x: "if a server
+streams one byte every fifteen seconds, a timeout of 20 seconds will not
+trigger"), so a watchdog timer shuts the socket down at the deadline and the
+blocked read returns; (2) a cap on the answer (:data:`ANSWER_BYTES`): the
+body is read in pieces and the connection dropped once the cap is passed;
+(3) every way an answer can be broken (cut, not HTTP, not JSON, too large,
+past the deadline) is one of two outcomes, :class:`Unreachable` or an
+:class:`Answer` with its :attr:`Answer.problem`, never another exception.
 """
 
 from __future__ import annotations
 
+import http.client
 import json
 import socket
-import urllib.error
-import urllib.request
+import threading
+import time
 from dataclasses import dataclass, field
 from typing import Any
-from urllib.parse import quote
+from urllib.parse import quote, urlsplit
+
+import urllib3
+from urllib3.connection import HTTPConnection, HTTPSConnection
 
 __all__ = ["Answer", "Unreachable", "Request", "KowalskiQueue", "SkyPortalPlans", "make_client", "redact",
-           "KOWALSKI_PATH", "SKYPORTAL_MANUAL_PATH"]
+           "KOWALSKI_PATH", "SKYPORTAL_MANUAL_PATH", "ANSWER_BYTES"]
 
 KOWALSKI_PATH = "/api/triggers/ztf"
 SKYPORTAL_MANUAL_PATH = "/api/observation_plan/manual"
 #: Characters of a server's answer kept (store, log, status document).
 ANSWER_CHARS = 2000
+#: Most bytes of an answer read (a queue list of the whole mountain fits; a 1.5 GB answer is cut).
+ANSWER_BYTES = 4 * 2**20
+_PIECE = 65536
 
 
 class Unreachable(Exception):
-    """No HTTP answer: connection refused or reset, DNS failure, timeout."""
+    """No (usable) HTTP answer: refused or reset, DNS failure, the deadline, a cut or non-HTTP answer."""
 
 
 @dataclass(frozen=True)
@@ -55,31 +79,77 @@ class Request:
 
 @dataclass(frozen=True)
 class Answer:
-    """An HTTP answer: status, the text (token blanked, truncated) and its JSON when it parses."""
+    """An HTTP answer: status, the text (token blanked, truncated), its JSON when it parses, and what is wrong.
+
+    ``problem`` is None for a usable answer, else one line: a redirect (with
+    its target), a body that is not JSON, or one larger than
+    :data:`ANSWER_BYTES` (not read further).
+    """
 
     status: int
     text: str
     data: Any = field(default=None, compare=False)
+    problem: str | None = None
 
     @property
     def ok(self) -> bool:
         return 200 <= self.status < 300
 
     @property
+    def redirected(self) -> bool:
+        return 300 <= self.status < 400
+
+    @property
     def refused(self) -> bool:
-        """4xx: the server read the request and said no (never retried blindly)."""
-        return 400 <= self.status < 500
+        """3xx or 4xx: the server read the request and did not take it (never retried blindly)."""
+        return 300 <= self.status < 500
 
     def message(self) -> str:
-        """The server's own message (``{"message": ...}``) when it gave one, else its text."""
+        """The server's own message (``{"message": ...}``) when it gave one, else what is wrong, else its text."""
         if isinstance(self.data, dict) and isinstance(self.data.get("message"), str) and self.data["message"]:
             return self.data["message"][:ANSWER_CHARS]
-        return self.text
+        return self.problem or self.text
 
 
 def redact(text: str, token: str | None) -> str:
     """``text`` with every occurrence of ``token`` replaced by ``***``."""
     return text.replace(token, "***") if token else text
+
+
+class _Deadline:
+    """Shuts a connection's socket down when the request's time is up (the blocked read then returns)."""
+
+    def __init__(self, seconds: float) -> None:
+        self.at = time.monotonic() + seconds
+        self.fired = False
+        self._sock: socket.socket | None = None
+        self._lock = threading.Lock()
+        self._timer = threading.Timer(seconds, self._fire)
+        self._timer.daemon = True
+
+    def watch(self, conn: HTTPConnection) -> None:
+        with self._lock:
+            self._sock = conn.sock
+        self._timer.start()
+
+    def left(self) -> float:
+        return self.at - time.monotonic()
+
+    def _fire(self) -> None:
+        with self._lock:
+            self.fired = True
+            if self._sock is not None:
+                try:
+                    self._sock.shutdown(socket.SHUT_RDWR)
+                except OSError:
+                    pass
+
+    def cancel(self) -> None:
+        self._timer.cancel()
+
+
+#: What a broken connection or answer raises inside http.client and urllib3.
+_BROKEN = (OSError, http.client.HTTPException, urllib3.exceptions.HTTPError, ValueError)
 
 
 class _Client:
@@ -94,38 +164,73 @@ class _Client:
         return f"{type(self).__name__}({self.base!r}, token=***)"
 
     def send(self, req: Request) -> Answer:
-        """Send one request; an HTTP status of any value is an :class:`Answer`.
+        """Send one request within ``timeout_s`` in all; an HTTP status of any value is an :class:`Answer`.
 
         Raises
         ------
         Unreachable
-            No answer (refused, reset, timeout).
+            No usable answer (refused, reset, the deadline, a cut or non-HTTP answer).
         """
         data = None if req.body is None else json.dumps(req.body).encode()
-        headers = {"Accept": "application/json"}
+        headers = {"Accept": "application/json", "Connection": "close"}
         if data is not None:
             headers["Content-Type"] = "application/json"
         if self._token:
             headers["Authorization"] = f"{self.auth_scheme} {self._token}"
-        r = urllib.request.Request(req.url, data=data, method=req.method, headers=headers)
+        deadline = _Deadline(self.timeout_s)
         try:
-            with urllib.request.urlopen(r, timeout=self.timeout_s) as resp:
-                status, raw = resp.status, resp.read()
-        except urllib.error.HTTPError as exc:
-            status = exc.code
-            try:
-                raw = exc.read()
-            except (OSError, socket.timeout) as inner:
-                raise Unreachable(f"{req.method} {req.url}: answer {status} cut off ({inner})") from None
-        except (urllib.error.URLError, OSError, socket.timeout) as exc:
-            reason = getattr(exc, "reason", exc)
-            raise Unreachable(f"{req.method} {req.url}: {redact(str(reason), self._token)}") from None
+            status, location, raw, cut = self._exchange(req, data, headers, deadline)
+        except _BROKEN as exc:
+            why = (f"no complete answer within the {self.timeout_s:g} s deadline" if deadline.fired
+                   else f"{type(exc).__name__}: {exc}")
+            raise Unreachable(_line(f"{req.method} {req.url}: {redact(why, self._token)}")) from None
+        finally:
+            deadline.cancel()
         text = redact(raw.decode("utf-8", "replace"), self._token)
+        parsed, problem = None, None
+        if cut:
+            problem = f"the answer is larger than {ANSWER_BYTES} bytes (not read further)"
+        elif 300 <= status < 400:
+            problem = f"redirected to {redact(location or '(no Location)', self._token)} (redirects are not followed)"
+        elif not text.strip():
+            problem = "the answer is empty, not JSON"
+        else:
+            try:
+                parsed = json.loads(text)
+            except ValueError:
+                problem = "the answer is not JSON"
+        return Answer(status, text[:ANSWER_CHARS], parsed, problem)
+
+    def _exchange(self, req: Request, data: bytes | None, headers: dict[str, str],
+                  deadline: _Deadline) -> tuple[int, str | None, bytes, bool]:
+        """(status, Location, body up to the cap, whether it was cut) of one request on a new connection."""
+        parts = urlsplit(req.url)
+        cls = HTTPSConnection if parts.scheme == "https" else HTTPConnection
+        conn = cls(parts.hostname or "", parts.port, timeout=max(0.01, deadline.left()))
         try:
-            parsed = json.loads(text) if text.strip() else None
-        except ValueError:
-            parsed = None
-        return Answer(status, text[:ANSWER_CHARS], parsed)
+            conn.connect()
+            deadline.watch(conn)
+            path = (parts.path or "/") + (f"?{parts.query}" if parts.query else "")
+            conn.request(req.method, path, body=data, headers=headers, preload_content=False)
+            resp = conn.getresponse()
+            body = bytearray()
+            while len(body) <= ANSWER_BYTES:
+                piece = resp.read(_PIECE)
+                if not piece:
+                    break
+                body += piece
+            if deadline.fired:
+                raise TimeoutError("deadline")
+            cut = len(body) > ANSWER_BYTES
+            return resp.status, resp.headers.get("Location"), bytes(body[:ANSWER_BYTES]), cut
+        finally:
+            conn.close()
+
+
+def _line(text: str, limit: int = 500) -> str:
+    """One line of at most ``limit`` characters (a server's text can hold anything)."""
+    flat = " ".join(text.split())
+    return flat if len(flat) <= limit else flat[:limit] + "..."
 
 
 class KowalskiQueue(_Client):
@@ -162,7 +267,7 @@ class KowalskiQueue(_Client):
         answer = self.send(Request("GET", self.base + KOWALSKI_PATH, None, self.auth_scheme))
         data = answer.data.get("data") if isinstance(answer.data, dict) else None
         if not answer.ok or not isinstance(data, list):
-            raise RuntimeError(f"GET {KOWALSKI_PATH} answered {answer.status}: {answer.message()}")
+            raise RuntimeError(_line(f"GET {KOWALSKI_PATH} answered {answer.status}: {answer.message()}"))
         return [q for q in data if isinstance(q, dict)]
 
 
@@ -195,7 +300,7 @@ class SkyPortalPlans(_Client):
                                    None, self.auth_scheme))
         data = answer.data.get("data") if isinstance(answer.data, dict) else None
         if not answer.ok or not isinstance(data, dict):
-            raise RuntimeError(f"GET plan_names answered {answer.status}: {answer.message()}")
+            raise RuntimeError(_line(f"GET plan_names answered {answer.status}: {answer.message()}"))
         return bool(data.get("exists"))
 
 

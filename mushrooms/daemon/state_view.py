@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-__all__ = ["connect_readonly", "outbox_backlog", "recent_events", "attention", "incidents", "has_table",
+__all__ = ["connect_readonly", "outbox_backlog", "oldest_pending_submission", "recent_events", "attention", "incidents", "has_table",
            "parse_iso"]
 
 
@@ -186,3 +186,24 @@ def attention(conn: sqlite3.Connection, now: datetime | None = None, outbox_max_
                          f"skipped at {inc['created_at']} (offsets {d.get('expected', '?')} -> {d.get('got', '?')}; "
                          f"{d.get('cause', '')})")
     return lines
+
+
+def oldest_pending_submission(conn: sqlite3.Connection, now: datetime | None = None) -> dict[str, Any] | None:
+    """The submission pending longest: ``{queue_name, superevent_id, age_s, attempts, answer}``, None when none.
+
+    A file without a ``submissions`` table has none.
+    """
+    now = now or datetime.now(timezone.utc)
+    try:
+        row = conn.execute("SELECT * FROM submissions WHERE state='pending' ORDER BY created_at LIMIT 1").fetchone()
+    except sqlite3.OperationalError as exc:
+        if "no such table" in str(exc):
+            return None
+        raise
+    if row is None:
+        return None
+    got = dict(zip(row.keys(), tuple(row))) if hasattr(row, "keys") else {}
+    age = _age_s(got.get("created_at"), now)
+    return {"queue_name": got.get("queue_name"), "superevent_id": got.get("superevent_id"),
+            "age_s": max(0.0, age or 0.0), "attempts": got.get("attempts", 0),
+            "answer": (got.get("answer") or "")[:200] or None}

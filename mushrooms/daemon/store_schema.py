@@ -14,7 +14,7 @@ from .executed_table import EXECUTED_TABLE
 
 __all__ = ["SCHEMA_VERSION", "SCHEMA", "UPGRADES", "missing_steps"]
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 
 #: Plans submitted to ZTF's queue (Kowalski or SkyPortal): one row per plan id (:mod:`.submissions`).
 SUBMISSIONS = """
@@ -34,7 +34,8 @@ CREATE TABLE IF NOT EXISTS submissions (
     created_at    TEXT NOT NULL,
     attempted_at  TEXT,
     submitted_at  TEXT,
-    finished_at   TEXT
+    finished_at   TEXT,
+    progress      TEXT
 );
 CREATE INDEX IF NOT EXISTS submissions_event ON submissions(superevent_id, state);
 """
@@ -132,6 +133,8 @@ UPGRADES: tuple[tuple[int, str | tuple[str, str, str]], ...] = (
     (3, SUBMISSIONS),  # plans submitted to ZTF's queue (issue 27, :mod:`.submissions`)
     (4, ("events", "latest_created", "TEXT")),  # creation order of notices (issue 25)
     (5, EXECUTED_TABLE),  # exposures the telescope took ([loop], issue 28, :mod:`.executed_table`)
+    # which queues of a revision's queue set were accepted / removed (:mod:`.submissions`)
+    (6, ("submissions", "progress", "TEXT")),
 )
 
 

@@ -10,11 +10,15 @@ One row per plan id in the store's ``submissions`` table::
        └─► skipped   (gates, dry run, or superseded/withdrawn before it was sent)
 
 How it works: the store is the wanted state, the server is made to match.
-For every event, the wanted queue is its latest plan (when it passes the
-gates); :meth:`Submitter.step` (run by its own thread, kicked after a plan is
-stored or a withdrawal recorded) first ``PUT``\\s the wanted queue and only
-once it was accepted ``DELETE``\\s the event's older queues, so the telescope
-is never left with nothing; a retraction deletes every queue of the event.
+For every event, the wanted queue set is its latest plan (when it passes
+the gates): to Kowalski a revision is the ordered list of queues of
+:func:`~mushrooms.scheduler_core.plan.exports.to_trigger_queues`.
+:meth:`Submitter.step` (run by its own thread, kicked after a plan is
+stored or a withdrawal recorded) first ``PUT``\\s every queue of the wanted
+set and only once all were accepted ``DELETE``\\s every queue of the event's
+older sets, so the telescope is never left with nothing; a retraction
+deletes every queue of every revision.  The row's ``progress`` records each
+accepted or removed queue (an interrupted pass goes on where it stopped).
 
 Crash safety: a queue's name and body are stored before anything is sent,
 and the attempt is committed *before* the HTTP call.  After a kill -9
@@ -26,9 +30,13 @@ sent twice nor left orphaned.  SkyPortal's import is not keyed by name: an
 interrupted POST is looked up by plan name (``plan_names?name=``) before
 it is repeated.
 
-Queue names: ``ToO_<subprogram_name>_<superevent>_r<n>``, ``n`` counting the
-event's submitted revisions from 1 (stored with the row: stable across restarts).
-The planning workers never wait on HTTP: they only kick this thread.
+Queue names: ``ToO_<subprogram_name>_<superevent>_r<n>_<k>``, ``n`` counting
+the event's submitted revisions from 1 (the row's ``queue_name`` is the name
+base ``..._r<n>``, stored with the row: stable across restarts), ``k`` the
+queue of the set.  A request has a wall-clock deadline (``[submit]
+timeout_s``), so one stuck event costs the others at most that per pass.
+A submitted set whose window ended is closed (``finished_at``).  Planning
+workers only kick this thread.  Pure rules: :mod:`.submission_rules`.
 """
 
 from __future__ import annotations
@@ -36,14 +44,15 @@ from __future__ import annotations
 import json
 import logging
 import time
-from dataclasses import dataclass
 from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, Callable
 
-from ..handlers.instants import now_iso_z
 from . import current_event
 from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
 from .store import Store
+from .submission_rows import _PUBLISHED, OPEN, STATES, Submission, _row, status_document, submissions
+from .submission_rules import Verdict, build_body, gate, queue_name, same_content, send_queue, set_of
+from .submission_rules import unix as _unix
 
 if TYPE_CHECKING:
     from ..scheduler_core.plan.exports import ExportConfig
@@ -54,174 +63,9 @@ __all__ = ["Submission", "Submitter", "Verdict", "send_queue", "queue_name", "ga
 
 log = logging.getLogger("mushrooms.daemon.submit")
 
-STATES = ("pending", "submitted", "replaced", "deleted", "rejected", "failed", "skipped")
-#: States whose queue may be on the server (the submitter still has work with them).
-OPEN = ("pending", "submitted")
-#: Transitions that are published as a ``submission`` status document.
-_PUBLISHED = ("submitted", "replaced", "deleted", "rejected", "failed")
-
-
-@dataclass(frozen=True)
-class Submission:
-    """One row of the ``submissions`` table."""
-
-    plan_id: str
-    superevent_id: str
-    target: str
-    revision: int | None
-    queue_name: str | None
-    state: str
-    reason: str | None
-    body: dict[str, Any] | None
-    remote_id: str | None
-    http_status: int | None
-    answer: str | None
-    attempts: int
-    created_at: str
-    attempted_at: str | None
-    submitted_at: str | None
-    finished_at: str | None
-
-
-def _row(r: Any) -> Submission:
-    return Submission(r["plan_id"], r["superevent_id"], r["target"], r["revision"], r["queue_name"], r["state"],
-                      r["reason"], json.loads(r["body"]) if r["body"] else None, r["remote_id"], r["http_status"],
-                      r["answer"], r["attempts"], r["created_at"], r["attempted_at"], r["submitted_at"],
-                      r["finished_at"])
-
-
-def submissions(store: Store, superevent_id: str | None = None) -> list[Submission]:
-    """Every submission (of one event), oldest first: for operators and tests."""
-    q, args = "SELECT * FROM submissions", ()
-    if superevent_id is not None:
-        q, args = q + " WHERE superevent_id=?", (superevent_id,)
-    return [_row(r) for r in store.connection().execute(q + " ORDER BY created_at, rowid", args)]
-
 
 def _now_iso() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
-
-
-def _unix(iso: str) -> float:
-    return datetime.fromisoformat(iso.replace("Z", "+00:00")).timestamp()
-
-
-def queue_name(subprogram_name: str, superevent_id: str, revision: int) -> str:
-    """``ToO_<subprogram_name>_<superevent>_r<revision>``: the queue of an event's ``revision``-th submission."""
-    return f"ToO_{subprogram_name}_{superevent_id}_r{int(revision)}"
-
-
-def gate(document: dict[str, Any], sub: SubmitConfig, now: float | None = None) -> str | None:
-    """Why a plan document is not submitted (None: it is).
-
-    Gates of ``[submit]``: only plans (not ``not_observable`` answers) with
-    observations, of an alert type in ``alert_types``, covering at least
-    ``min_coverage``, with at most ``max_exposures`` exposures (0: any), whose
-    validity window has not ended.
-    """
-    if document.get("type") != "plan":
-        return f"a {document.get('type')} document, not a plan"
-    if not document.get("observations"):
-        return "no observations"
-    alert_type = (document.get("event") or {}).get("alert_type")
-    if alert_type not in sub.alert_types:
-        return f"alert type {alert_type} not in [submit] alert_types"
-    metrics = document.get("metrics") or {}
-    coverage = float(metrics.get("coverage") or 0.0)
-    if coverage < sub.min_coverage:
-        return f"coverage {coverage:.4f} below [submit] min_coverage {sub.min_coverage:g}"
-    n = int(metrics.get("n_exposures") or len(document["observations"]))
-    if sub.max_exposures and n > sub.max_exposures:
-        return f"{n} exposures, more than [submit] max_exposures {sub.max_exposures}"
-    if _unix(document["end"]) <= (time.time() if now is None else now):
-        return f"validity window ended at {document['end']}"
-    return None
-
-
-def build_body(document: dict[str, Any], submit: SubmitConfig, export: ExportConfig, name: str) -> dict[str, Any]:
-    """The request body of a plan for ``[submit] target`` under queue name ``name``.
-
-    Kowalski: :func:`~mushrooms.scheduler_core.plan.exports.to_trigger_queue`
-    (``plan --queue``); SkyPortal: :func:`~...exports.to_skyportal` (``plan
-    --skyportal``) with ``plan_name`` and ``payload.queue_name`` = ``name``
-    without its ``ToO_`` (SkyPortal's ZTF API puts it back when it queues the plan).
-
-    Raises
-    ------
-    ValueError
-        The plan cannot be expressed (no observations, a non-ZTF filter,
-        SkyPortal without allocation id or event time).
-    """
-    from ..scheduler_core import Plan
-    from ..scheduler_core.plan.exports import to_skyportal, to_trigger_queue
-
-    plan = Plan.from_document(document)
-    if submit.target == "kowalski":
-        return to_trigger_queue(plan, export, queue_name=name)
-    body = to_skyportal(plan, export)
-    short = name.removeprefix("ToO_")
-    body["plan_name"] = short
-    body["payload"]["queue_name"] = short
-    return body
-
-
-def _targets_key(targets: Any) -> list[tuple[int, int, float]]:
-    if isinstance(targets, str):
-        targets = json.loads(targets)
-    return sorted((int(t["field_id"]), int(t["filter_id"]), round(float(t["exposure_time"]), 3)) for t in targets)
-
-
-def same_content(body: dict[str, Any], listed: dict[str, Any]) -> bool:
-    """Whether a queue listed by ``GET /api/triggers/ztf`` is ``body``: same validity window, fields, filters, exposures."""
-    try:
-        mine, theirs = body["validity_window_mjd"], listed.get("validity_window_mjd")
-        if theirs is None or len(theirs) != 2 or any(abs(float(a) - float(b)) > 1e-6 for a, b in zip(mine, theirs)):
-            return False
-        return _targets_key(body["targets"]) == _targets_key(listed.get("queue", listed.get("targets", [])))
-    except (KeyError, TypeError, ValueError):
-        return False
-
-
-@dataclass(frozen=True)
-class Verdict:
-    """What one PUT/POST of a queue came to: ``submitted``, ``rejected`` or ``retry`` (5xx, timeout, unreachable)."""
-
-    state: str
-    answer: Answer | None
-    reason: str | None = None
-    remote_id: str | None = None
-
-
-def send_queue(client: KowalskiQueue | SkyPortalPlans, body: dict[str, Any], name: str) -> Verdict:
-    """Send one queue (Kowalski ``PUT``) or plan (SkyPortal ``POST``) and classify the answer.
-
-    200: submitted.  Kowalski's 409 (a queue of that name exists) counts as
-    submitted when ``GET`` lists the queue with the same content (a repeat
-    after a crash), else rejected.  Other 4xx: rejected (the server's text
-    kept).  5xx, a timeout, no connection: retry.  The daemon's submitter
-    and ``mushrooms submit`` both use it.
-    """
-    try:
-        answer = client.put(body) if isinstance(client, KowalskiQueue) else client.post(body)
-    except Unreachable as exc:
-        return Verdict("retry", None, str(exc))
-    if answer.ok:
-        remote = None
-        if isinstance(answer.data, dict) and isinstance(answer.data.get("data"), dict):
-            remote = answer.data["data"].get("id")
-        return Verdict("submitted", answer, None, None if remote is None else str(remote))
-    if answer.status == 409 and isinstance(client, KowalskiQueue):
-        try:
-            listed = [q for q in client.queues() if q.get("queue_name") == name]
-        except (Unreachable, RuntimeError) as exc:
-            return Verdict("retry", answer, f"409, and the queue list could not be read: {exc}")
-        if listed and same_content(body, listed[0]):
-            return Verdict("submitted", answer, "409: already queued with the same content (accepted)")
-        return Verdict("rejected", answer, "409: a queue of that name exists with other content" if listed
-                       else "409, but the queue list does not show it")
-    if answer.refused:
-        return Verdict("rejected", answer)
-    return Verdict("retry", answer, answer.message())
 
 
 class Submitter:
@@ -273,7 +117,7 @@ class Submitter:
         if self.submit.dry_run:
             return 0  # a dry run sends nothing, not even the DELETEs of queues an earlier run submitted
         waiting = 0
-        for sid in self._open_events():
+        for sid in self.open_events():
             try:
                 waiting += self._settle(sid)
             except Exception:  # one event's bug must not stop the others' submissions
@@ -314,8 +158,10 @@ class Submitter:
                     else:
                         if self.submit.dry_run:
                             reason = "dry run"
-                            log.info("event=submission_dry_run superevent_id=%s plan_id=%s queue_name=%s request=%s",
-                                     sid, plan_id, name, json.dumps(self._request(body).describe()))
+                            for one in set_of(body) if isinstance(body, list) else [body]:
+                                log.info("event=submission_dry_run superevent_id=%s plan_id=%s queue_name=%s "
+                                         "request=%s", sid, plan_id, one.get("queue_name", name),
+                                         json.dumps(self._request(one).describe()))
                         else:
                             state = "pending"
                 else:
@@ -346,24 +192,37 @@ class Submitter:
             self._on_outbox()
         return created
 
-    def _open_events(self) -> list[str]:
+    def open_events(self) -> list[str]:
+        """Events with rows still to bring to their wanted state (pending, or submitted and not closed)."""
         rows = self.store.connection().execute(
-            "SELECT superevent_id, MIN(created_at) FROM submissions WHERE state IN ('pending','submitted')"
-            " GROUP BY superevent_id ORDER BY 2").fetchall()
+            "SELECT superevent_id, MIN(created_at) FROM submissions WHERE state='pending' OR"
+            " (state='submitted' AND finished_at IS NULL) GROUP BY superevent_id ORDER BY 2").fetchall()
         return [r[0] for r in rows]
 
-    def _settle(self, sid: str) -> int:
+    def _latest(self, sid: str) -> str | None:
+        return current_event.latest_plan_id(self.store.connection(), sid)
+
+    def _settle(self, sid: str, again: bool = True) -> int:
+        """Bring one event's queues to its wanted state; the number of rows left waiting for a retry."""
         conn = self.store.connection()
         rows = [_row(r) for r in conn.execute(
-            "SELECT * FROM submissions WHERE superevent_id=? AND state IN ('pending','submitted')"
-            " ORDER BY revision", (sid,))]
-        latest_id = current_event.latest_plan_id(conn, sid)
+            "SELECT * FROM submissions WHERE superevent_id=? AND (state='pending' OR (state='submitted' AND"
+            " finished_at IS NULL)) ORDER BY revision", (sid,))]
+        rows = [r for r in rows if not self._close_if_expired(r)]
+        latest_id = self._latest(sid)
         wanted = next((r for r in rows if r.plan_id == latest_id), None)
         if wanted is not None and wanted.state == "pending":
             wanted = self._submit(wanted)
             if wanted is None:
-                return 1  # not accepted yet: the older queue stays
+                return 1  # not accepted yet: the older queues stay
+            if again and self._latest(sid) != latest_id:  # retracted or replaced while the PUT was in flight
+                return self._settle(sid, again=False)
         retracted = latest_id is None
+        newest = None
+        if wanted is None and latest_id is not None:
+            found = conn.execute("SELECT * FROM submissions WHERE plan_id=?", (latest_id,)).fetchone()
+            newest = _row(found) if found is not None else None
+        given_up = newest is not None and newest.state not in OPEN  # the newest plan is not submitted
         may_remove = retracted or (wanted is not None and wanted.state == "submitted")
         waiting = 0
         for r in rows:
@@ -373,11 +232,28 @@ class Submitter:
                 self._finish(r, "skipped", reason="withdrawn before it was sent" if retracted
                              else "superseded before it was sent")
                 continue
+            if r.state == "pending" and given_up and not retracted:
+                why = f"superseded after {r.attempts} attempt(s) by a plan not submitted ({newest.reason})"
+                if not self._remove(r, "skipped", why):
+                    waiting += 1
+                continue
             if not may_remove:
-                continue  # kept until the newer queue is accepted
+                continue  # kept until the newer queues are accepted
             if not self._remove(r, "deleted" if retracted else "replaced"):
                 waiting += 1
         return waiting
+
+    def _close_if_expired(self, sub: Submission) -> bool:
+        """A submitted set whose validity window ended is closed: nothing is left to do with it."""
+        end = self._plan_end(sub.plan_id)
+        if sub.state != "submitted" or end is None or end > time.time():
+            return False
+        with self.store.transaction() as c:
+            c.execute("UPDATE submissions SET finished_at=? WHERE plan_id=? AND state='submitted'",
+                      (_now_iso(), sub.plan_id))
+        log.info("event=submission_expired superevent_id=%s plan_id=%s queue_name=%s", sub.superevent_id,
+                 sub.plan_id, sub.queue_name)
+        return True
 
     # ------------------------------------------------------------ submit
     def _request(self, body: dict[str, Any]) -> Any:
@@ -386,13 +262,44 @@ class Submitter:
         return (self.client or KowalskiQueue(self.submit.url, None)).put_request(body)
 
     def _submit(self, sub: Submission) -> Submission | None:
-        """PUT/POST the wanted queue; the row afterwards, or None when it waits for a retry."""
+        """PUT every queue of the set not yet accepted (or POST the plan); the row afterwards, or None (retry)."""
         assert sub.body is not None and self.client is not None
         plan_end = self._plan_end(sub.plan_id)
         if plan_end is not None and plan_end <= time.time():
+            if sub.progress.get("put") and not self._remove_all(sub, "failed", "validity window ended"):
+                return None
             return self._finish(sub, "failed", reason=f"validity window ended before the queue was accepted "
                                 f"({sub.attempts} attempt(s); last: {sub.answer or '-'})")
-        if isinstance(self.client, SkyPortalPlans) and sub.attempts > 0:
+        if isinstance(self.client, SkyPortalPlans):
+            return self._post(sub)
+        if sub.progress.get("rejected"):  # a queue of the set was refused: take the accepted ones back first
+            return self._finish_rejection(sub)
+        last: Verdict | None = None
+        for queue in set_of(sub.body):
+            name = str(queue.get("queue_name"))
+            if name in sub.progress.get("put", ()):
+                continue
+            sub = self._mark_attempt(sub)
+            last = send_queue(self.client, queue, name)
+            if last.state == "retry":
+                return self._retry(sub, last.answer.status if last.answer else None, last.reason or "")
+            if last.state == "rejected":
+                reason = f"{name}: {last.reason or (last.answer.message() if last.answer else '-')}"
+                sub = self._note(sub, "rejected", reason, last.answer)
+                return self._finish_rejection(sub)
+            sub = self._note(sub, "put", name)
+        return self._finish(sub, "submitted", last.answer if last else None, reason=last.reason if last else None)
+
+    def _finish_rejection(self, sub: Submission) -> Submission | None:
+        """A set with a refused queue: remove its accepted queues, then the row is ``rejected``."""
+        if sub.progress.get("put") and not self._remove_all(sub, "rejected", "a queue of the set was refused"):
+            return None
+        return self._finish(sub, "rejected", reason=str(sub.progress["rejected"]))
+
+    def _post(self, sub: Submission) -> Submission | None:
+        """SkyPortal: one plan per revision, looked up by name after an interrupted POST."""
+        assert isinstance(self.client, SkyPortalPlans)
+        if sub.attempts > 0:
             try:  # an import interrupted by a crash may have happened: look before posting again
                 if self.client.exists(sub.body["plan_name"]):
                     return self._finish(sub, "submitted", reason="found by plan name after an interrupted POST "
@@ -405,49 +312,89 @@ class Submitter:
             return self._retry(sub, verdict.answer.status if verdict.answer else None, verdict.reason or "")
         return self._finish(sub, verdict.state, verdict.answer, reason=verdict.reason, remote_id=verdict.remote_id)
 
-    def _remove(self, sub: Submission, end_state: str) -> bool:
-        """DELETE an older (or retracted) queue; True when settled (removed, gone, or failed for good)."""
+    def _remove(self, sub: Submission, end_state: str, reason: str | None = None) -> bool:
+        """DELETE an older (or retracted) revision; True when settled (removed, gone, or failed for good)."""
         assert self.client is not None
         if isinstance(self.client, SkyPortalPlans):
-            if not sub.remote_id:
-                self._finish(sub, "failed", reason="SkyPortal request id unknown (interrupted POST): remove "
-                             f"plan {sub.queue_name} by hand")
-                return True
+            return self._remove_plan(sub, end_state)
+        if not self._remove_all(sub, end_state, reason):
+            return False
+        current = _row(self.store.connection().execute("SELECT * FROM submissions WHERE plan_id=?",
+                                                       (sub.plan_id,)).fetchone())
+        if current.state in OPEN:
+            self._finish(current, end_state, reason=reason or ("not on the server (already removed)"
+                                                               if current.progress.get("absent") else None))
+        return True
+
+    def _remove_all(self, sub: Submission, end_state: str, reason: str | None) -> bool:
+        """DELETE every queue of the set not yet removed; True when all are gone (or the row failed for good)."""
+        assert self.client is not None
+        for name in sub.queue_names():
+            if name in sub.progress.get("gone", ()):
+                continue
             try:
-                answer = self.client.delete(sub.remote_id)
+                answer = self.client.delete(name, self.export.user)
             except Unreachable as exc:
                 self._retry(sub, None, str(exc))
                 return False
-            if answer.ok:
-                self._finish(sub, end_state, answer)
-            elif answer.refused:
-                self._finish(sub, "failed", answer, reason=f"DELETE refused: {answer.message()}")
-            else:
+            if answer.ok and answer.problem is None:
+                sub = self._note(sub, "gone", name, answer)
+                continue
+            if answer.ok:  # a 200 that is not Kowalski's JSON: not known to be removed
+                self._retry(sub, answer.status, f"DELETE {name}: {answer.status}, but {answer.problem}")
+                return False
+            if answer.redirected:
+                self._finish(sub, "failed", answer, reason=f"DELETE {name}: {answer.status}: {answer.problem}")
+                return True
+            if not answer.refused:
                 self._retry(sub, answer.status, answer.message())
                 return False
+            try:
+                names = {q.get("queue_name") for q in self.client.queues()}
+            except (Unreachable, RuntimeError) as exc:
+                self._retry(sub, answer.status, f"DELETE refused and the queue list could not be read: {exc}")
+                return False
+            if name in names:
+                self._finish(sub, "failed", answer, reason=f"DELETE {name} refused: {answer.message()}")
+                return True
+            sub = self._note(sub, "gone", name, answer, absent=True)
+        return True
+
+    def _remove_plan(self, sub: Submission, end_state: str) -> bool:
+        """SkyPortal: DELETE the observation plan request by its id."""
+        assert isinstance(self.client, SkyPortalPlans)
+        if not sub.remote_id:
+            self._finish(sub, "failed", reason="SkyPortal request id unknown (interrupted POST): remove "
+                         f"plan {sub.queue_name} by hand")
             return True
-        user = self.export.user
         try:
-            answer = self.client.delete(str(sub.queue_name), user)
+            answer = self.client.delete(sub.remote_id)
         except Unreachable as exc:
             self._retry(sub, None, str(exc))
             return False
-        if answer.ok:
-            self._finish(sub, end_state, answer)
-            return True
-        if not answer.refused:
+        if not (answer.ok or answer.refused):
             self._retry(sub, answer.status, answer.message())
             return False
-        try:
-            names = {q.get("queue_name") for q in self.client.queues()}
-        except (Unreachable, RuntimeError) as exc:
-            self._retry(sub, answer.status, f"DELETE refused and the queue list could not be read: {exc}")
-            return False
-        if sub.queue_name not in names:
-            self._finish(sub, end_state, answer, reason="not on the server (already removed)")
-        else:
-            self._finish(sub, "failed", answer, reason=f"DELETE refused: {answer.message()}")
+        self._finish(sub, *((end_state, answer) if answer.ok else ("failed", answer)),
+                     reason=None if answer.ok else f"DELETE refused: {answer.message()}")
         return True
+
+    def _note(self, sub: Submission, key: str, value: str, answer: Answer | None = None,
+              absent: bool = False) -> Submission:
+        """Record durably that queue ``value`` was accepted (``put``) or removed (``gone``), or the refusal."""
+        progress = dict(sub.progress)
+        if key == "rejected":
+            progress["rejected"] = value
+        else:
+            progress[key] = sorted(set(progress.get(key, [])) | {value})
+        if absent:
+            progress["absent"] = True
+        with self.store.transaction() as c:
+            c.execute("UPDATE submissions SET progress=?, http_status=COALESCE(?, http_status),"
+                      " answer=COALESCE(?, answer) WHERE plan_id=?",
+                      (json.dumps(progress), answer.status if answer else None, answer.text if answer else None,
+                       sub.plan_id))
+            return _row(c.execute("SELECT * FROM submissions WHERE plan_id=?", (sub.plan_id,)).fetchone())
 
     # ------------------------------------------------------------ rows
     def _plan_end(self, plan_id: str) -> float | None:
@@ -518,32 +465,6 @@ class Submitter:
                 self._on_result(state, self.target)
             except Exception:
                 log.exception("event=submission_callback_failed")
-
-
-def status_document(sub: Submission) -> dict[str, Any]:
-    """The ``submission`` status document of a row (published beside the plan; docs/design/plan-format.md)."""
-    answer = sub.answer
-    if answer is not None:
-        try:
-            parsed = json.loads(answer)
-            if isinstance(parsed, dict) and isinstance(parsed.get("message"), str):
-                answer = parsed["message"]
-        except ValueError:
-            pass
-    return {
-        "type": "submission",
-        "submission_id": f"{sub.plan_id}-submission-{sub.state}",
-        "plan_id": sub.plan_id,
-        "superevent_id": sub.superevent_id,
-        "target": sub.target,
-        "queue_name": sub.queue_name,
-        "state": sub.state,
-        "http_status": sub.http_status,
-        "answer": None if answer is None else answer[:2000],
-        "reason": sub.reason,
-        "attempts": int(sub.attempts),
-        "created": now_iso_z(),
-    }
 
 
 def open_submitter(submit: SubmitConfig, export: ExportConfig, store: Store, token: str | None,

@@ -35,8 +35,13 @@ class SubmitConfig:
         Base URL of the target (``http://`` or ``https://``); required unless
         ``target = "none"``.
     timeout_s : float
-        Time (s) one HTTP request may take (connect and answer) before it
-        counts as failed and is retried.
+        Wall-clock deadline (s) of one HTTP request, in all (connect, send,
+        the whole answer), after which it counts as failed and is retried.
+    max_pending_s : float
+        A submission pending longer than this (s) needs attention:
+        ``/readyz`` not ready (check ``submission``), ``mushrooms status``
+        exit 1 (the gauge ``mushrooms_submission_oldest_pending_age_seconds``
+        has the alert rule of docs/operations.md).
     retry_initial_s, retry_max_s : float
         Back-off (s) after a failed (5xx, timeout, unreachable) request,
         doubling from the first to the second.  A refusal (4xx) is never retried.
@@ -53,6 +58,7 @@ class SubmitConfig:
     target: str = "none"
     url: str = ""
     timeout_s: float = 10.0
+    max_pending_s: float = 600.0
     retry_initial_s: float = 5.0
     retry_max_s: float = 300.0
     min_coverage: float = 0.0
@@ -71,7 +77,7 @@ class SubmitConfig:
                 raise ValueError("[submit] url must not carry credentials: the token comes from "
                                  "MUSHROOMS_SUBMIT_TOKEN or the systemd credential submit_token")
         for name, low, high in (("timeout_s", 0.1, 600.0), ("retry_initial_s", 0.01, 86400.0),
-                                ("retry_max_s", 0.01, 86400.0)):
+                                ("retry_max_s", 0.01, 86400.0), ("max_pending_s", 1.0, 86400.0)):
             value = float(getattr(self, name))
             if not (math.isfinite(value) and low <= value <= high):
                 raise ValueError(f"[submit] {name} must be a finite number in [{low:g}, {high:g}] s, got {value!r}")

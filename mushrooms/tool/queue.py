@@ -3,15 +3,19 @@
 ``[submit] url`` (or ``--url``) is Kowalski's base URL; the token comes from
 ``$MUSHROOMS_SUBMIT_TOKEN`` or the systemd credential ``submit_token``; the
 DELETE's ``user`` is ``[export] user``.  The daemon's own queues are named
-``ToO_<subprogram>_<superevent>_r<n>``.
+``ToO_<subprogram>_<superevent>_r<n>_<k>`` (queue ``k`` of the set of the
+event's revision ``n``); ``list`` groups them by event and revision and
+shows each queue's validity window in UTC and its number of targets; other
+queues are listed after them.  A server's error is one short line.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
-from typing import Sequence
+from typing import Any, Sequence
 
 from .common import add_common_options, execute, tool_parser
 
@@ -60,25 +64,68 @@ def run(args: argparse.Namespace) -> int:
     try:
         if args.action == "list":
             queues = client.queues()
-            if args.json:
-                print(json.dumps(queues, indent=1))
-            for q in [] if args.json else queues:
-                window = q.get("validity_window_mjd") or ["?", "?"]
-                try:
-                    n = len(json.loads(q["queue"]) if isinstance(q.get("queue"), str) else q.get("queue") or [])
-                except ValueError:
-                    n = "?"
-                print(f"{q.get('queue_name')}\tMJD {window[0]} - {window[1]}\t{n} targets")
+            print(json.dumps(queues, indent=1) if args.json else render(queues))
             return 0
         answer = client.delete(args.name, config.export.user)
     except (Unreachable, RuntimeError) as exc:
-        print(f"mushrooms queue: {exc}", file=sys.stderr)
+        print(_line(f"mushrooms queue: {exc}"), file=sys.stderr)
         return 1
-    if answer.ok:
+    if answer.ok and answer.problem is None:
         print(f"deleted {args.name}")
         return 0
-    print(f"mushrooms queue: delete {args.name} refused: {answer.status}: {answer.message()}", file=sys.stderr)
+    print(_line(f"mushrooms queue: delete {args.name} refused: {answer.status}: {answer.message()}"),
+          file=sys.stderr)
     return 1
+
+
+#: The daemon's queue names: ``ToO_<subprogram>_<superevent>_r<n>_<k>``.
+_OURS = re.compile(r"^ToO_[^_]+_(?P<event>.+)_r(?P<revision>\d+)_(?P<k>\d+)$")
+
+
+def _line(text: str, limit: int = 300) -> str:
+    flat = " ".join(str(text).split())
+    return flat if len(flat) <= limit else flat[:limit] + "..."
+
+
+def _utc(mjd: Any) -> str:
+    try:
+        from datetime import datetime, timedelta, timezone
+
+        t = datetime(1858, 11, 17, tzinfo=timezone.utc) + timedelta(days=float(mjd))
+        return t.strftime("%Y-%m-%dT%H:%M:%SZ")
+    except (TypeError, ValueError, OverflowError):
+        return "?"
+
+
+def _describe(q: dict[str, Any]) -> str:
+    window = q.get("validity_window_mjd") or ["?", "?"]
+    try:
+        targets = q.get("queue", q.get("targets"))
+        n: Any = len(json.loads(targets) if isinstance(targets, str) else targets or [])
+    except (TypeError, ValueError):
+        n = "?"
+    start, end = (window + ["?", "?"])[:2] if isinstance(window, list) else ("?", "?")
+    return f"{_line(q.get('queue_name'), 120)}  {_utc(start)} - {_utc(end)}  {n} targets"
+
+
+def render(queues: list[dict[str, Any]]) -> str:
+    """The queue list grouped by event and revision (the daemon's names), then the other queues."""
+    groups: dict[tuple[str, int], list[tuple[int, dict[str, Any]]]] = {}
+    other = []
+    for q in queues:
+        m = _OURS.match(str(q.get("queue_name") or ""))
+        if m:
+            groups.setdefault((m["event"], int(m["revision"])), []).append((int(m["k"]), q))
+        else:
+            other.append(q)
+    out = []
+    for (event, revision), members in sorted(groups.items()):
+        out.append(f"{event} r{revision}: {len(members)} queue(s)")
+        out.extend(f"  {_describe(q)}" for _, q in sorted(members, key=lambda kq: kq[0]))
+    if other:
+        out.append(f"other queues: {len(other)}")
+        out.extend(f"  {_describe(q)}" for q in other)
+    return "\n".join(out) if out else "no queue"
 
 
 if __name__ == "__main__":

@@ -7,10 +7,15 @@ notice, each plan revision with its coverage and expected detections,
 whether it was published or is pending, and its submission state when the
 state file records submissions.  Then what needs attention: a failed job, an
 outbox message unpublished for ``--outbox-minutes``, a notice stored
-without a decision, messages the consumer skipped (offset jumps).
+without a decision, messages the consumer skipped (offset jumps), a plan
+submission pending longer than ``[submit] max_pending_s`` (the plan did
+not reach the telescope).
 
-Exit status: 0 all well, 1 something needs attention, 2 bad input (no such
-state file, not a state file).
+Without ``--state`` the state file is the config's ``[daemon] state_path``.
+
+Exit status: 0 all well, 1 something needs attention (also: the state file
+stayed busy, locked by a writer, for ``--busy-timeout``), 2 bad input (no
+such state file, not a state file, a state file of an older schema).
 """
 
 from __future__ import annotations
@@ -42,6 +47,8 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
                    help="an outbox message unpublished this long needs attention (default 5)")
     p.add_argument("--window-hours", type=float, default=24.0, metavar="H",
                    help="failed jobs and skipped messages of the last H hours need attention (default 24)")
+    p.add_argument("--busy-timeout", type=float, default=5.0, metavar="S",
+                   help="wait this long for a busy (locked) state file (default 5)")
     add_common_options(p)
     return p
 
@@ -57,9 +64,38 @@ def _state_path(args: argparse.Namespace) -> Any:
     if args.state:
         return Path(args.state).expanduser()
     from ..daemon.settings import resolve_paths
-    from ..daemon.wiring import effective_config
 
-    return resolve_paths(effective_config(args).daemon).state
+    return resolve_paths(_config(args).daemon).state
+
+
+def _config(args: argparse.Namespace) -> Any:
+    from .config import load_config
+
+    return load_config(getattr(args, "config", None))
+
+
+def _schema_problem(conn: sqlite3.Connection) -> str | None:
+    """Why this program cannot read the file (an older or newer schema), None when it can."""
+    from ..daemon.store_schema import SCHEMA_VERSION
+
+    version = conn.execute("PRAGMA user_version").fetchone()[0]
+    if version == SCHEMA_VERSION:
+        return None
+    if version < SCHEMA_VERSION:
+        return (f"state file of schema {version}, this program reads schema {SCHEMA_VERSION}: start the daemon "
+                "(mushrooms run) on it once to upgrade it, or use the mushrooms version that wrote it")
+    return f"state file of schema {version}, newer than this program's {SCHEMA_VERSION}: use a newer mushrooms"
+
+
+def _submission_attention(conn: sqlite3.Connection, max_pending_s: float) -> list[str]:
+    from ..daemon.state_view import oldest_pending_submission
+
+    oldest = oldest_pending_submission(conn)
+    if oldest is None or oldest["age_s"] <= max_pending_s:
+        return []
+    return [f"submission {oldest['queue_name']} of {oldest['superevent_id']} pending for "
+            f"{oldest['age_s'] / 60:.1f} min after {oldest['attempts']} attempt(s) (the plan did not reach the "
+            f"telescope; [submit] max_pending_s = {max_pending_s:g} s): {oldest['answer'] or '-'}"]
 
 
 def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_hours: float) -> dict[str, Any]:
@@ -133,12 +169,25 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_INPUT
     from ..daemon.state_view import connect_readonly
 
+    max_pending_s = _config(args).submit.max_pending_s
     try:
-        conn = connect_readonly(path)
+        conn = connect_readonly(path, timeout_s=max(0.0, args.busy_timeout))
         try:
+            problem = _schema_problem(conn)
+            if problem:
+                print(f"mushrooms status: error: {path}: {problem}", file=sys.stderr)
+                return EXIT_INPUT
             doc = collect(conn, args.limit, args.outbox_minutes, args.window_hours)
+            doc["attention"] += _submission_attention(conn, max_pending_s)
         finally:
             conn.close()
+    except sqlite3.OperationalError as exc:
+        if "locked" in str(exc) or "busy" in str(exc):
+            print(f"mushrooms status: {path}: the state file is busy (locked by a writer for over "
+                  f"{args.busy_timeout:g} s); try again, or look at what holds it", file=sys.stderr)
+            return EXIT_ATTENTION
+        print(f"mushrooms status: error: {path}: not a readable mushrooms state file ({exc})", file=sys.stderr)
+        return EXIT_INPUT
     except sqlite3.DatabaseError as exc:
         print(f"mushrooms status: error: {path}: not a readable mushrooms state file ({exc})", file=sys.stderr)
         return EXIT_INPUT

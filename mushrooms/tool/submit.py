@@ -88,26 +88,29 @@ def run(args: argparse.Namespace) -> int:
         body = build_body(doc, config.submit, config.export, name)
     except ValueError as exc:
         raise InputError(f"{args.plan}: {exc}") from None
+    parts = body if isinstance(body, list) else [body]  # Kowalski: the revision's queue set, PUT in order
     if args.dry_run:
         client = make_client(config.submit.target, config.submit.url, None, config.submit.timeout_s)
-        request = client.put_request(body) if config.submit.target == "kowalski" else client.post_request(body)
-        print(json.dumps(request.describe(), indent=1))
+        requests = [(client.put_request(q) if config.submit.target == "kowalski" else client.post_request(q))
+                    .describe() for q in parts]
+        print(json.dumps(requests if isinstance(body, list) else requests[0], indent=1))
         return 0
     from ..daemon.credentials import load_submit_token
 
     token, _ = load_submit_token()
     client = make_client(config.submit.target, config.submit.url, token, config.submit.timeout_s)
-    verdict = send_queue(client, body, name)
-    status = verdict.answer.status if verdict.answer else "no answer"
-    text = verdict.reason or (verdict.answer.message() if verdict.answer else "")
-    if verdict.state == "submitted":
+    for part in parts:
+        one = str(part.get("queue_name") or name) if isinstance(body, list) else name
+        verdict = send_queue(client, part, one)
+        status = verdict.answer.status if verdict.answer else "no answer"
+        text = verdict.reason or (verdict.answer.message() if verdict.answer else "")
+        if verdict.state != "submitted":
+            what = "refused" if verdict.state == "rejected" else "not accepted (try again)"
+            print(f"mushrooms submit: {one} {what}: {status}: {text}"[:500], file=sys.stderr)
+            return 1
         remote = f" id {verdict.remote_id}" if verdict.remote_id else ""
-        print(f"submitted {name} to {config.submit.target} ({status}){remote}{': ' + text if text else ''}")
-        return 0
-    what = "refused" if verdict.state == "rejected" else "not accepted (try again)"
-    print(f"mushrooms submit: {name} {what}: {status}: {text}", file=sys.stderr)
-    return 1
-
+        print(f"submitted {one} to {config.submit.target} ({status}){remote}{': ' + text if text else ''}")
+    return 0
 
 if __name__ == "__main__":
     sys.exit(main())

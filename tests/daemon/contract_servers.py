@@ -30,9 +30,10 @@ SkyPortal (skyportal/skyportal @ 8bd346c, BSD-3-Clause):
 errors are 400 ``{"status": "error", "message": ...}``.
 
 Faults for the tests: :attr:`KowalskiContract.faults` maps a method to a
-list of answers for its next requests (a status code, or ``"hang"``: the
+list of answers for its next requests (a status code; ``"hang"``: the
 request is applied to nothing and answered only after :attr:`release` is set
-or ``hang_s`` passed).  :attr:`KowalskiContract.block_after` holds a method
+or ``hang_s`` passed; ``"drip"``: applied to nothing, answered 200 with a
+body of one byte every 0.1 s for ``hang_s``).  :attr:`KowalskiContract.block_after` holds a method
 *after* applying it, until :attr:`release` (a request that reached the
 server while the client dies).  Every request is appended to :attr:`log`.
 """
@@ -90,6 +91,8 @@ class _Contract:
         self.hang_s = 60.0
         self.blocked = threading.Event()  # set while a request is held by block_after
         self.hanging = 0  # requests held unanswered by a "hang" fault right now
+        self.drip_s = 0.1  # seconds per byte of a "drip" answer
+        self.delay_s = 0.0  # every request is applied only after this (a slow but working server)
         self._lock = threading.Lock()
 
     @property
@@ -112,6 +115,15 @@ class _Contract:
             fault = queue.pop(0) if queue else None
         if fault is None:
             return None
+        if fault == "drip":  # a 200 whose body comes one byte every 0.1 s for hang_s: no recv ever times out
+            n, step = max(1, int(self.hang_s / self.drip_s)), self.drip_s
+
+            def trickle():
+                for _ in range(n):
+                    time.sleep(step)
+                    yield b" "
+
+            return Response(trickle(), status=200, content_type="application/json")
         if fault == "hang":
             with self._lock:
                 self.hanging += 1
@@ -127,6 +139,8 @@ class _Contract:
             body = json.loads(request.get_data() or b"null")
         except ValueError:
             body = None
+        if self.delay_s:
+            time.sleep(self.delay_s)
         response = self._auth(request) or self._fault(request.method) or self._apply(request, body)
         self._record(request, response.status_code, body)
         if request.method in self.block_after and response.status_code == 200:

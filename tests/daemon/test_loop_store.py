@@ -40,7 +40,7 @@ def test_a_schema_4_state_file_gets_the_executed_table_and_keeps_its_rows(tmp_pa
         s.close()
     c = sqlite3.connect(path)
     try:
-        assert c.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 5
+        assert c.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 6
         assert c.execute("SELECT COUNT(*) FROM executed").fetchone()[0] == 4
     finally:
         c.close()

@@ -34,7 +34,7 @@ def _uniq(name: str) -> str:
 
 
 def _name(sid: str, n: int) -> str:
-    return f"ToO_GW_{sid}_r{n}"
+    return f"ToO_GW_{sid}_r{n}_1"  # queue 1 of the revision's set (K = 1 here)
 
 
 @pytest.fixture
@@ -77,7 +77,7 @@ class Setup:
             return c.execute(sql).fetchall()
 
     def states(self, sid: str = SID) -> list[tuple]:
-        return self.rows(f"SELECT queue_name, state FROM submissions WHERE superevent_id='{sid}' AND"
+        return self.rows(f"SELECT queue_name || '_1', state FROM submissions WHERE superevent_id='{sid}' AND"
                          " queue_name IS NOT NULL ORDER BY revision")
 
 
@@ -120,7 +120,7 @@ def test_notice_update_and_retraction_through_the_daemon(broker, daemons, tmp_pa
         if f.is_file():
             assert TOKEN.encode() not in f.read_bytes(), f
     docs = [json.loads(r[0]) for r in s.rows("SELECT body FROM outbox WHERE kind='submission' ORDER BY outbox_id")]
-    assert [(x["queue_name"], x["state"]) for x in docs] == [(r1, "submitted"), (r2, "submitted"),
+    assert [(x["queue_name"] + "_1", x["state"]) for x in docs] == [(r1, "submitted"), (r2, "submitted"),
                                                              (r1, "replaced"), (r2, "deleted")]
     assert s.rows("SELECT COUNT(*) FROM outbox WHERE published_at IS NULL") == [(0,)]
 

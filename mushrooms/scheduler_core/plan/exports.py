@@ -31,7 +31,7 @@ from ..tables import dataclass_from_table
 if TYPE_CHECKING:  # an annotation only: reading [export] imports no numpy/astropy (the document does)
     from .document import Plan
 
-__all__ = ["ExportConfig", "to_trigger_queue", "to_skyportal", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
+__all__ = ["ExportConfig", "to_trigger_queue", "to_trigger_queues", "to_skyportal", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
 
 #: ZTF queue filter ids.
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
@@ -135,6 +135,19 @@ def to_trigger_queue(plan: Plan, export: ExportConfig = ExportConfig(), queue_na
         "user": export.user,
         "targets": targets,
     }
+
+
+def to_trigger_queues(plan: Plan, export: ExportConfig = ExportConfig(), name_base: str | None = None
+                      ) -> list[dict[str, Any]]:
+    """The plan as the ordered set of ZTF ToO queues it is submitted as, named ``<name_base>_<k>``, k = 1..K.
+
+    Each queue has the shape of :func:`to_trigger_queue`; ``name_base``
+    defaults to ``ToO_<superevent or plan id>``.  Placeholder: one queue
+    holding the whole plan (K = 1); the timed queues per filter pass
+    replace it.
+    """
+    base = name_base or f"ToO_{_tag(plan)}"
+    return [to_trigger_queue(plan, export, queue_name=f"{base}_1")]
 
 
 def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization_name: str | None = None
