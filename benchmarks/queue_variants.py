@@ -27,7 +27,7 @@ def main(argv=None) -> int:
     ap.add_argument("--nside", type=int, default=128)
     ap.add_argument("--solver", default="greedy")
     ap.add_argument("--time-limit", type=float, default=None)
-    ap.add_argument("--slacks", default="none,0,300,900,1800")
+    ap.add_argument("--slacks", default="120,600,1800")
     ap.add_argument("--late", default="0,900,1800,3600")
     args = ap.parse_args(argv)
     import dataclasses
@@ -51,7 +51,7 @@ def main(argv=None) -> int:
     if args.maps:
         step = len(paths) / args.maps
         paths = [paths[int(i * step)] for i in range(args.maps)]
-    slacks = [None if s == "none" else float(s) for s in args.slacks.split(",")]
+    slacks = [float(s) for s in args.slacks.split(",")]
     lates = [float(x) for x in args.late.split(",")]
     for path in paths:
         t0 = time.perf_counter()
@@ -67,11 +67,16 @@ def main(argv=None) -> int:
             print(json.dumps({"map": path.name, "status": "empty plan"}), flush=True)
             continue
         exports = {"single": [to_trigger_queue(plan)]}
-        exports["passes"] = to_trigger_queues(plan)
+        for s in slacks:
+            exports[f"passes_{int(s)}"] = to_trigger_queues(plan, slack_s=s)
         first = plan.observations[0].start
         end = float((plan.end - plan.start).to_value("s"))
         row = {"map": str(path.relative_to(MAPS)), "planned": plan.metrics.coverage,
                "n_obs": len(plan.observations), "plan_s": round(time.perf_counter() - t0, 1)}
+        for late in lates:  # what the plan holds after the telescope is free: the time lost, no more
+            kept = {o.field_id for o in plan.observations if o.start >= first + late}
+            pairs = {f for f in kept if sum(1 for o in plan.observations if o.field_id == f and o.start >= first + late) >= 2}
+            row[f"after@{int(late / 60)}"] = round(footprints.coverage(sorted(pairs), skymap.prob), 6) if pairs else 0.0
         for name, queues in exports.items():
             qs = queue_set_from_payloads(queues, plan.start)
             row[f"K_{name}"] = len(queues)

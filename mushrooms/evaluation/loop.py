@@ -2,7 +2,7 @@
 
 Night 1 (its validity window, :func:`~mushrooms.scheduler_core.sky.twilight.night_windows`,
 N1) is planned once; a weather closure falls in it.  Two arms, both played
-by the same executor (:func:`~.queue_sim.execute_plan`, Q1-Q5, same overheads):
+by the same executor (:func:`~.queue_sim.execute_plan`: the plan's queues as ZTF runs them, Q1-Q13):
 
 (a) *queue*: the original plan runs as ZTF's list queue would through the
     closure (what no longer fits is skipped, what expired is dropped);
@@ -167,15 +167,6 @@ def repeated_pairs(replan: Plan, before: Sequence[ExecutedExposure], config: Pla
     return sum(o.field_id in both for o in replan.observations)
 
 
-def _plan_windows(plan: Plan, config: PlanningConfig, grid: FieldGrid):
-    """Observability windows of a plan's fields over its horizon (s since ``plan.start``), for the executor."""
-    from ..scheduler_core.sky.visibility import observability_windows
-
-    ids = np.array(sorted(set(plan.field_ids)), dtype=int)
-    rows = grid.index_of(ids)
-    return observability_windows(ids, grid.ra[rows], grid.dec[rows], plan.start, config)
-
-
 def _arm(executed: tuple[ExecutedExposure, ...], plan: Plan, skymap: SkyMap, config: PlanningConfig,
          footprints: Footprints, grid: FieldGrid) -> LoopArm:
     """(W4) an arm's scores: coverage (Q6) at any separation and at the cadence, expected detections (X1)."""
@@ -252,7 +243,7 @@ def loop_map(skymap: SkyMap, config: PlanningConfig, start: Time, closure: Closu
     if not isinstance(closure, Closure):
         closure = random_closure(evening, morning, closure)
     # (W2) arm (a): the list queue alone, through the closure
-    executed_a = execute_plan(plan, problem.windows, night, closures=[closure])
+    executed_a = execute_plan(plan, closures=[closure])
     queue = _arm(executed_a, plan, skymap, night, footprints, grid)
     # (W3) arm (b): the same until the closure, then the daemon's re-plan from the reopening (L6, L7)
     before = tuple(e for e in executed_a if e.start < closure.start)
@@ -263,13 +254,12 @@ def loop_map(skymap: SkyMap, config: PlanningConfig, start: Time, closure: Closu
         replan = plan_remaining(skymap, rest, closure.end, before, solver=solver, grid=grid,
                                 supersedes=plan.plan_id)
         if replan.observations:
-            executed_b = before + execute_plan(replan, _plan_windows(replan, rest, grid), rest,
-                                               closures=[closure])
+            executed_b = before + execute_plan(replan, closures=[closure])
         repeats = repeated_pairs(replan, before, night)
     loop = _arm(executed_b, plan, skymap, night, footprints, grid)
     if second_night:
         queue = _night2(queue, skymap, config, start, solver, grid)
         loop = _night2(loop, skymap, config, start, solver, grid)
-    clear = _arm(execute_plan(plan, problem.windows, night), plan, skymap, night, footprints, grid)
+    clear = _arm(execute_plan(plan), plan, skymap, night, footprints, grid)
     return LoopOutcome(plan=plan, closure=closure, queue=queue, loop=loop, replan=replan, repeats=repeats,
                        clear=clear)

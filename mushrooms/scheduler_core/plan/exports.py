@@ -144,8 +144,8 @@ def filter_passes(plan: "Plan") -> list[tuple[int, int]]:
     return [(a, b) for a, b in zip(cuts, cuts[1:]) if b > a]
 
 
-def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_base: str | None = None
-                      ) -> list[dict[str, Any]]:
+def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_base: str | None = None,
+                      slack_s: float | None = None) -> list[dict[str, Any]]:
     """The plan as the set of timed ToO list queues that makes ZTF's scheduler follow it (Q11-Q13).
 
     One queue per filter pass (:func:`filter_passes`), in plan order, named
@@ -168,6 +168,9 @@ def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_
         Program fields.
     name_base : str, optional
         Defaults to ``ToO_<superevent or plan id>``.
+    slack_s : float, optional
+        How long (s) a pass stays open after the model's end of it (default
+        :data:`~..telescope.queue_windows.PASS_SLACK_S`).
 
     Returns
     -------
@@ -175,7 +178,7 @@ def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_
         Queue payloads of :func:`to_trigger_queue`'s shape, in submission order.
     """
     from ..telescope.executor import queue_set_from_payloads
-    from ..telescope.queue_windows import time_pass_windows
+    from ..telescope.queue_windows import PASS_SLACK_S, time_pass_windows
 
     if not plan.observations:
         raise ValueError(f"plan {plan.plan_id} has no observations: no queue to send")
@@ -187,7 +190,8 @@ def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_
     qs = queue_set_from_payloads(drafts, plan.start)
     planned = [o.start for o in plan.observations]
     cadence_s = float((plan.config or {}).get("cadence_s", 1800.0))
-    opens, closes = time_pass_windows(qs, plan.start, _array(planned), end_s, cadence_s)
+    opens, closes = time_pass_windows(qs, plan.start, _array(planned), end_s, cadence_s,
+                                      slack_s=PASS_SLACK_S if slack_s is None else slack_s)
     out = []
     for draft, t_open, t_close in zip(drafts, opens, closes):
         if not t_open < end_s:
