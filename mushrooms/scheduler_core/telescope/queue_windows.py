@@ -39,7 +39,7 @@ __all__ = ["time_pass_windows", "CADENCE_MARGIN_S", "PASS_SLACK_S"]
 #: Extra separation (s) the windows keep beyond the cadence (a telescope faster than modelled).
 CADENCE_MARGIN_S = 120.0
 #: How long (s) a pass's queue stays open after the model's end of the pass.
-PASS_SLACK_S = 600.0
+PASS_SLACK_S = 1800.0
 
 
 def time_pass_windows(qs: QueueSet, epoch: Time, planned_s: np.ndarray, end_s: float, cadence_s: float,
