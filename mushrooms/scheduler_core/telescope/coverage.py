@@ -14,7 +14,7 @@ if TYPE_CHECKING:
     from ..plan.document import Plan
     from ..sky.footprints import Footprints
 
-__all__ = ["cadence_coverage", "execute_plan_queues", "queue_coverage"]
+__all__ = ["cadence_coverage", "execute_plan_queues", "queue_coverage", "result_coverage_as_executed"]
 
 
 def cadence_coverage(executed: Iterable[ExecutedExposure], footprints: "Footprints", prob: np.ndarray,
@@ -76,3 +76,31 @@ def queue_coverage(plan: "Plan", footprints: "Footprints", prob: np.ndarray,
     cadence_s = float(config.get("cadence_s", 1800.0))
     executed = execute_plan_queues(plan, queues, late_s, timing)
     return cadence_coverage(executed, footprints, prob, filters, cadence_s)  # type: ignore[arg-type]
+
+
+def result_coverage_as_executed(problem: Any, result: Any) -> float:
+    """A scheduler result's ``coverage_as_executed`` as its published plan will have it (after the least-gain rule).
+
+    Parameters
+    ----------
+    problem : PlanningProblem
+        The problem solved (start, horizon, cadence, footprints, probabilities).
+    result : ScheduleResult
+        A candidate schedule.
+    """
+    from astropy.time import TimeDelta
+
+    from ..plan.document import EventInfo, Plan, PlanMetrics, sorted_observations
+    from ..schedulers.gain import drop_low_gain
+
+    config = problem.config
+    kept = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain)
+    if not kept.observations:
+        return 0.0
+    observations = sorted_observations(kept.observations)
+    plan = Plan(plan_id="candidate", start=problem.start,
+                end=problem.start + TimeDelta(config.horizon_s, format="sec"), observations=observations,
+                metrics=PlanMetrics(coverage=0.0, solver="", status="", mip_gap=None, runtime_s=0.0, n_fields=0,
+                                    n_exposures=len(observations)),
+                event=EventInfo(), config={"cadence_s": config.cadence_s, "filters": list(config.filters)})
+    return queue_coverage(plan, problem.footprints, problem.prob)
