@@ -12,7 +12,7 @@ by the same executor (:func:`~.queue_sim.execute_plan`: the plan's queues as ZTF
     horizon = the rest of the night as the daemon's L7), and the re-plan runs
     as the list queue from the reopening.
 
-Each arm is scored by its achieved coverage (Q6: fields done in both
+Each arm is scored by its achieved coverage (Q14: fields done in both
 filters) and expected detections (X1, the plans' own metric, on the done
 exposures).  Night 2 is then planned by ``plan_remaining`` on each arm's
 executed record; its ``metrics.coverage`` is what the second night adds.
@@ -48,7 +48,7 @@ class LoopArm:
     executed : tuple of ExecutedExposure
         Night 1's executed record (aborted attempts included).
     coverage : float
-        Achieved coverage (Q6, pairs at any separation).
+        Achieved coverage (Q14, pairs at any separation).
     coverage_cadence : float
         The same with the pair's two filters at least ``cadence_s`` apart.
     expected_detections : float or None
@@ -169,7 +169,7 @@ def repeated_pairs(replan: Plan, before: Sequence[ExecutedExposure], config: Pla
 
 def _arm(executed: tuple[ExecutedExposure, ...], plan: Plan, skymap: SkyMap, config: PlanningConfig,
          footprints: Footprints, grid: FieldGrid) -> LoopArm:
-    """(W4) an arm's scores: coverage (Q6) at any separation and at the cadence, expected detections (X1)."""
+    """(W4) an arm's scores: coverage (Q14) at any separation and at the cadence, expected detections (X1)."""
     filters = tuple(config.filters)
     return LoopArm(executed=executed,
                    coverage=achieved_coverage(executed, skymap, footprints, filters),

@@ -130,7 +130,7 @@ def execute_plan(plan: Plan, start: Time | None = None, closures: Iterable[Closu
 def achieved_coverage(executed: Iterable[ExecutedExposure], skymap: SkyMap, footprints: Footprints,
                       filters: tuple[str, str] = ("g", "r"), require: str = "both",
                       min_processed_fraction: float = MIN_PROCESSED_FRACTION, cadence_s: float = 0.0) -> float:
-    """Probability inside the footprints of the fields observed (Q6).
+    """Probability inside the footprints of the fields observed (Q14).
 
     The plan's own ``metrics.coverage`` counts each planned field, and a
     plan visits each field in both filters; ``require="both"`` counts a field
