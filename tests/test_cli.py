@@ -33,8 +33,13 @@ def test_plan_writes_a_checked_plan_queue_and_picture(planned):
     assert doc["start"] == "2022-07-23T02:00:00.000Z"
     assert doc["metrics"]["solver"] == "greedy" and doc["metrics"]["n_exposures"] == len(doc["observations"])
     assert "checked" in r.stdout
-    queue = json.loads((out / "queue.json").read_text())
-    assert len(queue["targets"]) == len(doc["observations"])
+    queue = json.loads((out / "queue.json").read_text())  # the set the daemon submits: a list, in order
+    queues = queue if isinstance(queue, list) else [queue]
+    assert sum(len(q["targets"]) for q in queues) <= len(doc["observations"])
+    assert all(q["queue_name"].startswith("ToO_GW_") and q["queue_name"].endswith(f"_r1_{k}")
+               for k, q in enumerate(queues, 1))
+    windows = [q["validity_window_mjd"] for q in queues]
+    assert all(lo < hi for lo, hi in windows) and [w[0] for w in windows] == sorted(w[0] for w in windows)
     png = (out / "plan.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20000
 

@@ -2,7 +2,7 @@
 
 Night 1 (its validity window, :func:`~mushrooms.scheduler_core.sky.twilight.night_windows`,
 N1) is planned once; a weather closure falls in it.  Two arms, both played
-by the same executor (:func:`~.queue_sim.execute_plan`, Q1-Q5, same overheads):
+by the same executor (:func:`~.queue_sim.execute_plan`: the plan's queues as ZTF runs them, Q1-Q13):
 
 (a) *queue*: the original plan runs as ZTF's list queue would through the
     closure (what no longer fits is skipped, what expired is dropped);
@@ -12,7 +12,7 @@ by the same executor (:func:`~.queue_sim.execute_plan`, Q1-Q5, same overheads):
     horizon = the rest of the night as the daemon's L7), and the re-plan runs
     as the list queue from the reopening.
 
-Each arm is scored by its achieved coverage (Q6: fields done in both
+Each arm is scored by its achieved coverage (Q14: fields done in both
 filters) and expected detections (X1, the plans' own metric, on the done
 exposures).  Night 2 is then planned by ``plan_remaining`` on each arm's
 executed record; its ``metrics.coverage`` is what the second night adds.
@@ -48,7 +48,7 @@ class LoopArm:
     executed : tuple of ExecutedExposure
         Night 1's executed record (aborted attempts included).
     coverage : float
-        Achieved coverage (Q6, pairs at any separation).
+        Achieved coverage (Q14, pairs at any separation).
     coverage_cadence : float
         The same with the pair's two filters at least ``cadence_s`` apart.
     expected_detections : float or None
@@ -167,18 +167,9 @@ def repeated_pairs(replan: Plan, before: Sequence[ExecutedExposure], config: Pla
     return sum(o.field_id in both for o in replan.observations)
 
 
-def _plan_windows(plan: Plan, config: PlanningConfig, grid: FieldGrid):
-    """Observability windows of a plan's fields over its horizon (s since ``plan.start``), for the executor."""
-    from ..scheduler_core.sky.visibility import observability_windows
-
-    ids = np.array(sorted(set(plan.field_ids)), dtype=int)
-    rows = grid.index_of(ids)
-    return observability_windows(ids, grid.ra[rows], grid.dec[rows], plan.start, config)
-
-
 def _arm(executed: tuple[ExecutedExposure, ...], plan: Plan, skymap: SkyMap, config: PlanningConfig,
          footprints: Footprints, grid: FieldGrid) -> LoopArm:
-    """(W4) an arm's scores: coverage (Q6) at any separation and at the cadence, expected detections (X1)."""
+    """(W4) an arm's scores: coverage (Q14) at any separation and at the cadence, expected detections (X1)."""
     filters = tuple(config.filters)
     return LoopArm(executed=executed,
                    coverage=achieved_coverage(executed, skymap, footprints, filters),
@@ -252,7 +243,7 @@ def loop_map(skymap: SkyMap, config: PlanningConfig, start: Time, closure: Closu
     if not isinstance(closure, Closure):
         closure = random_closure(evening, morning, closure)
     # (W2) arm (a): the list queue alone, through the closure
-    executed_a = execute_plan(plan, problem.windows, night, closures=[closure])
+    executed_a = execute_plan(plan, closures=[closure])
     queue = _arm(executed_a, plan, skymap, night, footprints, grid)
     # (W3) arm (b): the same until the closure, then the daemon's re-plan from the reopening (L6, L7)
     before = tuple(e for e in executed_a if e.start < closure.start)
@@ -263,13 +254,12 @@ def loop_map(skymap: SkyMap, config: PlanningConfig, start: Time, closure: Closu
         replan = plan_remaining(skymap, rest, closure.end, before, solver=solver, grid=grid,
                                 supersedes=plan.plan_id)
         if replan.observations:
-            executed_b = before + execute_plan(replan, _plan_windows(replan, rest, grid), rest,
-                                               closures=[closure])
+            executed_b = before + execute_plan(replan, closures=[closure])
         repeats = repeated_pairs(replan, before, night)
     loop = _arm(executed_b, plan, skymap, night, footprints, grid)
     if second_night:
         queue = _night2(queue, skymap, config, start, solver, grid)
         loop = _night2(loop, skymap, config, start, solver, grid)
-    clear = _arm(execute_plan(plan, problem.windows, night), plan, skymap, night, footprints, grid)
+    clear = _arm(execute_plan(plan), plan, skymap, night, footprints, grid)
     return LoopOutcome(plan=plan, closure=closure, queue=queue, loop=loop, replan=replan, repeats=repeats,
                        clear=clear)

@@ -1,53 +1,38 @@
-"""Loop benchmark, executor half: how ZTF's list queue would carry out a published plan.
+"""Loop benchmark, executor half: how ZTF's scheduler carries out the queues of a published plan.
 
-A plan goes to ZTF as a *list* queue (:func:`~mushrooms.scheduler_core.plan.exports.to_trigger_queue`):
-its observations in plan order, no planned times, valid over the plan's
-horizon.  :func:`execute_plan` plays that queue against the observability
-windows, the telescope's overheads and weather closures, and returns what
-was executed as :class:`~mushrooms.scheduler_core.executed.ExecutedExposure`
-records, the same the readers of :mod:`mushrooms.handlers.executed` return
-for the real telescope.  :func:`achieved_coverage` scores them.  The model,
-equations (Q1)-(Q6), is in ``docs/design/executed.md``.
+A user of the telescope model (:mod:`mushrooms.scheduler_core.telescope`,
+equations Q1-Q14 of ``docs/design/executed.md``, from ztf_sim's source):
+:func:`execute_plan` exports the plan as it is submitted
+(:func:`~mushrooms.scheduler_core.plan.exports.to_trigger_queues`, or the
+older single list queue :func:`~mushrooms.scheduler_core.plan.exports.to_trigger_queue`)
+and plays the queues with weather closures, returning
+:class:`~mushrooms.scheduler_core.executed.ExecutedExposure` records, the
+same the readers of :mod:`mushrooms.handlers.executed` return for the real
+telescope; :func:`achieved_coverage` scores them.
 
-The queue's behaviour follows ztf_sim (``ZwickyTransientFacility/ztf_sim``,
-commit c5ab409, BSD-3-Clause licence), read, not copied:
-``ztf_sim/QueueManager.py`` ``ListQueueManager._next_obs`` returns the first
-request in list order that is observable *now* (airmass, hour angle and
-mount limits), leaving the ones it passes over in the queue, and raises
-``QueueEmptyError`` when none is; ``_remove_requests`` drops a request only
-after its exposure completed; ``ztf_sim/Scheduler.py`` deletes a timed queue
-once its validity window has ended; ``ztf_sim/simulate.py`` waits one
-exposure time (``TelescopeStateMachine.wait``) when nothing can be observed
-and forgets the previous pointing then.  Here "observable now" is the
-project's own window test (the planner's windows: Sun, airmass, hour angle,
-Moon, declination), and the overheads are the planner's slew model
-(:func:`~mushrooms.scheduler_core.schedulers.slew.overhead_time`).
-
-Pure functions, no I/O; times inside are seconds since the plan's start.
+Pure functions, no I/O.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from typing import Iterable
 
 import numpy as np
 from astropy.time import Time, TimeDelta
 
-from ..scheduler_core.config import PlanningConfig
-from ..scheduler_core.executed import MIN_PROCESSED_FRACTION, ExecutedExposure, done_pairs
-from ..scheduler_core.plan.document import Observation, Plan
-from ..scheduler_core.schedulers.slew import overhead_time
+from ..scheduler_core.executed import MIN_PROCESSED_FRACTION, ExecutedExposure
+from ..scheduler_core.plan.document import Plan
+from ..scheduler_core.plan.exports import to_trigger_queue, to_trigger_queues
 from ..scheduler_core.sky.footprints import Footprints
 from ..scheduler_core.sky.skymap import SkyMap
-from ..scheduler_core.sky.windows import Windows
+from ..scheduler_core.telescope.coverage import cadence_coverage, execute_plan_queues
+from ..scheduler_core.telescope.timing import TelescopeTiming
 
-__all__ = ["Closure", "random_closure", "execute_plan", "achieved_coverage", "IDLE_STEP_S"]
+__all__ = ["Closure", "random_closure", "execute_plan", "achieved_coverage", "EXPORTS"]
 
-#: What the telescope does while the list queue has nothing observable: one
-#: exposure of another queue (ztf_sim waits ``EXPOSURE_TIME`` = 30 s), then asks again.
-IDLE_STEP_S = 30.0
+#: How a plan goes to ZTF: ``queues`` (timed queues per filter pass) or ``single`` (one list queue).
+EXPORTS = ("queues", "single")
 
 
 @dataclass(frozen=True)
@@ -106,157 +91,46 @@ def random_closure(night_start: Time, night_end: Time, seed: int | np.random.Gen
     return Closure(start, start + TimeDelta(length, format="sec"))
 
 
-class _FieldWindows:
-    """Per-field windows (s since the plan start) in time order, for the queue's questions."""
-
-    def __init__(self, windows: Windows):
-        self._by_field: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        order = np.lexsort((windows.start, windows.field_ids))
-        ids = np.asarray(windows.field_ids)[order]
-        starts = np.asarray(windows.start, float)[order]
-        ends = np.asarray(windows.end, float)[order]
-        for f in np.unique(ids):
-            sel = ids == f
-            self._by_field[int(f)] = (starts[sel], ends[sel])
-
-    def fits(self, field_id: int, t0: float, t1: float) -> bool:
-        """(Q1) ``[t0, t1]`` inside one window of the field."""
-        s, e = self._by_field.get(field_id, (np.zeros(0), np.zeros(0)))
-        return bool(np.any((s <= t0) & (t1 <= e)))
-
-    def next_opening(self, field_id: int, t: float) -> float:
-        """The first window start after ``t`` (s), inf when none."""
-        s, _ = self._by_field.get(field_id, (np.zeros(0), np.zeros(0)))
-        later = s[s > t]
-        return float(later[0]) if later.size else math.inf
-
-
-def _overhead(prev: Observation | None, nxt: Observation, config: PlanningConfig) -> float:
-    """(Q5) the gap before an exposure: the slew model's overhead from the previous pointing;
-    the planner's mean ``slew_estimate_s`` after an idle spell or at the start (pointing unknown)."""
-    if prev is None:
-        return float(config.slew_estimate_s)
-    change = config.filter_change_s if prev.filter != nxt.filter else 0.0
-    return float(overhead_time(prev.ra, prev.dec, nxt.ra, nxt.dec, config.slew, change))
-
-
-def _closure_at(spans: Sequence[tuple[float, float]], t: float) -> tuple[float, float] | None:
-    for cs, ce in spans:
-        if cs <= t < ce:
-            return cs, ce
-    return None
-
-
-def _closure_during(spans: Sequence[tuple[float, float]], t: float, t1: float) -> tuple[float, float] | None:
-    for cs, ce in spans:
-        if cs < t1 and ce > t:
-            return cs, ce
-    return None
-
-
-def execute_plan(plan: Plan, windows: Windows, config: PlanningConfig = PlanningConfig(), start: Time | None = None,
-                 closures: Iterable[Closure] = (), idle_step_s: float = IDLE_STEP_S,
-                 keep_planned_times: bool = False) -> tuple[ExecutedExposure, ...]:
-    """What ZTF's list queue executes of a plan (equations Q1-Q5 of ``docs/design/executed.md``).
-
-    From ``start`` the telescope repeatedly takes the first observation, in
-    plan order, whose exposure fits one of its field's windows once the
-    overhead from the previous exposure has passed (Q1) and ends within the
-    queue's validity, the plan's horizon (Q2); observations passed over stay
-    in the queue.  When none fits it idles (another program observes) in
-    steps of ``idle_step_s`` until a window opens (Q3).  A closed dome stops
-    everything until the closure ends; an exposure the closure starts in is
-    recorded ``aborted`` (fraction 0) and stays in the queue (Q4).  Each
-    completed exposure is ``processed`` with fraction 1 and leaves the queue.
+def execute_plan(plan: Plan, start: Time | None = None, closures: Iterable[Closure] = (), export: str = "queues",
+                 timing: TelescopeTiming = TelescopeTiming()) -> tuple[ExecutedExposure, ...]:
+    """What ZTF's scheduler executes of a plan's queues (Q1-Q10), with weather closures.
 
     Parameters
     ----------
     plan : Plan
-        The published plan (its observations in the order sent).
-    windows : Windows
-        Observability windows of the plan's fields, s since ``plan.start``
-        (e.g. the planning problem's); a field without any is never observed.
-    config : PlanningConfig
-        Slew model, filter change and the overhead assumed after an idle
-        spell (``slew_estimate_s``).
+        The published plan.
     start : astropy.time.Time, optional
-        When the queue starts running (default ``plan.start``; earlier is
-        taken as ``plan.start``).
+        When the telescope is free for the queues (default the plan's first
+        observation; a later time is a late start).
     closures : iterable of Closure
-        Weather closures.
-    idle_step_s : float
-        Idle step (s) when nothing in the queue is observable.
-    keep_planned_times : bool
-        Also refuse an observation before its planned start (a timed queue,
-        keeping the plan's waits for the cadence).  ZTF's list queue does
-        not: False.
+        Weather closures: nothing runs inside; an exposure one cuts is
+        ``aborted`` (fraction 0) and stays queued (Q10).
+    export : str
+        ``queues`` (:func:`to_trigger_queues`) or ``single`` (:func:`to_trigger_queue`).
+    timing : TelescopeTiming
+        The telescope.
 
     Returns
     -------
     tuple of ExecutedExposure
         In execution order, aborted attempts included.
     """
-    if not idle_step_s > 0:
-        raise ValueError(f"idle_step_s must be > 0, got {idle_step_s}")
-    t_end = float((plan.end - plan.start).to_value("s"))
-    t = 0.0 if start is None else max(0.0, float((start - plan.start).to_value("s")))
-    spans = sorted((float((c.start - plan.start).to_value("s")), float((c.end - plan.start).to_value("s")))
-                   for c in closures)
-    fw = _FieldWindows(windows)
-    queue = list(plan.observations)
-    prev: Observation | None = None
-    done: list[tuple[Observation, float, float, str]] = []  # (observation, start, length, status)
-    while queue and t < t_end:
-        closed = _closure_at(spans, t)
-        if closed is not None:  # (Q4) the dome is shut: nothing until it opens
-            t, prev = closed[1], None
-            continue
-        pick = None
-        for k, o in enumerate(queue):
-            t0 = t + _overhead(prev, o, config)
-            if keep_planned_times and t0 < o.start:
-                continue
-            # (Q2) the queue is valid over the plan's horizon only
-            if t0 + o.exposure_s > t_end:
-                continue
-            # (Q1) the first observation, in list order, whose exposure fits a window now
-            if fw.fits(o.field_id, t0, t0 + o.exposure_s):
-                pick = (k, o, t0)
-                break
-        if pick is None:
-            # (Q3) idle in steps until a window (or, timed, a planned start) opens
-            nxt = min(min((fw.next_opening(o.field_id, t) for o in queue), default=math.inf),
-                      min((o.start for o in queue if keep_planned_times and o.start > t), default=math.inf))
-            if not nxt < t_end:
-                break
-            t, prev = t + idle_step_s * max(1, math.ceil((nxt - t) / idle_step_s)), None
-            continue
-        k, o, t0 = pick
-        t1 = t0 + o.exposure_s
-        closed = _closure_during(spans, t, t1)
-        if closed is not None:
-            cs, ce = closed
-            if cs > t0:  # (Q4) shut during the exposure: lost, the request stays queued
-                done.append((o, t0, cs - t0, "aborted"))
-            t, prev = ce, None
-            continue
-        done.append((o, t0, o.exposure_s, "processed"))
-        del queue[k]
-        t, prev = t1, o  # (Q5) the next exposure starts after this one ends and the overhead
-    if not done:
+    if export not in EXPORTS:
+        raise ValueError(f"export must be one of {', '.join(EXPORTS)}, got {export!r}")
+    if not plan.observations:
         return ()
-    starts = plan.start + TimeDelta(np.array([d[1] for d in done]), format="sec")
-    return tuple(
-        ExecutedExposure(field_id=o.field_id, filter=o.filter, start=starts[i], exposure_s=float(length),
-                         processed_fraction=1.0 if status == "processed" else 0.0, status=status)
-        for i, (o, _, length, status) in enumerate(done)
-    )
+    queues = to_trigger_queues(plan) if export == "queues" else [to_trigger_queue(plan)]
+    first = plan.observations[0].start
+    late = 0.0 if start is None else max(0.0, float((start - plan.start).to_value("s")) - first)
+    spans = [(float((c.start - plan.start).to_value("s")), float((c.end - plan.start).to_value("s")))
+             for c in closures]
+    return execute_plan_queues(plan, queues, late, timing, closures_s=spans)
 
 
 def achieved_coverage(executed: Iterable[ExecutedExposure], skymap: SkyMap, footprints: Footprints,
                       filters: tuple[str, str] = ("g", "r"), require: str = "both",
                       min_processed_fraction: float = MIN_PROCESSED_FRACTION, cadence_s: float = 0.0) -> float:
-    """Probability inside the footprints of the fields observed (Q6).
+    """Probability inside the footprints of the fields observed (Q14).
 
     The plan's own ``metrics.coverage`` counts each planned field, and a
     plan visits each field in both filters; ``require="both"`` counts a field
@@ -286,14 +160,6 @@ def achieved_coverage(executed: Iterable[ExecutedExposure], skymap: SkyMap, foot
     float
         Coverage (0-1).
     """
-    if require not in ("both", "any"):
-        raise ValueError(f"require must be 'both' or 'any', got {require!r}")
     if skymap.nside != footprints.nside:
         raise ValueError(f"sky map nside {skymap.nside} differs from the footprints' {footprints.nside}")
-    pairs = done_pairs(executed, filters, min_processed_fraction, cadence_s)
-    ids = set(pairs.both) | (set(pairs.one) if require == "any" else set())
-    known = set(int(f) for f in footprints.field_ids)
-    missing = sorted(ids - known)
-    if missing:
-        raise ValueError(f"field(s) {missing[:5]} not in the footprints")
-    return footprints.coverage(sorted(ids), skymap.prob) if ids else 0.0
+    return cadence_coverage(executed, footprints, skymap.prob, filters, cadence_s, require, min_processed_fraction)

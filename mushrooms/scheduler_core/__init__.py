@@ -32,7 +32,7 @@ if TYPE_CHECKING:  # the same names, for type checkers and editors
     from .errors import InputError, PlanCheckError, SkyMapError
     from .plan.checker import CheckReport, check_plan
     from .plan.document import EventInfo, Observation, Plan, PlanMetrics, make_plan_id
-    from .plan.exports import ExportConfig, to_skyportal, to_trigger_queue
+    from .plan.exports import ExportConfig, to_skyportal, to_trigger_queue, to_trigger_queues
     from .plan.observability import NotObservable, not_observable
     from .planner import make_plan, run_scheduler
     from .prepare import prepare_problem
@@ -52,6 +52,7 @@ _EXPORTS = {
     "FieldGrid": ".sky.fields", "field_footprints": ".sky.fields", "load_ztf_fields": ".sky.fields",
     "greedy_schedule": ".schedulers.greedy",
     "ExportConfig": ".plan.exports", "to_skyportal": ".plan.exports", "to_trigger_queue": ".plan.exports",
+    "to_trigger_queues": ".plan.exports",
     "NotObservable": ".plan.observability", "not_observable": ".plan.observability",
     "EventInfo": ".plan.document", "Observation": ".plan.document", "Plan": ".plan.document",
     "PlanMetrics": ".plan.document", "make_plan_id": ".plan.document",
@@ -67,7 +68,7 @@ _EXPORTS = {
 __all__ = [
     "CheckReport", "check_plan", "PlanningConfig", "SlewModel", "InputError", "PlanCheckError",
     "SkyMapError", "FieldGrid", "field_footprints", "load_ztf_fields", "greedy_schedule",
-    "EventInfo", "Observation", "Plan", "PlanMetrics", "make_plan_id", "to_trigger_queue",
+    "EventInfo", "Observation", "Plan", "PlanMetrics", "make_plan_id", "to_trigger_queue", "to_trigger_queues",
     "make_plan", "run_scheduler", "prepare_problem", "Footprints", "PlanningProblem",
     "ScheduleResult", "Windows", "SkyMap", "read_skymap", "observability_windows",
     "ExportConfig", "to_skyportal", "NotObservable", "not_observable",

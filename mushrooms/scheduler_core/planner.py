@@ -23,6 +23,7 @@ from .clock import on_merger_clock
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .sky.skymap import SkyMap
+from .telescope.coverage import queue_coverage
 from .solvers_registry import SOLVER_NAMES, get_scheduler, unknown_solver_message
 
 __all__ = ["make_plan", "build_plan", "run_scheduler", "optimise", "SOLVERS"]
@@ -317,8 +318,10 @@ def build_plan(
         supersedes=supersedes,
         config=json.loads(json.dumps(config.record())),  # JSON types (tuples become lists)
     )
+    executed = round(queue_coverage(plan, problem.footprints, skymap.prob), 6) if observations else None
     return plan.with_(metrics=dataclasses.replace(
-        metrics, expected_detections=_expected_detections(plan, problem, skymap, result)))
+        metrics, expected_detections=_expected_detections(plan, problem, skymap, result),
+        coverage_as_executed=executed))
 
 
 def _with_map_details(event: EventInfo, skymap: SkyMap) -> EventInfo:

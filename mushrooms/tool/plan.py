@@ -71,7 +71,9 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--deadline", metavar="SECONDS", type=float,
                    help="write the best plan found by then: the greedy plan at once, the optimised one if it is "
                         "ready and covers more (default: wait for the solver)")
-    p.add_argument("--queue", metavar="FILE", help="also write ZTF's ToO trigger queue (program fields from [export])")
+    p.add_argument("--queue", metavar="FILE",
+                   help="also write ZTF's ToO queues as the daemon submits them (revision 1; program fields from "
+                        "[export]): one queue object, or a JSON list of them in submission order")
     p.add_argument("--skyportal", metavar="FILE",
                    help="also write the body of SkyPortal's POST /api/observation_plan/manual")
     p.add_argument("--plot", metavar="FILE", help="also draw the plan on the sky map (PNG)")
@@ -104,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     from ..offline import configure_astropy_offline
     from ..outputs import check_outputs, write_json_atomic
     from ..scheduler_core.errors import InputError
-    from ..scheduler_core import make_plan, not_observable, read_skymap, to_skyportal, to_trigger_queue
+    from ..scheduler_core import make_plan, not_observable, read_skymap, to_skyportal
 
     configure_astropy_offline()
     t0 = time.perf_counter()
@@ -167,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     write_json_atomic(args.output, doc)
     if args.queue:
-        write_json_atomic(args.queue, to_trigger_queue(plan, config.export))
+        write_json_atomic(args.queue, submitted_queues(plan, config.export))
     if getattr(args, "skyportal", None):
         write_json_atomic(args.skyportal, to_skyportal(plan, config.export))
     if args.plot:
@@ -254,6 +256,16 @@ def read_executed(spec: str, around: Any | None) -> tuple[Any, ...]:
     return tuple(exposures)
 
 
+def submitted_queues(plan: Any, export: Any) -> Any:
+    """What the daemon submits to Kowalski for ``plan`` as revision 1: one queue, or a list in submission order."""
+    from ..daemon.submissions import queue_name
+    from ..scheduler_core.plan.exports import to_trigger_queues
+
+    base = queue_name(export.subprogram_name, plan.event.superevent_id or plan.plan_id, 1)
+    queues = to_trigger_queues(plan, export, name_base=base)
+    return queues[0] if len(queues) == 1 else queues
+
+
 def night_path(path: str, night: int) -> str:
     """The file of night ``night``'s document: ``plan.json`` for night 1, ``plan.night2.json`` for night 2, ..."""
     if night == 1:
@@ -268,7 +280,7 @@ def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec
             t0: float) -> int:
     """``--executed`` and/or ``[scheduler] nights > 1``: plan what is left, night by night; write each night's files."""
     from ..outputs import write_json_atomic
-    from ..scheduler_core import to_skyportal, to_trigger_queue
+    from ..scheduler_core import to_skyportal
     from ..scheduler_core.executed import done_pairs
     from ..scheduler_core.nights import plan_nights
     from ..scheduler_core.plan.messages import revision_document
@@ -298,7 +310,7 @@ def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec
         output = night_path(args.output, n)
         write_json_atomic(output, revision_document(plan, 1, True))
         if args.queue:
-            write_json_atomic(night_path(args.queue, n), to_trigger_queue(plan, config.export))
+            write_json_atomic(night_path(args.queue, n), submitted_queues(plan, config.export))
         if getattr(args, "skyportal", None):
             write_json_atomic(night_path(args.skyportal, n), to_skyportal(plan, config.export))
         if args.plot:

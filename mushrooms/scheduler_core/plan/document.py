@@ -39,7 +39,7 @@ EVENT_KEYS = ("superevent_id", "alert_type", "time_created", "skymap_sha256", "l
 METRIC_KEYS = (
     "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
     "n_fields", "n_exposures", "latency_s", "upper_bound", "upper_bound_method",
-    "expected_detections", "coverage_executed",
+    "expected_detections", "coverage_executed", "coverage_as_executed",
 )
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
 
@@ -185,6 +185,14 @@ class PlanMetrics:
         ``coverage`` does not count again (P8: the total after the plan is
         ``coverage_executed + coverage``); None for a plan made without an
         executed record.
+    coverage_as_executed : float or None
+        Probability inside the fields that ZTF's scheduler, as the telescope
+        model has it (:mod:`..telescope`, equations Q1-Q13 of
+        ``docs/design/executed.md``), observes in both filters at least the
+        cadence apart when it runs the queues submitted for this plan
+        (:func:`.exports.to_trigger_queues`) on a clear night from the
+        plan's first observation: what of ``coverage`` survives execution.
+        None when not computed (a plan read from an older document).
     """
 
     coverage: float
@@ -200,6 +208,7 @@ class PlanMetrics:
     upper_bound_method: str | None = None
     expected_detections: float | None = None
     coverage_executed: float | None = None
+    coverage_as_executed: float | None = None
 
 
 def make_plan_id(*parts: Any) -> str:

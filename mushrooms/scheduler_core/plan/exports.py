@@ -31,7 +31,7 @@ from ..tables import dataclass_from_table
 if TYPE_CHECKING:  # an annotation only: reading [export] imports no numpy/astropy (the document does)
     from .document import Plan
 
-__all__ = ["ExportConfig", "to_trigger_queue", "to_trigger_queues", "to_skyportal", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
+__all__ = ["ExportConfig", "to_trigger_queue", "to_trigger_queues", "filter_passes", "to_skyportal", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
 
 #: ZTF queue filter ids.
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
@@ -137,17 +137,76 @@ def to_trigger_queue(plan: Plan, export: ExportConfig = ExportConfig(), queue_na
     }
 
 
-def to_trigger_queues(plan: Plan, export: ExportConfig = ExportConfig(), name_base: str | None = None
-                      ) -> list[dict[str, Any]]:
-    """The plan as the ordered set of ZTF ToO queues it is submitted as, named ``<name_base>_<k>``, k = 1..K.
+def filter_passes(plan: "Plan") -> list[tuple[int, int]]:
+    """The plan's filter passes: maximal runs ``[i, j)`` of consecutive observations in one filter (Q11)."""
+    obs = plan.observations
+    cuts = [0] + [k for k in range(1, len(obs)) if obs[k].filter != obs[k - 1].filter] + [len(obs)]
+    return [(a, b) for a, b in zip(cuts, cuts[1:]) if b > a]
 
-    Each queue has the shape of :func:`to_trigger_queue`; ``name_base``
-    defaults to ``ToO_<superevent or plan id>``.  Placeholder: one queue
-    holding the whole plan (K = 1); the timed queues per filter pass
-    replace it.
+
+def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_base: str | None = None,
+                      slack_s: float | None = None) -> list[dict[str, Any]]:
+    """The plan as the set of timed ToO list queues that makes ZTF's scheduler follow it (Q11-Q13).
+
+    One queue per filter pass (:func:`filter_passes`), in plan order, named
+    ``f"{name_base}_{k}"`` (k = 1..K), each holding the pass's observations
+    in plan order.  ZTF's scheduler (``docs/design/executed.md``, Q1-Q3)
+    takes, from its survey, the first queue in submission order whose window
+    is open and which has targets, and runs it as fast as it can; so each
+    pass's window opens at its planned start, or later when the telescope
+    model (:func:`~..telescope.queue_windows.time_pass_windows`) says one of
+    its fields would otherwise come back sooner than the cadence (plus a
+    margin) after its other filter, and closes a slack after the model's end
+    of the pass.  A pass that could not open before the plan's end is left
+    out.
+
+    Parameters
+    ----------
+    plan : Plan
+        A plan with at least one observation.
+    export : ExportConfig
+        Program fields.
+    name_base : str, optional
+        Defaults to ``ToO_<superevent or plan id>``.
+    slack_s : float, optional
+        How long (s) a pass stays open after the model's end of it (default
+        :data:`~..telescope.queue_windows.PASS_SLACK_S`).
+
+    Returns
+    -------
+    list of dict
+        Queue payloads of :func:`to_trigger_queue`'s shape, in submission order.
     """
+    from ..telescope.executor import queue_set_from_payloads
+    from ..telescope.queue_windows import PASS_SLACK_S, time_pass_windows
+
+    if not plan.observations:
+        raise ValueError(f"plan {plan.plan_id} has no observations: no queue to send")
     base = name_base or f"ToO_{_tag(plan)}"
-    return [to_trigger_queue(plan, export, queue_name=f"{base}_1")]
+    single = to_trigger_queue(plan, export, queue_name=base)
+    passes = filter_passes(plan)
+    end_s = float((plan.end - plan.start).to_value("s"))
+    drafts = [{**single, "validity_window_mjd": None, "targets": single["targets"][a:b]} for a, b in passes]
+    qs = queue_set_from_payloads(drafts, plan.start)
+    planned = [o.start for o in plan.observations]
+    cadence_s = float((plan.config or {}).get("cadence_s", 1800.0))
+    opens, closes = time_pass_windows(qs, plan.start, _array(planned), end_s, cadence_s,
+                                      slack_s=PASS_SLACK_S if slack_s is None else slack_s)
+    out = []
+    for draft, t_open, t_close in zip(drafts, opens, closes):
+        if not t_open < end_s:
+            continue
+        window = plan.absolute_time([t_open, max(t_close, t_open + 1.0)]).mjd
+        targets = [dict(t, request_id=i + 1) for i, t in enumerate(draft["targets"])]
+        out.append({**draft, "queue_name": f"{base}_{len(out) + 1}",
+                    "validity_window_mjd": [float(window[0]), float(window[1])], "targets": targets})
+    return out
+
+
+def _array(values: list[float]) -> Any:
+    import numpy as np
+
+    return np.asarray(values, float)
 
 
 def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization_name: str | None = None

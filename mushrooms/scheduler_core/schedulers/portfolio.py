@@ -191,15 +191,42 @@ class Portfolio:
                 bound_s = time.perf_counter() - t_bound
                 times["bound"] = round(bound_s, 3)
         names = list(ran)
-        name = max(names, key=lambda n: (covs[n], -names.index(n)))
+        name, executed = choose_as_executed(problem, ran, covs)
         best = ran[name]
         entries = tuple(PortfolioEntry(n, r.solver, r.status, r.mip_gap, covs[n]) for n, r in ran.items())
-        details = dict(best.details, stage_times_s=times)
+        details = dict(best.details, stage_times_s=times, coverage_as_executed=executed)
         if skipped:
             details["skipped_at_bound"] = skipped
         return dataclasses.replace(best, solver=f"{self.label}({best.solver})", runtime_s=time.perf_counter() - t0,
                                    portfolio=entries, portfolio_choice=name, details=details,
                                    upper_bound=upper if upper is not None else best.upper_bound)
+
+
+def choose_as_executed(problem: PlanningProblem, ran: dict[str, ScheduleResult], covs: dict[str, float]
+                       ) -> tuple[str, dict[str, float]]:
+    """(Q15) the candidate whose queues ZTF's scheduler executes best (cadence-valid coverage), ties to the planned.
+
+    Candidates are tried in order of planned coverage (then stage order); a
+    plan's executed coverage never exceeds its planned one, so the search
+    stops at the first candidate whose planned coverage is no better than
+    the best executed so far.
+
+    Returns
+    -------
+    (str, dict of str to float)
+        The chosen stage and the executed coverage of each candidate tried.
+    """
+    from ..telescope.coverage import result_coverage_as_executed
+
+    names = list(ran)
+    order = sorted(names, key=lambda n: (-covs[n], names.index(n)))
+    executed: dict[str, float] = {}
+    for n in order:
+        if executed and covs[n] <= max(executed.values()) + 1e-12:
+            break
+        executed[n] = round(result_coverage_as_executed(problem, ran[n]), 6)
+    name = max(executed, key=lambda n: (executed[n], covs[n], -names.index(n)))
+    return name, executed
 
 
 def best_of(label: str, *stages: Stage, bound: BoundRun | None = None) -> Portfolio:

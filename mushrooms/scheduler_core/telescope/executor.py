@@ -1,0 +1,275 @@
+"""How ZTF's scheduler carries out a set of ToO list queues (equations Q1-Q10, ``docs/design/executed.md``).
+
+Follows ztf_sim (``ZwickyTransientFacility/ztf_sim``, commit c5ab409,
+BSD-3-Clause licence; read, not copied):
+
+* ``Scheduler.check_for_timed_queue_and_switch``: a queue whose validity
+  window has closed hands the telescope back to the default (survey) queue;
+  from the default queue the scheduler switches to the first queue, in the
+  order the queues were added, whose window holds *now* and which still has
+  targets (Q1).  ``remove_empty_and_expired_queues`` drops finished and
+  expired queues.  The exposure itself may run past the window's end: only
+  the moment of choice is checked.
+* ``ListQueueManager._next_obs``: the first target in list order observable
+  *now* -- airmass below its ``max_airmass`` (default ``MAX_AIRMASS`` 2.5),
+  |HA| < 5.95 h, the mount's keep-out zones for southern declinations,
+  Dec <= 87.5 deg (:func:`~..sky.constraints.mount_limits_ok`) -- the ones
+  passed over stay queued (Q2); ``QueueEmptyError`` when none is.
+* ``simulate.py``: on ``QueueEmptyError`` the scheduler falls back to the
+  default queue, whose survey observes meanwhile (one exposure,
+  ``survey_step_s``) and the ToO pointing is lost (Q3); the next choice
+  starts again from Q1.  Nothing is observed with the Sun above 12 deg
+  below the horizon (``TelescopeStateMachine.can_observe``, Q9).
+* ``TelescopeStateMachine``: filter change, then slew (Q7,
+  :func:`.timing.exposure_overhead_s`), then the exposure; the request leaves
+  the queue once the exposure completed (``_remove_requests``).
+
+Observability is evaluated on a grid (``grid_s``, default 60 s) of the sky's
+geometry (:func:`~..sky.constraints.observing_geometry`), nearest grid time.
+Times are seconds since an epoch (e.g. the plan's start).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+from astropy.time import Time, TimeDelta
+
+from ..executed import ExecutedExposure
+from ..sky.constraints import mount_limits_ok, observing_geometry
+from ..sky.visibility import site
+from .timing import TelescopeTiming, dome_azimuth_deg, exposure_overhead_s
+
+__all__ = ["QueueSet", "ExecutedTarget", "SkyGrid", "queue_set_from_payloads", "execute_queues", "executed_exposures",
+           "FILTER_NAMES", "SIDEREAL_DEG_S"]
+
+#: ZTF queue filter ids to names.
+FILTER_NAMES = {1: "g", 2: "r", 3: "i"}
+#: Sidereal rate (deg of hour angle per s of UTC).
+SIDEREAL_DEG_S = 360.98564736629 / 86400.0
+
+
+@dataclass(frozen=True)
+class QueueSet:
+    """ToO list queues in submission order, their targets in one table (list order within a queue).
+
+    Attributes
+    ----------
+    names : tuple of str
+        Queue names, in the order the scheduler received them.
+    window_start_s, window_end_s : numpy.ndarray
+        (K,) validity windows (s since the epoch).
+    queue : numpy.ndarray
+        (n,) index of each target's queue; targets of one queue are contiguous, in list order.
+    field_id, filter_id : numpy.ndarray
+        (n,) ZTF field and filter ids (1 g, 2 r, 3 i).
+    ra, dec, exposure_s, max_airmass : numpy.ndarray
+        (n,) pointing (deg), exposure time (s) and the target's airmass limit.
+    """
+
+    names: tuple[str, ...]
+    window_start_s: np.ndarray
+    window_end_s: np.ndarray
+    queue: np.ndarray
+    field_id: np.ndarray
+    filter_id: np.ndarray
+    ra: np.ndarray
+    dec: np.ndarray
+    exposure_s: np.ndarray
+    max_airmass: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.queue.size)
+
+
+@dataclass(frozen=True)
+class ExecutedTarget:
+    """One exposure the executor took (or started) of a queue target.
+
+    Attributes
+    ----------
+    target : int
+        Row in the :class:`QueueSet`.
+    start_s, exposure_s : float
+        Shutter open (s since the epoch) and how long it stayed open (s).
+    status : str
+        ``processed``, or ``aborted`` when a dome closure cut it short.
+    """
+
+    target: int
+    start_s: float
+    exposure_s: float
+    status: str
+
+
+def queue_set_from_payloads(payloads: Sequence[Mapping[str, Any]], epoch: Time,
+                            timing: TelescopeTiming = TelescopeTiming()) -> QueueSet:
+    """The queues as submitted (``to_trigger_queues`` payloads, in submission order) as a :class:`QueueSet`.
+
+    A queue without ``validity_window_mjd`` is valid throughout.
+    """
+    names, ws, we, rows = [], [], [], []
+    for k, p in enumerate(payloads):
+        names.append(str(p["queue_name"]))
+        window = p.get("validity_window_mjd")
+        if window is None:
+            ws.append(-math.inf), we.append(math.inf)
+        else:
+            ws.append(float((Time(window[0], format="mjd") - epoch).to_value("s")))
+            we.append(float((Time(window[1], format="mjd") - epoch).to_value("s")))
+        for t in p["targets"]:
+            rows.append((k, int(t["field_id"]), int(t["filter_id"]), float(t["ra"]), float(t["dec"]),
+                         float(t.get("exposure_time", 30.0)), float(t.get("max_airmass", timing.max_airmass))))
+    table = np.array(rows, dtype=float).reshape(-1, 7)
+    return QueueSet(names=tuple(names), window_start_s=np.array(ws), window_end_s=np.array(we),
+                    queue=table[:, 0].astype(int), field_id=table[:, 1].astype(int),
+                    filter_id=table[:, 2].astype(int), ra=table[:, 3], dec=table[:, 4], exposure_s=table[:, 5],
+                    max_airmass=table[:, 6])
+
+
+class SkyGrid:
+    """Observability of a queue set's targets and the Sun's altitude on a time grid (Q2, Q9).
+
+    Built once per target table; any windows of the same targets reuse it.
+    """
+
+    def __init__(self, qs: QueueSet, epoch: Time, t0: float, t1: float, grid_s: float, timing: TelescopeTiming):
+        self.t0, self.grid_s = t0, grid_s
+        offsets = t0 + grid_s * np.arange(int(math.ceil((t1 - t0) / grid_s)) + 2)
+        times = epoch + TimeDelta(offsets, format="sec")
+        geo = observing_geometry(qs.ra, qs.dec, times, site())
+        self.ha = geo.ha_deg  # (n, m)
+        self.observable = ((geo.airmass < qs.max_airmass[:, None])
+                           & mount_limits_ok(geo.ha_deg, qs.dec[:, None], timing.ha_max_h))
+        self.dark = geo.sun_alt_deg < timing.sun_alt_max_deg
+        self.offsets = offsets
+
+    def index(self, t: float) -> int:
+        return int(min(max(round((t - self.t0) / self.grid_s), 0), self.offsets.size - 1))
+
+    def hour_angle(self, rows: np.ndarray | int, t: float) -> np.ndarray:
+        j = self.index(t)
+        return self.ha[rows, j] + (t - self.offsets[j]) * SIDEREAL_DEG_S
+
+    def next_dark(self, t: float) -> float:
+        later = np.flatnonzero(self.dark & (self.offsets > t))
+        return float(self.offsets[later[0]]) if later.size else math.inf
+
+
+def _closure(spans: Sequence[tuple[float, float]], t0: float, t1: float) -> tuple[float, float] | None:
+    """The first closure overlapping ``[t0, t1)`` (``t0 == t1``: the one ``t0`` is in)."""
+    for cs, ce in spans:
+        if cs <= t0 < ce or (cs < t1 and ce > t0):
+            return cs, ce
+    return None
+
+
+def execute_queues(qs: QueueSet, epoch: Time, start_s: float, end_s: float,
+                   timing: TelescopeTiming = TelescopeTiming(), closures_s: Sequence[tuple[float, float]] = (),
+                   grid_s: float = 60.0, sky: "SkyGrid | None" = None) -> tuple[ExecutedTarget, ...]:
+    """Play the queues from ``start_s`` (the telescope free) until ``end_s`` (Q1-Q10).
+
+    Parameters
+    ----------
+    qs : QueueSet
+        The queues, in submission order.
+    epoch : astropy.time.Time
+        Time zero of every time here.
+    start_s, end_s : float
+        When the telescope becomes free for the queues (a late start is a
+        later ``start_s``) and when the run stops (s since ``epoch``).
+    timing : TelescopeTiming
+        Overheads and limits (a faster/slower telescope: :meth:`TelescopeTiming.scaled`).
+    closures_s : sequence of (float, float)
+        Dome closures (s since ``epoch``): nothing runs inside; an exposure
+        one cuts is ``aborted`` and its target stays queued (Q10).
+    grid_s : float
+        Step (s) of the observability grid.
+    sky : SkyGrid, optional
+        A grid already built for these targets (covering ``start_s`` to ``end_s``).
+
+    Returns
+    -------
+    tuple of ExecutedTarget
+        In execution order.
+    """
+    if len(qs) == 0 or not end_s > start_s:
+        return ()
+    if sky is None:
+        hi = min(end_s, float(np.max(qs.window_end_s)))
+        sky = SkyGrid(qs, epoch, start_s, max(hi, start_s + grid_s), grid_s, timing)
+    spans = sorted(closures_s)
+    alive = np.ones(len(qs), bool)
+    last_filter: int | None = None
+    pointing: tuple[int, float] | None = None  # (target row, end of its exposure)
+    current, t, out = -1, float(start_s), []
+    while t < end_s and alive.any():
+        closed = _closure(spans, t, t)
+        if closed is not None:  # (Q10) the dome is shut
+            t, pointing = closed[1], None
+            continue
+        if not sky.dark[sky.index(t)]:  # (Q9) the Sun is up: on to the next night
+            t, pointing = sky.next_dark(t), None
+            continue
+        left = np.bincount(qs.queue[alive], minlength=qs.names.__len__())
+        valid = (qs.window_start_s <= t) & (t <= qs.window_end_s) & (left > 0)
+        if current >= 0 and not valid[current]:
+            current = -1  # (Q1) expired or done: back to the default queue
+        if current < 0:
+            ks = np.flatnonzero(valid)
+            if ks.size == 0:  # (Q3) no queue open: the survey has the telescope until one opens
+                later = qs.window_start_s[(qs.window_start_s > t) & (left > 0) & (qs.window_start_s < end_s)]
+                if later.size == 0:
+                    break
+                t += timing.survey_step_s * max(1, math.ceil((float(later.min()) - t) / timing.survey_step_s))
+                pointing = None
+                continue
+            current = int(ks[0])
+        rows = np.flatnonzero(alive & (qs.queue == current))  # contiguous: list order
+        ok = sky.observable[rows, sky.index(t)]
+        if not ok.any():  # (Q3) nothing observable now: the survey takes one exposure, the pointing is lost
+            current, pointing = -1, None
+            t += timing.survey_step_s
+            continue
+        i = int(rows[np.argmax(ok)])  # (Q2) the first observable target in list order
+        t0 = t + _overhead(sky, qs, pointing, last_filter, i, t, timing)
+        t1 = t0 + float(qs.exposure_s[i])
+        closed = _closure(spans, t, t1)
+        if closed is not None:
+            if closed[0] > t0:
+                out.append(ExecutedTarget(i, t0, closed[0] - t0, "aborted"))
+            t, pointing = closed[1], None
+            continue
+        out.append(ExecutedTarget(i, t0, float(qs.exposure_s[i]), "processed"))
+        alive[i] = False
+        t, pointing, last_filter = t1, (i, t1), int(qs.filter_id[i])
+    return tuple(out)
+
+
+def _overhead(sky: SkyGrid, qs: QueueSet, pointing: tuple[int, float] | None, last_filter: int | None, i: int,
+              t: float, timing: TelescopeTiming) -> float:
+    """(Q7) filter change, then the slew from the previous pointing (Q8: a lost pointing costs a mean slew)."""
+    change = last_filter is not None and last_filter != int(qs.filter_id[i])
+    t_slew = t + (timing.filter_change_s if change else 0.0)
+    if pointing is None:
+        return (timing.filter_change_s if change else 0.0) + max(timing.lost_pointing_slew_s,
+                                                                  timing.slew.readout_s)
+    p, p_end = pointing
+    ha1, ha2 = float(sky.hour_angle(p, p_end)), float(sky.hour_angle(i, t_slew))
+    return float(exposure_overhead_s(ha1, qs.dec[p], dome_azimuth_deg(ha1, qs.dec[p]), ha2, qs.dec[i],
+                                     dome_azimuth_deg(ha2, qs.dec[i]), change, timing))
+
+
+def executed_exposures(qs: QueueSet, done: Sequence[ExecutedTarget], epoch: Time) -> tuple[ExecutedExposure, ...]:
+    """The executor's exposures as :class:`~..executed.ExecutedExposure` records (absolute times)."""
+    if not done:
+        return ()
+    starts = epoch + TimeDelta(np.array([d.start_s for d in done]), format="sec")
+    return tuple(
+        ExecutedExposure(field_id=int(qs.field_id[d.target]), filter=FILTER_NAMES[int(qs.filter_id[d.target])],
+                         start=starts[k], exposure_s=float(d.exposure_s),
+                         processed_fraction=1.0 if d.status == "processed" else 0.0, status=d.status)
+        for k, d in enumerate(done))
