@@ -12,13 +12,14 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=${ROOT:-/work/population_o4}
-PY=${PY:-.venv/bin/python}
+PY=$(realpath -s "${PY:-.venv/bin/python}")
 INJECTIONS=${INJECTIONS:-15000}    # bayestar-inject --nsamples (~3 % are detected at network SNR 8)
 SEED=${SEED:-2}
 WORKERS=${WORKERS:-1}
 STAGES=${STAGES:-"10 25 50 100 250"}
 SOLVERS_LAST=${SOLVERS_LAST:-greedy,hybrid}
-export PATH="$(dirname "$PY"):$PATH" OMP_NUM_THREADS=1
+export PATH="$(dirname "$PY"):$PATH"  # (absolute: the tools run in their own directories)
+export OMP_NUM_THREADS=1
 mkdir -p "$ROOT"
 study() {
   "$PY" -m mushrooms.cli study --simulate "$INJECTIONS" --population o4 --seed "$SEED" --chunk 50 \
