@@ -47,7 +47,7 @@ def _jsonl(path: Path) -> list[dict]:
 
 
 def _median(xs: list[float]) -> str:
-    return f"{statistics.median(xs):.0f}" if xs else "-"
+    return f"{statistics.median(xs):.3g}" if xs else "-"
 
 
 def cpu_costs(study: Path, realized: list[dict]) -> dict[str, list[float]]:
@@ -100,11 +100,13 @@ def provenance(pop_dir: Path, events_files: list[Path], events: dict, rows: list
         f"Realised so far: {len(events_files)} chunks ({n_real} injections), {len(events)} coincidences "
         f"({', '.join(f'{k} {v}' for k, v in sorted(classes.items()))}); planned: {len(planned)} events "
         f"({', '.join(f'{k} {v}' for k, v in sorted(planned_classes.items()))}).", "",
-        "CPU per event and stage (s; this machine, 2 cores shared, nice 19):", "",
+        "Cost per event and stage (s; this machine, 2 cores shared by 6 sessions, nice 19): realisation and "
+        "localisation are the tools' CPU time (rusage), the plan rows the task's wall time (at load 2-6 it "
+        "exceeds CPU time):", "",
         "| stage | n | median | mean |", "|---|---|---|---|",
     ]
     for k, xs in costs.items():
-        lines.append(f"| {k} | {len(xs)} | {_median(xs)} | {sum(xs) / len(xs):.1f} |" if xs else f"| {k} | 0 | - | - |")
+        lines.append(f"| {k} | {len(xs)} | {_median(xs)} | {sum(xs) / len(xs):.3g} |" if xs else f"| {k} | 0 | - | - |")
     return "\n".join(lines) + "\n"
 
 

@@ -29,7 +29,7 @@ Record = dict[str, Any]
 POPULATION_COLUMNS = (
     "event", "solver", "coverage", "coverage_executed", "upper_bound", "efficiency_optimistic",
     "efficiency_conservative", "efficiency_nsbh", "valid", "runtime_s",
-    "event_class", "distance_mpc", "distmean_mpc", "area90_deg2", "n_exposures", "status",
+    "event_class", "distance_mpc", "distmean_mpc", "area90_deg2", "n_exposures", "objective", "status",
 )
 
 
@@ -118,7 +118,7 @@ def population_rows(records: Iterable[Mapping[str, Any]],
                         runtime_s=row.get("runtime_s"), event_class=ev["event_class"],
                         distance_mpc=ev["distance_mpc"], distmean_mpc=row.get("distmean_mpc"),
                         area90_deg2=row.get("area90_deg2"), n_exposures=row.get("n_exposures"),
-                        status=row.get("status")))
+                        objective=row.get("objective"), status=row.get("status")))
     order = {e["event"]: (e["chunk"], e["coinc_id"]) for e in events.values()}
     return sorted(out, key=lambda r: order[r["event"]])
 
@@ -138,7 +138,7 @@ def write_population_csv(rows: Iterable[Mapping[str, Any]], path: str | Path) ->
 
 def read_population_csv(path: str | Path) -> list[Record]:
     """Rows of a population ``results.csv``; numeric cells as floats (empty: None), ``valid`` as bool."""
-    text = {"event", "solver", "event_class", "status"}
+    text = {"event", "solver", "event_class", "objective", "status"}
     out = []
     with open(path, newline="") as fh:
         for r in csv.DictReader(fh):

@@ -20,7 +20,7 @@ from ..bench.compare import TIE_COVERAGE, TIE_EFFICIENCY, by_map, scored
 from ..bench.rows import num
 from .tables import comparison_pair, paper_tables
 
-__all__ = ["EFFICIENCY_KEYS", "as_bench_rows", "paired_differences", "lumos_metric", "breakdown",
+__all__ = ["EFFICIENCY_KEYS", "as_bench_rows", "complete_events", "paired_differences", "lumos_metric", "breakdown",
            "population_tables"]
 
 Record = dict[str, Any]
@@ -127,13 +127,30 @@ def breakdown(rows: Sequence[Mapping[str, Any]], column: str, quartiles: bool) -
     return lines
 
 
+def complete_events(rows: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+    """The rows of the events that have a row of every solver present (a partial run's comparable set)."""
+    solvers = set(str(r["solver"]) for r in rows)
+    have: dict[str, set[str]] = {}
+    for r in rows:
+        have.setdefault(str(r["event"]), set()).add(str(r["solver"]))
+    return [r for r in rows if have[str(r["event"])] == solvers]
+
+
 def population_tables(rows: Sequence[Mapping[str, Any]]) -> str:
-    """Every table of a population's results (Markdown), from :data:`~.population_rows.POPULATION_COLUMNS` rows."""
+    """Every table of a population's results (Markdown), from :data:`~.population_rows.POPULATION_COLUMNS` rows.
+
+    Only the events with a row of every solver are tabulated (while a run
+    is partial, later events may have greedy's row alone); the first line
+    says how many of how many.
+    """
+    n_all = len({r["event"] for r in rows})
+    rows = complete_events(rows)
     bench_rows = as_bench_rows(rows)
     solvers = list(dict.fromkeys(str(r["solver"]) for r in rows))
     ours = [s for s in solvers if s not in BASELINES] or ([comparison_pair(solvers)[0]] if solvers else [])
     executed = sum(1 for r in rows if num(r.get("coverage_executed")) is not None)
-    out = [f"{len(by_map(bench_rows))} events, {len(rows)} (event, solver) rows; coverage_executed filled on "
+    out = [f"{len(by_map(bench_rows))} events with every solver's row (of {n_all}), {len(rows)} (event, solver) "
+           f"rows; coverage_executed filled on "
            f"{executed} (empty until the executor model lands).", "",
            "## The MUSHROOMS paper's Tables 2-3 layout", "", paper_tables(bench_rows, EFFICIENCY_KEYS), "",
            "## Paired differences (A − B: mean ± standard error over the events both planned; "
