@@ -17,7 +17,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=${ROOT:-/work/population_o4}
 PY=$(realpath -s "${PY:-.venv/bin/python}")
-INJECTIONS=${INJECTIONS:-15000}    # bayestar-inject --nsamples (~10 % are detected at network SNR 8)
+INJECTIONS=${INJECTIONS:-15000}    # bayestar-inject --nsamples (~4 % are detected at network SNR 8: ~600 events)
 SEED=${SEED:-2}
 WORKERS=${WORKERS:-1}
 STAGES=${STAGES:-"10 25 50 100 250"}
