@@ -24,6 +24,8 @@ FROM_EXTRAS = {
     "jsonschema": "test",  # scheduler_core.plan.schema.validate_document, used by the tests only
     "igwn_ligolw": "simulate",  # the study's injection chunks (evaluation/study.py split_injections)
     "distributed": "study",  # mushrooms study (evaluation/study.py): the task graph on Dask distributed
+    "lal": "simulate",  # lalsuite: the O4 recipe's noise-curve ranges (evaluation/study/recipes.py)
+    "lalsimulation": "simulate",
 }
 
 

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
-from ..evaluation.study.defaults import DEFAULT_CHUNK, DEFAULT_SEED, DEFAULT_SOLVERS
+from ..evaluation.study.defaults import DEFAULT_CHUNK, DEFAULT_RECIPE, DEFAULT_SEED, DEFAULT_SOLVERS, RECIPE_NAMES
 from .common import add_common_options, execute, require_extra, tool_parser
 
 if TYPE_CHECKING:
@@ -45,10 +45,15 @@ def add_arguments(sp: argparse.ArgumentParser) -> None:
     src.add_argument("--simulate", type=int, metavar="N",
                      help="simulate a new population of N injections (bayestar-inject, realize-coincs) and "
                           "localise its coincidences")
+    sp.add_argument("--population", choices=RECIPE_NAMES, default=DEFAULT_RECIPE,
+                    help="the recipe of --simulate (noise curves, masses, waveform, cuts) and the localisation "
+                         "options of its coincidences (also with --events): o3-bns, the project's O3 BNS; o4, "
+                         "O4 HLV BNS+NSBH after Kiendrebeogo et al. 2023 (default %(default)s)")
     sp.add_argument("--seed", type=int, default=DEFAULT_SEED, help="seed of --simulate (default %(default)s)")
     sp.add_argument("--intrinsic-samples", type=int, metavar="N",
-                    help="with --simulate: N mass-spin points of bns_astro given to bayestar-inject "
-                         "--distribution-samples instead of its preset's 10^4-cell horizon grid (~30 CPU-min)")
+                    help="with --simulate: N mass-spin points of the recipe's distribution given to "
+                         "bayestar-inject --distribution-samples (o3-bns: instead of its preset's 10^4-cell "
+                         "horizon grid, ~30 CPU-min; o4: default 1000, ~0.7 CPU-s each)")
     sp.add_argument("--detections", type=int, metavar="N",
                     help="with --simulate: realise chunks of injections in order until they hold N coincidences, "
                          "and localise those N")
@@ -84,7 +89,7 @@ def study_inputs(args: argparse.Namespace) -> "StudyInputs":
     """Where the maps come from (``--maps``, ``--events``, ``--simulate`` and its options, ``--limit``);
     :class:`~mushrooms.scheduler_core.errors.InputError` naming the option when one is wrong."""
     from ..evaluation.study.localisation import DEFAULT_EVENTS
-    from ..evaluation.study.population import Population
+    from ..evaluation.study.recipes import recipe_population
     from ..evaluation.study.run import StudyInputs
     from ..scheduler_core.errors import InputError
 
@@ -96,8 +101,8 @@ def study_inputs(args: argparse.Namespace) -> "StudyInputs":
                               ("--chunk", args.chunk), ("--detections", args.detections)):
             if value is not None and value < 1:
                 raise InputError(f"{option} must be >= 1, got {value}")
-        population = Population(n_injections=args.simulate, seed=args.seed,
-                                intrinsic_samples=args.intrinsic_samples, chunk=args.chunk)
+        population, _ = recipe_population(args.population, args.simulate, seed=args.seed, chunk=args.chunk,
+                                          intrinsic_samples=args.intrinsic_samples)
     else:
         events = args.events or str(DEFAULT_EVENTS)
         if not Path(events).is_file():
@@ -113,6 +118,7 @@ def study_inputs(args: argparse.Namespace) -> "StudyInputs":
 def study_settings(args: argparse.Namespace, bench: "BenchSettings") -> "StudySettings":
     """The study's settings: the benchmark's (``bench``: :func:`~.bench.load_settings`) and ``--limit``
     (checked here), ``--out``, ``--cache``, ``--workers``, ``--scheduler``, ``--dashboard``, ``--no-figures``."""
+    from ..evaluation.study.recipes import RECIPES
     from ..evaluation.study.run import StudySettings, default_cache_dir
     from ..scheduler_core.errors import InputError
     from .bench import progress_bars
@@ -124,7 +130,8 @@ def study_settings(args: argparse.Namespace, bench: "BenchSettings") -> "StudySe
     return StudySettings(bench=bench, out=Path(args.out),
                          cache=Path(args.cache) if getattr(args, "cache", None) else default_cache_dir(),
                          workers=args.workers, scheduler=args.scheduler, dashboard=bool(args.dashboard),
-                         figures=not args.no_figures, progress=progress_bars())
+                         figures=not args.no_figures, progress=progress_bars(),
+                         localisation=RECIPES[getattr(args, "population", DEFAULT_RECIPE)].localisation)
 
 
 def run(args: argparse.Namespace) -> int:

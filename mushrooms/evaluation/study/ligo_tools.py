@@ -45,6 +45,7 @@ def run_tool(cmd: Sequence[str], cwd: str | Path | None = None, omp_threads: int
     if exe is None:
         raise RuntimeError(f"{cmd[0]} not found on PATH (ligo.skymap with lalsuite: pip install 'mushrooms[simulate]')")
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    exe = os.path.abspath(exe)  # a relative PATH entry (``.venv/bin``) would not resolve from ``cwd``
     proc = subprocess.Popen([exe, *cmd[1:]], cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, start_new_session=True,
                             preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)

@@ -226,14 +226,21 @@ class SimulationError(RuntimeError):
 
 
 def _write_intrinsic_samples(population: Population, path: Path) -> None:
-    """N points of the ``bns_astro`` mass and spin distributions (bayestar-inject's own constants)."""
+    """N points of the population's mass and spin distribution, seeded (``bns_astro``: bayestar-inject's own
+    constants; :data:`~.mass_models.PDB_DISTRIBUTION`: the O4 recipe's PDB model, :mod:`.mass_models`)."""
     import numpy as np
     from astropy.table import Table
 
-    if population.distribution != "bns_astro":
-        raise ValueError(f"intrinsic_samples is implemented for bns_astro, not {population.distribution}")
+    from .mass_models import PDB_DISTRIBUTION, sample_pdb_binaries
+
     rng = np.random.default_rng(population.seed)
     n = int(population.intrinsic_samples or 0)
+    if population.distribution == PDB_DISTRIBUTION:
+        Table(sample_pdb_binaries(rng, n)).write(path, format="ascii.ecsv", overwrite=True)
+        return
+    if population.distribution != "bns_astro":
+        raise ValueError(f"intrinsic_samples is implemented for bns_astro and {PDB_DISTRIBUTION}, "
+                         f"not {population.distribution}")
     masses = rng.normal(1.33, 0.09, size=(4 * n + 16, 2))
     masses = masses[np.all((masses >= 1.0) & (masses <= 2.0), axis=1)][:n]  # the preset's mass range
     spins = rng.uniform(-0.05, 0.05, size=(n, 2))

@@ -1,0 +1,170 @@
+"""A population's tables from its ``results.csv`` (:mod:`.population_rows`): the papers' layouts.
+
+* the MUSHROOMS paper's Tables 2-3 (:func:`~.tables.paper_tables`, reused
+  on the rows read back as bench rows, events as maps);
+* paired differences of ours against each baseline present (greedy,
+  gwemopt raw, gwemopt rule-repaired): mean difference and its standard
+  error over the events both planned, events better / worse;
+* LUMOS's headline metric (Wagh et al. 2026, arXiv 2601.08912): the mean
+  cumulative probability (coverage) of a solver relative to gwemopt's,
+  ``100 (mean cov_s / mean cov_gwemopt - 1)`` % over the events both planned;
+* the same means by event class, by distance and by 90 % area (quartiles).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Mapping, Sequence
+
+from ..bench.compare import TIE_COVERAGE, TIE_EFFICIENCY, by_map, scored
+from ..bench.rows import num
+from .tables import comparison_pair, paper_tables
+
+__all__ = ["EFFICIENCY_KEYS", "as_bench_rows", "complete_events", "paired_differences", "lumos_metric", "breakdown",
+           "population_tables"]
+
+Record = dict[str, Any]
+
+#: The three light curves of the population's columns.
+EFFICIENCY_KEYS = ("optimistic", "conservative", "nsbh")
+#: Baselines of the paired comparison, in this order.
+BASELINES = ("greedy", "gwemopt", "gwemopt-repaired")
+#: LUMOS's published value of its metric (+84.7 % over gwemopt on 1199 O4 events).
+LUMOS_PUBLISHED_PERCENT = 84.7
+
+
+def as_bench_rows(rows: Sequence[Mapping[str, Any]]) -> list[Record]:
+    """Population rows as the bench's (``skymap`` = the event; the bound's ratio recomputed)."""
+    out = []
+    for r in rows:
+        d = dict(r)
+        d["skymap"] = r["event"]
+        d["bound"] = r.get("upper_bound")
+        cov, bound = num(r.get("coverage")), num(r.get("upper_bound"))
+        d["coverage_over_bound"] = cov / bound if cov is not None and bound else None
+        out.append(d)
+    return out
+
+
+def _paired(rows: Sequence[Mapping[str, Any]], a: str, b: str, key: str, tie: float) -> tuple[int, str]:
+    """(events, ``mean ± se (better/worse)``) of ``key`` of ``a`` minus ``b`` over the events both scored."""
+    diffs = []
+    for sol in by_map(rows).values():
+        ra, rb = sol.get(a), sol.get(b)
+        if scored(ra) and scored(rb):
+            x, y = num(ra.get(key)), num(rb.get(key))
+            if x is not None and y is not None:
+                diffs.append(x - y)
+    n = len(diffs)
+    if not n:
+        return 0, "-"
+    mean = sum(diffs) / n
+    se = math.sqrt(sum((d - mean) ** 2 for d in diffs) / (n - 1) / n) if n > 1 else float("nan")
+    better, worse = sum(d > tie for d in diffs), sum(d < -tie for d in diffs)
+    return n, f"{mean:+.4f} ± {se:.4f} ({better}/{worse})"
+
+
+def paired_differences(rows: Sequence[Mapping[str, Any]], ours: Sequence[str]) -> list[str]:
+    """Markdown: per (ours, baseline) pair, paired differences of coverage and each efficiency."""
+    solvers = set(str(r["solver"]) for r in rows)
+    keys = [("coverage", TIE_COVERAGE)] + [(f"efficiency_{k}", TIE_EFFICIENCY) for k in EFFICIENCY_KEYS]
+    head = ["A − B", "events"] + [k.replace("efficiency_", "eff. ") for k, _ in keys]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for a in ours:
+        for b in BASELINES:
+            if a == b or a not in solvers or b not in solvers:
+                continue
+            cells = [_paired(rows, a, b, k, tie) for k, tie in keys]
+            lines.append("| " + " | ".join([f"{a} − {b}", str(cells[0][0])] + [c for _, c in cells]) + " |")
+    return lines
+
+
+def lumos_metric(rows: Sequence[Mapping[str, Any]], solver: str,
+                 reference: str = "gwemopt") -> tuple[int, float | None]:
+    """(events, percent): mean coverage of ``solver`` relative to ``reference``'s over the events both planned."""
+    pairs = []
+    for sol in by_map(rows).values():
+        ra, rb = sol.get(solver), sol.get(reference)
+        if scored(ra) and scored(rb):
+            pairs.append((num(ra["coverage"]), num(rb["coverage"])))
+    if not pairs:
+        return 0, None
+    base = sum(b for _, b in pairs)
+    return len(pairs), (100.0 * (sum(a for a, _ in pairs) / base - 1.0) if base > 0 else None)
+
+
+def _quartile_label(value: float | None, edges: Sequence[float]) -> str | None:
+    if value is None:
+        return None
+    k = sum(value > e for e in edges)
+    return f"Q{k + 1}"
+
+
+def breakdown(rows: Sequence[Mapping[str, Any]], column: str, quartiles: bool) -> list[str]:
+    """Markdown: mean coverage and optimistic efficiency per solver within each group of ``column``
+    (its values, or its quartiles over the events)."""
+    per_event = {r["event"]: num(r.get(column)) if quartiles else r.get(column) for r in rows}
+    edges: list[float] = []
+    if quartiles:
+        xs = sorted(v for v in per_event.values() if v is not None)
+        if not xs:
+            return [f"(no {column})"]
+        edges = [xs[min(len(xs) - 1, int(q * len(xs)))] for q in (0.25, 0.5, 0.75)]
+    group = {e: (_quartile_label(v, edges) if quartiles else v) for e, v in per_event.items()}
+    solvers = list(dict.fromkeys(str(r["solver"]) for r in rows))
+    groups = sorted({g for g in group.values() if g is not None})
+    lines = ["| " + " | ".join([column, "events"] + [f"{s} cov / eff. opt." for s in solvers]) + " |",
+             "|" + "---|" * (2 + len(solvers))]
+    for g in groups:
+        cells = [str(g) + (f" (≤ {edges[int(g[1]) - 1]:.0f})" if quartiles and int(g[1]) <= 3 else ""),
+                 str(sum(1 for v in group.values() if v == g))]
+        for s in solvers:
+            rs = [r for r in rows if r["solver"] == s and group.get(r["event"]) == g and scored(r)]
+            cov = [num(r["coverage"]) for r in rs]
+            eff = [x for x in (num(r.get("efficiency_optimistic")) for r in rs) if x is not None]
+            cells.append(f"{sum(cov) / len(cov):.3f} / {sum(eff) / len(eff):.3f}" if cov and eff else "-")
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def complete_events(rows: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+    """The rows of the events that have a row of every solver present (a partial run's comparable set)."""
+    solvers = set(str(r["solver"]) for r in rows)
+    have: dict[str, set[str]] = {}
+    for r in rows:
+        have.setdefault(str(r["event"]), set()).add(str(r["solver"]))
+    return [r for r in rows if have[str(r["event"])] == solvers]
+
+
+def population_tables(rows: Sequence[Mapping[str, Any]]) -> str:
+    """Every table of a population's results (Markdown), from :data:`~.population_rows.POPULATION_COLUMNS` rows.
+
+    Only the events with a row of every solver are tabulated (while a run
+    is partial, later events may have greedy's row alone); the first line
+    says how many of how many.
+    """
+    n_all = len({r["event"] for r in rows})
+    rows = complete_events(rows)
+    bench_rows = as_bench_rows(rows)
+    solvers = list(dict.fromkeys(str(r["solver"]) for r in rows))
+    ours = [s for s in solvers if s not in BASELINES] or ([comparison_pair(solvers)[0]] if solvers else [])
+    executed = sum(1 for r in rows if num(r.get("coverage_executed")) is not None)
+    out = [f"{len(by_map(bench_rows))} events with every solver's row (of {n_all}), {len(rows)} (event, solver) "
+           f"rows; coverage_executed filled on "
+           f"{executed} (empty until the executor model lands).", "",
+           "## The MUSHROOMS paper's Tables 2-3 layout", "", paper_tables(bench_rows, EFFICIENCY_KEYS), "",
+           "## Paired differences (A − B: mean ± standard error over the events both planned; "
+           "events better/worse beyond the tie margins)", ""]
+    out += paired_differences(bench_rows, ours + (["greedy"] if "greedy" in solvers else []))
+    out += ["", "## LUMOS's metric: mean cumulative probability relative to gwemopt "
+                f"(LUMOS published +{LUMOS_PUBLISHED_PERCENT} % on 1199 O4 events)", ""]
+    for s in solvers:
+        if s == "gwemopt":
+            continue
+        n, pct = lumos_metric(bench_rows, s)
+        out.append(f"- {s}: " + (f"{pct:+.1f} % over {n} events" if pct is not None else
+                                 "no event with a gwemopt row"))
+    for column, quartiles in (("event_class", False), ("distance_mpc", True), ("area90_deg2", True)):
+        out += ["", f"## By {column}" + (" (quartiles over the events)" if quartiles else ""), ""]
+        out += breakdown(bench_rows, column, quartiles)
+    return "\n".join(out)
