@@ -385,7 +385,9 @@ class JobPlanner:
                                        time_created=iso_z(alert.time_created),
                                        skymap_sha256=hashlib.sha256(skymap_bytes).hexdigest(), localization=kind,
                                        external_coinc=coincidence_summary(alert.external_coinc),
-                                       event_time=iso_z(alert.event.time))  # the merger clock (issue 24)
+                                       event_time=iso_z(alert.event.time),  # the merger clock
+                                       classification=dict(alert.event.classification) or None,
+                                       far_hz=float(alert.event.far))
 
     def _gw_fallback(self, job: Job, event: Any) -> tuple[bytes, Any] | None:
         """The notice's GW map (and event) when the job's map was its joint map; else None."""
