@@ -36,9 +36,10 @@ def make_sink(out: OutboundConfig) -> Any:
         security, described = sink_security(out)
         log.info("event=outbound_kafka broker=%s topic=%s security=%r", out.bootstrap, out.topic, described)
         return KafkaSink(out.bootstrap, out.topic, out.max_message_bytes, out.delivery_timeout_s, extra=security)
+    from ..report.files import SummarisingSink
     from .sinks import DirectorySink
 
-    return DirectorySink(Path(out.directory))
+    return SummarisingSink(DirectorySink(Path(out.directory)))  # each plan's .txt and .html beside its JSON
 
 
 def open_store(path: Path, group_readable: bool = False) -> Any:

@@ -137,12 +137,12 @@ def summary_text(doc: Mapping[str, Any], now: dt.datetime | None = None, queues:
     facts = plan_facts(doc, queues)
     revision = "" if facts.revision is None else f" revision {facts.revision}" + (
         " (final)" if facts.final else " (may be superseded)" if facts.final is False else "")
-    lines = [f"Plan {doc.get('plan_id', '')}{revision}"] + event_lines(facts.event)
+    lines = [f"Revision   {doc.get('plan_id', '')}{revision}"] + event_lines(facts.event)
     if facts.kind == "not_observable":
         lines.append("Answer     NOT OBSERVABLE by ZTF: " + (facts.reasons[0] if facts.reasons else "no field in reach"))
         lines += [f"           {r}" for r in facts.reasons[1:]]
         return "\n".join(lines) + "\n"
-    lines.append(f"Plan       {answer_line(doc)}")
+    lines.append(f"Planned    {answer_line(doc)}")
     if facts.queues:
         lines.append(f"Queue      {', '.join(facts.queues)}")
     lines += _timing_lines(facts, now) + _coverage_words(facts)

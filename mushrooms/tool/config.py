@@ -115,17 +115,25 @@ def resolve_config_path(given: str | Path | None, environ: Mapping[str, str] | N
     return None, "no --config, no $MUSHROOMS_CONFIG, no ./config.toml"
 
 
-def load_config(path: str | Path | None = None) -> Config:
-    """Load a config file, or the embedded defaults when ``path`` is None.
+def load_config(path: str | Path | None = None, sets: Any = ()) -> Config:
+    """Load a config file, or the embedded defaults when ``path`` is None; ``sets`` are ``--set`` overrides.
 
     Raises
     ------
     ConfigError
-        With a one-line reason when the file cannot be used.
+        With a one-line reason when the file cannot be used, or a ``--set`` is malformed or out of range.
     """
-    if path is None:
-        return Config()
-    return Config.from_mapping(read_config_table(path), source=str(path))
+    if not sets:
+        if path is None:
+            return Config()
+        return Config.from_mapping(read_config_table(path), source=str(path))
+    from .settings_flag import apply_sets
+
+    try:
+        table = apply_sets({} if path is None else read_config_table(path), sets)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    return Config.from_mapping(table, source=f"{path or '<embedded defaults>'} with --set {' '.join(sets)}")
 
 
 def read_config_table(path: str | Path) -> dict[str, Any]:
