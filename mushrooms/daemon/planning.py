@@ -305,15 +305,9 @@ class JobPlanner:
                 better, first, gain, sched.objective, sched.detection_max_coverage_loss):
             return self._publish_revision(work, better, 2, True)
         if better is not None:
-            why = (f"{solver} covered {better.metrics.coverage:.4f} against {first.metrics.coverage:.4f}: "
-                   f"less than supersede_min_gain {gain:g} more")
-            e_new, e_old = better.metrics.expected_detections, first.metrics.expected_detections
-            if sched.objective == "detection" and e_new is not None and e_old is not None:
-                why = (f"{solver} expects {e_new:.4f} detections against {e_old:.4f} (coverage "
-                       f"{better.metrics.coverage:.4f} against {first.metrics.coverage:.4f}): not "
-                       f"supersede_min_gain {gain:g} more within the coverage floor "
-                       f"(detection_max_coverage_loss {sched.detection_max_coverage_loss:g}), nor a tie "
-                       f"on detections with that much more coverage")
+            from .final_words import first_plan_stands
+
+            why = first_plan_stands(solver, better, first, gain, sched.objective, sched.detection_max_coverage_loss)
         return self._close_with_first(work, why)
 
     # ------------------------------------------------------------ store + outbox

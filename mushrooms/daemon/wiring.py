@@ -65,11 +65,16 @@ def open_pipeline(config: ServiceConfig, paths: RuntimePaths, sink: Any = None, 
     store = open_store(paths.state, config.daemon.group_readable)
     own_sink = sink is None
     sink = make_sink(config.outbound) if own_sink else sink
+    from .announce import NotifyingSink, open_webhook
+
+    hook = open_webhook(getattr(config, "notify", None))  # [notify]: off by default
+    if hook is not None:
+        sink = NotifyingSink(sink, hook)
     pipeline_kw.setdefault("loop", getattr(config, "loop", None))
     pipeline = NoticePipeline(config.policy, config.scheduler, store, sink, daemon=config.daemon, **pipeline_kw)
 
     def close() -> None:
-        for obj in ((sink,) if own_sink else ()) + (store,):
+        for obj in ((sink,) if own_sink else (hook,) if hook is not None else ()) + (store,):
             fn = getattr(obj, "close", None)
             if fn is not None:
                 try:
