@@ -1,10 +1,17 @@
-"""A picture of a plan: the sky map, the planned fields and path, and the night's timeline.
+"""A picture of a plan: the sky map, the planned fields and path, their airmass over the night, the timeline.
 
-Three panels; the two sky panels share one probability colour scale: the
-whole sky (Mollweide, with the Sun at the horizon start) and a zoom on the
-probability the plan covers (on the 90 % credible region without a plan), both with the 50 % and 90 % credible contours and the fields
-outlined, the observing path drawn visit by visit in the colour of its filter;
-and a timeline of the horizon (day, twilight, night, each exposure by filter).
+Four panels; the two sky panels share one probability colour scale: the
+whole sky (Mollweide, with the Sun and the Moon at the horizon start) and a
+zoom on the probability the plan covers (on the 90 % credible region without
+a plan), both with the 50 % and 90 % credible contours and the fields
+outlined (ids written in the zoom), the fields already executed (a re-plan)
+filled grey, the observing path drawn visit by visit in the colour of its
+filter with a white edge (readable on the map's colours); the airmass of
+each planned field over the night with night and twilight shaded and the
+Moon (:mod:`.plot_airmass`); and a timeline of the horizon (day, twilight,
+night, each exposure by filter).  The title gives the total coverage (a
+re-plan: the executed part included).  Without a sky map (the outbox's
+summary page) only the airmass panel and the timeline are drawn.
 """
 
 from __future__ import annotations
@@ -19,7 +26,10 @@ from .scheduler_core.sky.fields import ccd_corners, deproject, load_ztf_fields
 from .scheduler_core.plan.document import Plan
 from .scheduler_core.sky.skymap import SkyMap
 
-__all__ = ["plot_plan", "FILTER_COLOURS", "plot_title"]
+__all__ = ["plot_plan", "plan_picture_png", "FILTER_COLOURS", "plot_title"]
+
+#: Executed fields (a re-plan), filled on the sky panels.
+EXECUTED_COLOUR = "#9a9a9a"
 
 #: Colours of ZTF's filters (path and timeline).
 FILTER_COLOURS = {"g": "#1a9e2f", "r": "#d62728", "i": "#8c564b"}
@@ -45,8 +55,10 @@ def filters_of(plan: Plan) -> list[str]:
         list((plan.config or {}).get("filters", ["g", "r"]))
 
 
-def plot_title(plan: Plan, skymap: SkyMap) -> str:
+def plot_title(plan: Plan, skymap: SkyMap | None) -> str:
     """Superevent id, else the map's OBJECT (when it is a real id), else the map's file name."""
+    if skymap is None:
+        return plan.event.superevent_id or plan.event.skymap_name or "sky map"
     obj = (skymap.object_id or "").strip()
     if obj in ("", "0", "None", "UNKNOWN"):
         obj = ""
@@ -56,8 +68,18 @@ def plot_title(plan: Plan, skymap: SkyMap) -> str:
     return name
 
 
-def plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int = 120, answer: Any = None) -> None:
-    """Draw the plan on its sky map and the night's timeline; write a PNG.
+def plan_picture_png(plan: Plan, skymap: SkyMap | None = None, dpi: int = 100, answer: Any = None,
+                     executed: Any = ()) -> bytes:
+    """The picture as PNG bytes (:func:`plot_plan`); without a sky map, the airmass panel and timeline only."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fig = _figure(plan, skymap, answer, executed)
+    return _render(fig, dpi, "png")
+
+
+def plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int = 120, answer: Any = None,
+              executed: Any = ()) -> None:
+    """Draw the plan on its sky map, the fields' airmass and the night's timeline; write a PNG.
 
     Parameters
     ----------
@@ -71,10 +93,13 @@ def plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int = 120, answ
         Resolution.
     answer : NotObservable, optional
         When given, the title says "not observable" and the reasons are listed.
+    executed : sequence of ExecutedExposure
+        A re-plan's exposures done before (drawn apart: grey fields, hollow markers).
     """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # ligo.skymap/reproject deprecation chatter
-        _plot_plan(plan, skymap, path, dpi, answer)
+        fig = _figure(plan, skymap, answer, executed)
+    _save(fig, path, dpi)
 
 
 def _zoom_region(prob: np.ndarray, region: np.ndarray, nside: int) -> tuple[float, float, float]:
@@ -100,49 +125,66 @@ def _zoom_region(prob: np.ndarray, region: np.ndarray, nside: int) -> tuple[floa
     return ra_c, dec_c, float(min(max(1.3 * r90 + 3.0, 12.0), 40.0))
 
 
-def _sun_altitude(plan: Plan, step_s: float = 300.0) -> tuple[np.ndarray, np.ndarray, Any]:
-    """Hours since start, the Sun's altitude (deg) at Palomar, and the Sun at the start."""
-    from astropy.coordinates import AltAz, get_body
-    from astropy.time import TimeDelta
-
-    from .scheduler_core.sky.visibility import site
-
-    span = float((plan.end - plan.start).to_value("s"))
-    offsets = np.arange(0.0, span + step_s, step_s)
-    times = plan.start + TimeDelta(offsets, format="sec")
-    sun = get_body("sun", times, site())
-    alt = sun.transform_to(AltAz(obstime=times, location=site())).alt.deg
-    return offsets / 3600.0, alt, sun[0]
-
-
-def _plot_plan(plan: Plan, skymap: SkyMap, path: str | Path, dpi: int, answer: Any) -> None:
+def _figure(plan: Plan, skymap: SkyMap | None, answer: Any, executed: Any) -> Any:
     import matplotlib
 
     matplotlib.use("Agg")
-    import ligo.skymap.plot  # noqa: F401  (registers the astro projections)
     from matplotlib import pyplot as plt
+
+    from .plot_airmass import draw_airmass, night_grid
+
+    grid_t = night_grid(plan)
+    if skymap is None:
+        fig = plt.figure(figsize=(12, 4.8))
+        draw_airmass(fig.add_axes([0.07, 0.45, 0.88, 0.42]), plan, grid_t, executed)
+        _timeline(fig.add_axes([0.07, 0.14, 0.88, 0.15]), plan, grid_t["hours"], grid_t["sun_alt"])
+        fig.text(0.5, 0.95, _headline(plan, plot_title(plan, None)), ha="center", fontsize=11)
+        return fig
+    import ligo.skymap.plot  # noqa: F401  (registers the astro projections)
 
     grid = load_ztf_fields()
     first_visit: dict[int, float] = {}
     for o in plan.observations:
         first_visit.setdefault(o.field_id, o.start)
+    done = sorted({int(e.field_id) for e in executed if getattr(e, "status", "done") in ("done", "ok", "success")}
+                  or {int(e.field_id) for e in executed})
     layers, norm = _sky_layers(skymap)
     credible = layers["zoom"][1]
-    fig = plt.figure(figsize=(13, 8.2))
-    ax_sky = fig.add_axes([0.03, 0.36, 0.50, 0.52], projection="astro hours mollweide")
+    fig = plt.figure(figsize=(13, 11.5))
+    ax_sky = fig.add_axes([0.03, 0.52, 0.50, 0.38], projection="astro hours mollweide")
     ax_zoom = _zoom_axes(fig, grid, skymap, first_visit, credible)
     image = None
     for ax, layer in ((ax_sky, "sky"), (ax_zoom, "zoom")):
-        image = _sky_panel(ax, layers[layer], norm, grid, first_visit, plan.observations)
-    hours, sun_alt, sun0 = _sun_altitude(plan)
-    ax_sky.plot([sun0.ra.deg], [sun0.dec.deg], transform=ax_sky.get_transform("world"), marker="*", ms=14,
-                color="gold", mec="k", mew=0.8, ls="none")
+        image = _sky_panel(ax, layers[layer], norm, grid, first_visit, plan.observations, done)
+    _field_ids(ax_zoom, grid, first_visit)
+    for ax in (ax_sky, ax_zoom):
+        _bodies(ax, grid_t)
     _style_sky_axes(ax_sky, ax_zoom)
     _colourbar(fig, image, norm)
-    _sky_legend(ax_sky, plan, bool(first_visit))
-    _timeline(fig.add_axes([0.06, 0.07, 0.87, 0.15]), plan, hours, sun_alt)
+    _sky_legend(ax_sky, plan, bool(first_visit), bool(done))
+    draw_airmass(fig.add_axes([0.06, 0.225, 0.87, 0.17]), plan, grid_t, executed)
+    _timeline(fig.add_axes([0.06, 0.05, 0.87, 0.09]), plan, grid_t["hours"], grid_t["sun_alt"])
     _titles(fig, plan, skymap, answer, credible)
-    _save(fig, path, dpi)
+    return fig
+
+
+def _bodies(ax: Any, grid_t: dict[str, Any]) -> None:
+    """The Sun and the Moon at the start, on a sky panel (clipped to the panel)."""
+    world = ax.get_transform("world")
+    for body, style in ((grid_t["sun0"], dict(marker="*", ms=14, color="gold", mec="k")),
+                        (grid_t["moon0"], dict(marker="o", ms=10, color="#f5f0c8", mec="#6b5a00"))):
+        ax.plot([body.ra.deg], [body.dec.deg], transform=world, mew=0.8, ls="none", clip_on=True, **style)
+
+
+def _field_ids(ax: Any, grid: Any, first_visit: dict[int, float]) -> None:
+    """Each planned field's id at its centre (zoom panel)."""
+    import matplotlib.patheffects as pe
+
+    world = ax.get_transform("world")
+    for fid in first_visit:
+        k = grid.index_of(np.array([fid]))[0]
+        ax.text(grid.ra[k], grid.dec[k], str(fid), transform=world, fontsize=7, ha="center", va="center",
+                color="#0b2a6f", clip_on=True, path_effects=[pe.withStroke(linewidth=2.2, foreground="white")])
 
 
 def _sky_layers(skymap: SkyMap) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], Any]:
@@ -178,30 +220,39 @@ def _zoom_axes(fig: Any, grid: Any, skymap: SkyMap, first_visit: dict[int, float
         ra_c, dec_c, radius = _zoom_region(prob, covered & (prob > 0), skymap.nside)
     else:
         ra_c, dec_c, radius = _zoom_region(prob, credible <= 90.0, skymap.nside)
-    return fig.add_axes([0.60, 0.36, 0.33, 0.52], projection="astro degrees zoom",
+    return fig.add_axes([0.60, 0.49, 0.33, 0.41], projection="astro degrees zoom",
                         center=SkyCoord(ra_c * u.deg, dec_c * u.deg), radius=radius * u.deg)
 
 
 def _sky_panel(ax: Any, layer: tuple[np.ndarray, np.ndarray], norm: Any, grid: Any, first_visit: dict[int, float],
-               obs: Any) -> Any:
-    """One sky panel: the probability, the 50 % and 90 % contours, the fields outlined, the path; the image."""
+               obs: Any, done: Any = ()) -> Any:
+    """One sky panel: the probability, the 50 % and 90 % contours, the fields outlined, the executed fields
+    filled grey, the path; the image."""
+    import matplotlib.patheffects as pe
+
     density, levels = layer
     image = ax.imshow_hpx((density, "ICRS"), nested=True, cmap="cylon", vmin=norm.vmin, vmax=norm.vmax)
     ax.contour_hpx((levels, "ICRS"), nested=True, levels=[50.0, 90.0], colors="black",
                    linewidths=[1.1, 0.9], linestyles=["solid", "dashed"])
     ax.grid(alpha=0.3)
     world = ax.get_transform("world")
+    for fid in done:
+        k = grid.index_of(np.array([fid]))[0]
+        ra, dec = _outline(grid.ra[k], grid.dec[k])
+        if not np.isnan(ra).any():
+            ax.fill(ra, dec, transform=world, facecolor=EXECUTED_COLOUR, alpha=0.55, edgecolor="#555555", lw=0.7)
     for fid in first_visit:
         k = grid.index_of(np.array([fid]))[0]
         ra, dec = _outline(grid.ra[k], grid.dec[k])
         ax.plot(ra, dec, transform=world, color="#3b6fd6", lw=0.9, alpha=0.9)
+    edge = [pe.withStroke(linewidth=3.0, foreground="white")]
     # the observing path: a segment into each visit, in the colour of the visit's filter
     for a, b in zip(obs[:-1], obs[1:]):
         if a.block != b.block or abs(a.ra - b.ra) > 180.0:
             continue  # within a block only (blocks are hours apart), never across RA = 0h
         ls = "-" if b.filter == obs[0].filter else (0, (3, 2))
         ax.plot([a.ra, b.ra], [a.dec, b.dec], transform=world, color=FILTER_COLOURS.get(b.filter, "k"),
-                lw=1.3, ls=ls)
+                lw=1.4, ls=ls, path_effects=edge)
     if obs:
         ax.plot([obs[0].ra], [obs[0].dec], transform=world, marker="o", ms=6, mfc="none", mec="k", mew=1.5)
     return image
@@ -229,25 +280,29 @@ def _colourbar(fig: Any, image: Any, norm: Any) -> None:
     """The probability scale of both sky panels, in units of a power of ten."""
     from matplotlib.ticker import FuncFormatter
 
-    cax = fig.add_axes([0.945, 0.40, 0.012, 0.44])
+    cax = fig.add_axes([0.945, 0.52, 0.012, 0.36])
     exponent = int(np.floor(np.log10(norm.vmax))) if norm.vmax > 0 else 0
     cb = fig.colorbar(image, cax=cax, format=FuncFormatter(lambda v, _: f"{v / 10.0 ** exponent:.1f}"))
     cb.set_label(f"probability per deg² (×10$^{{{exponent}}}$)", fontsize=9)
     cb.ax.tick_params(labelsize=8)
 
 
-def _sky_legend(ax_sky: Any, plan: Plan, has_fields: bool) -> None:
-    """Contours, fields, the path per filter and the Sun, below the all-sky panel."""
+def _sky_legend(ax_sky: Any, plan: Plan, has_fields: bool, has_done: bool = False) -> None:
+    """Contours, fields, the executed fields, the path per filter, the Sun and the Moon, below the all-sky panel."""
     from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
     legend = [Line2D([], [], color="k", lw=1.1, label="50 % credible"),
               Line2D([], [], color="k", ls="--", lw=0.9, label="90 % credible")]
     if has_fields:
-        legend.append(Line2D([], [], color="#3b6fd6", lw=0.9, label="planned field"))
+        legend.append(Line2D([], [], color="#3b6fd6", lw=0.9, label="planned field (id in the zoom)"))
+    if has_done:
+        legend.append(Patch(facecolor=EXECUTED_COLOUR, alpha=0.55, edgecolor="#555555", label="executed before"))
     legend += [Line2D([], [], color=FILTER_COLOURS[f], lw=1.3, ls="-" if i == 0 else (0, (3, 2)),
                       label=f"path to the {f} visits")
                for i, f in enumerate(dict.fromkeys(o.filter for o in plan.observations))]
-    legend += [Line2D([], [], color="gold", marker="*", ms=10, mec="k", ls="none", label="Sun at start")]
+    legend += [Line2D([], [], color="gold", marker="*", ms=10, mec="k", ls="none", label="Sun at start"),
+               Line2D([], [], color="#f5f0c8", marker="o", ms=8, mec="#6b5a00", ls="none", label="Moon at start")]
     ax_sky.legend(handles=legend, loc="upper left", bbox_to_anchor=(0.0, -0.02), ncol=3, fontsize=8,
                   frameon=False)
 
@@ -261,7 +316,7 @@ def _timeline(ax_t: Any, plan: Plan, hours: np.ndarray, sun_alt: np.ndarray) -> 
     dt = float(hours[1] - hours[0]) if hours.size > 1 else 1.0
     for mask, colour in ((twilight, "#b8c4d6"), (night, "#56607a")):
         ax_t.broken_barh([(h - dt / 2, dt) for h in hours[mask]], (0.4, len(filters_of(plan)) + 0.2),
-                         color=colour, lw=0)
+                         color=colour, lw=0, antialiased=False)
     filters = filters_of(plan)
     for row, f in enumerate(filters):
         bars = [(o.start / 3600.0, o.exposure_s / 3600.0) for o in obs if o.filter == f]
@@ -306,22 +361,37 @@ def _titles(fig: Any, plan: Plan, skymap: SkyMap, answer: Any, credible: np.ndar
         fig.text(0.5, 0.955, head, ha="center", fontsize=12, color="#a00000")
         fig.text(0.5, 0.925, "; ".join(answer.sentences[:2]), ha="center", fontsize=8.5, wrap=True)
     else:
-        fig.text(0.5, 0.955, f"{title}: {m.n_fields} fields, {m.n_exposures} exposures, coverage {m.coverage:.3f} "
-                             f"({m.solver}); start {plan.start.utc.isot[:16]} UTC", ha="center", fontsize=12)
+        fig.text(0.5, 0.955, _headline(plan, title), ha="center", fontsize=12)
         area = float((credible <= 90.0).sum()) * hp.nside2pixarea(skymap.nside, degrees=True)
         fig.text(0.5, 0.925, f"90 % credible area {area:.0f} deg²; fields outlined, path in filter colours "
                              "(circle: first visit)", ha="center", fontsize=9)
 
 
-def _save(fig: Any, path: str | Path, dpi: int) -> None:
-    """Render the figure, then write it whole (a device or a symlink is never replaced)."""
+def _headline(plan: Plan, title: str) -> str:
+    """The title line: fields, exposures and the total coverage (a re-plan: what was done, added, total)."""
+    m = plan.metrics
+    if m.coverage_executed is not None:
+        covered = (f"total coverage {m.coverage + m.coverage_executed:.1%} ({m.coverage_executed:.1%} done before "
+                   f"+ {m.coverage:.1%} added)")
+    else:
+        covered = f"coverage {m.coverage:.1%}"
+    return (f"{title}: {m.n_fields} fields, {m.n_exposures} exposures, {covered}; "
+            f"start {plan.start.utc.isot[:16]} UTC")
+
+
+def _render(fig: Any, dpi: int, fmt: str) -> bytes:
     import io
 
     from matplotlib import pyplot as plt
 
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=dpi, format=fmt)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def _save(fig: Any, path: str | Path, dpi: int) -> None:
+    """Render the figure, then write it whole (a device or a symlink is never replaced)."""
     from .outputs import write_bytes_atomic
 
-    buf = io.BytesIO()
-    fig.savefig(buf, dpi=dpi, format=Path(path).suffix.lstrip(".").lower() or "png")
-    plt.close(fig)
-    write_bytes_atomic(path, buf.getvalue())
+    write_bytes_atomic(path, _render(fig, dpi, Path(path).suffix.lstrip(".").lower() or "png"))

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
-__all__ = ["Credentials", "CredentialsError", "load_credentials", "load_outbound_password", "load_submit_token",
+__all__ = ["Credentials", "CredentialsError", "load_credentials", "load_outbound_password", "load_submit_token", "load_notify_url",
            "load_executed_token"]
 
 
@@ -188,3 +188,12 @@ def _token(credential: str, variable: str, what: str, otherwise: str,
     """
     return _secret(credential, variable,
                    f"{what} not found: set {variable} or the systemd credential {credential} ({otherwise})", environ)
+
+
+def load_notify_url(environ: Mapping[str, str] | None = None) -> tuple[str, str]:
+    """Find the webhook URL of ``[notify]`` (a Slack incoming webhook holds its secret in the URL).
+
+    The systemd credential ``notify_url`` first, else ``$MUSHROOMS_NOTIFY_URL``
+    (:func:`_token`: never from ``config.toml``, never logged nor stored).
+    """
+    return _token("notify_url", "MUSHROOMS_NOTIFY_URL", "webhook URL", "or set [notify] target = \"off\"", environ)

@@ -305,15 +305,9 @@ class JobPlanner:
                 better, first, gain, sched.objective, sched.detection_max_coverage_loss):
             return self._publish_revision(work, better, 2, True)
         if better is not None:
-            why = (f"{solver} covered {better.metrics.coverage:.4f} against {first.metrics.coverage:.4f}: "
-                   f"less than supersede_min_gain {gain:g} more")
-            e_new, e_old = better.metrics.expected_detections, first.metrics.expected_detections
-            if sched.objective == "detection" and e_new is not None and e_old is not None:
-                why = (f"{solver} expects {e_new:.4f} detections against {e_old:.4f} (coverage "
-                       f"{better.metrics.coverage:.4f} against {first.metrics.coverage:.4f}): not "
-                       f"supersede_min_gain {gain:g} more within the coverage floor "
-                       f"(detection_max_coverage_loss {sched.detection_max_coverage_loss:g}), nor a tie "
-                       f"on detections with that much more coverage")
+            from .final_words import first_plan_stands
+
+            why = first_plan_stands(solver, better, first, gain, sched.objective, sched.detection_max_coverage_loss)
         return self._close_with_first(work, why)
 
     # ------------------------------------------------------------ store + outbox
@@ -385,7 +379,9 @@ class JobPlanner:
                                        time_created=iso_z(alert.time_created),
                                        skymap_sha256=hashlib.sha256(skymap_bytes).hexdigest(), localization=kind,
                                        external_coinc=coincidence_summary(alert.external_coinc),
-                                       event_time=iso_z(alert.event.time))  # the merger clock (issue 24)
+                                       event_time=iso_z(alert.event.time),  # the merger clock
+                                       classification=dict(alert.event.classification) or None,
+                                       far_hz=float(alert.event.far))
 
     def _gw_fallback(self, job: Job, event: Any) -> tuple[bytes, Any] | None:
         """The notice's GW map (and event) when the job's map was its joint map; else None."""

@@ -33,6 +33,7 @@ from ..scheduler_core.errors import InputError
 from .pipeline import NoticePipeline, Outcome
 from .sections import ServiceConfig
 from .sinks import DirectorySink
+from ..report.files import SummarisingSink
 from .store import Store
 
 __all__ = ["replay_notices", "ReplayReport", "collect_notices", "order_notices", "replay", "format_line"]
@@ -215,10 +216,12 @@ def replay_notices(notices: Sequence[str | Path], out_dir: str | Path, config: S
         for suffix in ("", "-wal", "-shm"):  # a fresh state for every replay
             Path(str(state) + suffix).unlink(missing_ok=True)
     store = Store(state)
+    sink = SummarisingSink(DirectorySink(out_dir))  # each plan's .txt and .html beside its JSON
     try:
-        pipeline = NoticePipeline(config.policy, config.scheduler, store, DirectorySink(out_dir), daemon=config.daemon)
+        pipeline = NoticePipeline(config.policy, config.scheduler, store, sink, daemon=config.daemon)
         results = replay(pipeline, notices, on_outcome)
     finally:
+        sink.close()
         store.close()
     errors = [f"{p}: no such file or directory" for p in missing] + \
              [f"{p}: no notice files (*.json, *.avro, *.xml) in this directory" for p in empty] + \

@@ -33,6 +33,7 @@ from .settings import RuntimePaths, resolve_paths
 from .trigger import (
     DaemonRunning, PidLock, dispatch, outcome_result, pending_triggers, read_trigger, write_result,
 )
+from .announce import job_failed, submission_trouble
 from .wiring import make_sink, open_pipeline, private_dir
 
 __all__ = ["main", "Service", "setup_logging", "EXIT_STATE"]
@@ -217,6 +218,8 @@ class Service:
                                 closing=self._closing.is_set)
         if opened is not None:
             self.submitter, self.submit_drain = opened
+            self.submitter.on_trouble = lambda sub, error: submission_trouble(  # [notify]
+                self.pipeline.sink, sub.superevent_id, sub.queue_name, sub.attempts, error)
             self.submit_drain.kick()  # reconcile what a crash left half done
         self.phase = "warming"
         self._warm_up(self.sky_cache)  # only once the state file is ours: a refused start is quick
@@ -425,6 +428,8 @@ class Service:
         # staged: the optimisation is queued behind newer events' first plans
         outcome = self.pipeline.run_job(job, should_stop, staged=True)
         self._answer_trigger(job, outcome_result(job, outcome))
+        if getattr(outcome, "decision", None) == "failed":  # [notify]
+            job_failed(self.pipeline.sink, getattr(job, "superevent_id", None), outcome.reason)
         return outcome
 
     def _answer_trigger(self, job: Any, result: dict[str, Any]) -> None:
@@ -584,6 +589,7 @@ class Service:
         """A job raised past the pipeline: record it as failed (a failure on our side: the map may be planned again)."""
         self._answer_trigger(job, {"decision": "failed", "reason": f"internal error: {error}",
                                   "superevent_id": getattr(job, "superevent_id", None)})
+        job_failed(self.pipeline.sink, getattr(job, "superevent_id", None), f"internal error: {error}")
         try:
             self.pipeline.store.fail_job(job.job_id, f"internal error: {error}", retry_same_map=True)
         except Exception as exc:

@@ -87,6 +87,9 @@ class Submitter:
         ``on_result(state, target)`` after every transition (metrics: counts by result).
     """
 
+    #: ``on_trouble(submission, error)`` after a first attempt fails (the service's [notify] hook); None: nothing
+    on_trouble: Callable[[Submission, str], None] | None = None
+
     def __init__(self, store: Store, submit: SubmitConfig, export: ExportConfig,
                  client: KowalskiQueue | SkyPortalPlans | None,
                  on_outbox: Callable[[], None] | None = None,
@@ -420,6 +423,8 @@ class Submitter:
         log.warning("event=submission_retry superevent_id=%s plan_id=%s queue_name=%s state=%s attempts=%d "
                     "http_status=%s error=%r", sub.superevent_id, sub.plan_id, sub.queue_name, sub.state,
                     sub.attempts, status if status is not None else "-", error)
+        if self.on_trouble is not None and sub.attempts <= 1:  # [notify]: the first failure, said once
+            self.on_trouble(sub, error)
         return None
 
     def _finish(self, sub: Submission, state: str, answer: Answer | None = None, reason: str | None = None,

@@ -36,9 +36,10 @@ def make_sink(out: OutboundConfig) -> Any:
         security, described = sink_security(out)
         log.info("event=outbound_kafka broker=%s topic=%s security=%r", out.bootstrap, out.topic, described)
         return KafkaSink(out.bootstrap, out.topic, out.max_message_bytes, out.delivery_timeout_s, extra=security)
+    from ..report.files import SummarisingSink
     from .sinks import DirectorySink
 
-    return DirectorySink(Path(out.directory))
+    return SummarisingSink(DirectorySink(Path(out.directory)))  # each plan's .txt and .html beside its JSON
 
 
 def open_store(path: Path, group_readable: bool = False) -> Any:
@@ -64,11 +65,16 @@ def open_pipeline(config: ServiceConfig, paths: RuntimePaths, sink: Any = None, 
     store = open_store(paths.state, config.daemon.group_readable)
     own_sink = sink is None
     sink = make_sink(config.outbound) if own_sink else sink
+    from .announce import NotifyingSink, open_webhook
+
+    hook = open_webhook(getattr(config, "notify", None))  # [notify]: off by default
+    if hook is not None:
+        sink = NotifyingSink(sink, hook)
     pipeline_kw.setdefault("loop", getattr(config, "loop", None))
     pipeline = NoticePipeline(config.policy, config.scheduler, store, sink, daemon=config.daemon, **pipeline_kw)
 
     def close() -> None:
-        for obj in ((sink,) if own_sink else ()) + (store,):
+        for obj in ((sink,) if own_sink else (hook,) if hook is not None else ()) + (store,):
             fn = getattr(obj, "close", None)
             if fn is not None:
                 try:

@@ -325,9 +325,12 @@ def build_plan(
 
 
 def _with_map_details(event: EventInfo, skymap: SkyMap) -> EventInfo:
-    """The event with the sky-map name filled in from the map."""
+    """The event with the sky-map name, credible areas and distance filled in from the map."""
+    from .plan.localization import localization_facts
+
     name = None if skymap.source.startswith("<") else Path(skymap.source).name
-    return dataclasses.replace(event, skymap_name=event.skymap_name or name)
+    facts = {k: v for k, v in localization_facts(skymap).items() if getattr(event, k) is None}
+    return dataclasses.replace(event, skymap_name=event.skymap_name or name, **facts)
 
 
 def _with_airmass_and_probability(observations: tuple[Observation, ...],
@@ -344,10 +347,16 @@ def _with_airmass_and_probability(observations: tuple[Observation, ...],
     coords = SkyCoord([o.ra for o in observations] * u.deg, [o.dec for o in observations] * u.deg)
     alt = coords.transform_to(AltAz(obstime=mid, location=site())).alt.deg
     airmass = 1.0 / np.sin(np.radians(np.maximum(alt, 1e-3)))
+    from .plan.shares import coverage_after_each, field_shares
+
     field_prob = dict(zip(problem.footprints.field_ids.tolist(),
                           problem.footprints.field_probability(problem.prob).tolist()))
-    return tuple(dataclasses.replace(o, airmass=float(x), probability=field_prob.get(o.field_id))
-                 for o, x in zip(observations, airmass))
+    visits = [o.field_id for o in observations]
+    shares = field_shares(problem.footprints, list(dict.fromkeys(visits)), problem.prob)
+    after = coverage_after_each(problem.footprints, visits, problem.prob)
+    return tuple(dataclasses.replace(o, airmass=float(x), probability=field_prob.get(o.field_id),
+                                     probability_share=shares[o.field_id], coverage_after=float(c))
+                 for o, x, c in zip(observations, airmass, after))
 
 
 def _expected_detections(plan: Plan, problem: PlanningProblem, skymap: SkyMap,

@@ -14,6 +14,7 @@ import sys
 import time
 from typing import TYPE_CHECKING, Any, Sequence
 
+from .settings_flag import add_set_option
 from .common import MissingExtra, add_common_options, execute, tool_parser
 
 if TYPE_CHECKING:
@@ -50,6 +51,7 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--injections", type=int, default=10000, metavar="N", help="kilonova injections per map")
     p.add_argument("--plots", metavar="DIR", help="write the summary figures here")
     p.add_argument("-o", "--output", metavar="FILE", default="results.csv")
+    add_set_option(p)
     add_common_options(p)
     return p
 
@@ -120,7 +122,7 @@ def load_settings(args: argparse.Namespace) -> "BenchSettings":
     """:func:`bench_settings` of the command's config file (``--config``, resolved by :func:`~.common.execute`)."""
     from .config import load_config
 
-    return bench_settings(args, load_config(getattr(args, "config", None)))
+    return bench_settings(args, load_config(getattr(args, "config", None), getattr(args, "set", None) or ()))
 
 
 def require_gwemopt(settings: "BenchSettings") -> None:
@@ -143,8 +145,9 @@ def require_gwemopt(settings: "BenchSettings") -> None:
 
 
 def progress_bars() -> bool:
-    """Progress bars on stderr unless ``MUSHROOMS_PROGRESS=0``."""
-    return os.environ.get("MUSHROOMS_PROGRESS", "1") != "0"
+    """A progress bar on stderr when it is a terminal (``MUSHROOMS_PROGRESS=1`` forces it, ``0`` hides it)."""
+    forced = os.environ.get("MUSHROOMS_PROGRESS", "")
+    return forced == "1" or (forced != "0" and sys.stderr.isatty())
 
 
 def _warn_without_gwemopt(settings: "BenchSettings") -> None:

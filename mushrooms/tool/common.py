@@ -165,6 +165,10 @@ def execute(name: str, args: argparse.Namespace, run: Callable[[argparse.Namespa
         stream=sys.stderr,
     )
     quiet_time_warnings()
+    from .quiet import SOLVING_COMMANDS, silence_solver_banner
+
+    if name in SOLVING_COMMANDS:
+        silence_solver_banner()  # HiGHS's banner on stdout, once per process
     from ..daemon.credentials import CredentialsError
     from ..scheduler_core.errors import InputError
     from .config import ConfigError, resolve_config_path

@@ -6,6 +6,7 @@ Sections: ``[scheduler]`` (:class:`~mushrooms.scheduler_core.PlanningConfig`),
 ``[export]`` (:class:`~mushrooms.scheduler_core.plan.exports.ExportConfig`),
 ``[submit]`` (:class:`~mushrooms.daemon.submit_settings.SubmitConfig`),
 ``[loop]`` (:class:`~mushrooms.daemon.loop_settings.LoopConfig`),
+``[notify]`` (:class:`~mushrooms.daemon.webhook_settings.NotifyConfig`),
 ``[bench]`` (:class:`~mushrooms.evaluation.bench.settings.BenchConfig`:
 ``mushrooms bench`` and ``mushrooms study``).
 Secrets never come from here: see the README.
@@ -27,6 +28,7 @@ from typing import Any, Mapping
 from ..daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
 from ..daemon.loop_settings import LoopConfig
 from ..daemon.submit_settings import SubmitConfig
+from ..daemon.webhook_settings import NotifyConfig
 from ..evaluation.bench.settings import BenchConfig
 from ..handlers.policy import PolicyConfig
 from ..scheduler_core.config import PlanningConfig
@@ -59,6 +61,7 @@ class Config:
     submit: SubmitConfig = field(default_factory=SubmitConfig)
     bench: BenchConfig = field(default_factory=BenchConfig)
     loop: LoopConfig = field(default_factory=LoopConfig)
+    notify: NotifyConfig = field(default_factory=NotifyConfig)
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], source: str = "<mapping>") -> "Config":
@@ -73,6 +76,7 @@ class Config:
             "submit": SubmitConfig,
             "bench": BenchConfig,
             "loop": LoopConfig,
+            "notify": NotifyConfig,
         }
         unknown = sorted(set(data) - set(sections))
         if unknown:
@@ -115,17 +119,25 @@ def resolve_config_path(given: str | Path | None, environ: Mapping[str, str] | N
     return None, "no --config, no $MUSHROOMS_CONFIG, no ./config.toml"
 
 
-def load_config(path: str | Path | None = None) -> Config:
-    """Load a config file, or the embedded defaults when ``path`` is None.
+def load_config(path: str | Path | None = None, sets: Any = ()) -> Config:
+    """Load a config file, or the embedded defaults when ``path`` is None; ``sets`` are ``--set`` overrides.
 
     Raises
     ------
     ConfigError
-        With a one-line reason when the file cannot be used.
+        With a one-line reason when the file cannot be used, or a ``--set`` is malformed or out of range.
     """
-    if path is None:
-        return Config()
-    return Config.from_mapping(read_config_table(path), source=str(path))
+    if not sets:
+        if path is None:
+            return Config()
+        return Config.from_mapping(read_config_table(path), source=str(path))
+    from .settings_flag import apply_sets
+
+    try:
+        table = apply_sets({} if path is None else read_config_table(path), sets)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    return Config.from_mapping(table, source=f"{path or '<embedded defaults>'} with --set {' '.join(sets)}")
 
 
 def read_config_table(path: str | Path) -> dict[str, Any]:

@@ -66,10 +66,14 @@ def run(args: argparse.Namespace) -> int:
     skymap = read_skymap(base64.b64decode(payload), nside=config.scheduler.nside)
     picture = out / "plan.png"
     plot_plan(plan, skymap, picture)
-    m = plan.metrics
-    print(f"demo: plan {plan.plan_id} for {plan.event.superevent_id}: {m.n_fields} fields, "
-          f"{m.n_exposures} exposures, coverage {m.coverage:.3f} ({m.solver}, {m.status}); "
-          f"plan in {out / 'outbox'}, picture {picture}")
+    from ..report.files import write_summaries
+    from ..report.summary import answer_line, summary_text
+
+    txt, page = write_summaries(doc, out / "plan.json", picture.read_bytes())
+    print()
+    print(summary_text(doc, rows=False))
+    print(f"demo: {plan.event.superevent_id}: {answer_line(doc)}")
+    print(f"demo: plan in {out / 'outbox'}, picture {picture}, summary {txt} (one row per exposure), page {page}")
     return 0
 
 

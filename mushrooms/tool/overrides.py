@@ -72,7 +72,7 @@ def effective_config(args: argparse.Namespace) -> Config:
     directory sink; ``--state`` the SQLite file; ``--allow-mock`` accepts
     mock and test events.
     """
-    return override_config(load_config(getattr(args, "config", None)),
+    return override_config(load_config(getattr(args, "config", None), getattr(args, "set", None) or ()),
                            allow_mock=bool(getattr(args, "allow_mock", False)),
                            bootstrap=getattr(args, "bootstrap", None), outbox=getattr(args, "outbox", None),
                            state=getattr(args, "state", None))

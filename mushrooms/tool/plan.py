@@ -16,6 +16,7 @@ import math
 import time
 from typing import Any, Sequence
 
+from .settings_flag import add_set_option
 from .common import SOLVER_CHOICES, SOLVER_HELP, SOLVER_METAVAR, add_common_options, execute, tool_parser
 
 __all__ = ["HELP", "parser", "run", "main", "parse_start", "warn_if_far_from_merger", "read_executed",
@@ -30,7 +31,7 @@ FAR_FROM_MERGER_DAYS = 3.0
 
 
 def parse_start(text: str) -> Any:
-    """``--start``: :func:`~mushrooms.scheduler_core.times.parse_time` with MJD allowed.
+    """``--start``: ``now``, or :func:`~mushrooms.scheduler_core.times.parse_time` with MJD allowed.
 
     Raises
     ------
@@ -39,6 +40,10 @@ def parse_start(text: str) -> Any:
     """
     from ..scheduler_core.times import parse_time
 
+    if text.strip().lower() == "now":
+        from astropy.time import Time
+
+        return Time.now()
     return parse_time(text, "--start", mjd=True)
 
 
@@ -64,10 +69,13 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("skymap", nargs="?", metavar="SKYMAP",
                    help="sky map FITS (multi-order or flat HEALPix); `mushrooms demo` plans the bundled demo map")
     p.add_argument("--start", metavar="TIME",
-                   help="horizon start: ISO-8601 (Z or +hh:mm offset; no offset means UTC) or MJD "
+                   help="horizon start: now, ISO-8601 (Z or +hh:mm offset; no offset means UTC) or MJD "
                         "(default: the sky map's event time)")
     p.add_argument("--solver", choices=SOLVER_CHOICES, metavar=SOLVER_METAVAR, help=SOLVER_HELP)
-    p.add_argument("-o", "--output", metavar="FILE", default="plan.json", help="plan document to write (default plan.json)")
+    p.add_argument("-o", "--output", metavar="FILE", default="plan.json",
+                   help="plan document to write (default plan.json); its summary goes beside it as FILE.txt and "
+                        "FILE.html (the page with the picture)")
+    p.add_argument("--brief", action="store_true", help="print the one-line answer only, not the text summary")
     p.add_argument("--deadline", metavar="SECONDS", type=float,
                    help="write the best plan found by then: the greedy plan at once, the optimised one if it is "
                         "ready and covers more (default: wait for the solver)")
@@ -85,6 +93,7 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--min-processed-fraction", metavar="F", type=float, default=None,
                    help="with --executed: least fraction of the 64 quadrants reduced for an exposure to count "
                         "(default 0.5)")
+    add_set_option(p)
     add_common_options(p)
     return p
 
@@ -111,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
     configure_astropy_offline()
     t0 = time.perf_counter()
     t_imports = t0 - t_imports  # the scheduler's modules (numpy, astropy, healpy, scipy, the checker)
-    config = load_config(args.config)
+    config = load_config(args.config, getattr(args, "set", None) or ())
     cfg = config.scheduler
     if not args.skymap:
         raise InputError("no sky map given: name a FITS sky map (`mushrooms demo` plans the bundled demo map)")
@@ -136,13 +145,19 @@ def run(args: argparse.Namespace) -> int:
             raise InputError("--deadline and --executed do not go together: a re-plan waits for the solver")
         if fraction is not None and not 0.0 <= fraction <= 1.0:
             raise InputError(f"--min-processed-fraction {fraction:g}: must be in [0, 1]")
+    from .progress import Progress
+
+    progress = Progress("plan")
+    progress.stage("reading the sky map")
     source = regular_file(args.skymap, "sky map")  # never a FIFO nor a device
     skymap = read_skymap(source, nside=cfg.nside)
+    progress.stage(f"planning ({args.solver or cfg.solver})", deadline or _budget_s(cfg, args.solver))
     t_load = time.perf_counter() - t0  # config, imports and the sky map
     log.info("read %s: nside %d, 90%% area %.0f deg2, event time %s", source, skymap.nside,
              skymap.credible_area(0.9), skymap.event_time.isot if skymap.event_time else "unknown")
     if executed_spec is not None or cfg.nights > 1:
-        return _replan(args, config, skymap, start, executed_spec, 0.5 if fraction is None else fraction, t0)
+        with progress:
+            return _replan(args, config, skymap, start, executed_spec, 0.5 if fraction is None else fraction, t0)
     if start is not None:
         warn_if_far_from_merger(start, skymap.event_time)
     if deadline is None:
@@ -152,9 +167,12 @@ def run(args: argparse.Namespace) -> int:
         doc = revision_document(plan, 1, True)
     else:
         plan, doc = _plan_by_deadline(skymap, cfg, start, args.solver or cfg.solver, float(deadline), t0)
+    progress.stage("checking what is observable and writing")
     answer = not_observable(plan, skymap, cfg)
     if answer is not None:
+        progress.done()
         write_json_atomic(args.output, answer.to_document())
+        _write_summary(args, answer.to_document(), plan, skymap, answer=answer, show=False)
         print(f"{args.output}: NOT OBSERVABLE: best coverage {plan.metrics.coverage:.4f} < min_coverage "
               f"{cfg.min_coverage:g}, {time.perf_counter() - t0:.1f} s")
         for line in answer.sentences:
@@ -162,25 +180,52 @@ def run(args: argparse.Namespace) -> int:
         for what in ("--queue", "--skyportal"):
             if outputs[what]:
                 print(f"{outputs[what]}: not written ({what}): nothing to observe")
-        if args.plot:
-            from ..plotting import plot_plan
-
-            plot_plan(plan, skymap, args.plot, answer=answer)
         return 0
     write_json_atomic(args.output, doc)
     if args.queue:
         write_json_atomic(args.queue, submitted_queues(plan, config.export))
     if getattr(args, "skyportal", None):
         write_json_atomic(args.skyportal, to_skyportal(plan, config.export))
+    picture = _write_summary(args, doc, plan, skymap)
+    progress.done()
     if args.plot:
-        from ..plotting import plot_plan
+        from ..outputs import write_bytes_atomic
 
-        plot_plan(plan, skymap, args.plot)
-    m = plan.metrics
-    gap = "" if m.mip_gap is None else f", gap {m.mip_gap:.2%}"
-    print(f"{args.output}: {m.n_fields} fields, {m.n_exposures} exposures, coverage {m.coverage:.4f}, "
-          f"{m.solver} ({m.status}{gap}), checked, {time.perf_counter() - t0:.1f} s")
+        write_bytes_atomic(args.plot, picture)
+    _print_answer(args, args.output, doc, time.perf_counter() - t0)
     return 0
+
+
+def _budget_s(cfg: Any, solver: str | None) -> float | None:
+    """The planning's time budget to show (s): the MILP's time limit, none for greedy."""
+    return None if (solver or cfg.solver) == "greedy" else float(cfg.time_limit_s)
+
+
+def _write_summary(args: argparse.Namespace, doc: dict[str, Any], plan: Any, skymap: Any, answer: Any = None,
+                   show: bool = True) -> bytes:
+    """Write ``P.txt`` and ``P.html`` beside ``-o P.json`` (the page with the picture); the picture's PNG."""
+    from ..plotting import plan_picture_png
+    from ..report.files import write_summaries
+
+    picture = plan_picture_png(plan, skymap, dpi=120 if args.plot else 90, answer=answer,
+                               executed=getattr(args, "executed_exposures", ()))
+    write_summaries(doc, args.output, picture)
+    if answer is not None and args.plot:
+        from ..outputs import write_bytes_atomic
+
+        write_bytes_atomic(args.plot, picture)
+    return picture
+
+
+def _print_answer(args: argparse.Namespace, output: str, doc: dict[str, Any], seconds: float) -> None:
+    """The text summary (unless ``--brief``), then the one-line answer in words."""
+    from ..report.files import summary_paths
+    from ..report.summary import answer_line, summary_text
+
+    if not getattr(args, "brief", False):
+        print(summary_text(doc, rows=False))
+    txt, page = summary_paths(output)
+    print(f"{output}: {answer_line(doc)}; checked, {seconds:.1f} s (summary {txt}, page {page})")
 
 
 def _plan_by_deadline(skymap: Any, cfg: Any, start: Any, solver: str, deadline_s: float,
@@ -306,9 +351,12 @@ def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec
         plans = plan_nights(skymap, cfg, start, executed, min_processed_fraction=fraction, solver=args.solver)
     else:
         plans = (plan_remaining(skymap, cfg, start, executed, min_processed_fraction=fraction, solver=args.solver),)
+    args.executed_exposures = executed  # drawn apart in the picture
     for n, plan in enumerate(plans, 1):
         output = night_path(args.output, n)
-        write_json_atomic(output, revision_document(plan, 1, True))
+        doc = revision_document(plan, 1, True)
+        write_json_atomic(output, doc)
+        _write_summary(argparse.Namespace(**{**vars(args), "output": output, "plot": None}), doc, plan, skymap)
         if args.queue:
             write_json_atomic(night_path(args.queue, n), submitted_queues(plan, config.export))
         if getattr(args, "skyportal", None):
@@ -316,7 +364,7 @@ def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec
         if args.plot:
             from ..plotting import plot_plan
 
-            plot_plan(plan, skymap, night_path(args.plot, n))
+            plot_plan(plan, skymap, night_path(args.plot, n), executed=executed)
         m = plan.metrics
         night = f"night {n} of {len(plans)}, " if len(plans) > 1 else ""
         completed = len({o.field_id for o in plan.observations} & set(pairs.one))

@@ -6,6 +6,7 @@ import argparse
 import sys
 from typing import Sequence
 
+from .settings_flag import add_set_option
 from .common import add_common_options, execute, tool_parser
 
 __all__ = ["HELP", "parser", "run", "main"]
@@ -20,6 +21,7 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--outbox", metavar="DIR", help="directory sink (overrides config)")
     p.add_argument("--state", metavar="FILE", help="SQLite state file (overrides config)")
     p.add_argument("--allow-mock", action="store_true", help="accept mock (MS) and test (TS) events")
+    add_set_option(p)
     add_common_options(p)
     return p
 

@@ -89,8 +89,8 @@ def final_numbers(messages: list[dict[str, Any]], superevent_id: str) -> dict[st
     """What a job ended with: revision 1's and the optimiser's (coverage, expected detections), and who won.
 
     The optimiser's numbers come from revision 2 when it was published, else
-    from the ``plan_final`` reason (``<solver> expects E detections against ...
-    (coverage C against ...)``).
+    from the ``plan_final`` reason (``... would detect a kilonova with probability E % against ... %
+    (expected detections) and cover C % against ...``).
     """
     import re
 
@@ -106,8 +106,9 @@ def final_numbers(messages: list[dict[str, Any]], superevent_id: str) -> dict[st
                    solver2=r2["metrics"]["solver"], reason="")
     else:
         final = next(m for m in mine if m.get("type") == "plan_final")
-        m = re.search(r"expects ([0-9.]+) detections against [0-9.]+ \(coverage ([0-9.]+) against", final["reason"])
-        out.update(e2=float(m.group(1)) if m else None, c2=float(m.group(2)) if m else None, won=1,
+        m = re.search(r"with probability ([0-9.]+) % against [0-9.]+ % \(expected detections\) and cover "
+                      r"([0-9.]+) % against", final["reason"])
+        out.update(e2=float(m.group(1)) / 100 if m else None, c2=float(m.group(2)) / 100 if m else None, won=1,
                    solver2="-", reason=final["reason"])
     return out
 

@@ -35,7 +35,8 @@ PLAN_KEYS = (
 )
 OBSERVATION_KEYS = ("field_id", "ra", "dec", "filter", "start", "exposure_s", "block")
 EVENT_KEYS = ("superevent_id", "alert_type", "time_created", "skymap_sha256", "localization", "external_coinc",
-              "event_time", "skymap_name", "merger_time_source")
+              "event_time", "skymap_name", "merger_time_source", "classification", "far_hz", "distance_mpc",
+              "distance_std_mpc", "area_50_deg2", "area_90_deg2")
 METRIC_KEYS = (
     "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
     "n_fields", "n_exposures", "latency_s", "upper_bound", "upper_bound_method",
@@ -83,7 +84,16 @@ class Observation:
     airmass : float or None
         Airmass (sec z) at mid-exposure.
     probability : float or None
-        Sky-map probability inside the field's footprint (0-1).
+        Sky-map probability inside the field's footprint (0-1), overlaps
+        with other fields counted in full.
+    probability_share : float or None
+        The field's own share (0-1): each pixel's probability divided
+        equally among the planned fields whose footprints hold it; the
+        shares of a plan's fields add up to its ``coverage``.
+    coverage_after : float or None
+        Probability inside the union of the fields visited up to and
+        including this exposure (0-1; a re-plan: outside the fields done
+        before, like ``metrics.coverage``).
     """
 
     field_id: int
@@ -95,6 +105,8 @@ class Observation:
     block: int
     airmass: float | None = None
     probability: float | None = None
+    probability_share: float | None = None
+    coverage_after: float | None = None
 
     @property
     def end(self) -> float:
@@ -128,6 +140,16 @@ class EventInfo:
     merger_time_source : str or None
         Where ``event_time`` came from: ``notice`` or ``skymap`` (None
         without a merger time).
+    classification : dict or None
+        The notice's source classification (``BNS``, ``NSBH``, ``BBH``,
+        ``Terrestrial`` probabilities, 0-1).
+    far_hz : float or None
+        The notice's false-alarm rate (Hz).
+    distance_mpc, distance_std_mpc : float or None
+        Posterior mean and standard deviation of the luminosity distance
+        (Mpc) over the whole sky, from the map's distance layers.
+    area_50_deg2, area_90_deg2 : float or None
+        Areas of the 50 % and 90 % credible regions of the map (deg²).
     """
 
     superevent_id: str | None = None
@@ -139,6 +161,12 @@ class EventInfo:
     event_time: str | None = None
     skymap_name: str | None = None
     merger_time_source: str | None = None
+    classification: dict[str, float] | None = None
+    far_hz: float | None = None
+    distance_mpc: float | None = None
+    distance_std_mpc: float | None = None
+    area_50_deg2: float | None = None
+    area_90_deg2: float | None = None
 
 
 @dataclass(frozen=True)
@@ -295,6 +323,7 @@ class Plan:
                 "block": int(o.block),
                 "airmass": None if o.airmass is None else round(float(o.airmass), 4),
                 "probability": None if o.probability is None else round(float(o.probability), 6),
+                **_share_keys(o),
             }
             for o, t, t_end in zip(self.observations, starts, ends)
         ]
@@ -364,6 +393,8 @@ class Plan:
                         exposure_s=float(o["exposure_s"]), block=int(o["block"]),
                         airmass=None if o.get("airmass") is None else float(o["airmass"]),
                         probability=None if o.get("probability") is None else float(o["probability"]),
+                        probability_share=_optional_float(o, "probability_share"),
+                        coverage_after=_optional_float(o, "coverage_after"),
                     )
                 )
             m = doc["metrics"]
@@ -378,6 +409,17 @@ class Plan:
             )
         except (TypeError, KeyError, AttributeError) as exc:
             raise ValueError(f"malformed plan document: {exc}") from None
+
+
+def _share_keys(o: Observation) -> dict[str, float]:
+    """The optional keys ``probability_share`` and ``coverage_after`` of an observation that has them."""
+    return {key: round(float(value), 6) for key, value in (("probability_share", o.probability_share),
+                                                          ("coverage_after", o.coverage_after))
+            if value is not None}
+
+
+def _optional_float(o: Mapping[str, Any], key: str) -> float | None:
+    return None if o.get(key) is None else float(o[key])
 
 
 def _check_pointing(i: int, o: Mapping[str, Any]) -> None:

@@ -1,0 +1,155 @@
+"""The airmass panel of a plan's picture: each planned field's airmass over the night, the Moon's, and when
+each exposure is taken.
+
+Night (Sun below the plan's ``sun_alt_max_deg``) and twilight (Sun below the
+horizon) are shaded; a field's curve is thin and grey, its exposures are
+drawn on it in their filter's colour, and its id is written at its first
+exposure.  Exposures already executed (a re-plan) are drawn as hollow
+markers.  The Moon's altitude is given as an airmass curve while it is up.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+__all__ = ["night_grid", "draw_airmass", "AIRMASS_TOP"]
+
+#: Airmass at the top of the panel (the panel's y axis is inverted: 1 at the bottom ... this at the top).
+AIRMASS_TOP = 2.6
+
+FILTER_COLOURS = {"g": "#1a9e2f", "r": "#d62728", "i": "#8c564b"}
+
+
+def night_grid(plan: Any, step_s: float = 300.0) -> dict[str, Any]:
+    """Hours since the plan start, and the Sun's and Moon's altitude (deg) at Palomar on that grid.
+
+    Returns
+    -------
+    dict
+        ``hours`` (n,), ``sun_alt`` (n,), ``moon_alt`` (n,) in degrees,
+        ``times`` (astropy Time, n), ``sun0`` and ``moon0`` (the bodies at
+        the start, ICRS) and ``moon_illumination`` (0-1 at the start).
+    """
+    from astropy.coordinates import AltAz, get_body
+    from astropy.time import TimeDelta
+
+    from .scheduler_core.sky.visibility import site
+
+    span = float((plan.end - plan.start).to_value("s"))
+    offsets = np.arange(0.0, span + step_s, step_s)
+    times = plan.start + TimeDelta(offsets, format="sec")
+    frame = AltAz(obstime=times, location=site())
+    sun = get_body("sun", times, site())
+    moon = get_body("moon", times, site())
+    elongation = float(sun[0].separation(moon[0]).rad)
+    return {"hours": offsets / 3600.0, "times": times, "sun_alt": sun.transform_to(frame).alt.deg,
+            "moon_alt": moon.transform_to(frame).alt.deg, "sun0": sun[0], "moon0": moon[0],
+            "moon_illumination": float((1.0 - np.cos(elongation)) / 2.0)}
+
+
+def _airmass(alt_deg: np.ndarray) -> np.ndarray:
+    """sec z, NaN below 5 deg altitude (off the panel)."""
+    alt = np.asarray(alt_deg, float)
+    return np.where(alt > 5.0, 1.0 / np.sin(np.radians(np.maximum(alt, 5.0))), np.nan)
+
+
+def shade_night(ax: Any, hours: np.ndarray, sun_alt: np.ndarray, sun_limit: float) -> None:
+    """Twilight (Sun below 0 deg) light, night (below ``sun_limit``) darker, as vertical spans."""
+    dt = float(hours[1] - hours[0]) if hours.size > 1 else 1.0
+    for mask, colour in (((sun_alt < 0) & (sun_alt > sun_limit), "#dde3ee"), (sun_alt <= sun_limit, "#b9c3d6")):
+        for h in hours[mask]:
+            ax.axvspan(h - dt / 2, h + dt / 2, color=colour, lw=0, zorder=0)
+
+
+def draw_airmass(ax: Any, plan: Any, grid: dict[str, Any], executed: Sequence[Any] = ()) -> None:
+    """The airmass of every planned field over the horizon, its exposures, the Moon; night shaded.
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+    plan : Plan
+    grid : dict
+        :func:`night_grid` of the plan.
+    executed : sequence of ExecutedExposure
+        Exposures done before the plan (drawn hollow at their time, when inside the horizon).
+    """
+    from astropy import units as u
+    from astropy.coordinates import AltAz, SkyCoord
+    from matplotlib.lines import Line2D
+
+    from .scheduler_core.sky.visibility import site
+
+    hours, times = grid["hours"], grid["times"]
+    sun_limit = float((plan.config or {}).get("sun_alt_max_deg", -12.0))
+    shade_night(ax, hours, grid["sun_alt"], sun_limit)
+    obs = plan.observations
+    fields = list(dict.fromkeys(o.field_id for o in obs))
+    if fields:
+        first = {o.field_id: o for o in reversed(obs)}
+        coords = SkyCoord([first[f].ra for f in fields] * u.deg, [first[f].dec for f in fields] * u.deg)
+        frame = AltAz(obstime=times[:, None], location=site())
+        curves = _airmass(coords[None, :].transform_to(frame).alt.deg)  # (n_times, n_fields)
+        ax.plot(hours, curves, color="#8a8a8a", lw=0.6, alpha=0.6, zorder=1)
+        for o in obs:
+            ax.plot([o.start / 3600.0, o.end / 3600.0], [o.airmass or np.nan] * 2,
+                    color=FILTER_COLOURS.get(o.filter, "k"), lw=3.5, solid_capstyle="butt", zorder=3)
+        for f in fields:
+            o = first[f]
+            ax.annotate(str(f), (o.start / 3600.0, o.airmass or 1.0), xytext=(0, -9), textcoords="offset points",
+                        fontsize=6.5, ha="center", va="top", color="#222", zorder=4)
+    _draw_executed(ax, plan, executed)
+    moon = _airmass(grid["moon_alt"])
+    ax.plot(hours, moon, color="#c9a400", lw=1.6, ls=(0, (4, 2)), zorder=2)
+    ax.set_ylim(AIRMASS_TOP, 1.0)
+    _night_axis(ax, plan, hours, grid["sun_alt"])
+    ax.set_ylabel("airmass", fontsize=9)
+    handles = [Line2D([], [], color="#8a8a8a", lw=0.8, label="planned field"),
+               Line2D([], [], color="#c9a400", lw=1.6, ls=(0, (4, 2)),
+                      label=f"Moon ({grid['moon_illumination']:.0%} lit)")]
+    handles += [Line2D([], [], color=FILTER_COLOURS.get(f, "k"), lw=3.5, label=f"{f} exposure")
+                for f in dict.fromkeys(o.filter for o in obs)]
+    if executed:
+        handles.append(Line2D([], [], color="k", marker="o", mfc="none", ls="none", label="executed before"))
+    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles), fontsize=8,
+              frameon=False)
+
+
+def _night_axis(ax: Any, plan: Any, hours: np.ndarray, sun_alt: np.ndarray) -> None:
+    """The x axis on the dark hours (Sun below the horizon) and every exposure, in UTC clock time."""
+    from astropy import units as u
+
+    dark = hours[sun_alt < 0]
+    ends = [o.end / 3600.0 for o in plan.observations] + [o.start / 3600.0 for o in plan.observations]
+    lo = min([float(dark.min())] if dark.size else [] + ends or [0.0]) - 0.5
+    hi = max([float(dark.max())] if dark.size else [] + ends or [float(hours[-1])]) + 0.5
+    lo, hi = max(lo, 0.0), min(hi, float(hours[-1]))
+    ax.set_xlim(lo, hi)
+    ticks = np.arange(np.ceil(lo), hi + 1e-9, 1.0)
+    ax.set_xticks(ticks, [(plan.start + t * u.hour).utc.isot[11:16] for t in ticks], fontsize=8)
+    ax.set_xlabel("UTC", fontsize=8, labelpad=1)
+
+
+def _draw_executed(ax: Any, plan: Any, executed: Sequence[Any]) -> None:
+    """Executed exposures inside the horizon, hollow, at their airmass (computed here)."""
+    inside = [e for e in executed if -3600.0 <= float((e.start - plan.start).to_value("s")) <= 86400.0]
+    if not inside:
+        return
+    from astropy import units as u
+    from astropy.coordinates import AltAz, SkyCoord
+
+    from .scheduler_core.sky.fields import load_ztf_fields
+    from .scheduler_core.sky.visibility import site
+
+    grid = load_ztf_fields()
+    rows = grid.index_of(np.array([e.field_id for e in inside]))
+    times = [e.start for e in inside]
+    from astropy.time import Time
+
+    t = Time(times)
+    alt = SkyCoord(grid.ra[rows] * u.deg, grid.dec[rows] * u.deg).transform_to(
+        AltAz(obstime=t, location=site())).alt.deg
+    hours = (t - plan.start).to_value("hour")
+    for h, x, e in zip(hours, _airmass(alt), inside):
+        ax.plot([h], [x], marker="o", ms=5, mfc="none", mec=FILTER_COLOURS.get(e.filter, "k"), mew=1.2, zorder=3)

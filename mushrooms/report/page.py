@@ -1,0 +1,110 @@
+"""The HTML summary of a plan revision: one self-contained page (the picture embedded as a base64 PNG).
+
+The same facts as the text summary (:mod:`.summary`): a statistics table
+(event, queue, first and last exposure in UTC and Palomar time, open-shutter
+time and overheads, coverage, expected detections, the certified bound), the
+picture, and one row per exposure.
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime as dt
+import html
+from typing import Any, Mapping, Sequence
+
+from .facts import PlanFacts, duration_words, palomar_time, percent, plan_facts
+from .summary import answer_line, bound_sentence, event_lines, starts_in, status_words
+
+__all__ = ["summary_html"]
+
+_STYLE = """
+body{font-family:system-ui,sans-serif;margin:1.5em;color:#111;max-width:70em}
+h1{font-size:1.4em;margin-bottom:.2em} p.answer{font-size:1.1em;margin-top:.2em}
+table{border-collapse:collapse;margin:.6em 0} td,th{padding:.15em .7em;border-bottom:1px solid #ddd;text-align:left}
+table.rows td{text-align:right;font-variant-numeric:tabular-nums} th{background:#f3f3f3}
+.warn{color:#a00000;font-weight:bold} img{max-width:100%;border:1px solid #ccc}
+"""
+
+
+def _cell(text: Any) -> str:
+    return html.escape(str(text))
+
+
+def _stats(facts: PlanFacts, now: dt.datetime) -> list[tuple[str, str]]:
+    """(label, value) rows of the statistics table."""
+    rows = [(line[:10].strip(), line[10:].strip()) for line in event_lines(facts.event)]
+    if facts.queues:
+        rows.append(("Queue", ", ".join(facts.queues)))
+    if facts.first is not None and facts.last_end is not None:
+        rows += [("First exposure", f"{facts.first:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.first)} at Palomar), "
+                                    f"{starts_in(facts.first, now)}"),
+                 ("Last exposure ends", f"{facts.last_end:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.last_end)})"),
+                 ("Exposures", f"{facts.n_exposures} of {facts.n_fields} fields in {' and '.join(facts.filters)}"),
+                 ("Open shutter", duration_words(facts.open_shutter_s)),
+                 ("Overheads", f"{duration_words(facts.overhead_s)} (slews, readouts, filter changes, cadence "
+                               f"waits); {duration_words(facts.waiting_s)} between blocks")]
+    if facts.coverage_executed is not None:
+        rows += [("Done before", percent(facts.coverage_executed)), ("Added", percent(facts.coverage)),
+                 ("Total coverage", percent(facts.coverage + float(facts.coverage_executed)))]
+    else:
+        rows.append(("Coverage", percent(facts.coverage)))
+    if facts.expected_detections is not None:
+        rows.append(("Kilonova detection", f"probability {percent(facts.expected_detections)}"))
+    bound = bound_sentence(facts)
+    if bound:
+        rows.append(("Bound", bound))
+    rows.append(("Found by", status_words(facts)))
+    return rows
+
+
+def _exposure_table(facts: PlanFacts) -> str:
+    head = ("<tr><th>#</th><th>field</th><th>filter</th><th>start (UTC)</th><th>airmass</th>"
+            "<th>own probability</th><th>coverage after</th></tr>")
+    body = []
+    for k, r in enumerate(facts.rows, 1):
+        body.append(
+            f"<tr><td>{k}</td><td>{r.field_id}</td><td>{_cell(r.filter)}</td><td>{r.start:%Y-%m-%d %H:%M:%S}</td>"
+            f"<td>{'' if r.airmass is None else f'{r.airmass:.2f}'}</td>"
+            f"<td>{'' if r.share is None else percent(r.share, 2)}</td>"
+            f"<td>{'' if r.coverage_after is None else percent(r.coverage_after)}</td></tr>")
+    return f"<table class=\"rows\">{head}{''.join(body)}</table>"
+
+
+def summary_html(doc: Mapping[str, Any], picture_png: bytes | None = None, now: dt.datetime | None = None,
+                 queues: Sequence[str] | None = None) -> str:
+    """A self-contained HTML page of a plan or not_observable document.
+
+    Parameters
+    ----------
+    doc : mapping
+        The document.
+    picture_png : bytes, optional
+        The plan's picture (PNG), embedded as a ``data:`` URI.
+    now : datetime, optional
+        The clock of "starts in" (default: now, UTC).
+    queues : sequence of str, optional
+        ZTF queue name(s) (:func:`.facts.plan_facts`).
+    """
+    now = now or dt.datetime.now(dt.timezone.utc)
+    facts = plan_facts(doc, queues)
+    revision = "" if facts.revision is None else f", revision {facts.revision}" + (" (final)" if facts.final else "")
+    parts = [f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{_cell(facts.title)} plan"
+             f"</title><style>{_STYLE}</style></head><body>",
+             f"<h1>{_cell(facts.title)}: ZTF plan{_cell(revision)}</h1>"]
+    if facts.kind == "not_observable":
+        parts.append(f"<p class=\"warn\">{_cell(answer_line(doc))}</p><ul>"
+                     + "".join(f"<li>{_cell(r)}</li>" for r in facts.reasons) + "</ul>")
+    else:
+        parts.append(f"<p class=\"answer\">{_cell(answer_line(doc))}</p>")
+    parts.append("<table>" + "".join(f"<tr><th>{_cell(k)}</th><td>{_cell(v)}</td></tr>" for k, v in _stats(facts, now))
+                 + "</table>")
+    if picture_png:
+        data = base64.b64encode(picture_png).decode("ascii")
+        parts.append(f"<p><img alt=\"the plan on the sky and its airmass over the night\" "
+                     f"src=\"data:image/png;base64,{data}\"></p>")
+    if facts.rows:
+        parts.append("<h2>Exposures</h2>" + _exposure_table(facts))
+    parts.append(f"<p><small>plan {_cell(doc.get('plan_id', ''))}, made {_cell(doc.get('created', ''))}"
+                 "</small></p></body></html>\n")
+    return "".join(parts)
