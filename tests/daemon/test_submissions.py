@@ -27,10 +27,20 @@ from mushrooms.daemon.submissions import Submitter, queue_name, submissions
 from mushrooms.daemon.submit_settings import SubmitConfig
 from mushrooms.handlers.policy import PolicyConfig
 from mushrooms.scheduler_core import PlanningConfig
+from mushrooms.scheduler_core.plan import exports
 from mushrooms.scheduler_core.plan.exports import ExportConfig
 from mushrooms.scheduler_core.plan.schema import validate_document
 
 TOKEN = "s3cr3t-token-0123456789abcdef"
+
+
+@pytest.fixture(autouse=True)
+def one_queue_per_revision(monkeypatch):
+    """These tests pin the submitter's lifecycle (PUT, replace, DELETE, crashes, 409s) request by request, on a set
+    of one queue per revision; the sets of several queues the real export gives are in ``test_submission_sets.py``
+    and ``test_a_revision_of_the_real_export_puts_every_queue_of_its_set`` below."""
+    monkeypatch.setattr(exports, "to_trigger_queues", lambda plan, export=ExportConfig(), name_base=None, **kw:
+                        [exports.to_trigger_queue(plan, export, queue_name=f"{name_base}_1")])
 
 
 def qn(revision: int) -> str:
@@ -452,3 +462,16 @@ def test_a_dry_run_after_a_real_run_sends_nothing_either(tmp_path, kowalski) -> 
         assert list(kowalski.queues) == [qn(1)]
     finally:
         w.store.close()
+
+
+def test_a_revision_of_the_real_export_puts_every_queue_of_its_set(world, kowalski, monkeypatch) -> None:
+    monkeypatch.undo()  # the real export: one timed queue per filter pass
+    world.notice("MS181101ab-preliminary.json")
+    assert world.submitter.step() == 0
+    (row,) = submissions(world.store)
+    names = row.queue_names()
+    assert len(names) > 1 and names == [f"{queue_name('GW', SID, 1)}_{k}" for k in range(1, len(names) + 1)]
+    assert list(kowalski.queues) == names
+    assert [line.split()[:3] for line in kowalski.lines()] == [["PUT", "/api/triggers/ztf", n] for n in names]
+    windows = [kowalski.queues[n]["validity_window_mjd"] for n in names]
+    assert all(a < b for a, b in windows)
