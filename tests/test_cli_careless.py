@@ -230,8 +230,11 @@ def test_plan_writes_queue_and_skyportal_from_the_same_plan(tmp_path, capsys):
                  "--queue", str(paths["queue"]), "--skyportal", str(paths["sp"])]) == 0
     plan, queue, sp = (json.loads(p.read_text()) for p in paths.values())
     obs = plan["observations"]
-    assert [t["field_id"] for t in queue["targets"]] == [o["field_id"] for o in obs]
+    queues = queue if isinstance(queue, list) else [queue]  # the set of timed queues, in submission order
+    targets = [t for q in queues for t in q["targets"]]
+    assert sorted((t["field_id"], t["filter_id"]) for t in targets) == sorted(
+        (o["field_id"], {"g": 1, "r": 2, "i": 3}[o["filter"]]) for o in obs)
     planned = sp["observation_plans"][0]["planned_observations"]
     assert [p["field_id"] for p in planned] == [o["field_id"] for o in obs]
     assert [p["dateobs"] + "Z" for p in planned] == [o["start"] for o in obs]
-    assert queue["user"] == "bob" and sp["allocation_id"] == 3
+    assert all(q["user"] == "bob" for q in queues) and sp["allocation_id"] == 3

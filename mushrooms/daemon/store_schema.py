@@ -153,6 +153,8 @@ def missing_steps(conn: sqlite3.Connection) -> list[str]:
                 out.append(step)
             continue
         table, column, decl = step
+        if table not in tables:
+            continue  # created by an earlier step of this list, with its column already
         if column not in {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}:
             out.append(f"ALTER TABLE {table} ADD COLUMN {column} {decl}")
     return out

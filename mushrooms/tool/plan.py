@@ -74,7 +74,7 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--solver", choices=SOLVER_CHOICES, metavar=SOLVER_METAVAR, help=SOLVER_HELP)
     p.add_argument("-o", "--output", metavar="FILE", default="plan.json",
                    help="plan document to write (default plan.json); its summary goes beside it as FILE.txt and "
-                        "FILE.html (the page with the picture)")
+                        "FILE.html (the page; the picture in it with --plot)")
     p.add_argument("--brief", action="store_true", help="print the one-line answer only, not the text summary")
     p.add_argument("--deadline", metavar="SECONDS", type=float,
                    help="write the best plan found by then: the greedy plan at once, the optimised one if it is "
@@ -202,13 +202,20 @@ def _budget_s(cfg: Any, solver: str | None) -> float | None:
 
 
 def _write_summary(args: argparse.Namespace, doc: dict[str, Any], plan: Any, skymap: Any, answer: Any = None,
-                   show: bool = True) -> bytes:
-    """Write ``P.txt`` and ``P.html`` beside ``-o P.json`` (the page with the picture); the picture's PNG."""
-    from ..plotting import plan_picture_png
+                   show: bool = True) -> bytes | None:
+    """Write ``P.txt`` and ``P.html`` beside ``-o P.json``; the picture's PNG, or None.
+
+    The page embeds the picture when one is drawn (``--plot``): a plan without it does not load matplotlib
+    (about a second of a greedy ``mushrooms plan``), and its page has the tables without the picture.
+    """
     from ..report.files import write_summaries
 
-    picture = plan_picture_png(plan, skymap, dpi=120 if args.plot else 90, answer=answer,
-                               executed=getattr(args, "executed_exposures", ()))
+    picture = None
+    if args.plot:
+        from ..plotting import plan_picture_png
+
+        picture = plan_picture_png(plan, skymap, dpi=120, answer=answer,
+                                   executed=getattr(args, "executed_exposures", ()))
     write_summaries(doc, args.output, picture)
     if answer is not None and args.plot:
         from ..outputs import write_bytes_atomic

@@ -39,7 +39,10 @@ def test_replay_lvk_json_directory(tmp_path, fast_config, capsys):
     joint_id = lines[3].split()[4].removeprefix("plan_id=")
     assert "coverage=" in lines[0] and "latency_s=" in lines[0]
     files = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
-    assert len(files) == 3 and {f"{plan_id}.json", f"{joint_id}.json"} <= set(files)
+    documents = [f for f in files if f.endswith(".json")]
+    assert len(documents) == 3 and {f"{plan_id}.json", f"{joint_id}.json"} <= set(documents)
+    # each published plan has its summary for a person beside it, text and page
+    assert sorted(set(files) - set(documents)) == sorted(f"{p}.{x}" for p in (plan_id, joint_id) for x in ("html", "txt"))
     plan = json.loads((out / f"{plan_id}.json").read_text())
     assert plan["type"] == "plan" and plan["event"]["alert_type"] == "EARLYWARNING"
     assert plan["event"]["localization"] == "gw" and plan["event"]["external_coinc"] is None

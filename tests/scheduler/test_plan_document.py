@@ -15,7 +15,8 @@ def test_document_has_exactly_the_documented_keys(greedy_plan):
     assert set(doc) == set(PLAN_KEYS) | {"type", "config"} and doc["type"] == "plan"
     assert doc["telescope"] == "ZTF" and doc["supersedes"] is None
     assert set(doc["metrics"]) == set(METRIC_KEYS)
-    assert all(set(o) == set(OBSERVATION_KEYS) | {"end", "airmass", "probability"} for o in doc["observations"])
+    assert all(set(o) == set(OBSERVATION_KEYS) | {"end", "airmass", "probability", "probability_share", "coverage_after"}
+               for o in doc["observations"])
     assert all(o["start"].endswith("Z") for o in doc["observations"])
     starts = [o["start"] for o in doc["observations"]]
     assert starts == sorted(starts)

@@ -255,6 +255,7 @@ def _overhead(sky: SkyGrid, qs: QueueSet, pointing: tuple[int, float] | None, la
     change = last_filter is not None and last_filter != int(qs.filter_id[i])
     t_slew = t + (timing.filter_change_s if change else 0.0)
     if pointing is None:
+        # (Q8) the pointing was lost: a mean slew of lost_pointing_slew_s
         return (timing.filter_change_s if change else 0.0) + max(timing.lost_pointing_slew_s,
                                                                   timing.slew.readout_s)
     p, p_end = pointing
