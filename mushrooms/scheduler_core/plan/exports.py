@@ -31,7 +31,7 @@ from ..tables import dataclass_from_table
 if TYPE_CHECKING:  # an annotation only: reading [export] imports no numpy/astropy (the document does)
     from .document import Plan
 
-__all__ = ["ExportConfig", "to_trigger_queue", "to_trigger_queues", "filter_passes", "to_skyportal", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
+__all__ = ["ExportConfig", "to_trigger_queue", "to_trigger_queues", "timed_queue_set", "filter_passes", "to_skyportal", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
 
 #: ZTF queue filter ids.
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
@@ -177,36 +177,45 @@ def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_
     list of dict
         Queue payloads of :func:`to_trigger_queue`'s shape, in submission order.
     """
-    from ..telescope.executor import queue_set_from_payloads
-    from ..telescope.queue_windows import PASS_SLACK_S, time_pass_windows
+    return timed_queue_set(plan, export, name_base, slack_s)[0]
 
-    if not plan.observations:
-        raise ValueError(f"plan {plan.plan_id} has no observations: no queue to send")
+
+def timed_queue_set(plan: "Plan", export: ExportConfig = ExportConfig(), name_base: str | None = None,
+                    slack_s: float | None = None) -> tuple[list[dict[str, Any]], Any]:
+    """:func:`to_trigger_queues`, and the telescope model's observability grid of the queues' targets.
+
+    The grid (a :class:`~..telescope.executor.SkyGrid`, from the plan's first
+    observation to its end) is what timing the windows cost (the Sun, the
+    Moon and every target's altitude on a 60 s grid); executing the queues
+    from the first observation reuses it instead of computing it again.
+    """
+    import numpy as np
+
+    from ..telescope.executor import SkyGrid, queue_set_from_payloads
+    from ..telescope.queue_windows import PASS_SLACK_S, time_pass_windows
+    from ..telescope.timing import TelescopeTiming
+
     base = name_base or f"ToO_{_tag(plan)}"
-    single = to_trigger_queue(plan, export, queue_name=base)
+    single = to_trigger_queue(plan, export, queue_name=base)  # refuses a plan without observations
     passes = filter_passes(plan)
     end_s = float((plan.end - plan.start).to_value("s"))
     drafts = [{**single, "validity_window_mjd": None, "targets": single["targets"][a:b]} for a, b in passes]
     qs = queue_set_from_payloads(drafts, plan.start)
-    planned = [o.start for o in plan.observations]
+    planned = np.asarray([o.start for o in plan.observations], float)
+    sky = SkyGrid(qs, plan.start, float(planned.min()), end_s, 60.0, TelescopeTiming())
     cadence_s = float((plan.config or {}).get("cadence_s", 1800.0))
-    opens, closes = time_pass_windows(qs, plan.start, _array(planned), end_s, cadence_s,
-                                      slack_s=PASS_SLACK_S if slack_s is None else slack_s)
-    out = []
-    for draft, t_open, t_close in zip(drafts, opens, closes):
+    opens, closes = time_pass_windows(qs, plan.start, planned, end_s, cadence_s,
+                                      slack_s=PASS_SLACK_S if slack_s is None else slack_s, sky=sky)
+    out, rows = [], []
+    for (a, b), draft, t_open, t_close in zip(passes, drafts, opens, closes):
         if not t_open < end_s:
             continue
         window = plan.absolute_time([t_open, max(t_close, t_open + 1.0)]).mjd
         targets = [dict(t, request_id=i + 1) for i, t in enumerate(draft["targets"])]
         out.append({**draft, "queue_name": f"{base}_{len(out) + 1}",
                     "validity_window_mjd": [float(window[0]), float(window[1])], "targets": targets})
-    return out
-
-
-def _array(values: list[float]) -> Any:
-    import numpy as np
-
-    return np.asarray(values, float)
+        rows.extend(range(a, b))
+    return out, sky.take(np.asarray(rows, int))
 
 
 def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization_name: str | None = None

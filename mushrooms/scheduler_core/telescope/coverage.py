@@ -52,15 +52,15 @@ def execute_plan_queues(plan: "Plan", queues: Sequence[dict[str, Any]] | None = 
     closures_s : sequence of (float, float)
         Dome closures (s since the plan's start).
     """
-    from ..plan.exports import to_trigger_queues
+    from ..plan.exports import timed_queue_set
 
     if not plan.observations:
         return ()
-    payloads = to_trigger_queues(plan) if queues is None else queues
+    payloads, sky = timed_queue_set(plan) if queues is None else (queues, None)
     qs = queue_set_from_payloads(payloads, plan.start, timing)
     start = plan.observations[0].start + late_s
     done = execute_queues(qs, plan.start, start, float((plan.end - plan.start).to_value("s")), timing,
-                          closures_s=closures_s)
+                          closures_s=closures_s, sky=sky if sky is not None and sky.serves(start, timing) else None)
     return executed_exposures(qs, done, plan.start)
 
 

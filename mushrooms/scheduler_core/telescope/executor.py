@@ -146,6 +146,21 @@ class SkyGrid:
                            & mount_limits_ok(geo.ha_deg, qs.dec[:, None], timing.ha_max_h))
         self.dark = geo.sun_alt_deg < timing.sun_alt_max_deg
         self.offsets = offsets
+        self.limits = _limits(timing)
+
+    def serves(self, start_s: float, timing: TelescopeTiming) -> bool:
+        """True when a run starting at ``start_s`` under ``timing`` samples this very grid.
+
+        The grid's times are ``t0 + k grid_s``, so a run from another start would
+        see other samples; ``timing`` must have the limits the grid was made with.
+        """
+        return start_s == self.t0 and _limits(timing) == self.limits
+
+    def take(self, rows: np.ndarray) -> "SkyGrid":
+        """The grid of the targets ``rows`` (in that order): a queue set made of some of these targets."""
+        out = object.__new__(SkyGrid)
+        out.__dict__.update(self.__dict__, ha=self.ha[rows], observable=self.observable[rows])
+        return out
 
     def index(self, t: float) -> int:
         return int(min(max(round((t - self.t0) / self.grid_s), 0), self.offsets.size - 1))
@@ -157,6 +172,11 @@ class SkyGrid:
     def next_dark(self, t: float) -> float:
         later = np.flatnonzero(self.dark & (self.offsets > t))
         return float(self.offsets[later[0]]) if later.size else math.inf
+
+
+def _limits(timing: TelescopeTiming) -> tuple[float, float, float]:
+    """What of the telescope a :class:`SkyGrid` depends on: airmass, hour-angle and Sun limits."""
+    return timing.max_airmass, timing.ha_max_h, timing.sun_alt_max_deg
 
 
 def _closure(spans: Sequence[tuple[float, float]], t0: float, t1: float) -> tuple[float, float] | None:
