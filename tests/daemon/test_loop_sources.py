@@ -25,7 +25,6 @@ from mushrooms.daemon.remote import Unreachable
 from mushrooms.handlers.executed_source import parse_executed_source
 from mushrooms.tool.config import Config, ConfigError, load_config
 
-from contract_servers import loopback_server
 from executed_servers import EXECUTED, Depot, SkyPortalObservations
 from loop_helpers import after, copy_state, open_pipeline, planned_state, the_plan
 
@@ -35,11 +34,8 @@ DEPOT_NAME = "20250514/ztf_recentproc_20250514.json"
 
 
 @pytest.fixture
-def server():
-    s = loopback_server()
-    yield s
-    s.clear()
-    s.stop()
+def server(loopback):
+    return loopback
 
 
 def reader(spec: str, token: str | None = None) -> ExecutedReader:

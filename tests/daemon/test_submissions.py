@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from contract_servers import KowalskiContract, SkyPortalContract, loopback_server
+from contract_servers import KowalskiContract, SkyPortalContract
 from daemon_helpers import notice_bytes
 from mushrooms.tool.config import Config, ConfigError, load_config
 from mushrooms.daemon.credentials import CredentialsError, load_submit_token
@@ -60,11 +60,8 @@ def _config(url: str, target: str = "kowalski", **submit) -> Config:
 
 
 @pytest.fixture
-def server():
-    s = loopback_server()
-    yield s
-    s.clear()
-    s.stop()
+def server(loopback):
+    return loopback
 
 
 @pytest.fixture
