@@ -45,7 +45,9 @@ from urllib.parse import quote, urlsplit
 import urllib3
 from urllib3.connection import HTTPConnection, HTTPSConnection
 
-__all__ = ["Answer", "Unreachable", "Request", "KowalskiQueue", "SkyPortalPlans", "make_client", "redact",
+from ..handlers.secret_text import redact
+
+__all__ = ["Answer", "Unreachable", "Request", "KowalskiQueue", "SkyPortalPlans", "make_client",
            "KOWALSKI_PATH", "SKYPORTAL_MANUAL_PATH", "ANSWER_BYTES"]
 
 KOWALSKI_PATH = "/api/triggers/ztf"
@@ -109,11 +111,6 @@ class Answer:
         if isinstance(self.data, dict) and isinstance(self.data.get("message"), str) and self.data["message"]:
             return self.data["message"][:ANSWER_CHARS]
         return self.problem or self.text
-
-
-def redact(text: str, token: str | None) -> str:
-    """``text`` with every occurrence of ``token`` replaced by ``***``."""
-    return text.replace(token, "***") if token else text
 
 
 class _Deadline:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 from urllib.parse import urlsplit
 
+from ..handlers.secret_text import refuse_url_credentials
 from ..scheduler_core.tables import dataclass_from_table
 
 __all__ = ["SubmitConfig", "SUBMIT_TARGETS"]
@@ -73,9 +74,8 @@ class SubmitConfig:
             parts = urlsplit(self.url)
             if parts.scheme not in ("http", "https") or not parts.netloc:
                 raise ValueError(f"[submit] url must be an http(s) URL for target {self.target!r}, got {self.url!r}")
-            if parts.username or parts.password:
-                raise ValueError("[submit] url must not carry credentials: the token comes from "
-                                 "MUSHROOMS_SUBMIT_TOKEN or the systemd credential submit_token")
+            refuse_url_credentials(self.url, "[submit] url", "the token comes from "
+                                   "MUSHROOMS_SUBMIT_TOKEN or the systemd credential submit_token")
         for name, low, high in (("timeout_s", 0.1, 600.0), ("retry_initial_s", 0.01, 86400.0),
                                 ("retry_max_s", 0.01, 86400.0), ("max_pending_s", 1.0, 86400.0)):
             value = float(getattr(self, name))
