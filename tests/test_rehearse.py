@@ -103,10 +103,10 @@ def test_a_live_copy_moves_every_clock_of_the_notice_to_now():
 
     raw = Path(demo_notice_path()).read_bytes()
     old = json.loads(raw)
-    now = dt.datetime(2030, 1, 2, 3, 4, 5, tzinfo=dt.timezone.utc)
+    now = dt.datetime(2026, 12, 2, 3, 4, 5, tzinfo=dt.timezone.utc)
     copy, times = live_copy(raw, now=now)
     doc = json.loads(copy)
-    assert doc["time_created"] == "2030-01-02T03:04:05.000Z" == times["created"]
+    assert doc["time_created"] == "2026-12-02T03:04:05.000Z" == times["created"]
     lead = (dt.datetime.fromisoformat(old["time_created"].replace("Z", "+00:00"))
             - dt.datetime.fromisoformat(old["event"]["time"].replace("Z", "+00:00"))).total_seconds()
     merger = dt.datetime.fromisoformat(doc["event"]["time"].replace("Z", "+00:00"))
@@ -118,7 +118,7 @@ def test_a_live_copy_moves_every_clock_of_the_notice_to_now():
 
 def test_a_late_update_keeps_at_most_ten_minutes_between_merger_and_notice():
     raw = (NOTICES / "MS181101ab-update.json").read_bytes()
-    now = dt.datetime(2030, 1, 2, tzinfo=dt.timezone.utc)
+    now = dt.datetime(2026, 12, 2, tzinfo=dt.timezone.utc)
     doc = json.loads(live_copy(raw, now=now)[0])
     merger = dt.datetime.fromisoformat(doc["event"]["time"].replace("Z", "+00:00"))
     assert 0 <= (now - merger).total_seconds() <= MAX_LEAD_S
@@ -133,7 +133,7 @@ def test_a_live_copy_refuses_what_is_not_a_notice(raw, why):
 
 def test_the_service_log_is_told_in_words_and_every_warning_is_told():
     line = parse_log_line("2026-12-05 23:10:00,123 INFO mushrooms.daemon.service: event=notice origin=kafka:x "
-                          "bytes=10 superevent_id=MS1 alert_type=PRELIMINARY action=ignore reason='too old: 3 d' "
+                          "bytes=10 superevent_id=MS1 alert_type=PRELIMINARY decision=ignore reason='too old: 3 d' "
                           "jobs_started=0 store_s=0.01")
     assert line is not None and line.event == "notice" and line.fields["reason"] == "too old: 3 d"
     assert log_words(line) == "notice MS1 PRELIMINARY received: ignore (too old: 3 d)"
@@ -142,3 +142,23 @@ def test_the_service_log_is_told_in_words_and_every_warning_is_told():
     odd = parse_log_line("2026-12-05 23:10:00,123 WARNING mushrooms.daemon.x: something   odd happened")
     assert log_words(odd) == "WARNING: something odd happened"
     assert parse_log_line("Traceback (most recent call last):") is None
+
+
+def test_trigger_and_status_show_the_summary_of_the_revision_they_made(tmp_path):
+    cfg = tmp_path / "config.toml"
+    cfg.write_text(GREEDY + "\n[policy]\nmax_notice_age_s = 0\nmax_event_age_s = 0\n")
+    state, outbox = tmp_path / "state.sqlite", tmp_path / "outbox"
+    run = lambda *a: subprocess.run([sys.executable, "-m", "mushrooms.cli", *a, "--config", str(cfg)],  # noqa: E731
+                                    capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    r = run("trigger", demo_notice_path(), "--allow-mock", "--state", str(state), "--outbox", str(outbox))
+    assert r.returncode == 0, r.stdout + r.stderr
+    plan = next(json.loads(p.read_text()) for p in outbox.glob("*.json"))
+    assert f"Revision   {plan['plan_id']} revision 1 (final)" in r.stdout
+    assert "Planned    " in r.stdout and "Distance   " in r.stdout
+    s = run("status", "--state", str(state))
+    assert s.returncode == 0, s.stdout + s.stderr
+    assert f"  in force: {plan['plan_id']}: {plan['metrics']['n_fields']} fields in g and r" in s.stdout
+    assert f"    Revision   {plan['plan_id']} revision 1 (final)" in s.stdout
+    doc = json.loads(run("status", "--state", str(state), "--json").stdout)
+    assert doc["events"][0]["current"]["plan_id"] == plan["plan_id"]
+    assert doc["events"][0]["current"]["summary"].startswith(f"Revision   {plan['plan_id']}")

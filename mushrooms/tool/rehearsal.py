@@ -113,8 +113,9 @@ class Rehearsal:
 
     def _judge(self, line: Any) -> None:
         f = line.fields
-        if line.event == "notice" and f.get("action") not in (None, "plan", "rerun"):
-            raise RehearsalFailed(f"the service did not plan the notice: {f.get('action')} ({f.get('reason', '')})")
+        decision = f.get("decision") or f.get("action")
+        if line.event == "notice" and decision not in ("plan", "rerun"):
+            raise RehearsalFailed(f"the service did not plan the notice: {decision} ({f.get('reason', '')})")
         if line.event == "job_failed":
             raise RehearsalFailed(f"planning failed at {f.get('stage', '?')}: {f.get('error', '')}")
         if line.event == "start_refused":

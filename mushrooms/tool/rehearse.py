@@ -109,17 +109,21 @@ def service_command(args: argparse.Namespace, bootstrap: str, out: Path) -> list
 
 
 def _describe_config(config: Any, args: argparse.Namespace, t0: float) -> None:
+    from ..handlers.secret_text import strip_userinfo
+
     sched, submit, loop, notify = config.scheduler, config.submit, config.loop, config.notify
-    say(f"configuration {config.source}: solver {sched.solver} ({sched.time_limit_s:g} s), objective "
-        f"{sched.objective}, nside {sched.nside}", t0)
+    budget = "" if sched.solver == "greedy" else f" ({sched.time_limit_s:g} s)"
+    say(f"configuration {config.source}: solver {sched.solver}{budget}, objective {sched.objective}, "
+        f"nside {sched.nside}", t0)
     if submit.enabled:
         dry = args.dry_run or submit.dry_run
-        say(f"submission: {submit.target} at {submit.url}" + (" as a DRY RUN" if dry else
-                                                               " -- REAL requests will be sent"), t0)
+        say(f"submission: {submit.target} at {strip_userinfo(submit.url)}"
+            + (" as a DRY RUN" if dry else " -- REAL requests will be sent"), t0)
     else:
         say("submission: off ([submit] target = \"none\")", t0)
-    say(f"loop: {'on, ' + loop.source if getattr(loop, 'enabled', False) else 'off'}; "
-        f"notifications: {notify.target}", t0)
+    source = strip_userinfo(loop.executed_source)
+    say(f"loop: {'on, executed exposures from ' + source if loop.enabled else 'off'}; notifications: "
+        + (f"{notify.target} webhook" if notify.enabled else "off"), t0)
     if config.outbound.sink != "directory":
         say(f"outbound: [outbound] sink = \"{config.outbound.sink}\" is replaced by the rehearsal's outbox", t0)
 

@@ -70,7 +70,7 @@ _WORDS: dict[str, Callable[[Mapping[str, str]], str]] = {
     "consuming": lambda f: f"service consuming {f.get('partitions', '-')}",
     "service_ready": lambda f: f"service ready after {f.get('startup_s', '?')} s",
     "notice": lambda f: (f"notice {f.get('superevent_id', '-')} {f.get('alert_type', '')} received: "
-                         f"{f.get('action') or f.get('kind') or '?'}"
+                         f"{f.get('decision') or f.get('action') or '?'}"
                          + (f" ({f['reason']})" if f.get("reason") else "")),
     "job_started": lambda f: f"planning {f.get('superevent_id', '-')}: the quick first plan",
     "job_optimising": lambda f: f"optimising {f.get('superevent_id', '-')} (the configured solver)",
@@ -89,8 +89,7 @@ _WORDS: dict[str, Callable[[Mapping[str, str]], str]] = {
     "start_refused": lambda f: f"the service REFUSED to start: {f.get('reason', '')}",
     "broker_unreachable": lambda f: f"broker unreachable ({f.get('client', '-')}): {f.get('error', '')}",
     "service_stopping": lambda f: "service stopping",
-    "service_stopped": lambda f: "service stopped" + (" (unfinished jobs left for the next start)"
-                                                      if f.get("unfinished_jobs") == "yes" else ""),
+    "jobs_left_pending": lambda f: "a job was still running at the stop: it resumes at the next start",
 }
 for _state in ("pending", "submitted", "replaced", "deleted", "rejected", "failed", "expired"):
     _WORDS[f"submission_{_state}"] = lambda f, s=_state: _submission(f, s)
