@@ -116,17 +116,28 @@ def draw_airmass(ax: Any, plan: Any, grid: dict[str, Any], executed: Sequence[An
               frameon=False)
 
 
+def _dark_span(hours: np.ndarray, dark: np.ndarray, busy: Sequence[float]) -> tuple[float, float]:
+    """Hours of the dark stretches (Sun below the horizon) holding an exposure (the longest without any)."""
+    edges = np.flatnonzero(np.diff(np.r_[0, dark.astype(int), 0]))
+    runs = [(float(hours[a]), float(hours[b - 1])) for a, b in zip(edges[::2], edges[1::2])]
+    kept = [r for r in runs if any(r[0] - 0.25 <= h <= r[1] + 0.25 for h in busy)]
+    if not kept and runs:
+        kept = [max(runs, key=lambda r: r[1] - r[0])]
+    ends = [h for r in kept for h in r] + list(busy)
+    return (min(ends), max(ends)) if ends else (0.0, float(hours[-1]))
+
+
 def _night_axis(ax: Any, plan: Any, hours: np.ndarray, sun_alt: np.ndarray) -> None:
-    """The x axis on the dark hours (Sun below the horizon) and every exposure, in UTC clock time."""
+    """The x axis on the night of the exposures (its dark hours, Sun below the horizon), ticks on the UTC hours."""
     from astropy import units as u
 
-    dark = hours[sun_alt < 0]
-    ends = [o.end / 3600.0 for o in plan.observations] + [o.start / 3600.0 for o in plan.observations]
-    lo = min([float(dark.min())] if dark.size else [] + ends or [0.0]) - 0.5
-    hi = max([float(dark.max())] if dark.size else [] + ends or [float(hours[-1])]) + 0.5
-    lo, hi = max(lo, 0.0), min(hi, float(hours[-1]))
+    busy = [o.start / 3600.0 for o in plan.observations] + [o.end / 3600.0 for o in plan.observations]
+    lo, hi = _dark_span(hours, sun_alt < 0, busy)
+    lo, hi = max(lo - 0.5, 0.0), min(hi + 0.5, float(hours[-1]))
     ax.set_xlim(lo, hi)
-    ticks = np.arange(np.ceil(lo), hi + 1e-9, 1.0)
+    past = (plan.start.utc.datetime.minute * 60 + plan.start.utc.datetime.second) / 3600.0  # into its UTC hour
+    first = np.ceil(lo + past) - past
+    ticks = np.arange(first, hi + 1e-9, 1.0 if hi - lo <= 14 else 2.0)
     ax.set_xticks(ticks, [(plan.start + t * u.hour).utc.isot[11:16] for t in ticks], fontsize=8)
     ax.set_xlabel("UTC", fontsize=8, labelpad=1)
 

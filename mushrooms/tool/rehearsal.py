@@ -170,10 +170,11 @@ class Rehearsal:
     def _summary(self) -> None:
         from ..report.summary import summary_text
 
+        from ..report.files import revision_in_force
+
         doc = self.final or {}
-        if doc.get("type") == "plan_final":
-            doc = next((d for d in self.outbox.documents.values()
-                        if d.get("type") == "plan" and d.get("plan_id") == doc.get("plan_id")), doc)
+        if doc.get("type") == "plan_final":  # the verdict makes the revision it names final
+            doc = revision_in_force(self.outbox.documents.values()) or doc
         if doc.get("type") not in ("plan", "not_observable"):
             return
         print("", flush=True)

@@ -36,10 +36,17 @@ def documents_since(conn: sqlite3.Connection, seq: int) -> list[dict[str, Any]]:
 
 
 def current_document(conn: sqlite3.Connection, superevent_id: str) -> dict[str, Any] | None:
-    """The event's newest revision that is not withdrawn (the one in force), or None."""
-    row = conn.execute("SELECT document FROM plans WHERE superevent_id = ? AND withdrawn = 0 ORDER BY seq DESC "
-                       "LIMIT 1", (superevent_id,)).fetchone()
-    return _doc(row[0]) if row else None
+    """The event's newest revision that is not withdrawn (the one in force), or None.
+
+    ``final`` is the state's: a revision a ``plan_final`` verdict closed is
+    final although its document, published before the verdict, says ``false``.
+    """
+    row = conn.execute("SELECT document, final FROM plans WHERE superevent_id = ? AND withdrawn = 0 "
+                       "ORDER BY seq DESC LIMIT 1", (superevent_id,)).fetchone()
+    doc = _doc(row[0]) if row else None
+    if doc is not None and doc.get("type") == "plan" and row[1]:
+        doc["final"] = True
+    return doc
 
 
 def read_state(path: Path, read: Any, default: Any) -> Any:
