@@ -4,8 +4,8 @@ each exposure is taken.
 Night (Sun below the plan's ``sun_alt_max_deg``) and twilight (Sun below the
 horizon) are shaded; a field's curve is thin and grey, its exposures are
 drawn on it in their filter's colour, and its id is written at its first
-exposure.  Exposures already executed (a re-plan) are drawn as hollow
-markers.  The Moon's altitude is given as an airmass curve while it is up.
+exposure.  Exposures already executed inside the plan's horizon are drawn
+as hollow markers (a re-plan's earlier ones are on the sky panels only).  The Moon's altitude is given as an airmass curve while it is up.
 """
 
 from __future__ import annotations
@@ -99,7 +99,7 @@ def draw_airmass(ax: Any, plan: Any, grid: dict[str, Any], executed: Sequence[An
             o = first[f]
             ax.annotate(str(f), (o.start / 3600.0, o.airmass or 1.0), xytext=(0, -9), textcoords="offset points",
                         fontsize=6.5, ha="center", va="top", color="#222", zorder=4)
-    _draw_executed(ax, plan, executed)
+    shown = _draw_executed(ax, plan, executed)
     moon = _airmass(grid["moon_alt"])
     ax.plot(hours, moon, color="#c9a400", lw=1.6, ls=(0, (4, 2)), zorder=2)
     ax.set_ylim(AIRMASS_TOP, 1.0)
@@ -110,7 +110,7 @@ def draw_airmass(ax: Any, plan: Any, grid: dict[str, Any], executed: Sequence[An
                       label=f"Moon ({grid['moon_illumination']:.0%} lit)")]
     handles += [Line2D([], [], color=FILTER_COLOURS.get(f, "k"), lw=3.5, label=f"{f} exposure")
                 for f in dict.fromkeys(o.filter for o in obs)]
-    if executed:
+    if shown:
         handles.append(Line2D([], [], color="k", marker="o", mfc="none", ls="none", label="executed before"))
     ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles), fontsize=8,
               frameon=False)
@@ -142,11 +142,15 @@ def _night_axis(ax: Any, plan: Any, hours: np.ndarray, sun_alt: np.ndarray) -> N
     ax.set_xlabel("UTC", fontsize=8, labelpad=1)
 
 
-def _draw_executed(ax: Any, plan: Any, executed: Sequence[Any]) -> None:
-    """Executed exposures inside the horizon, hollow, at their airmass (computed here)."""
-    inside = [e for e in executed if -3600.0 <= float((e.start - plan.start).to_value("s")) <= 86400.0]
+def _draw_executed(ax: Any, plan: Any, executed: Sequence[Any]) -> int:
+    """Executed exposures inside the horizon, hollow, at their airmass (computed here); how many were drawn.
+
+    Those before the plan's start (a re-plan starts after them) are on the sky panels only.
+    """
+    span = float((plan.end - plan.start).to_value("s"))
+    inside = [e for e in executed if 0.0 <= float((e.start - plan.start).to_value("s")) <= span]
     if not inside:
-        return
+        return 0
     from astropy import units as u
     from astropy.coordinates import AltAz, SkyCoord
 
@@ -164,3 +168,4 @@ def _draw_executed(ax: Any, plan: Any, executed: Sequence[Any]) -> None:
     hours = (t - plan.start).to_value("hour")
     for h, x, e in zip(hours, _airmass(alt), inside):
         ax.plot([h], [x], marker="o", ms=5, mfc="none", mec=FILTER_COLOURS.get(e.filter, "k"), mew=1.2, zorder=3)
+    return len(inside)

@@ -68,7 +68,9 @@ def test_the_replan_starts_after_the_start_repeats_no_done_pair_and_passes_the_c
             assert min(plan.absolute_time(o.start).unix for o in other) >= visits.earliest.unix + config.cadence_s - 1e-3
     m = doc["metrics"]
     assert m["coverage_executed"] > 0 and 0 < m["coverage"] and m["coverage"] + m["coverage_executed"] <= 1
-    assert "adds coverage" in r.stdout and "checked" in r.stdout
+    # the summary says what was done, what this plan adds and the total, in words
+    assert "Done       " in r.stdout and "Added      this plan adds" in r.stdout and "Total      " in r.stdout
+    assert " done (total " in r.stdout and "half-done fields completed" in r.stdout and "checked" in r.stdout
     queue = json.loads((out / "queue.json").read_text())
     queues = queue if isinstance(queue, list) else [queue]  # the set of timed queues, in submission order
     assert sum(len(q["targets"]) for q in queues) == len(doc["observations"])
