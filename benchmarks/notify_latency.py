@@ -2,9 +2,9 @@
 
 Usage::
 
-    nice -n 5 .venv/bin/python benchmarks/notify_latency.py [--events 5] [--out benchmarks/results/observer]
+    nice -n 5 .venv/bin/python benchmarks/notify_latency.py [--events 6] [--out benchmarks/results/observer]
 
-Runs the real ``mushrooms run`` twice with the default ``[scheduler]``
+Runs the real ``mushrooms run`` twice, side by side, with the default ``[scheduler]``
 (nside 256, hybrid, the 14 s optimisation) on the loopback mock Kafka
 broker, ``[notify] target = "json"`` and ``[submit] target = "kowalski"``
 pointed at a closed port on 127.0.0.1 (Kowalski's stand-in is down):
@@ -14,11 +14,12 @@ pointed at a closed port on 127.0.0.1 (Kowalski's stand-in is down):
 * ``hanging``: the webhook is a socket that accepts every connection and
   never answers (each POST waits for ``[notify] timeout_s`` = 5 s, the default).
 
-Each run gets the same notices one after the other: live copies of the shared
-preliminaries (``mushrooms.tool.live_notice``: created now, the merger its
-original lead before), each with a fresh superevent id; the next is sent once
-the previous one's plan is final (so the optimiser of one event does not
-slow the next).  The latency is the daemon's own, ``event=job_first_plan
+Both get the same notices, one at a time, the arms alternating (healthy,
+hanging, then hanging, healthy, ...: on a shared machine both see the same
+load): live copies of the shared preliminaries (``mushrooms.tool.live_notice``:
+created now, the merger its original lead before), each with a fresh
+superevent id; the next is sent once the previous job is done (so the
+optimiser of one event does not slow the next).  The latency is the daemon's own, ``event=job_first_plan
 ... latency_s`` (notice consumed -> revision 1 stored).  The machine is
 shared: the load average is printed beside the numbers.
 """
@@ -113,58 +114,81 @@ def sid(tag: str, i: int) -> str:
     return f"MS{datetime.now(timezone.utc):%y%m%d}{tag}{a[i // 26 % 26]}{a[i % 26]}"
 
 
-def run(broker: Broker, work: Path, label: str, hook_url: str, events: int) -> tuple[list[float], str]:
-    """First-plan latencies (s) of ``events`` notices, and the daemon's log."""
-    topic = f"gwalert-{label}-{time.time_ns()}"
-    broker.ensure_topic(topic)
-    cfg = work / f"{label}.toml"
-    cfg.write_text(CONFIG.format(topic=topic, group=f"bench-{label}-{time.time_ns()}", outbox=work / f"out-{label}",
-                                 closed=closed_port()))
-    d = Daemon(work, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(work / f"{label}.sqlite")],
-               env={"MUSHROOMS_SUBMIT_TOKEN": "bench-token", "MUSHROOMS_NOTIFY_URL": hook_url})
-    try:
-        d.wait_log("event=service_ready", 600)
-        latencies = []
-        for i in range(events):
-            s = sid(label[0], i)
-            notice, _ = live_copy(notice_path(NOTICES[i % len(NOTICES)]).read_bytes(), superevent_id=s)
-            broker.produce(topic, notice, key=s.encode())
-            text = d.wait_log(f"event=job_first_plan superevent_id={s} ", 300)
-            m = re.search(rf"event=job_first_plan superevent_id={s} .*?latency_s=([0-9.]+)", text)
-            latencies.append(float(m.group(1)))
-            d.wait_log(f"event=job_done superevent_id={s} ", 300)
-            print(f"  [{label}] {s}: first plan {latencies[-1]:.3f} s, load {os.getloadavg()[0]:.1f}", flush=True)
-        return latencies, d.text()
-    finally:
-        d.stop()
+class Arm:
+    """One daemon, its webhook, its notices."""
+
+    def __init__(self, broker: Broker, work: Path, label: str, hook_url: str) -> None:
+        self.broker, self.label = broker, label
+        self.tag = {"healthy": "h", "hanging": "g"}[label]  # superevent ids: MS<date><tag><2 letters>
+        work = work / label  # a daemon's pid file and trigger directory live beside its state
+        work.mkdir()
+        self.topic = f"gwalert-{label}-{time.time_ns()}"
+        broker.ensure_topic(self.topic)
+        cfg = work / f"{label}.toml"
+        cfg.write_text(CONFIG.format(topic=self.topic, group=f"bench-{label}-{time.time_ns()}",
+                                     outbox=work / f"out-{label}", closed=closed_port()))
+        self.daemon = Daemon(work, ["--config", str(cfg), "--bootstrap", broker.bootstrap,
+                                    "--state", str(work / f"{label}.sqlite")],
+                             env={"MUSHROOMS_SUBMIT_TOKEN": "bench-token", "MUSHROOMS_NOTIFY_URL": hook_url})
+        self.latencies: list[float] = []
+        self.loads: list[float] = []
+
+    def one(self, i: int) -> None:
+        """Send notice ``i`` (a live copy), wait for its first plan and for the end of its job."""
+        d = self.daemon
+        s = sid(self.tag, i)
+        notice, _ = live_copy(notice_path(NOTICES[i % len(NOTICES)]).read_bytes(), superevent_id=s)
+        self.loads.append(os.getloadavg()[0])
+        self.broker.produce(self.topic, notice, key=s.encode())
+        text = d.wait_log(f"event=job_first_plan superevent_id={s} ", 300)
+        m = re.search(rf"event=job_first_plan superevent_id={s} .*?latency_s=([0-9.]+)", text)
+        self.latencies.append(float(m.group(1)))
+        d.wait_log(f"event=job_done superevent_id={s} ", 300)
+        print(f"  [{self.label}] {s}: first plan {self.latencies[-1]:.3f} s, load {self.loads[-1]:.1f}", flush=True)
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--events", type=int, default=5)
+    ap.add_argument("--events", type=int, default=6)
     ap.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "observer")
     args = ap.parse_args()
     broker = Broker()
     server = loopback_server()
     server.expect_request(HOOK_PATH, method="POST").respond_with_data("ok")
     silent = SilentListener()
+    load = os.getloadavg()
     lines = [f"# notify_latency.py {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC, {os.cpu_count()} cores, "
-             f"load before {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}", ""]
-    results = {}
+             f"load before {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}",
+             "both daemons run side by side; notices go to one at a time, the arms' order alternating "
+             "(healthy, hanging, hanging, healthy, ...), each sent once the previous job is done", ""]
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        for label, url in [("healthy", server.url_for(HOOK_PATH)), ("hanging", f"http://127.0.0.1:{silent.port}"
-                                                                             f"{HOOK_PATH}")]:
-            load0 = os.getloadavg()[0]
-            results[label], text = run(broker, work, label, url, args.events)
-            lines.append(f"{label:8s} first-plan latency_s: {' '.join(f'{x:.3f}' for x in results[label])}  "
-                         f"median {statistics.median(results[label]):.3f}  (load {load0:.1f} -> "
-                         f"{os.getloadavg()[0]:.1f})")
-            lines.append(f"         log: notify_sent {text.count('event=notify_sent')}, notify_failed "
-                         f"{text.count('event=notify_failed')}, notify_dropped {text.count('event=notify_dropped')}, "
-                         f"the webhook's secret path in the log: {'YES' if 's3cr3t' in text else 'no'}")
-    ratio = statistics.median(results["hanging"]) / statistics.median(results["healthy"])
-    lines += [f"hanging / healthy median: {ratio:.2f}", f"connections the silent webhook held: {len(silent.held)}",
+        arms = [Arm(broker, work, "healthy", server.url_for(HOOK_PATH)),
+                Arm(broker, work, "hanging", f"http://127.0.0.1:{silent.port}{HOOK_PATH}")]
+        try:
+            for arm in arms:
+                arm.daemon.wait_log("event=service_ready", 600)
+            for i in range(args.events):
+                for arm in (arms if i % 2 == 0 else arms[::-1]):
+                    arm.one(i)
+        finally:
+            texts = {arm.label: arm.daemon.text() for arm in arms}
+            for arm in arms:
+                arm.daemon.stop()
+    for arm in arms:
+        text = texts[arm.label]
+        lines.append(f"{arm.label:8s} first-plan latency_s: {' '.join(f'{x:.3f}' for x in arm.latencies)}  "
+                     f"median {statistics.median(arm.latencies):.3f}  (load at each send: "
+                     f"{' '.join(f'{x:.1f}' for x in arm.loads)})")
+        lines.append(f"         log: notify_sent {text.count('event=notify_sent')}, notify_failed "
+                     f"{text.count('event=notify_failed')}, notify_dropped {text.count('event=notify_dropped')}, "
+                     f"the webhook's secret path in the log: {'YES' if 's3cr3t' in text else 'no'}")
+    healthy, hanging = arms[0].latencies, arms[1].latencies
+    diffs = [b - a for a, b in zip(healthy, hanging)]
+    lines += [f"hanging - healthy, paired by notice: median {statistics.median(diffs):+.3f} s "
+              f"({' '.join(f'{x:+.2f}' for x in diffs)}); medians' ratio "
+              f"{statistics.median(hanging) / statistics.median(healthy):.2f}",
+              f"connections the silent webhook held: {len(silent.held)}",
               "", "## what the healthy webhook received (JSON target), in order"]
     import json
 

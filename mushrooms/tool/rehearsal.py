@@ -61,6 +61,8 @@ class Rehearsal:
         self.proc: subprocess.Popen | None = None
         self.sent_at: float | None = None
         self.final: dict[str, Any] | None = None
+        self.final_after_s = 0.0
+        self.answer = ""
         self.events: list[Any] = []
 
     def say(self, text: str) -> None:
@@ -110,6 +112,7 @@ class Rehearsal:
                 self.say(words + after)
             if is_final(doc) and self.final is None:
                 self.final = doc
+                self.final_after_s = time.monotonic() - (self.sent_at or self.t0)
 
     def _judge(self, line: Any) -> None:
         f = line.fields
@@ -177,6 +180,11 @@ class Rehearsal:
             doc = revision_in_force(self.outbox.documents.values()) or doc
         if doc.get("type") not in ("plan", "not_observable"):
             return
+        from ..report.summary import answer_line
+
+        sid = (doc.get("event") or {}).get("superevent_id") or "-"
+        self.answer = (f"{sid} revision {doc.get('revision', 1)} final {self.final_after_s:.1f} s after the "
+                       f"notice: {answer_line(doc)}")
         print("", flush=True)
         print(summary_text(doc, rows=False), flush=True)
         stem = self.out / "outbox" / str(doc.get("plan_id"))
@@ -206,7 +214,9 @@ class Rehearsal:
                 print(f"mushrooms rehearse: error: the service ended with status {proc.returncode}"
                       f"{self._last_error()}", file=sys.stderr, flush=True)
             return 1
-        self.say("service stopped cleanly (exit 0)" + (f"; rehearsal done: {self.out}" if ok else ""))
+        self.say("service stopped cleanly (exit 0)")
+        if ok:
+            self.say(f"rehearsal passed: {self.answer or 'the plan is final'}; everything in {self.out}")
         return 0
 
     def _look_quietly(self) -> None:
