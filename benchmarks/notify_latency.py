@@ -46,23 +46,15 @@ from daemon_helpers import Broker, Daemon, notice_path  # noqa: E402
 
 from mushrooms.tool.live_notice import live_copy  # noqa: E402
 
+sys.path.insert(0, str(REPO / "benchmarks"))
+from submit_latency import CONFIG  # noqa: E402  (policy, loopback input, directory outbox, then {submit})
+
 NOTICES = ["MS181101ab-preliminary.json", "MS230425l-preliminary.json", "MS260605l-preliminary.json"]
 HOOK_PATH = "/hook/s3cr3t"
 
-CONFIG = """
-[policy]
-allow_mock = true
-
-[kafka]
-topics = ["{topic}"]
-group_id = "{group}"
-assignment = "manual"
-poll_timeout_s = 0.5
-
-[outbound]
-sink = "directory"
-directory = "{outbox}"
-
+#: The daemon's sections after submit_latency.py's (mock broker input, directory outbox): the webhook, and
+#: Kowalski's stand-in at a closed port.
+NOTIFY_AND_SUBMIT = """
 [notify]
 target = "json"
 
@@ -126,7 +118,8 @@ class Arm:
         broker.ensure_topic(self.topic)
         cfg = work / f"{label}.toml"
         cfg.write_text(CONFIG.format(topic=self.topic, group=f"bench-{label}-{time.time_ns()}",
-                                     outbox=work / f"out-{label}", closed=closed_port()))
+                                     outbox=work / f"out-{label}",
+                                     submit=NOTIFY_AND_SUBMIT.format(closed=closed_port())))
         self.daemon = Daemon(work, ["--config", str(cfg), "--bootstrap", broker.bootstrap,
                                     "--state", str(work / f"{label}.sqlite")],
                              env={"MUSHROOMS_SUBMIT_TOKEN": "bench-token", "MUSHROOMS_NOTIFY_URL": hook_url})

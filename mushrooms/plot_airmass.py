@@ -5,7 +5,8 @@ Night (Sun below the plan's ``sun_alt_max_deg``) and twilight (Sun below the
 horizon) are shaded; a field's curve is thin and grey, its exposures are
 drawn on it in their filter's colour, and its id is written at its first
 exposure.  Exposures already executed inside the plan's horizon are drawn
-as hollow markers (a re-plan's earlier ones are on the sky panels only).  The Moon's altitude is given as an airmass curve while it is up.
+as hollow markers (a re-plan's earlier ones are on the sky panels only).
+The Moon's altitude is given as an airmass curve while it is up.
 """
 
 from __future__ import annotations
