@@ -164,3 +164,43 @@ def test_trigger_and_status_show_the_summary_of_the_revision_they_made(tmp_path)
     doc = json.loads(run("status", "--state", str(state), "--json").stdout)
     assert doc["events"][0]["current"]["plan_id"] == plan["plan_id"]
     assert doc["events"][0]["current"]["summary"].startswith(f"Revision   {plan['plan_id']}")
+
+
+def test_a_rehearsal_killed_with_sigkill_takes_its_service_down(tmp_path):
+    import re
+    import signal
+    import time
+
+    cfg = tmp_path / "config.toml"
+    cfg.write_text(GREEDY)
+    out, said = tmp_path / "rehearsal", tmp_path / "said.txt"
+    with open(said, "wb") as fh:
+        proc = subprocess.Popen([sys.executable, "-m", "mushrooms.cli", "rehearse", "--config", str(cfg), "--out",
+                                 str(out)], stdout=fh, stderr=subprocess.STDOUT, cwd=tmp_path)
+    try:
+        end = time.monotonic() + 300
+        while "service ready after" not in said.read_text():  # killed while it waits for the service to consume
+            assert proc.poll() is None and time.monotonic() < end, said.read_text()
+            time.sleep(0.1)
+        service = int(re.search(r"service started \(pid (\d+)\)", said.read_text()).group(1))
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(10)
+        assert "stopping the service" not in said.read_text()  # the rehearsal died before it could stop it
+        end = time.monotonic() + 120
+        while "event=service_stopped" not in (out / "service.log").read_text():
+            assert time.monotonic() < end, (out / "service.log").read_text()[-3000:]
+            time.sleep(0.2)
+        end = time.monotonic() + 30
+        while os.path.exists(f"/proc/{service}") and "zombie" not in _state(service):
+            assert time.monotonic() < end, "the service outlived its rehearsal"
+            time.sleep(0.2)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+def _state(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/status").read_text().split("State:")[1].split("\n")[0].lower()
+    except (OSError, IndexError):
+        return "zombie"

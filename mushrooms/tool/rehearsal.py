@@ -32,6 +32,10 @@ _NOTIFY_OUTCOMES = {"notify_sent", "notify_failed", "notify_dropped"}
 _ANNOUNCED = ("plan", "plan_final", "not_observable", "withdrawal", "submission")
 
 
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
 class RehearsalFailed(Exception):
     """The rehearsal cannot go on; ``str()`` is the one line to print."""
 
@@ -72,8 +76,10 @@ class Rehearsal:
         """Start the service, ``send()`` once it consumes, watch until final; the exit status."""
         env = {k: v for k, v in os.environ.items() if k not in _SYSTEMD_ENV}
         with open(self.out / "service.log", "wb") as fh:
+            # a session of its own: Ctrl-C reaches the rehearsal, which stops the service in order
             self.proc = subprocess.Popen(self.command, stdout=fh, stderr=subprocess.STDOUT, env=env,
-                                         start_new_session=True)  # Ctrl-C reaches the rehearsal, which stops it
+                                         start_new_session=True)
+        previous = signal.signal(signal.SIGTERM, _interrupt)  # a SIGTERM stops the service too
         self.say(f"service started (pid {self.proc.pid}); its log: {self.out / 'service.log'}")
         self.deadline = time.monotonic() + self.timeout_s
         try:
@@ -91,6 +97,8 @@ class Rehearsal:
             self._stop(ok=False)
             print("mushrooms rehearse: interrupted", file=sys.stderr, flush=True)
             return 130
+        finally:
+            signal.signal(signal.SIGTERM, previous)
         return self._stop()
 
     # ------------------------------------------------------------ watching

@@ -94,9 +94,27 @@ def _notice_bytes(given: str | None) -> tuple[str, bytes]:
     return path, read_regular_file(path, 64 * 1024 * 1024, what="notice")
 
 
+#: The service's interpreter start: on Linux it asks for SIGTERM when its parent (the rehearsal) dies, even
+#: of SIGKILL (``PR_SET_PDEATHSIG`` = 1), and leaves at once if the parent is already gone; then ``mushrooms``.
+_DIE_WITH_PARENT = """
+import ctypes, os, signal, sys
+parent = int(sys.argv.pop(1))
+try:
+    ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)
+except (OSError, AttributeError):
+    pass
+if os.getppid() != parent:
+    sys.exit(1)
+from mushrooms.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
 def service_command(args: argparse.Namespace, bootstrap: str, out: Path) -> list[str]:
-    """The ``mushrooms run`` command line of the rehearsal's service."""
-    cmd = [sys.executable, "-m", "mushrooms.cli", "--log-level", "INFO", "run"]
+    """The ``mushrooms run`` command line of the rehearsal's service (it stops when the rehearsal dies)."""
+    import os
+
+    cmd = [sys.executable, "-c", _DIE_WITH_PARENT, str(os.getpid()), "--log-level", "INFO", "run"]
     if getattr(args, "config", None):
         cmd += ["--config", str(Path(args.config).resolve())]
     sets = list(getattr(args, "set", None) or ()) + list(REHEARSAL_SETS)
