@@ -38,7 +38,7 @@ from daemon_helpers import Broker  # noqa: E402
 CHILD = r"""
 import json, sys, time
 import confluent_kafka
-from mushrooms.daemon.consumer import consumer_config
+from mushrooms.daemon.kafka.consumer import consumer_config
 from mushrooms.daemon.settings import KafkaConfig
 
 bootstrap, topic, group, session_s, then, instance = sys.argv[1:7]

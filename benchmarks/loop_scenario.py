@@ -7,7 +7,7 @@
 
 MS181101ab's PRELIMINARY notice (tests/data/notices/json), re-dated as if sent
 live at 2023-04-15T02:55Z (a good night for its map), planned by
-:class:`~mushrooms.daemon.pipeline.NoticePipeline` on a real SQLite state with
+:class:`~mushrooms.daemon.intake.pipeline.NoticePipeline` on a real SQLite state with
 the configuration given (default: the built-in one, the daemon's: hybrid at
 nside 256; ``--fast``: the tests' greedy at nside 64).  The poll and the
 closure use the night's clock (the 10th exposure's end + 60 s), so the run
@@ -45,11 +45,11 @@ def main(argv: list[str] | None = None) -> int:
 
     from astropy.time import Time, TimeDelta
 
-    from mushrooms.daemon.loop import ExecutedLoop
-    from mushrooms.daemon.pipeline import NoticePipeline
+    from mushrooms.daemon.loop.poll import ExecutedLoop
+    from mushrooms.daemon.intake.pipeline import NoticePipeline
     from mushrooms.daemon.sinks import MemorySink
-    from mushrooms.daemon.store import Store
-    from mushrooms.daemon.trigger import closure_payload
+    from mushrooms.daemon.state.store import Store
+    from mushrooms.daemon.intake.trigger import closure_payload
     from mushrooms.handlers.executed import write_jsonl
     from mushrooms.offline import configure_astropy_offline
     from mushrooms.scheduler_core.executed import ExecutedExposure, done_pairs

@@ -3,7 +3,7 @@
 Main thread: consume one notice, store the decision (durable), start or
 supersede the superevent's planning job, then commit the offset; handle
 signals and triggers between polls.  Worker threads plan and publish
-(:mod:`.jobs`).  APScheduler runs deadlines, outbox retries, the heartbeat
+(:mod:`~mushrooms.daemon.planning.jobs`).  APScheduler runs deadlines, outbox retries, the heartbeat
 and the systemd watchdog ping.
 
 Signals: SIGTERM/SIGINT stop cleanly (the notice in hand is finished and
@@ -26,14 +26,14 @@ from typing import Any, Callable
 
 from apscheduler.schedulers.background import BackgroundScheduler
 
-from .jobs import JobRunner, OutboxDrain
-from .notify import Notifier, watchdog_interval_s
+from .planning.jobs import JobRunner, OutboxDrain
+from .ops.systemd import Notifier, watchdog_interval_s
 from .sections import ServiceConfig
 from .settings import RuntimePaths, resolve_paths
-from .trigger import (
+from .intake.trigger import (
     DaemonRunning, PidLock, dispatch, outcome_result, pending_triggers, read_trigger, write_result,
 )
-from .announce import job_failed, submission_trouble
+from .ops.announce import job_failed, submission_trouble
 from .wiring import make_sink, open_pipeline, private_dir
 
 __all__ = ["main", "Service", "setup_logging", "EXIT_STATE"]
@@ -125,7 +125,7 @@ class Service:
         #: starting -> warming -> running -> stopping (``/healthz``, ``/readyz``)
         self.phase = "starting"
         from .. import __version__
-        from .metrics import ServiceMetrics
+        from .ops.metrics import ServiceMetrics
 
         #: the Prometheus registry and the hooks (docs/operations.md); served when metrics_address is set
         self.metrics = ServiceMetrics(__version__, self.paths.state)
@@ -188,8 +188,8 @@ class Service:
 
     def _open_state(self, opened: "_Opened") -> int | None:
         """Open the pipeline on the state file and lock it; the exit status of a refused start, else None."""
-        from .store import StateInUse, StoreError, lock_state
-        from .warm import SkyCache
+        from .state.store import StateInUse, StoreError, lock_state
+        from .planning.warm import SkyCache
 
         self.sky_cache = SkyCache()
         self.outbox = OutboxDrain(self._flush_outbox, self.config.outbound.retry_initial_s,
@@ -211,7 +211,7 @@ class Service:
         """Metrics, the submitter, the warm-up, the job runner; then what a crash left (outbox, jobs, triggers)."""
         self._observe()
         self._prune_raw()
-        from .submissions import open_submitter
+        from .submission.submitter import open_submitter
 
         opened = open_submitter(self.config.submit, self.config.export, self.pipeline.store, submit_token,
                                 on_outbox=self.outbox.kick, on_result=self._submission_result,
@@ -239,7 +239,7 @@ class Service:
         if resumed:
             log.info("event=jobs_resumed count=%d", resumed)
         self._scan_triggers()
-        from .consumer import NoticeConsumer
+        from .kafka.consumer import NoticeConsumer
 
         self.consumer = NoticeConsumer(self.config.kafka, on_offset_jump=self._offset_jump,
                                        instance_id=self._instance_id(self.config))
@@ -467,7 +467,7 @@ class Service:
             log.info("event=night_replans nights=%d poll_interval_s=%g source=none", nights, every)
         if loop is None or not loop.enabled:
             return
-        from .loop import ExecutedLoop
+        from .loop.poll import ExecutedLoop
 
         self.executed_loop = ExecutedLoop(loop, self.pipeline, token)
         self.scheduler.add_job(self._poll_executed, "interval", seconds=loop.poll_interval_s, id="executed",
@@ -483,7 +483,7 @@ class Service:
             return
         from astropy.time import Time
 
-        from .night_replans import record_night_replans
+        from .loop.nights import record_night_replans
 
         try:
             accepted = record_night_replans(self.pipeline, Time.now())
@@ -514,7 +514,7 @@ class Service:
     # ------------------------------------------------------------ observability
     def _observe(self) -> None:
         """Count what the sink publishes, and open the metrics/health listener when configured."""
-        from .metrics import ObservedSink
+        from .ops.metrics import ObservedSink
 
         if not isinstance(self.pipeline.sink, ObservedSink):
             self.pipeline.sink = ObservedSink(self.pipeline.sink, self.metrics, self.pipeline.store.received_wall)
@@ -528,7 +528,7 @@ class Service:
         address = self.config.daemon.metrics_address
         if not address or self.listener is not None:
             return
-        from .health import LIVENESS_DEFAULT_S, HealthServer, liveness, service_checks
+        from .ops.health import LIVENESS_DEFAULT_S, HealthServer, liveness, service_checks
         from .settings import parse_address
 
         host, port = parse_address(address)
@@ -706,7 +706,7 @@ class Service:
         if resolve_paths(new.daemon) != self.paths:
             log.warning("event=reload_partial reason='state, trigger and pid paths change only at restart'")
             new = dataclasses.replace(new, daemon=dataclasses.replace(new.daemon, state_path=str(self.paths.state)))
-        from .pipeline import NoticePipeline
+        from .intake.pipeline import NoticePipeline
 
         self.pipeline = NoticePipeline(new.policy, new.scheduler, self.pipeline.store, sink, daemon=new.daemon,
                                        sky_cache=self.sky_cache, on_outbox=self._queued,
@@ -717,7 +717,7 @@ class Service:
             log.warning("event=reload_partial reason='[submit] changes apply at the next start'")
         self._observe()
         if new.kafka != self.config.kafka:
-            from .consumer import NoticeConsumer
+            from .kafka.consumer import NoticeConsumer
 
             self.consumer.close()
             self.consumer = NoticeConsumer(new.kafka, on_offset_jump=self._offset_jump,

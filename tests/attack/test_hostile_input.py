@@ -12,9 +12,9 @@ import json
 
 import pytest
 
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 from mushrooms.handlers.alert import NoticeError, parse_notice
 from mushrooms.scheduler_core import read_skymap
 from mushrooms.scheduler_core.errors import SkyMapError

@@ -9,9 +9,9 @@ import json
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 
 from attack_helpers import FAST, NOTICES, base_doc, received_at
 

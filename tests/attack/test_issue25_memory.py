@@ -18,9 +18,9 @@ from pathlib import Path
 
 import pytest
 
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 
 from attack_helpers import FAST, MOC_MAP, amplifying_map, grown_gzip, joint_notice, received_at
 

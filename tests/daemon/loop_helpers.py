@@ -18,11 +18,11 @@ from typing import Any, Sequence
 
 from astropy.time import Time, TimeDelta
 
-from mushrooms.daemon.loop import ExecutedLoop
-from mushrooms.daemon.loop_settings import LoopConfig
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.loop.poll import ExecutedLoop
+from mushrooms.daemon.loop.settings import LoopConfig
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 from mushrooms.handlers.executed import write_jsonl
 from mushrooms.handlers.policy import PolicyConfig
 from mushrooms.scheduler_core import PlanningConfig

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from mushrooms.daemon.consumer import NoticeConsumer, consumer_config
+from mushrooms.daemon.kafka.consumer import NoticeConsumer, consumer_config
 from mushrooms.daemon.settings import KafkaConfig, group_instance_id
 
 

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import SCHEMA_VERSION, Store
+from mushrooms.daemon.state.store import SCHEMA_VERSION, Store
 from mushrooms.handlers.policy import PolicyConfig
 from mushrooms.scheduler_core import PlanningConfig
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import pytest
 from apscheduler.schedulers.background import BackgroundScheduler
 
-from mushrooms.daemon.jobs import JobRunner, OutboxDrain, Staged
+from mushrooms.daemon.planning.jobs import JobRunner, OutboxDrain, Staged
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from mushrooms.daemon.jobs import JobRunner
+from mushrooms.daemon.planning.jobs import JobRunner
 
 from test_jobs import Job, scheduler, wait  # noqa: F401  (the fixture)
 

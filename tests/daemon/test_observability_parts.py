@@ -18,11 +18,11 @@ from prometheus_client.parser import text_string_to_metric_families
 from daemon_helpers import notice_bytes
 
 from mushrooms.cli import main as cli_main
-from mushrooms.daemon.consumer import NoticeConsumer
-from mushrooms.daemon.health import HealthServer, liveness, store_check
-from mushrooms.daemon.metrics import REJECTION_CLASSES, ServiceMetrics, rejection_class
+from mushrooms.daemon.kafka.consumer import NoticeConsumer
+from mushrooms.daemon.ops.health import HealthServer, liveness, store_check
+from mushrooms.daemon.ops.metrics import REJECTION_CLASSES, ServiceMetrics, rejection_class
 from mushrooms.daemon.settings import KafkaConfig, parse_address
-from mushrooms.daemon.store import NoticeRecord, Store
+from mushrooms.daemon.state.store import NoticeRecord, Store
 from mushrooms.handlers.alert import NoticeError, parse_notice
 from mushrooms.handlers.decisions import Decision
 

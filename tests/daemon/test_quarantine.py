@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mushrooms.daemon.consumer import Received
+from mushrooms.daemon.kafka.consumer import Received
 from mushrooms.daemon.service import Service
 from mushrooms.daemon.settings import resolve_paths
 from mushrooms.daemon.wiring import open_pipeline
