@@ -218,11 +218,14 @@ def test_the_service_prunes_planned_raw_bytes_with_the_configured_retention() ->
 
     cfg = load_config(None)
     assert cfg.daemon.planned_raw_retention_s == 604800.0
-    import inspect
+    from types import SimpleNamespace
 
-    from mushrooms.daemon import service
+    from mushrooms.daemon.timers import Timers
 
-    assert "planned_raw_retention_s" in inspect.getsource(service.Service._prune_raw)
+    asked = []
+    store = SimpleNamespace(prune_raw=lambda rejected_s, planned_s: asked.append((rejected_s, planned_s)) or 0)
+    Timers(SimpleNamespace(config=cfg, pipeline=SimpleNamespace(store=store))).prune_raw()
+    assert asked == [(cfg.daemon.rejected_raw_retention_s, 604800.0)]
 
 
 def test_a_retraction_before_any_notice_of_its_event_keeps_older_notices_unplanned(tmp_path: Path) -> None:

@@ -210,7 +210,7 @@ def test_rejected_messages_keep_only_a_prefix_and_are_pruned(tmp_path: Path) -> 
 def test_no_outbox_retry_touches_the_store_once_it_is_closed(tmp_path: Path, caplog) -> None:
     import time
 
-    from mushrooms.daemon.planning.jobs import OutboxDrain
+    from mushrooms.daemon.drain import OutboxDrain
     from mushrooms.daemon.service import Service
 
     config = _service_config(None, outbox=str(tmp_path / "out"), state=str(tmp_path / "s.sqlite"))

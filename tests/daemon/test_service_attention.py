@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from mushrooms.daemon.ops.health import HealthServer
-from mushrooms.daemon.planning.jobs import OutboxDrain
+from mushrooms.daemon.drain import OutboxDrain
 from mushrooms.daemon.ops.metrics import ServiceMetrics
 from mushrooms.daemon.state.store import Store
 from test_submissions import SID, World, _config, kowalski, server  # noqa: F401 (fixtures)

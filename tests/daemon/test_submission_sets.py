@@ -17,7 +17,7 @@ import time
 
 import pytest
 
-from mushrooms.daemon.planning.jobs import OutboxDrain
+from mushrooms.daemon.drain import OutboxDrain
 from mushrooms.daemon.submission.submitter import gate, submissions
 from mushrooms.scheduler_core.plan import exports
 from mushrooms.scheduler_core.plan.exports import ExportConfig

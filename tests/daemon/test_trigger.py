@@ -163,7 +163,8 @@ class RecordingConsole:
 def test_run_trigger_is_a_library_call_that_prints_nothing(tmp_path: Path, capsys) -> None:
     # the daemon layer tells its console; only the tool prints (mushrooms trigger's PrintConsole)
     from mushrooms.daemon.settings import resolve_paths
-    from mushrooms.daemon.intake.trigger import classify, run_trigger
+    from mushrooms.daemon.intake.trigger import classify
+    from mushrooms.daemon.intake.trigger_command import run_trigger
     from mushrooms.tool.config import load_config
     from mushrooms.tool.overrides import override_config
 

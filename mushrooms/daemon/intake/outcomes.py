@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["EventRef", "Outcome", "Accepted"]
+__all__ = ["EventRef", "Outcome", "Accepted", "log_fields"]
 
 
 @dataclass(frozen=True)
@@ -144,3 +144,24 @@ class Accepted(_Refers):
         """The final outcome of a decision that needs no planning."""
         return Outcome(self.action, self.ref, self.reason, plan_id=self.plan_id, plan_ids=self.plan_ids,
                        published=published)
+
+
+def log_fields(decision: Any) -> str:
+    """A decision as ``key=value`` fields of a log line (``decision=plan superevent_id=... reason='...'``).
+
+    ``decision`` is an :class:`Accepted`, a handlers ``Decision``, a result
+    dict, or None (a message quarantined before a decision).
+    """
+    if decision is None:
+        return "decision=quarantined"
+    fields = []
+    for name in ("superevent_id", "alert_type", "action", "kind", "reason", "plan_id"):
+        value = getattr(decision, name, None)
+        if value is None and isinstance(decision, dict):
+            value = decision.get(name)
+        if value is not None:
+            value = getattr(value, "value", value)
+            text = str(value)
+            fields.append(f"{'decision' if name in ('action', 'kind') else name}="
+                          + (repr(text) if " " in text or not text else text))
+    return " ".join(fields) or f"decision={decision!r}"

@@ -10,10 +10,14 @@ from __future__ import annotations
 import logging
 import os
 import socket
+import time
+from typing import Collection, Sequence
 
-__all__ = ["Notifier", "watchdog_interval_s"]
+__all__ = ["Notifier", "Readiness", "watchdog_interval_s"]
 
 log = logging.getLogger("mushrooms.daemon.notify")
+#: the service's own log lines (consuming or not)
+service_log = logging.getLogger("mushrooms.daemon")
 
 
 def watchdog_interval_s(environ: dict[str, str] | None = None) -> float | None:
@@ -98,3 +102,54 @@ class Notifier:
     def stopping(self) -> bool:
         """STOPPING=1: a clean stop has begun."""
         return self.send("STOPPING=1")
+
+
+class Readiness:
+    """READY=1 once the consumer group assigned partitions (or after ``wait_s``), STATUS on every change.
+
+    Tells systemd the truth: a daemon that consumes nothing says so in its
+    status line, and is ready only when it consumes (or has waited long
+    enough that systemd must not time the start out).
+
+    Parameters
+    ----------
+    notifier : Notifier
+        Where READY and STATUS go.
+    wait_s : float
+        Longest wait (s) for partitions before READY=1 is sent anyway.
+    """
+
+    def __init__(self, notifier: Notifier, wait_s: float) -> None:
+        self.notifier = notifier
+        self.wait_s = wait_s
+        self.sent = False  # READY=1 was sent
+        self.consuming = False  # partitions were assigned at the last look
+        self.wait_from = 0.0  # time.monotonic() the wait for partitions began
+
+    def start_waiting(self) -> None:
+        """The consumer is open: the wait for partitions begins now."""
+        self.wait_from = time.monotonic()
+
+    def due(self, assigned: bool) -> bool:
+        """Whether :meth:`track` has something to say (a change, or READY not sent yet)."""
+        return self.consuming != assigned or not self.sent
+
+    def track(self, partitions: Collection[tuple[str, int]], topics: Sequence[str], since_start_s: float) -> None:
+        """Look at the assigned ``(topic, partition)`` pairs; log a change, send READY or STATUS."""
+        names = ",".join(topics)
+        assigned = bool(partitions)
+        if assigned and not self.consuming:
+            service_log.info("event=consuming partitions=%s since_start_s=%.2f", " ".join(
+                f"{t}[{p}]" for t, p in sorted(partitions)), since_start_s)
+        elif self.consuming and not assigned:
+            service_log.warning("event=not_consuming reason='partitions revoked; waiting for the group to assign "
+                                "them'")
+        self.consuming = assigned
+        status = (f"consuming {names}" if assigned else
+                  f"NOT consuming yet: waiting for the consumer group to assign partitions of {names}")
+        if not self.sent:
+            if assigned or time.monotonic() - self.wait_from > self.wait_s:
+                self.sent = True
+                self.notifier.ready(status)
+        else:
+            self.notifier.status(status)

@@ -72,7 +72,7 @@ def run_replan(planner: Any, job: "Job", stage: Callable[[str], None],
 
     from ...scheduler_core.plan.document import parse_time
     store, sched = planner.store, planner.planning
-    skymap, event = planner._read_skymap(job, stage)
+    skymap, event = planner.read_skymap(job, stage)
     skymap, event = on_merger_clock(skymap, event)
     start = parse_time(job.start)
     old = current_plan(store, job.superevent_id)
@@ -105,7 +105,7 @@ def run_replan(planner: Any, job: "Job", stage: Callable[[str], None],
     stage("planning what is left")
     plan = planner.replanner(skymap, config, start, executed, event=event,
                              min_processed_fraction=planner.loop.min_processed_fraction,
-                             should_stop=lambda: planner._cancelled(job, should_stop), supersedes=job.supersedes)
+                             should_stop=lambda: planner.was_cancelled(job, should_stop), supersedes=job.supersedes)
     stage("storing the re-plan")
     plan = plan.with_(plan_id=make_plan_id(plan.plan_id, REPLAN_SOLVER_NOTE, job.job_id), supersedes=job.supersedes)
     log.info("job superevent_id=%s job=%s replan start=%s horizon_h=%.2f executed=%d observations=%d coverage=%.4f",
@@ -119,6 +119,6 @@ def run_replan(planner: Any, job: "Job", stage: Callable[[str], None],
 def _nothing(planner: Any, job: "Job", why: str) -> Outcome:
     """Close the job without a plan: the current plan stays."""
     if not close_without_plan(planner.store, job.job_id, why):
-        return planner._dropped(job, "re-plan finished")
+        return planner.drop(job, "re-plan finished")
     log.info("job superevent_id=%s job=%s decision=replan plan_id=- reason=%r", job.superevent_id, job.job_id, why)
     return Outcome("replan", job.ref, why, supersedes=job.supersedes, final=True)

@@ -32,7 +32,7 @@ from typing import Any
 from ..state import current_event
 from ..intake.outcomes import Accepted, EventRef
 from ..state.store import Store
-from ..state.records import job_from_row, now_iso
+from ..state.records import JobState, job_from_row, now_iso
 
 __all__ = ["record_replan", "close_without_plan", "next_revision", "current_plan", "live_events", "replan_jobs"]
 
@@ -119,7 +119,7 @@ def record_replan(store: Store, superevent_id: str, start: str, reason: str, ori
             "INSERT INTO jobs(notice_id, superevent_id, alert_type, time_created, skymap_sha256, decision, start,"
             " supersedes, received_wall, status, created_at) VALUES (?,?,?,?,?,?,?,?,?,?,?)",
             (source["notice_id"], sid, source["alert_type"], source["time_created"], source["skymap_sha256"],
-             "replan", start, plan["plan_id"], time.time(), "pending", now))
+             "replan", start, plan["plan_id"], time.time(), JobState.PENDING, now))
         job = job_from_row(c.execute("SELECT * FROM jobs WHERE job_id=?", (cur.lastrowid,)).fetchone())
         c.execute("INSERT INTO decisions(notice_id, superevent_id, alert_type, decision, reason, job_id, created_at)"
                   " VALUES (?,?,?,?,?,?,?)", (nid, sid, source["alert_type"], "replan", reason[:2000], job.job_id,

@@ -29,6 +29,7 @@ from ...scheduler_core.plan.messages import combined_map_incident, revision_docu
 from ...scheduler_core.sky.sniff import is_fits
 from ..loop.nights import night_one
 from ..intake.outcomes import Outcome
+from ..state.records import JobState
 from ..state.store import Job, Store
 
 __all__ = ["JobPlanner"]
@@ -138,13 +139,13 @@ class JobPlanner:
                 from .replan_stage import run_replan
 
                 def stage(name: str) -> None:
-                    if self._cancelled(started, should_stop):
+                    if self.was_cancelled(started, should_stop):
                         raise _Cancelled(name)
 
                 return run_replan(self, started, stage, should_stop)
             work = self._first_stage(started, should_stop)
         except _Cancelled as exc:
-            return self._dropped(started, f"stopped before {exc}")
+            return self.drop(started, f"stopped before {exc}")
         except (NoticeError, InputError) as exc:  # SkyMapError is an InputError
             return self._job_failed(started, "rejected", str(exc))
         except PlanCheckError as exc:
@@ -162,15 +163,15 @@ class JobPlanner:
 
             def optimise(stop: StopCheck | None) -> Outcome:
                 if not self.store.resume_job(job.job_id):
-                    return self._dropped(started, "optimisation not started")
+                    return self.drop(started, "optimisation not started")
                 return self._second_stage(work, stop)
 
             return Staged(work.outcome, optimise)
         return self._second_stage(work, should_stop)
 
-    def _cancelled(self, job: Job, should_stop: StopCheck | None) -> bool:
+    def was_cancelled(self, job: Job, should_stop: StopCheck | None) -> bool:
         """Stop requested and the store no longer has the job running (superseded, retracted)."""
-        return bool(should_stop is not None and should_stop()) and self.store.job_status(job.job_id) != "running"
+        return bool(should_stop is not None and should_stop()) and self.store.job_status(job.job_id) != JobState.RUNNING
 
     def _first_stage(self, job: Job, should_stop: StopCheck | None) -> "_Work | Outcome":
         from ...scheduler_core import not_observable
@@ -179,7 +180,7 @@ class JobPlanner:
         from ...scheduler_core.plan.document import parse_time
 
         def stage(name: str) -> None:
-            if self._cancelled(job, should_stop):
+            if self.was_cancelled(job, should_stop):
                 raise _Cancelled(name)
 
         t0 = time.perf_counter()
@@ -189,7 +190,7 @@ class JobPlanner:
             took[name] = time.perf_counter() - t0 - sum(took.values())
 
         sched = self.planning
-        skymap, event = self._read_skymap(job, stage)
+        skymap, event = self.read_skymap(job, stage)
         skymap, event = on_merger_clock(skymap, event)  # the kilonova's clock: the notice's merger time
         lap("read")
         stage("preparing the problem")
@@ -204,7 +205,7 @@ class JobPlanner:
         lap("prepare")
         stage("the fast scheduler")
         plan = first_plan(problem, skymap, event=event, supersedes=job.supersedes,
-                          should_stop=lambda: self._cancelled(job, should_stop), scheduler=self._checked_stage(
+                          should_stop=lambda: self.was_cancelled(job, should_stop), scheduler=self._checked_stage(
                               "checking the fast plan", stage, lap), started=t0)
         lap("check")
         plan = _after_withdrawals(plan, self.store.plan_epoch(job.job_id))
@@ -250,7 +251,7 @@ class JobPlanner:
 
         return run
 
-    def _read_skymap(self, job: Job, stage: Callable[[str], None]) -> tuple[Any, Any]:
+    def read_skymap(self, job: Job, stage: Callable[[str], None]) -> tuple[Any, Any]:
         """The job's sky map, decoded (the notice's GW map when its joint map does not decode)."""
         from ...scheduler_core import read_skymap
 
@@ -280,15 +281,15 @@ class JobPlanner:
 
         job, first, sched = work.job, work.first, self.planning
         solver = sched.solver
-        if self.store.job_status(job.job_id) != "running" or self._cancelled(job, should_stop):
-            return self._dropped(job, "optimisation not started")
+        if self.store.job_status(job.job_id) != JobState.RUNNING or self.was_cancelled(job, should_stop):
+            return self.drop(job, "optimisation not started")
         why = ""
         try:
             better = optimised_plan(work.problem, work.skymap, solver, first, event=work.event,
                                     should_stop=should_stop, scheduler=self.scheduler,
-                                    interrupted=lambda: self._cancelled(job, should_stop))
+                                    interrupted=lambda: self.was_cancelled(job, should_stop))
             if better is None:
-                return self._dropped(job, f"optimisation ({solver}) stopped")
+                return self.drop(job, f"optimisation ({solver}) stopped")
             better = _after_withdrawals(better, self.store.plan_epoch(job.job_id))
         except PlanCheckError as exc:  # revision 1 stands; the optimiser's plan is never published
             log.error("job superevent_id=%s job=%s optimised plan refused by the checker: %s", job.superevent_id,
@@ -324,7 +325,7 @@ class JobPlanner:
         coverage = float(plan.metrics.coverage)
         outbox_id = self.store.store_revision(job.job_id, plan.plan_id, doc, coverage, latency, final, revision)
         if outbox_id is None:
-            return self._dropped(job, f"plan {plan.plan_id} (revision {revision}) dropped", plan.plan_id)
+            return self.drop(job, f"plan {plan.plan_id} (revision {revision}) dropped", plan.plan_id)
         published = self.hand_over(outbox_id)
         log.info("job superevent_id=%s job=%s decision=%s plan_id=%s revision=%d final=%s coverage=%.4f "
                  "latency_s=%.3f supersedes=%s published=%s solver=%s", job.superevent_id, job.job_id,
@@ -338,7 +339,7 @@ class JobPlanner:
         job, first = work.job, work.first
         outbox_id = self.store.close_job(job.job_id, first.plan_id, why)
         if outbox_id is None:
-            return self._dropped(job, "optimisation finished", first.plan_id)
+            return self.drop(job, "optimisation finished", first.plan_id)
         published = self.hand_over(outbox_id)
         log.info("job superevent_id=%s job=%s decision=%s plan_id=%s revision=1 final=true reason=%r published=%s",
                  job.superevent_id, job.job_id, job.decision, first.plan_id, why, _published_word(published))
@@ -346,7 +347,7 @@ class JobPlanner:
                        latency_s=work.outcome.latency_s if work.outcome else None, supersedes=first.supersedes,
                        published=bool(published), revision=1, final=True)
 
-    def _dropped(self, job: Job, what: str, plan_id: str | None = None) -> Outcome:
+    def drop(self, job: Job, what: str, plan_id: str | None = None) -> Outcome:
         reason = f"{what}: job {self.store.describe_job(job.job_id)}"
         log.info("job superevent_id=%s job=%s decision=ignore reason=%r", job.superevent_id, job.job_id, reason)
         return Outcome("ignore", job.ref, reason, plan_id=plan_id)

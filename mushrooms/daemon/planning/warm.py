@@ -28,9 +28,11 @@ from astropy.time import Time, TimeDelta
 from ...scheduler_core.sky.visibility import GRID_ANCHOR as NIGHT_ANCHOR
 from ...scheduler_core.sky.visibility import NIGHT_S, night_steps
 
-__all__ = ["SkyCache", "NIGHT_S", "NIGHT_ANCHOR"]
+__all__ = ["SkyCache", "warm_up", "NIGHT_S", "NIGHT_ANCHOR"]
 
 log = logging.getLogger("mushrooms.daemon.warm")
+#: the service's own log lines (the warm-up at start)
+service_log = logging.getLogger("mushrooms.daemon")
 
 
 
@@ -145,3 +147,40 @@ class SkyCache:
         self.footprints(config.nside)
         self.windows(now, config)
         return time.perf_counter() - t0
+
+
+def warm_up(cache: SkyCache, config: Any) -> SkyCache:
+    """Imports, grid, footprints and tonight's visibility, and one throw-away plan, before the first alert.
+
+    Parameters
+    ----------
+    cache : SkyCache
+        Warmed for ``config``.
+    config : PlanningConfig
+        The ``[scheduler]`` section.
+
+    Returns
+    -------
+    SkyCache
+        ``cache``.  A failed throw-away plan is logged, never raised: warming
+        is an optimisation, never a reason not to start.
+    """
+    t0 = time.perf_counter()
+    cache.warm(config)
+    t_cache = time.perf_counter() - t0
+    try:  # the first alert must not pay for first calls (checker, greedy, MILP imports)
+        from ...bundled import demo_skymap_path
+        from ...scheduler_core import read_skymap
+        from ...scheduler_core.anytime import FIRST_SOLVER, checked_plan
+        from ...scheduler_core.planner import run_scheduler
+
+        if config.solver != FIRST_SOLVER:
+            from ...scheduler_core.schedulers import block_schedule  # noqa: F401
+
+        skymap = read_skymap(demo_skymap_path(), nside=config.nside)
+        problem = cache.prepare(skymap, config, Time.now())
+        checked_plan(problem, run_scheduler(problem, FIRST_SOLVER), skymap, FIRST_SOLVER)
+    except Exception as exc:  # warming is an optimisation, never a reason not to start
+        service_log.warning("event=warm_up_plan_failed error=%r", f"{type(exc).__name__}: {exc}")
+    service_log.info("event=warm_up cache_s=%.2f total_s=%.2f", t_cache, time.perf_counter() - t0)
+    return cache

@@ -34,12 +34,13 @@ import sqlite3
 from typing import Any
 
 from ...handlers.decisions import EventState
+from .records import JobState
 
 __all__ = ["COUNTING", "current_plan", "map_job", "open_jobs", "live_events", "event_state", "planned_notice",
            "kept_notices", "first_start", "latest_plan_id", "asked_at"]
 
 #: Job states whose sky map still counts (C2).
-COUNTING = ("pending", "running", "done")
+COUNTING = (JobState.PENDING, JobState.RUNNING, JobState.DONE)
 
 
 def latest_plan_id(conn: sqlite3.Connection, superevent_id: str) -> str | None:

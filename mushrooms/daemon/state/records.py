@@ -6,6 +6,7 @@ timestamp (ISO-8601 UTC, milliseconds).
 
 from __future__ import annotations
 
+import enum
 import sqlite3
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -13,7 +14,26 @@ from typing import Any
 
 from ..intake.outcomes import EventRef
 
-__all__ = ["Job", "OutboxMessage", "NoticeRecord", "job_from_row", "without_raw", "now_iso"]
+__all__ = ["Job", "JobState", "OPEN_JOBS", "OutboxMessage", "NoticeRecord", "job_from_row", "without_raw", "now_iso"]
+
+
+class JobState(enum.StrEnum):
+    """A planning job's ``status`` in the ``jobs`` table (the stored text is the value).
+
+    ``pending`` -> ``running`` -> ``done`` | ``failed`` | ``superseded`` |
+    ``cancelled``; a clean stop puts a running job back to ``pending``.
+    """
+
+    PENDING = "pending"
+    RUNNING = "running"
+    DONE = "done"
+    FAILED = "failed"
+    SUPERSEDED = "superseded"  # a newer sky map of the event
+    CANCELLED = "cancelled"  # the event was retracted
+
+
+#: States of a job that is not finished (it runs again at the next start).
+OPEN_JOBS = (JobState.PENDING, JobState.RUNNING)
 
 
 def now_iso() -> str:

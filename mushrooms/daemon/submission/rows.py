@@ -9,6 +9,7 @@ where it stopped.
 
 from __future__ import annotations
 
+import enum
 import json
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -19,13 +20,33 @@ from .rules import set_of
 if TYPE_CHECKING:
     from ..state.store import Store
 
-__all__ = ["Submission", "submissions", "status_document", "STATES", "OPEN"]
+__all__ = ["Submission", "SubmissionState", "submissions", "submission_from_row", "status_document", "STATES",
+           "OPEN", "PUBLISHED"]
 
-STATES = ("pending", "submitted", "replaced", "deleted", "rejected", "failed", "skipped")
+
+class SubmissionState(enum.StrEnum):
+    """A submission's ``state`` in the ``submissions`` table (the stored text is the value).
+
+    ``pending`` -> ``submitted`` -> ``replaced`` | ``deleted``, or
+    ``rejected`` | ``failed`` | ``skipped`` (the lifecycle:
+    :mod:`~mushrooms.daemon.submission.submitter`).
+    """
+
+    PENDING = "pending"
+    SUBMITTED = "submitted"
+    REPLACED = "replaced"  # a newer revision of the event was accepted
+    DELETED = "deleted"  # the event was retracted
+    REJECTED = "rejected"  # the server refused it (never retried)
+    FAILED = "failed"  # the operator must look
+    SKIPPED = "skipped"  # gates, dry run, or superseded/withdrawn before it was sent
+
+
+STATES = tuple(SubmissionState)
 #: States whose queue may be on the server (the submitter still has work with them).
-OPEN = ("pending", "submitted")
+OPEN = (SubmissionState.PENDING, SubmissionState.SUBMITTED)
 #: Transitions that are published as a ``submission`` status document.
-_PUBLISHED = ("submitted", "replaced", "deleted", "rejected", "failed")
+PUBLISHED = (SubmissionState.SUBMITTED, SubmissionState.REPLACED, SubmissionState.DELETED, SubmissionState.REJECTED,
+             SubmissionState.FAILED)
 
 
 @dataclass(frozen=True)
@@ -59,7 +80,8 @@ class Submission:
         return names or ([self.queue_name] if self.queue_name else [])
 
 
-def _row(r: Any) -> Submission:
+def submission_from_row(r: Any) -> Submission:
+    """A ``submissions`` row (:class:`sqlite3.Row`) as a :class:`Submission` (its JSON columns parsed)."""
     progress = r["progress"] if "progress" in r.keys() else None
     return Submission(r["plan_id"], r["superevent_id"], r["target"], r["revision"], r["queue_name"], r["state"],
                       r["reason"], json.loads(r["body"]) if r["body"] else None, r["remote_id"], r["http_status"],
@@ -72,7 +94,7 @@ def submissions(store: Store, superevent_id: str | None = None) -> list[Submissi
     q, args = "SELECT * FROM submissions", ()
     if superevent_id is not None:
         q, args = q + " WHERE superevent_id=?", (superevent_id,)
-    return [_row(r) for r in store.connection().execute(q + " ORDER BY created_at, rowid", args)]
+    return [submission_from_row(r) for r in store.connection().execute(q + " ORDER BY created_at, rowid", args)]
 
 
 def status_document(sub: Submission) -> dict[str, Any]:

@@ -44,13 +44,14 @@ from __future__ import annotations
 import json
 import logging
 import time
-from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, Callable
 
 from ..state import current_event
-from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
+from ..state.records import now_iso as _now_iso
 from ..state.store import Store
-from .rows import _PUBLISHED, OPEN, STATES, Submission, _row, status_document, submissions
+from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
+from .rows import OPEN, PUBLISHED, STATES, Submission, status_document, submission_from_row, submissions
+from .rows import SubmissionState as State
 from .rules import Verdict, build_body, gate, queue_name, same_content, send_queue, set_of
 from .rules import unix as _unix
 
@@ -59,13 +60,9 @@ if TYPE_CHECKING:
     from .settings import SubmitConfig
 
 __all__ = ["Submission", "Submitter", "Verdict", "send_queue", "queue_name", "gate", "build_body", "same_content",
-           "status_document", "open_submitter", "submissions", "STATES", "OPEN"]
+           "status_document", "submissions", "STATES", "OPEN"]
 
 log = logging.getLogger("mushrooms.daemon.submit")
-
-
-def _now_iso() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
 
 
 class Submitter:
@@ -149,7 +146,7 @@ class Submitter:
                     except (KeyError, TypeError, ValueError) as exc:
                         reason = f"unreadable plan document: {type(exc).__name__}: {exc}"
                 name = body = None
-                state = "skipped"
+                state = State.SKIPPED
                 if reason is None:
                     revision = c.execute("SELECT COALESCE(MAX(revision), 0) + 1 FROM submissions WHERE"
                                          " superevent_id=?", (sid,)).fetchone()[0]
@@ -157,7 +154,7 @@ class Submitter:
                     try:
                         body = build_body(doc, self.submit, self.export, name)
                     except (KeyError, TypeError, ValueError) as exc:
-                        reason, state = f"no request could be built: {exc}", "failed"
+                        reason, state = f"no request could be built: {exc}", State.FAILED
                     else:
                         if self.submit.dry_run:
                             reason = "dry run"
@@ -166,25 +163,26 @@ class Submitter:
                                          "request=%s", sid, plan_id, one.get("queue_name", name),
                                          json.dumps(self._request(one).describe()))
                         else:
-                            state = "pending"
+                            state = State.PENDING
                 else:
                     revision = None
                 c.execute("INSERT INTO submissions(plan_id, superevent_id, target, revision, queue_name, state,"
                           " reason, body, created_at, finished_at) VALUES (?,?,?,?,?,?,?,?,?,?)",
-                          (plan_id, sid, self.target, revision if state != "skipped" else None,
-                           name if state != "skipped" else None, state, reason,
-                           json.dumps(body) if body is not None and state == "pending" else None,
-                           _now_iso(), None if state == "pending" else _now_iso()))
-                sub = _row(c.execute("SELECT * FROM submissions WHERE plan_id=?", (plan_id,)).fetchone())
+                          (plan_id, sid, self.target, revision if state != State.SKIPPED else None,
+                           name if state != State.SKIPPED else None, state, reason,
+                           json.dumps(body) if body is not None and state == State.PENDING else None,
+                           _now_iso(), None if state == State.PENDING else _now_iso()))
+                sub = submission_from_row(c.execute("SELECT * FROM submissions WHERE plan_id=?",
+                                                    (plan_id,)).fetchone())
                 created.append(sub)
-                if state == "failed":
+                if state == State.FAILED:
                     failed.append((sub, reason or ""))
                     self._queue_document(c, sub)
         for sub in created:
-            if sub.state == "pending":
+            if sub.state == State.PENDING:
                 log.info("event=submission_pending superevent_id=%s plan_id=%s queue_name=%s target=%s",
                          sub.superevent_id, sub.plan_id, sub.queue_name, sub.target)
-            elif sub.state == "skipped":
+            elif sub.state == State.SKIPPED:
                 log.info("event=submission_skipped superevent_id=%s plan_id=%s reason=%r", sub.superevent_id,
                          sub.plan_id, sub.reason)
             self._count(sub.state)
@@ -208,13 +206,13 @@ class Submitter:
     def _settle(self, sid: str, again: bool = True) -> int:
         """Bring one event's queues to its wanted state; the number of rows left waiting for a retry."""
         conn = self.store.connection()
-        rows = [_row(r) for r in conn.execute(
+        rows = [submission_from_row(r) for r in conn.execute(
             "SELECT * FROM submissions WHERE superevent_id=? AND (state='pending' OR (state='submitted' AND"
             " finished_at IS NULL)) ORDER BY revision", (sid,))]
         rows = [r for r in rows if not self._close_if_expired(r)]
         latest_id = self._latest(sid)
         wanted = next((r for r in rows if r.plan_id == latest_id), None)
-        if wanted is not None and wanted.state == "pending":
+        if wanted is not None and wanted.state == State.PENDING:
             wanted = self._submit(wanted)
             if wanted is None:
                 return 1  # not accepted yet: the older queues stay
@@ -224,32 +222,32 @@ class Submitter:
         newest = None
         if wanted is None and latest_id is not None:
             found = conn.execute("SELECT * FROM submissions WHERE plan_id=?", (latest_id,)).fetchone()
-            newest = _row(found) if found is not None else None
+            newest = submission_from_row(found) if found is not None else None
         given_up = newest is not None and newest.state not in OPEN  # the newest plan is not submitted
-        may_remove = retracted or (wanted is not None and wanted.state == "submitted")
+        may_remove = retracted or (wanted is not None and wanted.state == State.SUBMITTED)
         waiting = 0
         for r in rows:
             if wanted is not None and r.plan_id == wanted.plan_id:
                 continue
-            if r.state == "pending" and r.attempts == 0:
-                self._finish(r, "skipped", reason="withdrawn before it was sent" if retracted
+            if r.state == State.PENDING and r.attempts == 0:
+                self._finish(r, State.SKIPPED, reason="withdrawn before it was sent" if retracted
                              else "superseded before it was sent")
                 continue
-            if r.state == "pending" and given_up and not retracted:
+            if r.state == State.PENDING and given_up and not retracted:
                 why = f"superseded after {r.attempts} attempt(s) by a plan not submitted ({newest.reason})"
-                if not self._remove(r, "skipped", why):
+                if not self._remove(r, State.SKIPPED, why):
                     waiting += 1
                 continue
             if not may_remove:
                 continue  # kept until the newer queues are accepted
-            if not self._remove(r, "deleted" if retracted else "replaced"):
+            if not self._remove(r, State.DELETED if retracted else State.REPLACED):
                 waiting += 1
         return waiting
 
     def _close_if_expired(self, sub: Submission) -> bool:
         """A submitted set whose validity window ended is closed: nothing is left to do with it."""
         end = self._plan_end(sub.plan_id)
-        if sub.state != "submitted" or end is None or end > time.time():
+        if sub.state != State.SUBMITTED or end is None or end > time.time():
             return False
         with self.store.transaction() as c:
             c.execute("UPDATE submissions SET finished_at=? WHERE plan_id=? AND state='submitted'",
@@ -269,9 +267,9 @@ class Submitter:
         assert sub.body is not None and self.client is not None
         plan_end = self._plan_end(sub.plan_id)
         if plan_end is not None and plan_end <= time.time():
-            if sub.progress.get("put") and not self._remove_all(sub, "failed", "validity window ended"):
+            if sub.progress.get("put") and not self._remove_all(sub, State.FAILED, "validity window ended"):
                 return None
-            return self._finish(sub, "failed", reason=f"validity window ended before the queue was accepted "
+            return self._finish(sub, State.FAILED, reason=f"validity window ended before the queue was accepted "
                                 f"({sub.attempts} attempt(s); last: {sub.answer or '-'})")
         if isinstance(self.client, SkyPortalPlans):
             return self._post(sub)
@@ -291,13 +289,13 @@ class Submitter:
                 sub = self._note(sub, "rejected", reason, last.answer)
                 return self._finish_rejection(sub)
             sub = self._note(sub, "put", name)
-        return self._finish(sub, "submitted", last.answer if last else None, reason=last.reason if last else None)
+        return self._finish(sub, State.SUBMITTED, last.answer if last else None, reason=last.reason if last else None)
 
     def _finish_rejection(self, sub: Submission) -> Submission | None:
         """A set with a refused queue: remove its accepted queues, then the row is ``rejected``."""
-        if sub.progress.get("put") and not self._remove_all(sub, "rejected", "a queue of the set was refused"):
+        if sub.progress.get("put") and not self._remove_all(sub, State.REJECTED, "a queue of the set was refused"):
             return None
-        return self._finish(sub, "rejected", reason=str(sub.progress["rejected"]))
+        return self._finish(sub, State.REJECTED, reason=str(sub.progress["rejected"]))
 
     def _post(self, sub: Submission) -> Submission | None:
         """SkyPortal: one plan per revision, looked up by name after an interrupted POST."""
@@ -305,7 +303,7 @@ class Submitter:
         if sub.attempts > 0:
             try:  # an import interrupted by a crash may have happened: look before posting again
                 if self.client.exists(sub.body["plan_name"]):
-                    return self._finish(sub, "submitted", reason="found by plan name after an interrupted POST "
+                    return self._finish(sub, State.SUBMITTED, reason="found by plan name after an interrupted POST "
                                         "(request id unknown)")
             except (Unreachable, RuntimeError) as exc:
                 return self._retry(sub, None, str(exc))
@@ -322,7 +320,7 @@ class Submitter:
             return self._remove_plan(sub, end_state)
         if not self._remove_all(sub, end_state, reason):
             return False
-        current = _row(self.store.connection().execute("SELECT * FROM submissions WHERE plan_id=?",
+        current = submission_from_row(self.store.connection().execute("SELECT * FROM submissions WHERE plan_id=?",
                                                        (sub.plan_id,)).fetchone())
         if current.state in OPEN:
             self._finish(current, end_state, reason=reason or ("not on the server (already removed)"
@@ -347,7 +345,7 @@ class Submitter:
                 self._retry(sub, answer.status, f"DELETE {name}: {answer.status}, but {answer.problem}")
                 return False
             if answer.redirected:
-                self._finish(sub, "failed", answer, reason=f"DELETE {name}: {answer.status}: {answer.problem}")
+                self._finish(sub, State.FAILED, answer, reason=f"DELETE {name}: {answer.status}: {answer.problem}")
                 return True
             if not answer.refused:
                 self._retry(sub, answer.status, answer.message())
@@ -358,7 +356,7 @@ class Submitter:
                 self._retry(sub, answer.status, f"DELETE refused and the queue list could not be read: {exc}")
                 return False
             if name in names:
-                self._finish(sub, "failed", answer, reason=f"DELETE {name} refused: {answer.message()}")
+                self._finish(sub, State.FAILED, answer, reason=f"DELETE {name} refused: {answer.message()}")
                 return True
             sub = self._note(sub, "gone", name, answer, absent=True)
         return True
@@ -367,7 +365,7 @@ class Submitter:
         """SkyPortal: DELETE the observation plan request by its id."""
         assert isinstance(self.client, SkyPortalPlans)
         if not sub.remote_id:
-            self._finish(sub, "failed", reason="SkyPortal request id unknown (interrupted POST): remove "
+            self._finish(sub, State.FAILED, reason="SkyPortal request id unknown (interrupted POST): remove "
                          f"plan {sub.queue_name} by hand")
             return True
         try:
@@ -378,7 +376,7 @@ class Submitter:
         if not (answer.ok or answer.refused):
             self._retry(sub, answer.status, answer.message())
             return False
-        self._finish(sub, *((end_state, answer) if answer.ok else ("failed", answer)),
+        self._finish(sub, *((end_state, answer) if answer.ok else (State.FAILED, answer)),
                      reason=None if answer.ok else f"DELETE refused: {answer.message()}")
         return True
 
@@ -397,7 +395,8 @@ class Submitter:
                       " answer=COALESCE(?, answer) WHERE plan_id=?",
                       (json.dumps(progress), answer.status if answer else None, answer.text if answer else None,
                        sub.plan_id))
-            return _row(c.execute("SELECT * FROM submissions WHERE plan_id=?", (sub.plan_id,)).fetchone())
+            return submission_from_row(c.execute("SELECT * FROM submissions WHERE plan_id=?",
+                                                 (sub.plan_id,)).fetchone())
 
     # ------------------------------------------------------------ rows
     def _plan_end(self, plan_id: str) -> float | None:
@@ -414,7 +413,8 @@ class Submitter:
         with self.store.transaction() as c:
             c.execute("UPDATE submissions SET attempts=attempts+1, attempted_at=? WHERE plan_id=?",
                       (_now_iso(), sub.plan_id))
-            return _row(c.execute("SELECT * FROM submissions WHERE plan_id=?", (sub.plan_id,)).fetchone())
+            return submission_from_row(c.execute("SELECT * FROM submissions WHERE plan_id=?",
+                                                 (sub.plan_id,)).fetchone())
 
     def _retry(self, sub: Submission, status: int | None, error: str) -> None:
         with self.store.transaction() as c:
@@ -444,18 +444,18 @@ class Submitter:
                  int(terminal), now, sub.plan_id, sub.state))
             if not cur.rowcount:
                 return None  # another pass moved it meanwhile
-            new = _row(c.execute("SELECT * FROM submissions WHERE plan_id=?", (sub.plan_id,)).fetchone())
-            if state in _PUBLISHED:
+            new = submission_from_row(c.execute("SELECT * FROM submissions WHERE plan_id=?", (sub.plan_id,)).fetchone())
+            if state in PUBLISHED:
                 self._queue_document(c, new)
         fields = (f"superevent_id={new.superevent_id} plan_id={new.plan_id} queue_name={new.queue_name} "
                   f"target={new.target} state={state} http_status={new.http_status if answer else '-'} "
                   f"attempts={new.attempts}")
-        if state in ("rejected", "failed"):
+        if state in (State.REJECTED, State.FAILED):
             log.error("event=submission_%s %s reason=%r", state, fields, new.reason)
         else:
             log.info("event=submission_%s %s%s", state, fields, f" reason={new.reason!r}" if new.reason else "")
         self._count(state)
-        if state in _PUBLISHED and self._on_outbox is not None:
+        if state in PUBLISHED and self._on_outbox is not None:
             self._on_outbox()
         return new
 
@@ -470,34 +470,3 @@ class Submitter:
                 self._on_result(state, self.target)
             except Exception:
                 log.exception("event=submission_callback_failed")
-
-
-def open_submitter(submit: SubmitConfig, export: ExportConfig, store: Store, token: str | None,
-                   on_outbox: Callable[[], None] | None = None, on_result: Callable[[str, str], None] | None = None,
-                   closing: Callable[[], bool] | None = None) -> tuple[Submitter, Any] | None:
-    """The daemon's submitter and the thread that runs it (an :class:`~mushrooms.daemon.planning.jobs.OutboxDrain` named ``submit``).
-
-    Returns None when ``[submit] target = "none"``.  ``kick()`` the drain
-    after a plan is stored or a withdrawal recorded; it retries with the
-    ``[submit]`` back-off while submissions wait (5xx, timeouts).
-    ``closing()`` True makes passes do nothing (the store is being closed).
-    """
-    from ..planning.jobs import OutboxDrain
-    from .remote import make_client
-
-    sub = submit
-    if not sub.enabled:
-        return None
-    client = make_client(sub.target, sub.url, token, sub.timeout_s)
-    submitter = Submitter(store, sub, export, client, on_outbox=on_outbox, on_result=on_result)
-
-    def one_pass() -> int:
-        if closing is not None and closing():
-            return 0
-        return submitter.step()
-
-    drain = OutboxDrain(one_pass, sub.retry_initial_s, sub.retry_max_s, name="submit")
-    log.info("event=submit_enabled target=%s url=%s dry_run=%s alert_types=%s min_coverage=%g max_exposures=%d",
-             sub.target, sub.url, str(sub.dry_run).lower(), ",".join(sub.alert_types), sub.min_coverage,
-             sub.max_exposures)
-    return submitter, drain
