@@ -1,4 +1,4 @@
-"""Attack the daemon (issue 13), the heavy cases: bombs with peak RSS, a burst
+"""Attack the daemon, the heavy cases: bombs with peak RSS, a burst
 of events, SIGKILL at several points, the hostile corpus, a second daemon and
 a damaged state file, all against real parts (librdkafka's mock cluster on
 loopback, ``mushrooms run`` subprocesses, real SQLite, greedy at nside 64).

@@ -1,4 +1,4 @@
-"""The loop's scenario (issue 28): a real notice planned by the real pipeline, then what the telescope did.
+"""The loop's scenario: a real notice planned by the real pipeline, then what the telescope did.
 
 MS181101ab's PRELIMINARY notice (tests/data/notices/json), re-dated as if it
 had been sent live at 2023-04-15T02:55Z (its map is then well placed: the

@@ -1,4 +1,4 @@
-"""Issue 24 through ``mushrooms run``: one merger clock, and ties in expected detections go to coverage.
+"""Through ``mushrooms run``: one merger clock, and ties in expected detections go to coverage.
 
 A real daemon process on the mock broker with the shipped ``[scheduler]``
 defaults (hybrid, objective detection, nside 256, 14 s; ``[daemon]
@@ -17,7 +17,7 @@ notice (``time_created`` = ``event.time`` = now, GW map only):
 Which outcome the optimiser reaches depends on the sky at the time of the
 run (the horizon starts at receipt); the rule applied to the published
 numbers does not. ``benchmarks/clock_and_ties_daemon.py`` prints the numbers
-(``benchmarks/results/issue24/daemon_clock_ties.txt``).
+(``benchmarks/clock_and_ties_daemon.py``).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The input consumer's start (issue 25): static group membership per installation, and a
+"""The input consumer's start: static group membership per installation, and a
 manual assignment before the topic exists waits instead of exiting 70.  Real mock broker."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Worker threads never die of a job (issue 25): real threads, real APScheduler."""
+"""Worker threads never die of a job: real threads, real APScheduler."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The following nights through the real pipeline (issue 28 item 3, ``executed.md`` L9-L11).
+"""The following nights through the real pipeline (``executed.md`` L9-L11).
 
 The loop's scenario (``loop_helpers``: MS181101ab's notice re-dated to
 2023-04-15T02:55Z, planned by the real :class:`NoticePipeline` on real

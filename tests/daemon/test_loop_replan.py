@@ -1,4 +1,4 @@
-"""The loop through the real pipeline (issue 28): executed exposures in, slips and closures re-planned.
+"""The loop through the real pipeline: executed exposures in, slips and closures re-planned.
 
 A real notice planned by :class:`NoticePipeline` on real SQLite (greedy, real
 checker), the executed record written as the JSON-lines file the

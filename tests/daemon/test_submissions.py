@@ -1,4 +1,4 @@
-"""Submission to ZTF's queue (issue 27): the lifecycle against the contract servers, in process.
+"""Submission to ZTF's queue: the lifecycle against the contract servers, in process.
 
 Real plans (the notice pipeline with the greedy scheduler on the sample
 notices' BAYESTAR maps), a real SQLite store, and the Kowalski / SkyPortal

@@ -106,7 +106,7 @@ def test_trigger_hands_work_to_the_running_daemon_and_signals(broker, daemons, t
     assert "event=trigger file=" in d.text() and "kind=notice" in d.text()
     assert list((tmp_path / "mushrooms-triggers").iterdir()) == []
 
-    # the answer is truthful (issue 25): an unknown superevent and a map the planner refuses are errors
+    # the answer is truthful: an unknown superevent and a map the planner refuses are errors
     r = trigger(tmp_path, "S999999zz", "--config", str(cfg), "--state", str(state))
     assert r.returncode == 2 and "rejected" in r.stderr and "S999999zz" in r.stderr, (r.stdout, r.stderr)
     bad = tmp_path / "bad.fits"

@@ -1,4 +1,4 @@
-"""``[loop]``: what the telescope did comes back (issue 28; ``docs/design/executed.md`` section 4).
+"""``[loop]``: what the telescope did comes back (``docs/design/executed.md`` section 4).
 
 Off by default (``executed_source = "none"``): the daemon then plans once per
 sky map, as before.  With a source the daemon polls it every

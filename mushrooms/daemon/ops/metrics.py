@@ -44,7 +44,7 @@ FINAL_PLAN_BUCKETS = (5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0, 180.
 
 #: Why a message was rejected, as a small label set (the full reason is in the store and the log).
 REJECTION_CLASSES = ("too_large", "undecodable", "schema", "skymap", "policy_error", "other")
-#: Submission results pre-initialised at 0 (the states of issue 27's submission lifecycle).
+#: Submission results pre-initialised at 0 (the states of the submission lifecycle).
 SUBMISSION_RESULTS = ("pending", "submitted", "replaced", "deleted", "rejected", "failed")
 
 

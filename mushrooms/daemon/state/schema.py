@@ -125,14 +125,14 @@ CREATE INDEX IF NOT EXISTS outbox_pending ON outbox(published_at);
 UPGRADES: tuple[tuple[int, str | tuple[str, str, str]], ...] = (
     (2, ("plans", "revision", "INTEGER NOT NULL DEFAULT 1")),  # a job's revisions (anytime plans)
     (2, ("plans", "final", "INTEGER NOT NULL DEFAULT 1")),
-    (2, ("events", "localization", "TEXT")),  # gw | combined (issue 17)
+    (2, ("events", "localization", "TEXT")),  # gw | combined: which map was planned
     # things an operator must hear of that are not notices, e.g. the consumer's offset jumps
     # (:meth:`Store.record_incident`, ``mushrooms status``); an older program ignores the table
     (3, "CREATE TABLE IF NOT EXISTS incidents (incident_id INTEGER PRIMARY KEY AUTOINCREMENT,"
         " kind TEXT NOT NULL, detail TEXT NOT NULL, created_at TEXT NOT NULL)"),
-    (3, SUBMISSIONS),  # plans submitted to ZTF's queue (issue 27, :mod:`~mushrooms.daemon.submission.submitter`)
-    (4, ("events", "latest_created", "TEXT")),  # creation order of notices (issue 25)
-    (5, EXECUTED_TABLE),  # exposures the telescope took ([loop], issue 28, :mod:`~mushrooms.daemon.state.executed`)
+    (3, SUBMISSIONS),  # plans submitted to ZTF's queue (:mod:`~mushrooms.daemon.submission.submitter`)
+    (4, ("events", "latest_created", "TEXT")),  # creation order of notices (an older notice arriving late is stale)
+    (5, EXECUTED_TABLE),  # exposures the telescope took ([loop], :mod:`~mushrooms.daemon.state.executed`)
     # which queues of a revision's queue set were accepted / removed (:mod:`~mushrooms.daemon.submission.submitter`)
     (6, ("submissions", "progress", "TEXT")),
 )

@@ -6,7 +6,7 @@ file, so it is safe while the daemon runs (WAL mode: readers see the last
 committed state and never block the writer).  When no daemon has the file
 open, SQLite may create its empty ``-wal`` and ``-shm`` companions (with the
 database file's permissions), which the next daemon start reuses.  A table this program does not know yet (the
-``submissions`` of issue 27 on an older file, ``incidents`` on a file no
+``submissions`` on an older file, ``incidents`` on a file no
 daemon of this version opened) is simply absent from the answer.
 """
 

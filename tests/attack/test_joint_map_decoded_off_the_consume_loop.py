@@ -1,4 +1,4 @@
-"""Issue 25, memory from small notices: the joint-map choice is made off the consume loop.
+"""Memory from small notices: the joint-map choice is made off the consume loop.
 
 A notice of a few hundred kB whose GW and combined maps are a gzipped flat
 float32 NSIDE 1024 map (50 MB unpacked) used to be decoded whole inside

@@ -1,4 +1,4 @@
-"""Issue 25, the daemon side, fast cases on real parts (SQLite file, greedy/hybrid
+"""The daemon on hostile orderings and crashes, fast cases on real parts (SQLite file, greedy/hybrid
 at nside 64, real sky maps): creation order through the store, crash accounting
 and the fallback's plan_final, plan ids after a withdrawal, raw-byte pruning."""
 
