@@ -2,7 +2,7 @@
 
 The service stores every revision it made, with its document, in the state
 file's ``plans`` table (in order: ``seq``).  These helpers read them through
-a read-only connection (:func:`mushrooms.daemon.state_view.connect_readonly`)
+a read-only connection (:func:`mushrooms.daemon.state.views.connect_readonly`)
 and never write.
 """
 
@@ -51,7 +51,7 @@ def current_document(conn: sqlite3.Connection, superevent_id: str) -> dict[str, 
 
 def read_state(path: Path, read: Any, default: Any) -> Any:
     """``read(conn)`` on a read-only connection to ``path``; ``default`` when there is no readable state file."""
-    from ..daemon.state_view import connect_readonly
+    from ..daemon.state.views import connect_readonly
 
     if not Path(path).is_file():
         return default
