@@ -35,6 +35,8 @@ class LoopbackBroker:
     ----------
     bootstrap : str
         ``127.0.0.1:PORT`` of the broker.
+    producer : confluent_kafka.Producer
+        A producer bound to it, for callers that need more than :meth:`produce`.
     """
 
     def __init__(self, timeout_s: float = 10.0) -> None:
@@ -51,14 +53,14 @@ class LoopbackBroker:
             raise BrokerError("the loopback broker did not start: no broker in its metadata")
         b = next(iter(brokers.values()))
         self.bootstrap = f"{b.host}:{b.port}"
-        self._producer: Any = confluent_kafka.Producer({"bootstrap.servers": self.bootstrap, "linger.ms": 0,
+        self.producer: Any = confluent_kafka.Producer({"bootstrap.servers": self.bootstrap, "linger.ms": 0,
                                                         **quiet})
 
     def ensure_topic(self, topic: str) -> None:
         """Create ``topic`` (the mock cluster creates a topic on a metadata request) and wait for its partitions."""
         end = time.monotonic() + self.timeout_s
         while time.monotonic() < end:
-            t = self._producer.list_topics(topic, timeout=self.timeout_s).topics.get(topic)
+            t = self.producer.list_topics(topic, timeout=self.timeout_s).topics.get(topic)
             if t is not None and t.error is None and t.partitions:
                 return
             time.sleep(0.1)
@@ -75,8 +77,8 @@ class LoopbackBroker:
             else:
                 where.append((msg.partition(), msg.offset()))
 
-        self._producer.produce(topic, value=value, key=key, on_delivery=delivered)
-        left = self._producer.flush(self.timeout_s)
+        self.producer.produce(topic, value=value, key=key, on_delivery=delivered)
+        left = self.producer.flush(self.timeout_s)
         if errors or left or not where:
             raise BrokerError(f"the loopback broker did not take the message on {topic!r}: "
                               f"{errors[0] if errors else 'no acknowledgement'}")
@@ -84,9 +86,9 @@ class LoopbackBroker:
 
     def close(self) -> None:
         """Flush and drop the clients; the cluster goes with its owner."""
-        self._producer.flush(1.0)
+        self.producer.flush(1.0)
         self._owner.flush(1.0)
-        self._producer = self._owner = None
+        self.producer = self._owner = None
 
     def __enter__(self) -> "LoopbackBroker":
         return self
