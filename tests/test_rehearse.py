@@ -204,3 +204,19 @@ def _state(pid: int) -> str:
         return Path(f"/proc/{pid}/status").read_text().split("State:")[1].split("\n")[0].lower()
     except (OSError, IndexError):
         return "zombie"
+
+
+def test_a_rehearsal_tells_the_webhook_and_fails_when_the_submission_target_is_down(tmp_path, httpserver):
+    httpserver.expect_request("/hook", method="POST").respond_with_data("ok")
+    r = rehearse(tmp_path, "--set", "notify.target=json", "--set", "submit.target=kowalski",
+                 "--set", "submit.url=http://127.0.0.1:9", "--set", "submit.timeout_s=2",
+                 env={"MUSHROOMS_NOTIFY_URL": httpserver.url_for("/hook"), "MUSHROOMS_SUBMIT_TOKEN": "tok-rehearse"})
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "REAL requests will be sent" in r.stdout and "webhook told: plan_published (HTTP 200)" in r.stdout
+    assert "Planned    " in r.stdout  # the plan is final and summarised all the same
+    errors = [line for line in r.stderr.splitlines() if line.startswith("mushrooms rehearse:")]
+    assert len(errors) == 1 and "the plan is final, but submission of" in errors[0]
+    assert "did not reach the queue" in errors[0] and "Connection refused" in errors[0]
+    told = [json.loads(req.get_data())["event"] for req, _ in httpserver.log]
+    assert told[0] == "plan_published" and "submission_failing" in told
+    assert "tok-rehearse" not in r.stdout + r.stderr and "/hook" not in r.stdout

@@ -29,6 +29,8 @@ _SYSTEMD_ENV = ("NOTIFY_SOCKET", "WATCHDOG_USEC", "WATCHDOG_PID", "JOURNAL_STREA
 _SUBMISSION_OUTCOMES = {f"submission_{s}" for s in ("submitted", "failed", "rejected", "dry_run", "skipped",
                                                      "retry", "replaced", "expired")}
 _NOTIFY_OUTCOMES = {"notify_sent", "notify_failed", "notify_dropped"}
+#: Submission events that mean the plan did not reach the queue (yet).
+_FAILED_SUBMISSION = {"submission_failed", "submission_rejected", "submission_retry"}
 _ANNOUNCED = ("plan", "plan_final", "not_observable", "withdrawal", "submission")
 
 
@@ -89,6 +91,7 @@ class Rehearsal:
             self._until(lambda: self.final is not None, "the final plan")
             self._linger()
             self._summary()
+            self._judge_outcomes()
         except RehearsalFailed as exc:
             self._stop(ok=False)
             print(f"mushrooms rehearse: error: {exc}", file=sys.stderr, flush=True)
@@ -177,6 +180,23 @@ class Rehearsal:
             time.sleep(TICK_S)
         if not settled():
             self.say(f"(stopped waiting for the submission and webhook outcomes after {wait:.0f} s)")
+
+    def _judge_outcomes(self) -> None:
+        """The plan is final; a submission or a webhook message that failed still fails the rehearsal."""
+        problems: list[str] = []
+        for e in self.events:
+            if e.event in _FAILED_SUBMISSION and not any(p.startswith("submission") for p in problems):
+                why = e.fields.get("error") or e.fields.get("reason") or e.fields.get("state", "")
+                what = {"submission_retry": "did not reach the queue (the service retries)",
+                        "submission_failed": "FAILED", "submission_rejected": "was REJECTED"}[e.event]
+                problems.append(f"submission of {e.fields.get('plan_id', '-')} as {e.fields.get('queue_name', '-')} "
+                                f"{what}: {why[:200]}")
+            if e.event in ("notify_failed", "notify_dropped") and not any(p.startswith("webhook") for p in problems):
+                detail = e.message.split("error=", 1)[1] if "error=" in e.message else e.message
+                what = "failed" if e.event == "notify_failed" else "dropped"
+                problems.append(f"webhook message {e.fields.get('kind', '-')} {what}: {' '.join(detail.split())[:200]}")
+        if problems:
+            raise RehearsalFailed("the plan is final, but " + "; ".join(problems))
 
     def _summary(self) -> None:
         from ..report.summary import summary_text
