@@ -19,7 +19,7 @@ from typing import Any, Callable
 
 from .rehearse_watch import LogTail, OutboxWatch, document_words, is_final, log_words, parse_log_line
 
-__all__ = ["Rehearsal", "RehearsalFailed"]
+__all__ = ["Rehearsal", "RehearsalFailed", "say"]
 
 #: Seconds between two looks at the log and the outbox.
 TICK_S = 0.1
@@ -32,6 +32,11 @@ _NOTIFY_OUTCOMES = {"notify_sent", "notify_failed", "notify_dropped"}
 #: Submission events that mean the plan did not reach the queue (yet).
 _FAILED_SUBMISSION = {"submission_failed", "submission_rejected", "submission_retry"}
 _ANNOUNCED = ("plan", "plan_final", "not_observable", "withdrawal", "submission")
+
+
+def say(text: str, t0: float) -> None:
+    """One line of the rehearsal, with the seconds since it started (``t0``, ``time.monotonic()``)."""
+    print(f"[{time.monotonic() - t0:6.1f} s] {text}", flush=True)
 
 
 def _interrupt(signum: int, frame: Any) -> None:
@@ -72,7 +77,7 @@ class Rehearsal:
         self.events: list[Any] = []
 
     def say(self, text: str) -> None:
-        print(f"[{time.monotonic() - self.t0:6.1f} s] {text}", flush=True)
+        say(text, self.t0)
 
     def run(self, send: Callable[[], None]) -> int:
         """Start the service, ``send()`` once it consumes, watch until final; the exit status."""

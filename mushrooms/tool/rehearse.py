@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from .common import add_common_options, execute, tool_parser
+from .rehearsal import say
 from .settings_flag import add_set_option
 
 __all__ = ["HELP", "parser", "run", "main", "service_command"]
@@ -62,11 +63,6 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
 def main(args: Sequence[str] | None = None) -> int:
     """``mushrooms rehearse`` on its own."""
     return execute("rehearse", parser().parse_args(args), run)
-
-
-def say(text: str, t0: float) -> None:
-    """One line of the rehearsal, with the seconds since it started."""
-    print(f"[{time.monotonic() - t0:6.1f} s] {text}", flush=True)
 
 
 def _out_dir(given: str | None) -> Path:
@@ -161,25 +157,29 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.monotonic()
     say(f"rehearsal in {out}", t0)
     _describe_config(config, args, t0)
-    from .loopback_broker import LoopbackBroker
+    from .loopback_broker import BrokerError, LoopbackBroker
     from .rehearsal import Rehearsal
 
-    with LoopbackBroker() as broker:
-        for topic in config.kafka.topics:
-            broker.ensure_topic(topic)
-        say(f"loopback broker on {broker.bootstrap} (librdkafka's mock cluster), topic(s) "
-            f"{', '.join(config.kafka.topics)}", t0)
-        rehearsal = Rehearsal(service_command(args, broker.bootstrap, out), out, t0, args.timeout, config)
-        return rehearsal.run(lambda: _send(broker, config, name, raw, t0))
+    try:
+        with LoopbackBroker() as broker:
+            for topic in config.kafka.topics:
+                broker.ensure_topic(topic)
+            say(f"loopback broker on {broker.bootstrap} (librdkafka's mock cluster), topic(s) "
+                f"{', '.join(config.kafka.topics)}", t0)
+            rehearsal = Rehearsal(service_command(args, broker.bootstrap, out), out, t0, args.timeout, config)
+            return rehearsal.run(lambda: _send(broker, config, name, raw, t0))
+    except BrokerError as exc:
+        print(f"mushrooms rehearse: error: {exc}", file=sys.stderr, flush=True)
+        return 1
 
 
 def _send(broker: Any, config: Any, name: str, raw: bytes, t0: float) -> None:
     """Send a live copy of the notice on the first input topic (its clocks moved to now)."""
+    import json
+
     from .live_notice import live_copy
 
     live, times = live_copy(raw)
-    import json
-
     sid = json.loads(live)["superevent_id"]
     broker.produce(config.kafka.topics[0], live, key=sid.encode())
     say(f"sent {Path(name).name} as a live notice: {sid}, created {times['created'][11:19]} UTC, merger "
