@@ -365,10 +365,10 @@ def burst(broker: Broker, work: Path, n: int, report: list[str], final_wait_s: f
 
 
 BROKER_PROC = r"""
-import confluent_kafka, sys, time
-p = confluent_kafka.Producer({"test.mock.num.brokers": 1, "message.max.bytes": 16000000, "log_level": 3})
-b = next(iter(p.list_topics(timeout=10).brokers.values()))
-print(f"{b.host}:{b.port}", flush=True)
+import time
+from mushrooms.tool.loopback_broker import LoopbackBroker
+b = LoopbackBroker()
+print(b.bootstrap, flush=True)
 while True:
     time.sleep(1)
 """
