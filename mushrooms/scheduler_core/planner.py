@@ -99,6 +99,12 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     cfg = problem.config
     if cfg.objective != "detection" or solver == "greedy":
         return scheduler(problem, solver, should_stop)
+    if len(cfg.filters) != 2:  # (S4) the detection stage plans pairs: a sequence is planned for coverage
+        result = scheduler(problem, solver, should_stop)
+        log.info("objective detection: the detection stage plans pairs of filters; the sequence %s is planned "
+                 "for coverage", "-".join(cfg.filters))
+        return dataclasses.replace(result, details=dict(
+            result.details, detection_stage=f"skipped: a sequence of {len(cfg.filters)} filters"))
     from .schedulers.detection_slots import detection_stage
 
     t0 = time.perf_counter()

@@ -36,7 +36,7 @@ from astropy.time import Time, TimeDelta
 
 from .config import PlanningConfig
 from .errors import InputError, PlanCheckError
-from .executed import MIN_PROCESSED_FRACTION, DonePairs, ExecutedExposure, done_pairs, to_record
+from .executed import MIN_PROCESSED_FRACTION, DonePairs, ExecutedExposure, to_record
 from .plan.checker import check_plan
 from .plan.document import EventInfo, Observation, Plan, iso_utc, make_plan_id
 from .problem import PlanningProblem, ScheduleResult, StopCheck
@@ -45,6 +45,7 @@ from .schedulers.completions import (
 )
 from .schedulers.gain import worth_a_visit
 from .schedulers.slew import overhead_time
+from .sequences import done_covering, sequence_progress
 from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
 from .sky.footprints import Footprints
 from .sky.skymap import SkyMap
@@ -110,8 +111,8 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
     -------
     ExecutedState
     """
-    pairs = done_pairs(executed, tuple(config.filters), min_processed_fraction, config.cadence_s,
-                       config.pair_separation_s)
+    pairs = done_covering(executed, tuple(config.filters), min_processed_fraction, config.cadence_s,
+                          config.pair_separation_s)
     rows = grid.index_of(np.array(sorted(set(pairs.both) | set(pairs.one)), dtype=int))
     known = set(grid.ids[rows[rows >= 0]].tolist())
     unknown = tuple(sorted((set(pairs.both) | set(pairs.one)) - known))
@@ -123,6 +124,10 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
     covered_pixels = footprints.union(covered)
     coverage_executed = float(skymap.prob[covered_pixels].sum())
     uncovered[covered_pixels] = 0.0
+    if len(config.filters) != 2:  # (S3) a covered field's next visit; the others are planned anew
+        pending = _sequence_pending(skymap, config, start, executed, footprints, grid, covered,
+                                    min_processed_fraction)
+        return ExecutedState(pairs, covered, uncovered, coverage_executed, pending, unknown)
     pending = []
     for field_id in sorted(set(pairs.one) & known):
         visits = pairs.one[field_id]
@@ -136,6 +141,38 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
         latest = float((visits.first[first] - start).to_value("s")) + config.pair_separation_s  # (P10)
         pending.append(PendingVisit(field_id, float(grid.ra[k]), float(grid.dec[k]), other, due, latest))
     return ExecutedState(pairs, covered, uncovered, coverage_executed, tuple(pending), unknown)
+
+
+def _sequence_pending(skymap: SkyMap, config: PlanningConfig, start: Time, executed: Sequence[ExecutedExposure],
+                      footprints: Footprints, grid: FieldGrid, covered: np.ndarray,
+                      min_processed_fraction: float) -> tuple[PendingVisit, ...]:
+    """(S3) The next visit of each covered field that has not finished its sequence.
+
+    Due a cadence after its last counted visit (S2), never before the start;
+    no later than the pair separation after its first.  It adds no coverage:
+    its worth is the field's probability (at least ``min_gain``), so the
+    re-plan keeps it before new fields.  A field two or more visits short
+    (sequences of four or more) gets its next visit only, and a warning.
+    """
+    progress = sequence_progress(executed, tuple(config.filters), min_processed_fraction, config.cadence_s,
+                                 config.pair_separation_s)
+    seq, out, short = tuple(config.filters), [], []
+    for field_id in covered.tolist():
+        p = progress.get(int(field_id))
+        if p is None or p.done >= len(seq):
+            continue
+        if len(seq) - p.done > 1:
+            short.append(int(field_id))
+        k = int(grid.index_of(np.array([field_id]))[0])
+        worth = max(float(skymap.prob[footprints.pixels(int(field_id))].sum()), config.min_gain, 1e-12)
+        due = max(0.0, float((p.last - start).to_value("s")) + config.cadence_s)
+        latest = float((p.first - start).to_value("s")) + config.pair_separation_s
+        out.append(PendingVisit(int(field_id), float(grid.ra[k]), float(grid.dec[k]), seq[p.done], due, latest,
+                                worth))
+    if short:
+        log.warning("executed record: field(s) %s are two or more visits short of the sequence %s; only the next "
+                    "visit is planned", ", ".join(map(str, short)), "-".join(seq))
+    return tuple(out)
 
 
 def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
@@ -227,7 +264,9 @@ def _candidates(state: ExecutedState, config: PlanningConfig, start: Time, grid:
     """The grid fields still worth a visit (in the band, not covered, P3) and their windows over the horizon."""
     in_band = (grid.dec >= config.dec_min_deg) & (grid.dec <= config.dec_max_deg)
     sel = in_band & worth_a_visit(footprints, state.uncovered, config.min_gain) & ~np.isin(grid.ids, state.covered)
-    return sel, observability_windows(grid.ids[sel], grid.ra[sel], grid.dec[sel], start, config)
+    # (S3) the windows of a sequence's pending visits too (their fields are covered: no candidates)
+    timed = sel | (in_band & np.isin(grid.ids, [v.field_id for v in state.pending if v.worth is not None]))
+    return sel, observability_windows(grid.ids[timed], grid.ra[timed], grid.dec[timed], start, config)
 
 
 def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGrid, footprints: Footprints,
@@ -236,8 +275,9 @@ def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGr
     """The re-plan's exposures (s since ``start``): the pass (P4), the reduced problem (P5), P6, P7."""
     from .planner import optimise
 
-    # (P4) the completion pass
-    pending = tuple(v for v in state.pending if sel[int(grid.index_of(np.array([v.field_id]))[0])])
+    # (P4) the completion pass (S3: a covered field's next visit of a sequence is pending, not a candidate)
+    pending = tuple(v for v in state.pending
+                    if v.worth is not None or sel[int(grid.index_of(np.array([v.field_id]))[0])])
     front, later, uncovered = completion_pass(pending, footprints, state.uncovered, windows, config)
     # (P5) the reduced problem: after the pass and the worst first overhead, without covered fields
     rest_start = _rest_start(front, grid, sel, config)
@@ -245,7 +285,7 @@ def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGr
     result = ScheduleResult((), solver="completions", status="no_time_left")
     if rest_start + 2 * config.exposure_s + config.cadence_s <= config.horizon_s:
         rest = _reduced_problem(skymap, config, start, rest_start, grid, footprints, windows, uncovered,
-                                {o.field_id for o in front})
+                                {o.field_id for o in front} | {v.field_id for v in pending if v.worth is not None})
         result = dataclasses.replace(result, status="nothing_left")
         if rest.field_ids.size:
             result = optimise(rest, dataclasses.replace(skymap, prob=uncovered), solver, should_stop)

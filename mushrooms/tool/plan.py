@@ -333,7 +333,7 @@ def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec
     """``--executed`` and/or ``[scheduler] nights > 1``: plan what is left, night by night; write each night's files."""
     from ..outputs import write_json_atomic
     from ..scheduler_core import to_skyportal
-    from ..scheduler_core.executed import done_pairs
+    from ..scheduler_core.sequences import done_covering
     from ..scheduler_core.nights import plan_nights
     from ..scheduler_core.plan.messages import revision_document
     from ..scheduler_core.replan import plan_remaining
@@ -350,10 +350,10 @@ def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec
             log.info("--start: the end of the last executed exposure, %s", start.isot[:19])
     if start is not None:
         warn_if_far_from_merger(start, skymap.event_time)
-    pairs = done_pairs(executed, tuple(cfg.filters), fraction, cfg.cadence_s)
+    pairs = done_covering(executed, tuple(cfg.filters), fraction, cfg.cadence_s)
     if spec is not None:
-        log.info("--executed: %d exposure(s); %d field(s) done in both filters, %d in one", len(executed),
-                 len(pairs.both), len(pairs.one))
+        log.info("--executed: %d exposure(s); %d field(s) covered (done in the first two filters), %d with other "
+                 "done visits", len(executed), len(pairs.both), len(pairs.one))
     if cfg.nights > 1:
         plans = plan_nights(skymap, cfg, start, executed, min_processed_fraction=fraction, solver=args.solver)
     else:

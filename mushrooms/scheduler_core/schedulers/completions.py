@@ -57,6 +57,11 @@ class PendingVisit:
     latest_s : float
         (P10) Latest start (s since the re-plan's start) still pairing with
         the first done exposure: ``pair_max_s`` after it (default no limit).
+    worth : float or None
+        (S3) What the visit is worth when it adds no coverage (a covered
+        field's later visit of a sequence, e.g. the g after g, r of
+        g-r-g): used instead of the probability it would add.  None (a
+        pair's completion): the probability it adds.
     """
 
     field_id: int
@@ -65,14 +70,19 @@ class PendingVisit:
     filter: str
     due_s: float
     latest_s: float = float("inf")
+    worth: float | None = None
 
 
 def gains_of(visits: Sequence[PendingVisit], footprints: Footprints, uncovered: np.ndarray) -> np.ndarray:
-    """(n,) probability still uncovered inside each visit's field (its gain if completed now)."""
+    """(n,) probability still uncovered inside each visit's field (its gain if completed now; S3: its ``worth``)."""
     if not visits:
         return np.zeros(0)
     sub = footprints.subset([v.field_id for v in visits])
-    return sub.field_probability(uncovered)
+    gain = sub.field_probability(uncovered)
+    fixed = np.array([v.worth is not None for v in visits])
+    if fixed.any():
+        gain = np.where(fixed, [v.worth or 0.0 for v in visits], gain)
+    return gain
 
 
 def _worth(gain: np.ndarray, min_gain: float) -> np.ndarray:
