@@ -7,7 +7,7 @@ import json
 import logging
 import time
 from pathlib import Path
-from typing import Callable, Mapping
+from typing import Callable, Collection, Mapping
 
 import numpy as np
 
@@ -258,6 +258,7 @@ def build_plan(
     event: EventInfo | None = None,
     supersedes: str | None = None,
     runtime_s: float | None = None,
+    keep_fields: Collection[int] = (),
 ) -> Plan:
     """Turn a scheduler's result into a :class:`Plan` (not checked here).
 
@@ -281,6 +282,9 @@ def build_plan(
         plan_id of the plan replaced.
     runtime_s : float, optional
         Wall time to report (default: the scheduler's own).
+    keep_fields : collection of int
+        Fields the least-gain rule keeps whatever they add (a re-plan's
+        later visits of covered fields, S3).
 
     Returns
     -------
@@ -290,7 +294,7 @@ def build_plan(
     """
     config = problem.config
     start = problem.start
-    result = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain)  # every scheduler
+    result = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain, keep_fields)  # every scheduler
     if result.dropped_low_gain:
         log.info("least gain %.2g: dropped %d field(s) adding less", config.min_gain, len(result.dropped_low_gain))
     skymap, event = on_merger_clock(skymap, event)  # the same clock for the document and its detections

@@ -41,7 +41,7 @@ from .plan.checker import check_plan
 from .plan.document import EventInfo, Observation, Plan, iso_utc, make_plan_id
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .schedulers.completions import (
-    PendingVisit, completion_pass, drop_repeats, insert_completions, swap_in_completions,
+    PendingVisit, completion_pass, drop_repeats, insert_completions, shift_in_completions, swap_in_completions,
 )
 from .schedulers.gain import worth_a_visit
 from .schedulers.slew import overhead_time
@@ -305,6 +305,8 @@ def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGr
         completions = {v.field_id for v in state.pending} & {o.field_id for o in placed}
         placed, left = swap_in_completions(placed, left, footprints, state.uncovered, windows, config,
                                            keep=completions)
+    if any(v.worth is not None for v in left):  # (S3) a sequence's next visits: delay what follows them
+        placed, left = shift_in_completions(placed, left, windows, config)
     if left:
         log.info("re-plan: %d half-done field(s) found no time for their other filter: %s",
                  len(left), ", ".join(str(v.field_id) for v in left))
@@ -360,7 +362,8 @@ def _build(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGrid,
                                  expected_detections=None, expected_detections_lightcurve=None)
     # (P8) on the remaining probability: what the plan adds (coverage, expected detections)
     remaining = dataclasses.replace(skymap, prob=state.uncovered)
-    plan = build_plan(problem, merged, remaining, solver, event=event, supersedes=supersedes, runtime_s=runtime_s)
+    plan = build_plan(problem, merged, remaining, solver, event=event, supersedes=supersedes, runtime_s=runtime_s,
+                      keep_fields={v.field_id for v in state.pending if v.worth is not None})
     field_prob = dict(zip(ids.tolist(), footprints.subset(ids).field_probability(skymap.prob).tolist()))
     digest = hashlib.sha256(json.dumps(sorted(json.dumps(to_record(e), sort_keys=True) for e in executed))
                             .encode()).hexdigest()[:16]

@@ -7,13 +7,12 @@ are set pass by pass, in plan order, with the executor model itself
 (:func:`.executor.execute_queues`):
 
 * (Q11) pass k opens at its planned start, or later when the model says a
-  field of the pass was visited (in an earlier pass: another filter, or
-  the visit before last of a sequence such as g-r-g) too recently::
+  field of the pass was first visited (in another filter) too recently::
 
       open_k = max(s_k, max_j (t1_j + cadence + margin - (s_j - s_k)))
 
   with ``s_j`` a target's planned start, ``t1_j`` the modelled time of its
-  field's exposures in the passes before: the pass then reaches target
+  field's earlier exposure in another filter: the pass then reaches target
   j no sooner than a cadence (plus ``margin``, for a telescope a little
   faster than modelled) after that exposure;
 * (Q12) pass k closes ``slack`` after the model's end of the pass (at its
@@ -105,9 +104,7 @@ def _cadence_open(qs, epoch, opens, closes, rows, planned_s, s_k, end_s, separat
     for d in done:
         if d.status != "processed":
             continue
-        if qs.queue[d.target] == k:
-            continue
-        same = rows[qs.field_id[rows] == qs.field_id[d.target]]
+        same = rows[(qs.field_id[rows] == qs.field_id[d.target]) & (qs.filter_id[rows] != qs.filter_id[d.target])]
         for j in same:
             need = max(need, d.start_s + separation_s - (float(planned_s[j]) - s_k))
     return need
