@@ -36,7 +36,7 @@ MAX_SEQUENCE = 8
 
 
 def filter_sequence_problems(filters: object) -> list[str]:
-    """What is wrong with a ``filters`` setting (S0; empty: nothing), one line each."""
+    """(F0) What is wrong with a ``filters`` setting (empty: nothing), one line each."""
     if isinstance(filters, str) or not isinstance(filters, (tuple, list)):
         return [f"filters must be a list of ZTF filters such as [\"g\", \"r\", \"g\"], got {filters!r}"]
     seq = tuple(filters)
@@ -142,7 +142,7 @@ class PlanningConfig:
     exposure_s : float
         Exposure time per visit (s).
     filters : tuple of str
-        The filter sequence each field is visited in, in order (S1-S4,
+        The filter sequence each field is visited in, in order (F1-F4,
         ``docs/design/sequences.md``): ``("g", "r")`` (the default pair),
         ``("g", "r", "g")`` (ZTF's O4 GW sequence), any 1 to
         :data:`MAX_SEQUENCE` ZTF filters changing at every visit.  The first

@@ -99,7 +99,7 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     cfg = problem.config
     if cfg.objective != "detection" or solver == "greedy":
         return scheduler(problem, solver, should_stop)
-    if len(cfg.filters) != 2:  # (S4) the detection stage plans pairs: a sequence is planned for coverage
+    if len(cfg.filters) != 2:  # (F4) the detection stage plans pairs: a sequence is planned for coverage
         result = scheduler(problem, solver, should_stop)
         log.info("objective detection: the detection stage plans pairs of filters; the sequence %s is planned "
                  "for coverage", "-".join(cfg.filters))
@@ -284,7 +284,7 @@ def build_plan(
         Wall time to report (default: the scheduler's own).
     keep_fields : collection of int
         Fields the least-gain rule keeps whatever they add (a re-plan's
-        later visits of covered fields, S3).
+        later visits of covered fields, F3).
 
     Returns
     -------

@@ -124,7 +124,7 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
     covered_pixels = footprints.union(covered)
     coverage_executed = float(skymap.prob[covered_pixels].sum())
     uncovered[covered_pixels] = 0.0
-    if len(config.filters) != 2:  # (S3) a covered field's next visit; the others are planned anew
+    if len(config.filters) != 2:  # (F3) a covered field's next visit; the others are planned anew
         pending = _sequence_pending(skymap, config, start, executed, footprints, grid, covered,
                                     min_processed_fraction)
         return ExecutedState(pairs, covered, uncovered, coverage_executed, pending, unknown)
@@ -146,9 +146,9 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
 def _sequence_pending(skymap: SkyMap, config: PlanningConfig, start: Time, executed: Sequence[ExecutedExposure],
                       footprints: Footprints, grid: FieldGrid, covered: np.ndarray,
                       min_processed_fraction: float) -> tuple[PendingVisit, ...]:
-    """(S3) The next visit of each covered field that has not finished its sequence.
+    """(F3) The next visit of each covered field that has not finished its sequence.
 
-    Due a cadence after its last counted visit (S2), never before the start;
+    Due a cadence after its last counted visit (F2), never before the start;
     no later than the pair separation after its first.  It adds no coverage:
     its worth is the field's probability (at least ``min_gain``), so the
     re-plan keeps it before new fields.  A field two or more visits short
@@ -264,7 +264,7 @@ def _candidates(state: ExecutedState, config: PlanningConfig, start: Time, grid:
     """The grid fields still worth a visit (in the band, not covered, P3) and their windows over the horizon."""
     in_band = (grid.dec >= config.dec_min_deg) & (grid.dec <= config.dec_max_deg)
     sel = in_band & worth_a_visit(footprints, state.uncovered, config.min_gain) & ~np.isin(grid.ids, state.covered)
-    # (S3) the windows of a sequence's pending visits too (their fields are covered: no candidates)
+    # (F3) the windows of a sequence's pending visits too (their fields are covered: no candidates)
     timed = sel | (in_band & np.isin(grid.ids, [v.field_id for v in state.pending if v.worth is not None]))
     return sel, observability_windows(grid.ids[timed], grid.ra[timed], grid.dec[timed], start, config)
 
@@ -275,7 +275,7 @@ def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGr
     """The re-plan's exposures (s since ``start``): the pass (P4), the reduced problem (P5), P6, P7."""
     from .planner import optimise
 
-    # (P4) the completion pass (S3: a covered field's next visit of a sequence is pending, not a candidate)
+    # (P4) the completion pass (F3: a covered field's next visit of a sequence is pending, not a candidate)
     pending = tuple(v for v in state.pending
                     if v.worth is not None or sel[int(grid.index_of(np.array([v.field_id]))[0])])
     front, later, uncovered = completion_pass(pending, footprints, state.uncovered, windows, config)
@@ -305,7 +305,7 @@ def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGr
         completions = {v.field_id for v in state.pending} & {o.field_id for o in placed}
         placed, left = swap_in_completions(placed, left, footprints, state.uncovered, windows, config,
                                            keep=completions)
-    if any(v.worth is not None for v in left):  # (S3) a sequence's next visits: delay what follows them
+    if any(v.worth is not None for v in left):  # (F3) a sequence's next visits: delay what follows them
         placed, left = shift_in_completions(placed, left, windows, config)
     if left:
         log.info("re-plan: %d half-done field(s) found no time for their other filter: %s",

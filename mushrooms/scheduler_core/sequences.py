@@ -1,4 +1,4 @@
-"""Filter sequences: what a field's visits must be, and what a field's done visits are worth (S1-S4).
+"""Filter sequences: what a field's visits must be, and what a field's done visits are worth (F1-F4).
 
 ``[scheduler] filters`` is the sequence ``S = (s_1, ..., s_k)`` of filters each
 planned field is visited in, in that order, each visit at least ``cadence_s``
@@ -7,22 +7,22 @@ after the field's previous one and all of them within one night
 for, ``("g", "r", "g")`` what ZTF's GW programme ran in O4
 (``docs/design/sequences.md``).
 
-* (S1) a field is *covered* (its probability counts) once it has an ``s_1``
+* (F1) a field is *covered* (its probability counts) once it has an ``s_1``
   and an ``s_2`` exposure at least the cadence and at most the pair
   separation apart, in either order -- the pair rule E3 of the first two
   filters; with ``k = 1`` one exposure in ``s_1``.  Later visits add
   nothing to coverage: they are what the team runs (colour and fading);
-* (S2) a covered field's *progress* ``n`` counts its visits in sequence
+* (F2) a covered field's *progress* ``n`` counts its visits in sequence
   order: 2 for the covering pair (the earliest-completed one), then each
   later done exposure in ``s_{n+1}`` at least the cadence after the last
   counted one and within the separation of the first; the field is
   *complete* when ``n = k``;
-* (S3) a re-plan gives a covered, incomplete field its next visit
+* (F3) a re-plan gives a covered, incomplete field its next visit
   ``s_{n+1}`` a cadence after the last counted one (a pending visit, kept
   whatever it adds); a field with done exposures but not covered is planned
   as a whole new sequence when ``k != 2`` (the pair keeps P2: its other
   filter);
-* (S4) the schedulers that model a field as exactly two exposures (the slot
+* (F4) the schedulers that model a field as exactly two exposures (the slot
   and block MILPs, the LNS, the detection stage) refuse a sequence of
   another length (:func:`require_pair`); the hybrid skips them and says so.
 
@@ -46,7 +46,7 @@ __all__ = ["SequenceProgress", "is_pair", "require_pair", "done_covering", "cove
 
 @dataclass(frozen=True)
 class SequenceProgress:
-    """How far a covered field got through the sequence (S2).
+    """How far a covered field got through the sequence (F2).
 
     Attributes
     ----------
@@ -72,7 +72,7 @@ def is_pair(filters: Sequence[str]) -> bool:
 
 
 def require_pair(filters: Sequence[str], scheduler: str) -> None:
-    """(S4) Refuse a sequence other than a pair for a scheduler that models two exposures per field.
+    """(F4) Refuse a sequence other than a pair for a scheduler that models two exposures per field.
 
     Raises
     ------
@@ -97,7 +97,7 @@ def _done_by_field(exposures: Iterable[ExecutedExposure], filters: Sequence[str]
 def covered_fields(exposures: Iterable[ExecutedExposure], filters: Sequence[str],
                    min_processed_fraction: float = MIN_PROCESSED_FRACTION, cadence_s: float = 0.0,
                    max_separation_s: float = math.inf) -> set[int]:
-    """(S1) The fields the record covers: E3 on the sequence's first two filters, or one visit for ``k = 1``.
+    """(F1) The fields the record covers: E3 on the sequence's first two filters, or one visit for ``k = 1``.
 
     Parameters
     ----------
@@ -116,7 +116,7 @@ def covered_fields(exposures: Iterable[ExecutedExposure], filters: Sequence[str]
 def done_covering(exposures: Iterable[ExecutedExposure], filters: Sequence[str],
                   min_processed_fraction: float = MIN_PROCESSED_FRACTION, cadence_s: float = 0.0,
                   max_separation_s: float = math.inf) -> DonePairs:
-    """(S1) :func:`~.executed.done_pairs` of a sequence: ``both`` the covered fields, ``one`` the others with a done visit.
+    """(F1) :func:`~.executed.done_pairs` of a sequence: ``both`` the covered fields, ``one`` the others with a done visit.
 
     The pair rule (E3) on the sequence's first two filters; a one-filter
     sequence covers a field with one done exposure (``one`` is then empty).
@@ -130,7 +130,7 @@ def done_covering(exposures: Iterable[ExecutedExposure], filters: Sequence[str],
 
 def _covering_pair(visits: list[tuple[float, str, Time]], a: str, b: str, cadence_s: float,
                    max_separation_s: float) -> tuple[int, int] | None:
-    """Indices (earlier, later) of the covering pair completed first (S2), None when there is none."""
+    """Indices (earlier, later) of the covering pair completed first (F2), None when there is none."""
     best: tuple[float, float, int, int] | None = None
     for i, (ti, fi, _) in enumerate(visits):
         for j in range(i + 1, len(visits)):
@@ -146,7 +146,7 @@ def _covering_pair(visits: list[tuple[float, str, Time]], a: str, b: str, cadenc
 def sequence_progress(exposures: Iterable[ExecutedExposure], filters: Sequence[str],
                       min_processed_fraction: float = MIN_PROCESSED_FRACTION, cadence_s: float = 0.0,
                       max_separation_s: float = math.inf) -> dict[int, SequenceProgress]:
-    """(S2) The covered fields' progress through the sequence.
+    """(F2) The covered fields' progress through the sequence.
 
     Parameters
     ----------
@@ -163,7 +163,7 @@ def sequence_progress(exposures: Iterable[ExecutedExposure], filters: Sequence[s
     Returns
     -------
     dict of int to SequenceProgress
-        One entry per covered field (S1), none for the others.
+        One entry per covered field (F1), none for the others.
 
     Examples
     --------

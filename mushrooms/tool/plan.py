@@ -374,8 +374,10 @@ def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec
             plot_plan(plan, skymap, night_path(args.plot, n), executed=executed)
         m = plan.metrics
         night = f"night {n} of {len(plans)}, " if len(plans) > 1 else ""
-        completed = len({o.field_id for o in plan.observations} & set(pairs.one))
-        half = f", {completed} of {len(pairs.one)} half-done completed" if n == 1 and spec is not None else ""
+        # a pair's half-done fields are those done in one filter; a sequence's, the covered ones (F3)
+        half_done = set(pairs.one) if len(cfg.filters) == 2 else set(pairs.both)
+        completed = len({o.field_id for o in plan.observations} & half_done)
+        half = f", {completed} of {len(half_done)} half-done completed" if n == 1 and spec is not None else ""
         print(f"{output}: {night}{plan.start.isot[:19]}Z to {plan.end.isot[:19]}Z, {m.n_fields} fields, "
               f"{m.n_exposures} exposures, adds coverage {m.coverage:.4f} to the {m.coverage_executed:.4f} done "
               f"before (total {m.coverage + m.coverage_executed:.4f}){half}; {m.solver} ({m.status}), checked, "

@@ -1,4 +1,4 @@
-"""A g-r-g plan through the queue export and the executor model, and a re-plan of half-done g-r-g fields (S1, S3).
+"""A g-r-g plan through the queue export and the executor model, and a re-plan of half-done g-r-g fields (F1, F3).
 
 Real map (MS220722v), real greedy, the real telescope model; the credit
 cases of the executor's coverage are worked by hand.
@@ -58,7 +58,7 @@ def test_the_executor_runs_each_field_in_sequence_and_credits_the_first_two_visi
     for fid, visits in runs.items():
         bands = [e.filter for e in visits]
         assert bands == ["g", "r", "g"][:len(bands)]  # the passes' queues keep the sequence's order
-        # (S1) a g and an r visit a cadence apart, either order: g-r too close is saved by r-g
+        # (F1) a g and an r visit a cadence apart, either order: g-r too close is saved by r-g
         g = [e.start.unix for e in visits if e.filter == "g"]
         r = [e.start.unix for e in visits if e.filter == "r"]
         if any(abs(a - b) >= GRG.cadence_s for a in g for b in r):

@@ -1,4 +1,4 @@
-"""Filter sequences (docs/design/sequences.md, S0-S5, R1-R3): config, credit, greedy, checker, refusals.
+"""Filter sequences (docs/design/sequences.md, F0-F5, F6-F8): config, credit, greedy, checker, refusals.
 
 The checker cases are hand-built plans at the zenith on a dark night (the
 checker tests' control, with a third visit); the credit cases are worked
@@ -65,7 +65,7 @@ def flat_map():
                   distnorm=None, distmean=None, sha256="0" * 64, source="<flat>")
 
 
-# ----------------------------------------------------------------- S0: the setting
+# ----------------------------------------------------------------- F0: the setting
 
 @pytest.mark.parametrize("filters", [("g", "r", "g"), ("r", "g", "r"), ("g",), ("g", "r", "i", "r")])
 def test_a_sequence_of_changing_ztf_filters_is_accepted(filters):
@@ -85,7 +85,7 @@ def test_the_exposure_menu_needs_a_pair():
         PlanningConfig(filters=("g", "r", "g"), exposure_menu_s=(180.0, 300.0))
 
 
-# ----------------------------------------------------------------- S1, S2: credit worked by hand
+# ----------------------------------------------------------------- F1, F2: credit worked by hand
 
 def test_g_then_r_a_cadence_apart_covers_and_leaves_the_third_visit():
     record = minutes(700, ("g", 0), ("r", 35), ("g", 45))  # the g at 45 min is only 10 min after the r
@@ -114,7 +114,7 @@ def test_a_one_filter_sequence_is_covered_by_one_visit():
     assert covered_fields(minutes(700, ("r", 0)) + minutes(701, ("g", 0)), ("g",)) == {701}
 
 
-# ----------------------------------------------------------------- R1-R3: the checker by hand
+# ----------------------------------------------------------------- F6-F8: the checker by hand
 
 def test_the_hand_built_grg_plan_passes_and_is_refused_as_a_pair(flat_map):
     assert check_plan(plan_of(grg_control()), flat_map, GRG).ok
@@ -162,7 +162,7 @@ def test_a_field_done_in_one_filter_is_planned_anew_in_the_whole_sequence(flat_m
     assert report.counts == {"cadence": 1}
 
 
-# ----------------------------------------------------------------- S4: greedy plans it, the MILPs refuse it
+# ----------------------------------------------------------------- F4: greedy plans it, the MILPs refuse it
 
 @pytest.fixture(scope="module")
 def grg_plan(skymap_220722v):

@@ -435,7 +435,7 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
         held = polygon_coverage(covered, skymap.prob)
         if abs(float(reported_executed) - held) > coverage_tolerance:
             p.add("coverage", f"reported {reported_executed:.5f} executed but the executed pairs hold {held:.5f}")
-    # (P9) with an executed record: no exposure of a field done in both filters (a sequence: R2, R3)
+    # (P9) with an executed record: no exposure of a field done in both filters (a sequence: F7, F8)
     for fid in sorted({o.field_id for o in obs} & set(covered) if len(config.filters) == 2 else ()):
         p.add("repeat", f"field {fid} is done in both {config.filters[0]} and {config.filters[1]} "
                         f"(executed) and planned again")
@@ -448,7 +448,7 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     _check_conditions(p, x, plan.start, config)
     if len(config.filters) == 2:
         _check_cadence(p, x, config, done)
-    else:  # (R1-R3) a sequence of another length: its own rules, sequence_check.py
+    else:  # (F6-F8) a sequence of another length: its own rules, sequence_check.py
         check_sequences(p.add, x.ids, x.flt, x.start, tuple(config.filters), config.cadence_s,
                         config.pair_separation_s, done)
 
@@ -538,7 +538,7 @@ def _check_conditions(p: _Problems, x: _Exposures, t0: Time, config: PlanningCon
 
 def _covered(executed: Sequence[ExecutedExposure], done: dict[int, dict[str, np.ndarray]],
              config: PlanningConfig, min_processed_fraction: float) -> set[int]:
-    """The fields the record covers: done in both filters (E3), for a sequence the first two (R2)."""
+    """The fields the record covers: done in both filters (E3), for a sequence the first two (F7)."""
     if len(config.filters) == 2:
         return set(done_pairs(executed, tuple(config.filters), min_processed_fraction, config.cadence_s,
                               config.pair_separation_s).both)

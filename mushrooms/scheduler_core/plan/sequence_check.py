@@ -1,20 +1,20 @@
-"""The checker's rules for a filter sequence other than a pair (R1-R3, ``docs/design/sequences.md``).
+"""The checker's rules for a filter sequence other than a pair (F6-F8, ``docs/design/sequences.md``).
 
 Written apart from the schedulers and from :mod:`..sequences` (the
-planner's S1-S3): the checker reads the plan and the executed record on
+planner's F1-F3): the checker reads the plan and the executed record on
 their own.
 
-* (R1) a field without covering executed exposures is planned in the whole
+* (F6) a field without covering executed exposures is planned in the whole
   sequence: its exposures, in time order, are ``filters`` exactly, each at
   least ``cadence_s`` after the one before, the last at most
   ``pair_separation_s`` after the first;
-* (R2) a field the executed record covers (the pair rule on the first two
+* (F7) a field the executed record covers (the pair rule on the first two
   filters, or one exposure for a one-filter sequence) is planned only in a
   continuation: its exposures are ``filters[j:j + m]`` for some ``j >= 2``,
   the first at least the cadence after a done exposure in ``filters[j-1]``,
   each later one the cadence after the one before, all within the
   separation of the field's earliest done exposure;
-* (R3) a continuation does not repeat a visit: no done exposure in
+* (F8) a continuation does not repeat a visit: no done exposure in
   ``filters[j]`` lies the cadence after a done one in ``filters[j-1]``.
 
 Times are seconds since the plan's start; done exposures are negative
@@ -62,7 +62,7 @@ def covered_by_record(done: Mapping[int, Mapping[str, np.ndarray]], filters: Seq
 def check_sequences(add: Callable[[str, str], None], ids: np.ndarray, flt: np.ndarray, start: np.ndarray,
                     filters: Sequence[str], cadence_s: float, separation_s: float,
                     done: Mapping[int, Mapping[str, np.ndarray]]) -> None:
-    """R1-R3 for each planned field; ``add(kind, text)`` records a problem.
+    """F6-F8 for each planned field; ``add(kind, text)`` records a problem.
 
     Parameters
     ----------
@@ -88,7 +88,7 @@ def check_sequences(add: Callable[[str, str], None], ids: np.ndarray, flt: np.nd
             i = int(short[0])
             add("cadence", f"field {fid}: {bands[i]} and {bands[i + 1]} only {times[i + 1] - times[i]:.0f} s apart "
                            f"(cadence {cadence_s:.0f} s)")
-        if int(fid) not in covered:  # (R1) the whole sequence
+        if int(fid) not in covered:  # (F6) the whole sequence
             if bands != seq:
                 add("cadence", f"field {fid} is observed in {'-'.join(bands)}, not the sequence {'-'.join(seq)}")
             elif times[-1] - times[0] > separation_s + TOL_S:
@@ -102,7 +102,7 @@ def check_sequences(add: Callable[[str, str], None], ids: np.ndarray, flt: np.nd
 def _check_continuation(add: Callable[[str, str], None], fid: int, bands: tuple[str, ...], times: np.ndarray,
                         seq: tuple[str, ...], cadence_s: float, separation_s: float,
                         done: Mapping[str, np.ndarray], pair: tuple[float, float]) -> None:
-    """(R2, R3) a covered field's planned exposures continue its sequence without repeating a visit.
+    """(F7, F8) a covered field's planned exposures continue its sequence without repeating a visit.
 
     ``pair``: its covering pair's starts (s); visits ``j >= 3`` count only
     after it, and the separation runs from its earlier exposure.

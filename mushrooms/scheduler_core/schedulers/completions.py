@@ -58,7 +58,7 @@ class PendingVisit:
         (P10) Latest start (s since the re-plan's start) still pairing with
         the first done exposure: ``pair_max_s`` after it (default no limit).
     worth : float or None
-        (S3) What the visit is worth when it adds no coverage (a covered
+        (F3) What the visit is worth when it adds no coverage (a covered
         field's later visit of a sequence, e.g. the g after g, r of
         g-r-g): used instead of the probability it would add.  None (a
         pair's completion): the probability it adds.
@@ -74,7 +74,7 @@ class PendingVisit:
 
 
 def gains_of(visits: Sequence[PendingVisit], footprints: Footprints, uncovered: np.ndarray) -> np.ndarray:
-    """(n,) probability still uncovered inside each visit's field (its gain if completed now; S3: its ``worth``)."""
+    """(n,) probability still uncovered inside each visit's field (its gain if completed now; F3: its ``worth``)."""
     if not visits:
         return np.zeros(0)
     sub = footprints.subset([v.field_id for v in visits])
@@ -296,7 +296,7 @@ def swap_in_completions(observations: Sequence[Observation], visits: Sequence[Pe
 
 def shift_in_completions(observations: Sequence[Observation], visits: Sequence[PendingVisit], windows: Windows,
                          config: PlanningConfig) -> tuple[tuple[Observation, ...], tuple[PendingVisit, ...]]:
-    """(S3) Make room for a sequence's next visits: insert each, most worth first, delaying what follows it.
+    """(F3) Make room for a sequence's next visits: insert each, most worth first, delaying what follows it.
 
     A visit goes at the earliest place where it can start at or after its
     due time inside a window; every later exposure moves by the same delay

@@ -94,7 +94,7 @@ def drop_low_gain(result: ScheduleResult, footprints: Footprints, prob: np.ndarr
     min_gain : float
         Least added probability (0 keeps everything).
     keep : collection of int
-        Fields never dropped (S3: a re-plan's later visits of covered
+        Fields never dropped (F3: a re-plan's later visits of covered
         fields, which add nothing to coverage by definition).
 
     Returns

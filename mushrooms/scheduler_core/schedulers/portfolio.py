@@ -79,7 +79,7 @@ class Stage:
         much of the budget is left and ``should_stop`` (polled once, before
         it) does not say stop.
     pairs_only : bool
-        The stage plans each field in exactly two filters (S4): with a
+        The stage plans each field in exactly two filters (F4): with a
         sequence of another length it is skipped.
     """
 
@@ -173,7 +173,7 @@ class Portfolio:
         skipped: list[str] = []
         times: dict[str, float] = {}  # wall time (s) of each stage run, and of the bound
         pair_stages = [s.name for s in self.stages if s.pairs_only and len(problem.config.filters) != 2]
-        if pair_stages:  # (S4) they model two exposures per field
+        if pair_stages:  # (F4) they model two exposures per field
             log.info("%s: %s plan pairs of filters; skipped for the sequence %s", self.label,
                      ", ".join(pair_stages), "-".join(problem.config.filters))
         for i, stage in enumerate(self.stages):
@@ -274,7 +274,7 @@ def blocks(problem: PlanningProblem, should_stop: StopCheck | None = None) -> Sc
 def published_bound(problem: PlanningProblem) -> UpperBound | None:
     """The certified bound plans publish: ``min(U4, V)`` within ``config.bound_time_limit_s`` (:mod:`.certified_bound`).
 
-    (S5) A sequence of ``k >= 2`` filters keeps the pair's bound: its first
+    (F5) A sequence of ``k >= 2`` filters keeps the pair's bound: its first
     two visits are a plan of the pair (the later ones only take time), so
     the pair's relaxations hold.  A one-filter sequence has none (None): a
     field there costs one exposure, which U4 and V do not model.

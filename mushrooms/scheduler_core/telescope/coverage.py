@@ -24,7 +24,7 @@ def cadence_coverage(executed: Iterable[ExecutedExposure], footprints: "Footprin
     """Probability inside the covered fields (Q14): done in both filters at least ``cadence_s`` apart (E3).
 
     ``filters`` is the plan's sequence: a field is covered by the first two
-    (S1, whatever its later visits did), or one exposure of a one-filter
+    (F1, whatever its later visits did), or one exposure of a one-filter
     sequence.  ``require="any"`` counts a field once one done exposure
     exists in any of the filters.
     """
@@ -76,7 +76,7 @@ def queue_coverage(plan: "Plan", footprints: "Footprints", prob: np.ndarray,
     """Cadence-valid coverage of a plan's queues as ZTF executes them (Q14): ``metrics.coverage_as_executed``.
 
     The plan's own filter sequence and cadence (its ``config``) decide what
-    covers a field (S1).
+    covers a field (F1).
     """
     config = plan.config or {}
     filters = tuple(config.get("filters", ("g", "r")))
