@@ -211,3 +211,50 @@ def test_one_filter_plans_one_visit_per_field_and_publishes_no_bound(skymap_2207
                                                     objective="coverage"))
     assert {o.filter for o in plan.observations} == {"r"}
     assert len(plan.field_ids) == plan.metrics.n_exposures and plan.metrics.upper_bound is None
+
+
+# ----------------------------------------------------------------- F3: room for a next visit
+
+def test_a_next_visit_is_put_in_front_of_the_plan_and_what_follows_it_moves_by_one_delay():
+    from mushrooms.scheduler_core.schedulers.completions import PendingVisit, shift_in_completions
+    from mushrooms.scheduler_core.schedulers.slew import overhead_time
+    from mushrooms.scheduler_core.sky.windows import Windows
+
+    cfg = PlanningConfig(exposure_s=300.0)
+    plan = [obs(F1685, "g", 1000.0), obs(F1685, "r", 2900.0)]
+    v = PendingVisit(687, F687[1], F687[2], "g", due_s=900.0, worth=0.01)
+    wide = Windows(np.array([687, 1685]), np.array([0.0, 0.0]), np.array([20000.0, 20000.0]))
+    placed, left = shift_in_completions(plan, [v], wide, cfg)
+    # by hand: the visit at its due time 900 s; the next exposure then needs 900 + 300 + o(687 -> 1685)
+    o = float(overhead_time(F687[1], F687[2], F1685[1], F1685[2], cfg.slew, 0.0))
+    delay = 900.0 + 300.0 + o - 1000.0
+    assert left == () and [(x.field_id, x.filter) for x in placed] == [(687, "g"), (1685, "g"), (1685, "r")]
+    assert placed[0].start == 900.0
+    assert [x.start for x in placed[1:]] == pytest.approx([1000.0 + delay, 2900.0 + delay])
+    # a field one of whose moved exposures leaves its window is dropped, all of it
+    tight = Windows(np.array([687, 1685]), np.array([0.0, 0.0]), np.array([20000.0, 3200.0 + delay / 2]))
+    placed, left = shift_in_completions(plan, [v], tight, cfg)
+    assert left == () and [(x.field_id, x.start) for x in placed] == [(687, 900.0)]
+    # a visit that adds coverage (no worth) is not this function's: it comes back
+    pair = dataclasses.replace(v, worth=None)
+    assert shift_in_completions(plan, [pair], wide, cfg) == (tuple(plan), (pair,))
+
+
+def test_the_skyportal_payload_names_the_sequence(grg_plan):
+    from mushrooms.scheduler_core.plan.exports import ExportConfig, to_skyportal
+
+    body = to_skyportal(grg_plan, ExportConfig(skyportal_allocation_id=7))
+    assert body["payload"]["filters"] == "g,r,g"
+    assert [p["filt"] for p in body["observation_plans"][0]["planned_observations"]][:1] == ["ztfg"]
+
+
+def test_the_config_file_takes_a_sequence_and_refuses_a_repeat(tmp_path):
+    from mushrooms.tool.config import load_config
+
+    good = tmp_path / "grg.toml"
+    good.write_text('[scheduler]\nfilters = ["r", "g", "r"]\n')
+    assert load_config(str(good)).scheduler.filters == ("r", "g", "r")
+    bad = tmp_path / "gg.toml"
+    bad.write_text('[scheduler]\nfilters = ["g", "g", "r"]\n')
+    with pytest.raises(Exception, match="visit 2 repeats the one before it"):
+        load_config(str(bad))
