@@ -37,12 +37,11 @@ from typing import Iterable, Sequence
 
 from astropy.time import Time
 
-from .config import MAX_SEQUENCE
 from .errors import InputError
 from .executed import MIN_PROCESSED_FRACTION, DonePairs, ExecutedExposure, FieldVisits, done_pairs, is_done
 
 __all__ = ["SequenceProgress", "is_pair", "require_pair", "done_covering", "covered_fields",
-           "sequence_progress", "MAX_SEQUENCE"]
+           "sequence_progress"]
 
 @dataclass(frozen=True)
 class SequenceProgress:

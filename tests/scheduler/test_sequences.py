@@ -9,11 +9,8 @@ from __future__ import annotations
 
 import dataclasses
 
-import healpy as hp
 import numpy as np
 import pytest
-from astropy import units as u
-from astropy.coordinates import EarthLocation
 from astropy.time import Time, TimeDelta
 
 from mushrooms.scheduler_core import PlanningConfig, check_plan, make_plan, prepare_problem
@@ -21,14 +18,12 @@ from mushrooms.scheduler_core.errors import InputError
 from mushrooms.scheduler_core.executed import ExecutedExposure
 from mushrooms.scheduler_core.plan.document import Observation, Plan
 from mushrooms.scheduler_core.sequences import covered_fields, sequence_progress
-from mushrooms.scheduler_core.sky.skymap import SkyMap
 
 NEW_MOON = Time("2022-07-28T02:00:00", scale="utc")
 T0 = 6 * 3600.0  # 08:00 UTC, the middle of the night
 F687 = (687, 306.08789, 33.35)  # near the zenith at T0
 F1685 = (1685, 307.14268, 29.75)
 GRG = PlanningConfig(filters=("g", "r", "g"))
-P48 = EarthLocation.from_geodetic(lon=-116.86 * u.deg, lat=33.357 * u.deg, height=1707 * u.m)
 
 
 def obs(f, filt, start):
@@ -55,14 +50,6 @@ def minutes(field_id, *visits):
     t0 = Time("2026-05-01T04:00:00", scale="utc")
     return [ExecutedExposure(field_id, f, t0 + TimeDelta(m * 60, format="sec"), 180.0, 1.0, "processed")
             for f, m in visits]
-
-
-@pytest.fixture(scope="module")
-def flat_map():
-    nside = 64
-    prob = np.full(hp.nside2npix(nside), 1.0 / hp.nside2npix(nside))
-    return SkyMap(prob=prob, nside=nside, event_time=None, object_id=None, distmu=None, distsigma=None,
-                  distnorm=None, distmean=None, sha256="0" * 64, source="<flat>")
 
 
 # ----------------------------------------------------------------- F0: the setting
