@@ -14,6 +14,12 @@ at least the cadence after the first, P2).  The re-plan is
    last pointing, cannot start too early);
 3. the completions that were not due yet fitted into that plan's gaps (P7).
 
+With a filter sequence other than a pair (``docs/design/sequences.md``,
+F3) the half-done fields are the covered ones whose sequence is not
+finished: their next visit is pending whatever it adds, kept by the
+least-gain rule, and made room for by delaying what follows it when no gap
+takes it; a field with done visits but not covered is planned anew.
+
 Metrics (P8): ``coverage`` is what the plan *adds* (probability inside the
 fields it completes or observes, outside the executed pairs);
 ``coverage_executed`` what the executed pairs already hold; the total is
@@ -64,7 +70,8 @@ class ExecutedState:
     Attributes
     ----------
     pairs : DonePairs
-        :func:`~.executed.done_pairs` with the plan's filters and cadence.
+        :func:`~.sequences.done_covering` with the plan's filters and cadence
+        (:func:`~.executed.done_pairs` of the pair, or of a sequence's first two, F1).
     covered : numpy.ndarray
         Sorted IDs of the grid fields done in both filters.
     uncovered : numpy.ndarray
