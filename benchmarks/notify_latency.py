@@ -144,6 +144,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--events", type=int, default=6)
     ap.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "observer")
+    ap.add_argument("--keep", metavar="DIR", help="keep the daemons' logs and state files in DIR (new)")
     args = ap.parse_args()
     broker = Broker()
     server = loopback_server()
@@ -155,7 +156,7 @@ def main() -> int:
              "both daemons run side by side; notices go to one at a time, the arms' order alternating "
              "(healthy, hanging, hanging, healthy, ...), each sent once the previous job is done", ""]
     with tempfile.TemporaryDirectory() as tmp:
-        work = Path(tmp)
+        work = Path(args.keep) if args.keep else Path(tmp)  # --keep: the daemons' logs and state stay there
         arms = [Arm(broker, work, "healthy", server.url_for(HOOK_PATH)),
                 Arm(broker, work, "hanging", f"http://127.0.0.1:{silent.port}{HOOK_PATH}")]
         try:
