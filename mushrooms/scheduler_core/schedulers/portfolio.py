@@ -191,10 +191,12 @@ class Portfolio:
                 bound_s = time.perf_counter() - t_bound
                 times["bound"] = round(bound_s, 3)
         names = list(ran)
-        name, executed = choose_as_executed(problem, ran, covs)
+        from ..telescope.coverage import AS_EXECUTED_MEMO
+
+        name, executed, memo = choose_as_executed(problem, ran, covs)
         best = ran[name]
         entries = tuple(PortfolioEntry(n, r.solver, r.status, r.mip_gap, covs[n]) for n, r in ran.items())
-        details = dict(best.details, stage_times_s=times, coverage_as_executed=executed)
+        details = dict(best.details, stage_times_s=times, coverage_as_executed=executed, **{AS_EXECUTED_MEMO: memo})
         if skipped:
             details["skipped_at_bound"] = skipped
         return dataclasses.replace(best, solver=f"{self.label}({best.solver})", runtime_s=time.perf_counter() - t0,
@@ -203,7 +205,7 @@ class Portfolio:
 
 
 def choose_as_executed(problem: PlanningProblem, ran: dict[str, ScheduleResult], covs: dict[str, float]
-                       ) -> tuple[str, dict[str, float]]:
+                       ) -> tuple[str, dict[str, float], dict[tuple, float]]:
     """(Q15) the candidate whose queues ZTF's scheduler executes best (cadence-valid coverage), ties to the planned.
 
     Candidates are tried in order of planned coverage (then stage order); a
@@ -213,20 +215,26 @@ def choose_as_executed(problem: PlanningProblem, ran: dict[str, ScheduleResult],
 
     Returns
     -------
-    (str, dict of str to float)
-        The chosen stage and the executed coverage of each candidate tried.
+    (str, dict of str to float, dict of tuple to float)
+        The chosen stage, the executed coverage of each candidate tried, and
+        the same by :func:`~..telescope.coverage.execution_key` (the memo that
+        spares the published plan a second run of the executor).
     """
-    from ..telescope.coverage import result_coverage_as_executed
+    from ..telescope.coverage import keyed_coverage_as_executed
 
     names = list(ran)
     order = sorted(names, key=lambda n: (-covs[n], names.index(n)))
     executed: dict[str, float] = {}
+    memo: dict[tuple, float] = {}
     for n in order:
         if executed and covs[n] <= max(executed.values()) + 1e-12:
             break
-        executed[n] = round(result_coverage_as_executed(problem, ran[n]), 6)
+        key, value = keyed_coverage_as_executed(problem, ran[n])
+        executed[n] = round(value, 6)
+        if key is not None:
+            memo[key] = value
     name = max(executed, key=lambda n: (executed[n], covs[n], -names.index(n)))
-    return name, executed
+    return name, executed, memo
 
 
 def best_of(label: str, *stages: Stage, bound: BoundRun | None = None) -> Portfolio:
