@@ -90,6 +90,7 @@ def _cached_earth_orientation(iers: Any) -> None:
                 except Exception as exc:  # a truncated or foreign file: parse the tables instead
                     log.debug("earth-orientation cache %s unreadable (%s): parsing the tables", path, exc)
     table = iers.earth_orientation_table.get()  # parsed from astropy-iers-data
+    iers.earth_orientation_table.set(table)
     tmp = None
     try:
         folder.mkdir(mode=0o700, parents=True, exist_ok=True)
