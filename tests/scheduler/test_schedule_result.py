@@ -163,3 +163,35 @@ def test_best_of_keeps_the_most_covering_plan_the_earlier_on_a_tie_and_polls_the
     stopped = best_of("pf", Stage("a", _stub("a", first, calls)),
                       Stage("c", _stub("c", obs, calls), min_left_s=0.0))(problem, stop)
     assert len(polls) == 1 and [c[0] for c in calls] == ["a"] and stopped.portfolio_choice == "a"
+
+
+def test_two_candidates_with_one_plan_cost_one_run_of_the_executor(monkeypatch):
+    import mushrooms.scheduler_core.telescope.coverage as coverage_module
+
+    problem = _problem(0)
+    obs = greedy_schedule(problem).observations
+    runs = []
+    real = coverage_module.queue_coverage
+
+    def counted(plan, *args, **kwargs):
+        runs.append(plan.observations)
+        return 0.5 * real(plan, *args, **kwargs)  # executes worse than planned: the second candidate is tried
+
+    monkeypatch.setattr(coverage_module, "queue_coverage", counted)
+    result = best_of("pf", Stage("a", _stub("a", obs, [])), Stage("b", _stub("b", obs, [])))(problem)
+    executed = result.details["coverage_as_executed"]
+    assert list(executed) == ["a", "b"] and executed["a"] == executed["b"]
+    assert len(runs) == 1 and result.portfolio_choice == "a"
+    # the published plan reuses the value too: building it runs the executor no more
+    from mushrooms.scheduler_core.planner import _coverage_as_executed
+    from mushrooms.scheduler_core.plan.document import sorted_observations
+    from mushrooms.scheduler_core.schedulers.gain import drop_low_gain
+
+    kept = sorted_observations(drop_low_gain(result, problem.footprints, problem.prob,
+                                             problem.config.min_gain).observations)
+
+    class _Plan:  # what _coverage_as_executed reads of a plan
+        observations = kept
+
+    assert _coverage_as_executed(_Plan(), problem, result) == pytest.approx(executed["a"], abs=1e-6)
+    assert len(runs) == 1

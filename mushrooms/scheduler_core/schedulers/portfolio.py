@@ -245,7 +245,7 @@ def choose_as_executed(problem: PlanningProblem, ran: dict[str, ScheduleResult],
     for n in order:
         if executed and covs[n] <= max(executed.values()) + 1e-12:
             break
-        key, value = keyed_coverage_as_executed(problem, ran[n])
+        key, value = keyed_coverage_as_executed(problem, ran[n], memo)  # an LNS that kept its seed: one run
         executed[n] = round(value, 6)
         if key is not None:
             memo[key] = value

@@ -99,7 +99,8 @@ def result_coverage_as_executed(problem: Any, result: Any) -> float:
     return keyed_coverage_as_executed(problem, result)[1]
 
 
-def keyed_coverage_as_executed(problem: Any, result: Any) -> tuple[tuple | None, float]:
+def keyed_coverage_as_executed(problem: Any, result: Any, memo: dict[tuple, float] | None = None
+                               ) -> tuple[tuple | None, float]:
     """A scheduler result's ``coverage_as_executed`` as its published plan will have it (after the least-gain rule).
 
     Parameters
@@ -109,6 +110,9 @@ def keyed_coverage_as_executed(problem: Any, result: Any) -> tuple[tuple | None,
     result : ScheduleResult
         A candidate schedule; a value remembered in its ``details``
         (:data:`AS_EXECUTED_MEMO`) for the same plan is returned as is.
+    memo : dict, optional
+        More remembered values (:func:`execution_key` -> coverage), e.g. of
+        other candidates with the same plan.
 
     Returns
     -------
@@ -126,7 +130,7 @@ def keyed_coverage_as_executed(problem: Any, result: Any) -> tuple[tuple | None,
         return None, 0.0
     observations = sorted_observations(kept.observations)
     key = execution_key(problem, observations)
-    known = (result.details or {}).get(AS_EXECUTED_MEMO, {}).get(key)
+    known = {**(result.details or {}).get(AS_EXECUTED_MEMO, {}), **(memo or {})}.get(key)
     if known is not None:
         return key, float(known)
     plan = Plan(plan_id="candidate", start=problem.start,
