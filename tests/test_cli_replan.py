@@ -132,3 +132,33 @@ def test_plan_with_two_nights_writes_one_document_and_queue_per_night(tmp_path):
     assert not {o["field_id"] for o in second["observations"]} & {o["field_id"] for o in first["observations"]}
     assert (tmp_path / "queue.night2.json").is_file()
     assert "night 1 of 2" in r.stdout and "night 2 of 2" in r.stdout
+
+
+def test_a_grg_replan_from_the_command_line_gives_each_field_done_in_g_and_r_its_third_visit(tmp_path):
+    """``[scheduler] filters = ["g", "r", "g"]``: the g and r visits of a block executed, the re-plan keeps the g."""
+    (tmp_path / "grg.toml").write_text('[scheduler]\nfilters = ["g", "r", "g"]\nexposure_s = 180.0\nsolver = "greedy"\n')
+    config = ["--config", str(tmp_path / "grg.toml")]
+    r = mushrooms("plan", str(MAP), *config, "--start", "2022-07-23T02:00:00Z", "-o", str(tmp_path / "plan.json"))
+    assert r.returncode == 0, r.stderr
+    first = json.loads((tmp_path / "plan.json").read_text())
+    block0 = [o for o in first["observations"] if o["block"] == 0]
+    assert [o["filter"] for o in block0].count("g") == 2 * [o["filter"] for o in block0].count("r")
+    first_r = min(Time(o["start"]).unix for o in block0 if o["filter"] == "r")
+    done = [o for o in block0 if o["filter"] == "r" or Time(o["start"]).unix < first_r]
+    (tmp_path / "executed.jsonl").write_text("".join(json.dumps(
+        {"field_id": o["field_id"], "filter": o["filter"], "start": o["start"], "exposure_s": o["exposure_s"],
+         "processed_fraction": 1.0, "status": "processed"}) + "\n" for o in done))
+    start = max(Time(o["end"]) for o in done)
+    r = mushrooms("plan", str(MAP), *config, "--executed", str(tmp_path / "executed.jsonl"),
+                  "--start", start.isot + "Z", "-o", str(tmp_path / "replan.json"), "--queue", str(tmp_path / "q.json"))
+    assert r.returncode == 0, r.stderr
+    fields = {o["field_id"] for o in done}
+    assert f"{len(fields)} of {len(fields)} half-done completed" in r.stdout
+    replan = json.loads((tmp_path / "replan.json").read_text())
+    r_at = {o["field_id"]: Time(o["start"]) for o in done if o["filter"] == "r"}
+    for fid in fields:
+        mine = [o for o in replan["observations"] if o["field_id"] == fid]
+        assert [o["filter"] for o in mine] == ["g"]
+        assert (Time(mine[0]["start"]) - r_at[fid]).to_value("s") >= 1800.0 - 1e-3
+    r = mushrooms("check", str(tmp_path / "replan.json"), str(MAP), "--executed", str(tmp_path / "executed.jsonl"))
+    assert r.returncode == 0 and ": OK:" in r.stdout, r.stdout + r.stderr

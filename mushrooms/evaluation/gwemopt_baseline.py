@@ -427,7 +427,9 @@ def repair_observations(observations, problem) -> Repair:
                 o = Observation(o.field_id, o.ra, o.dec, o.filter, float(t), o.exposure_s, o.block)
                 counts["delayed"] += 1
         timed.append(o)
-    f1, f2 = cfg.filters
+    if len(cfg.filters) < 2:
+        raise ValueError(f"the gwemopt baseline's repair keeps pairs: filters {list(cfg.filters)!r} has one filter")
+    f1, f2 = cfg.filters[:2]  # a sequence (g-r-g): pairs of its first two, later visits kept a cadence apart
     by_field: dict[int, list[Observation]] = {}
     for o in timed:
         by_field.setdefault(o.field_id, []).append(o)

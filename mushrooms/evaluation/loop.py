@@ -29,7 +29,8 @@ import numpy as np
 from astropy.time import Time
 
 from ..scheduler_core.config import PlanningConfig
-from ..scheduler_core.executed import MIN_PROCESSED_FRACTION, ExecutedExposure, done_pairs, is_done
+from ..scheduler_core.executed import MIN_PROCESSED_FRACTION, ExecutedExposure, is_done
+from ..scheduler_core.sequences import done_covering
 from ..scheduler_core.plan.document import Observation, Plan
 from ..scheduler_core.sky.fields import FieldGrid, field_footprints, load_ztf_fields
 from ..scheduler_core.sky.footprints import Footprints
@@ -163,7 +164,7 @@ def executed_detections(executed: Sequence[ExecutedExposure], plan: Plan, skymap
 def repeated_pairs(replan: Plan, before: Sequence[ExecutedExposure], config: PlanningConfig,
                    min_processed_fraction: float = MIN_PROCESSED_FRACTION) -> int:
     """Exposures of ``replan`` in fields done in both filters (E3, ``config.cadence_s``) by ``before``."""
-    both = set(done_pairs(before, tuple(config.filters), min_processed_fraction, config.cadence_s).both)
+    both = set(done_covering(before, tuple(config.filters), min_processed_fraction, config.cadence_s).both)
     return sum(o.field_id in both for o in replan.observations)
 
 

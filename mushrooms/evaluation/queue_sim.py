@@ -128,7 +128,7 @@ def execute_plan(plan: Plan, start: Time | None = None, closures: Iterable[Closu
 
 
 def achieved_coverage(executed: Iterable[ExecutedExposure], skymap: SkyMap, footprints: Footprints,
-                      filters: tuple[str, str] = ("g", "r"), require: str = "both",
+                      filters: tuple[str, ...] = ("g", "r"), require: str = "both",
                       min_processed_fraction: float = MIN_PROCESSED_FRACTION, cadence_s: float = 0.0) -> float:
     """Probability inside the footprints of the fields observed (Q14).
 
@@ -147,7 +147,7 @@ def achieved_coverage(executed: Iterable[ExecutedExposure], skymap: SkyMap, foot
     footprints : Footprints
         Footprints of (at least) the executed fields.
     filters : tuple of str
-        The plan's two filters.
+        The plan's filter sequence (a field is covered by its first two, F1).
     require : str
         ``both`` or ``any``.
     min_processed_fraction : float

@@ -72,6 +72,14 @@ class PlanFacts:
     reasons: tuple[str, ...]
 
 
+def _filters(doc: Mapping[str, Any], rows: Sequence[ExposureRow]) -> tuple[str, ...]:
+    """The filters in order of first use; a sequence longer than a pair as one name (``("g-r-g",)``)."""
+    sequence = (doc.get("config") or {}).get("filters") or ()
+    if isinstance(sequence, (list, tuple)) and len(sequence) > 2 and rows:
+        return ("-".join(str(f) for f in sequence),)
+    return tuple(dict.fromkeys(r.filter for r in rows))
+
+
 def _utc(text: str | None) -> dt.datetime | None:
     if not text:
         return None
@@ -159,7 +167,7 @@ def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None) -> P
         final=doc.get("final"), queues=_queues(doc, queues) if obs else (),
         first=rows[0].start if rows else None, last_end=_utc(obs[-1]["end"]) if obs else None,
         n_fields=len({r.field_id for r in rows}), n_exposures=len(rows),
-        filters=tuple(dict.fromkeys(r.filter for r in rows)), open_shutter_s=shutter, overhead_s=overhead,
+        filters=_filters(doc, rows), open_shutter_s=shutter, overhead_s=overhead,
         waiting_s=waiting, coverage=float(metrics.get("coverage") or 0.0), coverage_executed=done,
         upper_bound=metrics.get("upper_bound"), expected_detections=metrics.get("expected_detections"),
         solver=str(metrics.get("solver", "")), status=str(metrics.get("status", "")), rows=rows, reasons=reasons)

@@ -18,7 +18,8 @@ from .solvers_registry import SOLVER_NAMES  # scheduler names (``milp`` = ``bloc
 from .source.named import PAPER_LIGHTCURVES
 from .tables import dataclass_from_table
 
-__all__ = ["PlanningConfig", "SlewModel", "ZTF_FILTERS", "SOLVER_NAMES", "RECORDED_WHEN_SET"]
+__all__ = ["PlanningConfig", "SlewModel", "ZTF_FILTERS", "SOLVER_NAMES", "RECORDED_WHEN_SET", "MAX_SEQUENCE",
+           "filter_sequence_problems"]
 
 #: The filters of the ZTF camera (its filter exchanger holds g, r and i).
 ZTF_FILTERS = ("g", "r", "i")
@@ -28,6 +29,27 @@ ZTF_FILTERS = ("g", "r", "i")
 #: steps ran for minutes.
 MAX_TIME_STEPS = 8640
 
+#: The longest filter sequence (``filters``): eight visits of a field in one night, a 300 s exposure every
+#: half hour (ZTF's GW programme ran three, g-r-g, in O4).
+MAX_SEQUENCE = 8
+
+
+
+def filter_sequence_problems(filters: object) -> list[str]:
+    """(F0) What is wrong with a ``filters`` setting (empty: nothing), one line each."""
+    if isinstance(filters, str) or not isinstance(filters, (tuple, list)):
+        return [f"filters must be a list of ZTF filters such as [\"g\", \"r\", \"g\"], got {filters!r}"]
+    seq = tuple(filters)
+    problems = []
+    if not 1 <= len(seq) <= MAX_SEQUENCE:
+        problems.append(f"filters must hold 1 to {MAX_SEQUENCE} visits, got {len(seq)}")
+    if any(f not in ZTF_FILTERS for f in seq):
+        problems.append(f"filters must be ZTF filters ({', '.join(ZTF_FILTERS)}), got {list(seq)!r}")
+    repeats = [i + 1 for i in range(1, len(seq)) if seq[i] == seq[i - 1]]
+    if repeats:
+        problems.append(f"filters must change filter at every visit (visit {repeats[0]} repeats the one "
+                        f"before it), got {list(seq)!r}")
+    return problems
 
 
 @dataclass(frozen=True)
@@ -120,9 +142,13 @@ class PlanningConfig:
     exposure_s : float
         Exposure time per visit (s).
     filters : tuple of str
-        The two filters, in observing order within a block.
+        The filter sequence each field is visited in, in order (F1-F4,
+        ``docs/design/sequences.md``): ``("g", "r")`` (the default pair),
+        ``("g", "r", "g")`` (ZTF's O4 GW sequence), any 1 to
+        :data:`MAX_SEQUENCE` ZTF filters changing at every visit.  The first
+        two make a field covered; later visits add no coverage.
     cadence_s : float
-        Least time (s) between the two filters' visits of one field.
+        Least time (s) between consecutive visits of one field.
     filter_change_s : float
         Filter exchange time (s).  The default 120 s is the MUSHROOMS
         paper's 2-minute filter exchange; ztf_sim's ``FILTER_CHANGE_TIME``
@@ -282,8 +308,8 @@ class PlanningConfig:
     dec_min_deg: float = setting(-31.0, -90, 90, "deg", why="less than dec_max_deg")
     dec_max_deg: float = setting(87.5, -90, 90, "deg")
     exposure_s: float = setting(300.0, 1, 3600, "s", why="ZTF ToO exposures are 30-300 s")
-    filters: tuple[str, str] = ("g", "r")
-    cadence_s: float = setting(1800.0, 0, 43200, "s", lo_open=True, why="up to half a day between the two filters")
+    filters: tuple[str, ...] = ("g", "r")
+    cadence_s: float = setting(1800.0, 0, 43200, "s", lo_open=True, why="up to half a day between two visits")
     pair_max_s: float = setting(0.0, 600, 604800, "s", off=0, why="0: one night (12 h); at least cadence_s")
     filter_change_s: float = setting(120.0, 0, 900, "s")
     slew_estimate_s: float = setting(10.0, 0, 600, "s")
@@ -333,11 +359,10 @@ class PlanningConfig:
                 problems.append(f"{name} must be > 0, got {getattr(self, name)}")
         if self.airmass_max < 1:
             problems.append(f"airmass_max must be >= 1, got {self.airmass_max}")
-        if len(self.filters) != 2 or self.filters[0] == self.filters[1]:
-            problems.append(f"filters must be two different filters, got {self.filters!r}")
-        unknown_filters = [f for f in self.filters if f not in ZTF_FILTERS]
-        if unknown_filters:
-            problems.append(f"filters must be ZTF filters ({', '.join(ZTF_FILTERS)}), got {self.filters!r}")
+        problems += filter_sequence_problems(self.filters)
+        if self.exposure_menu_s and isinstance(self.filters, (tuple, list)) and len(self.filters) != 2:
+            problems.append(f"exposure_menu_s needs a pair of filters (the detection stage plans pairs), got the "
+                            f"sequence {list(self.filters)!r}")
         if self.solver not in SOLVER_NAMES:
             problems.append(f"solver must be one of {', '.join(SOLVER_NAMES)}, got {self.solver!r}")
         if not self.slot_positions or any(int(n) < 1 for n in self.slot_positions):

@@ -7,7 +7,7 @@ import json
 import logging
 import time
 from pathlib import Path
-from typing import Callable, Mapping
+from typing import Callable, Collection, Mapping
 
 import numpy as np
 
@@ -99,6 +99,12 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     cfg = problem.config
     if cfg.objective != "detection" or solver == "greedy":
         return scheduler(problem, solver, should_stop)
+    if len(cfg.filters) != 2:  # (F4) the detection stage plans pairs: a sequence is planned for coverage
+        result = scheduler(problem, solver, should_stop)
+        log.info("objective detection: the detection stage plans pairs of filters; the sequence %s is planned "
+                 "for coverage", "-".join(cfg.filters))
+        return dataclasses.replace(result, details=dict(
+            result.details, detection_stage=f"skipped: a sequence of {len(cfg.filters)} filters"))
     from .schedulers.detection_slots import detection_stage
 
     t0 = time.perf_counter()
@@ -252,6 +258,7 @@ def build_plan(
     event: EventInfo | None = None,
     supersedes: str | None = None,
     runtime_s: float | None = None,
+    keep_fields: Collection[int] = (),
 ) -> Plan:
     """Turn a scheduler's result into a :class:`Plan` (not checked here).
 
@@ -275,6 +282,9 @@ def build_plan(
         plan_id of the plan replaced.
     runtime_s : float, optional
         Wall time to report (default: the scheduler's own).
+    keep_fields : collection of int
+        Fields the least-gain rule keeps whatever they add (a re-plan's
+        later visits of covered fields, F3).
 
     Returns
     -------
@@ -284,7 +294,7 @@ def build_plan(
     """
     config = problem.config
     start = problem.start
-    result = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain)  # every scheduler
+    result = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain, keep_fields)  # every scheduler
     if result.dropped_low_gain:
         log.info("least gain %.2g: dropped %d field(s) adding less", config.min_gain, len(result.dropped_low_gain))
     skymap, event = on_merger_clock(skymap, event)  # the same clock for the document and its detections

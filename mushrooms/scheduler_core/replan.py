@@ -14,6 +14,12 @@ at least the cadence after the first, P2).  The re-plan is
    last pointing, cannot start too early);
 3. the completions that were not due yet fitted into that plan's gaps (P7).
 
+With a filter sequence other than a pair (``docs/design/sequences.md``,
+F3) the half-done fields are the covered ones whose sequence is not
+finished: their next visit is pending whatever it adds, kept by the
+least-gain rule, and made room for by delaying what follows it when no gap
+takes it; a field with done visits but not covered is planned anew.
+
 Metrics (P8): ``coverage`` is what the plan *adds* (probability inside the
 fields it completes or observes, outside the executed pairs);
 ``coverage_executed`` what the executed pairs already hold; the total is
@@ -36,15 +42,16 @@ from astropy.time import Time, TimeDelta
 
 from .config import PlanningConfig
 from .errors import InputError, PlanCheckError
-from .executed import MIN_PROCESSED_FRACTION, DonePairs, ExecutedExposure, done_pairs, to_record
+from .executed import MIN_PROCESSED_FRACTION, DonePairs, ExecutedExposure, to_record
 from .plan.checker import check_plan
 from .plan.document import EventInfo, Observation, Plan, iso_utc, make_plan_id
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .schedulers.completions import (
-    PendingVisit, completion_pass, drop_repeats, insert_completions, swap_in_completions,
+    PendingVisit, completion_pass, drop_repeats, insert_completions, shift_in_completions, swap_in_completions,
 )
 from .schedulers.gain import worth_a_visit
 from .schedulers.slew import overhead_time
+from .sequences import done_covering, sequence_progress
 from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
 from .sky.footprints import Footprints
 from .sky.skymap import SkyMap
@@ -63,7 +70,8 @@ class ExecutedState:
     Attributes
     ----------
     pairs : DonePairs
-        :func:`~.executed.done_pairs` with the plan's filters and cadence.
+        :func:`~.sequences.done_covering` with the plan's filters and cadence
+        (:func:`~.executed.done_pairs` of the pair, or of a sequence's first two, F1).
     covered : numpy.ndarray
         Sorted IDs of the grid fields done in both filters.
     uncovered : numpy.ndarray
@@ -110,8 +118,8 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
     -------
     ExecutedState
     """
-    pairs = done_pairs(executed, tuple(config.filters), min_processed_fraction, config.cadence_s,
-                       config.pair_separation_s)
+    pairs = done_covering(executed, tuple(config.filters), min_processed_fraction, config.cadence_s,
+                          config.pair_separation_s)
     rows = grid.index_of(np.array(sorted(set(pairs.both) | set(pairs.one)), dtype=int))
     known = set(grid.ids[rows[rows >= 0]].tolist())
     unknown = tuple(sorted((set(pairs.both) | set(pairs.one)) - known))
@@ -123,6 +131,10 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
     covered_pixels = footprints.union(covered)
     coverage_executed = float(skymap.prob[covered_pixels].sum())
     uncovered[covered_pixels] = 0.0
+    if len(config.filters) != 2:  # (F3) a covered field's next visit; the others are planned anew
+        pending = _sequence_pending(skymap, config, start, executed, footprints, grid, covered,
+                                    min_processed_fraction)
+        return ExecutedState(pairs, covered, uncovered, coverage_executed, pending, unknown)
     pending = []
     for field_id in sorted(set(pairs.one) & known):
         visits = pairs.one[field_id]
@@ -136,6 +148,38 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
         latest = float((visits.first[first] - start).to_value("s")) + config.pair_separation_s  # (P10)
         pending.append(PendingVisit(field_id, float(grid.ra[k]), float(grid.dec[k]), other, due, latest))
     return ExecutedState(pairs, covered, uncovered, coverage_executed, tuple(pending), unknown)
+
+
+def _sequence_pending(skymap: SkyMap, config: PlanningConfig, start: Time, executed: Sequence[ExecutedExposure],
+                      footprints: Footprints, grid: FieldGrid, covered: np.ndarray,
+                      min_processed_fraction: float) -> tuple[PendingVisit, ...]:
+    """(F3) The next visit of each covered field that has not finished its sequence.
+
+    Due a cadence after its last counted visit (F2), never before the start;
+    no later than the pair separation after its first.  It adds no coverage:
+    its worth is the field's probability (at least ``min_gain``), so the
+    re-plan keeps it before new fields.  A field two or more visits short
+    (sequences of four or more) gets its next visit only, and a warning.
+    """
+    progress = sequence_progress(executed, tuple(config.filters), min_processed_fraction, config.cadence_s,
+                                 config.pair_separation_s)
+    seq, out, short = tuple(config.filters), [], []
+    for field_id in covered.tolist():
+        p = progress.get(int(field_id))
+        if p is None or p.done >= len(seq):
+            continue
+        if len(seq) - p.done > 1:
+            short.append(int(field_id))
+        k = int(grid.index_of(np.array([field_id]))[0])
+        worth = max(float(skymap.prob[footprints.pixels(int(field_id))].sum()), config.min_gain, 1e-12)
+        due = max(0.0, float((p.last - start).to_value("s")) + config.cadence_s)
+        latest = float((p.first - start).to_value("s")) + config.pair_separation_s
+        out.append(PendingVisit(int(field_id), float(grid.ra[k]), float(grid.dec[k]), seq[p.done], due, latest,
+                                worth))
+    if short:
+        log.warning("executed record: field(s) %s are two or more visits short of the sequence %s; only the next "
+                    "visit is planned", ", ".join(map(str, short)), "-".join(seq))
+    return tuple(out)
 
 
 def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
@@ -227,7 +271,9 @@ def _candidates(state: ExecutedState, config: PlanningConfig, start: Time, grid:
     """The grid fields still worth a visit (in the band, not covered, P3) and their windows over the horizon."""
     in_band = (grid.dec >= config.dec_min_deg) & (grid.dec <= config.dec_max_deg)
     sel = in_band & worth_a_visit(footprints, state.uncovered, config.min_gain) & ~np.isin(grid.ids, state.covered)
-    return sel, observability_windows(grid.ids[sel], grid.ra[sel], grid.dec[sel], start, config)
+    # (F3) the windows of a sequence's pending visits too (their fields are covered: no candidates)
+    timed = sel | (in_band & np.isin(grid.ids, [v.field_id for v in state.pending if v.worth is not None]))
+    return sel, observability_windows(grid.ids[timed], grid.ra[timed], grid.dec[timed], start, config)
 
 
 def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGrid, footprints: Footprints,
@@ -236,8 +282,9 @@ def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGr
     """The re-plan's exposures (s since ``start``): the pass (P4), the reduced problem (P5), P6, P7."""
     from .planner import optimise
 
-    # (P4) the completion pass
-    pending = tuple(v for v in state.pending if sel[int(grid.index_of(np.array([v.field_id]))[0])])
+    # (P4) the completion pass (F3: a covered field's next visit of a sequence is pending, not a candidate)
+    pending = tuple(v for v in state.pending
+                    if v.worth is not None or sel[int(grid.index_of(np.array([v.field_id]))[0])])
     front, later, uncovered = completion_pass(pending, footprints, state.uncovered, windows, config)
     # (P5) the reduced problem: after the pass and the worst first overhead, without covered fields
     rest_start = _rest_start(front, grid, sel, config)
@@ -245,7 +292,7 @@ def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGr
     result = ScheduleResult((), solver="completions", status="no_time_left")
     if rest_start + 2 * config.exposure_s + config.cadence_s <= config.horizon_s:
         rest = _reduced_problem(skymap, config, start, rest_start, grid, footprints, windows, uncovered,
-                                {o.field_id for o in front})
+                                {o.field_id for o in front} | {v.field_id for v in pending if v.worth is not None})
         result = dataclasses.replace(result, status="nothing_left")
         if rest.field_ids.size:
             result = optimise(rest, dataclasses.replace(skymap, prob=uncovered), solver, should_stop)
@@ -265,6 +312,8 @@ def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGr
         completions = {v.field_id for v in state.pending} & {o.field_id for o in placed}
         placed, left = swap_in_completions(placed, left, footprints, state.uncovered, windows, config,
                                            keep=completions)
+    if any(v.worth is not None for v in left):  # (F3) a sequence's next visits: delay what follows them
+        placed, left = shift_in_completions(placed, left, windows, config)
     if left:
         log.info("re-plan: %d half-done field(s) found no time for their other filter: %s",
                  len(left), ", ".join(str(v.field_id) for v in left))
@@ -320,7 +369,8 @@ def _build(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGrid,
                                  expected_detections=None, expected_detections_lightcurve=None)
     # (P8) on the remaining probability: what the plan adds (coverage, expected detections)
     remaining = dataclasses.replace(skymap, prob=state.uncovered)
-    plan = build_plan(problem, merged, remaining, solver, event=event, supersedes=supersedes, runtime_s=runtime_s)
+    plan = build_plan(problem, merged, remaining, solver, event=event, supersedes=supersedes, runtime_s=runtime_s,
+                      keep_fields={v.field_id for v in state.pending if v.worth is not None})
     field_prob = dict(zip(ids.tolist(), footprints.subset(ids).field_probability(skymap.prob).tolist()))
     digest = hashlib.sha256(json.dumps(sorted(json.dumps(to_record(e), sort_keys=True) for e in executed))
                             .encode()).hexdigest()[:16]

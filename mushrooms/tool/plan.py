@@ -333,7 +333,7 @@ def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec
     """``--executed`` and/or ``[scheduler] nights > 1``: plan what is left, night by night; write each night's files."""
     from ..outputs import write_json_atomic
     from ..scheduler_core import to_skyportal
-    from ..scheduler_core.executed import done_pairs
+    from ..scheduler_core.sequences import done_covering
     from ..scheduler_core.nights import plan_nights
     from ..scheduler_core.plan.messages import revision_document
     from ..scheduler_core.replan import plan_remaining
@@ -350,10 +350,10 @@ def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec
             log.info("--start: the end of the last executed exposure, %s", start.isot[:19])
     if start is not None:
         warn_if_far_from_merger(start, skymap.event_time)
-    pairs = done_pairs(executed, tuple(cfg.filters), fraction, cfg.cadence_s)
+    pairs = done_covering(executed, tuple(cfg.filters), fraction, cfg.cadence_s)
     if spec is not None:
-        log.info("--executed: %d exposure(s); %d field(s) done in both filters, %d in one", len(executed),
-                 len(pairs.both), len(pairs.one))
+        log.info("--executed: %d exposure(s); %d field(s) covered (done in the first two filters), %d with other "
+                 "done visits", len(executed), len(pairs.both), len(pairs.one))
     if cfg.nights > 1:
         plans = plan_nights(skymap, cfg, start, executed, min_processed_fraction=fraction, solver=args.solver)
     else:
@@ -374,8 +374,10 @@ def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec
             plot_plan(plan, skymap, night_path(args.plot, n), executed=executed)
         m = plan.metrics
         night = f"night {n} of {len(plans)}, " if len(plans) > 1 else ""
-        completed = len({o.field_id for o in plan.observations} & set(pairs.one))
-        half = f", {completed} of {len(pairs.one)} half-done completed" if n == 1 and spec is not None else ""
+        # a pair's half-done fields are those done in one filter; a sequence's, the covered ones (F3)
+        half_done = set(pairs.one) if len(cfg.filters) == 2 else set(pairs.both)
+        completed = len({o.field_id for o in plan.observations} & half_done)
+        half = f", {completed} of {len(half_done)} half-done completed" if n == 1 and spec is not None else ""
         print(f"{output}: {night}{plan.start.isot[:19]}Z to {plan.end.isot[:19]}Z, {m.n_fields} fields, "
               f"{m.n_exposures} exposures, adds coverage {m.coverage:.4f} to the {m.coverage_executed:.4f} done "
               f"before (total {m.coverage + m.coverage_executed:.4f}){half}; {m.solver} ({m.status}), checked, "

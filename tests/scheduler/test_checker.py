@@ -55,14 +55,6 @@ def control_obs(later=0.0):
     return [obs(F687, "g", t), obs(F1685, "g", t + 360), obs(F687, "r", t + 1860), obs(F1685, "r", t + 2220)]
 
 
-@pytest.fixture(scope="module")
-def flat_map():
-    nside = 64
-    prob = np.full(hp.nside2npix(nside), 1.0 / hp.nside2npix(nside))
-    return SkyMap(prob=prob, nside=nside, event_time=None, object_id=None, distmu=None, distsigma=None,
-                  distnorm=None, distmean=None, sha256="0" * 64, source="<flat>")
-
-
 def kinds(report):
     return {line.split(":")[0] for line in report.problems}
 

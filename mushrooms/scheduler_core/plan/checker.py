@@ -48,6 +48,7 @@ from astropy.time import Time, TimeDelta
 from ..config import PlanningConfig, SlewModel
 from ..executed import MIN_PROCESSED_FRACTION, ExecutedExposure, done_pairs, is_done
 from .document import Plan
+from .sequence_check import check_sequences, covered_by_record
 from ..sky.healpix import hp
 from ..sky.skymap import SkyMap
 
@@ -432,9 +433,9 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
         from ..sky.twilight import night_evening
 
         executed = counted_for_night(executed, night_evening(plan.start, config), True)
-    pairs = done_pairs(executed, tuple(config.filters), min_processed_fraction, config.cadence_s,
-                       config.pair_separation_s)
-    coverage = polygon_coverage((o.field_id for o in obs), skymap.prob, without=pairs.both)
+    done = _done_times(executed, plan.start, min_processed_fraction)
+    covered = _covered(executed, done, config, min_processed_fraction)
+    coverage = polygon_coverage((o.field_id for o in obs), skymap.prob, without=covered)
     reported = plan.metrics.coverage if plan.metrics is not None else None
     if reported is not None and abs(float(reported) - coverage) > coverage_tolerance:
         p.add("coverage", f"reported {reported:.5f} but the footprints hold {coverage:.5f}")
@@ -444,11 +445,11 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
         p.add("bound", f"reported coverage {reported:.7f} above the certified upper bound {bound:.7f}")
     reported_executed = None if plan.metrics is None else plan.metrics.coverage_executed
     if reported_executed is not None:
-        held = polygon_coverage(pairs.both, skymap.prob)
+        held = polygon_coverage(covered, skymap.prob)
         if abs(float(reported_executed) - held) > coverage_tolerance:
             p.add("coverage", f"reported {reported_executed:.5f} executed but the executed pairs hold {held:.5f}")
-    # (P9) with an executed record: no exposure of a field done in both filters
-    for fid in sorted({o.field_id for o in obs} & set(pairs.both)):
+    # (P9) with an executed record: no exposure of a field done in both filters (a sequence: F7, F8)
+    for fid in sorted({o.field_id for o in obs} & set(covered) if len(config.filters) == 2 else ()):
         p.add("repeat", f"field {fid} is done in both {config.filters[0]} and {config.filters[1]} "
                         f"(executed) and planned again")
     if not obs:
@@ -458,7 +459,11 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     _check_fields(p, x, config)
     _check_sequence(p, x, horizon, config)
     _check_conditions(p, x, plan.start, config)
-    _check_cadence(p, x, config, _done_times(executed, plan.start, min_processed_fraction))
+    if len(config.filters) == 2:
+        _check_cadence(p, x, config, done)
+    else:  # (F6-F8) a sequence of another length: its own rules, sequence_check.py
+        check_sequences(p.add, x.ids, x.flt, x.start, tuple(config.filters), config.cadence_s,
+                        config.pair_separation_s, done)
 
     return CheckReport(not p.lines, tuple(p.lines), coverage, reported, p.counts)
 
@@ -542,6 +547,15 @@ def _check_conditions(p: _Problems, x: _Exposures, t0: Time, config: PlanningCon
                         f"(Dec {dec[i]:.1f}) beyond the mount limits")
     for i in np.flatnonzero((moon_sep < config.moon_sep_min_deg - TOL_MOON_DEG).any(axis=0)):
         p.add("window", f"field {ids[i]} {flt[i]} at {start[i]:.0f} s: Moon {moon_sep[:, i].min():.1f} deg away")
+
+
+def _covered(executed: Sequence[ExecutedExposure], done: dict[int, dict[str, np.ndarray]],
+             config: PlanningConfig, min_processed_fraction: float) -> set[int]:
+    """The fields the record covers: done in both filters (E3), for a sequence the first two (F7)."""
+    if len(config.filters) == 2:
+        return set(done_pairs(executed, tuple(config.filters), min_processed_fraction, config.cadence_s,
+                              config.pair_separation_s).both)
+    return set(covered_by_record(done, tuple(config.filters), config.cadence_s, config.pair_separation_s))
 
 
 def _done_times(executed: Sequence[ExecutedExposure], t0: Time,

@@ -148,7 +148,9 @@ def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_
                       slack_s: float | None = None) -> list[dict[str, Any]]:
     """The plan as the set of timed ToO list queues that makes ZTF's scheduler follow it (Q11-Q13).
 
-    One queue per filter pass (:func:`filter_passes`), in plan order, named
+    One queue per filter pass (:func:`filter_passes`; a block of a g-r-g
+    sequence is three passes, the last one run on into the next block's
+    first when both are g), in plan order, named
     ``f"{name_base}_{k}"`` (k = 1..K), each holding the pass's observations
     in plan order.  ZTF's scheduler (``docs/design/executed.md``, Q1-Q3)
     takes, from its survey, the first queue in submission order whose window
@@ -280,7 +282,7 @@ def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization
             "end_date": _iso_space(plan.end),
             "filter_strategy": "block",
             "exposure_time": _plan_exposure_s(plan),
-            "filters": ",".join(dict.fromkeys(o.filter for o in plan.observations)),
+            "filters": _payload_filters(plan),
             "field_ids": ",".join(str(f) for f in plan.field_ids),
         },
         "observation_plans": [{
@@ -290,6 +292,14 @@ def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization
             "planned_observations": planned,
         }],
     }
+
+
+def _payload_filters(plan: "Plan") -> str:
+    """SkyPortal's ``filters``: the plan's filters in order of first use, or its sequence (``g,r,g``) when longer than a pair."""
+    sequence = list((plan.config or {}).get("filters", ()))
+    if len(sequence) > 2:
+        return ",".join(sequence)
+    return ",".join(dict.fromkeys(o.filter for o in plan.observations))
 
 
 def _plan_exposure_s(plan: "Plan") -> int:

@@ -26,6 +26,7 @@ import numpy as np
 
 from .blocks import (BlockModel, BlockParams, Candidates, DecodedBlock, build_block_model, decode_blocks,
                      heuristic_start)
+from ..sequences import require_pair
 from ..sky.cells import Cells, merge_cells
 from ..config import PlanningConfig
 from .ordering import order_fields
@@ -296,6 +297,7 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
         ``details`` holds model size, cells vs pixels, times to first
         incumbent and to 1 % gap, the attempts and retries.
     """
+    require_pair(problem.config.filters, "block MILP")
     t_wall = time.perf_counter()
     cfg: PlanningConfig = problem.config
     params = BlockParams.from_config(cfg)

@@ -24,7 +24,7 @@ Times are seconds since the re-plan's start.  The equations are in
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -35,8 +35,8 @@ from ..sky.footprints import Footprints
 from ..sky.windows import Windows
 from .slew import overhead_time
 
-__all__ = ["PendingVisit", "completion_pass", "insert_completions", "swap_in_completions", "drop_repeats",
-           "gains_of"]
+__all__ = ["PendingVisit", "completion_pass", "insert_completions", "swap_in_completions", "shift_in_completions",
+           "drop_repeats", "gains_of"]
 
 
 @dataclass(frozen=True)
@@ -57,6 +57,11 @@ class PendingVisit:
     latest_s : float
         (P10) Latest start (s since the re-plan's start) still pairing with
         the first done exposure: ``pair_max_s`` after it (default no limit).
+    worth : float or None
+        (F3) What the visit is worth when it adds no coverage (a covered
+        field's later visit of a sequence, e.g. the g after g, r of
+        g-r-g): used instead of the probability it would add.  None (a
+        pair's completion): the probability it adds.
     """
 
     field_id: int
@@ -65,14 +70,19 @@ class PendingVisit:
     filter: str
     due_s: float
     latest_s: float = float("inf")
+    worth: float | None = None
 
 
 def gains_of(visits: Sequence[PendingVisit], footprints: Footprints, uncovered: np.ndarray) -> np.ndarray:
-    """(n,) probability still uncovered inside each visit's field (its gain if completed now)."""
+    """(n,) probability still uncovered inside each visit's field (its gain if completed now; F3: its ``worth``)."""
     if not visits:
         return np.zeros(0)
     sub = footprints.subset([v.field_id for v in visits])
-    return sub.field_probability(uncovered)
+    gain = sub.field_probability(uncovered)
+    fixed = np.array([v.worth is not None for v in visits])
+    if fixed.any():
+        gain = np.where(fixed, [v.worth or 0.0 for v in visits], gain)
+    return gain
 
 
 def _worth(gain: np.ndarray, min_gain: float) -> np.ndarray:
@@ -282,6 +292,61 @@ def swap_in_completions(observations: Sequence[Observation], visits: Sequence[Pe
         if not done:
             left.append(v)
     return tuple(plan), tuple(left)
+
+
+def shift_in_completions(observations: Sequence[Observation], visits: Sequence[PendingVisit], windows: Windows,
+                         config: PlanningConfig) -> tuple[tuple[Observation, ...], tuple[PendingVisit, ...]]:
+    """(F3) Make room for a sequence's next visits: insert each, most worth first, delaying what follows it.
+
+    A visit goes at the earliest place where it can start at or after its
+    due time inside a window; every later exposure moves by the same delay
+    (its overheads and every cadence stay: a field's later visits only move
+    later), and a field one of whose moved exposures leaves its windows or
+    the horizon is dropped, all of it.  Only visits with a ``worth`` (a
+    covered field's next visit) are placed; the others come back in ``left``.
+
+    Returns
+    -------
+    observations : tuple of Observation
+        The plan with the visits, in time order.
+    left : tuple of PendingVisit
+        Visits that found no place.
+    """
+    plan = sorted(observations, key=lambda o: o.start)
+    left: list[PendingVisit] = []
+    for v in sorted(visits, key=lambda v: -(v.worth or 0.0)):
+        moved = None if v.worth is None else _shift_in(plan, v, windows, config)
+        if moved is None:
+            left.append(v)
+        else:
+            plan = moved
+    return tuple(plan), tuple(left)
+
+
+def _shift_in(plan: list[Observation], v: PendingVisit, windows: Windows,
+              config: PlanningConfig) -> list[Observation] | None:
+    """The plan with ``v`` at its earliest place, the exposures after it delayed; None when none holds it."""
+    exp = config.exposure_s
+    for i in range(len(plan) + 1):
+        prev = plan[i - 1] if i else None
+        ready = 0.0 if prev is None else prev.end + float(overhead_time(
+            prev.ra, prev.dec, v.ra, v.dec, config.slew, config.filter_change_s if prev.filter != v.filter else 0.0))
+        s = _earliest_for(v, max(ready, v.due_s), exp, windows)
+        if s is None or s + exp > config.horizon_s:
+            continue
+        if i < len(plan) and s > plan[i].start:
+            continue  # it would start after the next exposure: a later place
+        nxt = plan[i] if i < len(plan) else None
+        delay = 0.0 if nxt is None else max(0.0, s + exp + float(overhead_time(
+            v.ra, v.dec, nxt.ra, nxt.dec, config.slew,
+            config.filter_change_s if nxt.filter != v.filter else 0.0)) - nxt.start)
+        after = [o if delay == 0.0 else replace(o, start=o.start + delay) for o in plan[i:]]
+        gone = {o.field_id for o in after
+                if o.end > config.horizon_s or not windows.contains(o.field_id, o.start, o.end)}
+        block = prev.block if prev is not None else 0
+        visit = Observation(v.field_id, v.ra, v.dec, v.filter, s, exp, block)
+        return [o for o in plan[:i] + [visit] + after if o.field_id not in gone or o is visit]
+    return None
 
 
 def _place(plan: list[Observation], v: PendingVisit, windows: Windows,

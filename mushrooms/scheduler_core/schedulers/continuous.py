@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..sequences import require_pair
 from ..plan.document import Observation
 from ..problem import PlanningProblem
 from ..sky.cells import Cells, merge_cells
@@ -167,6 +168,7 @@ def build_exact_model(problem: PlanningProblem, data: ExactData | None = None) -
     -------
     ExactModel
     """
+    require_pair(problem.config.filters, "exact continuous-time MILP")
     data = exact_data(problem) if data is None else data
     cfg = problem.config
     exp, cad, r = cfg.exposure_s, cfg.cadence_s, cfg.slew.readout_s

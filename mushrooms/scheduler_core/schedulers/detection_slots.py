@@ -52,6 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 from astropy.time import Time, TimeDelta
 
+from ..sequences import require_pair
 from ..sky.cells import Cells, merge_cells
 from ..source.depth import ZTF_DEPTH, DepthModel, limiting_magnitude, sky_conditions
 from ..source.detection import distance_cdf, reach_mpc
@@ -365,6 +366,7 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
         ``detection`` (:class:`~..problem.DetectionReport`) the choice, the
         coverage plan's score, the floor and the per-grid runs.
     """
+    require_pair(problem.config.filters, "detection stage")
     t_wall = time.perf_counter()
     cfg = problem.config
     budget = cfg.detection_time_limit_s if time_limit_s is None else float(time_limit_s)

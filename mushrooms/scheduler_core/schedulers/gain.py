@@ -20,7 +20,7 @@ field keeps both filters, the cadence apart, inside its windows).
 from __future__ import annotations
 
 import dataclasses
-from typing import Sequence
+from typing import Collection, Sequence
 
 import numpy as np
 
@@ -80,7 +80,7 @@ def added_probability(field_order: Sequence[int], footprints: Footprints, prob: 
 
 
 def drop_low_gain(result: ScheduleResult, footprints: Footprints, prob: np.ndarray,
-                  min_gain: float) -> ScheduleResult:
+                  min_gain: float, keep: Collection[int] = ()) -> ScheduleResult:
     """The result without the fields that add less than ``min_gain``.
 
     Parameters
@@ -93,6 +93,9 @@ def drop_low_gain(result: ScheduleResult, footprints: Footprints, prob: np.ndarr
         Probability per pixel.
     min_gain : float
         Least added probability (0 keeps everything).
+    keep : collection of int
+        Fields never dropped (F3: a re-plan's later visits of covered
+        fields, which add nothing to coverage by definition).
 
     Returns
     -------
@@ -106,6 +109,8 @@ def drop_low_gain(result: ScheduleResult, footprints: Footprints, prob: np.ndarr
         # one pass in order of first visit: a field is judged against the fields kept before it
         covered = np.zeros(prob.shape, dtype=bool)
         for fid in dict.fromkeys(o.field_id for o in observations):
+            if fid in keep:
+                continue
             pix = footprints.pixels(int(fid))
             if float(prob[pix[~covered[pix]]].sum()) < min_gain:
                 dropped.append(int(fid))

@@ -1,14 +1,17 @@
-"""Greedy baseline scheduler (gwemopt-like), two filters with a cadence.
+"""Greedy baseline scheduler (gwemopt-like): a filter sequence with a cadence.
 
 The night is walked forward in batches.  A batch is filled, one field at a
 time, with the observable field that adds the most not-yet-covered
 probability, until the batch's first-filter pass lasts long enough that
-revisiting its fields in the second filter, in the same order after one
-filter change, respects the cadence.  A field is only taken when it is
-observable now and (by estimate) when its second visit falls due; when the
-real times of a batch put an exposure outside a window, that field is
-dropped and the batch re-timed.  When nothing is observable, the clock
-jumps to the next window opening.
+revisiting its fields in the sequence's next filter, in the same order
+after one filter change, respects the cadence.  The batch's fields are then
+observed once per filter of the sequence (``config.filters``: two passes
+for the pair g, r; three for g, r, g), each pass a cadence after the one
+before for every field.  A field is only taken when it is observable now
+and (by estimate) when its later visits fall due; when the real times of a
+batch put an exposure outside a window, that field is dropped and the batch
+re-timed.  When nothing is observable, the clock jumps to the next window
+opening.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from ..plan.document import Observation
 from ..problem import PlanningProblem, ScheduleResult, StopCheck
 from .slew import overhead_time
 
-__all__ = ["greedy_schedule", "time_two_passes"]
+__all__ = ["greedy_schedule", "time_two_passes", "time_passes"]
 
 
 def _window_rows(problem: PlanningProblem) -> np.ndarray:
@@ -45,22 +48,22 @@ def _observable(rows_of_windows: np.ndarray, w_start: np.ndarray, w_end: np.ndar
     return out
 
 
-def time_two_passes(
+def time_passes(
     problem: PlanningProblem,
     rows: list[int],
     free_at: float,
     previous: tuple[float, float, str] | None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Start times (s) of a block: ``rows`` in filter 1, then the same in filter 2.
+) -> np.ndarray:
+    """Start times (s) of a block: ``rows`` in each filter of the sequence, pass after pass.
 
-    Each exposure starts as soon as the overheads allow; a second-filter
-    exposure also waits until the cadence since its first-filter exposure
-    has passed.
+    Each exposure starts as soon as the overheads allow; an exposure of a
+    later pass also waits until the cadence since the same field's exposure
+    in the pass before has passed.
 
     Parameters
     ----------
     problem : PlanningProblem
-        Fields, config and slew model.
+        Fields, config (``filters``: one pass each) and slew model.
     rows : list of int
         Candidate rows in observing order.
     free_at : float
@@ -70,32 +73,38 @@ def time_two_passes(
 
     Returns
     -------
-    first, second : numpy.ndarray
-        Start times (s) of each row's exposure in each filter.
+    numpy.ndarray
+        (k, len(rows)) start times (s): row ``p`` is the pass in ``filters[p]``.
     """
     cfg = problem.config
-    f1, f2 = cfg.filters
     exp = cfg.exposure_s
     ra = problem.ra[rows]
     dec = problem.dec[rows]
-    first = np.empty(len(rows))
-    second = np.empty(len(rows))
+    starts = np.empty((len(cfg.filters), len(rows)))
     t = free_at
     prev = previous
-    for i in range(len(rows)):
-        oh = 0.0 if prev is None else float(overhead_time(
-            prev[0], prev[1], ra[i], dec[i], cfg.slew,
-            cfg.filter_change_s if prev[2] != f1 else 0.0))
-        first[i] = t + oh
-        t = first[i] + exp
-        prev = (ra[i], dec[i], f1)
-    for i in range(len(rows)):
-        oh = float(overhead_time(prev[0], prev[1], ra[i], dec[i], cfg.slew,
-                                 cfg.filter_change_s if prev[2] != f2 else 0.0))
-        second[i] = max(t + oh, first[i] + cfg.cadence_s)
-        t = second[i] + exp
-        prev = (ra[i], dec[i], f2)
-    return first, second
+    for p, band in enumerate(cfg.filters):
+        for i in range(len(rows)):
+            if prev is None:
+                starts[p, i] = t
+            else:
+                oh = float(overhead_time(prev[0], prev[1], ra[i], dec[i], cfg.slew,
+                                         cfg.filter_change_s if prev[2] != band else 0.0))
+                starts[p, i] = t + oh if p == 0 else max(t + oh, starts[p - 1, i] + cfg.cadence_s)
+            t = starts[p, i] + exp
+            prev = (ra[i], dec[i], band)
+    return starts
+
+
+def time_two_passes(
+    problem: PlanningProblem,
+    rows: list[int],
+    free_at: float,
+    previous: tuple[float, float, str] | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`time_passes` of a pair: the start times (s) of the first and the second pass."""
+    starts = time_passes(problem, rows, free_at, previous)
+    return starts[0], starts[1]
 
 
 def greedy_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None) -> ScheduleResult:
@@ -152,11 +161,11 @@ def greedy_schedule(problem: PlanningProblem, should_stop: StopCheck | None = No
                 break
             state.free_at = opening
             continue
-        batch, first, second = state.time_batch(batch, saved)
+        batch, starts = state.time_batch(batch, saved)
         if not batch:
             state.free_at += cfg.time_step_s
             continue
-        state.commit(batch, first, second)
+        state.commit(batch, starts)
 
     observations = sorted(state.observations, key=lambda o: o.start)
     return ScheduleResult(
@@ -220,7 +229,8 @@ class _Greedy:
             ts = t + oh
             cand = ~self.used & (g > 0) & (ts + exp <= cfg.horizon_s)
             cand &= _observable(self.w_rows, self.w_start, self.w_end, ts, exp, n)
-            cand &= _observable(self.w_rows, self.w_start, self.w_end, ts + self.second_delay, exp, n)
+            for p in range(1, len(cfg.filters)):  # each later visit, by estimate
+                cand &= _observable(self.w_rows, self.w_start, self.w_end, ts + p * self.second_delay, exp, n)
             if not cand.any():
                 break
             k = int(np.argmax(np.where(cand, g, -1.0)))
@@ -244,15 +254,15 @@ class _Greedy:
             return None
         return max(float(later.min()), self.free_at + self.cfg.time_step_s / 2)
 
-    def time_batch(self, batch: list[int], saved: np.ndarray) -> tuple[list[int], np.ndarray, np.ndarray]:
-        """Time both passes; drop the fields whose real times leave their windows (re-timing the rest)."""
-        first = second = np.empty(0)
+    def time_batch(self, batch: list[int], saved: np.ndarray) -> tuple[list[int], np.ndarray]:
+        """Time every pass; drop the fields whose real times leave their windows (re-timing the rest)."""
+        starts = np.empty((len(self.cfg.filters), 0))
         while batch:
-            first, second = time_two_passes(self.problem, batch, self.free_at, self.previous)
+            starts = time_passes(self.problem, batch, self.free_at, self.previous)
             rows = np.asarray(batch)
-            ok1 = _observable_each(self.w_rows, self.w_start, self.w_end, rows, first, self.exp)
-            ok2 = _observable_each(self.w_rows, self.w_start, self.w_end, rows, second, self.exp)
-            ok = ok1 & ok2 & (second + self.exp <= self.cfg.horizon_s)
+            ok = starts[-1] + self.exp <= self.cfg.horizon_s
+            for pass_starts in starts:
+                ok &= _observable_each(self.w_rows, self.w_start, self.w_end, rows, pass_starts, self.exp)
             if ok.all():
                 break
             bad = [b for b, good in zip(batch, ok) if not good]
@@ -261,20 +271,19 @@ class _Greedy:
             self.uncovered = saved.copy()
             for k in batch:
                 self._cover(k)
-        return batch, first, second
+        return batch, starts
 
-    def commit(self, batch: list[int], first: np.ndarray, second: np.ndarray) -> None:
-        """Add a timed batch's exposures (both filters) as one block and move the clock past it."""
-        problem, exp = self.problem, self.exp
-        f1, f2 = self.cfg.filters
-        for k, t1, t2 in zip(batch, first, second):
+    def commit(self, batch: list[int], starts: np.ndarray) -> None:
+        """Add a timed batch's exposures (every filter of the sequence) as one block and move the clock past it."""
+        problem, exp, filters = self.problem, self.exp, self.cfg.filters
+        for i, k in enumerate(batch):
             fid = int(problem.field_ids[k])
             ra, dec = float(problem.ra[k]), float(problem.dec[k])
-            self.observations.append(Observation(fid, ra, dec, f1, float(t1), exp, self.block))
-            self.observations.append(Observation(fid, ra, dec, f2, float(t2), exp, self.block))
+            for band, t in zip(filters, starts[:, i]):
+                self.observations.append(Observation(fid, ra, dec, band, float(t), exp, self.block))
         last = batch[-1]
-        self.free_at = float(second[-1] + exp)
-        self.previous = (float(problem.ra[last]), float(problem.dec[last]), f2)
+        self.free_at = float(starts[-1, -1] + exp)
+        self.previous = (float(problem.ra[last]), float(problem.dec[last]), filters[-1])
         self.block += 1
 
 

@@ -40,6 +40,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..sequences import require_pair
 from ..plan.document import Observation
 from ..problem import PlanningProblem, ScheduleResult, StopCheck
 from ..sky.windows import Windows
@@ -383,6 +384,7 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
         each gain's slice count (``improved_at``), time (s, ``elapsed_at``)
         and coverage (``coverage_at``).
     """
+    require_pair(problem.config.filters, "LNS")
     t0 = time.perf_counter()
     cfg = problem.config
     budget = cfg.time_limit_s if time_limit_s is None else float(time_limit_s)

@@ -57,7 +57,7 @@ MIN_LNS_S = 0.5
 BOUND_RTOL = 1e-7
 
 #: ``bound(problem) -> UpperBound``: a certified bound on every plan's coverage.
-BoundRun = Callable[[PlanningProblem], UpperBound]
+BoundRun = Callable[[PlanningProblem], "UpperBound | None"]
 
 #: ``run(problem, should_stop, earlier, left_s)``: ``earlier`` maps the stages already run to their
 #: results (in order), ``left_s`` is what is left (s) of ``config.time_limit_s``, possibly negative.
@@ -78,11 +78,15 @@ class Stage:
         None: the stage always runs.  Else it runs only when at least this
         much of the budget is left and ``should_stop`` (polled once, before
         it) does not say stop.
+    pairs_only : bool
+        The stage plans each field in exactly two filters (F4): with a
+        sequence of another length it is skipped.
     """
 
     name: str
     run: StageRun
     min_left_s: float | None = None
+    pairs_only: bool = False
 
 
 def greedy_stage(problem: PlanningProblem, should_stop: StopCheck | None,
@@ -180,7 +184,13 @@ class Portfolio:
         bound_s = 0.0  # the bound's wall time, not charged to the stages
         skipped: list[str] = []
         times: dict[str, float] = {}  # wall time (s) of each stage run, and of the bound
+        pair_stages = [s.name for s in self.stages if s.pairs_only and len(problem.config.filters) != 2]
+        if pair_stages:  # (F4) they model two exposures per field
+            log.info("%s: %s plan pairs of filters; skipped for the sequence %s", self.label,
+                     ", ".join(pair_stages), "-".join(problem.config.filters))
         for i, stage in enumerate(self.stages):
+            if stage.name in pair_stages:
+                continue
             # (V6) the best plan so far reaches the certified bound, less min_gain: no stage left can beat it
             # by more than the least gain a field must bring
             if upper is not None and covs and reaches_bound(max(covs.values()), upper, problem.config.min_gain):
@@ -215,6 +225,8 @@ class Portfolio:
         details = dict(best.details, stage_times_s=times, coverage_as_executed=executed, **{AS_EXECUTED_MEMO: memo})
         if skipped:
             details["skipped_at_bound"] = skipped
+        if pair_stages:
+            details["skipped_for_sequence"] = pair_stages
         return dataclasses.replace(best, solver=f"{self.label}({best.solver})", runtime_s=time.perf_counter() - t0,
                                    portfolio=entries, portfolio_choice=name, details=details,
                                    upper_bound=upper if upper is not None else best.upper_bound)
@@ -283,9 +295,18 @@ def blocks(problem: PlanningProblem, should_stop: StopCheck | None = None) -> Sc
     return milp_schedule(problem, should_stop)
 
 
-def published_bound(problem: PlanningProblem) -> UpperBound:
-    """The certified bound plans publish: ``min(U4, V)`` within ``config.bound_time_limit_s`` (:mod:`.certified_bound`)."""
+def published_bound(problem: PlanningProblem) -> UpperBound | None:
+    """The certified bound plans publish: ``min(U4, V)`` within ``config.bound_time_limit_s`` (:mod:`.certified_bound`).
+
+    (F5) A sequence of ``k >= 2`` filters keeps the pair's bound: its first
+    two visits are a plan of the pair (the later ones only take time), so
+    the pair's relaxations hold.  A one-filter sequence has none (None): a
+    field there costs one exposure, which U4 and V do not model.
+    """
     from .certified_bound import certified_upper_bound
+
+    if len(problem.config.filters) < 2:
+        return None
 
     return certified_upper_bound(problem)
 
@@ -312,9 +333,9 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
 #: :data:`MIN_BLOCKS_S` is left) the block MILP with the time left, at most :data:`BLOCKS_LIMIT_S`; the plan covering the most as published
 #: (ties: greedy, slots, lns, blocks; the LNS only returns a plan other than its seed when it covers more).
 #: The certified bound is computed after greedy, and the stages left are skipped once a plan reaches it.
-hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage),
-                 Stage("lns", lns_stage, min_left_s=MIN_LNS_S),
-                 Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S), bound=published_bound)
+hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage, pairs_only=True),
+                 Stage("lns", lns_stage, min_left_s=MIN_LNS_S, pairs_only=True),
+                 Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S, pairs_only=True), bound=published_bound)
 
 register("greedy", greedy_schedule)
 register("slots", with_upper_bound(slots_from_greedy))

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..sequences import require_pair
 from ..sky.cells import merge_cells
 from ..config import PlanningConfig
 from .ordering import order_fields
@@ -253,6 +254,7 @@ def slot_schedule(
         fields the real timing dropped; ``details`` hold the per-grid
         objectives, bounds and times and the mapped start's objective.
     """
+    require_pair(problem.config.filters, "slot MILP")
     t_wall = time.perf_counter()
     cfg: PlanningConfig = problem.config
     budget = cfg.time_limit_s if time_limit_s is None else float(time_limit_s)

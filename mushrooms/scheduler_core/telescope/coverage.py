@@ -6,7 +6,8 @@ from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 import numpy as np
 
-from ..executed import MIN_PROCESSED_FRACTION, ExecutedExposure, done_pairs
+from ..executed import MIN_PROCESSED_FRACTION, ExecutedExposure, is_done
+from ..sequences import covered_fields
 from .executor import execute_queues, executed_exposures, queue_set_from_payloads
 from .timing import TelescopeTiming
 
@@ -22,16 +23,21 @@ AS_EXECUTED_MEMO = "coverage_as_executed_memo"
 
 
 def cadence_coverage(executed: Iterable[ExecutedExposure], footprints: "Footprints", prob: np.ndarray,
-                     filters: tuple[str, str] = ("g", "r"), cadence_s: float = 0.0, require: str = "both",
+                     filters: tuple[str, ...] = ("g", "r"), cadence_s: float = 0.0, require: str = "both",
                      min_processed_fraction: float = MIN_PROCESSED_FRACTION) -> float:
-    """Probability inside the fields done in both filters at least ``cadence_s`` apart (Q14; E3).
+    """Probability inside the covered fields (Q14): done in both filters at least ``cadence_s`` apart (E3).
 
-    ``require="any"`` counts a field once one done exposure exists in either filter.
+    ``filters`` is the plan's sequence: a field is covered by the first two
+    (F1, whatever its later visits did), or one exposure of a one-filter
+    sequence.  ``require="any"`` counts a field once one done exposure
+    exists in any of the filters.
     """
     if require not in ("both", "any"):
         raise ValueError(f"require must be 'both' or 'any', got {require!r}")
-    pairs = done_pairs(executed, filters, min_processed_fraction, cadence_s)
-    ids = set(pairs.both) | (set(pairs.one) if require == "any" else set())
+    executed = list(executed)
+    ids = covered_fields(executed, filters, min_processed_fraction, cadence_s)
+    if require == "any":
+        ids |= {int(e.field_id) for e in executed if e.filter in filters and is_done(e, min_processed_fraction)}
     missing = sorted(ids - {int(f) for f in footprints.field_ids})
     if missing:
         raise ValueError(f"field(s) {missing[:5]} not in the footprints")
@@ -73,10 +79,11 @@ def queue_coverage(plan: "Plan", footprints: "Footprints", prob: np.ndarray,
                    timing: TelescopeTiming = TelescopeTiming()) -> float:
     """Cadence-valid coverage of a plan's queues as ZTF executes them (Q14): ``metrics.coverage_as_executed``.
 
-    The plan's own filters and cadence (its ``config``) decide what a pair is.
+    The plan's own filter sequence and cadence (its ``config``) decide what
+    covers a field (F1).
     """
     config = plan.config or {}
-    filters = tuple(config.get("filters", ("g", "r")))[:2]
+    filters = tuple(config.get("filters", ("g", "r")))
     cadence_s = float(config.get("cadence_s", 1800.0))
     executed = execute_plan_queues(plan, queues, late_s, timing)
     return cadence_coverage(executed, footprints, prob, filters, cadence_s)  # type: ignore[arg-type]
