@@ -1,4 +1,4 @@
-"""Attack the daemon (issue 13), the heavy cases: bombs with peak RSS, a burst
+"""Attack the daemon, the heavy cases: bombs with peak RSS, a burst
 of events, SIGKILL at several points, the hostile corpus, a second daemon and
 a damaged state file, all against real parts (librdkafka's mock cluster on
 loopback, ``mushrooms run`` subprocesses, real SQLite, greedy at nside 64).
@@ -34,9 +34,9 @@ BOMB_CHILD = r"""
 import base64, json, resource, sys, time
 sys.path.insert(0, sys.argv[1])
 from attack_helpers import FAST, fits_bomb, notice_with, received_at
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 import zlib
 unpacked = int(sys.argv[2])
 member = fits_bomb(64 << 20)

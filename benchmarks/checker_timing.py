@@ -2,7 +2,7 @@
 
 For each sky map: prepare the problem once, then time ``greedy_schedule`` and
 ``check_plan`` on its plan (median of ``--repeat`` runs each, interleaved so
-that both see the same machine load).  Issue 12 asks that the checker not
+that both see the same machine load).  The checker should not
 cost more than the greedy scheduler.
 
 Usage::

@@ -1,4 +1,4 @@
-"""Issue 24 must-show, the daemon half: one merger clock and ties to coverage through ``mushrooms run``.
+"""The daemon half: one merger clock and ties to coverage through ``mushrooms run``.
 
 A real daemon process (``mushrooms run``, as ``tests/daemon/test_service.py``
 runs it: librdkafka's mock broker on loopback, SQLite state, the shipped
@@ -23,12 +23,12 @@ For each: coverage and expected detections of revision 1 and of the
 optimiser's plan (from revision 2, or from the ``plan_final`` reason), which
 won, ``merger_time_source``, and (a) the expected detections the published
 plans would have had on the map's stale clock (the two-clock behaviour
-before issue 24), rescored with ``source.detection.expected_detections``.
+before the merger clock), rescored with ``source.detection.expected_detections``.
 
 Run (about 2 min with nothing else on 2 cores)::
 
     PYTHONPATH=. python benchmarks/clock_and_ties_daemon.py \
-        --out benchmarks/results/issue24/daemon_clock_ties.txt
+        --out benchmarks/results/clock_and_ties/daemon_clock_ties.txt
 """
 
 from __future__ import annotations
@@ -68,7 +68,7 @@ def iso_now() -> str:
 
 
 def stale_clock_detections(doc: dict[str, Any], skymap_b64: str) -> float:
-    """The plan's expected detections with the kilonova counted from the map's header (before issue 24)."""
+    """The plan's expected detections with the kilonova counted from the map's header (the stale clock)."""
     from mushrooms.tool.config import Config
     from mushrooms.scheduler_core.plan.document import Plan
     from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
@@ -133,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
         log_text = daemon.text()
         (work / "messages.json").write_text(json.dumps(msgs, indent=1))
 
-    say("issue 24, daemon half: mushrooms run (default [scheduler]: hybrid, objective detection, nside 256, "
+    say("one merger clock, daemon half: mushrooms run (default [scheduler]: hybrid, objective detection, nside 256, "
         "time_limit_s 14, supersede_min_gain 0.005) on live copies of MS230425l's preliminary notice")
     say(f"measured {iso_now()}; both notices' final answers after {wall:.0f} s; daemon exit status {rc}")
     say()
@@ -160,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
         if case == "stale":
             e1_old = stale_clock_detections(r1, info["skymap"])
             e2_old = stale_clock_detections(r2, info["skymap"]) if r2 is not None else None
-            say(f"    on the map's stale clock (the two clocks before issue 24) the same plans expect {e1_old:.4f} and "
+            say(f"    on the map's stale clock (the two clocks of before) the same plans expect {e1_old:.4f} and "
                 f"{'-' if e2_old is None else f'{e2_old:.4f}'} detections (a tie at 0, where more coverage alone "
                 "did not count: revision 1 stayed final)")
             good = (ev.get("merger_time_source") == "notice" and ev.get("event_time") == info["now"]

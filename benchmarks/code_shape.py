@@ -1,4 +1,4 @@
-"""The package's shape for a refactor's before/after (issue 26): module sizes, longest functions, import graph.
+"""The package's shape for a refactor's before/after: module sizes, longest functions, import graph.
 
 Counts are read with :mod:`ast` from the source tree given (default: the
 ``mushrooms`` package beside this script), so two checkouts can be compared::

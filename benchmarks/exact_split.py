@@ -18,7 +18,7 @@ Printed per instance: optimum (or incumbent and proven bound), hybrid,
 greedy, bound, and the split ``bound slack = bound - optimum``,
 ``optimiser loss = optimum - hybrid``; then the means over the instances
 proven optimal, and the instances not proven with their gap.  Default maps:
-the four maps of issue 30 at ``k`` and ``--k-hard``, and every third map of
+the four hardest maps of the block-stage run at ``k`` and ``--k-hard``, and every third map of
 ``shared/data/skymaps`` (public, simulated BNS, simulated NSBH) at ``k``.
 Not a test: nothing here asserts.
 """

@@ -1,4 +1,4 @@
-"""Fixed 300 s against the exposure menu (issue 31 item 4), on the shared maps with distance layers.
+"""Fixed 300 s against the exposure menu , on the shared maps with distance layers.
 
 For each map: one coverage plan (the configured scheduler with
 ``time_limit_s - detection_time_limit_s``, as ``planner.optimise`` gives it),
@@ -13,8 +13,8 @@ mean difference over maps.  A map counts as better / worse when the
 difference exceeds ``min_gain`` (0.001).
 
     python benchmarks/exposure_menu.py [--maps bns_o3,nsbh_o3] [--limit N] [--nside 128] \
-        [--menu 30,60,120,300,600] -o benchmarks/results/issue31/exposure_menu.csv \
-        --plot benchmarks/results/issue31/exposure_vs_distance.png
+        [--menu 30,60,120,300,600] -o benchmarks/results/exposure_menu/exposure_menu.csv \
+        --plot benchmarks/results/exposure_menu/exposure_vs_distance.png
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Menu off = the plans of before (issue 31): run in two trees (this branch and main) and diff the output.
+"""Menu off = the plans of before: run in two trees (this branch and main) and diff the output.
 
 For the test map and one shared simulated map (nside 64): the greedy plan id and a hash of its exposures, a
 hash of the first slot grid detection model (A, c, row bounds) and of the optimal solution timed with the

@@ -4,7 +4,7 @@ Usage::
 
     nice -n 5 .venv/bin/python benchmarks/group_join.py [--out benchmarks/results]
 
-The finding of issue 29: through the loopback broker the daemon logged
+The finding: through the loopback broker the daemon logged
 ``service_ready`` about 37 s before ``partitions_assigned``.  Each case here
 starts a consumer with the daemon's own settings (:func:`consumer_config`)
 in a process of its own and times ``subscribe`` -> ``on_assign``:
@@ -38,7 +38,7 @@ from daemon_helpers import Broker  # noqa: E402
 CHILD = r"""
 import json, sys, time
 import confluent_kafka
-from mushrooms.daemon.consumer import consumer_config
+from mushrooms.daemon.kafka.consumer import consumer_config
 from mushrooms.daemon.settings import KafkaConfig
 
 bootstrap, topic, group, session_s, then, instance = sys.argv[1:7]

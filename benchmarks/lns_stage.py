@@ -1,4 +1,4 @@
-"""The hybrid with and without its LNS stage (issue 30 item 3), per map: each stage's published coverage.
+"""The hybrid with and without its LNS stage , per map: each stage's published coverage.
 
 Usage::
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Loop benchmark (issue 28, item 4): list queue alone vs the daemon's re-plan after a weather closure.
+"""Loop benchmark: list queue alone vs the daemon's re-plan after a weather closure.
 
 For each shared sky map (the bench's list: every ``*.fits``/``*.fits.gz``
 under ``/work/shared/data/skymaps``, sorted; ``--maps N`` takes N of them
@@ -19,7 +19,7 @@ the daemon's solver.
 
 Writes ``loop_bench.csv``, ``loop_bench.txt`` (the table and the summary)
 and ``loop_gain.png`` (per-map coverage gain (b)-(a), sorted) into
-``--out`` (default ``benchmarks/results/issue28/loop_bench``) and prints the summary.
+``--out`` (default ``benchmarks/results/loop_bench``) and prints the summary.
 
     PYTHONPATH=. python benchmarks/loop_bench.py [--maps N] [--nside 128] [--solver greedy] [--seed 28]
 """
@@ -37,7 +37,7 @@ from csv_rows import write_rows  # benchmarks/csv_rows.py (the script's own fold
 
 ROOT = Path(__file__).resolve().parents[1]
 MAPS = Path("/work/shared/data/skymaps")
-OUT = ROOT / "benchmarks" / "results" / "issue28" / "loop_bench"
+OUT = ROOT / "benchmarks" / "results" / "loop_bench"
 #: A paired difference counts as better or worse beyond these (coverage, expected detections).
 COV_TOL, DET_TOL = 1e-4, 1e-6
 

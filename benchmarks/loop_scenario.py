@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Issue 28's must-show scenario through the real pipeline, with its documents printed and saved.
+"""The loop's scenario through the real pipeline, with its documents printed and saved.
 
     notice -> plan (revisions 1, 2) -> executed file with the plan's first 10 exposures -> the [loop] poll
     (on time: nothing re-planned) -> `trigger SUPEREVENT --closed-until` 2 h after the 10th exposure
@@ -7,13 +7,13 @@
 
 MS181101ab's PRELIMINARY notice (tests/data/notices/json), re-dated as if sent
 live at 2023-04-15T02:55Z (a good night for its map), planned by
-:class:`~mushrooms.daemon.pipeline.NoticePipeline` on a real SQLite state with
+:class:`~mushrooms.daemon.intake.pipeline.NoticePipeline` on a real SQLite state with
 the configuration given (default: the built-in one, the daemon's: hybrid at
 nside 256; ``--fast``: the tests' greedy at nside 64).  The poll and the
 closure use the night's clock (the 10th exposure's end + 60 s), so the run
 is the same every time.  Documents go to ``--out`` (default
-``benchmarks/results/issue28/loop_scenario``); the report to stdout
-(``benchmarks/results/issue28/loop_scenario.txt`` is the ``--fast`` run,
+``benchmarks/results/loop_scenario``); the report to stdout
+(``benchmarks/results/loop_scenario.txt`` is the ``--fast`` run,
 ``loop_scenario_default.txt`` the default one).
 
     PYTHONPATH=. python benchmarks/loop_scenario.py [--fast] [--config config.toml] [--out DIR]
@@ -39,17 +39,17 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--config", help="config.toml (default: the built-in configuration)")
     ap.add_argument("--fast", action="store_true", help="greedy at nside 64, 600 s steps (the tests' configuration)")
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "issue28" / "loop_scenario"))
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "loop_scenario"))
     ap.add_argument("--closure-h", type=float, default=2.0, help="hours closed after the 10th exposure")
     args = ap.parse_args(argv)
 
     from astropy.time import Time, TimeDelta
 
-    from mushrooms.daemon.loop import ExecutedLoop
-    from mushrooms.daemon.pipeline import NoticePipeline
+    from mushrooms.daemon.loop.poll import ExecutedLoop
+    from mushrooms.daemon.intake.pipeline import NoticePipeline
     from mushrooms.daemon.sinks import MemorySink
-    from mushrooms.daemon.store import Store
-    from mushrooms.daemon.trigger import closure_payload
+    from mushrooms.daemon.state.store import Store
+    from mushrooms.daemon.intake.trigger import closure_payload
     from mushrooms.handlers.executed import write_jsonl
     from mushrooms.offline import configure_astropy_offline
     from mushrooms.scheduler_core.executed import ExecutedExposure, done_pairs
@@ -106,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
         current = plans[-1]["document"]
         for r in plans:
             save(f"plan_r{r['revision']}.json", r["document"])
-        print(f"# issue 28: the loop through the real pipeline (config {config.source}{', --fast' if args.fast else ''};"
+        print(f"# the loop through the real pipeline (config {config.source}{', --fast' if args.fast else ''};"
               f" [scheduler] solver {sched.solver}, nside {sched.nside}, cadence {sched.cadence_s:g} s)\n")
         print(f"notice: {NOTICE.relative_to(ROOT)} re-dated to {SENT}, received {RECEIVED.isoformat()}")
         print(f"  -> {outcome.decision}: {len(plans)} revision(s) stored in {plan_s:.1f} s; the current plan:")

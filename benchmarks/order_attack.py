@@ -1,4 +1,4 @@
-"""Out-of-order notices through Kafka with 4 partitions (issue 25, "must show").
+"""Out-of-order notices through Kafka with 4 partitions.
 
 A real ``mushrooms run`` subprocess (tests/daemon/daemon_helpers.Daemon) consumes
 one 4-partition input topic of librdkafka's mock cluster on loopback and
@@ -22,7 +22,7 @@ the outbound topic, and whether the outcome is what creation order demands.
 
 Run from the repository root, niced::
 
-    PYTHONPATH=$PWD nice -n 5 python benchmarks/order_attack.py [--out benchmarks/results/issue25/order_attack.txt]
+    PYTHONPATH=$PWD nice -n 5 python benchmarks/order_attack.py [--out benchmarks/results/order_attack/order_attack.txt]
 """
 
 from __future__ import annotations
@@ -99,7 +99,7 @@ def main() -> int:
     ap.add_argument("--tree", default=str(ROOT), help="tree whose mushrooms package the daemon runs")
     ap.add_argument("--label", default="")
     a = ap.parse_args()
-    a.out = a.out or str(ROOT / "benchmarks" / "results" / "issue25" / f"order_attack{a.label}.txt")
+    a.out = a.out or str(ROOT / "benchmarks" / "results" / "order_attack" / f"order_attack{a.label}.txt")
     work = Path(tempfile.mkdtemp(prefix="mushrooms-order-"))
     load0 = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     broker = Broker()

@@ -47,12 +47,12 @@ def measure(path: Path, limit: float) -> dict:
     t = time.perf_counter()
     outer = refined_windows(problem, "outer")
     t_refine = time.perf_counter() - t
-    saved = bound._widened
+    saved = bound.widened_windows
     try:  # every U and V step reads the widened windows through this one function
-        bound._widened = interval._widened = lambda p: outer
+        bound.widened_windows = interval.widened_windows = lambda p: outer
         refined = interval.interval_upper_bound(problem, time_limit_s=limit)  # the same solver budget
     finally:
-        bound._widened = interval._widened = saved
+        bound.widened_windows = interval.widened_windows = saved
     t_outer = time.perf_counter() - t
     return {"map": str(path.relative_to(shared_root())), "greedy": cov, "bound": today.value, "method": today.method,
             "bound_outer": refined.value, "method_outer": refined.method, "t_bound": round(t_today, 2),

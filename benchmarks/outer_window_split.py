@@ -42,12 +42,12 @@ def outer_bound(path: Path, k: int, limit: float) -> tuple[float, float]:
     problem = reduced_problem(prepare_problem(sm, cfg, Time(sm.event_time, scale="utc")), k)
     t = time.perf_counter()
     outer = refined_windows(problem, "outer")
-    saved = bound._widened
+    saved = bound.widened_windows
     try:  # every U and V step reads the widened windows through this one function
-        bound._widened = interval._widened = lambda p: outer
+        bound.widened_windows = interval.widened_windows = lambda p: outer
         value = interval.interval_upper_bound(problem, time_limit_s=limit).value
     finally:
-        bound._widened = interval._widened = saved
+        bound.widened_windows = interval.widened_windows = saved
     return value, time.perf_counter() - t
 
 

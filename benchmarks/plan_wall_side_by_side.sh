@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Side-by-side wall time of `mushrooms plan` with the default config vs --solver greedy (issue 30 item 4):
+# Side-by-side wall time of `mushrooms plan` with the default config vs --solver greedy:
 # per map one run each, alternating, imports included; run it with the machine quiet.
 #   benchmarks/plan_wall_side_by_side.sh            (maps from $SKYMAPS, default ../shared/data/skymaps)
 #   benchmarks/plan_wall_side_by_side.sh MAP...     (these maps instead)

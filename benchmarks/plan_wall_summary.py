@@ -1,4 +1,4 @@
-"""Summarise benchmarks/plan_wall_side_by_side.sh output: per-map ratio, medians, coverage / bound (issue 30 item 4).
+"""Summarise benchmarks/plan_wall_side_by_side.sh output: per-map ratio, medians, coverage / bound.
 
 Usage: python benchmarks/plan_wall_summary.py OUTPUT.txt  (with ARM_CONFIG runs: their medians too)
 """

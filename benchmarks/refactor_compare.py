@@ -1,4 +1,4 @@
-"""Compare two output trees of ``refactor_identity.sh`` document by document (issue 26).
+"""Compare two output trees of ``refactor_identity.sh`` document by document.
 
 Every JSON document is compared after removing what a run cannot repeat:
 creation instants, wall times and latencies (``created``, ``runtime_s``,

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Behaviour of one checkout for a refactor's before/after (issue 26): the demo plan,
+# Behaviour of one checkout for a refactor's before/after: the demo plan,
 # five shared maps planned with greedy and with the hybrid, and the replay of the
 # MS181101ab notice sequence (greedy and default config), every document kept.
 #   benchmarks/refactor_identity.sh TREE OUT_DIR

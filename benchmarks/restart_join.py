@@ -40,7 +40,7 @@ def main() -> int:
     ap.add_argument("--out", default=None)
     ap.add_argument("--assignment", choices=("group", "manual"), default="group")
     a = ap.parse_args()
-    out_path = Path(a.out or ROOT / "benchmarks" / "results" / "issue25" / f"restart_join_{a.label}.txt")
+    out_path = Path(a.out or ROOT / "benchmarks" / "results" / "restart_join" / f"restart_join_{a.label}.txt")
     work = Path(tempfile.mkdtemp(prefix="mushrooms-restart-"))
     load0 = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     broker = Broker()

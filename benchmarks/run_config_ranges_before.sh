@@ -2,7 +2,8 @@
 # tests/test_config_ranges.py against the pre-fix tree, one hostile value per run (each a real `plan`
 # in-process: some ran for minutes or took 6.5+ GB before the fix): 90 s and 8 GB of address space each.
 TREE=${1:-/work/wt/pre25}
-OUT=/work/wt/h25/benchmarks/results/issue25/tests_before/config_ranges_per_case.txt
+OUT=${OUT:-$PWD/benchmarks/results/config_ranges_before/config_ranges_per_case.txt}
+mkdir -p "$(dirname "$OUT")"
 cd $TREE
 (date -u; uptime; echo "per case: ulimit -v 8000000; timeout 90 python -m pytest -q -p no:cacheprovider -rA --tb=line tests/test_config_ranges.py::CASE") > $OUT
 ulimit -v 8000000

@@ -1,11 +1,11 @@
 #!/bin/sh
-# Run the issue-25 finding tests against a tree: run_findings_tests.sh TREE LABEL
+# Run the robustness finding tests (creation order, crashes, ranges, hostile input) against a tree: run_findings_tests.sh TREE LABEL
 # TREE's mushrooms package is used (PYTHONPATH=TREE); the tests are h25's (copied into TREE/tests for the pre-fix tree).
 TREE=$1; LABEL=$2
-OUT=/work/wt/h25/benchmarks/results/issue25/tests_$LABEL
+OUT=${OUT:-$PWD/benchmarks/results/findings_tests}/tests_$LABEL
 mkdir -p $OUT
 cd $TREE
-for f in tests/handlers/test_decisions_order.py tests/attack/test_issue25_daemon.py tests/daemon/test_jobs_robust.py \
+for f in tests/handlers/test_decisions_order.py tests/attack/test_creation_order_crashes_and_pruning.py tests/daemon/test_jobs_robust.py \
          tests/test_config_ranges.py tests/test_cli_files.py tests/daemon/test_consumer_start.py \
          "tests/daemon/test_trigger.py::test_trigger_hands_work_to_the_running_daemon_and_signals" \
          tests/attack/test_hostile_input.py $EXTRA; do

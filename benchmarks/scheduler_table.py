@@ -1,4 +1,4 @@
-"""Per-map table of the schedulers from a ``mushrooms bench`` CSV (issue 11).
+"""Per-map table of the schedulers from a ``mushrooms bench`` CSV.
 
     python benchmarks/scheduler_table.py results.csv [--solvers greedy,slots,blocks,hybrid]
 

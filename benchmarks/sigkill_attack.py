@@ -1,9 +1,9 @@
-"""8 random SIGKILLs during a stream of 6 live events (issue 25, "must show").
+"""8 random SIGKILLs during a stream of 6 live events.
 
 The real daemon (``mushrooms run`` subprocess, tests/daemon/daemon_helpers.Daemon)
 on librdkafka's mock cluster (loopback), a 4-partition input topic, real SQLite,
 the hybrid solver at nside 64 (first plan greedy, then the optimised revision:
-the crash accounting of issue 25 is about the optimisation stage), default
+the crash accounting is about the optimisation stage), default
 ``[daemon] max_jobs``.  Six PRELIMINARY notices (real sample maps) are produced
 while the daemon is SIGKILLed 8 times at random moments (seeded) after it is
 ready; then one last start runs until every event has its final message.
@@ -11,7 +11,7 @@ ready; then one last start runs until every event has its final message.
 Reported: decision rows per notice (must be exactly 1), messages never stored,
 plan ids published with two contents (must be none), and per event the messages
 published, whether the event ends with its final message (a plan revision with
-``final: true`` or a ``plan_final``; issue 25: 5 of 6 events lost it), the jobs'
+``final: true`` or a ``plan_final``; before the fallback 5 of 6 events lost it), the jobs'
 attempts and status.
 
     PYTHONPATH=$PWD nice -n 5 python benchmarks/sigkill_attack.py [--seed 25] [--kills 8]
@@ -61,7 +61,7 @@ def main() -> int:
     ap.add_argument("--events", type=int, default=6, help="live events (2: every kill hits both running jobs)")
     a = ap.parse_args()
     rnd = random.Random(a.seed)
-    a.out = a.out or str(ROOT / "benchmarks" / "results" / "issue25" / f"sigkill_attack_{a.mode}{a.label}.txt")
+    a.out = a.out or str(ROOT / "benchmarks" / "results" / "sigkill_attack" / f"sigkill_attack_{a.mode}{a.label}.txt")
     work = Path(tempfile.mkdtemp(prefix="mushrooms-kill-"))
     load0 = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     broker = Broker()

@@ -1,4 +1,4 @@
-"""Big flat sky maps through ``mushrooms plan``: peak RSS, wall time, the same plan as the multi-order map (issue 24).
+"""Big flat sky maps through ``mushrooms plan``: peak RSS, wall time, the same plan as the multi-order map.
 
 Makes flat four-column maps (PROB, DISTMU, DISTSIGMA, DISTNORM) at NSIDE
 1024 and 2048 from one real multi-order BAYESTAR map (the LVK user-guide's
@@ -12,7 +12,7 @@ three bombs (a header declaring NSIDE 2^20, the plain NSIDE 1024 map cut in
 half, the gzipped NSIDE 1024 map followed by 1 GiB of zeros) must each be
 one line, exit 2.
 
-    PYTHONPATH=$PWD python benchmarks/skymap_memory.py [--work DIR] [--out benchmarks/results/issue24]
+    PYTHONPATH=$PWD python benchmarks/skymap_memory.py [--work DIR] [--out benchmarks/results/skymap_memory]
         [--old-python /work/main/.venv/bin/python --old-path /work/main]
 
 Maps are written to ``--work`` (about 4.5 GB; not committed); results are
@@ -125,8 +125,8 @@ def observations(plan: Path) -> list[tuple]:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--work", type=Path, default=Path("/tmp/mushrooms-issue24"))
-    ap.add_argument("--out", type=Path, default=REPO / "benchmarks/results/issue24")
+    ap.add_argument("--work", type=Path, default=Path("/tmp/mushrooms-skymap-memory"))
+    ap.add_argument("--out", type=Path, default=REPO / "benchmarks/results/skymap_memory")
     ap.add_argument("--old-python", default=None, help="interpreter of the code before the change (for 'before' rows)")
     ap.add_argument("--old-path", default=None, help="PYTHONPATH of the code before the change")
     ap.add_argument("--skip-2048", action="store_true")

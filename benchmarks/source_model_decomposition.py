@@ -1,4 +1,4 @@
-"""Decompose the change of scoring (issue 19): early-time light curve (K1) vs sky-dependent depth (D1).
+"""Decompose the change of scoring: early-time light curve (K1) vs sky-dependent depth (D1).
 
 Greedy plans (deterministic) of every sky map in a directory, scored four ways on the same
 injections: first release (table-only light curve, flat 300 s limits), early-time curve only,

@@ -41,7 +41,7 @@ CGROUP = Path("/sys/fs/cgroup/pids/mushrooms_submission_attack")
 
 
 def _config(url: str, **submit):
-    from mushrooms.daemon.submit_settings import SubmitConfig
+    from mushrooms.daemon.submission.settings import SubmitConfig
     from mushrooms.handlers.policy import PolicyConfig
     from mushrooms.scheduler_core import PlanningConfig
     from mushrooms.scheduler_core.plan.exports import ExportConfig
@@ -56,9 +56,9 @@ def _config(url: str, **submit):
 
 
 def _pipeline(path: Path, url: str):
-    from mushrooms.daemon.pipeline import NoticePipeline
+    from mushrooms.daemon.intake.pipeline import NoticePipeline
     from mushrooms.daemon.sinks import MemorySink
-    from mushrooms.daemon.store import Store
+    from mushrooms.daemon.state.store import Store
 
     store = Store(path)
     return store, NoticePipeline.from_config(_config(url), store, MemorySink())
@@ -73,8 +73,8 @@ def _notice(pipeline, name: str, sid: str, created: str | None = None) -> str:
 # ---------------------------------------------------------------- metrics
 def metrics_child(state: str, port_file: str) -> None:
     """The daemon side: listener + planning of three events once told to (stdin line)."""
-    from mushrooms.daemon.health import HealthServer
-    from mushrooms.daemon.metrics import ServiceMetrics
+    from mushrooms.daemon.ops.health import HealthServer
+    from mushrooms.daemon.ops.metrics import ServiceMetrics
 
     store, pipeline = _pipeline(Path(state), "http://127.0.0.1:9")
     listener = HealthServer("127.0.0.1", 0, ServiceMetrics("0", Path(state)), lambda: (True, {})).start()
@@ -144,8 +144,8 @@ def metrics() -> dict:
 # ---------------------------------------------------------------- drip
 def drip() -> dict:
     from contract_servers import KowalskiContract, loopback_server
-    from mushrooms.daemon.remote import make_client
-    from mushrooms.daemon.submissions import Submitter, submissions
+    from mushrooms.daemon.submission.remote import make_client
+    from mushrooms.daemon.submission.submitter import Submitter, submissions
 
     server = loopback_server()
     kowalski = KowalskiContract(server, TOKEN)
@@ -176,9 +176,9 @@ def drip() -> dict:
 # ---------------------------------------------------------------- kills
 def kills_child(state: str, url: str) -> None:
     """A submitter that runs passes until nothing is open (then exits 0)."""
-    from mushrooms.daemon.remote import make_client
-    from mushrooms.daemon.store import Store
-    from mushrooms.daemon.submissions import Submitter
+    from mushrooms.daemon.submission.remote import make_client
+    from mushrooms.daemon.state.store import Store
+    from mushrooms.daemon.submission.submitter import Submitter
     from mushrooms.scheduler_core.plan import exports
     from test_submission_sets import three_queues
 
@@ -197,7 +197,7 @@ def _has_pending(store) -> bool:
 
 def kills(n_kills: int = 10, seed: int = 7) -> dict:
     from contract_servers import KowalskiContract, loopback_server
-    from mushrooms.daemon.submissions import submissions
+    from mushrooms.daemon.submission.submitter import submissions
 
     rng = random.Random(seed)
     server = loopback_server()

@@ -1,4 +1,4 @@
-"""First-plan latency while the submission target hangs (issue 27).
+"""First-plan latency while the submission target hangs.
 
 Usage::
 

@@ -117,6 +117,88 @@ def outside_imports(package_dir: Path) -> dict[str, set[str]]:
     return out
 
 
+#: The public underscore API of :func:`collections.namedtuple` (not a private reach-in).
+NAMEDTUPLE_API = frozenset({"_replace", "_asdict", "_fields", "_make", "_field_defaults"})
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def _defined_here(tree: ast.AST) -> set[str]:
+    """Names a module defines itself: functions, classes, assigned names and attributes (``self._x = ...``)."""
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+            names.add(node.id)
+        elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
+            names.add(node.attr)
+        elif isinstance(node, ast.arg):
+            names.add(node.arg)
+    return names
+
+
+def private_reach_ins(package_dir: Path) -> list[str]:
+    """Every private name (``_x``, not a dunder) one module of the package takes from another.
+
+    Three forms: ``from .other import _x``; ``other._x`` on a module the file
+    imported; and ``obj._x`` (``self.store._x`` too) where the module does not
+    define ``_x`` itself, i.e. a reach into another module's object.  Names on
+    what comes from outside the package (``os._exit``, a library's constants)
+    and the namedtuple API (``_replace``...) are not counted.
+    """
+    modules = module_files(package_dir)
+    top = package_dir.name
+    out: list[str] = []
+    for name, (path, is_pkg) in modules.items():
+        here = name.split(".") if is_pkg else name.split(".")[:-1]
+        tree = ast.parse(path.read_text(), filename=str(path))
+        own_modules: set[str] = set()   # local names bound to one of the package's modules
+        outside: set[str] = set()       # local names bound to something from outside the package
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = here[:len(here) - (node.level - 1)]
+                    module = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    module = node.module or ""
+                for alias in node.names:
+                    local = alias.asname or alias.name
+                    if module.split(".")[0] != top:
+                        outside.add(local)
+                        continue
+                    if _private(alias.name):
+                        out.append(f"{name}: from {module} import {alias.name}")
+                    if f"{module}.{alias.name}" in modules:
+                        own_modules.add(local)
+            elif isinstance(node, ast.Import):
+                for alias in node.names:
+                    local = alias.asname or alias.name.split(".")[0]
+                    (own_modules if alias.name.split(".")[0] == top else outside).add(local)
+        defined = _defined_here(tree) - own_modules - outside
+        for node in ast.walk(tree):
+            if not (isinstance(node, ast.Attribute) and _private(node.attr)) or node.attr in NAMEDTUPLE_API:
+                continue
+            root, depth = node.value, 1
+            while isinstance(root, ast.Attribute):
+                root, depth = root.value, depth + 1
+            if isinstance(root, ast.Call):
+                root_name = ""  # super()._x, make()._x: judged by the name alone
+            elif isinstance(root, ast.Name):
+                root_name = root.id
+            else:
+                root_name = ""
+            if root_name in outside:
+                continue
+            if root_name in own_modules and depth == 1:
+                out.append(f"{name}: {root_name}.{node.attr} (module {root_name})")
+            elif node.attr not in defined and not (root_name in ("self", "cls") and depth == 1):
+                out.append(f"{name}: {ast.unparse(node)}")
+    return sorted(set(out))
+
+
 def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     """The strongly connected components with more than one module (Tarjan), each sorted."""
     index: dict[str, int] = {}
@@ -181,6 +263,11 @@ def test_the_graph_sees_the_package(graph):
 
 def test_no_import_cycle(graph):
     assert import_cycles(graph) == []
+
+
+def test_no_module_uses_another_modules_private_names():
+    # a private name is the module's own business: what another module needs is public API
+    assert private_reach_ins(PACKAGE_DIR) == []
 
 
 def test_data_flows_one_way(graph):
@@ -295,3 +382,22 @@ def test_config_rule_names_an_importer_below_the_command_layer(tmp_path):
     graph = {a.replace("pkg.", "mushrooms.", 1): {b.replace("pkg.", "mushrooms.", 1) for b in t}
              for a, t in import_graph(pkg).items()}
     assert config_importers(graph) == {"mushrooms.daemon.service"}
+
+
+def test_private_scan_names_every_kind_of_reach_in_and_spares_a_module_its_own(tmp_path):
+    pkg = _package(tmp_path, {
+        "__init__.py": "",
+        "rows.py": "_TABLE = 1\n\ndef _row():\n    return _TABLE\n\nclass Rows:\n    def _put(self):\n"
+                   "        return self._put\n",
+        "user.py": ("import os\nfrom . import rows\nfrom .rows import _row, Rows\n\n"
+                    "def f(r: Rows, other):\n    os._exit\n    rows._TABLE\n    r._put()\n"
+                    "    other.p._replace(a=1)\n    return _row()\n"),
+        "own.py": ("class Box:\n    def __init__(self):\n        self._size = 1\n\n"
+                   "    def same(self, other: 'Box'):\n        return other._size == self._size\n\n"
+                   "def size(box: Box):\n    return box._size\n"),
+    })
+    assert private_reach_ins(pkg) == [
+        "pkg.user: from pkg.rows import _row",
+        "pkg.user: r._put",
+        "pkg.user: rows._TABLE (module rows)",
+    ]

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import yaml
 
-from mushrooms.daemon.metrics import ServiceMetrics
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.ops.metrics import ServiceMetrics
+from mushrooms.daemon.state.store import Store
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "operations.md"
 

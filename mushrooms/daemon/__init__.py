@@ -1,23 +1,26 @@
-"""The long-running service: consumer loop, jobs, state store, sinks, signals.
+"""The long-running service, in rooms by concern.
 
 Built from plain objects by the command layer (:mod:`mushrooms.tool`): the
 tools load the configuration (:mod:`mushrooms.tool.config`) and hand the
 daemon its sections (``Service(config, paths)``, ``run_trigger(..., config,
 paths)``, ``replay_notices(..., config)``); no module here imports the config
 loader or ``argparse`` (``tests/test_architecture.py``).  This ``__init__``
-imports nothing, so the tool layer reads :mod:`.settings` cheaply.
+and the subpackages' import nothing, so the tool layer reads :mod:`.settings`
+cheaply.
 
-Modules (imported lazily by the CLI):
+Rooms (each a subpackage; modules imported lazily by the CLI):
 
-``settings``     ``[daemon]``, ``[kafka]``, ``[outbound]`` tables, runtime paths
-``sections``     ``ServiceConfig``: the assembled sections the daemon is handed (a Protocol)
-``service``      ``mushrooms run``: the main loop, signals, heartbeat, watchdog
-``consumer``     gcn-kafka consumer, manual offset commits
-``jobs``         one planning job per superevent, supersede, deadlines, outbox retries
-``trigger``      ``mushrooms trigger``, trigger directory, pid lock
-``wiring``       store, sink and pipeline, shared by ``service`` and ``trigger``
-``kafka_sink``   outbound Kafka topic (idempotent producer, acks=all)
-``notify``       systemd ``sd_notify`` (READY, WATCHDOG, STATUS, STOPPING)
-``credentials``  GCN client id/secret from the environment or systemd credentials
-``store``, ``sinks``, ``pipeline``, ``replay``  state, directory sink, notice path, replays
+``kafka``       the GCN consumer, the outbound topic, librdkafka's log
+``intake``      notice or trigger -> durable decision -> planning job; replays
+``planning``    the job runner, first plans and revisions, re-plans, the warm sky
+``loop``        executed observations: read, store, re-plan the nights
+``submission``  plans to ZTF's queue and SkyPortal
+``state``       the SQLite state file, one owner of the per-event truth
+``ops``         metrics, health, systemd notify, the webhook
+
+At the top, what ties them: ``service`` (``mushrooms run``: lifecycle and stop
+order), ``settings`` (``[daemon]``, ``[kafka]``, ``[outbound]``, runtime
+paths), ``sections`` (``ServiceConfig``, a Protocol), ``wiring`` (store, sink
+and pipeline for ``service`` and ``trigger``), ``sinks`` (the directory sink),
+``credentials`` (secrets from the environment or systemd credentials).
 """

@@ -19,13 +19,17 @@ The bearer token of ``[submit]`` (Kowalski or SkyPortal):
 
 from __future__ import annotations
 
+import logging
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
+from typing import Any, Mapping
 
 __all__ = ["Credentials", "CredentialsError", "load_credentials", "load_outbound_password", "load_submit_token", "load_notify_url",
-           "load_executed_token"]
+           "load_executed_token", "service_tokens"]
+
+#: the service's log (where each token came from)
+log = logging.getLogger("mushrooms.daemon")
 
 
 class CredentialsError(ValueError):
@@ -197,3 +201,39 @@ def load_notify_url(environ: Mapping[str, str] | None = None) -> tuple[str, str]
     (:func:`_token`: never from ``config.toml``, never logged nor stored).
     """
     return _token("notify_url", "MUSHROOMS_NOTIFY_URL", "webhook URL", "or set [notify] target = \"off\"", environ)
+
+
+def service_tokens(config: Any) -> tuple[str | None, str | None]:
+    """The secrets ``mushrooms run`` needs, read before it touches any state (a missing one fails the start fast).
+
+    Kafka's client id and secret are checked (the consumer reads them again);
+    the submission token when ``[submit]`` sends for real; the token of an
+    executed-observation source that is a URL.  Only where each came from is
+    logged, never a value.
+
+    Parameters
+    ----------
+    config : ServiceConfig
+        The assembled sections (``kafka``, ``submit``, ``loop``).
+
+    Returns
+    -------
+    submit_token, executed_token : str or None
+
+    Raises
+    ------
+    CredentialsError
+        A credential the configuration needs is missing or unreadable.
+    """
+    if not config.kafka.bootstrap:
+        load_credentials()
+    submit_token = None
+    if config.submit.enabled and not config.submit.dry_run:
+        submit_token, source = load_submit_token()
+        log.info("event=submit_token source=%s", source)
+    executed_token = None
+    loop = getattr(config, "loop", None)
+    if loop is not None and loop.enabled and str(loop.source.location).startswith(("http://", "https://")):
+        executed_token, source = load_executed_token()  # the value is never logged
+        log.info("event=executed_token source=%s", source)
+    return submit_token, executed_token

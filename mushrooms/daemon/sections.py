@@ -14,9 +14,9 @@ if TYPE_CHECKING:
     from ..handlers.policy import PolicyConfig
     from ..scheduler_core.config import PlanningConfig
     from ..scheduler_core.plan.exports import ExportConfig
-    from .loop_settings import LoopConfig
+    from .loop.settings import LoopConfig
     from .settings import DaemonConfig, KafkaConfig, OutboundConfig
-    from .submit_settings import SubmitConfig
+    from .submission.settings import SubmitConfig
 
 __all__ = ["ServiceConfig"]
 

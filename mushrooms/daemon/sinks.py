@@ -4,7 +4,7 @@ A sink has one method, ``publish(message: dict) -> None``, which returns only
 once the message is durably handed over and raises on failure (the message
 then stays in the store's outbox and is retried).  Publishing the same
 message twice must be harmless: the directory sink overwrites the same file,
-the Kafka sink (:mod:`.kafka_sink`) keys messages by :func:`message_key`.
+the Kafka sink (:mod:`~mushrooms.daemon.kafka.sink`) keys messages by :func:`message_key`.
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ def message_key(message: Mapping[str, Any]) -> str:
     if kind == "plan_final":
         plan_id = message.get("plan_id")
         key = f"{plan_id}-final" if isinstance(plan_id, str) and plan_id else None
-    elif kind == "submission":  # a plan's submission to ZTF's queue (daemon/submissions.py)
+    elif kind == "submission":  # a plan's submission to ZTF's queue (daemon/submission/submitter.py)
         key = message.get("submission_id")
     else:
         key = message.get("plan_id") if kind in ("plan", "not_observable") else message.get("withdrawal_id")

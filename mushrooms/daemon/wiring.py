@@ -1,7 +1,7 @@
 """The daemon's wiring: state store, outbound sink and notice pipeline, from plain values.
 
 Used by ``mushrooms run`` (:mod:`.service`) and ``mushrooms trigger``
-without a daemon (:mod:`.trigger`), so both open the same store and sink the
+without a daemon (:mod:`~mushrooms.daemon.intake.trigger`), so both open the same store and sink the
 same way.  The configuration comes in already loaded, command-line
 overrides included (the tool layer's ``mushrooms.tool.overrides.effective_config``).
 """
@@ -31,7 +31,7 @@ def private_dir(path: Path, group_readable: bool = False) -> Path:
 def make_sink(out: OutboundConfig) -> Any:
     """The outbound sink of the ``[outbound]`` section."""
     if out.sink == "kafka":
-        from .kafka_sink import KafkaSink, sink_security
+        from .kafka.sink import KafkaSink, sink_security
 
         security, described = sink_security(out)
         log.info("event=outbound_kafka broker=%s topic=%s security=%r", out.bootstrap, out.topic, described)
@@ -44,7 +44,7 @@ def make_sink(out: OutboundConfig) -> Any:
 
 def open_store(path: Path, group_readable: bool = False) -> Any:
     """Open (create, 0600 in a 0700 directory) the SQLite state store."""
-    from .store import Store
+    from .state.store import Store
 
     private_dir(path.parent, group_readable)
     return Store(path, group_readable=group_readable)
@@ -57,15 +57,15 @@ def open_pipeline(config: ServiceConfig, paths: RuntimePaths, sink: Any = None, 
     ``config`` is the assembled configuration (its sections); ``paths`` the
     resolved runtime paths (:func:`~.settings.resolve_paths`).
 
-    ``pipeline_kw`` go to :class:`~.pipeline.NoticePipeline` (the daemon's
+    ``pipeline_kw`` go to :class:`~mushrooms.daemon.intake.pipeline.NoticePipeline` (the daemon's
     ``sky_cache`` and ``on_outbox``).
     """
-    from .pipeline import NoticePipeline
+    from .intake.pipeline import NoticePipeline
 
     store = open_store(paths.state, config.daemon.group_readable)
     own_sink = sink is None
     sink = make_sink(config.outbound) if own_sink else sink
-    from .announce import NotifyingSink, open_webhook
+    from .ops.announce import NotifyingSink, open_webhook
 
     hook = open_webhook(getattr(config, "notify", None))  # [notify]: off by default
     if hook is not None:

@@ -7,7 +7,7 @@ offset; a naive time means UTC).  Astropy times of the scheduler have their
 own twin, :func:`mushrooms.scheduler_core.plan.document.iso_utc`.
 
 The standard library only.  ``mushrooms status`` keeps a reader of its own
-(:func:`mushrooms.daemon.state_view.parse_iso`): importing this module loads
+(:func:`mushrooms.daemon.state.views.parse_iso`): importing this module loads
 the ``handlers`` package and with it the notice parsers (about 1 s), which the
 status command must not pay.
 """

@@ -7,7 +7,7 @@ publish the first while the second is being found; :func:`is_better` is the
 rule by which a later plan replaces an earlier one.  The two stages are also
 :func:`first_plan` and :func:`optimised_plan`, for a caller that publishes
 between them and runs the second later (the daemon's
-:class:`~mushrooms.daemon.planning.JobPlanner`, which queues optimisations
+:class:`~mushrooms.daemon.planning.revisions.JobPlanner`, which queues optimisations
 behind newer first plans): ``mushrooms plan --deadline`` and the daemon run
 the same flow.  Plan documents carry ``revision`` (1, 2, ...) and ``final``
 (no further revision of this sky map will follow) via

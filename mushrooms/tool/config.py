@@ -4,9 +4,9 @@ Sections: ``[scheduler]`` (:class:`~mushrooms.scheduler_core.PlanningConfig`),
 ``[policy]`` (:class:`~mushrooms.handlers.policy.PolicyConfig`),
 ``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`),
 ``[export]`` (:class:`~mushrooms.scheduler_core.plan.exports.ExportConfig`),
-``[submit]`` (:class:`~mushrooms.daemon.submit_settings.SubmitConfig`),
-``[loop]`` (:class:`~mushrooms.daemon.loop_settings.LoopConfig`),
-``[notify]`` (:class:`~mushrooms.daemon.webhook_settings.NotifyConfig`),
+``[submit]`` (:class:`~mushrooms.daemon.submission.settings.SubmitConfig`),
+``[loop]`` (:class:`~mushrooms.daemon.loop.settings.LoopConfig`),
+``[notify]`` (:class:`~mushrooms.daemon.ops.webhook_settings.NotifyConfig`),
 ``[bench]`` (:class:`~mushrooms.evaluation.bench.settings.BenchConfig`:
 ``mushrooms bench`` and ``mushrooms study``).
 Secrets never come from here: see the README.
@@ -26,9 +26,9 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ..daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
-from ..daemon.loop_settings import LoopConfig
-from ..daemon.submit_settings import SubmitConfig
-from ..daemon.webhook_settings import NotifyConfig
+from ..daemon.loop.settings import LoopConfig
+from ..daemon.submission.settings import SubmitConfig
+from ..daemon.ops.webhook_settings import NotifyConfig
 from ..evaluation.bench.settings import BenchConfig
 from ..handlers.policy import PolicyConfig
 from ..scheduler_core.config import PlanningConfig

@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..bundled import demo_notice_path
     from .config import load_config
-    from ..daemon.replay import replay_notices
+    from ..daemon.intake.replay import replay_notices
     from ..offline import configure_astropy_offline
     from .overrides import override_config
     from ..plotting import plot_plan

@@ -310,7 +310,7 @@ def read_executed(spec: str, around: Any | None) -> tuple[Any, ...]:
 
 def submitted_queues(plan: Any, export: Any) -> Any:
     """What the daemon submits to Kowalski for ``plan`` as revision 1: one queue, or a list in submission order."""
-    from ..daemon.submissions import queue_name
+    from ..daemon.submission.submitter import queue_name
     from ..scheduler_core.plan.exports import to_trigger_queues
 
     base = queue_name(export.subprogram_name, plan.event.superevent_id or plan.plan_id, 1)

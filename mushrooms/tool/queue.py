@@ -43,7 +43,7 @@ def main(args: Sequence[str] | None = None) -> int:
 def run(args: argparse.Namespace) -> int:
     """List or delete; 0 done, 1 refused or not reached, 2 bad input."""
     from ..daemon.credentials import load_submit_token
-    from ..daemon.remote import KowalskiQueue, Unreachable
+    from ..daemon.submission.remote import KowalskiQueue, Unreachable
     from ..handlers.secret_text import refuse_url_credentials
     from ..scheduler_core.errors import InputError
     from .config import ConfigError, load_config

@@ -1,4 +1,4 @@
-"""``mushrooms replay NOTICE_OR_DIR...``: archived notices through the daemon's own path (:mod:`mushrooms.daemon.replay`)."""
+"""``mushrooms replay NOTICE_OR_DIR...``: archived notices through the daemon's own path (:mod:`mushrooms.daemon.intake.replay`)."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ def main(args: Sequence[str] | None = None) -> int:
 def run(args: argparse.Namespace) -> int:
     """Replay the notices, print a line per notice and the summary; the report's exit status."""
     from .config import load_config
-    from ..daemon.replay import replay_notices
+    from ..daemon.intake.replay import replay_notices
     from ..offline import configure_astropy_offline
     from .overrides import override_config
 
@@ -44,8 +44,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def print_outcome(path, outcome) -> None:
-    """One line per notice on stdout, as soon as it is handled (:func:`~mushrooms.daemon.replay.format_line`)."""
-    from ..daemon.replay import format_line
+    """One line per notice on stdout, as soon as it is handled (:func:`~mushrooms.daemon.intake.replay.format_line`)."""
+    from ..daemon.intake.replay import format_line
 
     print(format_line(path.name, outcome), flush=True)
 

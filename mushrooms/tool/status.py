@@ -1,6 +1,6 @@
 """``mushrooms status``: what the service did recently, and whether it needs attention.
 
-Reads the state file read-only (:mod:`mushrooms.daemon.state_view`: a
+Reads the state file read-only (:mod:`mushrooms.daemon.state.views`: a
 ``mode=ro`` SQLite connection, safe while the daemon runs) and prints the
 most recent superevents: the alert types seen, the decision on the newest
 notice, each plan revision with its coverage and expected detections,
@@ -76,7 +76,7 @@ def _config(args: argparse.Namespace) -> Any:
 
 def _schema_problem(conn: sqlite3.Connection) -> str | None:
     """Why this program cannot read the file (an older or newer schema), None when it can."""
-    from ..daemon.store_schema import SCHEMA_VERSION
+    from ..daemon.state.schema import SCHEMA_VERSION
 
     version = conn.execute("PRAGMA user_version").fetchone()[0]
     if version == SCHEMA_VERSION:
@@ -88,7 +88,7 @@ def _schema_problem(conn: sqlite3.Connection) -> str | None:
 
 
 def _submission_attention(conn: sqlite3.Connection, max_pending_s: float) -> list[str]:
-    from ..daemon.state_view import oldest_pending_submission
+    from ..daemon.state.views import oldest_pending_submission
 
     oldest = oldest_pending_submission(conn)
     if oldest is None or oldest["age_s"] <= max_pending_s:
@@ -100,7 +100,7 @@ def _submission_attention(conn: sqlite3.Connection, max_pending_s: float) -> lis
 
 def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_hours: float) -> dict[str, Any]:
     """The status document (what ``--json`` prints)."""
-    from ..daemon.state_view import attention, incidents, outbox_backlog, recent_events
+    from ..daemon.state.views import attention, incidents, outbox_backlog, recent_events
 
     now = datetime.now(timezone.utc)
     pending, oldest, error = outbox_backlog(conn, now)
@@ -167,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
     if not path.is_file():
         print(f"mushrooms status: error: {path}: no such state file", file=sys.stderr)
         return EXIT_INPUT
-    from ..daemon.state_view import connect_readonly
+    from ..daemon.state.views import connect_readonly
 
     max_pending_s = _config(args).submit.max_pending_s
     try:

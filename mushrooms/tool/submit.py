@@ -4,8 +4,8 @@ The target, URL and gates come from ``[submit]`` (``--target``/``--url``
 override them), the program fields from ``[export]``, the token from
 ``$MUSHROOMS_SUBMIT_TOKEN`` or the systemd credential ``submit_token``.  The
 request is built and its answer classified by the daemon's own code
-(:func:`~mushrooms.daemon.submissions.build_body`,
-:func:`~mushrooms.daemon.submissions.send_queue`); nothing is recorded in
+(:func:`~mushrooms.daemon.submission.submitter.build_body`,
+:func:`~mushrooms.daemon.submission.submitter.send_queue`); nothing is recorded in
 the daemon's state.
 """
 
@@ -72,8 +72,8 @@ def submit_config(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     """Submit (or with ``--dry-run`` print) one plan; 0 accepted, 1 refused or not reached, 2 bad input."""
-    from ..daemon.remote import make_client
-    from ..daemon.submissions import build_body, gate, send_queue
+    from ..daemon.submission.remote import make_client
+    from ..daemon.submission.submitter import build_body, gate, send_queue
     from ..scheduler_core.errors import InputError
 
     doc = read_plan(args.plan)

@@ -1,4 +1,4 @@
-"""``mushrooms trigger NOTICE.json|SKYMAP.fits|SUPEREVENT_ID [--closed-until TIME]``: hand work to the service, or do it here (:mod:`mushrooms.daemon.trigger`).
+"""``mushrooms trigger NOTICE.json|SKYMAP.fits|SUPEREVENT_ID [--closed-until TIME]``: hand work to the service, or do it here (:mod:`mushrooms.daemon.intake.trigger`).
 
 ``SUPEREVENT --closed-until TIME``: the telescope is closed until TIME; the
 event is re-planned from the reopening, what was executed counted as done
@@ -45,10 +45,11 @@ def run(args: argparse.Namespace) -> int:
 
     Reads the target, loads the configuration (file plus the command-line
     overrides) and resolves the runtime paths, then hands the plain values
-    to :func:`~mushrooms.daemon.trigger.run_trigger`.
+    to :func:`~mushrooms.daemon.intake.trigger_command.run_trigger`.
     """
     from ..daemon.settings import resolve_paths
-    from ..daemon.trigger import classify, closure_payload, run_trigger
+    from ..daemon.intake.trigger import classify, closure_payload
+    from ..daemon.intake.trigger_command import run_trigger
     from ..offline import configure_astropy_offline
     from ..scheduler_core.errors import InputError
     from .overrides import effective_config

@@ -172,7 +172,7 @@ def hostile_corpus() -> list[tuple[str, bytes]]:
 def amplifying_map(order: int = 6) -> bytes:
     """gzip of a flat float32 NSIDE 1024 NESTED map (50 MB unpacked, ~100 kB packed): the sample
     map rasterised at ``order`` and upgraded to order 10 as ``healpy.ud_grade`` does (children share
-    their parent's probability), the kind of map of issue 25's amplifying notices."""
+    their parent's probability), the kind of map of the amplifying notices (a small notice, a huge map)."""
     from astropy.io import fits
     from ligo.skymap.bayestar import rasterize
     from ligo.skymap.io import read_sky_map

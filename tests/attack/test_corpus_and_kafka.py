@@ -11,10 +11,10 @@ import time
 import confluent_kafka
 import pytest
 
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.settings import KafkaConfig
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 
 from attack_helpers import FAST, hostile_corpus, received_at
 
@@ -42,7 +42,7 @@ def test_every_hostile_message_gets_exactly_one_decision_row(tmp_path) -> None:
 
 
 def test_repeats_of_one_kind_are_suppressed_and_counted() -> None:
-    from mushrooms.daemon.kafka_logging import RepeatFilter
+    from mushrooms.daemon.kafka.broker_log import RepeatFilter
 
     now = [0.0]
     f = RepeatFilter(window_s=60, clock=lambda: now[0])
@@ -65,7 +65,7 @@ def _poll(consumer, seconds: float) -> None:
 
 
 def test_an_unreachable_broker_is_reported_once_not_twenty_times_a_second(caplog) -> None:
-    from mushrooms.daemon.consumer import NoticeConsumer
+    from mushrooms.daemon.kafka.consumer import NoticeConsumer
 
     with caplog.at_level(logging.INFO):
         c = NoticeConsumer(KafkaConfig(bootstrap="127.0.0.1:9", topics=("t",), group_id="g", assignment="group"))
@@ -81,7 +81,7 @@ def test_an_unreachable_broker_is_reported_once_not_twenty_times_a_second(caplog
 
 
 def test_a_reachable_broker_is_reported_up() -> None:
-    from mushrooms.daemon.consumer import NoticeConsumer
+    from mushrooms.daemon.kafka.consumer import NoticeConsumer
 
     owner = confluent_kafka.Producer({"test.mock.num.brokers": 1, "log_level": 3})
     b = next(iter(owner.list_topics(timeout=10).brokers.values()))
@@ -97,7 +97,7 @@ def test_a_reachable_broker_is_reported_up() -> None:
 
 
 def test_health_follows_librdkafka_errors() -> None:
-    from mushrooms.daemon.kafka_logging import BrokerHealth
+    from mushrooms.daemon.kafka.broker_log import BrokerHealth
 
     h = BrokerHealth("test")
     assert h.describe() == "unknown"
@@ -109,7 +109,7 @@ def test_health_follows_librdkafka_errors() -> None:
 
 @pytest.mark.parametrize("bad", ["not json", "{}"])
 def test_health_ignores_odd_statistics(bad: str) -> None:
-    from mushrooms.daemon.kafka_logging import BrokerHealth
+    from mushrooms.daemon.kafka.broker_log import BrokerHealth
 
     h = BrokerHealth("test")
     h.on_stats(bad)

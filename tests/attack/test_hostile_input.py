@@ -12,9 +12,9 @@ import json
 
 import pytest
 
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 from mushrooms.handlers.alert import NoticeError, parse_notice
 from mushrooms.scheduler_core import read_skymap
 from mushrooms.scheduler_core.errors import SkyMapError
@@ -82,7 +82,7 @@ def _flat_gzip(order: int) -> bytes:
 
 def test_max_skymap_bytes_bounds_what_is_carried_not_what_it_unpacks_to(pipeline: NoticePipeline) -> None:
     """A flat NSIDE 512 map: 25 MB unpacked, a few hundred kB packed.  Under a 1 MiB max_skymap_bytes
-    it is planned, by ``mushrooms trigger`` (accept_skymap) and in a notice; (before issue 24 both
+    it is planned, by ``mushrooms trigger`` (accept_skymap) and in a notice; (before the streaming reader both
     refused it: "unpacks to more than 1 MiB"); a map over 1 MiB as carried is refused unread."""
     flat = _flat_gzip(9)
     assert len(flat) < 1 << 20

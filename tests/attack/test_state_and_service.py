@@ -14,11 +14,11 @@ from pathlib import Path
 
 import pytest
 
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.settings import resolve_paths
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store, StoreError
-from mushrooms.daemon.trigger import classify, pending_triggers, read_trigger, write_trigger
+from mushrooms.daemon.state.store import Store, StoreError
+from mushrooms.daemon.intake.trigger import classify, pending_triggers, read_trigger, write_trigger
 from mushrooms.scheduler_core.errors import InputError
 from mushrooms.tool.config import load_config
 from mushrooms.tool.overrides import override_config
@@ -129,7 +129,7 @@ def test_the_service_exits_with_a_status_restart_does_not_loop_on(tmp_path: Path
 
 # ---------------------------------------------------------------- 5. one state file, one daemon
 def test_a_second_service_on_the_same_state_file_is_refused_whatever_its_pid_file(tmp_path: Path) -> None:
-    from mushrooms.daemon.store import StateInUse, lock_state
+    from mushrooms.daemon.state.store import StateInUse, lock_state
 
     state = tmp_path / "state.sqlite"
     Store(state).close()
@@ -210,7 +210,7 @@ def test_rejected_messages_keep_only_a_prefix_and_are_pruned(tmp_path: Path) -> 
 def test_no_outbox_retry_touches_the_store_once_it_is_closed(tmp_path: Path, caplog) -> None:
     import time
 
-    from mushrooms.daemon.jobs import OutboxDrain
+    from mushrooms.daemon.drain import OutboxDrain
     from mushrooms.daemon.service import Service
 
     config = _service_config(None, outbox=str(tmp_path / "out"), state=str(tmp_path / "s.sqlite"))

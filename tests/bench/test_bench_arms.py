@@ -51,6 +51,7 @@ def test_an_arm_replaces_its_scheduler_keys_and_is_checked_when_read() -> None:
         {"exposure_menu_s": [60, 300]}
 
 
+@pytest.mark.slow  # a bench run: three slot plans and 400 injections on a real map, about 27 s
 def test_fixed_and_menu_arms_on_a_real_map_are_paired(tmp_path, data_dir) -> None:
     skymap = data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits"
     settings = BenchSettings(config=CFG, bench=ARMS, solvers=("slots", "slots@one", "slots@menu"), n_injections=400)

@@ -38,7 +38,7 @@ def notice_path(name: str) -> Path:
 def notice_bytes(name: str, superevent_id: str | None = None, time_created: str | None = None) -> bytes:
     """Notice bytes; with ``superevent_id`` / ``time_created`` only those fields are rewritten.
 
-    ``time_created`` matters since decisions follow creation order (issue 25): a
+    ``time_created`` matters since decisions follow creation order: a
     notice relabelled from a 2023 event is newer than a 2018 retraction of the
     event it now names, so such a retraction must be dated after it.
     """
@@ -54,7 +54,7 @@ def notice_bytes(name: str, superevent_id: str | None = None, time_created: str 
 
 
 def live_copy(name: str, superevent_id: str, now: str, farther: float | None = None) -> bytes:
-    """Notice ``name`` sent again live (issue 24): ``time_created`` = ``event.time`` = ``now``.
+    """Notice ``name`` sent again live: ``time_created`` = ``event.time`` = ``now``.
 
     Its sky map is left as it is (so its header's ``DATE-OBS`` is stale) unless
     ``farther``: then DISTMU and DISTSIGMA are multiplied by it, DISTNORM divided

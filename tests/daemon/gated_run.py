@@ -22,7 +22,7 @@ from pathlib import Path
 
 
 def install(gate: Path) -> None:
-    from mushrooms.daemon import planning
+    from mushrooms.daemon.planning import revisions as planning
 
     original_init = planning.JobPlanner.__init__
     original_first = planning.JobPlanner._first_stage

@@ -1,4 +1,4 @@
-"""The loop's scenario (issue 28): a real notice planned by the real pipeline, then what the telescope did.
+"""The loop's scenario: a real notice planned by the real pipeline, then what the telescope did.
 
 MS181101ab's PRELIMINARY notice (tests/data/notices/json), re-dated as if it
 had been sent live at 2023-04-15T02:55Z (its map is then well placed: the
@@ -18,11 +18,11 @@ from typing import Any, Sequence
 
 from astropy.time import Time, TimeDelta
 
-from mushrooms.daemon.loop import ExecutedLoop
-from mushrooms.daemon.loop_settings import LoopConfig
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.loop.poll import ExecutedLoop
+from mushrooms.daemon.loop.settings import LoopConfig
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 from mushrooms.handlers.executed import write_jsonl
 from mushrooms.handlers.policy import PolicyConfig
 from mushrooms.scheduler_core import PlanningConfig

@@ -17,7 +17,7 @@ import sys
 
 
 def install(point: str) -> None:
-    from mushrooms.daemon.remote import KowalskiQueue
+    from mushrooms.daemon.submission.remote import KowalskiQueue
 
     real_put = KowalskiQueue.put
 

@@ -1,4 +1,4 @@
-"""Issue 24 through ``mushrooms run``: one merger clock, and ties in expected detections go to coverage.
+"""Through ``mushrooms run``: one merger clock, and ties in expected detections go to coverage.
 
 A real daemon process on the mock broker with the shipped ``[scheduler]``
 defaults (hybrid, objective detection, nside 256, 14 s; ``[daemon]
@@ -17,7 +17,7 @@ notice (``time_created`` = ``event.time`` = now, GW map only):
 Which outcome the optimiser reaches depends on the sky at the time of the
 run (the horizon starts at receipt); the rule applied to the published
 numbers does not. ``benchmarks/clock_and_ties_daemon.py`` prints the numbers
-(``benchmarks/results/issue24/daemon_clock_ties.txt``).
+(``benchmarks/clock_and_ties_daemon.py``).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ import time
 from datetime import datetime, timezone
 from pathlib import Path
 
+import pytest
 from daemon_helpers import BROKER_SECTIONS, Daemon, final_numbers, live_copy
 
 from mushrooms.scheduler_core.preference import is_preferred
@@ -50,6 +51,7 @@ def _now() -> str:
     return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
 
 
+@pytest.mark.slow  # a scenario: the shipped hybrid (nside 256, 14 s) on two live events, about 25 s
 def test_live_notice_with_a_stale_map_and_a_distant_event_through_the_daemon(broker, daemons, tmp_path: Path) -> None:
     tag = time.time_ns()
     topic, out, group = f"gwalert-{tag}", f"plans-{tag}", f"mushrooms-{tag}"

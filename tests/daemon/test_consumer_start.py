@@ -1,4 +1,4 @@
-"""The input consumer's start (issue 25): static group membership per installation, and a
+"""The input consumer's start: static group membership per installation, and a
 manual assignment before the topic exists waits instead of exiting 70.  Real mock broker."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from mushrooms.daemon.consumer import NoticeConsumer, consumer_config
+from mushrooms.daemon.kafka.consumer import NoticeConsumer, consumer_config
 from mushrooms.daemon.settings import KafkaConfig, group_instance_id
 
 

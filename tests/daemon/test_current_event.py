@@ -16,8 +16,8 @@ from datetime import timedelta
 import pytest
 from astropy.io import fits
 
-from mushrooms.daemon.replans import replan_jobs
-from mushrooms.daemon.state_view import connect_readonly, recent_events
+from mushrooms.daemon.planning.replans import replan_jobs
+from mushrooms.daemon.state.views import connect_readonly, recent_events
 
 from loop_helpers import (NOTICE, RECEIVED, SENT, SUPEREVENT, after, copy_state, loop_config, open_pipeline,
                           planned_state, t, the_plan)

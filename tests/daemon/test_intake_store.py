@@ -1,4 +1,4 @@
-"""Issue 26 item 2: one decision rule for bare sky maps, one migration mechanism for state files."""
+"""One decision rule for bare sky maps, one migration mechanism for state files."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import SCHEMA_VERSION, Store
+from mushrooms.daemon.state.store import SCHEMA_VERSION, Store
 from mushrooms.handlers.policy import PolicyConfig
 from mushrooms.scheduler_core import PlanningConfig
 
@@ -23,7 +23,7 @@ def _pipeline(tmp_path: Path, policy: PolicyConfig) -> NoticePipeline:
 
 
 def test_a_bare_sky_map_is_capped_by_max_skymap_bytes_not_by_the_notice_cap(tmp_path: Path) -> None:
-    """The one intended behaviour change of issue 26 item 2: a bare map is bounded by [policy] max_skymap_bytes.
+    """The one intended behaviour change of the one decision rule: a bare map is bounded by [policy] max_skymap_bytes.
 
     (The pipeline of f999d02 already compared with max_skymap_bytes; this keeps it so with the rule in intake.)
     """

@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import pytest
 from apscheduler.schedulers.background import BackgroundScheduler
 
-from mushrooms.daemon.jobs import JobRunner, OutboxDrain, Staged
+from mushrooms.daemon.drain import OutboxDrain
+from mushrooms.daemon.planning.jobs import JobRunner, Staged
 
 
 @dataclass(frozen=True)

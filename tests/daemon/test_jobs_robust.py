@@ -1,4 +1,4 @@
-"""Worker threads never die of a job (issue 25): real threads, real APScheduler."""
+"""Worker threads never die of a job: real threads, real APScheduler."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from mushrooms.daemon.jobs import JobRunner
+from mushrooms.daemon.planning.jobs import JobRunner
 
 from test_jobs import Job, scheduler, wait  # noqa: F401  (the fixture)
 

@@ -10,9 +10,9 @@ from __future__ import annotations
 import logging
 import re
 
-from mushrooms.daemon.loop import ExecutedLoop
-from mushrooms.daemon.loop_settings import LoopConfig
-from mushrooms.daemon.replans import replan_jobs
+from mushrooms.daemon.loop.poll import ExecutedLoop
+from mushrooms.daemon.loop.settings import LoopConfig
+from mushrooms.daemon.planning.replans import replan_jobs
 
 from loop_helpers import SUPEREVENT, copy_state, executed_like, loop_config, open_pipeline, t, the_plan, write_executed
 from test_loop_nights import TWO, at, nights, planned_two  # noqa: F401  (pytest fixtures)

@@ -1,4 +1,4 @@
-"""The following nights through the real pipeline (issue 28 item 3, ``executed.md`` L9-L11).
+"""The following nights through the real pipeline (``executed.md`` L9-L11).
 
 The loop's scenario (``loop_helpers``: MS181101ab's notice re-dated to
 2023-04-15T02:55Z, planned by the real :class:`NoticePipeline` on real
@@ -14,11 +14,11 @@ import dataclasses
 import pytest
 from astropy.time import Time, TimeDelta
 
-from mushrooms.daemon.loop import ExecutedLoop
-from mushrooms.daemon.loop_settings import LoopConfig
-from mushrooms.daemon.night_replans import plans_as_done
-from mushrooms.daemon.pipeline import NoticePipeline
-from mushrooms.daemon.replans import replan_jobs
+from mushrooms.daemon.loop.poll import ExecutedLoop
+from mushrooms.daemon.loop.settings import LoopConfig
+from mushrooms.daemon.loop.nights import plans_as_done
+from mushrooms.daemon.intake.pipeline import NoticePipeline
+from mushrooms.daemon.planning.replans import replan_jobs
 from mushrooms.scheduler_core.executed import done_pairs
 from mushrooms.scheduler_core.plan.schema import validate_document
 from mushrooms.scheduler_core.sky.twilight import night_windows
@@ -139,7 +139,7 @@ def test_with_one_night_the_next_evening_is_not_re_planned(planned_two, tmp_path
 
 def test_without_a_source_night_two_counts_night_one_plan_as_done(planned_two, tmp_path, nights):
     """(L11) No executed source: night 2 is planned on night 1's plan taken as done."""
-    from mushrooms.daemon.night_replans import record_night_replans
+    from mushrooms.daemon.loop.nights import record_night_replans
 
     p = pipeline(copy_state(planned_two, tmp_path), LoopConfig())
     try:
@@ -189,7 +189,7 @@ def test_without_a_source_each_revision_counts_until_the_next_one_starts(planned
 
 def test_with_revisit_night_two_observes_night_one_fields_again(planned_two, tmp_path, nights):
     """(N4) revisit = true: night 2 is planned on the whole map again, night 1's fields re-observed."""
-    from mushrooms.daemon.night_replans import record_night_replans
+    from mushrooms.daemon.loop.nights import record_night_replans
 
     # the state was planned with revisit = false; the re-plan reads [scheduler] as configured now
     p = pipeline(copy_state(planned_two, tmp_path), LoopConfig(), planning=dataclasses.replace(TWO, revisit=True))

@@ -38,7 +38,7 @@ def test_the_nights_timer_runs_only_with_nights_and_no_source(tmp_path: Path, ex
     svc.pipeline, close = open_pipeline(svc.config, svc.paths)
     try:
         svc.scheduler = RecordingScheduler()
-        svc._start_loop(None)
+        svc.timers.start_loop(None)
         assert svc.scheduler.jobs == timers
     finally:
         close()

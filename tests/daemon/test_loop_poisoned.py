@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 from astropy.time import Time, TimeDelta
 
-from mushrooms.daemon.executed_table import count_executed
-from mushrooms.daemon.loop import ExecutedLoop
+from mushrooms.daemon.state.executed import count_executed
+from mushrooms.daemon.loop.poll import ExecutedLoop
 from mushrooms.scheduler_core.sky.twilight import night_windows
 
 from loop_helpers import (PLANNING, SENT, after, copy_state, executed_like, loop_config, open_pipeline, planned_state,

@@ -1,8 +1,8 @@
-"""The loop through the real pipeline (issue 28): executed exposures in, slips and closures re-planned.
+"""The loop through the real pipeline: executed exposures in, slips and closures re-planned.
 
 A real notice planned by :class:`NoticePipeline` on real SQLite (greedy, real
 checker), the executed record written as the JSON-lines file the
-:class:`~mushrooms.daemon.loop.ExecutedLoop` polls, and the re-plan made by
+:class:`~mushrooms.daemon.loop.poll.ExecutedLoop` polls, and the re-plan made by
 the real :func:`~mushrooms.scheduler_core.replan.plan_remaining` in the
 pipeline's job.  The poll's clock is the night's (``now=``), so the scenario
 is the same on every run.
@@ -15,8 +15,8 @@ import sqlite3
 
 import pytest
 
-from mushrooms.daemon.executed_table import count_executed
-from mushrooms.daemon.replans import replan_jobs
+from mushrooms.daemon.state.executed import count_executed
+from mushrooms.daemon.planning.replans import replan_jobs
 from mushrooms.scheduler_core.executed import done_pairs
 from mushrooms.scheduler_core.plan.schema import validate_document
 

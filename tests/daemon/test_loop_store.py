@@ -10,9 +10,9 @@ import pytest
 from astropy.time import Time
 
 from mushrooms.cli import main
-from mushrooms.daemon.executed_table import count_executed, executed_between, store_executed
-from mushrooms.daemon.replans import replan_jobs
-from mushrooms.daemon.store import SCHEMA_VERSION, Store
+from mushrooms.daemon.state.executed import count_executed, executed_between, store_executed
+from mushrooms.daemon.planning.replans import replan_jobs
+from mushrooms.daemon.state.store import SCHEMA_VERSION, Store
 from mushrooms.handlers.executed import read_depot, read_jsonl
 from mushrooms.scheduler_core.executed import ExecutedExposure
 

@@ -19,11 +19,11 @@ import pytest
 from werkzeug.wrappers import Response
 
 from daemon_helpers import Daemon, notice_bytes, write_config
-from mushrooms.daemon.announce import NotifyingSink, announcement, open_webhook
+from mushrooms.daemon.ops.announce import NotifyingSink, announcement, open_webhook
 from mushrooms.daemon.credentials import CredentialsError
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.webhook import Webhook
-from mushrooms.daemon.webhook_settings import NotifyConfig
+from mushrooms.daemon.ops.webhook import Webhook
+from mushrooms.daemon.ops.webhook_settings import NotifyConfig
 
 SECRET_PATH = "/services/T000/B000/s3cr3t-hook-token"
 

@@ -281,7 +281,7 @@ def test_readiness_and_ready_wait_for_the_group_to_assign_partitions(broker, dae
     cfg = write_config(tmp_path / "config.toml", topic, out, group)
     cfg.write_text(cfg.read_text().replace('assignment = "manual"', 'assignment = "group"')
                    .replace("[daemon]\n", f'[daemon]\nmetrics_address = "127.0.0.1:{port}"\n'))
-    from mushrooms.daemon.consumer import consumer_config
+    from mushrooms.daemon.kafka.consumer import consumer_config
     from mushrooms.daemon.settings import KafkaConfig
 
     # the previous member: joins, gets the partitions, leaves cleanly

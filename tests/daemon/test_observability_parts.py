@@ -18,11 +18,11 @@ from prometheus_client.parser import text_string_to_metric_families
 from daemon_helpers import notice_bytes
 
 from mushrooms.cli import main as cli_main
-from mushrooms.daemon.consumer import NoticeConsumer
-from mushrooms.daemon.health import HealthServer, liveness, store_check
-from mushrooms.daemon.metrics import REJECTION_CLASSES, ServiceMetrics, rejection_class
+from mushrooms.daemon.kafka.consumer import NoticeConsumer
+from mushrooms.daemon.ops.health import HealthServer, liveness, store_check
+from mushrooms.daemon.ops.metrics import REJECTION_CLASSES, ServiceMetrics, rejection_class
 from mushrooms.daemon.settings import KafkaConfig, parse_address
-from mushrooms.daemon.store import NoticeRecord, Store
+from mushrooms.daemon.state.store import NoticeRecord, Store
 from mushrooms.handlers.alert import NoticeError, parse_notice
 from mushrooms.handlers.decisions import Decision
 
@@ -139,7 +139,7 @@ def test_status_reads_a_state_file_and_tolerates_tables_it_does_not_know(tmp_pat
     assert cli_main(["status", "--state", str(state), "--json"]) == 0
     (plan,) = json.loads(capsys.readouterr().out)["events"][0]["plans"]
     assert plan["submission"] is None and plan["published"] is True
-    # issue 27's submissions table (the store's own schema) is shown beside the plan
+    # the submissions table (the store's own schema) is shown beside the plan
     with sqlite3.connect(state) as c:
         c.execute("CREATE TABLE submissions (plan_id TEXT PRIMARY KEY, superevent_id TEXT NOT NULL, "
                   "target TEXT NOT NULL, revision INTEGER, queue_name TEXT UNIQUE, state TEXT NOT NULL, "

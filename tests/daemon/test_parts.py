@@ -13,12 +13,12 @@ from pathlib import Path
 
 import pytest
 
-from mushrooms.daemon.consumer import NoticeConsumer
+from mushrooms.daemon.kafka.consumer import NoticeConsumer
 from mushrooms.daemon.credentials import CredentialsError, load_credentials
-from mushrooms.daemon.kafka_sink import KafkaSink, PublishError
-from mushrooms.daemon.notify import Notifier, watchdog_interval_s
+from mushrooms.daemon.kafka.sink import KafkaSink, PublishError
+from mushrooms.daemon.ops.systemd import Notifier, watchdog_interval_s
 from mushrooms.daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig, resolve_paths
-from mushrooms.daemon.trigger import (
+from mushrooms.daemon.intake.trigger import (
     DaemonRunning, PidLock, classify, daemon_pid, pending_triggers, read_trigger, write_trigger,
 )
 from mushrooms.scheduler_core.errors import InputError
@@ -155,7 +155,7 @@ def test_kafka_sink_raises_when_the_broker_is_unreachable() -> None:
 
 
 def test_outbound_security_settings_and_password_lookup(tmp_path: Path) -> None:
-    from mushrooms.daemon.kafka_sink import sink_security
+    from mushrooms.daemon.kafka.sink import sink_security
 
     assert sink_security(OutboundConfig(sink="kafka"), {}) == ({"security.protocol": "plaintext"}, "plaintext")
     assert sink_security(OutboundConfig(sink="kafka", security_protocol="SSL"), {})[0] == {"security.protocol": "ssl"}

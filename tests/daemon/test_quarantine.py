@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mushrooms.daemon.consumer import Received
+from mushrooms.daemon.kafka.consumer import Received
 from mushrooms.daemon.service import Service
 from mushrooms.daemon.settings import resolve_paths
 from mushrooms.daemon.wiring import open_pipeline
@@ -44,7 +44,7 @@ def _service(tmp_path: Path, quarantine: str) -> Service:
     svc.pipeline, close = open_pipeline(svc.config, svc.paths)
     close()  # the store is closed: every accept() now fails as a broken disk would make it
     svc.consumer = RecordingConsumer()
-    svc._stop.wait = lambda timeout=None: False  # no back-off sleeps in the test
+    svc.signals.stop.wait = lambda timeout=None: False  # no back-off sleeps in the test
     return svc
 
 
@@ -57,7 +57,7 @@ def test_a_notice_that_cannot_be_stored_is_quarantined_and_committed(tmp_path: P
     kept = tmp_path / "quarantine" / "kafka_igwn.gwalert_0_42.bin"
     assert kept.read_bytes() == raw
     assert svc.consumer.committed == ["kafka:igwn.gwalert:0:42"] and svc.consumer.rewound == []
-    assert svc._counts["quarantined"] == 1
+    assert svc.counts["quarantined"] == 1
     text = caplog.text
     assert text.count("event=store_failed") == 2 and "attempt=2/2" in text
     assert "event=notice_quarantined" in text and "decision=quarantined" in text
@@ -72,5 +72,5 @@ def test_when_quarantine_fails_too_the_notice_stays_uncommitted(tmp_path: Path, 
     with caplog.at_level(logging.INFO):
         svc._handle(received)
     assert svc.consumer.committed == [] and svc.consumer.rewound == ["kafka:igwn.gwalert:0:7"]
-    assert svc._counts["quarantined"] == 0 and svc._counts["notices"] == 0
+    assert svc.counts["quarantined"] == 0 and svc.counts["notices"] == 0
     assert "event=quarantine_failed" in caplog.text

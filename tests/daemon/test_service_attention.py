@@ -20,10 +20,10 @@ from pathlib import Path
 
 import pytest
 
-from mushrooms.daemon.health import HealthServer
-from mushrooms.daemon.jobs import OutboxDrain
-from mushrooms.daemon.metrics import ServiceMetrics
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.ops.health import HealthServer
+from mushrooms.daemon.drain import OutboxDrain
+from mushrooms.daemon.ops.metrics import ServiceMetrics
+from mushrooms.daemon.state.store import Store
 from test_submissions import SID, World, _config, kowalski, server  # noqa: F401 (fixtures)
 
 OPS = Path(__file__).resolve().parents[2] / "docs" / "operations.md"
@@ -110,7 +110,7 @@ def test_the_oldest_pending_submission_is_a_gauge(tmp_path) -> None:
 
 
 def test_readiness_fails_while_submissions_fail_or_wait_too_long(tmp_path) -> None:
-    from mushrooms.daemon.health import submission_check
+    from mushrooms.daemon.ops.health import submission_check
 
     w = _pending_world(tmp_path, 3600.0)
     fail = threading.Event()
@@ -142,7 +142,7 @@ def test_readiness_fails_while_submissions_fail_or_wait_too_long(tmp_path) -> No
 def test_the_service_registers_the_submission_readiness_check(tmp_path) -> None:
     from types import SimpleNamespace
 
-    from mushrooms.daemon.health import service_checks
+    from mushrooms.daemon.ops.health import service_checks
 
     Store(tmp_path / "state.sqlite").close()
     service = SimpleNamespace(paths=SimpleNamespace(state=tmp_path / "state.sqlite"), submit_drain=None,
@@ -200,7 +200,7 @@ def test_status_on_a_busy_state_file_says_busy(tmp_path, capsys) -> None:
 
 
 def test_published_plans_are_not_logged_as_unpublished(tmp_path, caplog) -> None:
-    from mushrooms.daemon.pipeline import NoticePipeline
+    from mushrooms.daemon.intake.pipeline import NoticePipeline
     from mushrooms.daemon.sinks import MemorySink
     from daemon_helpers import notice_bytes
 

@@ -2,7 +2,7 @@
 
 Every server here is a raw socket on loopback (``hostile_http.py``) that
 answers the way a broken proxy or an attacker would; the clients are the
-daemon's own (:mod:`mushrooms.daemon.remote`) and the classification is the
+daemon's own (:mod:`mushrooms.daemon.submission.remote`) and the classification is the
 one the submitter and ``mushrooms submit`` use (:func:`send_queue`).
 """
 
@@ -14,9 +14,9 @@ import pytest
 
 from hostile_http import HostileServer, answer, drip, endless, raw
 from mushrooms.daemon.credentials import CredentialsError, load_executed_token, load_submit_token
-from mushrooms.daemon import remote
-from mushrooms.daemon.remote import KowalskiQueue, SkyPortalPlans, Unreachable
-from mushrooms.daemon.submissions import send_queue
+from mushrooms.daemon.submission import remote
+from mushrooms.daemon.submission.remote import KowalskiQueue, SkyPortalPlans, Unreachable
+from mushrooms.daemon.submission.submitter import send_queue
 
 TOKEN = "s3cr3t-token-0123456789abcdef"
 QUEUE = {"queue_name": "ToO_GW_S1_r1_1", "queue_type": "list", "validity_window_mjd": [60000.0, 60001.0],

@@ -17,8 +17,8 @@ import time
 
 import pytest
 
-from mushrooms.daemon.jobs import OutboxDrain
-from mushrooms.daemon.submissions import gate, submissions
+from mushrooms.daemon.drain import OutboxDrain
+from mushrooms.daemon.submission.submitter import gate, submissions
 from mushrooms.scheduler_core.plan import exports
 from mushrooms.scheduler_core.plan.exports import ExportConfig
 from test_submissions import SID, TOKEN, World, _config, Killed, kowalski, server, world  # noqa: F401 (fixtures)

@@ -1,4 +1,4 @@
-"""Submission to ZTF's queue (issue 27): the lifecycle against the contract servers, in process.
+"""Submission to ZTF's queue: the lifecycle against the contract servers, in process.
 
 Real plans (the notice pipeline with the greedy scheduler on the sample
 notices' BAYESTAR maps), a real SQLite store, and the Kowalski / SkyPortal
@@ -19,12 +19,12 @@ from contract_servers import KowalskiContract, SkyPortalContract
 from daemon_helpers import notice_bytes
 from mushrooms.tool.config import Config, ConfigError, load_config
 from mushrooms.daemon.credentials import CredentialsError, load_submit_token
-from mushrooms.daemon.pipeline import NoticePipeline
-from mushrooms.daemon.remote import make_client
+from mushrooms.daemon.intake.pipeline import NoticePipeline
+from mushrooms.daemon.submission.remote import make_client
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store
-from mushrooms.daemon.submissions import Submitter, queue_name, submissions
-from mushrooms.daemon.submit_settings import SubmitConfig
+from mushrooms.daemon.state.store import Store
+from mushrooms.daemon.submission.submitter import Submitter, queue_name, submissions
+from mushrooms.daemon.submission.settings import SubmitConfig
 from mushrooms.handlers.policy import PolicyConfig
 from mushrooms.scheduler_core import PlanningConfig
 from mushrooms.scheduler_core.plan import exports
@@ -227,7 +227,7 @@ def test_a_refusal_is_recorded_logged_once_published_and_never_retried(world, ko
 
 
 def test_a_body_kowalski_refuses_is_rejected_with_its_text(world, kowalski, monkeypatch) -> None:
-    import mushrooms.daemon.submissions as subs
+    import mushrooms.daemon.submission.submitter as subs
 
     real = subs.build_body
     monkeypatch.setattr(subs, "build_body",

@@ -1,4 +1,4 @@
-"""Submission end to end (issue 27): the real daemon, the loopback Kafka broker, the Kowalski contract server.
+"""Submission end to end: the real daemon, the loopback Kafka broker, the Kowalski contract server.
 
 ``mushrooms run`` in a subprocess plans real notices (greedy, nside 64) and
 its submitter thread talks to the contract server of ``contract_servers.py``

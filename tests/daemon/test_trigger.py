@@ -106,7 +106,7 @@ def test_trigger_hands_work_to_the_running_daemon_and_signals(broker, daemons, t
     assert "event=trigger file=" in d.text() and "kind=notice" in d.text()
     assert list((tmp_path / "mushrooms-triggers").iterdir()) == []
 
-    # the answer is truthful (issue 25): an unknown superevent and a map the planner refuses are errors
+    # the answer is truthful: an unknown superevent and a map the planner refuses are errors
     r = trigger(tmp_path, "S999999zz", "--config", str(cfg), "--state", str(state))
     assert r.returncode == 2 and "rejected" in r.stderr and "S999999zz" in r.stderr, (r.stdout, r.stderr)
     bad = tmp_path / "bad.fits"
@@ -163,7 +163,8 @@ class RecordingConsole:
 def test_run_trigger_is_a_library_call_that_prints_nothing(tmp_path: Path, capsys) -> None:
     # the daemon layer tells its console; only the tool prints (mushrooms trigger's PrintConsole)
     from mushrooms.daemon.settings import resolve_paths
-    from mushrooms.daemon.trigger import classify, run_trigger
+    from mushrooms.daemon.intake.trigger import classify
+    from mushrooms.daemon.intake.trigger_command import run_trigger
     from mushrooms.tool.config import load_config
     from mushrooms.tool.overrides import override_config
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from astropy.time import Time, TimeDelta
 
-from mushrooms.daemon.warm import NIGHT_S, SkyCache
+from mushrooms.daemon.planning.warm import NIGHT_S, SkyCache
 from mushrooms.scheduler_core import PlanningConfig, read_skymap
 from mushrooms.scheduler_core.prepare import prepare_problem
 from mushrooms.scheduler_core.sky.visibility import night_steps, observability_windows

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 
 
 @pytest.fixture

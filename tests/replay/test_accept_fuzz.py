@@ -7,9 +7,9 @@ import json
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 from mushrooms.handlers.decisions import ACTIONS
 
 from replay_helpers import FAST, created, raw

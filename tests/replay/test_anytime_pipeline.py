@@ -18,10 +18,10 @@ from datetime import timedelta
 
 import pytest
 
-from mushrooms.daemon.jobs import Staged
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.planning.jobs import Staged
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 from mushrooms.scheduler_core.plan.schema import validate_document
 from mushrooms.scheduler_core.planner import run_scheduler
 

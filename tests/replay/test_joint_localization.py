@@ -11,9 +11,9 @@ from datetime import timedelta
 import pytest
 
 from mushrooms.tool.config import Config
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
-from mushrooms.daemon.store import SCHEMA_VERSION, Store
+from mushrooms.daemon.state.store import SCHEMA_VERSION, Store
 from mushrooms.handlers.alert import parse_notice
 from mushrooms.handlers.policy import PolicyConfig
 
@@ -89,7 +89,7 @@ def test_a_corrupted_joint_map_falls_back_to_the_gw_map_with_one_logged_reason(s
     assert json.loads(incident[1])["superevent_id"] == "MS181101ab"
     assert [p["document"]["event"]["localization"] for p in store.plans("MS181101ab")] == ["gw"]
     # and the operator reads it under the event in `mushrooms status`
-    from mushrooms.daemon.state_view import connect_readonly
+    from mushrooms.daemon.state.views import connect_readonly
     from mushrooms.tool.status import collect, render
 
     conn = connect_readonly(store.path)

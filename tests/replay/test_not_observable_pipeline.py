@@ -6,9 +6,9 @@ import dataclasses
 import json
 from datetime import timedelta
 
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import DirectorySink
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 from mushrooms.scheduler_core.plan.schema import validate_document
 
 from replay_helpers import FAST, created, raw

@@ -10,9 +10,9 @@ from datetime import timedelta
 
 import pytest
 
-from mushrooms.daemon.pipeline import NoticePipeline
+from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import DirectorySink, MemorySink
-from mushrooms.daemon.store import Store
+from mushrooms.daemon.state.store import Store
 
 from replay_helpers import FAST, created, mutated, raw
 

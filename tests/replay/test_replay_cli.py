@@ -8,7 +8,7 @@ import shutil
 import pytest
 
 from mushrooms.cli import main as cli_main
-from mushrooms.daemon.replay import collect_notices, order_notices
+from mushrooms.daemon.intake.replay import collect_notices, order_notices
 
 from replay_helpers import NOTICES, raw
 
@@ -117,7 +117,7 @@ def test_collect_notices_expands_directories(tmp_path):
 def test_replay_is_a_library_call_with_the_shared_overrides(tmp_path, fast_config, capsys):
     # what the demo does: load the config, apply the command-line overrides in the one place, replay
     from mushrooms.tool.config import load_config
-    from mushrooms.daemon.replay import replay_notices
+    from mushrooms.daemon.intake.replay import replay_notices
     from mushrooms.tool.overrides import override_config
 
     notice = NOTICES / "json" / "MS181101ab-preliminary.json"

@@ -7,7 +7,7 @@ import threading
 
 import pytest
 
-from mushrooms.daemon.store import SCHEMA_VERSION, NoticeRecord, Store, StoreError
+from mushrooms.daemon.state.store import SCHEMA_VERSION, NoticeRecord, Store, StoreError
 from mushrooms.handlers.decisions import Decision
 
 

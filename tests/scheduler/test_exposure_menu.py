@@ -171,7 +171,7 @@ def test_a_mixed_exposure_plan_is_valid_and_its_exports_are_accepted(data_dir, s
     # the queue: one target per exposure, each with its own exposure time, accepted by Kowalski's contract
     queue = to_trigger_queue(plan, ExportConfig())
     assert [t["exposure_time"] for t in queue["targets"]] == [o.exposure_s for o in plan.observations]
-    from mushrooms.daemon.remote import make_client
+    from mushrooms.daemon.submission.remote import make_client
 
     kowalski = KowalskiContract(server, TOKEN)
     answer = make_client("kowalski", kowalski.url, TOKEN, 5.0).put(queue)

@@ -70,7 +70,7 @@ def solver_margin(value: float, total_weight: float) -> float:
     return BOUND_MIP_GAP * abs(float(value)) + HIGHS_PRIMAL_TOL * max(float(total_weight), 0.0) + ROUNDING_MARGIN
 
 
-def _widened(problem: PlanningProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def widened_windows(problem: PlanningProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     w = problem.windows
     step = problem.config.time_step_s
     a = np.clip(w.start - step, 0.0, problem.horizon_s)
@@ -84,7 +84,7 @@ def pairable_rows(problem: PlanningProblem, windows: tuple | None = None) -> np.
     ``windows``: ``(field_ids, start, end)`` widened otherwise (the outer windows, V7); default one step (U1).
     """
     cfg = problem.config
-    fid, a, b = _widened(problem) if windows is None else windows
+    fid, a, b = widened_windows(problem) if windows is None else windows
     ok = b - a >= cfg.exposure_s
     earliest: dict[int, float] = {}
     latest: dict[int, float] = {}
@@ -98,7 +98,7 @@ def pairable_rows(problem: PlanningProblem, windows: tuple | None = None) -> np.
 def max_fields(problem: PlanningProblem, rows: np.ndarray, windows: tuple | None = None) -> int:
     """(U2) K: most fields whose 2 K exposures fit the observable time of these rows (``windows`` as in pairable_rows)."""
     cfg = problem.config
-    fid, a, b = _widened(problem) if windows is None else windows
+    fid, a, b = widened_windows(problem) if windows is None else windows
     sel = np.isin(fid, problem.field_ids[rows]) & (b - a >= cfg.exposure_s)
     if not sel.any():
         return 0

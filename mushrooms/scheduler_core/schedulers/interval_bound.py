@@ -33,7 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..problem import PlanningProblem, UpperBound
-from .bound import BOUND_MIP_GAP, _widened, coverage_upper_bound, max_fields, pairable_rows, solver_margin
+from .bound import BOUND_MIP_GAP, widened_windows, coverage_upper_bound, max_fields, pairable_rows, solver_margin
 from .solvers import MilpModel, solve_milp
 
 __all__ = ["field_spans", "interval_violation", "interval_upper_bound"]
@@ -50,7 +50,7 @@ def field_spans(problem: PlanningProblem, rows: np.ndarray,
                 windows: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(V1) ``lo``, ``end`` (s): hull of each field's widened windows that hold one exposure (``windows``: V7)."""
     exp = problem.config.exposure_s
-    fid, a, b = _widened(problem) if windows is None else windows
+    fid, a, b = widened_windows(problem) if windows is None else windows
     ok = b - a >= exp
     ids = problem.field_ids[rows]
     lo = np.full(ids.size, np.inf)

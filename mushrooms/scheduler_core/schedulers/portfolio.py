@@ -42,7 +42,7 @@ log = logging.getLogger(__name__)
 MIN_BLOCKS_S = 1.0
 
 #: The hybrid's block MILP gets at most this long (s).  Measured on the 56 shared maps (coverage objective,
-#: 10 s, LNS idle stop 3 s; benchmarks/results/issue30/blocks_stage_56maps.txt): given what was left, it ran
+#: 10 s, LNS idle stop 3 s; the block stage's run over 56 shared maps): given what was left, it ran
 #: on 34 maps for 87 s in all and beat the stages before it on 7, by at most 0.0026; six of those wins took
 #: under 0.25 s, the seventh (bns_o3/18, +0.0026) 10 s.  On the rest it lost by up to 0.31 after up to 9 s.
 BLOCKS_LIMIT_S = 1.0

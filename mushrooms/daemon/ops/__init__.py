@@ -1,0 +1,11 @@
+"""What an operator sees of the running daemon: metrics, health, systemd, webhook notices.
+
+``metrics``           ``ServiceMetrics`` (a Prometheus registry of its own)
+``health``            ``HealthServer`` (``/metrics``, ``/healthz``, ``/readyz``)
+``systemd``           ``sd_notify`` (READY, WATCHDOG, STATUS, STOPPING)
+``webhook``           the notification webhook client
+``webhook_settings``  ``[notify]`` (``NotifyConfig``)
+``announce``          what is announced on the webhook (failed jobs, submission trouble)
+
+Imports nothing, so a caller loads only the module it needs.
+"""

@@ -1,0 +1,153 @@
+"""What the observer on call is told, and when: one short message per thing that happens.
+
+:class:`NotifyingSink` wraps the outbound sink: once a message is published
+(never before, never instead), a one-paragraph text goes to the webhook
+(:class:`~mushrooms.daemon.ops.webhook.Webhook`): a plan published (or superseding an older one), a
+``plan_final`` verdict, an event not observable, a withdrawal, a submission's
+state change.  :func:`job_failed` and :func:`submission_trouble` are the two
+hooks the service calls for what is not an outbound message.  Posting only
+queues (:meth:`~mushrooms.daemon.ops.webhook.Webhook.post`): nothing here waits for the network.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any, Mapping
+
+from .webhook import Webhook
+
+__all__ = ["announcement", "NotifyingSink", "open_webhook", "job_failed", "submission_trouble"]
+
+log = logging.getLogger("mushrooms.daemon.webhook")
+
+
+def _plan_text(m: Mapping[str, Any]) -> tuple[str, str]:
+    from ...report.summary import answer_line
+
+    sid = (m.get("event") or {}).get("superevent_id") or "a sky map"
+    revision = m.get("revision")
+    head = f"{sid}: new ZTF plan" + (f", revision {revision}" if revision else "")
+    kind = "plan_superseded" if m.get("supersedes") else "plan_published"
+    if m.get("supersedes"):
+        head += f" (replaces {m['supersedes']})"
+    tail = "; final" if m.get("final") else "; an optimised plan may follow" if m.get("final") is False else ""
+    return kind, f"{head}: {answer_line(m)}{tail}."
+
+
+def announcement(message: Mapping[str, Any]) -> tuple[str, str] | None:
+    """(kind, text) of an outbound message, or None when it is not worth a message."""
+    kind = message.get("type")
+    sid = message.get("superevent_id") or (message.get("event") or {}).get("superevent_id") or "-"
+    if kind == "plan":
+        return _plan_text(message)
+    if kind == "not_observable":
+        from ...report.summary import answer_line
+
+        return "not_observable", f"{sid}: {answer_line(message)}"
+    if kind == "plan_final":
+        return "plan_final", f"{sid}: plan {message.get('plan_id')} is final. {message.get('reason', '')}".strip()
+    if kind == "withdrawal":
+        return "withdrawn", (f"{sid} was retracted: {len(message.get('plan_ids') or [])} plan(s) withdrawn "
+                             f"({message.get('reason', '')}).")
+    if kind == "submission":
+        state = message.get("state")
+        what = {"submitted": "is in ZTF's queue", "replaced": "was replaced by a newer revision",
+                "deleted": "was deleted from the queue", "rejected": "was REJECTED",
+                "failed": "FAILED to reach the queue"}.get(str(state), f"is {state}")
+        reason = f": {message['reason']}" if message.get("reason") else ""
+        return f"submission_{state}", (f"{sid}: queue {message.get('queue_name') or '-'} "
+                                       f"({message.get('target', '')}) {what}{reason}.")
+    return None
+
+
+class NotifyingSink:
+    """The outbound sink, telling the webhook about each message it published.
+
+    Parameters
+    ----------
+    sink : Sink
+        Publishes (its failure is raised as before, and nothing is posted).
+    webhook : Webhook
+    """
+
+    def __init__(self, sink: Any, webhook: Webhook):
+        self.sink = sink
+        self.webhook = webhook
+
+    def __getattr__(self, name: str) -> Any:  # path_for, directory, ... of the wrapped sink
+        return getattr(self.sink, name)
+
+    def publish(self, message: dict[str, Any]) -> None:
+        self.sink.publish(message)
+        try:
+            said = announcement(message)
+        except Exception:
+            log.exception("event=notify_text_failed type=%s", message.get("type"))
+            return
+        if said is not None:
+            kind, text = said
+            self.webhook.post(kind, text, _details(message))
+
+    def close(self) -> None:
+        self.webhook.close()
+        close = getattr(self.sink, "close", None)
+        if close is not None:
+            close()
+
+    def __repr__(self) -> str:
+        return f"NotifyingSink({self.sink!r}, {self.webhook!r})"
+
+
+def _details(message: Mapping[str, Any]) -> dict[str, Any]:
+    """The JSON webhook's extra keys: ids and the headline numbers."""
+    event = message.get("event") or {}
+    metrics = message.get("metrics") or {}
+    out = {"type": message.get("type"), "superevent_id": message.get("superevent_id") or event.get("superevent_id"),
+           "plan_id": message.get("plan_id"), "revision": message.get("revision"),
+           "coverage": metrics.get("coverage"), "state": message.get("state"),
+           "queue_name": message.get("queue_name")}
+    return {k: v for k, v in out.items() if v is not None}
+
+
+def open_webhook(notify: Any, environ: Mapping[str, str] | None = None) -> Webhook | None:
+    """The webhook of ``[notify]`` (the URL from the credential ``notify_url`` or ``$MUSHROOMS_NOTIFY_URL``).
+
+    None when ``[notify]`` is off.  Raises
+    :class:`~.credentials.CredentialsError` when it is on and the URL is missing.
+    """
+    if notify is None or not notify.enabled:
+        return None
+    from ..credentials import load_notify_url
+
+    url, source = load_notify_url(environ)
+    log.info("event=notify_on target=%s url_source=%s timeout_s=%g", notify.target, source, notify.timeout_s)
+    return Webhook(url, notify.target, notify.timeout_s, notify.max_pending)
+
+
+def _webhook_of(sink: Any) -> Webhook | None:
+    """The webhook of a :class:`NotifyingSink`, however many wrappers (``inner``, ``sink``) lie around it."""
+    for _ in range(8):
+        if isinstance(sink, NotifyingSink):
+            return sink.webhook
+        sink = getattr(sink, "inner", None) or (getattr(sink, "sink", None) if not isinstance(sink, type) else None)
+        if sink is None:
+            return None
+    return None
+
+
+def job_failed(sink: Any, superevent_id: str | None, reason: str) -> None:
+    """Hook: a planning job failed (nothing was published for it)."""
+    hook = _webhook_of(sink)
+    if hook is not None:
+        hook.post("job_failed", f"{superevent_id or '-'}: planning FAILED: {reason}",
+                  {"superevent_id": superevent_id})
+
+
+def submission_trouble(sink: Any, superevent_id: str | None, queue_name: str | None, attempts: int,
+                       error: str) -> None:
+    """Hook: a submission's first attempt failed (it is retried; the failure is said once)."""
+    hook = _webhook_of(sink)
+    if hook is not None:
+        hook.post("submission_failing", f"{superevent_id or '-'}: queue {queue_name or '-'} could not be "
+                  f"submitted (attempt {attempts}: {error}); retrying", {"superevent_id": superevent_id,
+                                                                       "queue_name": queue_name})

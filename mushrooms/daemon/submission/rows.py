@@ -1,0 +1,123 @@
+"""The ``submissions`` table's rows as values, and the ``submission`` status document of a row.
+
+One row per plan id (:mod:`~mushrooms.daemon.submission.submitter` owns the lifecycle; the states are
+in its docstring).  ``progress`` records which queues of a revision's queue
+set were accepted (``put``) or removed (``gone``), and a refusal of one of
+them (``rejected``), so that a pass interrupted between two queues goes on
+where it stopped.
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from ...handlers.instants import now_iso_z
+from .rules import set_of
+
+if TYPE_CHECKING:
+    from ..state.store import Store
+
+__all__ = ["Submission", "SubmissionState", "submissions", "submission_from_row", "status_document", "STATES",
+           "OPEN", "PUBLISHED"]
+
+
+class SubmissionState(enum.StrEnum):
+    """A submission's ``state`` in the ``submissions`` table (the stored text is the value).
+
+    ``pending`` -> ``submitted`` -> ``replaced`` | ``deleted``, or
+    ``rejected`` | ``failed`` | ``skipped`` (the lifecycle:
+    :mod:`~mushrooms.daemon.submission.submitter`).
+    """
+
+    PENDING = "pending"
+    SUBMITTED = "submitted"
+    REPLACED = "replaced"  # a newer revision of the event was accepted
+    DELETED = "deleted"  # the event was retracted
+    REJECTED = "rejected"  # the server refused it (never retried)
+    FAILED = "failed"  # the operator must look
+    SKIPPED = "skipped"  # gates, dry run, or superseded/withdrawn before it was sent
+
+
+STATES = tuple(SubmissionState)
+#: States whose queue may be on the server (the submitter still has work with them).
+OPEN = (SubmissionState.PENDING, SubmissionState.SUBMITTED)
+#: Transitions that are published as a ``submission`` status document.
+PUBLISHED = (SubmissionState.SUBMITTED, SubmissionState.REPLACED, SubmissionState.DELETED, SubmissionState.REJECTED,
+             SubmissionState.FAILED)
+
+
+@dataclass(frozen=True)
+class Submission:
+    """One row of the ``submissions`` table."""
+
+    plan_id: str
+    superevent_id: str
+    target: str
+    revision: int | None
+    queue_name: str | None
+    state: str
+    reason: str | None
+    body: Any
+    remote_id: str | None
+    http_status: int | None
+    answer: str | None
+    attempts: int
+    created_at: str
+    attempted_at: str | None
+    submitted_at: str | None
+    finished_at: str | None
+    #: ``{"put": [queue names accepted], "gone": [queue names removed], "rejected": reason}``
+    progress: dict[str, Any] = field(default_factory=dict)
+
+    def queue_names(self) -> list[str]:
+        """The names of the queues of this revision (Kowalski: its set; SkyPortal: the plan name)."""
+        names = [str(q.get("queue_name")) for q in set_of(self.body)] if isinstance(self.body, list) else []
+        if not names and isinstance(self.body, dict) and "queue_name" in self.body and "targets" in self.body:
+            names = [str(self.body["queue_name"])]  # a row written before queue sets
+        return names or ([self.queue_name] if self.queue_name else [])
+
+
+def submission_from_row(r: Any) -> Submission:
+    """A ``submissions`` row (:class:`sqlite3.Row`) as a :class:`Submission` (its JSON columns parsed)."""
+    progress = r["progress"] if "progress" in r.keys() else None
+    return Submission(r["plan_id"], r["superevent_id"], r["target"], r["revision"], r["queue_name"], r["state"],
+                      r["reason"], json.loads(r["body"]) if r["body"] else None, r["remote_id"], r["http_status"],
+                      r["answer"], r["attempts"], r["created_at"], r["attempted_at"], r["submitted_at"],
+                      r["finished_at"], json.loads(progress) if progress else {})
+
+
+def submissions(store: Store, superevent_id: str | None = None) -> list[Submission]:
+    """Every submission (of one event), oldest first: for operators and tests."""
+    q, args = "SELECT * FROM submissions", ()
+    if superevent_id is not None:
+        q, args = q + " WHERE superevent_id=?", (superevent_id,)
+    return [submission_from_row(r) for r in store.connection().execute(q + " ORDER BY created_at, rowid", args)]
+
+
+def status_document(sub: Submission) -> dict[str, Any]:
+    """The ``submission`` status document of a row (published beside the plan; docs/design/plan-format.md)."""
+    answer = sub.answer
+    if answer is not None:
+        try:
+            parsed = json.loads(answer)
+            if isinstance(parsed, dict) and isinstance(parsed.get("message"), str):
+                answer = parsed["message"]
+        except ValueError:
+            pass
+    return {
+        "type": "submission",
+        "submission_id": f"{sub.plan_id}-submission-{sub.state}",
+        "plan_id": sub.plan_id,
+        "superevent_id": sub.superevent_id,
+        "target": sub.target,
+        "queue_name": sub.queue_name,
+        "state": sub.state,
+        "http_status": sub.http_status,
+        "answer": None if answer is None else answer[:2000],
+        "reason": sub.reason,
+        "attempts": int(sub.attempts),
+        "created": now_iso_z(),
+    }
