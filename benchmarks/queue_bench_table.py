@@ -72,8 +72,8 @@ def picture(rows, path: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    solvers = sorted({s for _, s in rows})
-    colours = dict(zip(solvers, ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple"]))
+    palette = ["tab:blue", "tab:red", "tab:cyan", "tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:gray"]
+    colours = dict(zip(sorted(rows), palette * 2))
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.2), sharey=True)
     panels = [("on time", [("coverage_single_queue", "o", "none", "one list queue (old)"),
                            ("coverage_as_executed", "o", None, "queue set (new)")]),
@@ -83,8 +83,8 @@ def picture(rows, path: str) -> None:
             x = [_num(r["coverage"]) for r in rs]
             for key, marker, face, label in series:
                 y = [_num(r[key]) or 0.0 for r in rs]
-                ax.scatter(x, y, marker=marker, s=22, edgecolors=colours[solver],
-                           facecolors=colours[solver] if face is None else face, linewidths=0.9,
+                c = colours[tag, solver]
+                ax.scatter(x, y, marker=marker, s=22, edgecolors=c, facecolors=c if face is None else face, linewidths=0.9,
                            label=f"{solver} ({tag.replace('bench_', '')}): {label}")
         ax.plot([0, 1], [0, 1], color="0.3", lw=0.8)
         ax.plot([0, 1], [0, 0.9], color="0.6", lw=0.8, ls="--")
