@@ -114,23 +114,44 @@ def robust_closes(qs: QueueSet, epoch: Time, opens: np.ndarray, closes: np.ndarr
     on_time = {d.target: d.start_s for d in base if d.status == "processed"}
     scenarios = [(first + late, timing) for late in lates_s] + [(first, timing.scaled(f)) for f in speeds]
 
-    def score(trial: np.ndarray) -> float:
-        return sum(pair_value(qs, _play(qs, epoch, opens, trial, start, end_s, t, sky), weight, cadence_s)
-                   for start, t in scenarios)
+    def runs(trial: np.ndarray) -> list[tuple[ExecutedTarget, ...]]:
+        return [_play(qs, epoch, opens, trial, start, end_s, t, sky) for start, t in scenarios]
 
-    best, chosen = score(closes), closes.copy()
+    def score(played: list[tuple[ExecutedTarget, ...]]) -> float:
+        return sum(pair_value(qs, run, weight, cadence_s) for run in played)
+
+    chosen = closes.copy()
+    played = runs(chosen)
+    best = score(played)
     for k in np.flatnonzero(exported):
         tight = _tight_close(qs, k, on_time, cadence_s)
         if tight is None or not tight < chosen[k]:
             continue
+        if all(_untouched(qs, k, run, tight, chosen[k], start) for run, (start, _) in zip(played, scenarios)):
+            continue  # the tight close would change none of the runs: a tie, the wide one stays
         trial = chosen.copy()
         trial[k] = tight
-        if _play(qs, epoch, opens, trial, first, end_s, timing, sky) != base:
+        if not _untouched(qs, k, base, tight, chosen[k], first) and \
+                _play(qs, epoch, opens, trial, first, end_s, timing, sky) != base:
             continue  # (Q18) the on-time run must stay the same (a target left over for later, say)
-        value = score(trial)
+        trial_played = runs(trial)
+        value = score(trial_played)
         if value > best + 1e-12:
-            best, chosen = value, trial
+            best, chosen, played = value, trial, trial_played
     return chosen
+
+
+def _untouched(qs: QueueSet, k: int, run: Sequence[ExecutedTarget], tight: float, wide: float,
+               start_s: float) -> bool:
+    """True when closing pass ``k`` at ``tight`` instead of ``wide`` cannot change ``run`` (started at ``start_s``).
+
+    Either the wide window had closed before the run began, or every target of the pass was taken with its
+    exposure starting by ``tight`` (each choice of the pass came no later, and then the pass was empty).
+    """
+    if wide < start_s:
+        return True
+    taken = {d.target: d.start_s for d in run if d.status == "processed"}
+    return all(int(j) in taken and taken[int(j)] <= tight for j in np.flatnonzero(qs.queue == k))
 
 
 def _tight_close(qs: QueueSet, k: int, on_time: dict[int, float], cadence_s: float) -> float | None:
