@@ -381,23 +381,8 @@ def limiting_magnitude(bands: np.ndarray, exposure_s: np.ndarray, cond: SkyCondi
     """5-sigma limiting magnitude (AB) of the difference image, equation (D2).
 
     The depth a transient search reaches: the science image of (D1) against
-    ZTF's reference, at the broader of the two PSFs.
-
-    Parameters
-    ----------
-    bands : array_like of str
-        Filter of each exposure.
-    exposure_s : array_like
-        Exposure times (s).
-    cond : SkyConditions
-        Conditions of each exposure (e.g. :func:`sky_conditions`), broadcasting.
-    model : DepthModel
-        Calibrated parameters; default :data:`ZTF_DEPTH`.
-
-    Returns
-    -------
-    numpy.ndarray
-        Limiting magnitude (mag); ``-inf`` below the horizon.
+    ZTF's reference, at the broader of the two PSFs.  Parameters and the
+    returned array (mag; ``-inf`` below the horizon) as :func:`science_depth`.
     """
     bands = np.asarray(bands, dtype=str)
     m_sci = science_depth(bands, exposure_s, cond, model)
