@@ -352,7 +352,7 @@ def _with_map_details(event: EventInfo, skymap: SkyMap) -> EventInfo:
 
 def _with_airmass_and_probability(observations: tuple[Observation, ...],
                                   problem: PlanningProblem) -> tuple[Observation, ...]:
-    """Observations with their mid-exposure airmass and their field's probability."""
+    """Observations with their mid-exposure airmass, limiting magnitude (D2) and their field's probability."""
     if not observations:
         return observations
     from astropy import units as u
@@ -371,9 +371,13 @@ def _with_airmass_and_probability(observations: tuple[Observation, ...],
     visits = [o.field_id for o in observations]
     shares = field_shares(problem.footprints, list(dict.fromkeys(visits)), problem.prob)
     after = coverage_after_each(problem.footprints, visits, problem.prob)
+    from .source.detection import exposure_depths
+
+    depth = exposure_depths(observations, problem.start)
     return tuple(dataclasses.replace(o, airmass=float(x), probability=field_prob.get(o.field_id),
-                                     probability_share=shares[o.field_id], coverage_after=float(c))
-                 for o, x, c in zip(observations, airmass, after))
+                                     probability_share=shares[o.field_id], coverage_after=float(c),
+                                     limiting_mag=float(m) if np.isfinite(m) else None)
+                 for o, x, c, m in zip(observations, airmass, after, depth))
 
 
 def _expected_detections(plan: Plan, problem: PlanningProblem, skymap: SkyMap,

@@ -112,7 +112,9 @@ def test_detection_stage_never_returns_fewer_expected_detections_than_its_covera
     if d.choice == "coverage":
         assert det.observations == cov.observations
     ran = [g for g in d.grids if "expected_detections" in g]
-    assert ran and max(g["expected_detections"] for g in ran if g["above_floor"]) <= det.expected_detections + 1e-12
+    # no grid's plan above the floor expects more, beyond the choice rule's margin (R2-R3: closer than min_gain
+    # is a tie on detections, settled by coverage)
+    assert ran and max(g["expected_detections"] for g in ran if g["above_floor"]) <= det.expected_detections + cfg.min_gain
     # the floor (X6) holds for the plan as published: after the real timing and the least-gain rule
     c0 = published_coverage(problem, cov)
     assert d.coverage_floor == pytest.approx((1 - loss) * c0)

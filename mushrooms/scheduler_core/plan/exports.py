@@ -14,7 +14,11 @@ endpoint -- receives; ``skyportal/handlers/api/observation_plan.py``,
   payload, observation_plans: [{validity_window_start, validity_window_end,
   status, planned_observations: [{planned_observation_id, dateobs, field_id,
   exposure_time (int), filt ("ztfg"/"ztfr"/"ztfi"), weight,
-  overhead_per_exposure (int)}]}]}``; ``payload`` carries what SkyPortal's
+  overhead_per_exposure (int), limiting_mag}]}]}``; ``limiting_mag`` (the
+  exposure's 5-sigma depth, AB, D2) is ours: SkyPortal's handler reads its own
+  keys by name and stores no planned depth (its ``PlannedObservation`` has no
+  such column), so it passes unread to SkyPortal and is there for whoever reads
+  the payload; ``payload`` carries what SkyPortal's
   ZTF API later needs to send the plan to the queue (``queue_name``,
   ``program_id`` as ``Partnership``/``Caltech``, ``subprogram_name``,
   ``start_date``/``end_date``).
@@ -279,6 +283,7 @@ def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization
             "filt": SKYPORTAL_FILTERS[o.filter],
             "weight": round(float(o.probability), 6) if o.probability is not None else 0.0,
             "overhead_per_exposure": int(round(overhead)),
+            **({} if o.limiting_mag is None else {"limiting_mag": round(float(o.limiting_mag), 2)}),
         })
     name = f"{plan.event.superevent_id}-{plan.plan_id}" if plan.event.superevent_id else plan.plan_id
     return {

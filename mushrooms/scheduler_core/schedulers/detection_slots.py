@@ -506,7 +506,8 @@ class _Stage:
         reach = pair_reach(problem, inst, self.kilonova, self.skymap.event_time, self.depth)
         if self.levels is None:  # placed once, on the first grid's reaches, for every grid
             r_max = float(reach.max(initial=0.0))
-            if self.menu and not on_menu:  # up to the longest menu exposure's reach: (D1), (X2) at equal sky
+            # up to the longest menu exposure's reach: (D1), (X2) at equal sky; (D2) only shortens it
+            if self.menu and not on_menu:
                 r_max *= max(float(max(cfg.exposure_menu_s)) / cfg.exposure_s, 1.0) ** 0.25
             self.levels = distance_levels(self.skymap, np.unique(self.fp.indices), r_max, cfg.detection_levels)
             if self.levels.size == 0:
