@@ -4,6 +4,8 @@ Usage::
 
     nice -n 5 .venv/bin/python benchmarks/daemon_latency.py [--scenario sequential|burst|broker-stop|all]
         [--maps N] [--burst N] [--out benchmarks/results]
+    nice -n 5 .venv/bin/python benchmarks/daemon_latency.py --trees BASE_TREE NEW_TREE [--maps N]
+        (the sequential scenario on two source trees side by side; see ``side_by_side``)
 
 The real ``mushrooms run`` process with the *default* configuration
 (``config.toml`` defaults: nside 256, hybrid solver, 30 s MILP limit, two
@@ -197,7 +199,7 @@ def pct(xs: list[float], q: float) -> float:
 
 
 def start_daemon(work: Path, broker: Broker, out_bootstrap: str | None = None,
-                 n_topics: int = 1) -> tuple[Daemon, list[str], str, float]:
+                 n_topics: int = 1, tree: Path | None = None) -> tuple[Daemon, list[str], str, float]:
     """The daemon on ``n_topics`` input topics.
 
     librdkafka's mock broker keeps only about 5 MB per partition (older
@@ -215,7 +217,9 @@ def start_daemon(work: Path, broker: Broker, out_bootstrap: str | None = None,
     cfg.write_text(CONFIG.format(topic='", "'.join(topics), group=f"mushrooms-{time.time_ns()}", out=out,
                                  out_bootstrap=f'bootstrap = "{out_bootstrap}"' if out_bootstrap else ""))
     t0 = time.monotonic()
-    d = Daemon(work, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(work / "state.sqlite")])
+    env = None if tree is None else {"PYTHONPATH": str(tree)}  # that tree's mushrooms (--trees)
+    d = Daemon(work, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(work / "state.sqlite")],
+               env=env)
     d.wait_log("event=service_ready", 300)
     startup = time.monotonic() - t0
     return d, topics, out, startup
@@ -287,6 +291,63 @@ def sequential(broker: Broker, work: Path, n_maps: int, report: list[str]) -> No
     report.append(f"consumed -> final plan: p50 {statistics.median(finals):.3f} s, p95 {pct(finals, 95):.3f} s, "
                   f"max {max(finals):.3f} s (n={len(finals)}); revision 2 published for "
                   f"{sum(1 for r in lat.values() if r.get('revision') == 2)} of {len(lat)}")
+    report.append("")
+
+
+def side_by_side(broker: Broker, work: Path, n_maps: int, trees: list[Path], report: list[str]) -> None:
+    """The sequential scenario on two source trees at once: one daemon each, notice by notice alternately.
+
+    Each notice goes to one daemon, then (after its final plan) a fresh copy to the
+    other; the tree that goes first alternates per notice, so a slow spell of a
+    shared machine falls on both.  Only one daemon plans at a time.
+    """
+    names = [t.name for t in trees]
+    daemons, readers, topics = [], [], []
+    for k, tree in enumerate(trees):
+        (work / names[k]).mkdir()
+        d, (topic,), out, _ = start_daemon(work / names[k], broker, tree=tree)
+        daemons.append(d), topics.append(topic), readers.append(Outbound(broker.bootstrap, out))
+    sids: list[dict[str, float]] = [{}, {}]
+    labels: dict[str, str] = {}
+    try:
+        for i, (name, doc) in enumerate(live_notices(n_maps)):
+            for k in ((0, 1) if i % 2 == 0 else (1, 0)):
+                sid = new_sid("ab"[k], i)
+                labels[sid] = name
+                broker.produce(topics[k], stamp(doc, sid), key=sid.encode())
+                sids[k][sid] = time.time()
+                ok = wait_until(lambda: any(is_final(m) and sid_of(m) == sid for _, _, m in readers[k].snapshot()),
+                                400, daemons[k])
+                print(f"  {names[k]} {name}: {'final' if ok else 'NO FINAL within 400 s'} "
+                      f"(load {os.getloadavg()[0]:.1f})", flush=True)
+    finally:
+        time.sleep(1)
+        msgs = [r.snapshot() for r in readers]
+        for r, d in zip(readers, daemons):
+            r.close()
+            d.stop()
+    lat = [latencies(msgs[k], queued_by_key(daemons[k].text()), sids[k]) for k in range(2)]
+    report.append(f"## side by side: {len(sids[0])} notices one at a time to each of {names[0]} and {names[1]}, "
+                  f"defaults, alternating")
+    report.append(f"notice | {names[0]} first s | final s | rev | cov first -> final | {names[1]} first s | "
+                  f"final s | rev | cov first -> final")
+    by_label = [{labels[s]: r for s, r in lat[k].items()} for k in range(2)]
+    for label in dict.fromkeys(labels.values()):
+        cells = []
+        for k in range(2):
+            r = by_label[k].get(label, {})
+            cells.append(f"{r.get('first', float('nan')):.3f} | {r.get('final', float('nan')):.3f} | "
+                         f"{r.get('revision', '-')} | {r.get('first_cov', float('nan')):.4f} -> "
+                         f"{r.get('final_cov', float('nan')):.4f}")
+        report.append(f"{label} | {cells[0]} | {cells[1]}")
+    for k in range(2):
+        firsts = [r["first"] for r in lat[k].values() if "first" in r]
+        finals = [r["final"] for r in lat[k].values() if "final" in r]
+        report.append(f"{names[k]}: first p50 {statistics.median(firsts):.3f} s, p95 {pct(firsts, 95):.3f} s, "
+                      f"max {max(firsts):.3f} s; optimised/final p50 {statistics.median(finals):.3f} s, "
+                      f"p95 {pct(finals, 95):.3f} s, max {max(finals):.3f} s (n={len(finals)}); revision 2 for "
+                      f"{sum(1 for r in lat[k].values() if r.get('revision') == 2)}; mean final coverage "
+                      f"{statistics.mean(r.get('final_cov', 0.0) for r in lat[k].values()):.4f}")
     report.append("")
 
 
@@ -448,16 +509,23 @@ def main() -> int:
     ap.add_argument("--burst", type=int, default=50)
     ap.add_argument("--burst-final-wait", type=float, default=420.0)
     ap.add_argument("--out", default=str(REPO / "benchmarks" / "results"))
+    ap.add_argument("--trees", nargs=2, type=Path, metavar=("BASE", "NEW"),
+                    help="the sequential scenario side by side on two source trees (one daemon each, notices "
+                         "alternating); writes daemon_latency_side_by_side.txt")
     a = ap.parse_args()
     broker = Broker()
     report = [f"# daemon_latency.py {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC",
               f"machine: {os.cpu_count()} cores, load average at start {os.getloadavg()[0]:.1f} "
               f"(other work on the machine inflates every latency below; see the load after each scenario)", ""]
     scen = ["sequential", "burst", "broker-stop"] if a.scenario == "all" else [a.scenario]
+    if a.trees:
+        scen, a.scenario = ["side_by_side"], "side_by_side"
     for s in scen:
         work = Path(tempfile.mkdtemp(prefix=f"mushrooms-{s}-"))
         print(f"[{s}] in {work}", flush=True)
-        if s == "sequential":
+        if s == "side_by_side":
+            side_by_side(broker, work, a.maps, [t.resolve() for t in a.trees], report)
+        elif s == "sequential":
             sequential(broker, work, a.maps, report)
         elif s == "burst":
             burst(broker, work, a.burst, report, a.burst_final_wait)

@@ -3,7 +3,8 @@
 
 For each map, night 1 from its event time is planned (``--solver``, default
 greedy), exported as the old single list queue and as timed per-pass queues
-with several window slacks, and each export is executed on a clear night,
+with several window slacks (``passes_<slack>``: wide closes; ``robust_<slack>``: closes chosen for a
+late or off-speed telescope, Q16-Q18), and each export is executed on a clear night,
 on time and with the telescope free 15/30/60 min late.  Prints one JSON line
 per map and variant: planned coverage and the cadence-valid executed one.
 
@@ -29,6 +30,7 @@ def main(argv=None) -> int:
     ap.add_argument("--time-limit", type=float, default=None)
     ap.add_argument("--slacks", default="120,600,1800")
     ap.add_argument("--late", default="0,900,1800,3600")
+    ap.add_argument("--speeds", default="0.8,1.2", help="telescope overheads x these factors, on time")
     args = ap.parse_args(argv)
     import dataclasses
 
@@ -41,6 +43,7 @@ def main(argv=None) -> int:
     from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
     from mushrooms.scheduler_core.telescope.executor import (execute_queues, executed_exposures,
                                                              queue_set_from_payloads)
+    from mushrooms.scheduler_core.telescope.timing import TelescopeTiming
 
     configure_astropy_offline()
     config = PlanningConfig(solver=args.solver, nside=args.nside)
@@ -53,6 +56,7 @@ def main(argv=None) -> int:
         paths = [paths[int(i * step)] for i in range(args.maps)]
     slacks = [float(s) for s in args.slacks.split(",")]
     lates = [float(x) for x in args.late.split(",")]
+    speeds = [float(x) for x in args.speeds.split(",") if x]
     for path in paths:
         t0 = time.perf_counter()
         try:
@@ -67,12 +71,16 @@ def main(argv=None) -> int:
             print(json.dumps({"map": path.name, "status": "empty plan"}), flush=True)
             continue
         exports = {"single": [to_trigger_queue(plan)]}
+        export_s = {}
         for s in slacks:
-            exports[f"passes_{int(s)}"] = to_trigger_queues(plan, slack_s=s)
+            exports[f"passes_{int(s)}"] = to_trigger_queues(plan, slack_s=s, robust=False)
+            t_export = time.perf_counter()
+            exports[f"robust_{int(s)}"] = to_trigger_queues(plan, slack_s=s)
+            export_s[f"export_s_robust_{int(s)}"] = round(time.perf_counter() - t_export, 2)
         first = plan.observations[0].start
         end = float((plan.end - plan.start).to_value("s"))
         row = {"map": str(path.relative_to(MAPS)), "planned": plan.metrics.coverage,
-               "n_obs": len(plan.observations), "plan_s": round(time.perf_counter() - t0, 1)}
+               "n_obs": len(plan.observations), "plan_s": round(time.perf_counter() - t0, 1), **export_s}
         for late in lates:  # what the plan holds after the telescope is free: the time lost, no more
             kept = {o.field_id for o in plan.observations if o.start >= first + late}
             pairs = {f for f in kept if sum(1 for o in plan.observations if o.field_id == f and o.start >= first + late) >= 2}
@@ -86,6 +94,12 @@ def main(argv=None) -> int:
                 row[f"{name}@{int(late / 60)}"] = round(achieved_coverage(ex, skymap, footprints,
                                                                           filters=config.filters,
                                                                           cadence_s=config.cadence_s), 6)
+            for speed in speeds:  # a telescope slower/faster than modelled, on time
+                timing = TelescopeTiming().scaled(speed)
+                done = execute_queues(qs, plan.start, first, end, timing)
+                ex = executed_exposures(qs, done, plan.start)
+                row[f"{name}@x{speed:g}"] = round(achieved_coverage(ex, skymap, footprints, filters=config.filters,
+                                                                      cadence_s=config.cadence_s), 6)
         row["total_s"] = round(time.perf_counter() - t0, 1)
         print(json.dumps(row), flush=True)
     return 0

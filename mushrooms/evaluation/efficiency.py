@@ -19,8 +19,8 @@ Source model (shared with the scheduler, :mod:`~mushrooms.scheduler_core.source.
 the kilonova is a :class:`~mushrooms.scheduler_core.source.kilonova.Kilonova` (tabulated light curve
 extended to the first hours after the merger by the expanding-fireball bound
 K1, so injections are alive from the merger time on), and each exposure's
-limit comes from :func:`~mushrooms.scheduler_core.source.depth.limiting_magnitude` for its filter,
-exposure time, airmass, Moon and twilight at mid-exposure (equation D1).
+limit comes from :func:`~mushrooms.scheduler_core.source.detection.exposure_depths`: the difference
+image's depth (equation D2) for its filter, exposure time, airmass, Moon and twilight at mid-exposure.
 
 First-release scoring ("v1") stays available for comparison: pass a
 :class:`~mushrooms.scheduler_core.source.lightcurves.LightCurve` (table only, undetectable before its first
@@ -41,8 +41,8 @@ import healpy as hp
 import numpy as np
 from astropy.time import Time
 
-from ..scheduler_core.source.depth import DepthModel, ZTF_DEPTH, sky_conditions
-from ..scheduler_core.source.depth import limiting_magnitude as sky_limiting_magnitude
+from ..scheduler_core.source.depth import DepthModel, ZTF_DEPTH
+from ..scheduler_core.source.detection import exposure_depths
 from ..scheduler_core.source.kilonova import Kilonova
 from ..scheduler_core.source.lightcurves import LightCurve
 from ..scheduler_core.plan.document import Plan
@@ -226,7 +226,7 @@ def exposure_limits(plan: Plan, depth: DepthModel | Mapping[str, float] = ZTF_DE
     plan : Plan
         Observations (field centre, filter, exposure time, start).
     depth : DepthModel or mapping
-        A depth model (sky at mid-exposure, equation D1), or flat limits
+        A depth model (sky at mid-exposure, equation D2), or flat limits
         per filter at ``reference_exposure_s`` (first-release scoring).
     reference_exposure_s : float
         Exposure time (s) of flat limits.
@@ -236,11 +236,7 @@ def exposure_limits(plan: Plan, depth: DepthModel | Mapping[str, float] = ZTF_DE
     expo = np.array([o.exposure_s for o in obs], dtype=float)
     if not isinstance(depth, DepthModel):
         return limiting_magnitude(filters, expo, depth, reference_exposure_s)
-    if not obs:
-        return np.zeros(0)
-    mid = np.array([o.start for o in obs], dtype=float) + 0.5 * expo
-    cond = sky_conditions(np.array([o.ra for o in obs]), np.array([o.dec for o in obs]), plan.absolute_time(mid))
-    return sky_limiting_magnitude(filters, expo, cond, depth)
+    return exposure_depths(obs, plan.start, depth)
 
 
 def _covered(footprints: Footprints, field_ids: np.ndarray, ipix: np.ndarray) -> np.ndarray:

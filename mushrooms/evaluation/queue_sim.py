@@ -29,10 +29,12 @@ from ..scheduler_core.sky.skymap import SkyMap
 from ..scheduler_core.telescope.coverage import cadence_coverage, execute_plan_queues
 from ..scheduler_core.telescope.timing import TelescopeTiming
 
-__all__ = ["Closure", "random_closure", "execute_plan", "achieved_coverage", "EXPORTS"]
+__all__ = ["Closure", "random_closure", "execute_plan", "achieved_coverage", "execution_cells", "EXPORTS", "LATE_STARTS_S"]
 
 #: How a plan goes to ZTF: ``queues`` (timed queues per filter pass) or ``single`` (one list queue).
 EXPORTS = ("queues", "single")
+#: Late starts (s) the benchmark executes every plan with: another ToO or the weather holding the telescope.
+LATE_STARTS_S = (900.0, 1800.0, 3600.0)
 
 
 @dataclass(frozen=True)
@@ -163,3 +165,42 @@ def achieved_coverage(executed: Iterable[ExecutedExposure], skymap: SkyMap, foot
     if skymap.nside != footprints.nside:
         raise ValueError(f"sky map nside {skymap.nside} differs from the footprints' {footprints.nside}")
     return cadence_coverage(executed, footprints, skymap.prob, filters, cadence_s, require, min_processed_fraction)
+
+
+def execution_cells(plan: Plan, footprints: Footprints, prob: np.ndarray,
+                    late_starts_s: Iterable[float] = LATE_STARTS_S) -> dict[str, float | int | str]:
+    """What ZTF's scheduler would keep of a plan (Q14), for the benchmark's row.
+
+    The plan's queue set (:func:`to_trigger_queues`, timed once) is executed
+    on time and ``late_starts_s`` late, and the old single list queue on
+    time; each scored as cadence-valid coverage (the plan's filters and
+    cadence, defaults g/r and 1800 s for a plan without its config).
+
+    Returns
+    -------
+    dict
+        ``coverage_as_executed`` (queue set, on time), ``coverage_single_queue``
+        (the old export, on time), ``coverage_late_<min>`` (queue set, late)
+        and ``n_queues`` (queues per revision); empty cells for a plan
+        without observations.
+    """
+    from ..scheduler_core.plan.exports import timed_queue_set
+
+    lates = [float(x) for x in late_starts_s]
+    keys = ["coverage_as_executed", "coverage_single_queue", *[f"coverage_late_{int(x // 60)}" for x in lates]]
+    if not plan.observations:
+        return {**dict.fromkeys(keys, ""), "n_queues": 0}
+    config = plan.config or {}
+    filters = tuple(config.get("filters", ("g", "r")))[:2]
+    cadence_s = float(config.get("cadence_s", 1800.0))
+    queues, _ = timed_queue_set(plan)
+
+    def kept(payloads, late_s):
+        done = execute_plan_queues(plan, payloads, late_s)
+        return round(cadence_coverage(done, footprints, prob, filters, cadence_s), 6)  # type: ignore[arg-type]
+
+    out: dict[str, float | int | str] = {"coverage_as_executed": kept(queues, 0.0),
+                                         "coverage_single_queue": kept([to_trigger_queue(plan)], 0.0)}
+    out.update({key: kept(queues, x) for key, x in zip(keys[2:], lates)})
+    out["n_queues"] = len(queues)
+    return out

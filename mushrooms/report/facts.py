@@ -11,7 +11,7 @@ import datetime as dt
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
-__all__ = ["PlanFacts", "ExposureRow", "plan_facts", "palomar_time", "duration_words", "percent"]
+__all__ = ["PlanFacts", "ExposureRow", "plan_facts", "palomar_time", "duration_words", "percent", "depth_words"]
 
 #: The P48's time zone (Palomar Observatory, California).
 PALOMAR_TZ = "America/Los_Angeles"
@@ -33,6 +33,8 @@ class ExposureRow:
         The field's own share of the probability (0-1; overlaps divided).
     coverage_after : float or None
         Total coverage after this exposure (0-1; a re-plan: the executed part included).
+    limiting_mag : float or None
+        5-sigma depth (AB) the exposure is expected to reach (D2).
     """
 
     field_id: int
@@ -42,6 +44,7 @@ class ExposureRow:
     airmass: float | None
     share: float | None
     coverage_after: float | None
+    limiting_mag: float | None = None
 
 
 @dataclass(frozen=True)
@@ -114,6 +117,19 @@ def palomar_time(t: dt.datetime) -> str:
         return (t - dt.timedelta(hours=8)).strftime("%H:%M") + " UTC-8"
 
 
+def depth_words(rows: Sequence[ExposureRow]) -> str | None:
+    """``g 21.4, r 21.6 mag (median; 20.9-22.0)``: the exposures' 5-sigma depths per filter; None without any."""
+    by_filter: dict[str, list[float]] = {}
+    for r in rows:
+        if r.limiting_mag is not None:
+            by_filter.setdefault(r.filter, []).append(r.limiting_mag)
+    if not by_filter:
+        return None
+    every = sorted(m for ms in by_filter.values() for m in ms)
+    medians = ", ".join(f"{f} {sorted(ms)[len(ms) // 2]:.1f}" for f, ms in by_filter.items())
+    return f"{medians} mag (median 5σ, AB, difference image; {every[0]:.1f}-{every[-1]:.1f})"
+
+
 def _queues(doc: Mapping[str, Any], queues: Sequence[str] | None) -> tuple[str, ...]:
     """The ZTF queue name(s) of the revision: given, else the document's ``queues``, else the default name."""
     if queues:
@@ -156,7 +172,8 @@ def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None) -> P
     offset = float(done or 0.0)
     rows = tuple(ExposureRow(int(o["field_id"]), str(o["filter"]), _utc(o["start"]), float(o["exposure_s"]),
                              o.get("airmass"), o.get("probability_share"),
-                             None if o.get("coverage_after") is None else offset + float(o["coverage_after"]))
+                             None if o.get("coverage_after") is None else offset + float(o["coverage_after"]),
+                             None if o.get("limiting_mag") is None else float(o["limiting_mag"]))
                  for o in obs)
     shutter, overhead, waiting = _timing(obs)
     title = event.get("superevent_id") or event.get("skymap_name") or "sky map"

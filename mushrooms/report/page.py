@@ -13,7 +13,7 @@ import datetime as dt
 import html
 from typing import Any, Mapping, Sequence
 
-from .facts import PlanFacts, duration_words, palomar_time, percent, plan_facts
+from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts
 from .summary import answer_line, bound_sentence, event_lines, starts_in, status_words
 
 __all__ = ["summary_html"]
@@ -50,6 +50,9 @@ def _stats(facts: PlanFacts, now: dt.datetime) -> list[tuple[str, str]]:
                  ("Total coverage", percent(facts.coverage + float(facts.coverage_executed)))]
     else:
         rows.append(("Coverage", percent(facts.coverage)))
+    depth = depth_words(facts.rows)
+    if depth:
+        rows.append(("Depth", depth))
     if facts.expected_detections is not None:
         rows.append(("Kilonova detection", f"probability {percent(facts.expected_detections)}"))
     bound = bound_sentence(facts)
@@ -61,12 +64,14 @@ def _stats(facts: PlanFacts, now: dt.datetime) -> list[tuple[str, str]]:
 
 def _exposure_table(facts: PlanFacts) -> str:
     head = ("<tr><th>#</th><th>field</th><th>filter</th><th>start (UTC)</th><th>airmass</th>"
+            "<th title=\"5-sigma limiting magnitude (AB) of the difference image\">depth (mag)</th>"
             "<th>own probability</th><th>coverage after</th></tr>")
     body = []
     for k, r in enumerate(facts.rows, 1):
         body.append(
             f"<tr><td>{k}</td><td>{r.field_id}</td><td>{_cell(r.filter)}</td><td>{r.start:%Y-%m-%d %H:%M:%S}</td>"
             f"<td>{'' if r.airmass is None else f'{r.airmass:.2f}'}</td>"
+            f"<td>{'' if r.limiting_mag is None else f'{r.limiting_mag:.1f}'}</td>"
             f"<td>{'' if r.share is None else percent(r.share, 2)}</td>"
             f"<td>{'' if r.coverage_after is None else percent(r.coverage_after)}</td></tr>")
     return f"<table class=\"rows\">{head}{''.join(body)}</table>"

@@ -11,7 +11,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any, Mapping, Sequence
 
-from .facts import PlanFacts, duration_words, palomar_time, percent, plan_facts
+from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts
 
 __all__ = ["summary_text", "answer_line", "event_lines", "bound_sentence", "status_words", "starts_in"]
 
@@ -86,6 +86,9 @@ def _coverage_words(facts: PlanFacts) -> list[str]:
         lines.append(f"Total      {percent(done + facts.coverage)} of the probability after this plan")
     else:
         lines.append(f"Coverage   the fields hold {percent(facts.coverage)} of the probability")
+    depth = depth_words(facts.rows)
+    if depth:
+        lines.append(f"Depth      {depth}")
     if facts.expected_detections is not None:
         lines.append(f"Detection  a kilonova like the configured light curve would be detected with probability "
                      f"{percent(facts.expected_detections)}")
@@ -108,13 +111,16 @@ def _timing_lines(facts: PlanFacts, now: dt.datetime) -> list[str]:
 
 
 def _rows(facts: PlanFacts) -> list[str]:
-    head = f"{'field':>6} {'filter':>6}  {'start (UTC)':<16} {'airmass':>7} {'own prob':>8} {'coverage':>8}"
+    head = (f"{'field':>6} {'filter':>6}  {'start (UTC)':<16} {'airmass':>7} {'depth':>5} "
+            f"{'own prob':>8} {'coverage':>8}")
     out = [head]
     for r in facts.rows:
         airmass = "" if r.airmass is None else f"{r.airmass:.2f}"
+        depth = "" if r.limiting_mag is None else f"{r.limiting_mag:.1f}"
         share = "" if r.share is None else percent(r.share, 2)
         after = "" if r.coverage_after is None else percent(r.coverage_after, 1)
-        out.append(f"{r.field_id:>6} {r.filter:>6}  {r.start:%m-%d %H:%M:%S}   {airmass:>7} {share:>8} {after:>8}")
+        out.append(f"{r.field_id:>6} {r.filter:>6}  {r.start:%m-%d %H:%M:%S}   {airmass:>7} {depth:>5} "
+                   f"{share:>8} {after:>8}")
     return out
 
 

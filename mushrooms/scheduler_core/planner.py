@@ -23,7 +23,7 @@ from .clock import on_merger_clock
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .sky.skymap import SkyMap
-from .telescope.coverage import queue_coverage
+from .telescope.coverage import AS_EXECUTED_MEMO, execution_key, queue_coverage
 from .solvers_registry import SOLVER_NAMES, get_scheduler, unknown_solver_message
 
 __all__ = ["make_plan", "build_plan", "run_scheduler", "optimise", "SOLVERS"]
@@ -328,10 +328,17 @@ def build_plan(
         supersedes=supersedes,
         config=json.loads(json.dumps(config.record())),  # JSON types (tuples become lists)
     )
-    executed = round(queue_coverage(plan, problem.footprints, skymap.prob), 6) if observations else None
+    executed = round(_coverage_as_executed(plan, problem, result), 6) if observations else None
     return plan.with_(metrics=dataclasses.replace(
         metrics, expected_detections=_expected_detections(plan, problem, skymap, result),
         coverage_as_executed=executed))
+
+
+def _coverage_as_executed(plan: Plan, problem: PlanningProblem, result: ScheduleResult) -> float:
+    """``metrics.coverage_as_executed``: the portfolio's value for this very plan when it has one, else the executor's."""
+    memo = result.details.get(AS_EXECUTED_MEMO, {})
+    known = memo.get(execution_key(problem, plan.observations)) if memo else None
+    return float(known) if known is not None else queue_coverage(plan, problem.footprints, problem.prob)
 
 
 def _with_map_details(event: EventInfo, skymap: SkyMap) -> EventInfo:
@@ -345,7 +352,7 @@ def _with_map_details(event: EventInfo, skymap: SkyMap) -> EventInfo:
 
 def _with_airmass_and_probability(observations: tuple[Observation, ...],
                                   problem: PlanningProblem) -> tuple[Observation, ...]:
-    """Observations with their mid-exposure airmass and their field's probability."""
+    """Observations with their mid-exposure airmass, limiting magnitude (D2) and their field's probability."""
     if not observations:
         return observations
     from astropy import units as u
@@ -364,9 +371,13 @@ def _with_airmass_and_probability(observations: tuple[Observation, ...],
     visits = [o.field_id for o in observations]
     shares = field_shares(problem.footprints, list(dict.fromkeys(visits)), problem.prob)
     after = coverage_after_each(problem.footprints, visits, problem.prob)
+    from .source.detection import exposure_depths
+
+    depth = exposure_depths(observations, problem.start)
     return tuple(dataclasses.replace(o, airmass=float(x), probability=field_prob.get(o.field_id),
-                                     probability_share=shares[o.field_id], coverage_after=float(c))
-                 for o, x, c in zip(observations, airmass, after))
+                                     probability_share=shares[o.field_id], coverage_after=float(c),
+                                     limiting_mag=float(m) if np.isfinite(m) else None)
+                 for o, x, c, m in zip(observations, airmass, after, depth))
 
 
 def _expected_detections(plan: Plan, problem: PlanningProblem, skymap: SkyMap,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -183,3 +184,24 @@ def test_bad_arguments(setup):
         random_closure(t, t + TimeDelta(7200, format="sec"), 1, min_h=2, max_h=1)
     with pytest.raises(ValueError):
         execute_plan(plan, export="fifo")
+
+
+def test_the_bench_execution_cells_are_the_plans_queues_run_on_time_late_and_as_one_list(setup):
+    from mushrooms.evaluation.queue_sim import execution_cells
+    from mushrooms.scheduler_core.plan.exports import to_trigger_queue, to_trigger_queues
+    from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
+    from mushrooms.scheduler_core.telescope.coverage import queue_coverage
+
+    cfg, skymap, _, plan = setup
+    footprints = field_footprints(load_ztf_fields(), cfg.nside)
+    cells = execution_cells(plan, footprints, skymap.prob)
+    assert cells["coverage_as_executed"] == pytest.approx(plan.metrics.coverage_as_executed, abs=1e-6)
+    assert cells["n_queues"] == len(to_trigger_queues(plan)) > 1
+    single = queue_coverage(plan, footprints, skymap.prob, queues=[to_trigger_queue(plan)])
+    assert cells["coverage_single_queue"] == pytest.approx(single, abs=1e-6)
+    for minutes in (15, 30, 60):
+        late = queue_coverage(plan, footprints, skymap.prob, late_s=60.0 * minutes)
+        assert cells[f"coverage_late_{minutes}"] == pytest.approx(late, abs=1e-6)
+        assert cells[f"coverage_late_{minutes}"] <= plan.metrics.coverage + 1e-9
+    empty = execution_cells(dataclasses.replace(plan, observations=()), footprints, skymap.prob)
+    assert empty["n_queues"] == 0 and empty["coverage_as_executed"] == ""

@@ -28,7 +28,7 @@ SKYPORTAL_TOP = {"dateobs": str, "localization_name": str, "allocation_id": int,
 SKYPORTAL_PLAN = {"validity_window_start": str, "validity_window_end": str, "status": str,
                   "planned_observations": list}
 SKYPORTAL_OBS = {"planned_observation_id": int, "dateobs": str, "field_id": int, "exposure_time": int,
-                 "filt": str, "weight": float, "overhead_per_exposure": int}
+                 "filt": str, "weight": float, "overhead_per_exposure": int, "limiting_mag": float}
 EXPORT = ExportConfig(program="Caltech", program_pi="Kasliwal", subprogram_name="GWtest", user="alice",
                       skyportal_allocation_id=7)
 
@@ -75,6 +75,7 @@ def test_skyportal_manual_plan_payload_has_the_keys_and_types_the_handler_reads(
         assert p["planned_observation_id"] == i and p["filt"] == {"g": "ztfg", "r": "ztfr"}[o.filter]
         assert p["exposure_time"] == 300 and 0 < p["weight"] <= 1 and 0 <= p["overhead_per_exposure"] <= 600
         assert abs((Time(p["dateobs"], format="isot") - greedy_plan.absolute_time(o.start)).to_value("s")) < 1e-2
+        assert p["limiting_mag"] == round(o.limiting_mag, 2)  # ours: the handler reads its own keys by name
     # what SkyPortal's ZTF API reads back from the request payload to queue the plan
     pay = body["payload"]
     assert pay["program_id"] == "Caltech" and pay["subprogram_name"] == "GWtest" and pay["queue_name"]

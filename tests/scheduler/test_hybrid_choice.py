@@ -39,7 +39,7 @@ def test_hybrid_under_a_detection_config_gives_its_blocks_stage_what_is_left(sky
     real = slot_module.slot_schedule
     real_lns = lns_module.lns_improve
     # the LNS stage after the slots gets 0.5 s, so that more than MIN_BLOCKS_S is left for blocks
-    monkeypatch.setattr(lns_module, "lns_improve", lambda problem, seed, should_stop=None, time_limit_s=None:
+    monkeypatch.setattr(lns_module, "lns_improve", lambda problem, seed, should_stop=None, time_limit_s=None, **_:
                         real_lns(problem, seed, should_stop, time_limit_s=0.5))
     monkeypatch.setattr(slot_module, "slot_schedule",
                         lambda problem, should_stop=None, start=None, time_limit_s=None:

@@ -14,7 +14,6 @@ from mushrooms.scheduler_core.plan.document import EventInfo
 from mushrooms.scheduler_core.planner import make_plan, run_scheduler
 from mushrooms.scheduler_core.prepare import prepare_problem
 from mushrooms.scheduler_core.schedulers.detection_slots import detection_stage
-from mushrooms.scheduler_core.schedulers.gain import published_coverage
 from mushrooms.scheduler_core.sky.skymap import read_skymap
 
 MAP = "MS220722v_bayestar.multiorder.fits"
@@ -37,8 +36,10 @@ def test_make_plan_counts_the_kilonova_from_the_notice_not_from_a_stale_header(d
 
 # ---------------------------------------------------------------- the detection stage
 
-def test_detection_stage_on_a_distant_source_keeps_the_plan_with_more_coverage(data_dir) -> None:
-    """Expected detections ~0 on every plan (the source 100 x farther): the stage's choice is made by coverage."""
+def test_detection_stage_on_a_source_beyond_reach_keeps_the_coverage_plan_without_solving(data_dir) -> None:
+    """Expected detections ~0 on every plan (the source 100 x farther): the detection ceiling (X7) is below
+    min_gain, no plan can be preferred for its detections, and the stage keeps the coverage plan it was given
+    (more coverage on a tie, R3, is the coverage stage's to find: the stage does not run as a coverage solver)."""
     cfg = PlanningConfig(nside=64, time_limit_s=6.0, detection_time_limit_s=5.0)
     sm = read_skymap(data_dir / "skymaps" / MAP, nside=64)
     far = dataclasses.replace(sm, distmu=sm.distmu * 100, distsigma=sm.distsigma * 100, distnorm=None,
@@ -48,14 +49,11 @@ def test_detection_stage_on_a_distant_source_keeps_the_plan_with_more_coverage(d
     fields = list(dict.fromkeys(o.field_id for o in whole.observations))
     keep = set(fields[len(fields) // 2:])  # a valid coverage plan that leaves the richest half out
     weak = dataclasses.replace(whole, observations=tuple(o for o in whole.observations if o.field_id in keep))
-    c_weak = published_coverage(problem, weak)
-    assert published_coverage(problem, whole) > c_weak + 10 * cfg.min_gain, "the start must be clearly improvable"
     det = detection_stage(problem, far, weak, time_limit_s=10.0)
     d = det.detection
-    assert d.expected_detections_coverage < 1e-4 and det.expected_detections < 1e-4  # a tie at ~0
-    ran = [g for g in d.grids if "coverage" in g]
-    best = max(g["coverage"] for g in ran)
-    assert best > c_weak + cfg.min_gain, "the solver found more coverage: the test needs it"
-    # with the map's stale clock the stage kept the weak coverage plan (no candidate had more expected detections)
-    assert d.choice == "detection"
-    assert published_coverage(problem, det) == pytest.approx(best, abs=1e-9)
+    assert d.expected_detections_coverage < 1e-4 and det.expected_detections < 1e-4
+    assert d.choice == "coverage (at the detection ceiling)" and d.grids == ()  # no grid solved
+    assert det.observations == weak.observations
+    # the same source at its own distance: the stage runs its grids
+    near = detection_stage(problem, sm, weak, time_limit_s=10.0)
+    assert near.detection.choice in ("coverage", "detection") and near.detection.grids

@@ -16,12 +16,14 @@ from mushrooms.scheduler_core.schedulers.certified_bound import certified_upper_
 from mushrooms.scheduler_core.schedulers.gain import published_coverage
 from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
 from mushrooms.scheduler_core.schedulers.portfolio import BLOCKS_LIMIT_S, MIN_BLOCKS_S, Stage, best_of, reaches_bound
+from mushrooms.scheduler_core.telescope.coverage import AS_EXECUTED_MEMO
 from mushrooms.scheduler_core.solvers_registry import SOLVER_NAMES, get_scheduler, register, registered
 
 
-def _problem(seed: int):
+def _problem(seed: int, min_gain: float = 0.0):
+    """min_gain 0: the hybrid stops at the bound only when its plan is optimal (V6), so it keeps the full run's plan."""
     return random_problem(seed, config=tiny_config(n_blocks_max=3, penalty=0.0, n_fields=None, horizon_h=2.0,
-                                                   time_limit_s=20.0, mip_gap=0.0))
+                                                   time_limit_s=20.0, mip_gap=0.0, min_gain=min_gain))
 
 
 def test_the_registry_names_every_scheduler_and_refuses_others_with_the_old_message():
@@ -107,6 +109,21 @@ def test_the_hybrid_composition_keeps_the_winner_the_string_branch_kept(seed):
     assert covs[name] == max(covs.values())
 
 
+@pytest.mark.parametrize("seed", [0, 2, 3])
+def test_the_hybrid_stops_once_no_stage_can_add_min_gain_and_keeps_a_plan_within_it(seed):
+    # on these instances greedy is within 0.001 of the certified bound but below it (the exact run goes on)
+    exact = run_scheduler(_problem(seed), "hybrid")
+    problem = _problem(seed, min_gain=0.001)
+    result = run_scheduler(problem, "hybrid")
+    bound = result.upper_bound
+    greedy = result.portfolio[0].coverage
+    assert not reaches_bound(greedy, bound) and reaches_bound(greedy, bound, 0.001)
+    assert result.details["skipped_at_bound"] == ["slots", "lns", "blocks"]
+    assert [e.name for e in result.portfolio] == ["greedy"] and result.portfolio_choice == "greedy"
+    # what the full run found instead is at most min_gain more
+    assert greedy <= published_coverage(problem, exact) <= greedy + 0.001
+
+
 def _stub(name: str, observations, calls: list):
     def run(problem, should_stop, earlier, left_s):
         calls.append((name, tuple(earlier), left_s))
@@ -123,7 +140,9 @@ def test_best_of_keeps_the_most_covering_plan_the_earlier_on_a_tie_and_polls_the
     tie = best_of("pf", Stage("a", _stub("a", obs, calls)), Stage("b", _stub("b", obs, calls)))(problem)
     assert tie.portfolio_choice == "a" and tie.solver == "pf(stub:a)"
     assert tie.details == {"who": "a", "stage_times_s": tie.details["stage_times_s"],  # the winner's, + times
-                           "coverage_as_executed": tie.details["coverage_as_executed"]}  # + the executor's
+                           "coverage_as_executed": tie.details["coverage_as_executed"],  # + the executor's
+                           AS_EXECUTED_MEMO: tie.details[AS_EXECUTED_MEMO]}  # and the same by plan, for its document
+    assert list(tie.details[AS_EXECUTED_MEMO].values()) == [tie.details["coverage_as_executed"]["a"]]
     assert list(tie.details["stage_times_s"]) == ["a", "b"] and min(tie.details["stage_times_s"].values()) >= 0
     assert [c[:2] for c in calls] == [("a", ()), ("b", ("a",))]  # each stage sees the ones before it
     assert all(0 < c[2] <= problem.config.time_limit_s for c in calls)
@@ -144,3 +163,35 @@ def test_best_of_keeps_the_most_covering_plan_the_earlier_on_a_tie_and_polls_the
     stopped = best_of("pf", Stage("a", _stub("a", first, calls)),
                       Stage("c", _stub("c", obs, calls), min_left_s=0.0))(problem, stop)
     assert len(polls) == 1 and [c[0] for c in calls] == ["a"] and stopped.portfolio_choice == "a"
+
+
+def test_two_candidates_with_one_plan_cost_one_run_of_the_executor(monkeypatch):
+    import mushrooms.scheduler_core.telescope.coverage as coverage_module
+
+    problem = _problem(0)
+    obs = greedy_schedule(problem).observations
+    runs = []
+    real = coverage_module.queue_coverage
+
+    def counted(plan, *args, **kwargs):
+        runs.append(plan.observations)
+        return 0.5 * real(plan, *args, **kwargs)  # executes worse than planned: the second candidate is tried
+
+    monkeypatch.setattr(coverage_module, "queue_coverage", counted)
+    result = best_of("pf", Stage("a", _stub("a", obs, [])), Stage("b", _stub("b", obs, [])))(problem)
+    executed = result.details["coverage_as_executed"]
+    assert list(executed) == ["a", "b"] and executed["a"] == executed["b"]
+    assert len(runs) == 1 and result.portfolio_choice == "a"
+    # the published plan reuses the value too: building it runs the executor no more
+    from mushrooms.scheduler_core.planner import _coverage_as_executed
+    from mushrooms.scheduler_core.plan.document import sorted_observations
+    from mushrooms.scheduler_core.schedulers.gain import drop_low_gain
+
+    kept = sorted_observations(drop_low_gain(result, problem.footprints, problem.prob,
+                                             problem.config.min_gain).observations)
+
+    class _Plan:  # what _coverage_as_executed reads of a plan
+        observations = kept
+
+    assert _coverage_as_executed(_Plan(), problem, result) == pytest.approx(executed["a"], abs=1e-6)
+    assert len(runs) == 1

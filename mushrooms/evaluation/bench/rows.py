@@ -29,6 +29,8 @@ COLUMNS = (
     "detection_stage",
     "objective",
     "coverage_diff", "exposure_mix", "exposure_mean_s", "arm",
+    "coverage_as_executed", "coverage_single_queue", "coverage_late_15", "coverage_late_30", "coverage_late_60",
+    "n_queues",
 )
 
 #: Columns :func:`read_csv` keeps as text.

@@ -73,7 +73,15 @@ def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any,
         out.update(cells)
         out[f"expected_{key}"] = _expected(plan, skymap, footprints, lc, merger_time)
     out.update(_exposure_cells(plan, footprints, skymap.prob))
+    out.update(_execution_cells(plan, footprints, skymap.prob))
     return out, hits
+
+
+def _execution_cells(plan: Any, footprints: Any, prob: np.ndarray) -> dict[str, Any]:
+    """What ZTF's scheduler keeps of the plan's queues (Q14): on time, late, and the old single queue."""
+    from ..queue_sim import execution_cells
+
+    return execution_cells(plan, footprints, prob)
 
 
 def _expected(plan: Any, skymap: Any, footprints: Any, lc: Any, merger_time: Any) -> Any:

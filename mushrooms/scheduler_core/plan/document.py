@@ -94,6 +94,10 @@ class Observation:
         Probability inside the union of the fields visited up to and
         including this exposure (0-1; a re-plan: outside the fields done
         before, like ``metrics.coverage``).
+    limiting_mag : float or None
+        5-sigma limiting magnitude (AB) of the exposure's difference image
+        at mid-exposure (``source/depth.py``, D2): what the plan expects the
+        exposure to reach under that sky, airmass and Moon.
     """
 
     field_id: int
@@ -107,6 +111,7 @@ class Observation:
     probability: float | None = None
     probability_share: float | None = None
     coverage_after: float | None = None
+    limiting_mag: float | None = None
 
     @property
     def end(self) -> float:
@@ -395,6 +400,7 @@ class Plan:
                         probability=None if o.get("probability") is None else float(o["probability"]),
                         probability_share=_optional_float(o, "probability_share"),
                         coverage_after=_optional_float(o, "coverage_after"),
+                        limiting_mag=_optional_float(o, "limiting_mag"),
                     )
                 )
             m = doc["metrics"]
@@ -412,10 +418,13 @@ class Plan:
 
 
 def _share_keys(o: Observation) -> dict[str, float]:
-    """The optional keys ``probability_share`` and ``coverage_after`` of an observation that has them."""
-    return {key: round(float(value), 6) for key, value in (("probability_share", o.probability_share),
+    """The optional keys ``probability_share``, ``coverage_after`` and ``limiting_mag`` an observation has."""
+    keys = {key: round(float(value), 6) for key, value in (("probability_share", o.probability_share),
                                                           ("coverage_after", o.coverage_after))
             if value is not None}
+    if o.limiting_mag is not None and math.isfinite(o.limiting_mag):
+        keys["limiting_mag"] = round(float(o.limiting_mag), 2)
+    return keys
 
 
 def _optional_float(o: Mapping[str, Any], key: str) -> float | None:

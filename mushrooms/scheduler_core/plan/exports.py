@@ -14,7 +14,11 @@ endpoint -- receives; ``skyportal/handlers/api/observation_plan.py``,
   payload, observation_plans: [{validity_window_start, validity_window_end,
   status, planned_observations: [{planned_observation_id, dateobs, field_id,
   exposure_time (int), filt ("ztfg"/"ztfr"/"ztfi"), weight,
-  overhead_per_exposure (int)}]}]}``; ``payload`` carries what SkyPortal's
+  overhead_per_exposure (int), limiting_mag}]}]}``; ``limiting_mag`` (the
+  exposure's 5-sigma depth, AB, D2) is ours: SkyPortal's handler reads its own
+  keys by name and stores no planned depth (its ``PlannedObservation`` has no
+  such column), so it passes unread to SkyPortal and is there for whoever reads
+  the payload; ``payload`` carries what SkyPortal's
   ZTF API later needs to send the plan to the queue (``queue_name``,
   ``program_id`` as ``Partnership``/``Caltech``, ``subprogram_name``,
   ``start_date``/``end_date``).
@@ -145,7 +149,7 @@ def filter_passes(plan: "Plan") -> list[tuple[int, int]]:
 
 
 def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_base: str | None = None,
-                      slack_s: float | None = None) -> list[dict[str, Any]]:
+                      slack_s: float | None = None, robust: bool = True) -> list[dict[str, Any]]:
     """The plan as the set of timed ToO list queues that makes ZTF's scheduler follow it (Q11-Q13).
 
     One queue per filter pass (:func:`filter_passes`; a block of a g-r-g
@@ -159,8 +163,9 @@ def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_
     model (:func:`~..telescope.queue_windows.time_pass_windows`) says one of
     its fields would otherwise come back sooner than the cadence (plus a
     margin) after its other filter, and closes a slack after the model's end
-    of the pass.  A pass that could not open before the plan's end is left
-    out.
+    of the pass, or sooner when that keeps more pairs with the telescope
+    late or off-speed (Q16-Q18, ``robust``).  A pass that could not open
+    before the plan's end is left out.
 
     Parameters
     ----------
@@ -173,17 +178,20 @@ def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_
     slack_s : float, optional
         How long (s) a pass stays open after the model's end of it (default
         :data:`~..telescope.queue_windows.PASS_SLACK_S`).
+    robust : bool
+        Choose each close for a late or off-speed telescope (Q16-Q18; the
+        on-time execution is the same either way).
 
     Returns
     -------
     list of dict
         Queue payloads of :func:`to_trigger_queue`'s shape, in submission order.
     """
-    return timed_queue_set(plan, export, name_base, slack_s)[0]
+    return timed_queue_set(plan, export, name_base, slack_s, robust)[0]
 
 
 def timed_queue_set(plan: "Plan", export: ExportConfig = ExportConfig(), name_base: str | None = None,
-                    slack_s: float | None = None) -> tuple[list[dict[str, Any]], Any]:
+                    slack_s: float | None = None, robust: bool = True) -> tuple[list[dict[str, Any]], Any]:
     """:func:`to_trigger_queues`, and the telescope model's observability grid of the queues' targets.
 
     The grid (a :class:`~..telescope.executor.SkyGrid`, from the plan's first
@@ -206,8 +214,9 @@ def timed_queue_set(plan: "Plan", export: ExportConfig = ExportConfig(), name_ba
     planned = np.asarray([o.start for o in plan.observations], float)
     sky = SkyGrid(qs, plan.start, float(planned.min()), end_s, 60.0, TelescopeTiming())
     cadence_s = float((plan.config or {}).get("cadence_s", 1800.0))
+    weight = np.asarray([_field_weight(o) for o in plan.observations], float) if robust else None
     opens, closes = time_pass_windows(qs, plan.start, planned, end_s, cadence_s,
-                                      slack_s=PASS_SLACK_S if slack_s is None else slack_s, sky=sky)
+                                      slack_s=PASS_SLACK_S if slack_s is None else slack_s, sky=sky, weight=weight)
     out, rows = [], []
     for (a, b), draft, t_open, t_close in zip(passes, drafts, opens, closes):
         if not t_open < end_s:
@@ -218,6 +227,14 @@ def timed_queue_set(plan: "Plan", export: ExportConfig = ExportConfig(), name_ba
                     "validity_window_mjd": [float(window[0]), float(window[1])], "targets": targets})
         rows.extend(range(a, b))
     return out, sky.take(np.asarray(rows, int))
+
+
+def _field_weight(o: Any) -> float:
+    """What a field's pair is worth when the closes are chosen (Q17): its share, else its probability, else 1."""
+    for value in (o.probability_share, o.probability):
+        if value is not None:
+            return float(value)
+    return 1.0
 
 
 def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization_name: str | None = None
@@ -266,6 +283,7 @@ def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization
             "filt": SKYPORTAL_FILTERS[o.filter],
             "weight": round(float(o.probability), 6) if o.probability is not None else 0.0,
             "overhead_per_exposure": int(round(overhead)),
+            **({} if o.limiting_mag is None else {"limiting_mag": round(float(o.limiting_mag), 2)}),
         })
     name = f"{plan.event.superevent_id}-{plan.plan_id}" if plan.event.superevent_id else plan.plan_id
     return {

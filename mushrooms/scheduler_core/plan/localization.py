@@ -29,7 +29,11 @@ def localization_facts(skymap: SkyMap) -> dict[str, Any]:
     if skymap.has_distance:
         from ligo.skymap.distance import parameters_to_marginal_moments
 
-        good = np.isfinite(skymap.distmu) & np.isfinite(skymap.distsigma)
+        # pixels below 1e-6 / n hold under 1e-6 of the probability together: left out, they move the
+        # moments by under 1e-6 of the farthest distance (far below the 0.1 Mpc shown), and a sky map's
+        # far tail is most of its pixels
+        good = (np.isfinite(skymap.distmu) & np.isfinite(skymap.distsigma)
+                & (skymap.prob >= 1e-6 / max(skymap.prob.size, 1)))
         mean, std = parameters_to_marginal_moments(skymap.prob[good] / skymap.prob[good].sum(),
                                                    skymap.distmu[good], skymap.distsigma[good])
         if np.isfinite(mean) and np.isfinite(std):

@@ -56,6 +56,7 @@ from ..sequences import require_pair
 from ..sky.cells import Cells, merge_cells
 from ..source.depth import ZTF_DEPTH, DepthModel, limiting_magnitude, sky_conditions
 from ..source.detection import distance_cdf, reach_mpc
+from .detection_ceiling import detection_ceiling
 from .gain import drop_low_gain
 from ..preference import is_preferred
 from ..source.kilonova import Kilonova, load_kilonova
@@ -379,6 +380,12 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
     stage.post_s = time.perf_counter() - t_score + 0.1  # time to time and score one solution (updated as measured)
     floor = (1.0 - cfg.detection_max_coverage_loss) * c_cov
     lightcurve = cfg.detection_lightcurve if own_kilonova else None
+    ceiling = detection_ceiling(problem, skymap, kilonova, depth)
+    if ceiling < e_cov + cfg.min_gain:  # (X7) no plan detects min_gain more: the answer cannot change
+        log.info("detection objective skipped: no plan can have more than %.4f expected detections, the coverage "
+                 "plan has %.4f", ceiling, e_cov)
+        return _kept_coverage(coverage, t_wall, "coverage (at the detection ceiling)", budget,
+                              (e_cov, floor, lightcurve), ())
     best, runs = stage.solve_grids(coverage, floor, (e_cov, None, None, c_cov))
     if best[1] is None:
         return _kept_coverage(coverage, t_wall, "coverage", budget, (e_cov, floor, lightcurve), tuple(runs))
@@ -499,7 +506,8 @@ class _Stage:
         reach = pair_reach(problem, inst, self.kilonova, self.skymap.event_time, self.depth)
         if self.levels is None:  # placed once, on the first grid's reaches, for every grid
             r_max = float(reach.max(initial=0.0))
-            if self.menu and not on_menu:  # up to the longest menu exposure's reach: (D1), (X2) at equal sky
+            # up to the longest menu exposure's reach: (D1), (X2) at equal sky; (D2) only shortens it
+            if self.menu and not on_menu:
                 r_max *= max(float(max(cfg.exposure_menu_s)) / cfg.exposure_s, 1.0) ** 0.25
             self.levels = distance_levels(self.skymap, np.unique(self.fp.indices), r_max, cfg.detection_levels)
             if self.levels.size == 0:

@@ -1,6 +1,7 @@
 """The exposure menu on the slot grid: each field's visits take one exposure of ``exposure_menu_s``.
 
-A longer exposure reaches deeper (D1: +1.25 log10(t2/t1) mag) but holds the
+A longer exposure reaches deeper (at most +1.25 log10(t2/t1) mag: D1, less in
+the difference image, D2) but holds the
 telescope longer, so it covers less area: which is better depends on the
 distance the kilonova must be seen to (X1).  The detection stage
 (:mod:`.detection_slots`) lets the solver choose, on a *menu grid*:

@@ -24,8 +24,9 @@ takes the best plan so far and repeatedly
    cadence, both filters, checked again on the whole plan) and it covers
    strictly more (H5): the incumbent is never worse.
 
-It stops when the budget ends, ``should_stop`` says so, or
-a whole round of slices or :data:`MAX_IDLE_S` seconds bring nothing.
+It stops when the budget ends, ``should_stop`` says so, the plan is
+within ``min_gain`` of the certified bound (``enough``), or a whole round
+of slices or :data:`MAX_IDLE_S` seconds bring nothing.
 """
 
 from __future__ import annotations
@@ -66,9 +67,11 @@ MIN_SLICE_S = 0.3
 #: of slices is no stop: on a reduced bns_o3/11 the gains come after 8 quick slices without one.  Measured on
 #: the 51 shared maps the LNS runs on (``benchmarks/lns_idle_replay.py`` on a run to the budget,
 #: ``lns_idle_*`` in benchmarks/results): it gains +0.0012 coverage on average run to the end of its budget;
-#: a 5 s stop keeps all but 0.00012 of that in a median 7.1 s, 3 s all but 0.0005 in 5.1 s, 1 s all but
-#: 0.0008 in 3.1 s.  3 s: the gains a longer wait still finds are a third of the LNS's, for 2 s of every plan.
-MAX_IDLE_S = 3.0
+#: a 5 s stop keeps all but 0.00012 of that in a median 7.1 s, 3 s all but 0.0005 in 5.1 s, 2 s all but
+#: 0.00076 in 4.1 s, 1 s all but 0.0008 in 3.1 s.  1 s: waiting 3 s instead gains 0.0003 on average, less than
+#: the least gain a field must bring (``min_gain`` 0.001), for 2 s of every plan (the optimiser stops when its
+#: stages cannot improve the plan by more than that; ``docs/design/milp.md`` V6).
+MAX_IDLE_S = 1.0
 #: Relative gap at which a slice's solve stops.
 SLICE_GAP = 1e-4
 #: Least coverage gain (absolute probability) for a slice's plan to replace the incumbent (H5).
@@ -345,7 +348,7 @@ def _resolve_slice(problem: PlanningProblem, state: _State, pairs: dict[int, lis
 def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: StopCheck | None = None,
                 time_limit_s: float | None = None, pool: np.ndarray | None = None,
                 slice_s: float = SLICE_S, max_free: int = MAX_FREE_FIELDS,
-                max_idle_s: float = MAX_IDLE_S) -> ScheduleResult:
+                max_idle_s: float = MAX_IDLE_S, enough: float | None = None) -> ScheduleResult:
     """Improve ``seed`` by exact re-solves of slices of the night (H1–H5); never worse than the seed.
 
     Parameters
@@ -368,6 +371,9 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
         Most free fields per slice.
     max_idle_s : float
         The search stops after this long (s) without a gain.
+    enough : float, optional
+        The search stops once the plan covers this much (the certified
+        bound less ``min_gain``: no slice can then add more than that).
 
     Returns
     -------
@@ -416,6 +422,9 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
             interrupted = True
             break
         if left < MIN_SLICE_S or time.perf_counter() - last_gain > max_idle_s:
+            break
+        if enough is not None and state.published >= enough:
+            details["stopped_at"] = "bound"
             break
         intervals = slices[i]
         i += 1

@@ -116,7 +116,16 @@ def lns_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     names = list(earlier)
     seed = max(names, key=lambda n: (published_coverage(problem, earlier[n]), -names.index(n)))
     idle = {} if max_idle_s is None else {"max_idle_s": max_idle_s}
-    return lns_improve(problem, earlier[seed], should_stop, time_limit_s=max(left_s, 0.0), **idle)
+    return lns_improve(problem, earlier[seed], should_stop, time_limit_s=max(left_s, 0.0),
+                       enough=_enough(problem, earlier), **idle)
+
+
+def _enough(problem: PlanningProblem, earlier: Mapping[str, ScheduleResult]) -> float | None:
+    """The coverage past which a stage cannot gain more than ``min_gain`` (V6): the bound less it, if known."""
+    bound = next((r.upper_bound for r in earlier.values() if r.upper_bound is not None), None)
+    if bound is None:
+        return None
+    return (1.0 - BOUND_RTOL) * (bound.value - bound.margin) - problem.config.min_gain
 
 
 def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
@@ -134,9 +143,12 @@ def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     return milp_schedule(timed, should_stop)
 
 
-def reaches_bound(coverage: float, bound: UpperBound) -> bool:
-    """True when ``coverage`` is within :data:`BOUND_RTOL` (relative) of the certified ``bound``."""
-    return coverage >= (1.0 - BOUND_RTOL) * (bound.value - bound.margin)
+def reaches_bound(coverage: float, bound: UpperBound, min_gain: float = 0.0) -> bool:
+    """True when no plan can cover more than ``coverage + min_gain``: within that of the certified ``bound``.
+
+    ``min_gain`` 0: within :data:`BOUND_RTOL` (relative) of the bound, the plan is optimal (V6).
+    """
+    return coverage >= (1.0 - BOUND_RTOL) * (bound.value - bound.margin) - min_gain
 
 
 @dataclass(frozen=True)
@@ -179,12 +191,14 @@ class Portfolio:
         for i, stage in enumerate(self.stages):
             if stage.name in pair_stages:
                 continue
-            # (V6) the best plan so far reaches the certified bound: no stage left can beat it
-            if upper is not None and covs and reaches_bound(max(covs.values()), upper):
+            # (V6) the best plan so far reaches the certified bound, less min_gain: no stage left can beat it
+            # by more than the least gain a field must bring
+            if upper is not None and covs and reaches_bound(max(covs.values()), upper, problem.config.min_gain):
                 skipped = [s.name for s in self.stages[i:]]
-                log.info("%s: %s's plan covers %.4f, the certified bound is %.4f (%s): it is optimal, "
+                within = f" within min_gain {problem.config.min_gain:g}" if problem.config.min_gain else ""
+                log.info("%s: %s's plan covers %.4f, the certified bound is %.4f (%s): it is optimal%s, "
                          "skipping %s", self.label, max(covs, key=covs.get), max(covs.values()), upper.value,
-                         upper.method, ", ".join(skipped))
+                         upper.method, within, ", ".join(skipped))
                 break
             left = budget - (time.perf_counter() - t0 - bound_s)
             if stage.min_left_s is not None:
@@ -200,11 +214,15 @@ class Portfolio:
                 upper = self.bound(problem)
                 bound_s = time.perf_counter() - t_bound
                 times["bound"] = round(bound_s, 3)
+                if ran[stage.name].upper_bound is None:  # the stages after see it (an LNS stops at it)
+                    ran[stage.name] = dataclasses.replace(ran[stage.name], upper_bound=upper)
         names = list(ran)
-        name, executed = choose_as_executed(problem, ran, covs)
+        from ..telescope.coverage import AS_EXECUTED_MEMO
+
+        name, executed, memo = choose_as_executed(problem, ran, covs)
         best = ran[name]
         entries = tuple(PortfolioEntry(n, r.solver, r.status, r.mip_gap, covs[n]) for n, r in ran.items())
-        details = dict(best.details, stage_times_s=times, coverage_as_executed=executed)
+        details = dict(best.details, stage_times_s=times, coverage_as_executed=executed, **{AS_EXECUTED_MEMO: memo})
         if skipped:
             details["skipped_at_bound"] = skipped
         if pair_stages:
@@ -215,7 +233,7 @@ class Portfolio:
 
 
 def choose_as_executed(problem: PlanningProblem, ran: dict[str, ScheduleResult], covs: dict[str, float]
-                       ) -> tuple[str, dict[str, float]]:
+                       ) -> tuple[str, dict[str, float], dict[tuple, float]]:
     """(Q15) the candidate whose queues ZTF's scheduler executes best (cadence-valid coverage), ties to the planned.
 
     Candidates are tried in order of planned coverage (then stage order); a
@@ -225,20 +243,26 @@ def choose_as_executed(problem: PlanningProblem, ran: dict[str, ScheduleResult],
 
     Returns
     -------
-    (str, dict of str to float)
-        The chosen stage and the executed coverage of each candidate tried.
+    (str, dict of str to float, dict of tuple to float)
+        The chosen stage, the executed coverage of each candidate tried, and
+        the same by :func:`~..telescope.coverage.execution_key` (the memo that
+        spares the published plan a second run of the executor).
     """
-    from ..telescope.coverage import result_coverage_as_executed
+    from ..telescope.coverage import keyed_coverage_as_executed
 
     names = list(ran)
     order = sorted(names, key=lambda n: (-covs[n], names.index(n)))
     executed: dict[str, float] = {}
+    memo: dict[tuple, float] = {}
     for n in order:
         if executed and covs[n] <= max(executed.values()) + 1e-12:
             break
-        executed[n] = round(result_coverage_as_executed(problem, ran[n]), 6)
+        key, value = keyed_coverage_as_executed(problem, ran[n], memo)  # an LNS that kept its seed: one run
+        executed[n] = round(value, 6)
+        if key is not None:
+            memo[key] = value
     name = max(executed, key=lambda n: (executed[n], covs[n], -names.index(n)))
-    return name, executed
+    return name, executed, memo
 
 
 def best_of(label: str, *stages: Stage, bound: BoundRun | None = None) -> Portfolio:

@@ -23,8 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from astropy import units as u
-from astropy.coordinates import TETE, AltAz, EarthLocation, SkyCoord, get_body
+from astropy.coordinates import TETE, EarthLocation, SkyCoord
 from astropy.time import Time
+
+from .ephemeris import ephemeris
 
 __all__ = [
     "ObservingGeometry", "observing_geometry", "Constraint", "AllOf", "SunBelow", "AirmassBelow",
@@ -67,7 +69,8 @@ def observing_geometry(
     """The geometry every constraint reads, for all fields and grid times at once.
 
     The Sun, the Moon and the local apparent sidereal time come from astropy
-    on the time grid; field altitudes and hour angles then follow in closed
+    at the ephemeris nodes, interpolated to the grid (:mod:`.ephemeris`,
+    E1-E3); field altitudes and hour angles then follow in closed
     form from the fields' apparent (true equator and equinox of date) places.
 
     Parameters
@@ -90,11 +93,9 @@ def observing_geometry(
     ra_deg = np.asarray(ra_deg, float)
     dec_deg = np.asarray(dec_deg, float)
 
-    # Sun and Moon: a few hundred astropy transforms, not one per field
-    frame = AltAz(obstime=times, location=location)
-    sun_alt = get_body("sun", times, location).transform_to(frame).alt.deg
-    moon = get_body("moon", times, location)
-    lst = times.sidereal_time("apparent", longitude=location.lon).deg
+    # Sun, Moon and sidereal time: astropy every EPHEMERIS_STEP_S, interpolated (E1-E3), not one per field
+    sky = ephemeris(times, location)
+    sun_alt, lst = sky.sun_alt_deg, sky.lst_deg
 
     # Fields: apparent place of date (precession, nutation, aberration) once
     if apparent_epoch is None:
@@ -107,8 +108,8 @@ def observing_geometry(
     with np.errstate(divide="ignore"):
         airmass = np.where(sin_alt > 0, 1.0 / np.where(sin_alt > 0, sin_alt, 1.0), np.inf)
 
-    moon_ra = np.radians(moon.ra.deg)[None, :]
-    moon_dec = np.radians(moon.dec.deg)[None, :]
+    moon_ra = np.radians(sky.moon_ra_deg)[None, :]
+    moon_dec = np.radians(sky.moon_dec_deg)[None, :]
     fra = np.radians(ra_deg)[:, None]
     fdec = np.radians(dec_deg)[:, None]
     cos_sep = np.sin(fdec) * np.sin(moon_dec) + np.cos(fdec) * np.cos(moon_dec) * np.cos(fra - moon_ra)

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cachedir import cache_dir
 from .footprints import Footprints
 from .healpix import hp
 
@@ -170,11 +171,7 @@ def _compute_footprints(grid: FieldGrid, nside: int) -> Footprints:
 
 
 def _cache_dir() -> Path | None:
-    for var in ("MUSHROOMS_CACHE_DIR", "CACHE_DIRECTORY"):
-        if os.environ.get(var):
-            return Path(os.environ[var].split(":")[0])
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "mushrooms"
+    return cache_dir()
 
 
 def _grid_key(grid: FieldGrid, nside: int) -> str:

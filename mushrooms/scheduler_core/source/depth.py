@@ -1,64 +1,64 @@
-"""5-sigma limiting magnitude of one ZTF exposure under the night's sky.
+"""5-sigma limiting magnitude of one ZTF exposure: science image (D1), difference image (D2).
 
-A point source in a sky-background-limited exposure reaches signal-to-noise 5
-at a flux ``F5 ∝ sqrt(N_pix * S_sky / t)``; with the aperture ``N_pix ∝
-FWHM²`` and the sky flux ``S_sky = 10^(-0.4 mu)`` per arcsec², the limit is::
+A transient is found in the difference between the exposure and ZTF's
+reference image of the field, so the limit a plan reaches is that of the
+difference image.  Three numbered steps (``docs/design/detection.md`` §2):
 
-    m5 = C_b + 1.25 log10(t / 30 s) + 0.5 (mu_b - mu_dark,b)
-             - k_b (X - 1) - 1.5 log10 X                              (D1)
+**(D1) science image.**  Sky-background-limited point source, aperture ∝
+FWHM², sky flux ``10^(-0.4 mu)`` per arcsec²::
 
-with ``C_b`` the depth of a 30 s exposure at the zenith on a dark night,
-``mu_b`` the sky surface brightness (mag/arcsec²) in the field's direction,
-``k_b`` the extinction (mag per airmass), and ``FWHM ∝ X^0.6`` (Kolmogorov
-seeing) giving the last term.  ZTF's exposures are sky limited from 30 s
-up (read noise ~ 10 e- against hundreds of sky electrons per pixel), so (D1)
-holds over the exposure times planned here.
+    m_sci = C_b + 1.25 log10(t / 30 s) + 0.5 (mu_b - mu_dark,b)
+            - k_b (X - 1) - 2.5 log10(FWHM_b(X) / FWHM_zen,b),   FWHM_b(X) = FWHM_zen,b X^0.6
+
+``C_b``: depth of 30 s at the zenith on a dark night; ``mu_b``: sky surface
+brightness towards the field; ``k_b``: extinction (mag per airmass); the
+seeing degrades as X^0.6 (Kolmogorov; ztf_sim's ``seeing_at_pointing`` uses
+the same law).  ZTF is sky limited from 30 s up (r: ~130 sky e-/s/pixel
+against ~10 e- read noise), so the ``1.25 log10 t`` scaling holds.
+
+**(D2) difference image.**  The difference has the broader of the two PSFs
+(the sharper image is matched to the other) and the noise of both images::
+
+    FWHM_D = max(FWHM_b(X), FWHM_ref,b)
+    m_diff = -1.25 log10( 10^(-0.8 m_sci') + 10^(-0.8 m_ref') )
+    m_sci' = m_sci - 2.5 log10(FWHM_D / FWHM_b(X)),   m_ref' = m_ref,b - 2.5 log10(FWHM_D / FWHM_ref,b)
+
+with ZTF's own reference images (O3-era, ``gwemopt_ZTF.ref``: median over
+quadrants of ``maglimcat`` g 22.82, r 22.69, i 22.20 and of ``fwhmmed`` g
+2.39", r 2.27", i 2.23"; GPL-3.0 data, numbers only).  At 30 s the
+reference costs ~0.01 mag and the PSF matching ~0.15; at 300 s the reference
+costs ~0.12 mag: longer exposures gain less than ``1.25 log10 t``.
+
+**(D3) exposure time and the guider.**  ZTF exposures longer than 300 s
+need the guider (ZTF technical page); guided, the PSF does not degrade, so
+(D1)-(D2) apply unchanged up to gwemopt's ``max_exposure`` of 600 s; what
+limits the gain of a long exposure is the reference term of (D2).
 
 Sky brightness (flux sum of three terms, per band):
 
-* **Dark sky**, airglow and zodiacal light, brightening towards the horizon
-  as in Krisciunas & Schaefer (1991, PASP 103, 1033; "K&S"), eq. 2:
-  ``B = B_zen 10^(-0.4 k (X - 1)) X`` with X of their eq. 3.
-* **Moonlight**, K&S eqs. 15-21: the Moon's illuminance from its phase
-  angle, Rayleigh plus Mie scattering ``f(rho)`` at the Moon-field
-  separation ``rho``, the extinction of moonlight along the Moon's path
-  and the scattering column towards the field.  K&S is a V-band model; it
-  is used with each band's own extinction coefficient and the moonlit sky
-  is given the Sun's colours (AB, Willmer 2018 ApJS 236, 47:
+* **Dark sky**, airglow brightening towards the horizon (Krisciunas &
+  Schaefer 1991, PASP 103, 1033, "K&S", eq. 2 with X of their eq. 3).
+* **Moonlight**, K&S eqs. 15-21 (phase, Rayleigh + Mie scattering at the
+  Moon-field separation, extinction of moonlight and the scattering column),
+  with each band's extinction and the Sun's colours (AB, Willmer 2018:
   g - V = +0.31, r - V = -0.15, i - V = -0.27).
 * **Twilight**: with the Sun between -18 deg and the horizon, extra sky
-  flux ``B_dark,zen (10^(0.4 s (h_sun + 18)) - 1)`` with ``s = 2.5/6``
-  mag/deg, i.e. the zenith sky 2.5 mag brighter than the night sky at the
-  end of nautical twilight (-12 deg), as measured by Tyson & Gal (1993,
-  AJ 105, 1206) and Patat et al. (2006, A&A 455, 385).
+  ``B_dark,zen (10^(0.4 s (h_sun + 18)) - 1)``, ``s = 2.5/6`` mag/deg (Tyson
+  & Gal 1993; Patat et al. 2006).
 
-Calibration: ``C_b`` is set so that the median of (D1) over a year of
-ZTF-like pointings (random night times with the Sun below -12 deg, random
-fields at airmass <= 2 and >= 20 deg from the Moon, all Moon phases) equals
-ZTF's published median depths in 30 s: g 20.8, r 20.6 (Masci et al. 2019,
-PASP 131, 018003; Bellm et al. 2019, PASP 131, 018002) and i 19.9 (Bellm
-et al. 2019).  ``tests/scheduler/test_depth.py`` repeats that calibration
-draw and checks it.  The dark-sky zenith brightnesses below (Palomar, g
-21.8, r 21.0, i 20.2 mag/arcsec²) only set how strongly moonlight and
-twilight compete with the night sky: the absolute depth comes from the
-calibration.
-
-Checked against published depths beyond 30 s (``docs/design/detection.md``,
-section 2.1; ``tests/scheduler/test_depth.py``).  At 30 s (D1) agrees with
-what ZTF reports (GCN Circ. 25418: "exposures of 30s and a typical depth of
-~20.5 mag"; the ZTF technical specification, ptf.caltech.edu/page/ztf_technical:
-30 s, median single-visit depth 20.4 mag in R over all lunar phases) to
-0.1-0.2 mag.  The GW follow-up campaigns report shallower depths than (D1)
-gives for their ToO exposures: Coughlin et al. 2019 (ApJL 885 L19,
-abstract) "a depth of ≈ 21 m_AB in g- and r-bands" over the two nights
-after GW190425, where (D1) gives a median of g 22.2, r 22.0 in 300 s (g
-21.9, r 21.7 in 180 s) and g 21.0, r 20.8 in 30 s; Kasliwal et al. 2020
-(ApJ 905 145, abstract) a median depth of 20.8 mag over 13 O3 events, where
-the year median of (D1) is g 22.1, r 21.9 in 300 s.  The text read gives no
-exposure time for those medians (only the abstracts were available), so
-either those campaigns' depths were not reached in 300 s, or (D1)'s
-``1.25 log10(t / 30 s)`` overstates the gain of long ZTF exposures by about
-1 mag at 300 s; (D1) is not re-fitted to hide it.
+Calibration.  ``C_b`` makes the median of (D1) over a year of ZTF-like
+pointings (random night times, Sun < -12 deg, airmass <= 2, Moon >= 20 deg
+away, all phases) equal ZTF's published median science-image depths in
+30 s: g 20.8, r 20.6, i 19.9 (Bellm et al. 2019, PASP 131, 018002; Masci et
+al. 2019, PASP 131, 018003); ``FWHM_zen`` makes the median seeing over the
+same pointings (median X^0.6 = 1.195) ZTF's median image quality, 2.0" in r
+(Bellm et al. 2019), g and i scaled as λ^-0.2.  (D2) then adds no free
+parameter: its 30 s medians (g 20.66, r 20.46) are a prediction, to be set
+against the published difference-image depths in 30 s (ZTF technical
+specification 20.4 in R; gwemopt's ZTF config r 20.4; GCN Circ. 25418
+"typical depth of ~20.5").  ``docs/design/detection.md`` §2.1 has the table
+against every published figure, the GW campaigns included;
+``tests/scheduler/test_depth.py`` repeats it.
 """
 
 from __future__ import annotations
@@ -82,6 +82,8 @@ __all__ = [
     "sky_conditions",
     "dark_zenith",
     "sky_brightness",
+    "seeing_fwhm",
+    "science_depth",
     "limiting_magnitude",
 ]
 
@@ -247,6 +249,12 @@ class DepthModel:
         FWHM ∝ X^exponent (0.6 for Kolmogorov turbulence).
     twilight_slope_mag_per_deg : float
         ``s``: how fast the twilight sky fades with the Sun's depression.
+    zenith_fwhm_arcsec : mapping
+        ``FWHM_zen,b``: seeing at the zenith (arcsec), (D1).
+    reference_depth : mapping
+        ``m_ref,b``: 5-sigma depth (AB) of ZTF's reference images, (D2).
+    reference_fwhm_arcsec : mapping
+        ``FWHM_ref,b``: seeing of the reference images (arcsec), (D2).
     """
 
     dark_zenith_depth_30s: Mapping[str, float] = field(default_factory=lambda: {"g": 21.52, "r": 21.25, "i": 20.43})
@@ -254,6 +262,9 @@ class DepthModel:
     extinction: Mapping[str, float] = field(default_factory=lambda: {"g": 0.17, "r": 0.10, "i": 0.05})
     seeing_airmass_exponent: float = 0.6
     twilight_slope_mag_per_deg: float = 2.5 / 6.0
+    zenith_fwhm_arcsec: Mapping[str, float] = field(default_factory=lambda: {"g": 1.77, "r": 1.67, "i": 1.61})
+    reference_depth: Mapping[str, float] = field(default_factory=lambda: {"g": 22.82, "r": 22.69, "i": 22.20})
+    reference_fwhm_arcsec: Mapping[str, float] = field(default_factory=lambda: {"g": 2.39, "r": 2.27, "i": 2.23})
 
     def _per_band(self, table: Mapping[str, float], bands: np.ndarray) -> np.ndarray:
         missing = sorted(set(bands.ravel().tolist()) - set(table))
@@ -326,9 +337,16 @@ def sky_brightness(bands: np.ndarray, cond: SkyConditions, model: DepthModel = Z
     return -2.5 * np.log10(dark + moon + twilight)
 
 
-def limiting_magnitude(bands: np.ndarray, exposure_s: np.ndarray, cond: SkyConditions,
-                       model: DepthModel = ZTF_DEPTH) -> np.ndarray:
-    """5-sigma limiting magnitude (AB) of exposures, equation (D1).
+def seeing_fwhm(bands: np.ndarray, airmass: np.ndarray, model: DepthModel = ZTF_DEPTH) -> np.ndarray:
+    """Seeing FWHM (arcsec) of exposures at airmass ``airmass``: ``FWHM_zen,b X^0.6`` (D1)."""
+    bands = np.asarray(bands, dtype=str)
+    x = np.maximum(np.asarray(airmass, float), 1.0)
+    return model._per_band(model.zenith_fwhm_arcsec, bands) * x ** model.seeing_airmass_exponent
+
+
+def science_depth(bands: np.ndarray, exposure_s: np.ndarray, cond: SkyConditions,
+                  model: DepthModel = ZTF_DEPTH) -> np.ndarray:
+    """5-sigma limiting magnitude (AB) of the science image, equation (D1).
 
     Parameters
     ----------
@@ -356,3 +374,23 @@ def limiting_magnitude(bands: np.ndarray, exposure_s: np.ndarray, cond: SkyCondi
         m5 = (c + 1.25 * np.log10(np.asarray(exposure_s, float) / 30.0) + 0.5 * (mu - mu_dark)
               - k * (x - 1.0) - 2.5 * model.seeing_airmass_exponent * np.log10(x))
     return np.where(np.isfinite(x), m5, -np.inf)
+
+
+def limiting_magnitude(bands: np.ndarray, exposure_s: np.ndarray, cond: SkyConditions,
+                       model: DepthModel = ZTF_DEPTH) -> np.ndarray:
+    """5-sigma limiting magnitude (AB) of the difference image, equation (D2).
+
+    The depth a transient search reaches: the science image of (D1) against
+    ZTF's reference, at the broader of the two PSFs.  Parameters and the
+    returned array (mag; ``-inf`` below the horizon) as :func:`science_depth`.
+    """
+    bands = np.asarray(bands, dtype=str)
+    m_sci = science_depth(bands, exposure_s, cond, model)
+    fwhm = seeing_fwhm(bands, np.where(np.isfinite(cond.airmass), cond.airmass, 1.0), model)
+    fwhm_ref = model._per_band(model.reference_fwhm_arcsec, bands)
+    fwhm_d = np.maximum(fwhm, fwhm_ref)
+    m_sci_d = m_sci - 2.5 * np.log10(fwhm_d / fwhm)
+    m_ref_d = model._per_band(model.reference_depth, bands) - 2.5 * np.log10(fwhm_d / fwhm_ref)
+    with np.errstate(over="ignore"):
+        m5 = -1.25 * np.log10(10.0 ** (-0.8 * m_sci_d) + 10.0 ** (-0.8 * m_ref_d))
+    return np.where(np.isfinite(m_sci), m5, -np.inf)

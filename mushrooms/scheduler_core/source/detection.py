@@ -10,7 +10,7 @@ the *reach* of the deepest exposure covering it::
     r_e = 10^((m5_e − M_band(t_e − t_merger)) / 5 − 5)  Mpc                 (X2)
 
 ``F_l`` is the conditional distance CDF (:func:`ligo.skymap.distance.conditional_cdf`),
-``m5_e`` the exposure's limit (:mod:`.depth`, equation D1) and ``M_band`` the
+``m5_e`` the exposure's limit (:mod:`.depth`, the difference image's, D2) and ``M_band`` the
 source model (:mod:`.kilonova`).  One detection suffices, as in the
 evaluation's injection recovery, of which (X1) is the exact expectation (the
 Monte Carlo efficiency converges to it).  Maps without distance layers have
@@ -19,16 +19,18 @@ no expected detections (None).
 
 from __future__ import annotations
 
+from typing import Sequence
+
 import numpy as np
-from astropy.time import Time
+from astropy.time import Time, TimeDelta
 
 from .depth import ZTF_DEPTH, DepthModel, limiting_magnitude, sky_conditions
 from .kilonova import Kilonova
-from ..plan.document import Plan
+from ..plan.document import Observation, Plan
 from ..sky.footprints import Footprints
 from ..sky.skymap import SkyMap
 
-__all__ = ["reach_mpc", "distance_cdf", "plan_reach", "expected_detections"]
+__all__ = ["reach_mpc", "distance_cdf", "exposure_depths", "plan_reach", "expected_detections"]
 
 
 def reach_mpc(maglim: np.ndarray, absmag: np.ndarray) -> np.ndarray:
@@ -72,22 +74,40 @@ def distance_cdf(skymap: SkyMap, ipix: np.ndarray, r_mpc: np.ndarray) -> np.ndar
     return np.clip(np.nan_to_num(out, nan=0.0), 0.0, 1.0)
 
 
+def exposure_depths(observations: Sequence[Observation], start: Time,
+                    depth: DepthModel = ZTF_DEPTH) -> np.ndarray:
+    """(m,) 5-sigma limiting magnitude (AB) of each exposure's difference image, (D2).
+
+    Taken at mid-exposure for the field centre's airmass, Moon and twilight
+    (:func:`.depth.sky_conditions`); ``start`` is the time the observations'
+    ``start`` seconds count from.  The plan document's ``limiting_mag``,
+    the reach (X2) and the evaluation's injection recovery all come from here.
+    """
+    if not observations:
+        return np.zeros(0)
+    expo = np.array([o.exposure_s for o in observations], dtype=float)
+    mid = np.array([o.start for o in observations], dtype=float) + 0.5 * expo
+    filters = np.array([o.filter for o in observations], dtype=str)
+    times = Time(start) + TimeDelta(mid, format="sec")
+    cond = sky_conditions(np.array([o.ra for o in observations]), np.array([o.dec for o in observations]), times)
+    return limiting_magnitude(filters, expo, cond, depth)
+
+
 def plan_reach(plan: Plan, kilonova: Kilonova, merger_time: Time,
                depth: DepthModel = ZTF_DEPTH) -> np.ndarray:
     """(m,) reach (Mpc) of each planned exposure for a kilonova, (X2).
 
-    The limit is taken at mid-exposure for the field centre's airmass, Moon
-    and twilight; the source's age at mid-exposure since ``merger_time``.
+    The limit is :func:`exposure_depths` (mid-exposure, the field centre's
+    airmass, Moon and twilight); the source's age at mid-exposure since
+    ``merger_time``.
     """
     obs = plan.observations
     if not obs:
         return np.zeros(0)
     expo = np.array([o.exposure_s for o in obs], dtype=float)
-    mid = np.array([o.start for o in obs], dtype=float) + 0.5 * expo
     filters = np.array([o.filter for o in obs], dtype=str)
-    times = plan.absolute_time(mid)
-    cond = sky_conditions(np.array([o.ra for o in obs]), np.array([o.dec for o in obs]), times)
-    m5 = limiting_magnitude(filters, expo, cond, depth)
+    times = plan.absolute_time(np.array([o.start for o in obs], dtype=float) + 0.5 * expo)
+    m5 = exposure_depths(obs, plan.start, depth)
     age = (times - Time(merger_time)).to_value("day")
     absmag = np.empty(len(obs))
     for band in np.unique(filters).tolist():  # loop over bands, not exposures

@@ -15,7 +15,11 @@ if TYPE_CHECKING:
     from ..plan.document import Plan
     from ..sky.footprints import Footprints
 
-__all__ = ["cadence_coverage", "execute_plan_queues", "queue_coverage", "result_coverage_as_executed"]
+__all__ = ["cadence_coverage", "execute_plan_queues", "queue_coverage", "result_coverage_as_executed",
+           "keyed_coverage_as_executed", "execution_key", "AS_EXECUTED_MEMO"]
+
+#: ``ScheduleResult.details`` key of the executed coverages already computed: :func:`execution_key` -> value.
+AS_EXECUTED_MEMO = "coverage_as_executed_memo"
 
 
 def cadence_coverage(executed: Iterable[ExecutedExposure], footprints: "Footprints", prob: np.ndarray,
@@ -62,7 +66,9 @@ def execute_plan_queues(plan: "Plan", queues: Sequence[dict[str, Any]] | None = 
 
     if not plan.observations:
         return ()
-    payloads, sky = timed_queue_set(plan) if queues is None else (queues, None)
+    # on time at the modelled speed the closes are never reached (Q18): the cheaper wide ones give the same run
+    nominal = late_s == 0 and not closures_s and timing == TelescopeTiming()
+    payloads, sky = timed_queue_set(plan, robust=not nominal) if queues is None else (queues, None)
     qs = queue_set_from_payloads(payloads, plan.start, timing)
     start = plan.observations[0].start + late_s
     done = execute_queues(qs, plan.start, start, float((plan.end - plan.start).to_value("s")), timing,
@@ -85,7 +91,25 @@ def queue_coverage(plan: "Plan", footprints: "Footprints", prob: np.ndarray,
     return cadence_coverage(executed, footprints, prob, filters, cadence_s)  # type: ignore[arg-type]
 
 
+def execution_key(problem: Any, observations: Sequence[Any]) -> tuple:
+    """What the executor's run of a plan depends on: start, horizon, cadence, filters and each exposure.
+
+    Two plans with one key have one ``coverage_as_executed`` (the queues are
+    made from these, :func:`~..plan.exports.timed_queue_set`).
+    """
+    config = problem.config
+    return (float(problem.start.mjd), float(config.horizon_s), float(config.cadence_s), tuple(config.filters)[:2],
+            tuple((int(o.field_id), o.filter, float(o.start), float(o.exposure_s), float(o.ra), float(o.dec))
+                  for o in observations))
+
+
 def result_coverage_as_executed(problem: Any, result: Any) -> float:
+    """:func:`keyed_coverage_as_executed`'s value."""
+    return keyed_coverage_as_executed(problem, result)[1]
+
+
+def keyed_coverage_as_executed(problem: Any, result: Any, memo: dict[tuple, float] | None = None
+                               ) -> tuple[tuple | None, float]:
     """A scheduler result's ``coverage_as_executed`` as its published plan will have it (after the least-gain rule).
 
     Parameters
@@ -93,7 +117,16 @@ def result_coverage_as_executed(problem: Any, result: Any) -> float:
     problem : PlanningProblem
         The problem solved (start, horizon, cadence, footprints, probabilities).
     result : ScheduleResult
-        A candidate schedule.
+        A candidate schedule; a value remembered in its ``details``
+        (:data:`AS_EXECUTED_MEMO`) for the same plan is returned as is.
+    memo : dict, optional
+        More remembered values (:func:`execution_key` -> coverage), e.g. of
+        other candidates with the same plan.
+
+    Returns
+    -------
+    (tuple or None, float)
+        The plan's :func:`execution_key` (None for an empty plan) and its executed coverage.
     """
     from astropy.time import TimeDelta
 
@@ -103,11 +136,15 @@ def result_coverage_as_executed(problem: Any, result: Any) -> float:
     config = problem.config
     kept = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain)
     if not kept.observations:
-        return 0.0
+        return None, 0.0
     observations = sorted_observations(kept.observations)
+    key = execution_key(problem, observations)
+    known = {**(result.details or {}).get(AS_EXECUTED_MEMO, {}), **(memo or {})}.get(key)
+    if known is not None:
+        return key, float(known)
     plan = Plan(plan_id="candidate", start=problem.start,
                 end=problem.start + TimeDelta(config.horizon_s, format="sec"), observations=observations,
                 metrics=PlanMetrics(coverage=0.0, solver="", status="", mip_gap=None, runtime_s=0.0, n_fields=0,
                                     n_exposures=len(observations)),
                 event=EventInfo(), config={"cadence_s": config.cadence_s, "filters": list(config.filters)})
-    return queue_coverage(plan, problem.footprints, problem.prob)
+    return key, queue_coverage(plan, problem.footprints, problem.prob)

@@ -20,7 +20,10 @@ are set pass by pass, in plan order, with the executor model itself
   set does not keep the telescope from the next one (the scheduler returns
   to the first open queue in submission order, Q1), and a late telescope
   skips what it can no longer do on time instead of pushing the whole night;
-* (Q13) a pass that cannot open before the plan's end is not exported.
+* (Q13) a pass that cannot open before the plan's end is not exported;
+* (Q16-Q18, :mod:`.late_windows`) given the fields' weights, each close is
+  then the wide one or a tight one, whichever keeps more pairs when the
+  telescope starts late or runs faster or slower than modelled.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import numpy as np
 from astropy.time import Time
 
 from .executor import QueueSet, SkyGrid, execute_queues
+from .late_windows import robust_closes
 from .timing import TelescopeTiming
 
 __all__ = ["time_pass_windows", "CADENCE_MARGIN_S", "PASS_SLACK_S"]
@@ -44,8 +48,8 @@ PASS_SLACK_S = 1800.0
 
 def time_pass_windows(qs: QueueSet, epoch: Time, planned_s: np.ndarray, end_s: float, cadence_s: float,
                       margin_s: float = CADENCE_MARGIN_S, slack_s: float = PASS_SLACK_S,
-                      timing: TelescopeTiming = TelescopeTiming(), sky: SkyGrid | None = None
-                      ) -> tuple[np.ndarray, np.ndarray]:
+                      timing: TelescopeTiming = TelescopeTiming(), sky: SkyGrid | None = None,
+                      weight: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Open and close times (s since ``epoch``) of each pass's queue (Q11-Q13).
 
     Parameters
@@ -65,6 +69,10 @@ def time_pass_windows(qs: QueueSet, epoch: Time, planned_s: np.ndarray, end_s: f
         The telescope model.
     sky : SkyGrid, optional
         Observability grid of ``qs``'s targets (built when missing).
+    weight : numpy.ndarray, optional
+        (n,) each target's field weight: when given, the closes are chosen
+        for a late or off-speed telescope (Q16-Q18); the on-time execution
+        is the same either way.
 
     Returns
     -------
@@ -87,6 +95,8 @@ def time_pass_windows(qs: QueueSet, epoch: Time, planned_s: np.ndarray, end_s: f
         done = _run(qs, epoch, opens, closes, first, min(end_s, open_k + 4 * 3600.0), timing, sky)
         ends = [d.start_s + d.exposure_s for d in done if qs.queue[d.target] == k and d.status == "processed"]
         closes[k] = min(end_s, (max(ends) if ends else open_k) + slack_s)
+    if weight is not None:
+        closes = robust_closes(qs, epoch, opens, closes, weight, end_s, cadence_s, timing, sky)
     return opens, closes
 
 

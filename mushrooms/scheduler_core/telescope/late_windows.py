@@ -1,0 +1,173 @@
+"""Window closes that make a late or slower telescope lose time, not pairs (Q16-Q18, ``docs/design/executed.md``).
+
+The opens of a plan's pass queues (Q11) hold the cadence when the telescope
+starts on time.  When it starts late (another ToO, the weather), the
+scheduler still plays every open queue as soon as it can, in submission
+order (Q1): a late first-filter pass runs on inside its window while its
+second-filter pass, open already, follows it back to back, below the
+cadence; a second-filter pass whose first filter was never taken runs for
+nothing and pushes the passes after it.  Both are decided by the closes.
+
+* (Q16) each pass k has two candidate closes: the wide one of Q12
+  (``slack`` after the model's end of the pass: a late pass is shifted,
+  its partner after it) and the tight one
+  ``last_k + max(0, e_k)``, ``last_k`` the model's start of the pass's
+  last exposure on time, ``e_k = min_j (t2_j - t1_j) - cadence`` the least
+  excess separation of the pass's pairs on time (0 for a pass without
+  pairs): a pass late by more than its pairs' excess is cut.
+* (Q17) the value of a set of closes in a scenario ``s`` is the weight of the
+  fields the executor (Q1-Q10) takes in both filters at least the cadence
+  apart, ``V_s = Σ_f w_f [pair of f valid]``, ``w_f`` the field's
+  probability share in the plan.  Scenarios: the telescope free 15, 30 and
+  60 min late, and on time with every overhead x0.8 and x1.2.
+* (Q18) the closes are chosen pass by pass in plan order, starting from the
+  wide ones: pass k takes its tight close when that raises ``Σ_s V_s``
+  (ties keep the wide one) and leaves the on-time run at the modelled speed
+  exactly as it was (a tight close is never reached before the pass's last
+  exposure starts; it could only drop a target the wide window would take
+  later): the executed plan and ``coverage_as_executed`` are the same with
+  either close.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Sequence
+
+import numpy as np
+from astropy.time import Time
+
+from .executor import ExecutedTarget, QueueSet, SkyGrid, execute_queues
+from .timing import TelescopeTiming
+
+__all__ = ["robust_closes", "pair_value", "LATE_SCENARIOS_S", "SPEED_SCENARIOS"]
+
+#: Late starts (s) the closes are chosen for (Q17).
+LATE_SCENARIOS_S = (900.0, 1800.0, 3600.0)
+#: Overhead factors (slower > 1, faster < 1) of an on-time telescope the closes are chosen for (Q17).
+SPEED_SCENARIOS = (0.8, 1.2)
+
+
+def pair_value(qs: QueueSet, done: Sequence[ExecutedTarget], weight: np.ndarray, cadence_s: float) -> float:
+    """(Q17) the weight of the fields taken in two filters at least ``cadence_s`` apart.
+
+    Parameters
+    ----------
+    qs : QueueSet
+        The queues run.
+    done : sequence of ExecutedTarget
+        The executor's exposures (only ``processed`` ones count).
+    weight : numpy.ndarray
+        (n,) each target's field weight (e.g. its probability share).
+    cadence_s : float
+        Least separation (s) of a field's two filters.
+    """
+    seen: dict[int, list[tuple[int, float]]] = {}
+    for d in done:
+        if d.status == "processed":
+            seen.setdefault(int(qs.field_id[d.target]), []).append((int(qs.filter_id[d.target]), d.start_s))
+    value = 0.0
+    for field, visits in seen.items():
+        if any(b1 != b2 and abs(t2 - t1) >= cadence_s for b1, t1 in visits for b2, t2 in visits):
+            value += float(weight[qs.field_id == field].max())
+    return value
+
+
+def robust_closes(qs: QueueSet, epoch: Time, opens: np.ndarray, closes: np.ndarray, weight: np.ndarray,
+                  end_s: float, cadence_s: float, timing: TelescopeTiming = TelescopeTiming(),
+                  sky: SkyGrid | None = None, lates_s: Sequence[float] = LATE_SCENARIOS_S,
+                  speeds: Sequence[float] = SPEED_SCENARIOS) -> np.ndarray:
+    """(Q16-Q18) the closes of the pass queues, each wide or tight, whichever keeps more pairs late or off-speed.
+
+    Parameters
+    ----------
+    qs : QueueSet
+        One queue per pass, in submission order.
+    epoch : astropy.time.Time
+        Time zero.
+    opens, closes : numpy.ndarray
+        (K,) the opens (Q11; ``inf`` for a pass not exported) and wide closes (Q12), s since ``epoch``.
+    weight : numpy.ndarray
+        (n,) each target's field weight.
+    end_s, cadence_s : float
+        The plan's end and the cadence (s).
+    timing : TelescopeTiming
+        The telescope as modelled.
+    sky : SkyGrid, optional
+        Observability of ``qs``'s targets (built when missing).
+    lates_s, speeds : sequence of float
+        The scenarios (Q17).
+
+    Returns
+    -------
+    numpy.ndarray
+        (K,) the chosen closes.
+    """
+    exported = np.isfinite(opens)
+    if not exported.any():
+        return closes.copy()
+    first = float(opens[exported].min())
+    if sky is None:
+        sky = SkyGrid(qs, epoch, first, end_s, 60.0, timing)
+    base = _play(qs, epoch, opens, closes, first, end_s, timing, sky)
+    on_time = {d.target: d.start_s for d in base if d.status == "processed"}
+    scenarios = [(first + late, timing) for late in lates_s] + [(first, timing.scaled(f)) for f in speeds]
+
+    def runs(trial: np.ndarray) -> list[tuple[ExecutedTarget, ...]]:
+        return [_play(qs, epoch, opens, trial, start, end_s, t, sky) for start, t in scenarios]
+
+    def score(played: list[tuple[ExecutedTarget, ...]]) -> float:
+        return sum(pair_value(qs, run, weight, cadence_s) for run in played)
+
+    chosen = closes.copy()
+    played = runs(chosen)
+    best = score(played)
+    for k in np.flatnonzero(exported):
+        tight = _tight_close(qs, k, on_time, cadence_s)
+        if tight is None or not tight < chosen[k]:
+            continue
+        if all(_untouched(qs, k, run, tight, chosen[k], start) for run, (start, _) in zip(played, scenarios)):
+            continue  # the tight close would change none of the runs: a tie, the wide one stays
+        trial = chosen.copy()
+        trial[k] = tight
+        if not _untouched(qs, k, base, tight, chosen[k], first) and \
+                _play(qs, epoch, opens, trial, first, end_s, timing, sky) != base:
+            continue  # (Q18) the on-time run must stay the same (a target left over for later, say)
+        trial_played = runs(trial)
+        value = score(trial_played)
+        if value > best + 1e-12:
+            best, chosen, played = value, trial, trial_played
+    return chosen
+
+
+def _untouched(qs: QueueSet, k: int, run: Sequence[ExecutedTarget], tight: float, wide: float,
+               start_s: float) -> bool:
+    """True when closing pass ``k`` at ``tight`` instead of ``wide`` cannot change ``run`` (started at ``start_s``).
+
+    Either the wide window had closed before the run began, or every target of the pass was taken with its
+    exposure starting by ``tight`` (each choice of the pass came no later, and then the pass was empty).
+    """
+    if wide < start_s:
+        return True
+    taken = {d.target: d.start_s for d in run if d.status == "processed"}
+    return all(int(j) in taken and taken[int(j)] <= tight for j in np.flatnonzero(qs.queue == k))
+
+
+def _tight_close(qs: QueueSet, k: int, on_time: dict[int, float], cadence_s: float) -> float | None:
+    """(Q16) ``last_k + max(0, e_k)``: the start of the pass's last exposure on time plus its pairs' least excess."""
+    rows = [int(j) for j in np.flatnonzero(qs.queue == k) if j in on_time]
+    if not rows:
+        return None
+    excess = math.inf
+    for j in rows:
+        other = np.flatnonzero((qs.field_id == qs.field_id[j]) & (qs.filter_id != qs.filter_id[j]))
+        for p in other:
+            if int(p) in on_time:
+                excess = min(excess, abs(on_time[int(p)] - on_time[j]) - cadence_s)
+    return max(on_time[j] for j in rows) + (max(0.0, excess) if math.isfinite(excess) else 0.0)
+
+
+def _play(qs, epoch, opens, closes, start_s, end_s, timing, sky):
+    trial = replace(qs, window_start_s=opens.copy(), window_end_s=np.where(np.isfinite(opens), closes, -math.inf))
+    return execute_queues(trial, epoch, start_s, end_s, timing, sky=sky)
