@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import argparse
 import base64
-import io
 import json
 import os
 import re
@@ -64,6 +63,8 @@ import psutil
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests" / "daemon"))
 from daemon_helpers import BIG, Broker, Daemon  # noqa: E402
+
+from mushrooms.tool.live_notice import retime_skymap  # noqa: E402  (DATE-OBS / MJD-OBS moved to the merger)
 
 SHARED = Path("/work/shared/data")
 TEMPLATES = [SHARED / "notices/json/MS181101ab-preliminary.json"] + sorted(
@@ -109,28 +110,6 @@ def new_sid(tag: str, i: int) -> str:
     """A fresh mock superevent id of today, e.g. ``MS261201qab`` (letters only after the date)."""
     a = "abcdefghijklmnopqrstuvwxyz"
     return f"MS{datetime.now(timezone.utc):%y%m%d}{tag}{a[i // 26 % 26]}{a[i % 26]}"
-
-
-def retime_skymap(b64: str, merger: datetime) -> str:
-    """The base64 FITS sky map with its DATE-OBS / MJD-OBS moved to ``merger`` (the notice's event time).
-
-    A real notice's map carries the merger time of its notice; the daemon
-    reads the kilonova's clock (expected detections, the detection objective)
-    from the map, so a live-time copy must move it too.
-    """
-    from astropy.io import fits
-    from astropy.time import Time
-
-    t = Time(merger.replace(tzinfo=None), scale="utc")
-    with fits.open(io.BytesIO(base64.b64decode(b64))) as hdus:
-        for hdu in hdus:
-            if "DATE-OBS" in hdu.header:
-                hdu.header["DATE-OBS"] = t.isot
-            if "MJD-OBS" in hdu.header:
-                hdu.header["MJD-OBS"] = t.mjd
-        out = io.BytesIO()
-        hdus.writeto(out)
-    return base64.b64encode(out.getvalue()).decode()
 
 
 def stamp(doc: dict[str, Any], sid: str) -> bytes:
@@ -447,10 +426,10 @@ def burst(broker: Broker, work: Path, n: int, report: list[str], final_wait_s: f
 
 
 BROKER_PROC = r"""
-import confluent_kafka, sys, time
-p = confluent_kafka.Producer({"test.mock.num.brokers": 1, "message.max.bytes": 16000000, "log_level": 3})
-b = next(iter(p.list_topics(timeout=10).brokers.values()))
-print(f"{b.host}:{b.port}", flush=True)
+import time
+from mushrooms.tool.loopback_broker import LoopbackBroker
+b = LoopbackBroker()
+print(b.bootstrap, flush=True)
 while True:
     time.sleep(1)
 """

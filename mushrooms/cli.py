@@ -1,4 +1,5 @@
-"""Command line: ``mushrooms demo | plan | check | replay | run | trigger | status | bench | study | submit | queue``.
+"""Command line: ``mushrooms demo | plan | check | replay | run | rehearse | trigger | status | bench | study | submit
+| queue``.
 
 A thin dispatcher: each subcommand is a module of :mod:`mushrooms.tool`
 with its parser beside its implementation; :data:`TOOLS` is the registry.
@@ -14,14 +15,15 @@ from types import ModuleType
 from typing import Sequence
 
 from . import __version__
-from .tool import bench, check, demo, plan, queue, replay, run, status, study, submit, trigger
+from .tool import bench, check, demo, plan, queue, rehearse, replay, run, status, study, submit, trigger
 from .tool.common import EXIT_INPUT, SOLVER_CHOICES, execute
 
 __all__ = ["main", "build_parser", "TOOLS", "SOLVER_CHOICES"]
 
 #: subcommand -> tool module (``HELP``, ``parser(p)``, ``run(args)``), in ``--help`` order.
 TOOLS: dict[str, ModuleType] = {
-    "demo": demo, "plan": plan, "check": check, "replay": replay, "run": run, "trigger": trigger, "status": status,
+    "demo": demo, "plan": plan, "check": check, "replay": replay, "run": run, "rehearse": rehearse, "trigger": trigger,
+    "status": status,
     "bench": bench, "study": study, "submit": submit, "queue": queue,
 }
 

@@ -4,8 +4,9 @@ each exposure is taken.
 Night (Sun below the plan's ``sun_alt_max_deg``) and twilight (Sun below the
 horizon) are shaded; a field's curve is thin and grey, its exposures are
 drawn on it in their filter's colour, and its id is written at its first
-exposure.  Exposures already executed (a re-plan) are drawn as hollow
-markers.  The Moon's altitude is given as an airmass curve while it is up.
+exposure.  Exposures already executed inside the plan's horizon are drawn
+as hollow markers (a re-plan's earlier ones are on the sky panels only).
+The Moon's altitude is given as an airmass curve while it is up.
 """
 
 from __future__ import annotations
@@ -99,7 +100,7 @@ def draw_airmass(ax: Any, plan: Any, grid: dict[str, Any], executed: Sequence[An
             o = first[f]
             ax.annotate(str(f), (o.start / 3600.0, o.airmass or 1.0), xytext=(0, -9), textcoords="offset points",
                         fontsize=6.5, ha="center", va="top", color="#222", zorder=4)
-    _draw_executed(ax, plan, executed)
+    shown = _draw_executed(ax, plan, executed)
     moon = _airmass(grid["moon_alt"])
     ax.plot(hours, moon, color="#c9a400", lw=1.6, ls=(0, (4, 2)), zorder=2)
     ax.set_ylim(AIRMASS_TOP, 1.0)
@@ -110,32 +111,47 @@ def draw_airmass(ax: Any, plan: Any, grid: dict[str, Any], executed: Sequence[An
                       label=f"Moon ({grid['moon_illumination']:.0%} lit)")]
     handles += [Line2D([], [], color=FILTER_COLOURS.get(f, "k"), lw=3.5, label=f"{f} exposure")
                 for f in dict.fromkeys(o.filter for o in obs)]
-    if executed:
+    if shown:
         handles.append(Line2D([], [], color="k", marker="o", mfc="none", ls="none", label="executed before"))
     ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles), fontsize=8,
               frameon=False)
 
 
+def _dark_span(hours: np.ndarray, dark: np.ndarray, busy: Sequence[float]) -> tuple[float, float]:
+    """Hours of the dark stretches (Sun below the horizon) holding an exposure (the longest without any)."""
+    edges = np.flatnonzero(np.diff(np.r_[0, dark.astype(int), 0]))
+    runs = [(float(hours[a]), float(hours[b - 1])) for a, b in zip(edges[::2], edges[1::2])]
+    kept = [r for r in runs if any(r[0] - 0.25 <= h <= r[1] + 0.25 for h in busy)]
+    if not kept and runs:
+        kept = [max(runs, key=lambda r: r[1] - r[0])]
+    ends = [h for r in kept for h in r] + list(busy)
+    return (min(ends), max(ends)) if ends else (0.0, float(hours[-1]))
+
+
 def _night_axis(ax: Any, plan: Any, hours: np.ndarray, sun_alt: np.ndarray) -> None:
-    """The x axis on the dark hours (Sun below the horizon) and every exposure, in UTC clock time."""
+    """The x axis on the night of the exposures (its dark hours, Sun below the horizon), ticks on the UTC hours."""
     from astropy import units as u
 
-    dark = hours[sun_alt < 0]
-    ends = [o.end / 3600.0 for o in plan.observations] + [o.start / 3600.0 for o in plan.observations]
-    lo = min([float(dark.min())] if dark.size else [] + ends or [0.0]) - 0.5
-    hi = max([float(dark.max())] if dark.size else [] + ends or [float(hours[-1])]) + 0.5
-    lo, hi = max(lo, 0.0), min(hi, float(hours[-1]))
+    busy = [o.start / 3600.0 for o in plan.observations] + [o.end / 3600.0 for o in plan.observations]
+    lo, hi = _dark_span(hours, sun_alt < 0, busy)
+    lo, hi = max(lo - 0.5, 0.0), min(hi + 0.5, float(hours[-1]))
     ax.set_xlim(lo, hi)
-    ticks = np.arange(np.ceil(lo), hi + 1e-9, 1.0)
+    past = (plan.start.utc.datetime.minute * 60 + plan.start.utc.datetime.second) / 3600.0  # into its UTC hour
+    first = np.ceil(lo + past) - past
+    ticks = np.arange(first, hi + 1e-9, 1.0 if hi - lo <= 14 else 2.0)
     ax.set_xticks(ticks, [(plan.start + t * u.hour).utc.isot[11:16] for t in ticks], fontsize=8)
     ax.set_xlabel("UTC", fontsize=8, labelpad=1)
 
 
-def _draw_executed(ax: Any, plan: Any, executed: Sequence[Any]) -> None:
-    """Executed exposures inside the horizon, hollow, at their airmass (computed here)."""
-    inside = [e for e in executed if -3600.0 <= float((e.start - plan.start).to_value("s")) <= 86400.0]
+def _draw_executed(ax: Any, plan: Any, executed: Sequence[Any]) -> int:
+    """Executed exposures inside the horizon, hollow, at their airmass (computed here); how many were drawn.
+
+    Those before the plan's start (a re-plan starts after them) are on the sky panels only.
+    """
+    span = float((plan.end - plan.start).to_value("s"))
+    inside = [e for e in executed if 0.0 <= float((e.start - plan.start).to_value("s")) <= span]
     if not inside:
-        return
+        return 0
     from astropy import units as u
     from astropy.coordinates import AltAz, SkyCoord
 
@@ -153,3 +169,4 @@ def _draw_executed(ax: Any, plan: Any, executed: Sequence[Any]) -> None:
     hours = (t - plan.start).to_value("hour")
     for h, x, e in zip(hours, _airmass(alt), inside):
         ax.plot([h], [x], marker="o", ms=5, mfc="none", mec=FILTER_COLOURS.get(e.filter, "k"), mew=1.2, zorder=3)
+    return len(inside)

@@ -68,7 +68,9 @@ def test_the_replan_starts_after_the_start_repeats_no_done_pair_and_passes_the_c
             assert min(plan.absolute_time(o.start).unix for o in other) >= visits.earliest.unix + config.cadence_s - 1e-3
     m = doc["metrics"]
     assert m["coverage_executed"] > 0 and 0 < m["coverage"] and m["coverage"] + m["coverage_executed"] <= 1
-    assert "adds coverage" in r.stdout and "checked" in r.stdout
+    # the summary says what was done, what this plan adds and the total, in words
+    assert "Done       " in r.stdout and "Added      this plan adds" in r.stdout and "Total      " in r.stdout
+    assert " done (total " in r.stdout and "half-done fields completed" in r.stdout and "checked" in r.stdout
     queue = json.loads((out / "queue.json").read_text())
     queues = queue if isinstance(queue, list) else [queue]  # the set of timed queues, in submission order
     assert sum(len(q["targets"]) for q in queues) == len(doc["observations"])
@@ -153,7 +155,7 @@ def test_a_grg_replan_from_the_command_line_gives_each_field_done_in_g_and_r_its
                   "--start", start.isot + "Z", "-o", str(tmp_path / "replan.json"), "--queue", str(tmp_path / "q.json"))
     assert r.returncode == 0, r.stderr
     fields = {o["field_id"] for o in done}
-    assert f"{len(fields)} of {len(fields)} half-done completed" in r.stdout
+    assert f"{len(fields)} of {len(fields)} half-done fields completed" in r.stdout
     replan = json.loads((tmp_path / "replan.json").read_text())
     r_at = {o["field_id"]: Time(o["start"]) for o in done if o["filter"] == "r"}
     for fid in fields:

@@ -13,12 +13,12 @@ import logging
 import queue
 import threading
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Iterable, Mapping
 
 from .page import summary_html
 from .summary import summary_text
 
-__all__ = ["write_summaries", "summary_paths", "SummarisingSink", "SUMMARISED_TYPES"]
+__all__ = ["write_summaries", "summary_paths", "SummarisingSink", "SUMMARISED_TYPES", "revision_in_force"]
 
 log = logging.getLogger("mushrooms.report")
 
@@ -41,6 +41,20 @@ def write_summaries(doc: Mapping[str, Any], json_path: str | Path, picture_png: 
     write_bytes_atomic(txt, (text if text is not None else summary_text(doc)).encode())
     write_bytes_atomic(page, summary_html(doc, picture_png).encode())
     return txt, page
+
+
+def revision_in_force(documents: Iterable[Mapping[str, Any]]) -> dict[str, Any] | None:
+    """Of an event's published documents, the plan in force: its highest revision, marked final when a
+    ``plan_final`` verdict names it (the verdict makes the revision final; its document still says
+    ``final: false``).  None without a plan."""
+    docs = list(documents)
+    plans = [d for d in docs if d.get("type") == "plan"]
+    if not plans:
+        return None
+    doc = dict(max(plans, key=lambda d: d.get("revision") or 1))
+    if any(d.get("type") == "plan_final" and d.get("plan_id") == doc.get("plan_id") for d in docs):
+        doc["final"] = True
+    return doc
 
 
 def _picture(doc: Mapping[str, Any]) -> bytes | None:

@@ -40,7 +40,8 @@ def _stats(facts: PlanFacts, now: dt.datetime) -> list[tuple[str, str]]:
         rows += [("First exposure", f"{facts.first:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.first)} at Palomar), "
                                     f"{starts_in(facts.first, now)}"),
                  ("Last exposure ends", f"{facts.last_end:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.last_end)})"),
-                 ("Exposures", f"{facts.n_exposures} of {facts.n_fields} fields in {' and '.join(facts.filters)}"),
+                 ("Exposures", f"{facts.n_exposures} exposures of {facts.n_fields} fields in "
+                               f"{' and '.join(facts.filters)}"),
                  ("Open shutter", duration_words(facts.open_shutter_s)),
                  ("Overheads", f"{duration_words(facts.overhead_s)} (slews, readouts, filter changes, cadence "
                                f"waits); {duration_words(facts.waiting_s)} between blocks")]

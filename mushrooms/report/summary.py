@@ -174,5 +174,7 @@ def answer_line(doc: Mapping[str, Any]) -> str:
         f" (no plan can cover more than {percent(float(facts.upper_bound) + float(facts.coverage_executed or 0))})"
     detect = "" if facts.expected_detections is None else \
         f"; kilonova detection chance {percent(facts.expected_detections)}"
+    days = (facts.last_end.date() - facts.first.date()).days
+    later = "" if days <= 0 else " the next day" if days == 1 else f" {days} days later"
     return (f"{facts.n_fields} fields in {filters}, {facts.n_exposures} exposures from {facts.first:%H:%M} to "
-            f"{facts.last_end:%H:%M} UTC, {covered}{bound}{detect}")
+            f"{facts.last_end:%H:%M} UTC{later}, {covered}{bound}{detect}")

@@ -54,13 +54,12 @@ def run(args: argparse.Namespace) -> int:
     report = replay_notices([notice], out / "outbox", config, state=out / "state.sqlite", on_outcome=print_outcome)
     print_summary(report, "demo")
     code = report.status
-    plans = sorted((out / "outbox").glob("*.json"))
-    docs = [json.loads(p.read_text()) for p in plans]
-    docs = [d for d in docs if d.get("type") == "plan"]
-    if not docs:
+    from ..report.files import revision_in_force
+
+    doc = revision_in_force(json.loads(p.read_text()) for p in sorted((out / "outbox").glob("*.json")))
+    if doc is None:
         print(f"demo: no plan was produced (replay exit status {code}); see the log above")
         return 1
-    doc = max(docs, key=lambda d: d.get("revision", 1))  # the optimised revision when one was published
     plan = Plan.from_document(doc)
     payload = json.loads(Path(notice).read_text())["event"]["skymap"]
     skymap = read_skymap(base64.b64decode(payload), nside=config.scheduler.nside)

@@ -157,7 +157,8 @@ def run(args: argparse.Namespace) -> int:
              skymap.credible_area(0.9), skymap.event_time.isot if skymap.event_time else "unknown")
     if executed_spec is not None or cfg.nights > 1:
         with progress:
-            return _replan(args, config, skymap, start, executed_spec, 0.5 if fraction is None else fraction, t0)
+            return _replan(args, config, skymap, start, executed_spec, 0.5 if fraction is None else fraction, t0,
+                           progress)
     if start is not None:
         warn_if_far_from_merger(start, skymap.event_time)
     if deadline is None:
@@ -224,15 +225,17 @@ def _write_summary(args: argparse.Namespace, doc: dict[str, Any], plan: Any, sky
     return picture
 
 
-def _print_answer(args: argparse.Namespace, output: str, doc: dict[str, Any], seconds: float) -> None:
-    """The text summary (unless ``--brief``), then the one-line answer in words."""
+def _print_answer(args: argparse.Namespace, output: str, doc: dict[str, Any], seconds: float,
+                  what: str = "") -> None:
+    """The text summary (unless ``--brief``), then the one-line answer in words (``what``: the night, the window)."""
     from ..report.files import summary_paths
     from ..report.summary import answer_line, summary_text
 
     if not getattr(args, "brief", False):
         print(summary_text(doc, rows=False))
     txt, page = summary_paths(output)
-    print(f"{output}: {answer_line(doc)}; checked, {seconds:.1f} s (summary {txt}, page {page})")
+    print(f"{output}: {what + ': ' if what else ''}{answer_line(doc)}; checked, {seconds:.1f} s "
+          f"(summary {txt}, page {page})")
 
 
 def _plan_by_deadline(skymap: Any, cfg: Any, start: Any, solver: str, deadline_s: float,
@@ -328,14 +331,32 @@ def night_path(path: str, night: int) -> str:
     return str(p.with_name(f"{p.stem}.night{night}{p.suffix}"))
 
 
-def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec: str | None, fraction: float,
-            t0: float) -> int:
-    """``--executed`` and/or ``[scheduler] nights > 1``: plan what is left, night by night; write each night's files."""
-    from ..outputs import write_json_atomic
+def _write_night(args: argparse.Namespace, config: Any, skymap: Any, plan: Any, n: int, what: str,
+                 t0: float) -> None:
+    """One night's files of a re-plan (the plan, its summaries, queue, payload and picture), then its summary."""
+    from ..outputs import write_bytes_atomic, write_json_atomic
     from ..scheduler_core import to_skyportal
+    from ..scheduler_core.plan.messages import revision_document
+
+    output = night_path(args.output, n)
+    doc = revision_document(plan, 1, True)
+    write_json_atomic(output, doc)
+    picture = _write_summary(argparse.Namespace(**{**vars(args), "output": output}), doc, plan, skymap)
+    if args.queue:
+        write_json_atomic(night_path(args.queue, n), submitted_queues(plan, config.export))
+    if getattr(args, "skyportal", None):
+        write_json_atomic(night_path(args.skyportal, n), to_skyportal(plan, config.export))
+    if args.plot and picture is not None:
+        write_bytes_atomic(night_path(args.plot, n), picture)
+    _print_answer(argparse.Namespace(**{**vars(args), "output": output}), output, doc,
+                  time.perf_counter() - t0, what)
+
+
+def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec: str | None, fraction: float,
+            t0: float, progress: Any = None) -> int:
+    """``--executed`` and/or ``[scheduler] nights > 1``: plan what is left, night by night; write each night's files."""
     from ..scheduler_core.sequences import done_covering
     from ..scheduler_core.nights import plan_nights
-    from ..scheduler_core.plan.messages import revision_document
     from ..scheduler_core.replan import plan_remaining
     from ..scheduler_core.errors import InputError
 
@@ -359,29 +380,16 @@ def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec
     else:
         plans = (plan_remaining(skymap, cfg, start, executed, min_processed_fraction=fraction, solver=args.solver),)
     args.executed_exposures = executed  # drawn apart in the picture
+    if progress is not None:
+        progress.done()  # the summaries are printed after the stage lines
     for n, plan in enumerate(plans, 1):
-        output = night_path(args.output, n)
-        doc = revision_document(plan, 1, True)
-        write_json_atomic(output, doc)
-        _write_summary(argparse.Namespace(**{**vars(args), "output": output, "plot": None}), doc, plan, skymap)
-        if args.queue:
-            write_json_atomic(night_path(args.queue, n), submitted_queues(plan, config.export))
-        if getattr(args, "skyportal", None):
-            write_json_atomic(night_path(args.skyportal, n), to_skyportal(plan, config.export))
-        if args.plot:
-            from ..plotting import plot_plan
-
-            plot_plan(plan, skymap, night_path(args.plot, n), executed=executed)
-        m = plan.metrics
         night = f"night {n} of {len(plans)}, " if len(plans) > 1 else ""
         # a pair's half-done fields are those done in one filter; a sequence's, the covered ones (F3)
         half_done = set(pairs.one) if len(cfg.filters) == 2 else set(pairs.both)
         completed = len({o.field_id for o in plan.observations} & half_done)
-        half = f", {completed} of {len(half_done)} half-done completed" if n == 1 and spec is not None else ""
-        print(f"{output}: {night}{plan.start.isot[:19]}Z to {plan.end.isot[:19]}Z, {m.n_fields} fields, "
-              f"{m.n_exposures} exposures, adds coverage {m.coverage:.4f} to the {m.coverage_executed:.4f} done "
-              f"before (total {m.coverage + m.coverage_executed:.4f}){half}; {m.solver} ({m.status}), checked, "
-              f"{time.perf_counter() - t0:.1f} s")
+        half = f", {completed} of {len(half_done)} half-done fields completed" if n == 1 and spec is not None else ""
+        _write_night(args, config, skymap, plan, n, f"{night}{plan.start.isot[:16]}Z to {plan.end.isot[:16]}Z{half}",
+                     t0)
     return 0
 
 

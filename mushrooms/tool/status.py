@@ -107,7 +107,7 @@ def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_
     jobs = {r[0]: r[1] for r in conn.execute("SELECT status, COUNT(*) FROM jobs GROUP BY status")}
     return {
         "now": now.isoformat(timespec="seconds"),
-        "events": recent_events(conn, limit),
+        "events": _with_current_plans(conn, recent_events(conn, limit), now),
         "jobs": jobs,
         "outbox": {"pending": pending, "oldest_age_s": oldest, "last_error": error},
         "offset_jumps": incidents(conn, "offset_jump", limit=limit),
@@ -117,6 +117,22 @@ def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_
                             and i["detail"].get("superevent_id")],
         "attention": attention(conn, now, outbox_minutes * 60.0, window_hours * 3600.0),
     }
+
+
+def _with_current_plans(conn: sqlite3.Connection, events: list[dict[str, Any]], now: datetime) -> list[dict[str, Any]]:
+    """Each event with ``current``: its revision in force in words (``plan_id``, ``answer``), and the newest
+    event's with its text ``summary`` too (the one-row-per-exposure table is in the outbox's ``.txt``)."""
+    from ..report.summary import answer_line, summary_text
+    from .state_plans import current_document
+
+    for k, ev in enumerate(events):
+        doc = None if ev.get("retracted") else current_document(conn, ev["superevent_id"])
+        if doc is None:
+            continue
+        ev["current"] = {"plan_id": doc.get("plan_id"), "answer": answer_line(doc)}
+        if k == 0:
+            ev["current"]["summary"] = summary_text(doc, now=now, rows=False)
+    return events
 
 
 def _num(x: Any, fmt: str = ".4f") -> str:
@@ -152,6 +168,11 @@ def render(doc: dict[str, Any]) -> str:
                        f"{_num(p['expected_detections'])}, {'published' if p['published'] else 'PENDING'}"
                        + (", withdrawn" if p["withdrawn"] else "")
                        + (f", submission {sub.get('state') or '?'}" if sub else ""))
+        current = ev.get("current")
+        if current:
+            out.append(f"  in force: {current['plan_id']}: {current['answer']}")
+            if current.get("summary"):
+                out.extend(f"    {line}" for line in current["summary"].rstrip("\n").splitlines())
     out.append("")
     if doc["attention"]:
         out.append(f"NEEDS ATTENTION ({len(doc['attention'])}):")

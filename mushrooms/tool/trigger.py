@@ -13,7 +13,7 @@ from typing import Sequence
 
 from .common import add_common_options, execute, tool_parser
 
-__all__ = ["HELP", "parser", "run", "main", "PrintConsole"]
+__all__ = ["HELP", "parser", "run", "main", "PrintConsole", "print_summaries"]
 
 HELP = "hand a notice, sky map or superevent to the daemon"
 
@@ -68,8 +68,23 @@ def run(args: argparse.Namespace) -> int:
         kind, payload = "closure", closure_payload(payload.decode(), iso_utc(parse_time(closed_until,
                                                                                           "--closed-until")))
     config = effective_config(args)
-    return run_trigger(args.target, kind, payload, config, resolve_paths(config.daemon),
-                       force=bool(getattr(args, "force", False)), console=PrintConsole())
+    paths = resolve_paths(config.daemon)
+    from .state_plans import documents_since, last_seq, read_state
+
+    before = read_state(paths.state, last_seq, 0)
+    status = run_trigger(args.target, kind, payload, config, paths, force=bool(getattr(args, "force", False)),
+                         console=PrintConsole())
+    print_summaries(read_state(paths.state, lambda conn: documents_since(conn, before), []))
+    return status
+
+
+def print_summaries(docs: Sequence[dict]) -> None:
+    """The text summary of the newest revision the trigger produced (its rows in the outbox's ``.txt``)."""
+    from ..report.summary import summary_text
+
+    if docs:
+        print()
+        print(summary_text(docs[-1], rows=False), end="", flush=True)
 
 
 class PrintConsole:

@@ -82,18 +82,17 @@ def test_an_unreachable_broker_is_reported_once_not_twenty_times_a_second(caplog
 
 def test_a_reachable_broker_is_reported_up() -> None:
     from mushrooms.daemon.kafka.consumer import NoticeConsumer
+    from mushrooms.tool.loopback_broker import LoopbackBroker
 
-    owner = confluent_kafka.Producer({"test.mock.num.brokers": 1, "log_level": 3})
-    b = next(iter(owner.list_topics(timeout=10).brokers.values()))
-    c = NoticeConsumer(KafkaConfig(bootstrap=f"{b.host}:{b.port}", topics=("t",), group_id="g", assignment="group"))
-    try:
-        end = time.monotonic() + 30
-        while c.health.up is not True and time.monotonic() < end:
-            c.poll(0.2)
-        assert c.health.describe() == "up" and c.health.status_text() == "broker: up"
-    finally:
-        c.close()
-        owner.flush(1)
+    with LoopbackBroker() as broker:
+        c = NoticeConsumer(KafkaConfig(bootstrap=broker.bootstrap, topics=("t",), group_id="g", assignment="group"))
+        try:
+            end = time.monotonic() + 30
+            while c.health.up is not True and time.monotonic() < end:
+                c.poll(0.2)
+            assert c.health.describe() == "up" and c.health.status_text() == "broker: up"
+        finally:
+            c.close()
 
 
 def test_health_follows_librdkafka_errors() -> None:

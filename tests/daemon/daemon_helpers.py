@@ -19,10 +19,12 @@ from typing import Any, Callable, Iterator
 import confluent_kafka
 import pytest
 
+from mushrooms.tool.loopback_broker import MAX_MESSAGE_BYTES, LoopbackBroker
+
 REPO = Path(__file__).resolve().parents[2]
 SHARED_NOTICES = Path("/work/shared/data/notices")
 DATA = Path(__file__).resolve().parent / "data"
-BIG = 16_000_000
+BIG = MAX_MESSAGE_BYTES
 
 
 def notice_path(name: str) -> Path:
@@ -113,33 +115,12 @@ def final_numbers(messages: list[dict[str, Any]], superevent_id: str) -> dict[st
     return out
 
 
-class Broker:
-    """The mock cluster and a producer bound to it."""
+class Broker(LoopbackBroker):
+    """The mock cluster and a producer bound to it: the library's loopback broker (what ``mushrooms rehearse``
+    starts), with the tests' readers and offset checks."""
 
     def __init__(self) -> None:
-        self._owner = confluent_kafka.Producer({
-            "test.mock.num.brokers": 1,
-            "message.max.bytes": BIG,
-            "log_level": 3,
-        })
-        md = self._owner.list_topics(timeout=10)
-        b = next(iter(md.brokers.values()))
-        self.bootstrap = f"{b.host}:{b.port}"
-        self.producer = confluent_kafka.Producer({
-            "bootstrap.servers": self.bootstrap, "message.max.bytes": BIG, "linger.ms": 0, "log_level": 3,
-        })
-
-    def produce(self, topic: str, value: bytes, key: bytes | None = None) -> tuple[int, int]:
-        """Produce and wait for the acknowledgement; returns (partition, offset)."""
-        where: list[tuple[int, int]] = []
-
-        def done(err: Any, msg: Any) -> None:
-            assert err is None, err
-            where.append((msg.partition(), msg.offset()))
-
-        self.producer.produce(topic, value=value, key=key, on_delivery=done)
-        assert self.producer.flush(30) == 0, "the mock broker did not take the message"
-        return where[0]
+        super().__init__(timeout_s=30.0)
 
     def committed(self, topic: str, group: str) -> dict[int, tuple[int, int]]:
         """partition -> (committed offset of ``group``, high watermark)."""
@@ -150,15 +131,6 @@ class Broker:
             return {tp.partition: (tp.offset, c.get_watermark_offsets(tp, timeout=10)[1]) for tp in tps}
         finally:
             c.close()
-
-    def ensure_topic(self, topic: str) -> None:
-        """Create the topic (auto-creation through a metadata request)."""
-        for _ in range(50):
-            t = self.producer.list_topics(topic, timeout=10).topics.get(topic)
-            if t is not None and t.error is None and t.partitions:
-                return
-            time.sleep(0.1)
-        raise AssertionError(f"topic {topic} not created")
 
     def fresh_topics(self) -> tuple[str, str, str]:
         """New (input topic, outbound topic, consumer group) names, both topics created."""
