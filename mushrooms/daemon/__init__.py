@@ -19,8 +19,11 @@ Rooms (each a subpackage; modules imported lazily by the CLI):
 ``ops``         metrics, health, systemd notify, the webhook
 
 At the top, what ties them: ``service`` (``mushrooms run``: lifecycle and stop
-order), ``settings`` (``[daemon]``, ``[kafka]``, ``[outbound]``, runtime
-paths), ``sections`` (``ServiceConfig``, a Protocol), ``wiring`` (store, sink
-and pipeline for ``service`` and ``trigger``), ``sinks`` (the directory sink),
+order) with what it hands off, ``signals`` (the flags the handlers set),
+``timers`` (heartbeat, watchdog, re-warm, pruning, the loop's polls),
+``reload`` (SIGHUP) and ``drain`` (a back-off thread per outbound queue);
+``settings`` (``[daemon]``, ``[kafka]``, ``[outbound]``, runtime paths),
+``sections`` (``ServiceConfig``, a Protocol), ``wiring`` (store, sink and
+pipeline for ``service`` and ``trigger``), ``sinks`` (the directory sink),
 ``credentials`` (secrets from the environment or systemd credentials).
 """

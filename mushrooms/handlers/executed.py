@@ -178,6 +178,24 @@ def _depot_rows(doc: Any, what: str) -> list[Any]:
     raise InputError(f"{what}: a JSON {type(doc).__name__}, not a list of quadrant rows")
 
 
+def _depot_exposure_id(row: Any) -> int:
+    """The ``exposure_id`` of a depot row whose every needed value is readable (else :class:`InputError`)."""
+    if not isinstance(row, Mapping):
+        raise InputError(f"a {type(row).__name__}, not an object")
+    missing = [k for k in _DEPOT_KEYS if row.get(k) is None]
+    if missing:
+        raise InputError(f"missing {', '.join(missing)}")
+    expid = _integer(row["exposure_id"], "exposure_id")
+    filter_id = _integer(row["filter_id"], "filter_id")
+    if filter_id not in DEPOT_FILTERS:
+        raise InputError(f"filter_id {filter_id} is not 1, 2 or 3 (g, r, i)")
+    _integer(row["field_id"], "field_id")
+    _integer(row["status"], "status")
+    _finite(row["obsjd"], "obsjd")
+    _finite(row["exposure_time"], "exposure_time")
+    return expid
+
+
 def read_depot(source: bytes | str | os.PathLike, what: str = "depot file",
                program_ids: Iterable[int] = ()) -> tuple[ExecutedExposure, ...]:
     """Exposures of a ZTF depot ``ztf_recentproc_<YYYYMMDD>.json``.
@@ -221,19 +239,7 @@ def read_depot(source: bytes | str | os.PathLike, what: str = "depot file",
     skipped = _Skipped(what)
     for i, row in enumerate(rows):
         try:
-            if not isinstance(row, Mapping):
-                raise InputError(f"a {type(row).__name__}, not an object")
-            missing = [k for k in _DEPOT_KEYS if row.get(k) is None]
-            if missing:
-                raise InputError(f"missing {', '.join(missing)}")
-            expid = _integer(row["exposure_id"], "exposure_id")
-            filter_id = _integer(row["filter_id"], "filter_id")
-            if filter_id not in DEPOT_FILTERS:
-                raise InputError(f"filter_id {filter_id} is not 1, 2 or 3 (g, r, i)")
-            _integer(row["field_id"], "field_id")
-            _integer(row["status"], "status")
-            _finite(row["obsjd"], "obsjd")
-            _finite(row["exposure_time"], "exposure_time")
+            expid = _depot_exposure_id(row)
         except InputError as exc:
             skipped(f"row {i}", exc)
             continue

@@ -255,15 +255,20 @@ def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
     plan = _build(skymap, config, start, grid, footprints, windows, state, result, observations,
                   solver, event, supersedes, executed, time.perf_counter() - t0)
     report = check_plan(plan, skymap, config, executed=executed, min_processed_fraction=min_processed_fraction)
+    _log_replan(plan, start, state, report.coverage, time.perf_counter() - t0)
+    if not report.ok:
+        raise PlanCheckError(list(report.problems))
+    return plan
+
+
+def _log_replan(plan: Plan, start: Time, state: ExecutedState, checked: float, wall_s: float) -> None:
+    """One line: what the executed pairs hold, what the re-plan completes and adds."""
     n_completed = len(set(plan.field_ids) & {v.field_id for v in state.pending})
     log.info("re-plan %s from %s: %d done pair(s) covered (%.4f), %d of %d half-done field(s) completed, "
              "%d fields, %d exposures, adds %.4f (checker %.4f), %.1f s",
              plan.plan_id, iso_utc(start), state.covered.size, state.coverage_executed, n_completed,
              len(state.pending), plan.metrics.n_fields, plan.metrics.n_exposures, plan.metrics.coverage,
-             report.coverage, time.perf_counter() - t0)
-    if not report.ok:
-        raise PlanCheckError(list(report.problems))
-    return plan
+             checked, wall_s)
 
 
 def _candidates(state: ExecutedState, config: PlanningConfig, start: Time, grid: FieldGrid,

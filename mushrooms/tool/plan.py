@@ -113,8 +113,7 @@ def run(args: argparse.Namespace) -> int:
     from .config import load_config
     from ..inputs import regular_file
     from ..offline import configure_astropy_offline
-    from ..outputs import check_outputs, write_json_atomic
-    from ..scheduler_core.errors import InputError
+    from ..outputs import write_json_atomic
     from ..scheduler_core import make_plan, not_observable, read_skymap, to_skyportal
 
     configure_astropy_offline()
@@ -122,29 +121,10 @@ def run(args: argparse.Namespace) -> int:
     t_imports = t0 - t_imports  # the scheduler's modules (numpy, astropy, healpy, scipy, the checker)
     config = load_config(args.config, getattr(args, "set", None) or ())
     cfg = config.scheduler
-    if not args.skymap:
-        raise InputError("no sky map given: name a FITS sky map (`mushrooms demo` plans the bundled demo map)")
-    outputs = {"-o/--output": args.output, "--queue": args.queue, "--skyportal": getattr(args, "skyportal", None),
-               "--plot": args.plot}
-    check_outputs(outputs, inputs=[args.skymap, args.config])  # before any work; never onto an input
-    if getattr(args, "skyportal", None) and config.export.skyportal_allocation_id is None:
-        raise InputError("--skyportal needs [export] skyportal_allocation_id in the config "
-                         "(the SkyPortal allocation of ZTF)")
-    start = parse_start(args.start) if args.start is not None else None
+    outputs, start = _checked_arguments(args, config)
     deadline = getattr(args, "deadline", None)
-    if deadline is not None and not (math.isfinite(deadline) and deadline > 0):
-        raise InputError(f"--deadline {deadline:g}: must be a finite number of seconds > 0")
     executed_spec = getattr(args, "executed", None)
     fraction = getattr(args, "min_processed_fraction", None)
-    if executed_spec is None and fraction is not None:
-        raise InputError("--min-processed-fraction needs --executed")
-    if deadline is not None and cfg.nights > 1:
-        raise InputError(f"--deadline plans one night; [scheduler] nights is {cfg.nights}")
-    if executed_spec is not None:
-        if deadline is not None:
-            raise InputError("--deadline and --executed do not go together: a re-plan waits for the solver")
-        if fraction is not None and not 0.0 <= fraction <= 1.0:
-            raise InputError(f"--min-processed-fraction {fraction:g}: must be in [0, 1]")
     from .progress import Progress
 
     progress = Progress("plan")
@@ -172,15 +152,7 @@ def run(args: argparse.Namespace) -> int:
     answer = not_observable(plan, skymap, cfg)
     if answer is not None:
         progress.done()
-        write_json_atomic(args.output, answer.to_document())
-        _write_summary(args, answer.to_document(), plan, skymap, answer=answer, show=False)
-        print(f"{args.output}: NOT OBSERVABLE: best coverage {plan.metrics.coverage:.4f} < min_coverage "
-              f"{cfg.min_coverage:g}, {time.perf_counter() - t0:.1f} s")
-        for line in answer.sentences:
-            print(f"  {line}")
-        for what in ("--queue", "--skyportal"):
-            if outputs[what]:
-                print(f"{outputs[what]}: not written ({what}): nothing to observe")
+        _write_not_observable(args, answer, plan, skymap, cfg, outputs, t0)
         return 0
     write_json_atomic(args.output, doc)
     if args.queue:
@@ -195,6 +167,54 @@ def run(args: argparse.Namespace) -> int:
         write_bytes_atomic(args.plot, picture)
     _print_answer(args, args.output, doc, time.perf_counter() - t0)
     return 0
+
+
+def _checked_arguments(args: argparse.Namespace, config: Any) -> tuple[dict[str, Any], Any]:
+    """Refuse a bad combination of arguments before any work (one line each); the outputs named, the start."""
+    from ..outputs import check_outputs
+    from ..scheduler_core.errors import InputError
+
+    cfg = config.scheduler
+    if not args.skymap:
+        raise InputError("no sky map given: name a FITS sky map (`mushrooms demo` plans the bundled demo map)")
+    outputs = {"-o/--output": args.output, "--queue": args.queue, "--skyportal": getattr(args, "skyportal", None),
+               "--plot": args.plot}
+    check_outputs(outputs, inputs=[args.skymap, args.config])  # before any work; never onto an input
+    if getattr(args, "skyportal", None) and config.export.skyportal_allocation_id is None:
+        raise InputError("--skyportal needs [export] skyportal_allocation_id in the config "
+                         "(the SkyPortal allocation of ZTF)")
+    start = parse_start(args.start) if args.start is not None else None
+    deadline = getattr(args, "deadline", None)
+    if deadline is not None and not (math.isfinite(deadline) and deadline > 0):
+        raise InputError(f"--deadline {deadline:g}: must be a finite number of seconds > 0")
+    executed_spec = getattr(args, "executed", None)
+    fraction = getattr(args, "min_processed_fraction", None)
+    if executed_spec is None and fraction is not None:
+        raise InputError("--min-processed-fraction needs --executed")
+    if deadline is not None and cfg.nights > 1:
+        raise InputError(f"--deadline plans one night; [scheduler] nights is {cfg.nights}")
+    if executed_spec is not None:
+        if deadline is not None:
+            raise InputError("--deadline and --executed do not go together: a re-plan waits for the solver")
+        if fraction is not None and not 0.0 <= fraction <= 1.0:
+            raise InputError(f"--min-processed-fraction {fraction:g}: must be in [0, 1]")
+    return outputs, start
+
+
+def _write_not_observable(args: argparse.Namespace, answer: Any, plan: Any, skymap: Any, cfg: Any,
+                          outputs: dict[str, Any], t0: float) -> None:
+    """Write the ``not_observable`` answer and say why; no queue nor SkyPortal file."""
+    from ..outputs import write_json_atomic
+
+    write_json_atomic(args.output, answer.to_document())
+    _write_summary(args, answer.to_document(), plan, skymap, answer=answer, show=False)
+    print(f"{args.output}: NOT OBSERVABLE: best coverage {plan.metrics.coverage:.4f} < min_coverage "
+          f"{cfg.min_coverage:g}, {time.perf_counter() - t0:.1f} s")
+    for line in answer.sentences:
+        print(f"  {line}")
+    for what in ("--queue", "--skyportal"):
+        if outputs[what]:
+            print(f"{outputs[what]}: not written ({what}): nothing to observe")
 
 
 def _budget_s(cfg: Any, solver: str | None) -> float | None:

@@ -128,7 +128,7 @@ def test_no_module_reaches_into_the_stores_private_job_sets_or_outbox():
 
     import mushrooms.daemon as daemon
 
-    reach = [(f.name, n) for f in Path(daemon.__file__).parent.glob("*.py") if f.name != "store.py"
+    reach = [(f.name, n) for f in Path(daemon.__file__).parent.rglob("*.py") if f.name != "store.py"
              for n in ("store._started", "store._parked", "Store._insert_outbox", "store._insert_outbox")
              if n in f.read_text()]
     assert reach == []

@@ -1,7 +1,7 @@
 """What the pipeline answers: :class:`Accepted` (a decision is durable) and :class:`Outcome` (what finally happened).
 
 Both carry the same identity of the event, notice and job they are about in
-one :class:`EventRef` (``ref``), read through the properties
+one :class:`~mushrooms.daemon.state.records.EventRef` (``ref``), read through the properties
 ``superevent_id``, ``alert_type``, ``notice_id`` and ``job_id``; a stored
 :class:`~mushrooms.daemon.state.store.Job` gives its own with :attr:`~mushrooms.daemon.state.store.Job.ref`.
 """
@@ -11,24 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from ..state.records import EventRef
+
 __all__ = ["EventRef", "Outcome", "Accepted", "log_fields"]
-
-
-@dataclass(frozen=True)
-class EventRef:
-    """Which superevent, notice and job a result is about.
-
-    Attributes
-    ----------
-    superevent_id, alert_type : str or None
-    notice_id, job_id : int or None
-        Store ids.
-    """
-
-    superevent_id: str | None = None
-    alert_type: str | None = None
-    notice_id: int | None = None
-    job_id: int | None = None
 
 
 class _Refers:

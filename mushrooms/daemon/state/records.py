@@ -1,4 +1,4 @@
-"""What the store hands out: jobs, outbox messages, received notices (small frozen records).
+"""What the store hands out: jobs, outbox messages, received notices, event references (small frozen records).
 
 :func:`job_from_row` reads a ``jobs`` row; :func:`now_iso` is the store's
 timestamp (ISO-8601 UTC, milliseconds).
@@ -12,9 +12,26 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from typing import Any
 
-from ..intake.outcomes import EventRef
 
-__all__ = ["Job", "JobState", "OPEN_JOBS", "OutboxMessage", "NoticeRecord", "job_from_row", "without_raw", "now_iso"]
+__all__ = ["EventRef", "Job", "JobState", "OPEN_JOBS", "OutboxMessage", "NoticeRecord", "job_from_row", "without_raw", "now_iso"]
+
+
+@dataclass(frozen=True)
+class EventRef:
+    """Which superevent, notice and job a result is about.
+
+    Attributes
+    ----------
+    superevent_id, alert_type : str or None
+    notice_id, job_id : int or None
+        Store ids.
+    """
+
+    superevent_id: str | None = None
+    alert_type: str | None = None
+    notice_id: int | None = None
+    job_id: int | None = None
+
 
 
 class JobState(enum.StrEnum):

@@ -30,7 +30,7 @@ import re
 import warnings
 import zlib
 from dataclasses import dataclass
-from typing import BinaryIO, Iterator
+from typing import Any, BinaryIO, Iterator
 
 import numpy as np
 
@@ -279,6 +279,29 @@ def open_table(fh: BinaryIO, name: str, size: int | None, hashed: bool) -> Binar
             raise SkyMapError(f"sky map is empty: {name}")
         raise SkyMapError(f"not a FITS file: {name}" + (" (a gzip of something else)" if gzipped else ""))
     stream.unread(start)
+    _skip_primary(stream, name)
+    header = _header(stream.read, name, "extension")
+    xt = str(header.get("XTENSION", "")).strip().upper()
+    if xt != "BINTABLE":
+        raise SkyMapError(f"sky map {name}: its first extension is {xt or 'not an extension'}, "
+                          "not a HEALPix binary table")
+    if header.get("BITPIX") != 8 or header.get("NAXIS") != 2 or header.get("GCOUNT", 1) != 1:
+        raise SkyMapError(f"sky map {name}: a binary table needs BITPIX = 8, NAXIS = 2, GCOUNT = 1")
+    width = _int(header, "NAXIS1", name, 1)
+    rows = _int(header, "NAXIS2", name, 1)
+    heap = _int(header, "PCOUNT", name) if "PCOUNT" in header else 0
+    nfields = _int(header, "TFIELDS", name, 1)
+    if nfields > 999:
+        raise SkyMapError(f"sky map {name}: TFIELDS {nfields} exceeds FITS's 999")
+    names, formats, offsets, repeats, unsigned = _columns(header, name, nfields, width)
+    row_dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": width})
+    return BinaryTable(header=header, names=tuple(names), repeats=repeats, rows=rows, row_dtype=row_dtype,
+                       _stream=stream, _hashing=hashing, _name=name, _data_bytes=width * rows, _heap_bytes=heap,
+                       _unsigned=frozenset(unsigned), _size=size, _gzipped=gzipped, _offset=stream.count)
+
+
+def _skip_primary(stream: Any, name: str) -> None:
+    """Read the primary header and skip its (small) data array; a sky map's primary HDU has none."""
     primary = _header(stream.read, name, "primary")
     if primary.get("SIMPLE") is not True:
         raise SkyMapError(f"not a FITS file: {name} (SIMPLE is not T)")
@@ -293,19 +316,11 @@ def open_table(fh: BinaryIO, name: str, size: int | None, hashed: bool) -> Binar
         raise SkyMapError(f"sky map {name}: its primary array declares {n_primary} bytes (a sky map's has none)")
     if n_primary:
         stream.read(n_primary + (-n_primary) % BLOCK)
-    header = _header(stream.read, name, "extension")
-    xt = str(header.get("XTENSION", "")).strip().upper()
-    if xt != "BINTABLE":
-        raise SkyMapError(f"sky map {name}: its first extension is {xt or 'not an extension'}, "
-                          "not a HEALPix binary table")
-    if header.get("BITPIX") != 8 or header.get("NAXIS") != 2 or header.get("GCOUNT", 1) != 1:
-        raise SkyMapError(f"sky map {name}: a binary table needs BITPIX = 8, NAXIS = 2, GCOUNT = 1")
-    width = _int(header, "NAXIS1", name, 1)
-    rows = _int(header, "NAXIS2", name, 1)
-    heap = _int(header, "PCOUNT", name) if "PCOUNT" in header else 0
-    nfields = _int(header, "TFIELDS", name, 1)
-    if nfields > 999:
-        raise SkyMapError(f"sky map {name}: TFIELDS {nfields} exceeds FITS's 999")
+
+
+def _columns(header: Any, name: str, nfields: int, width: int
+             ) -> tuple[list[str], list[np.dtype], list[int], dict[str, int], set[str]]:
+    """The table's readable columns from its TFORM/TTYPE cards: names, dtypes, byte offsets, repeats, unsigned."""
     names: list[str] = []
     formats: list[np.dtype] = []
     offsets: list[int] = []
@@ -335,10 +350,7 @@ def open_table(fh: BinaryIO, name: str, size: int | None, hashed: bool) -> Binar
     if used != width:
         raise SkyMapError(f"sky map {name}: rows of NAXIS1 = {width} bytes, but its columns' TFORMs add up "
                           f"to {used}: refused")
-    row_dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": width})
-    return BinaryTable(header=header, names=tuple(names), repeats=repeats, rows=rows, row_dtype=row_dtype,
-                       _stream=stream, _hashing=hashing, _name=name, _data_bytes=width * rows, _heap_bytes=heap,
-                       _unsigned=frozenset(unsigned), _size=size, _gzipped=gzipped, _offset=stream.count)
+    return names, formats, offsets, repeats, unsigned
 
 
 class _Rejoined:
