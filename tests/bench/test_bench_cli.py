@@ -106,11 +106,18 @@ def test_gwemopt_schedule_is_read_into_observations() -> None:
 
 
 def test_gwemopt_without_interpreter_is_unavailable(tmp_path, monkeypatch) -> None:
+    """No interpreter configured and gwemopt not importable here, or one configured that does not exist."""
     monkeypatch.delenv("MUSHROOMS_GWEMOPT_PYTHON", raising=False)
+    monkeypatch.setitem(sys.modules, "gwemopt", None)  # as if not installed, whatever this environment holds
     run = run_gwemopt(tmp_path / "x.fits", Time("2020-01-01T00:00:00"), PlanningConfig())
     assert run.status == "unavailable" and "MUSHROOMS_GWEMOPT_PYTHON" in run.message
+    assert run.observations == () and not list(tmp_path.iterdir())  # nothing was run, nothing written
     monkeypatch.setenv("MUSHROOMS_GWEMOPT_PYTHON", str(tmp_path / "no-python"))
     assert run_gwemopt(tmp_path / "x.fits", Time("2020-01-01T00:00:00"), PlanningConfig()).status == "unavailable"
+    monkeypatch.delenv("MUSHROOMS_GWEMOPT_PYTHON")
+    missing = run_gwemopt(tmp_path / "x.fits", Time("2020-01-01T00:00:00"), PlanningConfig(),
+                          python=str(tmp_path / "no-python"))  # the configured ([bench] gwemopt_python) one
+    assert missing.status == "unavailable"
 
 
 @pytest.mark.slow

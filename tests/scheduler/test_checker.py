@@ -20,9 +20,8 @@ from astropy.coordinates import TETE, AltAz, EarthLocation, SkyCoord, get_body
 from astropy.time import Time, TimeDelta
 
 from mushrooms.scheduler_core import PlanningConfig, check_plan
-from mushrooms.scheduler_core.plan.checker import (
-    MAX_LISTED, _conditions, mount_reachable, polygon_coverage, slew_seconds,
-)
+from mushrooms.scheduler_core.plan.check_geometry import conditions, mount_reachable, polygon_coverage, slew_seconds
+from mushrooms.scheduler_core.plan.checker import MAX_LISTED
 from mushrooms.scheduler_core.config import SlewModel
 from mushrooms.scheduler_core.plan.document import Observation, Plan, PlanMetrics
 from mushrooms.scheduler_core.sky.skymap import SkyMap
@@ -168,7 +167,7 @@ def test_interpolated_conditions_match_astropy_at_the_exposure_times():
     rng = np.random.default_rng(3)
     t = np.sort(rng.uniform(0, 86400, 120))
     ra, dec = rng.uniform(0, 360, t.size), rng.uniform(-30, 85, t.size)
-    c = _conditions(NEW_MOON, t, ra, dec)
+    c = conditions(NEW_MOON, t, ra, dec)
     times = NEW_MOON + TimeDelta(t, format="sec")
     sky = SkyCoord(ra * u.deg, dec * u.deg)
     frame = AltAz(obstime=times, location=P48)

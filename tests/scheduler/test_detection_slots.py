@@ -9,12 +9,8 @@ import pytest
 
 from mushrooms.scheduler_core.sky.cells import Cells
 from mushrooms.scheduler_core.config import PlanningConfig
-from mushrooms.scheduler_core.schedulers.detection_slots import (
-    build_detection_model,
-    detection_stage,
-    detection_start_vector,
-    pair_levels,
-)
+from mushrooms.scheduler_core.schedulers.detection_model import build_detection_model, detection_start_vector, pair_levels
+from mushrooms.scheduler_core.schedulers.detection_slots import detection_stage
 from mushrooms.scheduler_core.schedulers.gain import published_coverage
 from mushrooms.scheduler_core.source.detection import expected_detections
 from mushrooms.scheduler_core.source.kilonova import load_kilonova

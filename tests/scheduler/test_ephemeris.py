@@ -30,6 +30,13 @@ def test_sun_moon_and_sidereal_time_within_a_thousandth_of_a_degree_of_astropy(s
     assert np.max(np.abs(got.sun_alt_deg - sun)) < MAX_ERROR_DEG
     assert np.max(_separation_deg(got.moon_ra_deg, got.moon_dec_deg, moon.ra.deg, moon.dec.deg)) < MAX_ERROR_DEG
     assert np.max(np.abs((got.lst_deg - lst + 180.0) % 360.0 - 180.0)) < MAX_ERROR_DEG
+    assert np.max(np.abs(got.moon_alt_deg - moon.transform_to(AltAz(obstime=times, location=loc)).alt.deg)) \
+        < MAX_ERROR_DEG
+    sun_gcrs = get_body("sun", times, loc)
+    elong = sun_gcrs.separation(moon).rad
+    d_sun, d_moon = sun_gcrs.distance.to_value("km"), moon.distance.to_value("km")
+    phase = np.degrees(np.arctan2(d_sun * np.sin(elong), d_moon - d_sun * np.cos(elong)))
+    assert np.max(np.abs(got.moon_phase_deg - phase)) < 0.05  # the phase angle moves 12 deg a day
     assert got.sun_alt_deg.min() < -18.0 < got.sun_alt_deg.max()  # dusk to dawn: the Sun crosses every limit
 
 
@@ -40,6 +47,19 @@ def test_a_time_has_one_value_whatever_is_asked_with_it():
     k = 8
     assert alone.sun_alt_deg[0] == among.sun_alt_deg[k]
     assert alone.moon_ra_deg[0] == among.moon_ra_deg[k] and alone.lst_deg[0] == among.lst_deg[k]
+
+
+def test_times_months_apart_get_the_values_of_a_dense_grid():
+    """Sparse times (more node chunks than the cache keeps) give what they give among a night's dense grid."""
+    base = Time("2026-01-01T00:00:00", scale="utc")
+    night = np.arange(0.0, 3600.0, 97.0) + 120 * 86400.0 + 4 * 3600.0
+    year = np.arange(100) * 3.7 * 86400.0
+    dense = ephemeris(base + TimeDelta(night, format="sec"), site())
+    sparse = ephemeris(base + TimeDelta(np.concatenate([night, year]), format="sec"), site())
+    n = night.size
+    for name in ("sun_alt_deg", "moon_alt_deg", "moon_ra_deg", "moon_phase_deg", "lst_deg"):
+        assert np.allclose(getattr(sparse, name)[:n], getattr(dense, name), atol=1e-9, rtol=0), name
+    assert np.ptp(sparse.moon_phase_deg[n:]) > 150  # a year: every phase
 
 
 def test_times_on_the_nodes_are_astropys_and_shapes_follow_the_times():

@@ -132,7 +132,7 @@ def server():
 def menu_grid_plan(sm: SkyMap, time_limit_s: float = 60.0):
     """The first menu grid of the detection stage solved on its own (no fixed grid to compete), timed for real."""
     from mushrooms.scheduler_core.schedulers.block_schedule import shortlist_footprints
-    from mushrooms.scheduler_core.schedulers.detection_slots import (build_detection_model, distance_levels,
+    from mushrooms.scheduler_core.schedulers.detection_model import (build_detection_model, distance_levels,
                                                                      level_weights, pair_levels, pair_reach)
     from mushrooms.scheduler_core.schedulers.slot_schedule import slot_rows, time_slot_plan
     from mushrooms.scheduler_core.sky.cells import merge_cells
@@ -227,7 +227,7 @@ def test_make_plan_with_a_menu_plans_checks_and_bounds_the_coverage_for_the_shor
 def _greedy_case(sm: SkyMap):
     """A menu grid of the real map, its levels and weights, the seed (every field at 300 s) and the greedy start."""
     from mushrooms.scheduler_core.schedulers.block_schedule import shortlist_footprints
-    from mushrooms.scheduler_core.schedulers.detection_slots import (distance_levels, level_weights, pair_levels,
+    from mushrooms.scheduler_core.schedulers.detection_model import (distance_levels, level_weights, pair_levels,
                                                                      pair_reach)
     from mushrooms.scheduler_core.schedulers.exposure_menu import _menu_value, menu_start_pairs
     from mushrooms.scheduler_core.sky.cells import merge_cells

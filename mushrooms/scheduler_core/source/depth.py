@@ -63,15 +63,15 @@ against every published figure, the GW campaigns included;
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
 from astropy import units as u
-from astropy.coordinates import TETE, AltAz, SkyCoord, get_body
+from astropy.coordinates import TETE, SkyCoord
 from astropy.time import Time
 
+from ..sky.ephemeris import ephemeris
 from ..sky.visibility import site
 
 __all__ = [
@@ -90,8 +90,6 @@ __all__ = [
 #: ZTF's published median 5-sigma depths (AB mag) of a 30 s exposure.
 ZTF_MEDIAN_DEPTH_30S: Mapping[str, float] = {"g": 20.8, "r": 20.6, "i": 19.9}
 
-#: Step (s) of the Sun and Moon ephemeris grid that :func:`sky_conditions` interpolates.
-EPHEMERIS_STEP_S = 600.0
 #: K&S eq. 3 constant (airmass of a thin layer at height ~ 10 km).
 _KS_AIRMASS = 0.96
 #: Sun colours (AB) relative to V, for the colour of moonlight (Willmer 2018).
@@ -131,53 +129,6 @@ def dark_zenith(shape: tuple[int, ...] = ()) -> SkyConditions:
     )
 
 
-def _ephemeris_at(grid: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Sun, Moon and sidereal time from Palomar at increasing JDs (UTC).
-
-    Returns (jd, sun_alt, moon_alt, moon_phase, moon_x, moon_y, moon_z, lst_unwrapped),
-    (n,) arrays (JD; deg; ICRS unit vector; deg, unwrapped so it can be interpolated).
-    """
-    loc = site()
-    tg = Time(grid, format="jd", scale="utc")
-    frame = AltAz(obstime=tg, location=loc)
-    sun = get_body("sun", tg, loc)
-    moon = get_body("moon", tg, loc)
-    elong = sun.separation(moon).rad
-    d_sun = sun.distance.to_value(u.km)
-    d_moon = moon.distance.to_value(u.km)
-    phase = np.abs(np.degrees(np.arctan2(d_sun * np.sin(elong), d_moon - d_sun * np.cos(elong))))
-    mra, mdec = np.radians(moon.ra.deg), np.radians(moon.dec.deg)
-    lst = np.degrees(np.unwrap(np.radians(tg.sidereal_time("apparent", longitude=loc.lon).deg)))
-    out = (np.asarray(grid, float), sun.transform_to(frame).alt.deg, moon.transform_to(frame).alt.deg, phase,
-           np.cos(mdec) * np.cos(mra), np.cos(mdec) * np.sin(mra), np.sin(mdec), lst)
-    for arr in out:
-        arr.setflags(write=False)
-    return out
-
-
-@functools.lru_cache(maxsize=16)
-def _ephemeris_day(day: int) -> tuple[np.ndarray, ...]:
-    """:func:`_ephemeris_at` over one UTC day (MJD ``day``: JD ``day + 2400000.5`` on), every EPHEMERIS_STEP_S.
-
-    UTC days split no night at Palomar (local midnight is 08:00 UTC); cached,
-    so the many calls of one plan or one objective cost one astropy call.
-    """
-    return _ephemeris_at(day + 2400000.5 + np.linspace(0.0, 1.0, int(round(86400.0 / EPHEMERIS_STEP_S)) + 1))
-
-
-def _ephemeris(jd: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Ephemeris covering the times ``jd``: cached day grids for a night or two, else at the times."""
-    first, last = int(np.floor(jd.min() - 2400000.5)), int(np.floor(jd.max() - 2400000.5))
-    if last - first > 2:  # e.g. a year of random times: no grid, one astropy call at the times
-        return _ephemeris_at(np.unique(jd) if np.unique(jd).size > 1 else np.array([jd.min(), jd.min() + 1e-6]))
-    parts = [_ephemeris_day(d) for d in range(first, last + 1)]
-    cols = [np.concatenate([p[k] if i == 0 else p[k][1:] for i, p in enumerate(parts)]) for k in range(7)]
-    lst = [parts[0][7]]
-    for p in parts[1:]:  # keep the unwrapped LST continuous across the days
-        lst.append(p[7][1:] + 360.0 * np.round((lst[-1][-1] - p[7][0]) / 360.0))
-    return (*cols, np.concatenate(lst))
-
-
 def sky_conditions(ra_deg: np.ndarray, dec_deg: np.ndarray, times: Time) -> SkyConditions:
     """Airmass, Moon and Sun for pointings seen from Palomar.
 
@@ -192,45 +143,36 @@ def sky_conditions(ra_deg: np.ndarray, dec_deg: np.ndarray, times: Time) -> SkyC
     Returns
     -------
     SkyConditions
-        Arrays of the broadcast shape.  The Sun and the Moon come from
-        astropy at the distinct times, or on a grid of
-        :data:`EPHEMERIS_STEP_S` over their span when that is coarser,
-        linearly interpolated (the Moon moves 0.14 deg in 10 min);
-        field altitudes follow in closed form from the local apparent
-        sidereal time and the fields' apparent place (as in
-        :mod:`.visibility`), so a whole field-by-slot grid costs a few
+        Arrays of the broadcast shape.  The Sun and the Moon come from the
+        shared ephemeris (:func:`~..sky.ephemeris.ephemeris`: astropy at
+        10 min nodes, interpolated, E1-E3); field altitudes follow in
+        closed form from the local apparent sidereal time and the fields'
+        apparent place (as in :mod:`.visibility`), so a whole field-by-slot grid costs a few
         astropy calls, not one per pointing.
     """
     ra = np.asarray(ra_deg, float)
     dec = np.asarray(dec_deg, float)
-    jd = np.asarray(times.utc.jd, float)
     loc = site()
-    lo, hi = float(jd.min()), float(jd.max())
-    eph = _ephemeris(jd.ravel())
-    grid = eph[0]
-
-    def at(values: np.ndarray) -> np.ndarray:
-        return np.interp(jd, grid, values)
-
-    sun_alt, moon_alt, phase, mx, my, mz = (at(v) for v in eph[1:7])
-    lst = at(eph[7]) % 360.0
-    mid = Time(0.5 * (lo + hi), format="jd", scale="utc")
+    sky = ephemeris(times, loc)  # (E1-E3): the Sun, the Moon and the sidereal time, as the constraints read them
+    jd = np.asarray(times.utc.jd, float)
+    mid = Time(0.5 * (float(jd.min()) + float(jd.max())), format="jd", scale="utc")
     flat_ra, flat_dec = np.broadcast_arrays(ra, dec)
     app = SkyCoord(ra=flat_ra.ravel() * u.deg, dec=flat_dec.ravel() * u.deg, frame="icrs").transform_to(TETE(obstime=mid))
     ra_app = app.ra.deg.reshape(flat_ra.shape)
     dec_app = np.radians(app.dec.deg.reshape(flat_ra.shape))
     lat = np.radians(loc.lat.deg)
-    ha = np.radians(lst - ra_app)
+    ha = np.radians(sky.lst_deg - ra_app)
     sin_alt = np.sin(lat) * np.sin(dec_app) + np.cos(lat) * np.cos(dec_app) * np.cos(ha)
     airmass = np.where(sin_alt > 1e-3, 1.0 / np.maximum(sin_alt, 1e-3), np.inf)
+    mra, mdec = np.radians(sky.moon_ra_deg), np.radians(sky.moon_dec_deg)
     fra, fdec = np.radians(ra), np.radians(dec)
-    norm = np.sqrt(mx ** 2 + my ** 2 + mz ** 2)
-    cos_sep = (np.cos(fdec) * np.cos(fra) * mx + np.cos(fdec) * np.sin(fra) * my + np.sin(fdec) * mz) / norm
+    cos_sep = np.sin(fdec) * np.sin(mdec) + np.cos(fdec) * np.cos(mdec) * np.cos(fra - mra)
     sep = np.degrees(np.arccos(np.clip(cos_sep, -1.0, 1.0)))
     shape = np.broadcast_shapes(ra.shape, dec.shape, jd.shape)
-    return SkyConditions(airmass=np.broadcast_to(airmass, shape), moon_alt_deg=np.broadcast_to(moon_alt, shape),
-                         moon_sep_deg=np.broadcast_to(sep, shape), moon_phase_deg=np.broadcast_to(phase, shape),
-                         sun_alt_deg=np.broadcast_to(sun_alt, shape))
+    return SkyConditions(airmass=np.broadcast_to(airmass, shape), moon_alt_deg=np.broadcast_to(sky.moon_alt_deg, shape),
+                         moon_sep_deg=np.broadcast_to(sep, shape),
+                         moon_phase_deg=np.broadcast_to(sky.moon_phase_deg, shape),
+                         sun_alt_deg=np.broadcast_to(sky.sun_alt_deg, shape))
 
 
 @dataclass(frozen=True)
