@@ -274,6 +274,36 @@ def test_data_flows_one_way(graph):
     assert layering_violations(graph) == []
 
 
+DAEMON = "mushrooms.daemon"
+
+
+def room_graph(graph: dict[str, set[str]], package: str = DAEMON) -> dict[str, set[str]]:
+    """The imports between the daemon's rooms (its subpackages); the top-level modules are left out."""
+    def room(module: str) -> str | None:
+        parts = module[len(package) + 1:].split(".") if _within(module, package) and module != package else []
+        return parts[0] if len(parts) > 1 else None  # a module inside a subpackage
+    rooms: dict[str, set[str]] = {}
+    for a, targets in graph.items():
+        ra = room(a)
+        if ra is None:
+            continue
+        rooms.setdefault(ra, set()).update(rb for b in targets if (rb := room(b)) not in (None, ra))
+    return rooms
+
+
+def test_the_daemons_rooms_form_a_stack(graph):
+    # a room may use the rooms below it, never one that uses it back: no loop between rooms
+    rooms = room_graph(graph)
+    assert {"intake", "planning", "loop", "state", "submission"} <= set(rooms)
+    assert import_cycles(rooms) == []
+
+
+def test_room_scan_names_a_loop_between_two_rooms():
+    looped = {"mushrooms.daemon.a.x": {"mushrooms.daemon.b.y"}, "mushrooms.daemon.b.y": set(),
+              "mushrooms.daemon.b.z": {"mushrooms.daemon.a.w", "mushrooms.daemon.top"}}
+    assert import_cycles(room_graph(looped)) == [["a", "b"]]
+
+
 def test_scheduler_core_is_a_library_on_its_own(graph):
     # a notebook can use it without the service, the tools or the file-level config of the package
     outside = sorted(f"{a} -> {b}" for a, targets in graph.items() if _within(a, "mushrooms.scheduler_core")

@@ -27,7 +27,7 @@ FAST = '[scheduler]\nsolver = "greedy"\nnside = 64\ntime_step_s = 600.0\n'
 
 
 def sections() -> dict[str, type]:
-    from mushrooms.daemon.loop.settings import LoopConfig
+    from mushrooms.daemon.loop_settings import LoopConfig
     from mushrooms.daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
     from mushrooms.evaluation.bench.settings import BenchConfig
     from mushrooms.handlers.policy import PolicyConfig

@@ -12,8 +12,8 @@ Rooms (each a subpackage; modules imported lazily by the CLI):
 
 ``kafka``       the GCN consumer, the outbound topic, librdkafka's log
 ``intake``      notice or trigger -> durable decision -> planning job; replays
-``planning``    the job runner, first plans and revisions, re-plans, the warm sky
-``loop``        executed observations: read, store, re-plan the nights
+``planning``    the job runner, first plans and revisions, re-plans, an event's nights, the warm sky
+``loop``        executed observations: read, store, poll (it asks planning for the re-plans)
 ``submission``  plans to ZTF's queue and SkyPortal
 ``state``       the SQLite state file, one owner of the per-event truth
 ``ops``         metrics, health, systemd notify, the webhook

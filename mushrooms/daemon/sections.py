@@ -14,7 +14,7 @@ if TYPE_CHECKING:
     from ..handlers.policy import PolicyConfig
     from ..scheduler_core.config import PlanningConfig
     from ..scheduler_core.plan.exports import ExportConfig
-    from .loop.settings import LoopConfig
+    from .loop_settings import LoopConfig
     from .settings import DaemonConfig, KafkaConfig, OutboundConfig
     from .submission.settings import SubmitConfig
 

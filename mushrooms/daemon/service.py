@@ -31,7 +31,7 @@ from apscheduler.schedulers.background import BackgroundScheduler
 
 from .credentials import service_tokens
 from .drain import OutboxDrain
-from .intake.outcomes import log_fields
+from .outcomes import log_fields
 from .intake.trigger import (
     DaemonRunning, PidLock, dispatch, outcome_result, pending_triggers, read_trigger, write_result,
 )

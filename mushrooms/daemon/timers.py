@@ -93,7 +93,7 @@ class Timers:
             return
         from astropy.time import Time
 
-        from .loop.nights import record_night_replans
+        from .planning.nights import record_night_replans
 
         service = self.service
         try:

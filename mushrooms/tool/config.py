@@ -5,7 +5,7 @@ Sections: ``[scheduler]`` (:class:`~mushrooms.scheduler_core.PlanningConfig`),
 ``[daemon]``, ``[kafka]``, ``[outbound]`` (:mod:`mushrooms.daemon.settings`),
 ``[export]`` (:class:`~mushrooms.scheduler_core.plan.exports.ExportConfig`),
 ``[submit]`` (:class:`~mushrooms.daemon.submission.settings.SubmitConfig`),
-``[loop]`` (:class:`~mushrooms.daemon.loop.settings.LoopConfig`),
+``[loop]`` (:class:`~mushrooms.daemon.loop_settings.LoopConfig`),
 ``[notify]`` (:class:`~mushrooms.daemon.ops.webhook_settings.NotifyConfig`),
 ``[bench]`` (:class:`~mushrooms.evaluation.bench.settings.BenchConfig`:
 ``mushrooms bench`` and ``mushrooms study``).
@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ..daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
-from ..daemon.loop.settings import LoopConfig
+from ..daemon.loop_settings import LoopConfig
 from ..daemon.submission.settings import SubmitConfig
 from ..daemon.ops.webhook_settings import NotifyConfig
 from ..evaluation.bench.settings import BenchConfig

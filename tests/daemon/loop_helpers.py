@@ -19,7 +19,7 @@ from typing import Any, Sequence
 from astropy.time import Time, TimeDelta
 
 from mushrooms.daemon.loop.poll import ExecutedLoop
-from mushrooms.daemon.loop.settings import LoopConfig
+from mushrooms.daemon.loop_settings import LoopConfig
 from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.sinks import MemorySink
 from mushrooms.daemon.state.store import Store

@@ -11,7 +11,7 @@ import logging
 import re
 
 from mushrooms.daemon.loop.poll import ExecutedLoop
-from mushrooms.daemon.loop.settings import LoopConfig
+from mushrooms.daemon.loop_settings import LoopConfig
 from mushrooms.daemon.planning.replans import replan_jobs
 
 from loop_helpers import SUPEREVENT, copy_state, executed_like, loop_config, open_pipeline, t, the_plan, write_executed

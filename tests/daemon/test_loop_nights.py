@@ -15,8 +15,8 @@ import pytest
 from astropy.time import Time, TimeDelta
 
 from mushrooms.daemon.loop.poll import ExecutedLoop
-from mushrooms.daemon.loop.settings import LoopConfig
-from mushrooms.daemon.loop.nights import plans_as_done
+from mushrooms.daemon.loop_settings import LoopConfig
+from mushrooms.daemon.planning.nights import plans_as_done
 from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.planning.replans import replan_jobs
 from mushrooms.scheduler_core.executed import done_pairs
@@ -139,7 +139,7 @@ def test_with_one_night_the_next_evening_is_not_re_planned(planned_two, tmp_path
 
 def test_without_a_source_night_two_counts_night_one_plan_as_done(planned_two, tmp_path, nights):
     """(L11) No executed source: night 2 is planned on night 1's plan taken as done."""
-    from mushrooms.daemon.loop.nights import record_night_replans
+    from mushrooms.daemon.planning.nights import record_night_replans
 
     p = pipeline(copy_state(planned_two, tmp_path), LoopConfig())
     try:
@@ -189,7 +189,7 @@ def test_without_a_source_each_revision_counts_until_the_next_one_starts(planned
 
 def test_with_revisit_night_two_observes_night_one_fields_again(planned_two, tmp_path, nights):
     """(N4) revisit = true: night 2 is planned on the whole map again, night 1's fields re-observed."""
-    from mushrooms.daemon.loop.nights import record_night_replans
+    from mushrooms.daemon.planning.nights import record_night_replans
 
     # the state was planned with revisit = false; the re-plan reads [scheduler] as configured now
     p = pipeline(copy_state(planned_two, tmp_path), LoopConfig(), planning=dataclasses.replace(TWO, revisit=True))

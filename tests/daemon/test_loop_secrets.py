@@ -13,7 +13,7 @@ from astropy.time import Time
 from werkzeug.wrappers import Response
 
 from mushrooms.daemon.loop.fetch import ExecutedReader, FetchError
-from mushrooms.daemon.loop.settings import LoopConfig
+from mushrooms.daemon.loop_settings import LoopConfig
 from mushrooms.handlers.executed_source import parse_executed_source
 
 

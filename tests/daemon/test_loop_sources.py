@@ -20,7 +20,7 @@ from mushrooms.daemon.credentials import CredentialsError, load_executed_token
 from mushrooms.daemon.loop.fetch import ExecutedReader, FetchError
 from mushrooms.daemon.state.executed import count_executed
 from mushrooms.daemon.loop.poll import ExecutedLoop
-from mushrooms.daemon.loop.settings import LoopConfig
+from mushrooms.daemon.loop_settings import LoopConfig
 from mushrooms.daemon.submission.remote import Unreachable
 from mushrooms.handlers.executed_source import parse_executed_source
 from mushrooms.tool.config import Config, ConfigError, load_config

@@ -12,7 +12,7 @@ import dataclasses
 
 from astropy.time import Time, TimeDelta
 
-from mushrooms.daemon.loop.settings import LoopConfig
+from mushrooms.daemon.loop_settings import LoopConfig
 from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.submission.submitter import queue_name, submissions
 from mushrooms.handlers.executed import write_jsonl

@@ -2,7 +2,6 @@
 
 ``accept``    parse, policy, decision and store in one transaction (``Intake``)
 ``pipeline``  ``NoticePipeline``: intake, the planning stages, the sink
-``outcomes``  ``Accepted``, ``Outcome`` and the ``EventRef`` they carry
 ``trigger``   ``mushrooms trigger``: the trigger directory, the pid lock
 ``replay``    replaying stored notices through the same pipeline
 

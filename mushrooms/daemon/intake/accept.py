@@ -29,7 +29,7 @@ from ...handlers.localization import check_skymap_header, choose_localization
 from ...handlers.policy import PolicyConfig, Verdict, evaluate
 from ...scheduler_core.plan.messages import withdrawal_message
 from ...scheduler_core.sky.sniff import is_fits
-from .outcomes import Accepted, EventRef
+from ..outcomes import Accepted, EventRef
 from ..state.store import Job, NoticeRecord, Store
 
 __all__ = ["Intake", "aware"]

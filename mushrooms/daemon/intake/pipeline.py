@@ -15,7 +15,7 @@
 :mod:`mushrooms.scheduler_core.anytime`, the one ``mushrooms plan
 --deadline`` runs) and the outbox flush.  Every outbound document is built
 by :mod:`mushrooms.scheduler_core.plan.messages`; the results are
-:mod:`~mushrooms.daemon.intake.outcomes`.  It takes the configuration's sections, not the whole
+:mod:`~mushrooms.daemon.outcomes`.  It takes the configuration's sections, not the whole
 configuration.
 
 Anytime plans
@@ -72,7 +72,7 @@ from typing import Any, Callable
 from ...handlers.instants import iso_z
 from ...handlers.policy import PolicyConfig
 from .accept import Intake
-from .outcomes import Accepted, EventRef, Outcome
+from ..outcomes import Accepted, EventRef, Outcome
 from ..settings import DaemonConfig
 from ..sinks import Sink, message_key
 from ..state.store import Job, Store
@@ -134,7 +134,7 @@ class NoticePipeline:
                  daemon: DaemonConfig | None = None, planner: Planner | None = None,
                  sky_cache: Any = None, on_outbox: Callable[[], None] | None = None, loop: Any = None,
                  replanner: Callable[..., Any] | None = None):
-        from ..loop.settings import LoopConfig
+        from ..loop_settings import LoopConfig
         from ..planning.revisions import JobPlanner
 
         self.policy = policy

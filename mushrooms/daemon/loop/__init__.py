@@ -2,8 +2,6 @@
 
 ``poll``      ``ExecutedLoop.poll``: the service's timer job (read, store, re-plan)
 ``fetch``     ``ExecutedReader``: a file, depot directory or URL to executed exposures
-``nights``    the nights of an event and their re-plans
-``settings``  ``[loop]`` (``LoopConfig``)
 
 Imports nothing, so a caller loads only the module it needs.
 """

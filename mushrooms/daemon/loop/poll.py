@@ -24,14 +24,14 @@ from typing import TYPE_CHECKING, Any
 
 from .fetch import ExecutedReader, FetchError
 from ..state.executed import Stored, executed_between, store_executed
-from .nights import due_nights, record_night_replans
+from ..planning.nights import due_nights, record_night_replans
 from ..submission.remote import Unreachable
 from ..planning.replans import current_plan, live_events
 
 if TYPE_CHECKING:
     from astropy.time import Time
 
-    from .settings import LoopConfig
+    from ..loop_settings import LoopConfig
 
 __all__ = ["ExecutedLoop", "Poll"]
 

@@ -23,8 +23,8 @@ import logging
 from typing import TYPE_CHECKING, Any, Callable
 
 from ..state.executed import executed_between
-from ..intake.outcomes import Outcome
-from ..loop.nights import night_bounds, plans_as_done
+from ..outcomes import Outcome
+from .nights import night_bounds, plans_as_done
 from .replans import close_without_plan, current_plan, next_revision
 
 if TYPE_CHECKING:

@@ -30,7 +30,7 @@ import time
 from typing import Any
 
 from ..state import current_event
-from ..intake.outcomes import Accepted, EventRef
+from ..outcomes import Accepted, EventRef
 from ..state.store import Store
 from ..state.records import JobState, job_from_row, now_iso
 

@@ -27,8 +27,8 @@ from ...handlers.policy import PolicyConfig
 from ...scheduler_core.errors import InputError, PlanCheckError
 from ...scheduler_core.plan.messages import combined_map_incident, revision_document
 from ...scheduler_core.sky.sniff import is_fits
-from ..loop.nights import night_one
-from ..intake.outcomes import Outcome
+from .nights import night_one
+from ..outcomes import Outcome
 from ..state.records import JobState
 from ..state.store import Job, Store
 
@@ -100,7 +100,7 @@ class JobPlanner:
     def __init__(self, policy: PolicyConfig, planning: Any, supersede_min_gain: float, store: Store,
                  scheduler: Callable[..., Any], sky_cache: Any, hand_over: Callable[[int], bool],
                  loop: Any = None, replanner: Callable[..., Any] | None = None):
-        from ..loop.settings import LoopConfig
+        from ..loop_settings import LoopConfig
 
         self.loop = loop if loop is not None else LoopConfig()
         self._replanner = replanner

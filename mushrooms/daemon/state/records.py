@@ -105,7 +105,7 @@ class Job:
 
     @property
     def ref(self) -> EventRef:
-        """The job's event, notice and job ids (what every :class:`~mushrooms.daemon.intake.outcomes.Outcome` of it carries)."""
+        """The job's event, notice and job ids (what every :class:`~mushrooms.daemon.outcomes.Outcome` of it carries)."""
         return EventRef(self.superevent_id, self.alert_type, self.notice_id, self.job_id)
 
 

@@ -17,9 +17,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from ...handlers.executed_source import ExecutedSource, parse_executed_source
-from ...scheduler_core.ranges import require_finite, setting
-from ...scheduler_core.tables import dataclass_from_table
+from ..handlers.executed_source import ExecutedSource, parse_executed_source
+from ..scheduler_core.ranges import require_finite, setting
+from ..scheduler_core.tables import dataclass_from_table
 
 __all__ = ["LoopConfig"]
 

@@ -22,7 +22,7 @@ import logging
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
-from ..planning.replans import current_plan, live_events
+from .replans import current_plan, live_events
 
 if TYPE_CHECKING:
     from astropy.time import Time
@@ -123,7 +123,7 @@ def record_night_replans(pipeline: Any, now: "Time") -> list[Any]:
 
     from ...handlers.instants import iso_z
     from ...scheduler_core.plan.document import iso_utc as iso
-    from ..planning.replans import record_replan
+    from .replans import record_replan
 
     out = []
     for sid, n, s, e in due_nights(pipeline.store, pipeline.planning, now):

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..state.records import EventRef
+from .state.records import EventRef
 
 __all__ = ["EventRef", "Outcome", "Accepted", "log_fields"]
 
