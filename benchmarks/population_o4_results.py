@@ -5,12 +5,14 @@ Reads what ``benchmarks/population_o4.sh`` writes under ROOT (default /work/popu
 cache and ``study/results.jsonl``, ``realizations.jsonl``, ``localisations.jsonl``) and writes, under OUT
 (default benchmarks/results/population_o4/):
 
-* ``results.csv``: one row per (event, solver), :data:`POPULATION_COLUMNS` (``coverage_executed`` empty
-  until the executor model lands);
+* ``results.csv``: one row per (event, solver), :data:`POPULATION_COLUMNS` (``coverage_executed``: the plan's
+  coverage as ZTF would execute its queues);
 * ``tables.md``: every table, rebuilt from ``results.csv`` alone (``--tables-only`` does just that);
 * ``provenance.md`` and ``population/``: the recipe, commands, seeds, PSDs, counts per class, the CPU cost
   per event and stage; the small files (``population.json``, ``psds.xml``, ``intrinsic_samples.ecsv``,
-  the realised chunks' ``events-KKKK.xml.gz``). The injections and the sky maps stay under ROOT.
+  ``injections.xml.gz``, every realised chunk's ``events-KKKK.xml.gz``), enough for ``population_o4.sh`` to
+  resume on another machine without simulating again (it seeds its cache from them). The sky maps stay
+  under ROOT (``bayestar-localize-coincs`` makes them again, deterministically, from the chunks).
 
     .venv/bin/python benchmarks/population_o4_results.py [--root DIR] [--out DIR] [--tables-only]
 """
@@ -24,7 +26,6 @@ import statistics
 from pathlib import Path
 
 from mushrooms.evaluation.study.mass_models import FARAH_PDB
-from mushrooms.evaluation.study.population import coinc_ids
 from mushrooms.evaluation.study.population_rows import (population_events, population_rows,
                                                         read_population_csv, write_population_csv)
 from mushrooms.evaluation.study.population_tables import population_tables
@@ -46,6 +47,17 @@ def _jsonl(path: Path) -> list[dict]:
     return out
 
 
+def _gzip(source: Path, target: Path) -> None:
+    """``target``: ``source`` gzipped (reproducibly: no name, no time in the header), when it changed."""
+    import gzip
+
+    if target.exists() and target.stat().st_mtime >= source.stat().st_mtime:
+        return
+    with open(source, "rb") as fin, open(target, "wb") as raw:
+        with gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as fout:
+            shutil.copyfileobj(fin, fout)
+
+
 def _median(xs: list[float]) -> str:
     return f"{statistics.median(xs):.3g}" if xs else "-"
 
@@ -55,8 +67,8 @@ def cpu_costs(study: Path, realized: list[dict]) -> dict[str, list[float]]:
     loc = [r["cpu_s"] for r in _jsonl(study / "localisations.jsonl") if r.get("ok") and not r.get("cached")]
     plans: dict[str, list[float]] = {}
     for rec in ResultStore(study / "results.jsonl").records().values():
-        if rec.get("ok") and rec.get("task_s") is not None:
-            plans.setdefault(rec["solver"], []).append(float(rec["task_s"]))
+        if rec.get("ok") and rec.get("cpu_s") is not None:
+            plans.setdefault(rec["solver"], []).append(float(rec["cpu_s"]))
     fresh = [r for r in realized if not r.get("cached")]
     per_inj = [r["cpu_s"] / r["injections"] for r in fresh if r["injections"]]
     return {"realise_per_injection": per_inj, "localise": loc, **{f"plan_{k}": v for k, v in plans.items()}}
@@ -100,9 +112,10 @@ def provenance(pop_dir: Path, events_files: list[Path], events: dict, rows: list
         f"Realised so far: {len(events_files)} chunks ({n_real} injections), {len(events)} coincidences "
         f"({', '.join(f'{k} {v}' for k, v in sorted(classes.items()))}); planned: {len(planned)} events "
         f"({', '.join(f'{k} {v}' for k, v in sorted(planned_classes.items()))}).", "",
-        "Cost per event and stage (s; this machine, 2 cores shared by 6 sessions, nice 19): realisation and "
-        "localisation are the tools' CPU time (rusage), the plan rows the task's wall time (at load 2-6 it "
-        "exceeds CPU time):", "",
+        "CPU cost per event and stage (CPU-s, rusage; this machine, 2 cores shared by 7 sessions, nice 19): "
+        "realisation (per injection) and localisation are the tools' CPU time, each plan row its task's "
+        "(the worker process and the tools it waited for, gwemopt's interpreter included; gwemopt runs once per "
+        "event, its schedule cached for the repaired row):", "",
         "| stage | n | median | mean |", "|---|---|---|---|",
     ]
     for k, xs in costs.items():
@@ -132,9 +145,10 @@ def main() -> int:
         (keep / "chunks").mkdir(parents=True, exist_ok=True)
         for name in ("population.json", "psds.xml", "intrinsic_samples.ecsv"):
             shutil.copy2(pop_dir / name, keep / name)
+        (keep / "population.key").write_text(pop.key() + "\n")  # what population_o4.sh seeds its cache with
+        _gzip(pop_dir / "injections.xml", keep / "injections.xml.gz")
         for f in files:
-            if coinc_ids(f):
-                shutil.copy2(f, keep / "chunks" / f.name)
+            shutil.copy2(f, keep / "chunks" / f.name)
         costs = cpu_costs(args.root / "study", _jsonl(args.root / "study" / "realizations.jsonl"))
         (args.out / "provenance.md").write_text(
             provenance(pop_dir, files, events, rows, costs, args.injections, args.seed))

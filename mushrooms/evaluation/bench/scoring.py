@@ -17,7 +17,11 @@ no Monte Carlo error), and ``expected_<lc>_diff`` / ``coverage_diff`` its and
 the coverage's paired change against the reference row; ``exposure_mix``
 (``30:4 300:20``: exposures of that length) and ``exposure_mean_s`` (mean
 exposure of the planned fields weighted by their probability) say which
-exposures a plan took.
+exposures a plan took.  ``coverage_as_executed`` is the plan's coverage as
+ZTF's scheduler would execute its queues (the telescope model,
+:func:`~mushrooms.scheduler_core.telescope.coverage.queue_coverage`): the
+plan's own ``metrics.coverage_as_executed`` when it has one, else computed
+here under the configuration's filters and cadence (gwemopt's plans).
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ import numpy as np
 from .rows import fmt
 from .settings import BenchSettings
 
-__all__ = ["score_plan", "pair_with_reference"]
+__all__ = ["score_plan", "pair_with_reference", "executed_coverage"]
 
 
 def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, injections: Any,
@@ -64,6 +68,7 @@ def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any,
 
     report = check_plan(plan, skymap, settings.config)
     out = _plan_cells(plan, report)
+    out["coverage_as_executed"] = fmt(executed_coverage(plan, settings.config, footprints, skymap.prob))
     hits: dict[str, np.ndarray] = {}
     for key, lc in lightcurves.items():
         if injections is None or merger_time is None:
@@ -74,6 +79,26 @@ def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any,
         out[f"expected_{key}"] = _expected(plan, skymap, footprints, lc, merger_time)
     out.update(_exposure_cells(plan, footprints, skymap.prob))
     return out, hits
+
+
+def executed_coverage(plan: Any, config: Any, footprints: Any, prob: np.ndarray) -> float:
+    """Cadence-valid coverage of ``plan``'s queues as ZTF executes them (Q14), 0 to 1.
+
+    The plan's ``metrics.coverage_as_executed`` when it carries one (every
+    plan ``make_plan`` builds); otherwise (a baseline's plan, an empty one)
+    computed on ``footprints`` with the filters and cadence of ``config``
+    (the planning configuration) when the plan does not name its own.
+    """
+    from ...scheduler_core.telescope.coverage import queue_coverage
+
+    own = getattr(plan.metrics, "coverage_as_executed", None)
+    if own is not None:
+        return float(own)
+    if not plan.observations:
+        return 0.0
+    if not plan.config:
+        plan = plan.with_(config={"filters": list(config.filters), "cadence_s": float(config.cadence_s)})
+    return float(queue_coverage(plan, footprints, prob))
 
 
 def _expected(plan: Any, skymap: Any, footprints: Any, lc: Any, merger_time: Any) -> Any:

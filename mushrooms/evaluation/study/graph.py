@@ -59,21 +59,32 @@ def plan_and_score(skymap: str | Mapping[str, Any], solver: str, settings: Bench
     dict
         ``row`` (the bench's CSV row), ``ok`` (scored), ``error`` and
         ``traceback`` (a failure: a raised exception, or a row the bench
-        could not score), ``versions``, ``task_s``.
+        could not score), ``versions``, ``task_s`` (wall time, s) and
+        ``cpu_s`` (CPU time of this process and of the tools it waited for,
+        gwemopt's interpreter included, s).
     """
     worker_init()
     path = skymap["path"] if isinstance(skymap, Mapping) else str(skymap)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), _cpu_s()
     try:
         row = bench_map(path, dataclasses.replace(settings, solvers=(solver,)), raise_errors=True)[0]
     except Exception as exc:  # recorded; the study goes on
         row = make_row(path, solver, status=f"error: {type(exc).__name__}: {exc}"[:300], valid=False)
         return dict(row=row, ok=False, error=f"{type(exc).__name__}: {exc}"[:500],
                     traceback=traceback_summary(exc), versions=software_versions(),
-                    task_s=round(time.perf_counter() - t0, 3))
+                    task_s=round(time.perf_counter() - t0, 3), cpu_s=round(_cpu_s() - c0, 3))
     ok = scored(row)
     return dict(row=row, ok=ok, error=None if ok else str(row.get("status")), traceback=None,
-                versions=software_versions(), task_s=round(time.perf_counter() - t0, 3))
+                versions=software_versions(), task_s=round(time.perf_counter() - t0, 3),
+                cpu_s=round(_cpu_s() - c0, 3))
+
+
+def _cpu_s() -> float:
+    """CPU seconds (user + system) of this process and of its finished children so far."""
+    import resource
+
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
 
 
 def open_client(workers: int = 2, scheduler: str | None = None, dashboard: bool = False) -> Any:

@@ -5,8 +5,9 @@ results are read per *event*: which realised chunk and coincidence it is,
 its class (BNS / NSBH, from the injected source-frame masses) and true
 distance, and per solver the numbers the papers compare
 (:data:`POPULATION_COLUMNS`).  ``coverage_executed`` is the coverage of the
-plan as the telescope would execute it; it stays empty until an executor
-model fills it.
+plan as ZTF would execute its queues (the bench row's ``coverage_as_executed``:
+the telescope model's cadence-valid coverage, Q14); empty for a result made
+before the rows carried it.
 """
 
 from __future__ import annotations
@@ -111,7 +112,7 @@ def population_rows(records: Iterable[Mapping[str, Any]],
             continue
         row = rec["row"]
         out.append(dict(event=ev["event"], solver=rec["solver"], coverage=row.get("coverage"),
-                        coverage_executed="", upper_bound=row.get("bound"),
+                        coverage_executed=row.get("coverage_as_executed", ""), upper_bound=row.get("bound"),
                         efficiency_optimistic=row.get("efficiency_optimistic"),
                         efficiency_conservative=row.get("efficiency_conservative"),
                         efficiency_nsbh=row.get("efficiency_nsbh"), valid=row.get("valid"),

@@ -7,7 +7,10 @@
   error over the events both planned, events better / worse;
 * LUMOS's headline metric (Wagh et al. 2026, arXiv 2601.08912): the mean
   cumulative probability (coverage) of a solver relative to gwemopt's,
-  ``100 (mean cov_s / mean cov_gwemopt - 1)`` % over the events both planned;
+  ``100 (mean cov_s / mean cov_gwemopt - 1)`` % over the events both planned,
+  on the planned coverage and on ``coverage_executed`` (as ZTF would execute
+  the queues);
+* planned against executed coverage per solver;
 * the same means by event class, by distance and by 90 % area (quartiles).
 """
 
@@ -21,7 +24,7 @@ from ..bench.rows import num
 from .tables import comparison_pair, paper_tables
 
 __all__ = ["EFFICIENCY_KEYS", "as_bench_rows", "complete_events", "paired_differences", "lumos_metric", "breakdown",
-           "population_tables"]
+           "executed_table", "population_tables"]
 
 Record = dict[str, Any]
 
@@ -40,6 +43,7 @@ def as_bench_rows(rows: Sequence[Mapping[str, Any]]) -> list[Record]:
         d = dict(r)
         d["skymap"] = r["event"]
         d["bound"] = r.get("upper_bound")
+        d["coverage_as_executed"] = r.get("coverage_executed")
         cov, bound = num(r.get("coverage")), num(r.get("upper_bound"))
         d["coverage_over_bound"] = cov / bound if cov is not None and bound else None
         out.append(d)
@@ -67,7 +71,8 @@ def _paired(rows: Sequence[Mapping[str, Any]], a: str, b: str, key: str, tie: fl
 def paired_differences(rows: Sequence[Mapping[str, Any]], ours: Sequence[str]) -> list[str]:
     """Markdown: per (ours, baseline) pair, paired differences of coverage and each efficiency."""
     solvers = set(str(r["solver"]) for r in rows)
-    keys = [("coverage", TIE_COVERAGE)] + [(f"efficiency_{k}", TIE_EFFICIENCY) for k in EFFICIENCY_KEYS]
+    keys = [("coverage", TIE_COVERAGE), ("coverage_executed", TIE_COVERAGE)] + [
+        (f"efficiency_{k}", TIE_EFFICIENCY) for k in EFFICIENCY_KEYS]
     head = ["A − B", "events"] + [k.replace("efficiency_", "eff. ") for k, _ in keys]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for a in ours:
@@ -79,14 +84,15 @@ def paired_differences(rows: Sequence[Mapping[str, Any]], ours: Sequence[str]) -
     return lines
 
 
-def lumos_metric(rows: Sequence[Mapping[str, Any]], solver: str,
-                 reference: str = "gwemopt") -> tuple[int, float | None]:
-    """(events, percent): mean coverage of ``solver`` relative to ``reference``'s over the events both planned."""
+def lumos_metric(rows: Sequence[Mapping[str, Any]], solver: str, reference: str = "gwemopt",
+                 key: str = "coverage") -> tuple[int, float | None]:
+    """(events, percent): mean ``key`` (coverage) of ``solver`` relative to ``reference``'s over the events both
+    planned (and both have ``key``)."""
     pairs = []
     for sol in by_map(rows).values():
         ra, rb = sol.get(solver), sol.get(reference)
-        if scored(ra) and scored(rb):
-            pairs.append((num(ra["coverage"]), num(rb["coverage"])))
+        if scored(ra) and scored(rb) and num(ra.get(key)) is not None and num(rb.get(key)) is not None:
+            pairs.append((num(ra[key]), num(rb[key])))
     if not pairs:
         return 0, None
     base = sum(b for _, b in pairs)
@@ -127,6 +133,23 @@ def breakdown(rows: Sequence[Mapping[str, Any]], column: str, quartiles: bool) -
     return lines
 
 
+def executed_table(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Markdown: per solver, mean planned and executed coverage over its events with both, and their ratio."""
+    lines = ["| solver | events | coverage | coverage_executed | executed / planned | valid plans |",
+             "|---|---|---|---|---|---|"]
+    for s in dict.fromkeys(str(r["solver"]) for r in rows):
+        pairs = [(num(r["coverage"]), num(r.get("coverage_executed"))) for r in rows
+                 if r["solver"] == s and scored(r) and num(r.get("coverage_executed")) is not None]
+        valid = sum(1 for r in rows if r["solver"] == s and r.get("valid") is True)
+        if not pairs:
+            lines.append(f"| {s} | 0 | - | - | - | {valid} |")
+            continue
+        cov, ex = sum(a for a, _ in pairs) / len(pairs), sum(b for _, b in pairs) / len(pairs)
+        lines.append(f"| {s} | {len(pairs)} | {cov:.4f} | {ex:.4f} | {ex / cov if cov > 0 else float('nan'):.3f} "
+                     f"| {valid} |")
+    return lines
+
+
 def complete_events(rows: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
     """The rows of the events that have a row of every solver present (a partial run's comparable set)."""
     solvers = set(str(r["solver"]) for r in rows)
@@ -150,8 +173,7 @@ def population_tables(rows: Sequence[Mapping[str, Any]]) -> str:
     ours = [s for s in solvers if s not in BASELINES] or ([comparison_pair(solvers)[0]] if solvers else [])
     executed = sum(1 for r in rows if num(r.get("coverage_executed")) is not None)
     out = [f"{len(by_map(bench_rows))} events with every solver's row (of {n_all}), {len(rows)} (event, solver) "
-           f"rows; coverage_executed filled on "
-           f"{executed} (empty until the executor model lands).", "",
+           f"rows; coverage_executed (as ZTF would execute the queues) filled on {executed}.", "",
            "## The MUSHROOMS paper's Tables 2-3 layout", "", paper_tables(bench_rows, EFFICIENCY_KEYS), "",
            "## Paired differences (A − B: mean ± standard error over the events both planned; "
            "events better/worse beyond the tie margins)", ""]
@@ -162,8 +184,12 @@ def population_tables(rows: Sequence[Mapping[str, Any]]) -> str:
         if s == "gwemopt":
             continue
         n, pct = lumos_metric(bench_rows, s)
+        n_x, pct_x = lumos_metric(bench_rows, s, key="coverage_executed")
         out.append(f"- {s}: " + (f"{pct:+.1f} % over {n} events" if pct is not None else
-                                 "no event with a gwemopt row"))
+                                 "no event with a gwemopt row")
+                   + (f"; as executed {pct_x:+.1f} % over {n_x} events" if pct_x is not None else ""))
+    out += ["", "## Planned and executed coverage (the queues run by the telescope model, cadence-valid pairs)", ""]
+    out += executed_table(bench_rows)
     for column, quartiles in (("event_class", False), ("distance_mpc", True), ("area90_deg2", True)):
         out += ["", f"## By {column}" + (" (quartiles over the events)" if quartiles else ""), ""]
         out += breakdown(bench_rows, column, quartiles)
