@@ -59,7 +59,13 @@ def test_population_rows_name_each_event_by_chunk_and_coincidence_and_round_trip
     assert events[(sha, 7)]["event"] == "o3-0000-7" and {e["event_class"] for e in events.values()} == {"BNS"}
     records = _records(events)
     records.append(dict(map="0123456789abcdef:3:opts", solver="greedy", row=dict(coverage=0.9)))  # not an event
+    for rec in records:
+        rec["finished"] = "2026-12-05T22:00:00+00:00"
+    # event 0 planned again by greedy under another configuration (other localisation options too): the later wins
+    records.insert(0, dict(map=f"{sha}:0:other-opts", solver="greedy", finished="2026-12-05T23:00:00+00:00",
+                           row=dict(coverage=0.123, valid=True)))
     rows = population_rows(records[::-1], events)
+    assert [r["coverage"] for r in rows if r["event"] == "o3-0000-0" and r["solver"] == "greedy"] == [0.123]
     assert len(rows) == 42 and [r["event"] for r in rows[:4]] == ["o3-0000-0"] * 2 + ["o3-0000-1"] * 2
     assert all(r["coverage_executed"] == "" for r in rows if r["solver"] == "greedy")
     assert all(r["coverage_executed"] == pytest.approx(0.75 * r["coverage"]) for r in rows if r["solver"] == "hybrid")

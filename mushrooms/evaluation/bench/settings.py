@@ -25,7 +25,8 @@ from ...scheduler_core.ranges import Range, setting
 from ...scheduler_core.solvers_registry import SOLVER_NAMES
 from ...scheduler_core.tables import TableError, check_value, dataclass_from_table
 
-__all__ = ["OURS", "SOLVERS", "GWEMOPT_ROWS", "SERVICE_ROW", "OBJECTIVE_SUFFIXES", "ARM_SEPARATOR", "row_arm", "ROW_NAMES_VERSION", "MAGLIM_RANGE",
+__all__ = ["OURS", "SOLVERS", "GWEMOPT_ROWS", "SERVICE_ROW", "OBJECTIVE_SUFFIXES", "ARM_SEPARATOR", "row_arm",
+           "ROW_NAMES_VERSION", "MAGLIM_RANGE",
            "BenchConfig", "BenchSettings", "row_solver", "is_row_name", "check_rows"]
 
 #: Our schedulers (the registry's, :mod:`~mushrooms.scheduler_core.solvers_registry`); the others are gwemopt's rows.

@@ -102,10 +102,18 @@ def population_rows(records: Iterable[Mapping[str, Any]],
 
     ``records`` are the study's stored results (:meth:`.store.ResultStore.records`
     values: ``map`` = ``<events sha[:16]>:<coinc id>:<options>``, ``solver``,
-    ``row``); ordered by event then solver as given.
+    ``row``, ``finished``); ordered by event then solver as given.  An event
+    planned by one solver under several configurations keeps the result
+    finished last.
     """
-    out = []
+    latest: dict[tuple[str, str, str], Mapping[str, Any]] = {}
     for rec in records:
+        sha, cid, _ = str(rec["map"]).split(":", 2)
+        key = (sha, cid, str(rec["solver"]))
+        if key not in latest or str(rec.get("finished", "")) >= str(latest[key].get("finished", "")):
+            latest[key] = rec
+    out = []
+    for rec in latest.values():
         sha, cid, _ = str(rec["map"]).split(":", 2)
         ev = events.get((sha, int(cid)))
         if ev is None:
