@@ -7,7 +7,8 @@ cache and ``study/results.jsonl``, ``realizations.jsonl``, ``localisations.jsonl
 
 * ``results.csv``: one row per (event, solver), :data:`POPULATION_COLUMNS` (``coverage_executed``: the plan's
   coverage as ZTF would execute its queues);
-* ``tables.md``: every table, rebuilt from ``results.csv`` alone (``--tables-only`` does just that);
+* ``tables.md`` and ``figures/``: every table and figure, rebuilt from ``results.csv`` alone (``--tables-only``
+  does just that);
 * ``provenance.md`` and ``population/``: the recipe, commands, seeds, PSDs, counts per class, the CPU cost
   per event and stage; the small files (``population.json``, ``psds.xml``, ``intrinsic_samples.ecsv``,
   ``injections.xml.gz``, every realised chunk's ``events-KKKK.xml.gz``), enough for ``population_o4.sh`` to
@@ -28,6 +29,7 @@ from pathlib import Path
 from mushrooms.evaluation.study.mass_models import FARAH_PDB
 from mushrooms.evaluation.study.population_rows import (population_events, population_rows,
                                                         read_population_csv, write_population_csv)
+from mushrooms.evaluation.study.population_figures import population_figures
 from mushrooms.evaluation.study.population_tables import population_tables
 from mushrooms.evaluation.study.recipes import O4_DEVIATIONS, O4_RANGES_MPC, RECIPES, recipe_population
 from mushrooms.evaluation.study.store import ResultStore
@@ -154,7 +156,8 @@ def main() -> int:
             provenance(pop_dir, files, events, rows, costs, args.injections, args.seed))
     rows = read_population_csv(args.out / "results.csv")
     (args.out / "tables.md").write_text(population_tables(rows) + "\n")
-    print(f"{len(rows)} rows -> {args.out}")
+    figures = population_figures(rows, args.out / "figures")
+    print(f"{len(rows)} rows -> {args.out}; figures: {', '.join(str(f) for f in figures)}")
     return 0
 
 

@@ -119,3 +119,21 @@ def test_population_tables_pair_ours_with_every_baseline_and_split_by_class():
     assert "| BNS | 2 |" in text and "| NSBH | 2 |" in text
     assert "coverage_executed (as ZTF would execute the queues) filled on 0" in text
     assert "best(hybrid,gwemopt)" in text  # the paper's hybrid row of Tables 2-3
+
+
+def test_population_figures_pair_ours_with_each_baseline_over_the_complete_events(tmp_path):
+    from PIL import Image
+
+    from mushrooms.evaluation.study.population_figures import population_figures
+
+    rows = []
+    for k, (cls, cov) in enumerate([("BNS", 0.5), ("BNS", 0.3), ("NSBH", 0.2), ("NSBH", 0.6)]):
+        for solver, extra in (("greedy", 0.0), ("service", 0.1), ("gwemopt", 0.05), ("gwemopt-repaired", -0.1)):
+            r = _row(f"e{k}", solver, cov + extra, cls)
+            r["coverage_executed"] = 0.8 * r["coverage"]
+            rows.append(r)
+    written = population_figures(rows + [_row("late", "greedy", 0.9)], tmp_path)
+    assert sorted(p.name for p in written) == ["paired_by_distance_area.png", "population.png"]
+    assert Image.open(tmp_path / "paired_by_distance_area.png").size[1] > Image.open(tmp_path / "population.png").size[1]
+    assert population_figures([_row("late", "greedy", 0.9)], tmp_path / "one") == written[:0] + [
+        tmp_path / "one" / "population.png"]  # one solver: no baseline to pair with
