@@ -122,7 +122,21 @@ def provenance(pop_dir: Path, events_files: list[Path], events: dict, rows: list
     ]
     for k, xs in costs.items():
         lines.append(f"| {k} | {len(xs)} | {_median(xs)} | {sum(xs) / len(xs):.3g} |" if xs else f"| {k} | 0 | - | - |")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + ["", *software(pop_dir.parent.parent.parent)]) + "\n"
+
+
+def software(root: Path) -> list[str]:
+    """Where the code that made the results came from (``ROOT/code-<commit>``: the snapshot the run used) and the
+    versions its workers recorded."""
+    codes = sorted(p.name.removeprefix("code-") for p in root.glob("code-*"))
+    versions: dict[str, set[str]] = {}
+    for rec in ResultStore(root / "study" / "results.jsonl").records().values():
+        for name, v in (rec.get("versions") or {}).items():
+            versions.setdefault(name, set()).add(str(v))
+    return [f"Code: branch `population` at {', '.join(codes) or '(unknown)'} (main as of 0f793b0 plus this "
+            "branch's evaluation changes), run from a snapshot in ROOT/code-<commit>; package versions on the "
+            "workers: " + ", ".join(f"{k} {'/'.join(sorted(v))}" for k, v in sorted(versions.items()))
+            + " (`mushrooms` is the editable install's version, not the snapshot's)."]
 
 
 def main() -> int:
