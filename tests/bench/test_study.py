@@ -153,7 +153,11 @@ def test_paper_tables_and_figures_on_two_solvers(tmp_path) -> None:
     text = study.paper_tables(rows, ("optimistic", "conservative"))
     lines = text.splitlines()
     hybrid_all = next(x for x in lines if x.startswith("| hybrid |"))
-    assert "| hybrid | - | 3 | 0.4333 | 0.2167 | 0.1083 |" in hybrid_all and "| 1/1/1 |" in hybrid_all
+    # the rows have no coverage_as_executed: its column is "-"
+    assert "| hybrid | - | 3 | 0.4333 | - | 0.2167 | 0.1083 |" in hybrid_all and "| 1/1/1 |" in hybrid_all
+    executed = [dict(r, coverage_as_executed=0.5 * r["coverage"]) for r in rows]
+    assert "| hybrid | - | 3 | 0.4333 | 0.2167 | 0.2167 | 0.1083 |" in study.paper_tables(executed, ("optimistic",
+                                                                                              "conservative"))
     best = [x for x in lines if x.startswith("| best(hybrid,greedy) |")]
     assert best[0].startswith("| best(hybrid,greedy) | - | 3 | 0.4667 |")  # per map the plan with more coverage
     assert "Similar-length subset (2 of 3 maps" in text
