@@ -110,7 +110,8 @@ def test_gwemopt_without_interpreter_is_unavailable(tmp_path, monkeypatch) -> No
 
     monkeypatch.delenv("MUSHROOMS_GWEMOPT_PYTHON", raising=False)
     find_spec = importlib.util.find_spec  # this interpreter without gwemopt, whether or not it is installed here
-    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "gwemopt" else find_spec(name, *a))
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "gwemopt" else find_spec(name, *a))
     run = run_gwemopt(tmp_path / "x.fits", Time("2020-01-01T00:00:00"), PlanningConfig())
     assert run.status == "unavailable" and "MUSHROOMS_GWEMOPT_PYTHON" in run.message
     monkeypatch.setenv("MUSHROOMS_GWEMOPT_PYTHON", str(tmp_path / "no-python"))

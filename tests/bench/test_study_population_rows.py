@@ -134,6 +134,7 @@ def test_population_figures_pair_ours_with_each_baseline_over_the_complete_event
             rows.append(r)
     written = population_figures(rows + [_row("late", "greedy", 0.9)], tmp_path)
     assert sorted(p.name for p in written) == ["paired_by_distance_area.png", "population.png"]
-    assert Image.open(tmp_path / "paired_by_distance_area.png").size[1] > Image.open(tmp_path / "population.png").size[1]
+    paired, population = (Image.open(tmp_path / f"{n}.png") for n in ("paired_by_distance_area", "population"))
+    assert paired.size[1] > population.size[1]  # one row of panels per baseline
     assert population_figures([_row("late", "greedy", 0.9)], tmp_path / "one") == written[:0] + [
         tmp_path / "one" / "population.png"]  # one solver: no baseline to pair with
