@@ -162,7 +162,8 @@ def main() -> int:
         for name in ("population.json", "psds.xml", "intrinsic_samples.ecsv"):
             shutil.copy2(pop_dir / name, keep / name)
         (keep / "population.key").write_text(pop.key() + "\n")  # what population_o4.sh seeds its cache with
-        _gzip(pop_dir / "injections.xml", keep / "injections.xml.gz")
+        if (pop_dir / "injections.xml").exists():  # (made only once a chunk had to be realised)
+            _gzip(pop_dir / "injections.xml", keep / "injections.xml.gz")
         for f in files:
             shutil.copy2(f, keep / "chunks" / f.name)
         costs = cpu_costs(args.root / "study", _jsonl(args.root / "study" / "realizations.jsonl"))
