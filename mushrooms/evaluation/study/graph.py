@@ -42,7 +42,7 @@ log = logging.getLogger(__package__)  # the study's one logger (its records say 
 Record = dict[str, Any]
 
 
-def plan_and_score(skymap: str | Mapping[str, Any], solver: str, settings: BenchSettings) -> Record:
+def plan_and_score(skymap: str | Mapping[str, Any], solver: str, settings: BenchSettings, *after: Any) -> Record:
     """Plan one map with one solver and score the plan (the bench's :func:`~mushrooms.evaluation.bench.bench_map`).
 
     Parameters
@@ -53,6 +53,9 @@ def plan_and_score(skymap: str | Mapping[str, Any], solver: str, settings: Bench
         A row name (:data:`mushrooms.evaluation.bench.SOLVERS`, or ours with a forced objective).
     settings : BenchSettings
         The study's settings (its ``solvers`` are ignored).
+    *after
+        Results of tasks this one waits for (ignored; on Dask, futures
+        passed here order the tasks: gwemopt's repaired row after its raw row).
 
     Returns
     -------
@@ -154,9 +157,15 @@ class _Graph:
                 source = client.submit(localise, m.events, m.coinc_id, self.localisation, m.path,
                                        key=f"localise-{digest([m.key], 12)}", pure=False)
                 self.futures[source] = ("localise", m)
+            submitted: dict[str, Any] = {}
             for s in todo:
                 k = result_key(m.key, s, self.config_hash)
-                fut = client.submit(plan_and_score, source, s, settings, key=f"plan-{digest([k], 16)}", pure=False)
+                # gwemopt runs once per map: its repaired row waits for the raw row's run (cached) instead of
+                # running gwemopt a second time beside it
+                after = [submitted["gwemopt"]] if s == "gwemopt-repaired" and "gwemopt" in submitted else []
+                fut = client.submit(plan_and_score, source, s, settings, *after, key=f"plan-{digest([k], 16)}",
+                                    pure=False)
+                submitted[s] = fut
                 self.futures[fut] = ("plan", (m, s, k))
                 self.executed.append(k)
 
