@@ -122,7 +122,35 @@ def provenance(pop_dir: Path, events_files: list[Path], events: dict, rows: list
     ]
     for k, xs in costs.items():
         lines.append(f"| {k} | {len(xs)} | {_median(xs)} | {sum(xs) / len(xs):.3g} |" if xs else f"| {k} | 0 | - | - |")
+    n_coinc = sum(len(population_events([f])) for f in events_files) or 1
+    lines += ["", projection(costs, n_real / n_coinc)]
     return "\n".join(lines + ["", *software(pop_dir.parent.parent.parent)]) + "\n"
+
+
+#: CPU-s per injection of ``bayestar-realize-coincs`` measured on 2026-12-04 (1350 injections), used when a run
+#: realised no chunk itself (its chunks came from the committed ones).
+REALISE_PER_INJECTION_2026_12_04 = 0.588
+
+
+def projection(costs: dict[str, list[float]], injections_per_detection: float, events: int = 1199) -> str:
+    """What ``events`` events cost: the mean CPU-s per event of every stage (realising the injections behind one
+    detection, localising it, each row's plan), their sum, and the wall time on N single-thread workers."""
+    mean = {k: sum(v) / len(v) for k, v in costs.items() if v}
+    per_inj = mean.get("realise_per_injection")
+    source = "this run" if per_inj is not None else "2026-12-04's run"
+    per_inj = REALISE_PER_INJECTION_2026_12_04 if per_inj is None else per_inj
+    parts = {"realise": per_inj * injections_per_detection, **{k: v for k, v in mean.items()
+                                                              if k != "realise_per_injection"}}
+    total = sum(parts.values())
+    hours = events * total / 3600.0
+    return (f"Per event (means, CPU-s): " + ", ".join(f"{k} {v:.1f}" for k, v in parts.items())
+            + f" (realisation: {per_inj:.3f} CPU-s per injection ({source}) x {injections_per_detection:.1f} "
+            f"injections per detection); total {total:.0f} CPU-s. {events} events: {hours:.0f} CPU-hours, i.e. "
+            + ", ".join(f"{hours / n:.1f} h on {n} worker{'s' if n > 1 else ''}" for n in (1, 2, 8, 32, 128))
+            + " (plus bayestar-inject once, ~12 CPU-min, serial). gwemopt's runs have a long tail (its rows that "
+            "timed out or were killed are not in the means); the service row's optimisation has a wall-clock "
+            "budget (`time_limit_s`), so on a loaded machine it gets fewer CPU-s than on a free core, where it "
+            "would use up to that budget more.")
 
 
 def software(root: Path) -> list[str]:
