@@ -1,6 +1,12 @@
 #!/usr/bin/env python3
 """Are this machine's injections the ones behind the committed chunks? Compare each committed chunk's
-sim_inspiral rows with the same slice of the new injections.xml (masses, spins, distance, sky position, time)."""
+sim_inspiral rows with the same slice of the new injections.xml (masses, spins, distance, sky position, time).
+
+    python benchmarks/population_o4_compare_injections.py ROOT/cache/populations/<key>/injections.xml \
+        benchmarks/results/population_o4/population/chunks      # chunks of 50 injections
+
+A chunk's events file keeps the injections it detected; each must be in its chunk's slice of the new file.
+"""
 import glob
 import sys
 from pathlib import Path
