@@ -115,7 +115,8 @@ def test_population_tables_pair_ours_with_every_baseline_and_split_by_class():
     assert text.startswith("4 events with every solver's row (of 5), 12 (event, solver) rows")
     mean_gw = sum(c + 0.05 for c in (0.5, 0.3, 0.2, 0.6)) / 4
     mean_hy = sum(c + 0.1 for c in (0.5, 0.3, 0.2, 0.6)) / 4
-    assert f"- hybrid: {100 * (mean_hy / mean_gw - 1):+.1f} % over 4 events" in text
+    assert f"- hybrid: {100 * (mean_hy / mean_gw - 1):+.1f} % (bootstrap 68 %: " in text
+    assert "% over 4 events\n" in text  # (no executed coverage in these rows: the planned one alone)
     assert "| BNS | 2 |" in text and "| NSBH | 2 |" in text
     assert "coverage_executed (as ZTF would execute the queues) filled on 0" in text
     assert "best(hybrid,gwemopt)" in text  # the paper's hybrid row of Tables 2-3
@@ -138,3 +139,18 @@ def test_population_figures_pair_ours_with_each_baseline_over_the_complete_event
     assert paired.size[1] > population.size[1]  # one row of panels per baseline
     assert population_figures([_row("late", "greedy", 0.9)], tmp_path / "one") == written[:0] + [
         tmp_path / "one" / "population.png"]  # one solver: no baseline to pair with
+
+
+def test_lumos_interval_is_the_spread_of_the_metric_over_resampled_events():
+    from mushrooms.evaluation.study.population_tables import as_bench_rows, lumos_interval
+
+    same = as_bench_rows([_row(e, s, c * (1.5 if s == "service" else 1.0))
+                          for e, c in (("a", 0.2), ("b", 0.4), ("c", 0.6)) for s in ("service", "gwemopt")])
+    lo, hi = lumos_interval(same, "service")  # every event 50 % better: so is every resample
+    assert lo == pytest.approx(50.0) and hi == pytest.approx(50.0)
+    mixed = as_bench_rows([_row("a", "service", 0.6), _row("a", "gwemopt", 0.2),
+                           _row("b", "service", 0.2), _row("b", "gwemopt", 0.4)])
+    lo, hi = lumos_interval(mixed, "service")
+    n, pct = lumos_metric(mixed, "service")
+    assert lo < pct < hi and lo >= -50.0 and hi <= 200.0  # between the two events' own ratios
+    assert lumos_interval(mixed[:2], "service") is None  # one event: no spread to measure

@@ -23,7 +23,8 @@ from ..bench.compare import TIE_COVERAGE, TIE_EFFICIENCY, by_map, scored
 from ..bench.rows import num
 from .tables import comparison_pair, paper_tables
 
-__all__ = ["EFFICIENCY_KEYS", "as_bench_rows", "complete_events", "paired_differences", "lumos_metric", "breakdown",
+__all__ = ["EFFICIENCY_KEYS", "as_bench_rows", "complete_events", "paired_differences", "lumos_metric",
+           "lumos_interval", "breakdown",
            "executed_table", "population_tables"]
 
 Record = dict[str, Any]
@@ -97,6 +98,29 @@ def lumos_metric(rows: Sequence[Mapping[str, Any]], solver: str, reference: str 
         return 0, None
     base = sum(b for _, b in pairs)
     return len(pairs), (100.0 * (sum(a for a, _ in pairs) / base - 1.0) if base > 0 else None)
+
+
+def lumos_interval(rows: Sequence[Mapping[str, Any]], solver: str, reference: str = "gwemopt",
+                   key: str = "coverage", draws: int = 2000, seed: int = 0) -> tuple[float, float] | None:
+    """The 16th and 84th percentiles (%) of :func:`lumos_metric` over the events resampled with replacement
+    (a seeded bootstrap: the metric's spread from which events happen to be in the population)."""
+    import numpy as np
+
+    pairs = []
+    for sol in by_map(rows).values():
+        ra, rb = sol.get(solver), sol.get(reference)
+        if scored(ra) and scored(rb) and num(ra.get(key)) is not None and num(rb.get(key)) is not None:
+            pairs.append((num(ra[key]), num(rb[key])))
+    if len(pairs) < 2:
+        return None
+    a, b = np.array(pairs, dtype=float).T
+    pick = np.random.default_rng(seed).integers(0, len(pairs), size=(draws, len(pairs)))
+    base = b[pick].sum(axis=1)
+    ratio = 100.0 * (a[pick].sum(axis=1)[base > 0] / base[base > 0] - 1.0)
+    if not ratio.size:
+        return None
+    lo, hi = np.percentile(ratio, [16, 84])
+    return float(lo), float(hi)
 
 
 def _quartile_label(value: float | None, edges: Sequence[float]) -> str | None:
@@ -183,11 +207,15 @@ def population_tables(rows: Sequence[Mapping[str, Any]]) -> str:
     for s in solvers:
         if s == "gwemopt":
             continue
-        n, pct = lumos_metric(bench_rows, s)
-        n_x, pct_x = lumos_metric(bench_rows, s, key="coverage_executed")
-        out.append(f"- {s}: " + (f"{pct:+.1f} % over {n} events" if pct is not None else
-                                 "no event with a gwemopt row")
-                   + (f"; as executed {pct_x:+.1f} % over {n_x} events" if pct_x is not None else ""))
+        cells = []
+        for key, label in (("coverage", ""), ("coverage_executed", "as executed ")):
+            n, pct = lumos_metric(bench_rows, s, key=key)
+            if pct is None:
+                continue
+            band = lumos_interval(bench_rows, s, key=key)
+            cells.append(f"{label}{pct:+.1f} %" + (f" (bootstrap 68 %: {band[0]:+.1f} to {band[1]:+.1f})"
+                                                    if band else "") + f" over {n} events")
+        out.append(f"- {s}: " + ("; ".join(cells) or "no event with a gwemopt row"))
     out += ["", "## Planned and executed coverage (the queues run by the telescope model, cadence-valid pairs)", ""]
     out += executed_table(bench_rows)
     for column, quartiles in (("event_class", False), ("distance_mpc", True), ("area90_deg2", True)):
