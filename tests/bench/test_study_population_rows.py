@@ -116,7 +116,7 @@ def test_population_tables_pair_ours_with_every_baseline_and_split_by_class():
     mean_gw = sum(c + 0.05 for c in (0.5, 0.3, 0.2, 0.6)) / 4
     mean_hy = sum(c + 0.1 for c in (0.5, 0.3, 0.2, 0.6)) / 4
     assert f"- hybrid: {100 * (mean_hy / mean_gw - 1):+.1f} % (bootstrap 68 %: " in text
-    assert "% over 4 events\n" in text  # (no executed coverage in these rows: the planned one alone)
+    assert ") over 4 events\n" in text  # (no executed coverage in these rows: the planned one alone)
     assert "| BNS | 2 |" in text and "| NSBH | 2 |" in text
     assert "coverage_executed (as ZTF would execute the queues) filled on 0" in text
     assert "best(hybrid,gwemopt)" in text  # the paper's hybrid row of Tables 2-3
