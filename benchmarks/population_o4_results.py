@@ -111,7 +111,8 @@ def provenance(pop_dir: Path, events_files: list[Path], events: dict, rows: list
         f"Noise curves: BNS ranges {O4_RANGES_MPC} Mpc (`recipes.bns_range_mpc`).", "",
         "Where this differs from Kiendrebeogo et al. 2023 (lpsinger/observing-scenarios-simulations 06d4e93):",
         *[f"- {d}" for d in O4_DEVIATIONS], "",
-        f"Realised so far: {len(events_files)} chunks ({n_real} injections), {len(events)} coincidences "
+        f"Realised so far (the cache's leading chunks, made here or taken from the committed ones): "
+        f"{len(events_files)} chunks ({n_real} injections), {len(events)} coincidences "
         f"({', '.join(f'{k} {v}' for k, v in sorted(classes.items()))}); planned: {len(planned)} events "
         f"({', '.join(f'{k} {v}' for k, v in sorted(planned_classes.items()))}).", "",
         "CPU cost per event and stage (CPU-s, rusage; this machine, 2 cores shared by 7 sessions, nice 19): "
@@ -127,6 +128,9 @@ def provenance(pop_dir: Path, events_files: list[Path], events: dict, rows: list
     return "\n".join(lines + ["", *software(pop_dir.parent.parent.parent)]) + "\n"
 
 
+#: CPU-s of ``bayestar-sample-model-psd`` and ``bayestar-inject`` (``--nsamples 15000``, 1000 intrinsic samples,
+#: ``-j 1``) measured on 2026-12-05 (rusage of the tools).
+INJECT_CPU_S_2026_12_05 = 144.0
 #: CPU-s per injection of ``bayestar-realize-coincs`` measured on 2026-12-04 (1350 injections), used when a run
 #: realised no chunk itself (its chunks came from the committed ones).
 REALISE_PER_INJECTION_2026_12_04 = 0.588
@@ -147,7 +151,8 @@ def projection(costs: dict[str, list[float]], injections_per_detection: float, e
             + f" (realisation: {per_inj:.3f} CPU-s per injection ({source}) x {injections_per_detection:.1f} "
             f"injections per detection); total {total:.0f} CPU-s. {events} events: {hours:.0f} CPU-hours, i.e. "
             + ", ".join(f"{hours / n:.1f} h on {n} worker{'s' if n > 1 else ''}" for n in (1, 2, 8, 32, 128))
-            + " (plus bayestar-inject once, ~12 CPU-min, serial). gwemopt's runs have a long tail (its rows that "
+            + f" (plus bayestar-inject once, serial: {INJECT_CPU_S_2026_12_05:.0f} CPU-s measured on 2026-12-05 for "
+            "15,000 injections from 1000 intrinsic samples). gwemopt's runs have a long tail (its rows that "
             "timed out or were killed are not in the means); the service row's optimisation has a wall-clock "
             "budget (`time_limit_s`), so on a loaded machine it gets fewer CPU-s than on a free core, where it "
             "would use up to that budget more.")
