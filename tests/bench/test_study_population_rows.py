@@ -111,7 +111,11 @@ def test_population_tables_pair_ours_with_every_baseline_and_split_by_class():
     assert any(line.startswith("| hybrid − greedy | 4 | +0.1000 ± 0.0000 (4/0)") for line in lines)
     assert any(line.startswith("| hybrid − gwemopt | 4 | +0.0500") for line in lines)
     assert any(line.startswith("| greedy − gwemopt | 4 | -0.0500") for line in lines)
+    rows[1]["status"] = "not_observable"  # e0's hybrid row: the service's answer below min_coverage
     text = population_tables(rows + [_row("late", "greedy", 0.9)])  # an event greedy alone has planned yet
+    executed = text.split("## Planned and executed coverage")[1].splitlines()
+    assert next(x for x in executed if x.startswith("| hybrid |")).endswith("| - | - | - | 4 | 1 |")
+    assert next(x for x in executed if x.startswith("| greedy |")).endswith("| 4 | 0 |")
     assert text.startswith("4 events with every solver's row (of 5), 12 (event, solver) rows")
     mean_gw = sum(c + 0.05 for c in (0.5, 0.3, 0.2, 0.6)) / 4
     mean_hy = sum(c + 0.1 for c in (0.5, 0.3, 0.2, 0.6)) / 4

@@ -169,19 +169,21 @@ def breakdown(rows: Sequence[Mapping[str, Any]], column: str, quartiles: bool) -
 
 
 def executed_table(rows: Sequence[Mapping[str, Any]]) -> list[str]:
-    """Markdown: per solver, mean planned and executed coverage over its events with both, and their ratio."""
-    lines = ["| solver | events | coverage | coverage_executed | executed / planned | valid plans |",
-             "|---|---|---|---|---|---|"]
+    """Markdown: per solver, mean planned and executed coverage over its events with both, their ratio, the plans
+    the checker passed and the ``not_observable`` answers (the service's, below ``min_coverage``: scored as 0)."""
+    lines = ["| solver | events | coverage | coverage_executed | executed / planned | valid plans | not observable |",
+             "|---|---|---|---|---|---|---|"]
     for s in dict.fromkeys(str(r["solver"]) for r in rows):
         pairs = [(num(r["coverage"]), num(r.get("coverage_executed"))) for r in rows
                  if r["solver"] == s and scored(r) and num(r.get("coverage_executed")) is not None]
         valid = sum(1 for r in rows if r["solver"] == s and r.get("valid") is True)
+        answers = sum(1 for r in rows if r["solver"] == s and r.get("status") == "not_observable")
         if not pairs:
-            lines.append(f"| {s} | 0 | - | - | - | {valid} |")
+            lines.append(f"| {s} | 0 | - | - | - | {valid} | {answers} |")
             continue
         cov, ex = sum(a for a, _ in pairs) / len(pairs), sum(b for _, b in pairs) / len(pairs)
         lines.append(f"| {s} | {len(pairs)} | {cov:.4f} | {ex:.4f} | {ex / cov if cov > 0 else float('nan'):.3f} "
-                     f"| {valid} |")
+                     f"| {valid} | {answers} |")
     return lines
 
 
