@@ -5,12 +5,15 @@ Reads what ``benchmarks/population_o4.sh`` writes under ROOT (default /work/popu
 cache and ``study/results.jsonl``, ``realizations.jsonl``, ``localisations.jsonl``) and writes, under OUT
 (default benchmarks/results/population_o4/):
 
-* ``results.csv``: one row per (event, solver), :data:`POPULATION_COLUMNS` (``coverage_executed`` empty
-  until the executor model lands);
-* ``tables.md``: every table, rebuilt from ``results.csv`` alone (``--tables-only`` does just that);
+* ``results.csv``: one row per (event, solver), :data:`POPULATION_COLUMNS` (``coverage_executed``: the plan's
+  coverage as ZTF would execute its queues);
+* ``tables.md`` and ``figures/``: every table and figure, rebuilt from ``results.csv`` alone (``--tables-only``
+  does just that);
 * ``provenance.md`` and ``population/``: the recipe, commands, seeds, PSDs, counts per class, the CPU cost
   per event and stage; the small files (``population.json``, ``psds.xml``, ``intrinsic_samples.ecsv``,
-  the realised chunks' ``events-KKKK.xml.gz``). The injections and the sky maps stay under ROOT.
+  ``injections.xml.gz``, every realised chunk's ``events-KKKK.xml.gz``), enough for ``population_o4.sh`` to
+  resume on another machine without simulating again (it seeds its cache from them). The sky maps stay
+  under ROOT (``bayestar-localize-coincs`` makes them again, deterministically, from the chunks).
 
     .venv/bin/python benchmarks/population_o4_results.py [--root DIR] [--out DIR] [--tables-only]
 """
@@ -24,9 +27,9 @@ import statistics
 from pathlib import Path
 
 from mushrooms.evaluation.study.mass_models import FARAH_PDB
-from mushrooms.evaluation.study.population import coinc_ids
 from mushrooms.evaluation.study.population_rows import (population_events, population_rows,
                                                         read_population_csv, write_population_csv)
+from mushrooms.evaluation.study.population_figures import population_figures
 from mushrooms.evaluation.study.population_tables import population_tables
 from mushrooms.evaluation.study.recipes import O4_DEVIATIONS, O4_RANGES_MPC, RECIPES, recipe_population
 from mushrooms.evaluation.study.store import ResultStore
@@ -46,6 +49,17 @@ def _jsonl(path: Path) -> list[dict]:
     return out
 
 
+def _gzip(source: Path, target: Path) -> None:
+    """``target``: ``source`` gzipped (reproducibly: no name, no time in the header), when it changed."""
+    import gzip
+
+    if target.exists() and target.stat().st_mtime >= source.stat().st_mtime:
+        return
+    with open(source, "rb") as fin, open(target, "wb") as raw:
+        with gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as fout:
+            shutil.copyfileobj(fin, fout)
+
+
 def _median(xs: list[float]) -> str:
     return f"{statistics.median(xs):.3g}" if xs else "-"
 
@@ -55,8 +69,8 @@ def cpu_costs(study: Path, realized: list[dict]) -> dict[str, list[float]]:
     loc = [r["cpu_s"] for r in _jsonl(study / "localisations.jsonl") if r.get("ok") and not r.get("cached")]
     plans: dict[str, list[float]] = {}
     for rec in ResultStore(study / "results.jsonl").records().values():
-        if rec.get("ok") and rec.get("task_s") is not None:
-            plans.setdefault(rec["solver"], []).append(float(rec["task_s"]))
+        if rec.get("ok") and rec.get("cpu_s") is not None:
+            plans.setdefault(rec["solver"], []).append(float(rec["cpu_s"]))
     fresh = [r for r in realized if not r.get("cached")]
     per_inj = [r["cpu_s"] / r["injections"] for r in fresh if r["injections"]]
     return {"realise_per_injection": per_inj, "localise": loc, **{f"plan_{k}": v for k, v in plans.items()}}
@@ -97,17 +111,65 @@ def provenance(pop_dir: Path, events_files: list[Path], events: dict, rows: list
         f"Noise curves: BNS ranges {O4_RANGES_MPC} Mpc (`recipes.bns_range_mpc`).", "",
         "Where this differs from Kiendrebeogo et al. 2023 (lpsinger/observing-scenarios-simulations 06d4e93):",
         *[f"- {d}" for d in O4_DEVIATIONS], "",
-        f"Realised so far: {len(events_files)} chunks ({n_real} injections), {len(events)} coincidences "
+        f"Realised so far (the cache's leading chunks, made here or taken from the committed ones): "
+        f"{len(events_files)} chunks ({n_real} injections), {len(events)} coincidences "
         f"({', '.join(f'{k} {v}' for k, v in sorted(classes.items()))}); planned: {len(planned)} events "
         f"({', '.join(f'{k} {v}' for k, v in sorted(planned_classes.items()))}).", "",
-        "Cost per event and stage (s; this machine, 2 cores shared by 6 sessions, nice 19): realisation and "
-        "localisation are the tools' CPU time (rusage), the plan rows the task's wall time (at load 2-6 it "
-        "exceeds CPU time):", "",
+        "CPU cost per event and stage (CPU-s, rusage; this machine, 2 cores shared by 7 sessions, nice 19): "
+        "realisation (per injection) and localisation are the tools' CPU time, each plan row its task's "
+        "(the worker process and the tools it waited for, gwemopt's interpreter included; gwemopt runs once per "
+        "event, its schedule cached for the repaired row):", "",
         "| stage | n | median | mean |", "|---|---|---|---|",
     ]
     for k, xs in costs.items():
         lines.append(f"| {k} | {len(xs)} | {_median(xs)} | {sum(xs) / len(xs):.3g} |" if xs else f"| {k} | 0 | - | - |")
-    return "\n".join(lines) + "\n"
+    n_coinc = sum(len(population_events([f])) for f in events_files) or 1
+    lines += ["", projection(costs, n_real / n_coinc)]
+    return "\n".join(lines + ["", *software(pop_dir.parent.parent.parent)]) + "\n"
+
+
+#: CPU-s of ``bayestar-sample-model-psd`` and ``bayestar-inject`` (``--nsamples 15000``, 1000 intrinsic samples,
+#: ``-j 1``) measured on 2026-12-05 (rusage of the tools).
+INJECT_CPU_S_2026_12_05 = 144.0
+#: CPU-s per injection of ``bayestar-realize-coincs`` measured on 2026-12-04 (1350 injections), used when a run
+#: realised no chunk itself (its chunks came from the committed ones).
+REALISE_PER_INJECTION_2026_12_04 = 0.588
+
+
+def projection(costs: dict[str, list[float]], injections_per_detection: float, events: int = 1199) -> str:
+    """What ``events`` events cost: the mean CPU-s per event of every stage (realising the injections behind one
+    detection, localising it, each row's plan), their sum, and the wall time on N single-thread workers."""
+    mean = {k: sum(v) / len(v) for k, v in costs.items() if v}
+    per_inj = mean.get("realise_per_injection")
+    source = "this run" if per_inj is not None else "2026-12-04's run"
+    per_inj = REALISE_PER_INJECTION_2026_12_04 if per_inj is None else per_inj
+    parts = {"realise": per_inj * injections_per_detection, **{k: v for k, v in mean.items()
+                                                              if k != "realise_per_injection"}}
+    total = sum(parts.values())
+    hours = events * total / 3600.0
+    return (f"Per event (means, CPU-s): " + ", ".join(f"{k} {v:.1f}" for k, v in parts.items())
+            + f" (realisation: {per_inj:.3f} CPU-s per injection ({source}) x {injections_per_detection:.1f} "
+            f"injections per detection); total {total:.0f} CPU-s. {events} events: {hours:.0f} CPU-hours, i.e. "
+            + ", ".join(f"{hours / n:.1f} h on {n} worker{'s' if n > 1 else ''}" for n in (1, 2, 8, 32, 128))
+            + f" (plus bayestar-inject once, serial: {INJECT_CPU_S_2026_12_05:.0f} CPU-s measured on 2026-12-05 for "
+            "15,000 injections from 1000 intrinsic samples). gwemopt's runs have a long tail (its rows that "
+            "timed out or were killed are not in the means); the service row's optimisation has a wall-clock "
+            "budget (`time_limit_s`), so on a loaded machine it gets fewer CPU-s than on a free core, where it "
+            "would use up to that budget more.")
+
+
+def software(root: Path) -> list[str]:
+    """Where the code that made the results came from (``ROOT/code-<commit>``: the snapshot the run used) and the
+    versions its workers recorded."""
+    codes = sorted(p.name.removeprefix("code-") for p in root.glob("code-*"))
+    versions: dict[str, set[str]] = {}
+    for rec in ResultStore(root / "study" / "results.jsonl").records().values():
+        for name, v in (rec.get("versions") or {}).items():
+            versions.setdefault(name, set()).add(str(v))
+    return [f"Code: branch `population` at {', '.join(codes) or '(unknown)'} (main as of 0f793b0 plus this "
+            "branch's evaluation changes), run from a snapshot in ROOT/code-<commit>; package versions on the "
+            "workers: " + ", ".join(f"{k} {'/'.join(sorted(v))}" for k, v in sorted(versions.items()))
+            + " (`mushrooms` is the editable install's version, not the snapshot's)."]
 
 
 def main() -> int:
@@ -132,15 +194,18 @@ def main() -> int:
         (keep / "chunks").mkdir(parents=True, exist_ok=True)
         for name in ("population.json", "psds.xml", "intrinsic_samples.ecsv"):
             shutil.copy2(pop_dir / name, keep / name)
+        (keep / "population.key").write_text(pop.key() + "\n")  # what population_o4.sh seeds its cache with
+        if (pop_dir / "injections.xml").exists():  # (made only once a chunk had to be realised)
+            _gzip(pop_dir / "injections.xml", keep / "injections.xml.gz")
         for f in files:
-            if coinc_ids(f):
-                shutil.copy2(f, keep / "chunks" / f.name)
+            shutil.copy2(f, keep / "chunks" / f.name)
         costs = cpu_costs(args.root / "study", _jsonl(args.root / "study" / "realizations.jsonl"))
         (args.out / "provenance.md").write_text(
             provenance(pop_dir, files, events, rows, costs, args.injections, args.seed))
     rows = read_population_csv(args.out / "results.csv")
     (args.out / "tables.md").write_text(population_tables(rows) + "\n")
-    print(f"{len(rows)} rows -> {args.out}")
+    figures = population_figures(rows, args.out / "figures")
+    print(f"{len(rows)} rows -> {args.out}; figures: {', '.join(str(f) for f in figures)}")
     return 0
 
 

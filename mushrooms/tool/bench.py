@@ -37,7 +37,8 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     g.add_argument("--start-from-event", action="store_true", help="start each plan at its map's event time (default)")
     g.add_argument("--start", metavar="ISO_UTC", help="one start time for every map")
     p.add_argument("--solvers", default="greedy,slots,blocks,hybrid",
-                   help="comma list of greedy,slots,blocks,hybrid,milp,gwemopt,gwemopt-repaired; ours as "
+                   help="comma list of greedy,slots,blocks,hybrid,milp,service,gwemopt,gwemopt-repaired "
+                        "(service: what the daemon publishes, its anytime flow); ours as "
                         "make_plan publishes them under the config (objective included), or with the "
                         "objective forced by -coverage / -detection (hybrid-coverage); any of ours under an "
                         "arm as ROW@ARM (hybrid@menu: the plan make_plan publishes under the config with the "
@@ -85,7 +86,8 @@ def bench_settings(args: argparse.Namespace, config: "Config") -> "BenchSettings
     bench = with_arms(config.bench, getattr(args, "arm", None) or [])
     try:
         return BenchSettings(config=config.scheduler, bench=bench, solvers=solvers, start_iso=start_iso,
-                             n_injections=int(args.injections))
+                             n_injections=int(args.injections),
+                             supersede_min_gain=float(config.daemon.supersede_min_gain))
     except ValueError as exc:
         raise InputError(str(exc)) from None
 

@@ -63,7 +63,8 @@ def add_arguments(sp: argparse.ArgumentParser) -> None:
                     help="with --simulate: stop after the simulation (print its events files)")
     sp.add_argument("--limit", type=int, metavar="N", help="only the first N coincidences / maps")
     sp.add_argument("--solvers", default=",".join(DEFAULT_SOLVERS),
-                    help="comma list of greedy,slots,blocks,hybrid,milp,gwemopt,gwemopt-repaired; ours as "
+                    help="comma list of greedy,slots,blocks,hybrid,milp,service,gwemopt,gwemopt-repaired "
+                         "(service: what the daemon publishes, its anytime flow); ours as "
                          "published under the config's objective, or forced with -coverage / -detection "
                          "(hybrid-coverage) (default %(default)s)")
     sp.add_argument("--injections", type=int, default=10000, metavar="N", help="kilonova injections per map")

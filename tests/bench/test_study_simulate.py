@@ -121,3 +121,38 @@ def test_a_failing_tool_stops_the_simulation_with_one_line(tmp_path, monkeypatch
     assert rc == 1
     assert "simulation failed: injecting" in err and "bayestar-sample-model-psd not found" in err
     assert not list((tmp_path / "cache").rglob("injections.xml"))
+
+
+def _seed_chunks(tmp_path, pop, chunks):
+    """The cache of ``pop`` under ``tmp_path`` holding realised chunks (the packaged events file as each)."""
+    d = tmp_path / pop.key() / f"realized-{pop.chunk}"
+    d.mkdir(parents=True)
+    for k in chunks:
+        shutil.copy(study.DEFAULT_EVENTS, d / f"events-{k:04d}.xml.gz")
+    return d
+
+
+def test_a_cache_of_realised_chunks_is_taken_without_injecting_again(tmp_path):
+    pop = study.Population(n_injections=600, chunk=300, seed=11)
+    _seed_chunks(tmp_path, pop, [0, 1])
+    n = len(study.coinc_ids(study.DEFAULT_EVENTS))
+    files, records = study.simulate_population(pop, tmp_path, client=None, detections=n + 1)
+    assert [Path(f).name for f in files] == ["events-0000.xml.gz", "events-0001.xml.gz"]
+    assert [(r["chunk"], r["cached"], r["coincidences"], r["cpu_s"]) for r in records] == [
+        (0, True, n, 0.0), (1, True, n, 0.0)]
+    assert not (tmp_path / pop.key() / "injections.xml").exists()  # bayestar-inject never ran
+    assert study.cached_chunk(pop, tmp_path, 2) is None
+
+
+def test_on_a_cluster_the_cached_chunks_are_taken_without_a_task(tmp_path):
+    from distributed import Client, LocalCluster
+
+    pop = study.Population(n_injections=900, chunk=300, seed=11)
+    _seed_chunks(tmp_path, pop, [0, 1, 2])
+    n = len(study.coinc_ids(study.DEFAULT_EVENTS))
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        files, records = study.simulate_population(pop, tmp_path, client=client, detections=2 * n)
+    assert [Path(f).name for f in files] == ["events-0000.xml.gz", "events-0001.xml.gz"]
+    assert all(r["cached"] for r in records) and len(records) == 2  # chunk 2 was not needed
+    assert not (tmp_path / pop.key() / "injections.xml").exists()  # no injections: a realisation task would have failed

@@ -8,7 +8,9 @@ publishes under the configuration given (its ``objective`` included;
 CSV column ``objective`` says which each row used); ``gwemopt`` runs the real
 gwemopt through :mod:`~mushrooms.evaluation.gwemopt_baseline`, and
 ``gwemopt-repaired`` is the same schedule with every rule-breaking exposure
-removed (:func:`~mushrooms.evaluation.gwemopt_baseline.repair_observations`).
+removed (:func:`~mushrooms.evaluation.gwemopt_baseline.repair_observations`);
+``service`` is what the daemon publishes (:func:`service_row`: the anytime
+flow, the better-by-a-margin rule, the not-observable answer).
 Every plan is judged by :func:`~.scoring.score_plan` with the map's one set of
 injections.
 """
@@ -26,9 +28,9 @@ import numpy as np
 
 from .rows import fmt, make_row, num
 from .scoring import pair_with_reference, score_plan
-from .settings import GWEMOPT_ROWS, BenchSettings, arm_config, row_arm, row_solver
+from .settings import GWEMOPT_ROWS, SERVICE_ROW, BenchSettings, arm_config, row_arm, row_solver
 
-__all__ = ["MapScene", "bench_map", "open_map"]
+__all__ = ["MapScene", "bench_map", "open_map", "service_row"]
 
 log = logging.getLogger(__package__)  # the benchmark's one logger ("mushrooms.evaluation.bench")
 
@@ -151,6 +153,8 @@ def _solver_row(scene: MapScene, solver: str, settings: BenchSettings) -> tuple[
         return _gwemopt_row(scene, solver, settings)
     if scene.problem is None:
         return scene.failed(solver, scene.prep_error or "prepare_error", note=scene.note), None
+    if row_arm(solver)[0] == SERVICE_ROW:
+        return service_row(scene, solver, settings)
     return _our_row(scene, solver, settings)
 
 
@@ -287,6 +291,56 @@ def _our_row(scene: MapScene, solver: str, settings: BenchSettings) -> tuple[Row
                     runtime_s=fmt(scene.prepare_s + solve_s, 3), prepare_s=fmt(scene.prepare_s, 3),
                     solve_s=fmt(solve_s, 3), solver_detail=result.solver, note=scene.note, detection_stage=stage,
                     objective=objective, **scores)
+    return row, hits
+
+
+def service_row(scene: MapScene, solver: str, settings: BenchSettings) -> tuple[Row, Hits | None]:
+    """What the daemon publishes for the map under the configuration, scored: the anytime flow.
+
+    The fast plan is revision 1 (:func:`~mushrooms.scheduler_core.anytime.first_plan`);
+    ``config.solver``'s plan (:func:`~mushrooms.scheduler_core.anytime.optimised_plan`,
+    the detection stage included under ``objective = "detection"``) replaces it
+    when it passes the checker and ``min_coverage`` and is better by
+    ``settings.supersede_min_gain`` (:func:`~mushrooms.scheduler_core.anytime.is_better`).
+    A published plan below ``min_coverage`` is the ``not_observable`` answer:
+    no exposures, so coverage and efficiencies 0, status ``not_observable``.
+    ``solver_detail`` says which revision stands.  (The daemon's horizon
+    starts at the alert's receipt; here at the map's event time.)
+    """
+    from ...scheduler_core.anytime import FIRST_SOLVER, first_plan, is_better, optimised_plan
+    from ...scheduler_core.errors import PlanCheckError
+    from ...scheduler_core.plan.observability import not_observable
+
+    _, rcfg, objective = row_config(settings.config, solver, settings)
+    problem = scene.problem if rcfg == settings.config else dataclasses.replace(scene.problem, config=rcfg)
+    t0 = time.perf_counter()
+    published = first = first_plan(problem, scene.skymap)
+    stage = f"revision 1 ({FIRST_SOLVER})"
+    if rcfg.solver != FIRST_SOLVER:
+        try:
+            better = optimised_plan(problem, scene.skymap, rcfg.solver, first)
+        except PlanCheckError:
+            better, stage = None, f"revision 1 ({FIRST_SOLVER}) stands: the {rcfg.solver} plan failed the checker"
+        if better is not None and not_observable(better, scene.skymap, rcfg) is None \
+                and better.plan_id != first.plan_id and is_better(
+                    better, first, settings.supersede_min_gain, rcfg.objective, rcfg.detection_max_coverage_loss):
+            published, stage = better, f"revision 2 ({rcfg.solver})"
+        elif better is not None:
+            stage = f"revision 1 ({FIRST_SOLVER}) stands: {rcfg.solver} not better by {settings.supersede_min_gain:g}"
+    solve_s = time.perf_counter() - t0
+    status, note = published.metrics.status, scene.note
+    answer = not_observable(published, scene.skymap, rcfg)
+    if answer is not None:
+        status, note = "not_observable", "; ".join(filter(None, [note, " ".join(answer.sentences)]))[:300]
+        published = published.with_(observations=(), metrics=dataclasses.replace(
+            published.metrics, coverage=0.0, n_fields=0, n_exposures=0, expected_detections=0.0,
+            coverage_as_executed=0.0))
+    scores, hits = score_plan(published, scene.skymap, dataclasses.replace(settings, config=rcfg), scene.footprints,
+                              scene.injections, scene.lightcurves, scene.merger)
+    row = scene.row(solver, status=status, arm=row_arm(solver)[1] or "", runtime_s=fmt(scene.prepare_s + solve_s, 3),
+                    prepare_s=fmt(scene.prepare_s, 3), solve_s=fmt(solve_s, 3),
+                    solver_detail=f"{stage}; {published.metrics.solver}", note=note, objective=objective,
+                    **scene.with_bound(scores))
     return row, hits
 
 

@@ -17,7 +17,13 @@ no Monte Carlo error), and ``expected_<lc>_diff`` / ``coverage_diff`` its and
 the coverage's paired change against the reference row; ``exposure_mix``
 (``30:4 300:20``: exposures of that length) and ``exposure_mean_s`` (mean
 exposure of the planned fields weighted by their probability) say which
-exposures a plan took.
+exposures a plan took.  ``coverage_as_executed`` is the plan's coverage as
+ZTF's scheduler would execute its queues (the telescope model,
+:func:`~mushrooms.scheduler_core.telescope.coverage.queue_coverage`): the
+plan's queue set executed by the model (the configuration's filters and
+cadence for a plan that names none: gwemopt's), with ``coverage_late_<min>``,
+``coverage_single_queue`` (the old one-list-queue export) and ``n_queues``
+beside it (:func:`~mushrooms.evaluation.queue_sim.execution_cells`).
 """
 
 from __future__ import annotations
@@ -29,7 +35,7 @@ import numpy as np
 from .rows import fmt
 from .settings import BenchSettings
 
-__all__ = ["score_plan", "pair_with_reference"]
+__all__ = ["score_plan", "pair_with_reference", "executed_coverage"]
 
 
 def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, injections: Any,
@@ -73,15 +79,47 @@ def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any,
         out.update(cells)
         out[f"expected_{key}"] = _expected(plan, skymap, footprints, lc, merger_time)
     out.update(_exposure_cells(plan, footprints, skymap.prob))
-    out.update(_execution_cells(plan, footprints, skymap.prob))
+    out.update(_execution_cells(plan, settings.config, footprints, skymap.prob))
     return out, hits
 
 
-def _execution_cells(plan: Any, footprints: Any, prob: np.ndarray) -> dict[str, Any]:
-    """What ZTF's scheduler keeps of the plan's queues (Q14): on time, late, and the old single queue."""
+def _under_config(plan: Any, config: Any) -> Any:
+    """``plan`` with the planning configuration's filters and cadence when it names none (gwemopt's plans)."""
+    if plan.observations and not plan.config:
+        return plan.with_(config={"filters": list(config.filters), "cadence_s": float(config.cadence_s)})
+    return plan
+
+
+def _execution_cells(plan: Any, config: Any, footprints: Any, prob: np.ndarray) -> dict[str, Any]:
+    """What ZTF's scheduler keeps of the plan's queues (Q14): on time, late, and the old single queue.
+
+    A plan without exposures (a not-observable answer) executes nothing: its
+    ``coverage_as_executed`` is 0, its late and single-queue cells empty.
+    """
     from ..queue_sim import execution_cells
 
-    return execution_cells(plan, footprints, prob)
+    cells = execution_cells(_under_config(plan, config), footprints, prob)
+    if not plan.observations:
+        cells["coverage_as_executed"] = 0.0
+    return cells
+
+
+def executed_coverage(plan: Any, config: Any, footprints: Any, prob: np.ndarray) -> float:
+    """Cadence-valid coverage of ``plan``'s queues as ZTF executes them (Q14), 0 to 1.
+
+    The plan's ``metrics.coverage_as_executed`` when it carries one (every
+    plan ``make_plan`` builds); otherwise (a baseline's plan, an empty one)
+    computed on ``footprints`` with the filters and cadence of ``config``
+    (the planning configuration) when the plan does not name its own.
+    """
+    from ...scheduler_core.telescope.coverage import queue_coverage
+
+    own = getattr(plan.metrics, "coverage_as_executed", None)
+    if own is not None:
+        return float(own)
+    if not plan.observations:
+        return 0.0
+    return float(queue_coverage(_under_config(plan, config), footprints, prob))
 
 
 def _expected(plan: Any, skymap: Any, footprints: Any, lc: Any, merger_time: Any) -> Any:

@@ -6,7 +6,8 @@ other sections); :class:`BenchSettings` is one run: the planning
 configuration, that section, and what the command line chose (rows, start,
 injections).  A row name is a scheduler of the registry
 (:mod:`~mushrooms.scheduler_core.solvers_registry`), optionally with its
-objective forced (``hybrid-coverage``), or one of gwemopt's rows; any of our
+objective forced (``hybrid-coverage``), ``service`` (the plan the daemon
+publishes: its anytime flow under the configuration), or one of gwemopt's rows; any of our
 rows may name an arm, ``<row>@<arm>`` (``hybrid@menu``): the same row planned
 under the configuration with the arm's ``[scheduler]`` keys replaced
 (``[bench.arms.<arm>]``, or ``mushrooms bench --arm``), e.g. an exposure menu.
@@ -24,14 +25,19 @@ from ...scheduler_core.ranges import Range, setting
 from ...scheduler_core.solvers_registry import SOLVER_NAMES
 from ...scheduler_core.tables import TableError, check_value, dataclass_from_table
 
-__all__ = ["OURS", "SOLVERS", "GWEMOPT_ROWS", "OBJECTIVE_SUFFIXES", "ARM_SEPARATOR", "row_arm", "ROW_NAMES_VERSION", "MAGLIM_RANGE",
+__all__ = ["OURS", "SOLVERS", "GWEMOPT_ROWS", "SERVICE_ROW", "OBJECTIVE_SUFFIXES", "ARM_SEPARATOR", "row_arm",
+           "ROW_NAMES_VERSION", "MAGLIM_RANGE",
            "BenchConfig", "BenchSettings", "row_solver", "is_row_name", "check_rows"]
 
 #: Our schedulers (the registry's, :mod:`~mushrooms.scheduler_core.solvers_registry`); the others are gwemopt's rows.
 OURS = SOLVER_NAMES
 #: Rows made by the real gwemopt (``gwemopt-repaired``: its schedule with every rule-breaking exposure removed).
 GWEMOPT_ROWS = ("gwemopt", "gwemopt-repaired")
-SOLVERS = OURS + GWEMOPT_ROWS
+#: The row of what the service publishes for the map: the daemon's anytime flow under the configuration (the fast
+#: plan, then ``config.solver``'s plan if it is better by ``supersede_min_gain``; a ``not_observable`` answer below
+#: ``min_coverage``), :func:`~.per_map.service_row`.
+SERVICE_ROW = "service"
+SOLVERS = OURS + (SERVICE_ROW,) + GWEMOPT_ROWS
 #: Row names of our schedulers: a plain ``<solver>`` row is what ``make_plan`` publishes under the
 #: configuration given (:func:`~mushrooms.scheduler_core.planner.optimise`, ``config.objective``
 #: included: under the default ``objective = "detection"`` the scheduler, then the detection stage);
@@ -42,8 +48,8 @@ OBJECTIVE_SUFFIXES = {"-coverage": "coverage", "-detection": "detection"}
 ARM_SEPARATOR = "@"
 #: What the rows mean; part of the study's result keys, so rows made under older names are not reused
 #: (1: plain rows were the coverage scheduler whatever the objective; 2: a row named after a solver is what the service
-#: publishes under the config, objective included).
-ROW_NAMES_VERSION = 2
+#: publishes under the config, objective included; 3: every row has ``coverage_as_executed``, and the ``service`` row).
+ROW_NAMES_VERSION = 3
 
 #: ``[bench] maglim`` values: AB magnitudes a 300 s ZTF exposure may reach (21.7 in g and r).
 MAGLIM_RANGE = Range(10, 30, "mag")
@@ -157,6 +163,9 @@ class BenchSettings:
         One horizon start for all maps (ISO UTC); None = each map's event time.
     n_injections : int
         Kilonova injections per map.
+    supersede_min_gain : float
+        The ``service`` row's rule: the optimised plan replaces the fast one
+        when better by this much (``[daemon] supersede_min_gain``, 0 to 1).
     """
 
     config: Any
@@ -164,6 +173,7 @@ class BenchSettings:
     solvers: tuple[str, ...] = ("greedy", "slots", "blocks", "hybrid")
     start_iso: str | None = None
     n_injections: int = 10_000
+    supersede_min_gain: float = 0.005
 
     def __post_init__(self) -> None:
         check_rows(self.solvers)
@@ -183,6 +193,8 @@ class BenchSettings:
                     raise ValueError(f"row {name}: {exc}") from None
         if self.n_injections < 1:
             raise ValueError(f"n_injections must be >= 1, got {self.n_injections}")
+        if not 0.0 <= self.supersede_min_gain <= 1.0:
+            raise ValueError(f"supersede_min_gain must be within 0-1, got {self.supersede_min_gain}")
 
     @property
     def reference(self) -> str:

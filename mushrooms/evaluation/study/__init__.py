@@ -37,8 +37,8 @@ if TYPE_CHECKING:  # the same names, for type checkers and editors
     from .graph import StudyRun, open_client, plan_and_score, run_graph
     from .localisation import (DEFAULT_EVENTS, Localisation, MapTask, localise, localised_path,
                                maps_from_directory, maps_from_events)
-    from .population import (Population, SimulationError, chunks_needed, coinc_ids, inject_population,
-                             realize_chunk, simulate_population, split_injections)
+    from .population import (Population, SimulationError, cached_chunk, chunks_needed, coinc_ids,
+                             inject_population, realize_chunk, simulate_population, split_injections)
     from .run import StudyInputs, StudyOutcome, StudySettings, run_study
     from .store import ResultStore, result_key, study_config
     from .tables import paper_tables, similar_length_maps
@@ -50,7 +50,8 @@ _EXPORTS = {
     "DEFAULT_EVENTS": ".localisation", "Localisation": ".localisation", "MapTask": ".localisation",
     "localise": ".localisation", "localised_path": ".localisation", "maps_from_directory": ".localisation",
     "maps_from_events": ".localisation",
-    "Population": ".population", "SimulationError": ".population", "chunks_needed": ".population",
+    "Population": ".population", "SimulationError": ".population", "cached_chunk": ".population",
+    "chunks_needed": ".population",
     "coinc_ids": ".population", "inject_population": ".population", "realize_chunk": ".population",
     "simulate_population": ".population", "split_injections": ".population",
     "StudyInputs": ".run", "StudyOutcome": ".run", "StudySettings": ".run", "run_study": ".run",

@@ -5,7 +5,9 @@
 until they hold the coincidences asked for (the O3 BNS recipe of
 ``shared/data/skymaps/simulated/SOURCES.md``, see :class:`Population` and
 :func:`simulate_population`).  Everything is cached on disk under the
-population's key.
+population's key; a chunk already realised there (e.g. copied from a
+committed run) is taken as it is, and the injections are only made when a
+chunk still has to be realised.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 from ...scheduler_core.plan import strict_json
 from .defaults import DEFAULT_CHUNK, DEFAULT_SEED
@@ -26,7 +28,7 @@ from .ligo_tools import run_tool
 from .provenance import digest
 
 __all__ = ["Population", "SimulationError", "inject_population", "split_injections", "realize_chunk",
-           "chunks_needed", "simulate_population", "coinc_ids", "POLL_S"]
+           "cached_chunk", "chunks_needed", "simulate_population", "coinc_ids", "POLL_S"]
 
 Record = dict[str, Any]
 
@@ -146,6 +148,26 @@ def split_injections(injections: str | Path, start: int, stop: int, target: str 
     return len(rows)
 
 
+def _chunk_events(population: Population, population_dir: str | Path, k: int) -> Path:
+    """Where chunk ``k``'s events file is cached (``population_dir``: the population's own directory)."""
+    return Path(population_dir) / f"realized-{population.chunk}" / f"events-{k:04d}.xml.gz"
+
+
+def cached_chunk(population: Population, directory: str | Path, k: int) -> dict[str, Any] | None:
+    """Chunk ``k``'s record when its events file is already in the cache under ``directory`` (else None);
+    the injections are not needed for it."""
+    return _cached_record(population, _chunk_events(population, Path(directory) / population.key(), k), k)
+
+
+def _cached_record(population: Population, events: Path, k: int) -> dict[str, Any] | None:
+    """The record of chunk ``k`` realised as ``events`` (None when that file does not exist)."""
+    if not events.exists():
+        return None
+    start, stop = population.chunks()[k]
+    return dict(chunk=k, events=str(events), injections=stop - start, coincidences=len(coinc_ids(events)),
+                cpu_s=0.0, wall_s=0.0, cached=True)
+
+
 def realize_chunk(population: Population, injections: str, k: int) -> dict[str, Any]:
     """Realise chunk ``k`` of a population's injections (``bayestar-realize-coincs``; cached).
 
@@ -156,11 +178,11 @@ def realize_chunk(population: Population, injections: str, k: int) -> dict[str, 
         (in the chunk), ``coincidences``, ``cpu_s``, ``wall_s``, ``cached``.
     """
     start, stop = population.chunks()[k]
-    d = Path(injections).parent / f"realized-{population.chunk}"
-    events = d / f"events-{k:04d}.xml.gz"
-    if events.exists():
-        return dict(chunk=k, events=str(events), injections=stop - start, coincidences=len(coinc_ids(events)),
-                    cpu_s=0.0, wall_s=0.0, cached=True)
+    events = _chunk_events(population, Path(injections).parent, k)
+    cached = _cached_record(population, events, k)
+    if cached is not None:
+        return cached
+    d = events.parent
     d.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(dir=d, prefix=f".{k:04d}-") as tmp:
@@ -301,16 +323,20 @@ def simulate_population(population: Population, directory: str | Path, client: A
 
 def _simulate_here(population: Population, directory: str | Path, detections: int | None,
                    jobs: int) -> dict[int, Record]:
-    """Inject, then realise the chunks in order in this process until they hold ``detections``."""
+    """Realise the chunks in order in this process until they hold ``detections`` (cached chunks taken as they
+    are; the injections made before the first chunk that is not)."""
     n_chunks = len(population.chunks())
-    try:
-        injections = inject_population(population, directory, jobs)
-    except Exception as exc:
-        raise SimulationError(f"injecting: {type(exc).__name__}: {exc}") from exc
+    injections: str | None = None
     records: dict[int, Record] = {}
     for k in range(n_chunks):
+        rec = cached_chunk(population, directory, k)
+        if rec is None and injections is None:
+            try:
+                injections = inject_population(population, directory, jobs)
+            except Exception as exc:
+                raise SimulationError(f"injecting: {type(exc).__name__}: {exc}") from exc
         try:
-            records[k] = realize_chunk(population, injections, k)
+            records[k] = rec or realize_chunk(population, str(injections), k)
         except Exception as exc:
             raise SimulationError(f"realising chunk {k}: {type(exc).__name__}: {exc}") from exc
         if chunks_needed({i: r["coincidences"] for i, r in records.items()}, n_chunks, detections) is not None:
@@ -320,16 +346,19 @@ def _simulate_here(population: Population, directory: str | Path, detections: in
 
 def _simulate_on_cluster(population: Population, directory: str | Path, client: Any, detections: int | None,
                          jobs: int, progress: bool) -> dict[int, Record]:
-    """Inject as one task, then keep as many chunk tasks in flight as the cluster has threads."""
+    """Take the cached chunks; inject as one task once a chunk must be realised, then keep as many chunk tasks
+    in flight as the cluster has threads."""
     from tqdm import tqdm
 
-    inject = client.submit(inject_population, population, str(directory), jobs,
-                           key=f"inject-{population.key()}", pure=False)
-    try:
-        injections = _result(inject)
-    except Exception as exc:
-        raise SimulationError(f"injecting: {type(exc).__name__}: {exc}") from exc
-    chunks = _ChunkQueue(population, injections, client, detections)
+    def injections() -> str:
+        inject = client.submit(inject_population, population, str(directory), jobs,
+                               key=f"inject-{population.key()}", pure=False)
+        try:
+            return _result(inject)
+        except Exception as exc:
+            raise SimulationError(f"injecting: {type(exc).__name__}: {exc}") from exc
+
+    chunks = _ChunkQueue(population, directory, injections, client, detections)
     bar = tqdm(total=chunks.n_chunks, desc="realise", unit="chunk", disable=not progress, file=sys.stderr)
     try:
         while chunks.submit():
@@ -345,32 +374,46 @@ def _simulate_on_cluster(population: Population, directory: str | Path, client: 
 class _ChunkQueue:
     """The realisation tasks of one population on a cluster: submitted in chunk order, collected as they end."""
 
-    def __init__(self, population: Population, injections: str, client: Any, detections: int | None) -> None:
-        self.population, self.injections, self.client, self.detections = population, injections, client, detections
+    def __init__(self, population: Population, directory: str | Path, injections: Callable[[], str], client: Any,
+                 detections: int | None) -> None:
+        self.population, self.directory, self.client, self.detections = population, directory, client, detections
+        self.make_injections, self.injections = injections, ""
         self.n_chunks = len(population.chunks())
         self.slots = max(1, sum(client.nthreads().values()))
         self.records: dict[int, Record] = {}
+        self.done: list[Record] = []
         self.next = 0
         self.inflight: list[Any] = []
 
     def submit(self) -> bool:
-        """Fill the free slots while more coincidences may be needed; False when nothing is left in flight."""
+        """Fill the free slots while more coincidences may be needed (cached chunks taken at once); False when
+        nothing is left in flight or to report."""
         p = self.population
         found = sum(r["coincidences"] for r in self.records.values())  # of chunks < next: a lower bound
         while (self.next < self.n_chunks and len(self.inflight) < self.slots
                and (self.detections is None or found < self.detections)):
+            cached = cached_chunk(p, self.directory, self.next)
+            if cached is not None:  # taken as it is, without a task (and without the injections)
+                self.records[self.next] = cached
+                self.done.append(cached)
+                found += cached["coincidences"]
+                self.next += 1
+                continue
+            self.injections = self.injections or self.make_injections()
             self.inflight.append(self.client.submit(realize_chunk, p, self.injections, self.next,
                                                     key=f"realize-{p.key()}-{p.chunk}-{self.next}", pure=False))
             self.next += 1
-        return bool(self.inflight)
+        return bool(self.inflight) or bool(self.done)
 
     def finished(self) -> list[Record]:
-        """The records of the tasks done since the last look (after a short sleep when none is)."""
+        """The records of the tasks done (and the cached chunks taken) since the last look (after a short sleep
+        when none is)."""
+        out, self.done = self.done, []
         done = [f for f in self.inflight if f.done()]
         if not done:
-            time.sleep(POLL_S)  # polled, not blocked in the client: Ctrl-C reaches us
-            return []
-        out = []
+            if not out:
+                time.sleep(POLL_S)  # polled, not blocked in the client: Ctrl-C reaches us
+            return out
         for fut in done:
             self.inflight.remove(fut)
             if fut.status != "finished":

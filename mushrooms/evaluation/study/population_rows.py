@@ -5,8 +5,9 @@ results are read per *event*: which realised chunk and coincidence it is,
 its class (BNS / NSBH, from the injected source-frame masses) and true
 distance, and per solver the numbers the papers compare
 (:data:`POPULATION_COLUMNS`).  ``coverage_executed`` is the coverage of the
-plan as the telescope would execute it; it stays empty until an executor
-model fills it.
+plan as ZTF would execute its queues (the bench row's ``coverage_as_executed``:
+the telescope model's cadence-valid coverage, Q14); empty for a result made
+before the rows carried it.
 """
 
 from __future__ import annotations
@@ -101,17 +102,25 @@ def population_rows(records: Iterable[Mapping[str, Any]],
 
     ``records`` are the study's stored results (:meth:`.store.ResultStore.records`
     values: ``map`` = ``<events sha[:16]>:<coinc id>:<options>``, ``solver``,
-    ``row``); ordered by event then solver as given.
+    ``row``, ``finished``); ordered by event then solver as given.  An event
+    planned by one solver under several configurations keeps the result
+    finished last.
     """
-    out = []
+    latest: dict[tuple[str, str, str], Mapping[str, Any]] = {}
     for rec in records:
+        sha, cid, _ = str(rec["map"]).split(":", 2)
+        key = (sha, cid, str(rec["solver"]))
+        if key not in latest or str(rec.get("finished", "")) >= str(latest[key].get("finished", "")):
+            latest[key] = rec
+    out = []
+    for rec in latest.values():
         sha, cid, _ = str(rec["map"]).split(":", 2)
         ev = events.get((sha, int(cid)))
         if ev is None:
             continue
         row = rec["row"]
         out.append(dict(event=ev["event"], solver=rec["solver"], coverage=row.get("coverage"),
-                        coverage_executed="", upper_bound=row.get("bound"),
+                        coverage_executed=row.get("coverage_as_executed", ""), upper_bound=row.get("bound"),
                         efficiency_optimistic=row.get("efficiency_optimistic"),
                         efficiency_conservative=row.get("efficiency_conservative"),
                         efficiency_nsbh=row.get("efficiency_nsbh"), valid=row.get("valid"),

@@ -7,7 +7,10 @@
   error over the events both planned, events better / worse;
 * LUMOS's headline metric (Wagh et al. 2026, arXiv 2601.08912): the mean
   cumulative probability (coverage) of a solver relative to gwemopt's,
-  ``100 (mean cov_s / mean cov_gwemopt - 1)`` % over the events both planned;
+  ``100 (mean cov_s / mean cov_gwemopt - 1)`` % over the events both planned,
+  on the planned coverage and on ``coverage_executed`` (as ZTF would execute
+  the queues);
+* planned against executed coverage per solver;
 * the same means by event class, by distance and by 90 % area (quartiles).
 """
 
@@ -20,8 +23,9 @@ from ..bench.compare import TIE_COVERAGE, TIE_EFFICIENCY, by_map, scored
 from ..bench.rows import num
 from .tables import comparison_pair, paper_tables
 
-__all__ = ["EFFICIENCY_KEYS", "as_bench_rows", "complete_events", "paired_differences", "lumos_metric", "breakdown",
-           "population_tables"]
+__all__ = ["EFFICIENCY_KEYS", "as_bench_rows", "complete_events", "paired_differences", "lumos_metric",
+           "lumos_interval", "breakdown",
+           "executed_table", "population_tables"]
 
 Record = dict[str, Any]
 
@@ -31,6 +35,17 @@ EFFICIENCY_KEYS = ("optimistic", "conservative", "nsbh")
 BASELINES = ("greedy", "gwemopt", "gwemopt-repaired")
 #: LUMOS's published value of its metric (+84.7 % over gwemopt on 1199 O4 events).
 LUMOS_PUBLISHED_PERCENT = 84.7
+#: How this metric differs from LUMOS's (said beside it, not hidden).
+LUMOS_METHOD = (
+    "Not LUMOS's experiment: (1) the population is this recipe's (`o4`, its deviations in provenance.md), not "
+    "their 1199 O4 events; (2) gwemopt is 0.4.2 run as `mushrooms bench` runs it (`--scheduleType greedy "
+    "--timeallocationType powerlaw --doChipGaps --doSingleExposure --doAlternatingFilters`, MOC tiles, the "
+    "configuration's filters, 300 s exposures, airmass limit and 24 h horizon), not their settings; (3) "
+    "`coverage` is the probability inside the fields a plan observes at all (exact footprints) - for our plans, "
+    "which the checker makes pair every field, the same as both filters the cadence apart, but raw gwemopt's "
+    "schedules break the rules (windows, slews, pairs) and are counted as they are; `as executed` counts only "
+    "fields the telescope model's run of the ZTF queues observes in both filters at least the cadence apart; "
+    "(4) the mean is over the events both planned; the band is a seeded bootstrap over events.")
 
 
 def as_bench_rows(rows: Sequence[Mapping[str, Any]]) -> list[Record]:
@@ -40,6 +55,7 @@ def as_bench_rows(rows: Sequence[Mapping[str, Any]]) -> list[Record]:
         d = dict(r)
         d["skymap"] = r["event"]
         d["bound"] = r.get("upper_bound")
+        d["coverage_as_executed"] = r.get("coverage_executed")
         cov, bound = num(r.get("coverage")), num(r.get("upper_bound"))
         d["coverage_over_bound"] = cov / bound if cov is not None and bound else None
         out.append(d)
@@ -67,7 +83,8 @@ def _paired(rows: Sequence[Mapping[str, Any]], a: str, b: str, key: str, tie: fl
 def paired_differences(rows: Sequence[Mapping[str, Any]], ours: Sequence[str]) -> list[str]:
     """Markdown: per (ours, baseline) pair, paired differences of coverage and each efficiency."""
     solvers = set(str(r["solver"]) for r in rows)
-    keys = [("coverage", TIE_COVERAGE)] + [(f"efficiency_{k}", TIE_EFFICIENCY) for k in EFFICIENCY_KEYS]
+    keys = [("coverage", TIE_COVERAGE), ("coverage_executed", TIE_COVERAGE)] + [
+        (f"efficiency_{k}", TIE_EFFICIENCY) for k in EFFICIENCY_KEYS]
     head = ["A − B", "events"] + [k.replace("efficiency_", "eff. ") for k, _ in keys]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for a in ours:
@@ -79,18 +96,42 @@ def paired_differences(rows: Sequence[Mapping[str, Any]], ours: Sequence[str]) -
     return lines
 
 
-def lumos_metric(rows: Sequence[Mapping[str, Any]], solver: str,
-                 reference: str = "gwemopt") -> tuple[int, float | None]:
-    """(events, percent): mean coverage of ``solver`` relative to ``reference``'s over the events both planned."""
+def lumos_metric(rows: Sequence[Mapping[str, Any]], solver: str, reference: str = "gwemopt",
+                 key: str = "coverage") -> tuple[int, float | None]:
+    """(events, percent): mean ``key`` (coverage) of ``solver`` relative to ``reference``'s over the events both
+    planned (and both have ``key``)."""
     pairs = []
     for sol in by_map(rows).values():
         ra, rb = sol.get(solver), sol.get(reference)
-        if scored(ra) and scored(rb):
-            pairs.append((num(ra["coverage"]), num(rb["coverage"])))
+        if scored(ra) and scored(rb) and num(ra.get(key)) is not None and num(rb.get(key)) is not None:
+            pairs.append((num(ra[key]), num(rb[key])))
     if not pairs:
         return 0, None
     base = sum(b for _, b in pairs)
     return len(pairs), (100.0 * (sum(a for a, _ in pairs) / base - 1.0) if base > 0 else None)
+
+
+def lumos_interval(rows: Sequence[Mapping[str, Any]], solver: str, reference: str = "gwemopt",
+                   key: str = "coverage", draws: int = 2000, seed: int = 0) -> tuple[float, float] | None:
+    """The 16th and 84th percentiles (%) of :func:`lumos_metric` over the events resampled with replacement
+    (a seeded bootstrap: the metric's spread from which events happen to be in the population)."""
+    import numpy as np
+
+    pairs = []
+    for sol in by_map(rows).values():
+        ra, rb = sol.get(solver), sol.get(reference)
+        if scored(ra) and scored(rb) and num(ra.get(key)) is not None and num(rb.get(key)) is not None:
+            pairs.append((num(ra[key]), num(rb[key])))
+    if len(pairs) < 2:
+        return None
+    a, b = np.array(pairs, dtype=float).T
+    pick = np.random.default_rng(seed).integers(0, len(pairs), size=(draws, len(pairs)))
+    base = b[pick].sum(axis=1)
+    ratio = 100.0 * (a[pick].sum(axis=1)[base > 0] / base[base > 0] - 1.0)
+    if not ratio.size:
+        return None
+    lo, hi = np.percentile(ratio, [16, 84])
+    return float(lo), float(hi)
 
 
 def _quartile_label(value: float | None, edges: Sequence[float]) -> str | None:
@@ -127,6 +168,25 @@ def breakdown(rows: Sequence[Mapping[str, Any]], column: str, quartiles: bool) -
     return lines
 
 
+def executed_table(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Markdown: per solver, mean planned and executed coverage over its events with both, their ratio, the plans
+    the checker passed and the ``not_observable`` answers (the service's, below ``min_coverage``: scored as 0)."""
+    lines = ["| solver | events | coverage | coverage_executed | executed / planned | valid plans | not observable |",
+             "|---|---|---|---|---|---|---|"]
+    for s in dict.fromkeys(str(r["solver"]) for r in rows):
+        pairs = [(num(r["coverage"]), num(r.get("coverage_executed"))) for r in rows
+                 if r["solver"] == s and scored(r) and num(r.get("coverage_executed")) is not None]
+        valid = sum(1 for r in rows if r["solver"] == s and r.get("valid") is True)
+        answers = sum(1 for r in rows if r["solver"] == s and r.get("status") == "not_observable")
+        if not pairs:
+            lines.append(f"| {s} | 0 | - | - | - | {valid} | {answers} |")
+            continue
+        cov, ex = sum(a for a, _ in pairs) / len(pairs), sum(b for _, b in pairs) / len(pairs)
+        lines.append(f"| {s} | {len(pairs)} | {cov:.4f} | {ex:.4f} | {ex / cov if cov > 0 else float('nan'):.3f} "
+                     f"| {valid} | {answers} |")
+    return lines
+
+
 def complete_events(rows: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
     """The rows of the events that have a row of every solver present (a partial run's comparable set)."""
     solvers = set(str(r["solver"]) for r in rows)
@@ -150,20 +210,27 @@ def population_tables(rows: Sequence[Mapping[str, Any]]) -> str:
     ours = [s for s in solvers if s not in BASELINES] or ([comparison_pair(solvers)[0]] if solvers else [])
     executed = sum(1 for r in rows if num(r.get("coverage_executed")) is not None)
     out = [f"{len(by_map(bench_rows))} events with every solver's row (of {n_all}), {len(rows)} (event, solver) "
-           f"rows; coverage_executed filled on "
-           f"{executed} (empty until the executor model lands).", "",
+           f"rows; coverage_executed (as ZTF would execute the queues) filled on {executed}.", "",
            "## The MUSHROOMS paper's Tables 2-3 layout", "", paper_tables(bench_rows, EFFICIENCY_KEYS), "",
            "## Paired differences (A − B: mean ± standard error over the events both planned; "
            "events better/worse beyond the tie margins)", ""]
     out += paired_differences(bench_rows, ours + (["greedy"] if "greedy" in solvers else []))
     out += ["", "## LUMOS's metric: mean cumulative probability relative to gwemopt "
-                f"(LUMOS published +{LUMOS_PUBLISHED_PERCENT} % on 1199 O4 events)", ""]
+                f"(LUMOS published +{LUMOS_PUBLISHED_PERCENT} % on 1199 O4 events)", "", LUMOS_METHOD, ""]
     for s in solvers:
         if s == "gwemopt":
             continue
-        n, pct = lumos_metric(bench_rows, s)
-        out.append(f"- {s}: " + (f"{pct:+.1f} % over {n} events" if pct is not None else
-                                 "no event with a gwemopt row"))
+        cells = []
+        for key, label in (("coverage", ""), ("coverage_executed", "as executed ")):
+            n, pct = lumos_metric(bench_rows, s, key=key)
+            if pct is None:
+                continue
+            band = lumos_interval(bench_rows, s, key=key)
+            cells.append(f"{label}{pct:+.1f} %" + (f" (bootstrap 68 %: {band[0]:+.1f} to {band[1]:+.1f})"
+                                                    if band else "") + f" over {n} events")
+        out.append(f"- {s}: " + ("; ".join(cells) or "no event with a gwemopt row"))
+    out += ["", "## Planned and executed coverage (the queues run by the telescope model, cadence-valid pairs)", ""]
+    out += executed_table(bench_rows)
     for column, quartiles in (("event_class", False), ("distance_mpc", True), ("area90_deg2", True)):
         out += ["", f"## By {column}" + (" (quartiles over the events)" if quartiles else ""), ""]
         out += breakdown(bench_rows, column, quartiles)

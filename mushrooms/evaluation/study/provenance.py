@@ -20,7 +20,7 @@ __all__ = ["VERSIONED", "TRACEBACK_FRAMES", "sha256_file", "digest", "software_v
 #: Frames of a failed task's traceback kept in its record.
 TRACEBACK_FRAMES = 4
 #: Packages whose versions every record carries.
-VERSIONED = ("mushrooms", "ligo.skymap", "highspy", "numpy", "astropy", "dask", "distributed", "lalsuite")
+VERSIONED = ("mushrooms", "ligo.skymap", "highspy", "numpy", "astropy", "dask", "distributed", "lalsuite", "gwemopt")
 
 
 def sha256_file(path: str | Path) -> str:

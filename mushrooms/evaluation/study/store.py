@@ -23,12 +23,13 @@ def study_config(settings: BenchSettings) -> dict[str, Any]:
     """The configuration a result depends on (JSON-able; its hash is part of every result key).
 
     The planning configuration, every ``[bench]`` key, the start, the
-    injections per map and the meaning of the row names; not the rows asked
+    injections per map, the ``service`` row's supersede margin and the
+    meaning of the row names; not the rows asked
     for (each result is one row's).
     """
     d = dataclasses.asdict(settings.bench)
     d.update(config=dataclasses.asdict(settings.config), start_iso=settings.start_iso,
-             n_injections=settings.n_injections)
+             n_injections=settings.n_injections, supersede_min_gain=settings.supersede_min_gain)
     d["row_names"] = ROW_NAMES_VERSION  # a row named after a solver became what the service publishes
     return json.loads(json.dumps(d, sort_keys=True, default=str))
 
