@@ -347,8 +347,15 @@ def test_plans_superseded_before_they_were_sent_are_never_sent(world, kowalski) 
     assert list(kowalski.queues) == [qn(1)]  # the first revision the submitter saw
 
 
+def _single_plan(url: str) -> Config:
+    """SkyPortal with one observation plan per revision (``[export] skyportal_plans = "single"``; the per-pass
+    sets are in ``test_skyportal_sets.py``)."""
+    config = _config(url, target="skyportal")
+    return dataclasses.replace(config, export=dataclasses.replace(config.export, skyportal_plans="single"))
+
+
 def test_skyportal_import_and_removal(tmp_path, skyportal) -> None:
-    w = World(tmp_path / "state.sqlite", _config(skyportal.url, target="skyportal"))
+    w = World(tmp_path / "state.sqlite", _single_plan(skyportal.url))
     try:
         w.notice("MS181101ab-preliminary.json")
         assert w.submitter.step() == 0
@@ -365,7 +372,7 @@ def test_skyportal_import_and_removal(tmp_path, skyportal) -> None:
 
 
 def test_skyportal_interrupted_post_is_looked_up_by_name(tmp_path, skyportal) -> None:
-    w = World(tmp_path / "state.sqlite", _config(skyportal.url, target="skyportal"))
+    w = World(tmp_path / "state.sqlite", _single_plan(skyportal.url))
     try:
         w.notice("MS181101ab-preliminary.json")
         _die_after(w.submitter.client, "post")

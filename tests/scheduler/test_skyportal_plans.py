@@ -1,0 +1,99 @@
+"""The SkyPortal target's plans: one observation plan per filter pass, queued by SkyPortal as the Kowalski set (S1-S2).
+
+Real plans (greedy, the MS220722v BAYESTAR map, two nights), the real queue
+set of ``to_trigger_queues`` and the telescope's executor model.  What
+SkyPortal's ZTF API makes of a plan is written from its source
+(skyportal/skyportal @ 01fabb98b7e54e55c96d03148f7906375cc3084f, BSD-3-Clause,
+``skyportal/facility_apis/ztf.py``, ``_build_observation_plan_payload``): one
+list queue ``"ToO_" + payload.queue_name`` over ``Time(start_date,
+format="iso")..Time(end_date, format="iso")``, its targets the plan's planned
+observations in order with the field's grid position.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from astropy.time import Time, TimeDelta
+
+from mushrooms.scheduler_core import PlanningConfig, make_plan, read_skymap
+from mushrooms.scheduler_core.plan.exports import (ExportConfig, to_skyportal, to_skyportal_plans, to_trigger_queue,
+                                                   to_trigger_queues)
+from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
+from mushrooms.scheduler_core.telescope.coverage import queue_coverage
+
+MAP = Path(__file__).resolve().parents[1] / "data" / "skymaps" / "MS220722v_bayestar.multiorder.fits"
+EXPORT = ExportConfig(skyportal_allocation_id=7)
+BANDS = {"ztfg": 1, "ztfr": 2, "ztfi": 3}
+
+
+@pytest.fixture(scope="module", params=[0.0, 1.0], ids=["night1", "night2"])
+def planned(request):
+    cfg = PlanningConfig(solver="greedy", nside=64)
+    skymap = read_skymap(MAP, nside=cfg.nside)
+    plan = make_plan(skymap, cfg, Time(skymap.event_time, scale="utc") + TimeDelta(request.param, format="jd"))
+    assert plan.observations
+    return skymap, plan, field_footprints(load_ztf_fields(), cfg.nside)
+
+
+def skyportal_queue(body: dict) -> dict:
+    """The list queue SkyPortal's ZTF API sends to ZTF for one imported observation plan."""
+    grid = load_ztf_fields()
+    where = {int(f): i for i, f in enumerate(grid.ids)}
+    (plan,) = body["observation_plans"]  # SkyPortal refuses a request with other than one plan
+    targets = [{"request_id": k, "field_id": o["field_id"], "ra": float(grid.ra[where[o["field_id"]]]),
+                "dec": float(grid.dec[where[o["field_id"]]]), "filter_id": BANDS[o["filt"]],
+                "exposure_time": o["exposure_time"]}
+               for k, o in enumerate(plan["planned_observations"], start=1)]
+    window = [Time(body["payload"][k], format="iso", scale="utc").mjd for k in ("start_date", "end_date")]
+    return {"queue_name": "ToO_" + body["payload"]["queue_name"], "validity_window_mjd": window, "targets": targets}
+
+
+def test_one_skyportal_plan_per_queue_of_the_set_with_its_window_and_targets(planned):
+    _, plan, _ = planned
+    queues = to_trigger_queues(plan, EXPORT, name_base="ToO_GW_S1_r2")
+    bodies = json.loads(json.dumps(to_skyportal_plans(plan, EXPORT, name_base="GW_S1_r2")))  # as POSTed
+    assert len(bodies) == len(queues) > 1
+    assert [b["plan_name"] for b in bodies] == [f"GW_S1_r2_{k}" for k in range(1, len(queues) + 1)]
+    whole = to_skyportal(plan, EXPORT)["observation_plans"][0]["planned_observations"]
+    for body, queue in zip(bodies, queues):
+        sent = skyportal_queue(body)
+        assert sent["queue_name"] == queue["queue_name"]
+        assert sent["validity_window_mjd"] == pytest.approx(queue["validity_window_mjd"], abs=2e-3 / 86400)
+        assert [(t["field_id"], t["filter_id"]) for t in sent["targets"]] == [
+            (t["field_id"], t["filter_id"]) for t in queue["targets"]]
+        (one,) = body["observation_plans"]
+        assert (one["validity_window_start"], one["validity_window_end"]) == tuple(
+            Time(body["payload"][k], format="iso").isot[:23] for k in ("start_date", "end_date"))
+        assert all(o == whole[o["planned_observation_id"]] for o in one["planned_observations"])
+        assert body["payload"]["filters"] == {o["filt"][-1] for o in one["planned_observations"]}.pop()
+        assert {k: body[k] for k in ("dateobs", "localization_name", "allocation_id")} == {
+            k: bodies[0][k] for k in ("dateobs", "localization_name", "allocation_id")}
+
+
+def test_the_per_pass_plans_are_executed_as_coverage_as_executed_says(planned):
+    skymap, plan, footprints = planned
+    sent = [skyportal_queue(b) for b in to_skyportal_plans(plan, EXPORT)]
+    got = queue_coverage(plan, footprints, skymap.prob, queues=sent)
+    assert got == pytest.approx(plan.metrics.coverage_as_executed, abs=1e-6)
+    # one plan over the whole window (the switch back) is one list queue: what the old export keeps
+    (single,) = to_skyportal_plans(plan, ExportConfig(skyportal_allocation_id=7, skyportal_plans="single"))
+    old = queue_coverage(plan, footprints, skymap.prob, queues=[skyportal_queue(single)])
+    assert old == pytest.approx(queue_coverage(plan, footprints, skymap.prob, queues=[to_trigger_queue(plan)]),
+                                abs=1e-6)
+    assert old <= got + 1e-9
+
+
+def test_the_single_plan_switch_gives_one_plan_over_the_plans_window(planned):
+    _, plan, _ = planned
+    (body,) = to_skyportal_plans(plan, ExportConfig(skyportal_allocation_id=7, skyportal_plans="single"), "GW_S1_r1")
+    assert body["plan_name"] == body["payload"]["queue_name"] == "GW_S1_r1"
+    assert len(body["observation_plans"][0]["planned_observations"]) == len(plan.observations)
+    assert body["payload"]["start_date"] == plan.start.utc.iso[:19]
+
+
+def test_an_unknown_skyportal_plans_value_is_refused_in_one_line():
+    with pytest.raises(ValueError, match="skyportal_plans must be per_pass or single, got 'per_block'"):
+        ExportConfig(skyportal_plans="per_block")
