@@ -1,0 +1,122 @@
+"""The SkyPortal target: a revision is one observation plan per filter pass, POSTed in order, deleted together.
+
+Real plans from the notice pipeline (greedy), the real export
+(:func:`~mushrooms.scheduler_core.plan.exports.to_skyportal_plans`), a real
+SQLite store and SkyPortal's contract server on loopback
+(``contract_servers.py``).  Kills are simulated in process (``Killed``): the
+restart is a new store and submitter on the same file.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from contract_servers import SkyPortalContract
+from mushrooms.daemon.submission.submitter import submissions
+from test_submissions import SID, TOKEN, Killed, World, _config, _die_after, server  # noqa: F401 (fixtures)
+
+MANUAL = "/api/observation_plan/manual"
+
+
+@pytest.fixture
+def skyportal(server):
+    return SkyPortalContract(server, TOKEN)
+
+
+@pytest.fixture
+def world(tmp_path, skyportal):
+    w = World(tmp_path / "state.sqlite", _config(skyportal.url, target="skyportal"))
+    yield w
+    w.store.close()
+
+
+def names(world: World, revision: int) -> list[str]:
+    """The plan names of an event's ``revision``-th set, as stored (``GW_<superevent>_r<n>_<k>``)."""
+    (row,) = [s for s in submissions(world.store) if s.revision == revision]
+    got = row.queue_names()
+    assert got == [f"GW_{SID}_r{revision}_{k}" for k in range(1, len(got) + 1)]
+    return got
+
+
+def test_a_revision_posts_its_plans_in_order_an_update_posts_the_new_set_then_deletes_the_old(world, skyportal):
+    world.notice("MS181101ab-preliminary.json")
+    assert world.submitter.step() == 0
+    first = names(world, 1)
+    assert len(first) > 1
+    assert skyportal.lines() == [f"POST {MANUAL} {n} -> 200" for n in first]
+    assert [p["plan_name"] for p in skyportal.plans.values()] == first
+    (row,) = submissions(world.store)
+    assert row.state == "submitted" and row.remote_id == ",".join(str(i) for i in range(1, len(first) + 1))
+    old_ids = list(skyportal.plans)
+    world.notice("MS230425l-preliminary.json", SID)
+    assert world.submitter.step() == 0
+    second = names(world, 2)
+    assert skyportal.lines()[len(first):] == ([f"POST {MANUAL} {n} -> 200" for n in second]
+                                              + [f"DELETE /api/observation_plan/{i}  -> 200" for i in old_ids])
+    assert [p["plan_name"] for p in skyportal.plans.values()] == second
+    world.notice("MS181101ab-retraction.json", time_created="2023-04-26T00:00:00Z")
+    assert world.submitter.step() == 0
+    assert skyportal.plans == {}
+    assert [s.state for s in submissions(world.store)] == ["replaced", "deleted"]
+    n = len(skyportal.log)
+    assert world.submitter.step() == 0 and len(skyportal.log) == n  # settled: nothing more is sent
+
+
+def test_a_kill_after_a_post_of_a_set_imports_no_plan_twice_and_names_the_one_left_by_hand(world, skyportal):
+    world.notice("MS181101ab-preliminary.json")
+    real, calls = world.submitter.client.post, []
+
+    def post_then_die_on_the_second(payload):
+        calls.append(payload["plan_name"])
+        answer = real(payload)
+        if len(calls) == 2:
+            raise Killed("post")
+        return answer
+
+    world.submitter.client.post = post_then_die_on_the_second
+    with pytest.raises(Killed):
+        world.submitter.step()
+    world.restart()
+    assert world.submitter.step() == 0
+    planned = names(world, 1)
+    imported = [p["plan_name"] for p in skyportal.plans.values()]
+    assert imported == planned  # each once, in order: the second was found by name, not sent again
+    (row,) = submissions(world.store)
+    assert row.state == "submitted" and "found by plan name" in row.reason
+    assert [e["plan_name"] for e in skyportal.log if e["method"] == "POST"] == planned
+    # its request id is unknown: a retraction removes every other plan and names that one for the operator
+    world.notice("MS181101ab-retraction.json", time_created="2023-04-26T00:00:00Z")
+    assert world.submitter.step() == 0
+    assert [p["plan_name"] for p in skyportal.plans.values()] == [planned[1]]
+    (row,) = submissions(world.store)
+    assert row.state == "failed" and row.reason.endswith(f"remove plan(s) {planned[1]} by hand")
+
+
+def test_a_kill_during_the_deletes_is_finished_by_the_restart(world, skyportal):
+    world.notice("MS181101ab-preliminary.json")
+    world.submitter.step()
+    world.notice("MS230425l-preliminary.json", SID)
+    _die_after(world.submitter.client, "delete")
+    with pytest.raises(Killed):
+        world.submitter.step()
+    gone_id = int(skyportal.log[-1]["path"].rsplit("/", 1)[1])
+    world.restart()
+    assert world.submitter.step() == 0
+    assert [p["plan_name"] for p in skyportal.plans.values()] == names(world, 2)
+    assert [s.state for s in submissions(world.store)] == ["replaced", "submitted"]
+    repeat = [line for line in skyportal.lines() if line.startswith(f"DELETE /api/observation_plan/{gone_id} ")]
+    assert repeat == [f"DELETE /api/observation_plan/{gone_id}  -> 200",
+                      f"DELETE /api/observation_plan/{gone_id}  -> 400"]  # then plan_names: not there, done
+
+
+def test_a_refused_plan_of_a_set_takes_the_accepted_ones_back_and_is_rejected(world, skyportal):
+    skyportal.faults["POST"] = [None, 400]
+    world.notice("MS181101ab-preliminary.json")
+    assert world.submitter.step() == 0
+    first = names(world, 1)
+    assert skyportal.lines() == [f"POST {MANUAL} {first[0]} -> 200", f"POST {MANUAL} {first[1]} -> 400",
+                                 "DELETE /api/observation_plan/1  -> 200",
+                                 "GET /api/observation_plan/plan_names  -> 200"]  # the refused one: not there
+    assert skyportal.plans == {}
+    (row,) = submissions(world.store)
+    assert row.state == "rejected" and row.reason.startswith(first[1])
