@@ -9,6 +9,8 @@ restart is a new store and submitter on the same file.
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from contract_servers import SkyPortalContract
@@ -120,3 +122,20 @@ def test_a_refused_plan_of_a_set_takes_the_accepted_ones_back_and_is_rejected(wo
     assert skyportal.plans == {}
     (row,) = submissions(world.store)
     assert row.state == "rejected" and row.reason.startswith(first[1])
+
+
+def test_the_submit_tool_posts_every_plan_of_the_set_and_names_each(world, skyportal, tmp_path, capsys, monkeypatch):
+    from mushrooms.cli import main
+
+    world.notice("MS181101ab-preliminary.json")
+    plan = tmp_path / "plan.json"
+    plan.write_text(json.dumps(world.store.plans()[-1]["document"]))
+    config = tmp_path / "c.toml"
+    config.write_text("[export]\nskyportal_allocation_id = 7\n")
+    monkeypatch.setenv("MUSHROOMS_SUBMIT_TOKEN", TOKEN)
+    assert main(["submit", str(plan), "--config", str(config), "--target", "skyportal", "--url", skyportal.url,
+                 "--queue-name", "ToO_GW_manual"]) == 0
+    posted = [p["plan_name"] for p in skyportal.plans.values()]
+    assert len(posted) > 1 and posted == [f"GW_manual_{k}" for k in range(1, len(posted) + 1)]
+    out = capsys.readouterr().out.splitlines()
+    assert [line.split()[1] for line in out] == posted and all(line.startswith("submitted ") for line in out)
