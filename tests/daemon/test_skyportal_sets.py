@@ -1,4 +1,4 @@
-"""The SkyPortal target: a revision is one observation plan per filter pass, POSTed in order, deleted together.
+"""The SkyPortal target: a revision is one observation plan per filter pass, POSTed in order, deleted together (T2-T3).
 
 Real plans from the notice pipeline (greedy), the real export
 (:func:`~mushrooms.scheduler_core.plan.exports.to_skyportal_plans`), a real

@@ -1,4 +1,4 @@
-"""The SkyPortal target's plans: one observation plan per filter pass, queued by SkyPortal as the Kowalski set (S1-S2).
+"""The SkyPortal target's plans: one observation plan per filter pass, queued by SkyPortal as the Kowalski set (T1).
 
 Real plans (greedy, the MS220722v BAYESTAR map, two nights), the real queue
 set of ``to_trigger_queues`` and the telescope's executor model.  What

@@ -265,7 +265,7 @@ class Submitter:
         return (self.client or KowalskiQueue(self.submit.url, None)).put_request(body)
 
     def _submit(self, sub: Submission) -> Submission | None:
-        """PUT every queue (or POST every SkyPortal plan) of the set not yet accepted; the row afterwards, or None."""
+        """PUT every queue (or POST every SkyPortal plan, (T2)) of the set not yet accepted; the row, or None."""
         assert sub.body is not None and self.client is not None
         plan_end = self._plan_end(sub.plan_id)
         if plan_end is not None and plan_end <= time.time():
@@ -300,7 +300,7 @@ class Submitter:
                             reason=(last.reason if last else None) or found, remote_id=sub.request_ids())
 
     def _posted_before(self, sub: Submission, name: str) -> bool | None:
-        """SkyPortal: whether plan ``name``, POSTed before a crash, was imported (None: unknown yet, retry)."""
+        """SkyPortal: whether plan ``name``, POSTed before a crash, was imported (T3) (None: unknown yet, retry)."""
         assert isinstance(self.client, SkyPortalPlans)
         if name not in sub.maybe_sent():
             return False

@@ -343,9 +343,9 @@ def to_skyportal_plans(plan: "Plan", export: ExportConfig = ExportConfig(), name
     observations, with ``start_date``/``end_date`` (and the plan's validity
     window) = the queue's window, to the millisecond.  SkyPortal's ZTF API
     sends each as one list queue ``ToO_<queue_name>`` over that window with
-    those targets in order: the Kowalski target's queue set (submission.md
-    S1).  ``single``: :func:`to_skyportal` named ``name_base`` (one list
-    queue over the plan's window).
+    those targets in order: the Kowalski target's queue set
+    (docs/design/submission.md, (T1)).  ``single``: :func:`to_skyportal`
+    named ``name_base`` (one list queue over the plan's window).
 
     Parameters
     ----------
