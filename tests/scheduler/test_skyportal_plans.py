@@ -2,12 +2,9 @@
 
 Real plans (greedy, the MS220722v BAYESTAR map, two nights), the real queue
 set of ``to_trigger_queues`` and the telescope's executor model.  What
-SkyPortal's ZTF API makes of a plan is written from its source
-(skyportal/skyportal @ 01fabb98b7e54e55c96d03148f7906375cc3084f, BSD-3-Clause,
-``skyportal/facility_apis/ztf.py``, ``_build_observation_plan_payload``): one
-list queue ``"ToO_" + payload.queue_name`` over ``Time(start_date,
-format="iso")..Time(end_date, format="iso")``, its targets the plan's planned
-observations in order with the field's grid position.
+SkyPortal's ZTF API makes of a plan (one list queue over the plan's
+``start_date``..``end_date``) is :func:`mushrooms.evaluation.skyportal_queue.skyportal_queue`,
+written from SkyPortal's source.
 """
 
 from __future__ import annotations
@@ -18,6 +15,7 @@ from pathlib import Path
 import pytest
 from astropy.time import Time, TimeDelta
 
+from mushrooms.evaluation.skyportal_queue import skyportal_queue
 from mushrooms.scheduler_core import PlanningConfig, make_plan, read_skymap
 from mushrooms.scheduler_core.plan.exports import (ExportConfig, to_skyportal, to_skyportal_plans, to_trigger_queue,
                                                    to_trigger_queues)
@@ -26,7 +24,6 @@ from mushrooms.scheduler_core.telescope.coverage import queue_coverage
 
 MAP = Path(__file__).resolve().parents[1] / "data" / "skymaps" / "MS220722v_bayestar.multiorder.fits"
 EXPORT = ExportConfig(skyportal_allocation_id=7)
-BANDS = {"ztfg": 1, "ztfr": 2, "ztfi": 3}
 
 
 @pytest.fixture(scope="module", params=[0.0, 1.0], ids=["night1", "night2"])
@@ -36,19 +33,6 @@ def planned(request):
     plan = make_plan(skymap, cfg, Time(skymap.event_time, scale="utc") + TimeDelta(request.param, format="jd"))
     assert plan.observations
     return skymap, plan, field_footprints(load_ztf_fields(), cfg.nside)
-
-
-def skyportal_queue(body: dict) -> dict:
-    """The list queue SkyPortal's ZTF API sends to ZTF for one imported observation plan."""
-    grid = load_ztf_fields()
-    where = {int(f): i for i, f in enumerate(grid.ids)}
-    (plan,) = body["observation_plans"]  # SkyPortal refuses a request with other than one plan
-    targets = [{"request_id": k, "field_id": o["field_id"], "ra": float(grid.ra[where[o["field_id"]]]),
-                "dec": float(grid.dec[where[o["field_id"]]]), "filter_id": BANDS[o["filt"]],
-                "exposure_time": o["exposure_time"]}
-               for k, o in enumerate(plan["planned_observations"], start=1)]
-    window = [Time(body["payload"][k], format="iso", scale="utc").mjd for k in ("start_date", "end_date")]
-    return {"queue_name": "ToO_" + body["payload"]["queue_name"], "validity_window_mjd": window, "targets": targets}
 
 
 def test_one_skyportal_plan_per_queue_of_the_set_with_its_window_and_targets(planned):
