@@ -9,6 +9,7 @@ restart is a new store and submitter on the same file.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import pytest
@@ -139,3 +140,28 @@ def test_the_submit_tool_posts_every_plan_of_the_set_and_names_each(world, skypo
     assert len(posted) > 1 and posted == [f"GW_manual_{k}" for k in range(1, len(posted) + 1)]
     out = capsys.readouterr().out.splitlines()
     assert [line.split()[1] for line in out] == posted and all(line.startswith("submitted ") for line in out)
+
+
+def test_a_row_written_before_sets_is_looked_up_by_its_plan_name_and_removed_by_its_id(tmp_path, skyportal):
+    config = _config(skyportal.url, target="skyportal")
+    w = World(tmp_path / "state.sqlite", dataclasses.replace(
+        config, export=dataclasses.replace(config.export, skyportal_plans="single")))
+    try:
+        w.notice("MS181101ab-preliminary.json")
+        w.submitter.adopt()
+        with w.store.transaction() as c:  # the body as stored before sets: one plan, not a list
+            (body,) = json.loads(c.execute("SELECT body FROM submissions").fetchone()[0])
+            c.execute("UPDATE submissions SET body=?", (json.dumps(body),))
+        _die_after(w.submitter.client, "post")
+        with pytest.raises(Killed):
+            w.submitter.step()
+        w.restart()
+        assert w.submitter.step() == 0
+        assert [p["plan_name"] for p in skyportal.plans.values()] == [f"GW_{SID}_r1"]  # not imported twice
+        w.notice("MS181101ab-retraction.json", time_created="2023-04-26T00:00:00Z")
+        assert w.submitter.step() == 0
+        (row,) = submissions(w.store)
+        assert row.state == "failed" and row.reason.endswith(f"remove plan(s) GW_{SID}_r1 by hand")
+        assert [p["plan_name"] for p in skyportal.plans.values()] == [f"GW_{SID}_r1"]  # said, not claimed removed
+    finally:
+        w.store.close()

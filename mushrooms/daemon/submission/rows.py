@@ -76,8 +76,8 @@ class Submission:
     def queue_names(self) -> list[str]:
         """The names of the requests of this revision (Kowalski: its queues; SkyPortal: its plans)."""
         names = [name_of(q) for q in set_of(self.body)] if isinstance(self.body, list) else []
-        if not names and isinstance(self.body, dict) and "queue_name" in self.body and "targets" in self.body:
-            names = [str(self.body["queue_name"])]  # a row written before queue sets
+        if not names and isinstance(self.body, dict) and ("targets" in self.body or "plan_name" in self.body):
+            names = [name_of(self.body)]  # a row written before sets: one queue, or one SkyPortal plan
         return names or ([self.queue_name] if self.queue_name else [])
 
     def request_ids(self) -> str | None:

@@ -163,7 +163,7 @@ class Submitter:
                             reason = "dry run"
                             for one in set_of(body) if isinstance(body, list) else [body]:
                                 log.info("event=submission_dry_run superevent_id=%s plan_id=%s queue_name=%s "
-                                         "request=%s", sid, plan_id, one.get("queue_name", name),
+                                         "request=%s", sid, plan_id, name_of(one),
                                          json.dumps(self._request(one).describe()))
                         else:
                             state = State.PENDING
