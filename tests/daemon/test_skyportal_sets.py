@@ -16,7 +16,8 @@ import pytest
 
 from contract_servers import SkyPortalContract
 from mushrooms.daemon.submission.submitter import submissions
-from test_submissions import SID, TOKEN, Killed, World, _config, _die_after, server  # noqa: F401 (fixtures)
+from test_submissions import (SID, TOKEN, Killed, World, _config, _die_after, killed_during_the_deletes,  # noqa: F401
+                              server)
 
 MANUAL = "/api/observation_plan/manual"
 
@@ -67,16 +68,7 @@ def test_a_revision_posts_its_plans_in_order_an_update_posts_the_new_set_then_de
 
 def test_a_kill_after_a_post_of_a_set_imports_no_plan_twice_and_names_the_one_left_by_hand(world, skyportal):
     world.notice("MS181101ab-preliminary.json")
-    real, calls = world.submitter.client.post, []
-
-    def post_then_die_on_the_second(payload):
-        calls.append(payload["plan_name"])
-        answer = real(payload)
-        if len(calls) == 2:
-            raise Killed("post")
-        return answer
-
-    world.submitter.client.post = post_then_die_on_the_second
+    _die_after(world.submitter.client, "post", nth=2)
     with pytest.raises(Killed):
         world.submitter.step()
     world.restart()
@@ -96,12 +88,7 @@ def test_a_kill_after_a_post_of_a_set_imports_no_plan_twice_and_names_the_one_le
 
 
 def test_a_kill_during_the_deletes_is_finished_by_the_restart(world, skyportal):
-    world.notice("MS181101ab-preliminary.json")
-    world.submitter.step()
-    world.notice("MS230425l-preliminary.json", SID)
-    _die_after(world.submitter.client, "delete")
-    with pytest.raises(Killed):
-        world.submitter.step()
+    killed_during_the_deletes(world)
     gone_id = int(skyportal.log[-1]["path"].rsplit("/", 1)[1])
     world.restart()
     assert world.submitter.step() == 0

@@ -158,12 +158,16 @@ class Killed(BaseException):
     """Stands for kill -9 in process: nothing after it runs (the restart is a new Store and Submitter)."""
 
 
-def _die_after(obj, name: str) -> None:
-    real = getattr(obj, name)
+def _die_after(obj, name: str, nth: int = 1) -> None:
+    """``obj.name`` is killed right after its ``nth`` call reached the server."""
+    real, calls = getattr(obj, name), []
 
     def call(*a, **k):
-        real(*a, **k)
-        raise Killed(name)
+        answer = real(*a, **k)
+        calls.append(1)
+        if len(calls) == nth:
+            raise Killed(name)
+        return answer
 
     setattr(obj, name, call)
 
@@ -184,13 +188,18 @@ def test_crash_after_the_put_before_the_commit_counts_the_409_with_the_same_cont
     assert row.state == "submitted" and "same content" in row.reason and row.queue_names() == [r1]
 
 
-def test_crash_during_the_delete_is_finished_by_the_restart(world, kowalski) -> None:
+def killed_during_the_deletes(world: World) -> None:
+    """Revision 1 submitted, revision 2 of a new map accepted, then a kill right after the first DELETE."""
     world.notice("MS181101ab-preliminary.json")
     world.submitter.step()
     world.notice("MS230425l-preliminary.json", SID)
     _die_after(world.submitter.client, "delete")
     with pytest.raises(Killed):
         world.submitter.step()
+
+
+def test_crash_during_the_delete_is_finished_by_the_restart(world, kowalski) -> None:
+    killed_during_the_deletes(world)
     r1, r2 = qn(1), qn(2)
     assert list(kowalski.queues) == [r2]
     world.restart()

@@ -10,33 +10,21 @@ written from SkyPortal's source.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import pytest
-from astropy.time import Time, TimeDelta
+from astropy.time import Time
 
 from mushrooms.evaluation.skyportal_queue import skyportal_queue
-from mushrooms.scheduler_core import PlanningConfig, make_plan, read_skymap
 from mushrooms.scheduler_core.plan.exports import (ExportConfig, to_skyportal, to_skyportal_plans, to_trigger_queue,
                                                    to_trigger_queues)
-from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
 from mushrooms.scheduler_core.telescope.coverage import queue_coverage
+from test_queue_export import planned  # noqa: F401 (the fixture: greedy plans of MS220722v, nights 1 and 2)
 
-MAP = Path(__file__).resolve().parents[1] / "data" / "skymaps" / "MS220722v_bayestar.multiorder.fits"
 EXPORT = ExportConfig(skyportal_allocation_id=7)
 
 
-@pytest.fixture(scope="module", params=[0.0, 1.0], ids=["night1", "night2"])
-def planned(request):
-    cfg = PlanningConfig(solver="greedy", nside=64)
-    skymap = read_skymap(MAP, nside=cfg.nside)
-    plan = make_plan(skymap, cfg, Time(skymap.event_time, scale="utc") + TimeDelta(request.param, format="jd"))
-    assert plan.observations
-    return skymap, plan, field_footprints(load_ztf_fields(), cfg.nside)
-
-
 def test_one_skyportal_plan_per_queue_of_the_set_with_its_window_and_targets(planned):
-    _, plan, _ = planned
+    _, _, plan, _ = planned
     queues = to_trigger_queues(plan, EXPORT, name_base="ToO_GW_S1_r2")
     bodies = json.loads(json.dumps(to_skyportal_plans(plan, EXPORT, name_base="GW_S1_r2")))  # as POSTed
     assert len(bodies) == len(queues) > 1
@@ -58,7 +46,7 @@ def test_one_skyportal_plan_per_queue_of_the_set_with_its_window_and_targets(pla
 
 
 def test_the_per_pass_plans_are_executed_as_coverage_as_executed_says(planned):
-    skymap, plan, footprints = planned
+    _, skymap, plan, footprints = planned
     sent = [skyportal_queue(b) for b in to_skyportal_plans(plan, EXPORT)]
     got = queue_coverage(plan, footprints, skymap.prob, queues=sent)
     assert got == pytest.approx(plan.metrics.coverage_as_executed, abs=1e-6)
@@ -71,7 +59,7 @@ def test_the_per_pass_plans_are_executed_as_coverage_as_executed_says(planned):
 
 
 def test_the_single_plan_switch_gives_one_plan_over_the_plans_window(planned):
-    _, plan, _ = planned
+    _, _, plan, _ = planned
     (body,) = to_skyportal_plans(plan, ExportConfig(skyportal_allocation_id=7, skyportal_plans="single"), "GW_S1_r1")
     assert body["plan_name"] == body["payload"]["queue_name"] == "GW_S1_r1"
     assert len(body["observation_plans"][0]["planned_observations"]) == len(plan.observations)
