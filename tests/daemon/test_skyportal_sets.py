@@ -152,3 +152,18 @@ def test_a_row_written_before_sets_is_looked_up_by_its_plan_name_and_removed_by_
         assert [p["plan_name"] for p in skyportal.plans.values()] == [f"GW_{SID}_r1"]  # said, not claimed removed
     finally:
         w.store.close()
+
+
+def test_a_delete_answered_302_fails_the_row_and_one_answered_200_not_json_is_retried(world, skyportal):
+    world.notice("MS181101ab-preliminary.json")
+    assert world.submitter.step() == 0
+    n = len(skyportal.plans)
+    world.notice("MS181101ab-retraction.json", time_created="2023-04-26T00:00:00Z")
+    skyportal.hang_s, skyportal.drip_s = 0.3, 0.1
+    skyportal.faults["DELETE"] = ["drip"]  # a 200 whose body is blanks: not known to be removed
+    assert world.submitter.step() == 1
+    assert len(skyportal.plans) == n and submissions(world.store)[0].state == "submitted"
+    skyportal.faults["DELETE"] = [None, 302]  # the first plan removed, the second's DELETE redirected
+    assert world.submitter.step() == 0
+    (row,) = submissions(world.store)
+    assert row.state == "failed" and "302" in row.reason and len(skyportal.plans) == n - 1

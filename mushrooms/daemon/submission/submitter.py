@@ -363,12 +363,7 @@ class Submitter:
         return True
 
     def _remove_plans(self, sub: Submission) -> bool:
-        """SkyPortal: DELETE every plan of the set by its request id; True when all are gone (or the row failed).
-
-        A plan whose DELETE is refused, or whose id is unknown (an interrupted
-        POST), and which ``plan_names`` no longer lists, counts as removed; one
-        still listed fails the row (the operator removes it by hand).
-        """
+        """SkyPortal: DELETE each plan by request id (refused or id unknown: gone if no longer listed by name) (T3)."""
         assert isinstance(self.client, SkyPortalPlans)
         names, sent = sub.queue_names(), sub.maybe_sent()
         ids = dict(sub.progress.get("ids") or ({names[0]: sub.remote_id} if sub.remote_id and len(names) == 1 else {}))
@@ -376,15 +371,16 @@ class Submitter:
         for name in names:
             if name in sub.progress.get("gone", ()) or name not in sent:
                 continue  # removed already, or never sent
-            answer = None
             try:
-                if name in ids:
-                    answer = self.client.delete(ids[name])
-                if answer is not None and answer.ok:
+                answer = self.client.delete(ids[name]) if name in ids else None
+                if answer is not None and answer.ok and answer.problem is None:
                     sub = self._note(sub, "gone", name, answer)
                     continue
-                if answer is not None and not answer.refused:
-                    self._retry(sub, answer.status, answer.message())
+                if answer is not None and answer.redirected:
+                    self._finish(sub, State.FAILED, answer, reason=f"DELETE {name}: {answer.status}: {answer.problem}")
+                    return True
+                if answer is not None and not answer.refused:  # 5xx, or a 200 that is not SkyPortal's JSON
+                    self._retry(sub, answer.status, answer.problem if answer.ok else answer.message())
                     return False
                 listed = self.client.exists(name)
             except (Unreachable, RuntimeError) as exc:
