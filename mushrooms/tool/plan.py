@@ -326,10 +326,14 @@ def submitted_queues(plan: Any, export: Any) -> Any:
 def submitted_skyportal(plan: Any, export: Any) -> Any:
     """What the daemon POSTs to SkyPortal for ``plan`` as revision 1: one plan, or a list in submission order."""
     from ..daemon.submission.submitter import queue_name
+    from ..scheduler_core.errors import InputError
     from ..scheduler_core.plan.exports import to_skyportal_plans
 
     base = queue_name(export.subprogram_name, plan.event.superevent_id or plan.plan_id, 1).removeprefix("ToO_")
-    plans = to_skyportal_plans(plan, export, name_base=base)
+    try:
+        plans = to_skyportal_plans(plan, export, name_base=base)
+    except ValueError as exc:  # no event time, or no pass opens before the plan's end: one line
+        raise InputError(f"--skyportal: {exc}") from None
     return plans[0] if len(plans) == 1 else plans
 
 
