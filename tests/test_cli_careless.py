@@ -234,7 +234,9 @@ def test_plan_writes_queue_and_skyportal_from_the_same_plan(tmp_path, capsys):
     targets = [t for q in queues for t in q["targets"]]
     assert sorted((t["field_id"], t["filter_id"]) for t in targets) == sorted(
         (o["field_id"], {"g": 1, "r": 2, "i": 3}[o["filter"]]) for o in obs)
-    planned = sp["observation_plans"][0]["planned_observations"]
-    assert [p["field_id"] for p in planned] == [o["field_id"] for o in obs]
-    assert [p["dateobs"] + "Z" for p in planned] == [o["start"] for o in obs]
-    assert all(q["user"] == "bob" for q in queues) and sp["allocation_id"] == 3
+    plans = sp if isinstance(sp, list) else [sp]  # one SkyPortal plan per queue of the set, in submission order
+    assert ["ToO_" + p["payload"]["queue_name"] for p in plans] == [q["queue_name"] for q in queues]
+    planned = [p for one in plans for p in one["observation_plans"][0]["planned_observations"]]
+    assert [p["field_id"] for p in planned] == [t["field_id"] for t in targets]
+    assert all(p["dateobs"] + "Z" == obs[p["planned_observation_id"]]["start"] for p in planned)
+    assert all(q["user"] == "bob" for q in queues) and {p["allocation_id"] for p in plans} == {3}

@@ -83,7 +83,9 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
                    help="also write ZTF's ToO queues as the daemon submits them (revision 1; program fields from "
                         "[export]): one queue object, or a JSON list of them in submission order")
     p.add_argument("--skyportal", metavar="FILE",
-                   help="also write the body of SkyPortal's POST /api/observation_plan/manual")
+                   help="also write the SkyPortal observation plans as the daemon POSTs them to "
+                        "/api/observation_plan/manual (revision 1; [export] skyportal_plans): one plan object, or a "
+                        "JSON list of them in submission order")
     p.add_argument("--plot", metavar="FILE", help="also draw the plan on the sky map (PNG)")
     p.add_argument("--executed", metavar="FILE",
                    help="what the telescope did: a JSON-lines file of executed exposures (field_id, filter, start, "
@@ -114,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     from ..inputs import regular_file
     from ..offline import configure_astropy_offline
     from ..outputs import write_json_atomic
-    from ..scheduler_core import make_plan, not_observable, read_skymap, to_skyportal
+    from ..scheduler_core import make_plan, not_observable, read_skymap
 
     configure_astropy_offline()
     t0 = time.perf_counter()
@@ -158,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
     if args.queue:
         write_json_atomic(args.queue, submitted_queues(plan, config.export))
     if getattr(args, "skyportal", None):
-        write_json_atomic(args.skyportal, to_skyportal(plan, config.export))
+        write_json_atomic(args.skyportal, submitted_skyportal(plan, config.export))
     picture = _write_summary(args, doc, plan, skymap)
     progress.done()
     if args.plot:
@@ -341,6 +343,20 @@ def submitted_queues(plan: Any, export: Any) -> Any:
     return queues[0] if len(queues) == 1 else queues
 
 
+def submitted_skyportal(plan: Any, export: Any) -> Any:
+    """What the daemon POSTs to SkyPortal for ``plan`` as revision 1: one plan, or a list in submission order."""
+    from ..daemon.submission.submitter import queue_name
+    from ..scheduler_core.errors import InputError
+    from ..scheduler_core.plan.exports import to_skyportal_plans
+
+    base = queue_name(export.subprogram_name, plan.event.superevent_id or plan.plan_id, 1).removeprefix("ToO_")
+    try:
+        plans = to_skyportal_plans(plan, export, name_base=base)
+    except ValueError as exc:  # no event time, or no pass opens before the plan's end: one line
+        raise InputError(f"--skyportal: {exc}") from None
+    return plans[0] if len(plans) == 1 else plans
+
+
 def night_path(path: str, night: int) -> str:
     """The file of night ``night``'s document: ``plan.json`` for night 1, ``plan.night2.json`` for night 2, ..."""
     if night == 1:
@@ -355,7 +371,6 @@ def _write_night(args: argparse.Namespace, config: Any, skymap: Any, plan: Any, 
                  t0: float) -> None:
     """One night's files of a re-plan (the plan, its summaries, queue, payload and picture), then its summary."""
     from ..outputs import write_bytes_atomic, write_json_atomic
-    from ..scheduler_core import to_skyportal
     from ..scheduler_core.plan.messages import revision_document
 
     output = night_path(args.output, n)
@@ -365,7 +380,7 @@ def _write_night(args: argparse.Namespace, config: Any, skymap: Any, plan: Any, 
     if args.queue:
         write_json_atomic(night_path(args.queue, n), submitted_queues(plan, config.export))
     if getattr(args, "skyportal", None):
-        write_json_atomic(night_path(args.skyportal, n), to_skyportal(plan, config.export))
+        write_json_atomic(night_path(args.skyportal, n), submitted_skyportal(plan, config.export))
     if args.plot and picture is not None:
         write_bytes_atomic(night_path(args.plot, n), picture)
     _print_answer(argparse.Namespace(**{**vars(args), "output": output}), output, doc,

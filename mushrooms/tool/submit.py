@@ -73,6 +73,7 @@ def submit_config(args: argparse.Namespace):
 def run(args: argparse.Namespace) -> int:
     """Submit (or with ``--dry-run`` print) one plan; 0 accepted, 1 refused or not reached, 2 bad input."""
     from ..daemon.submission.remote import make_client
+    from ..daemon.submission.rules import name_of
     from ..daemon.submission.submitter import build_body, gate, send_queue
     from ..scheduler_core.errors import InputError
 
@@ -88,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         body = build_body(doc, config.submit, config.export, name)
     except ValueError as exc:
         raise InputError(f"{args.plan}: {exc}") from None
-    parts = body if isinstance(body, list) else [body]  # Kowalski: the revision's queue set, PUT in order
+    parts = body if isinstance(body, list) else [body]  # the revision's queue set (or SkyPortal plans), in order
     if args.dry_run:
         client = make_client(config.submit.target, config.submit.url, None, config.submit.timeout_s)
         requests = [(client.put_request(q) if config.submit.target == "kowalski" else client.post_request(q))
@@ -100,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     token, _ = load_submit_token()
     client = make_client(config.submit.target, config.submit.url, token, config.submit.timeout_s)
     for part in parts:
-        one = str(part.get("queue_name") or name) if isinstance(body, list) else name
+        one = name_of(part) if isinstance(body, list) else name
         verdict = send_queue(client, part, one)
         status = verdict.answer.status if verdict.answer else "no answer"
         text = verdict.reason or (verdict.answer.message() if verdict.answer else "")

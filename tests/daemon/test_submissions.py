@@ -158,12 +158,16 @@ class Killed(BaseException):
     """Stands for kill -9 in process: nothing after it runs (the restart is a new Store and Submitter)."""
 
 
-def _die_after(obj, name: str) -> None:
-    real = getattr(obj, name)
+def _die_after(obj, name: str, nth: int = 1) -> None:
+    """``obj.name`` is killed right after its ``nth`` call reached the server."""
+    real, calls = getattr(obj, name), []
 
     def call(*a, **k):
-        real(*a, **k)
-        raise Killed(name)
+        answer = real(*a, **k)
+        calls.append(1)
+        if len(calls) == nth:
+            raise Killed(name)
+        return answer
 
     setattr(obj, name, call)
 
@@ -184,13 +188,18 @@ def test_crash_after_the_put_before_the_commit_counts_the_409_with_the_same_cont
     assert row.state == "submitted" and "same content" in row.reason and row.queue_names() == [r1]
 
 
-def test_crash_during_the_delete_is_finished_by_the_restart(world, kowalski) -> None:
+def killed_during_the_deletes(world: World) -> None:
+    """Revision 1 submitted, revision 2 of a new map accepted, then a kill right after the first DELETE."""
     world.notice("MS181101ab-preliminary.json")
     world.submitter.step()
     world.notice("MS230425l-preliminary.json", SID)
     _die_after(world.submitter.client, "delete")
     with pytest.raises(Killed):
         world.submitter.step()
+
+
+def test_crash_during_the_delete_is_finished_by_the_restart(world, kowalski) -> None:
+    killed_during_the_deletes(world)
     r1, r2 = qn(1), qn(2)
     assert list(kowalski.queues) == [r2]
     world.restart()
@@ -347,8 +356,15 @@ def test_plans_superseded_before_they_were_sent_are_never_sent(world, kowalski) 
     assert list(kowalski.queues) == [qn(1)]  # the first revision the submitter saw
 
 
+def _single_plan(url: str) -> Config:
+    """SkyPortal with one observation plan per revision (``[export] skyportal_plans = "single"``; the per-pass
+    sets are in ``test_skyportal_sets.py``)."""
+    config = _config(url, target="skyportal")
+    return dataclasses.replace(config, export=dataclasses.replace(config.export, skyportal_plans="single"))
+
+
 def test_skyportal_import_and_removal(tmp_path, skyportal) -> None:
-    w = World(tmp_path / "state.sqlite", _config(skyportal.url, target="skyportal"))
+    w = World(tmp_path / "state.sqlite", _single_plan(skyportal.url))
     try:
         w.notice("MS181101ab-preliminary.json")
         assert w.submitter.step() == 0
@@ -365,7 +381,7 @@ def test_skyportal_import_and_removal(tmp_path, skyportal) -> None:
 
 
 def test_skyportal_interrupted_post_is_looked_up_by_name(tmp_path, skyportal) -> None:
-    w = World(tmp_path / "state.sqlite", _config(skyportal.url, target="skyportal"))
+    w = World(tmp_path / "state.sqlite", _single_plan(skyportal.url))
     try:
         w.notice("MS181101ab-preliminary.json")
         _die_after(w.submitter.client, "post")

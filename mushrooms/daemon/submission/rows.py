@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from ...handlers.instants import now_iso_z
-from .rules import set_of
+from .rules import name_of, set_of
 
 if TYPE_CHECKING:
     from ..state.store import Store
@@ -69,15 +69,27 @@ class Submission:
     attempted_at: str | None
     submitted_at: str | None
     finished_at: str | None
-    #: ``{"put": [queue names accepted], "gone": [queue names removed], "rejected": reason}``
+    #: ``{"put": [names accepted], "gone": [names removed], "rejected": reason}``; SkyPortal also
+    #: ``"tried": [plan names POSTed at least once]`` and ``"ids": {plan name: request id}``
     progress: dict[str, Any] = field(default_factory=dict)
 
     def queue_names(self) -> list[str]:
-        """The names of the queues of this revision (Kowalski: its set; SkyPortal: the plan name)."""
-        names = [str(q.get("queue_name")) for q in set_of(self.body)] if isinstance(self.body, list) else []
-        if not names and isinstance(self.body, dict) and "queue_name" in self.body and "targets" in self.body:
-            names = [str(self.body["queue_name"])]  # a row written before queue sets
+        """The names of the requests of this revision (Kowalski: its queues; SkyPortal: its plans)."""
+        names = [name_of(q) for q in set_of(self.body)] if isinstance(self.body, list) else []
+        if not names and isinstance(self.body, dict) and ("targets" in self.body or "plan_name" in self.body):
+            names = [name_of(self.body)]  # a row written before sets: one queue, or one SkyPortal plan
         return names or ([self.queue_name] if self.queue_name else [])
+
+    def request_ids(self) -> str | None:
+        """SkyPortal's request ids of the plans of this revision, comma-separated in order (None: none known)."""
+        ids = self.progress.get("ids", {})
+        return ",".join(str(ids[n]) for n in self.queue_names() if n in ids) or None
+
+    def maybe_sent(self) -> set[str]:
+        """Names that may be on the server: accepted, or sent at least once (rows from before sets: all, once tried)."""
+        tried = self.progress.get("tried")
+        return set(self.progress.get("put", ())) | set(self.queue_names() if tried is None and self.attempts
+                                                        else tried or ())
 
 
 def submission_from_row(r: Any) -> Submission:

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from ...scheduler_core.plan.exports import ExportConfig
     from .settings import SubmitConfig
 
-__all__ = ["Verdict", "queue_name", "gate", "build_body", "same_content", "send_queue", "set_of", "unix",
+__all__ = ["Verdict", "queue_name", "gate", "build_body", "same_content", "send_queue", "set_of", "name_of", "unix",
            "total_coverage"]
 
 
@@ -81,9 +81,11 @@ def build_body(document: dict[str, Any], submit: SubmitConfig, export: ExportCon
     Kowalski: the ordered queue set of
     :func:`~mushrooms.scheduler_core.plan.exports.to_trigger_queues`, named
     ``<name>_<k>`` (a list of queue bodies, PUT in order); SkyPortal:
-    :func:`~...exports.to_skyportal` (``plan --skyportal``, one plan per
-    revision) with ``plan_name`` and ``payload.queue_name`` = ``name``
-    without its ``ToO_`` (SkyPortal's ZTF API puts it back when it queues the plan).
+    the ordered plans of :func:`~...exports.to_skyportal_plans` (``plan
+    --skyportal``; one per filter pass, or one per revision with ``[export]
+    skyportal_plans = "single"``, POSTed in order) named from ``name``
+    without its ``ToO_`` (SkyPortal's ZTF API puts it back when it queues a
+    plan, so the queues get the Kowalski target's names).
 
     Raises
     ------
@@ -100,18 +102,19 @@ def build_body(document: dict[str, Any], submit: SubmitConfig, export: ExportCon
         if not queues:
             raise ValueError("the plan gives no queue")
         return queues
-    body = exports.to_skyportal(plan, export)
-    short = name.removeprefix("ToO_")
-    body["plan_name"] = short
-    body["payload"]["queue_name"] = short
-    return body
+    return exports.to_skyportal_plans(plan, export, name_base=name.removeprefix("ToO_"))
 
 
 def set_of(body: Any) -> list[dict[str, Any]]:
-    """The queues of a stored Kowalski body: a set (list), or one queue (rows written before queue sets)."""
+    """The queues (or SkyPortal plans) of a stored body: a set (list), or one (rows written before sets)."""
     if isinstance(body, list):
         return [q for q in body if isinstance(q, dict)]
     return [body] if isinstance(body, dict) else []
+
+
+def name_of(part: dict[str, Any]) -> str:
+    """The name of one request of a set: a Kowalski queue's ``queue_name``, a SkyPortal plan's ``plan_name``."""
+    return str(part.get("queue_name") or part.get("plan_name"))
 
 
 def _targets_key(targets: Any) -> list[tuple[int, int, float]]:

@@ -26,9 +26,11 @@ between the call and the commit the restart sends the same name and body
 again: Kowalski answers 409 and the queue list (``GET``) shows the same
 content, which counts as accepted; a DELETE repeated after a crash finds
 the queue gone (400, not in the list), which counts as done.  So no queue is
-sent twice nor left orphaned.  SkyPortal's import is not keyed by name: an
-interrupted POST is looked up by plan name (``plan_names?name=``) before
-it is repeated.
+sent twice nor left orphaned.  To SkyPortal a revision is the ordered list
+of observation plans of :func:`~mushrooms.scheduler_core.plan.exports.to_skyportal_plans`
+(one per filter pass), POSTed in order and DELETEd by request id; its import
+is not keyed by name, so each plan is marked ``tried`` before its POST and a
+tried plan is looked up by name (``plan_names?name=``) before it is sent again.
 
 Queue names: ``ToO_<subprogram_name>_<superevent>_r<n>_<k>``, ``n`` counting
 the event's submitted revisions from 1 (the row's ``queue_name`` is the name
@@ -52,7 +54,7 @@ from ..state.store import Store
 from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
 from .rows import OPEN, PUBLISHED, STATES, Submission, status_document, submission_from_row, submissions
 from .rows import SubmissionState as State
-from .rules import Verdict, build_body, gate, queue_name, same_content, send_queue, set_of
+from .rules import Verdict, build_body, gate, name_of, queue_name, same_content, send_queue, set_of
 from .rules import unix as _unix
 
 if TYPE_CHECKING:
@@ -63,6 +65,7 @@ __all__ = ["Submission", "Submitter", "Verdict", "send_queue", "queue_name", "ga
            "status_document", "submissions", "STATES", "OPEN"]
 
 log = logging.getLogger("mushrooms.daemon.submit")
+FOUND_BY_NAME = "found by plan name after an interrupted POST (request id unknown)"
 
 
 class Submitter:
@@ -160,7 +163,7 @@ class Submitter:
                             reason = "dry run"
                             for one in set_of(body) if isinstance(body, list) else [body]:
                                 log.info("event=submission_dry_run superevent_id=%s plan_id=%s queue_name=%s "
-                                         "request=%s", sid, plan_id, one.get("queue_name", name),
+                                         "request=%s", sid, plan_id, name_of(one),
                                          json.dumps(self._request(one).describe()))
                         else:
                             state = State.PENDING
@@ -172,8 +175,7 @@ class Submitter:
                            name if state != State.SKIPPED else None, state, reason,
                            json.dumps(body) if body is not None and state == State.PENDING else None,
                            _now_iso(), None if state == State.PENDING else _now_iso()))
-                sub = submission_from_row(c.execute("SELECT * FROM submissions WHERE plan_id=?",
-                                                    (plan_id,)).fetchone())
+                sub = _row(c, plan_id)
                 created.append(sub)
                 if state == State.FAILED:
                     failed.append((sub, reason or ""))
@@ -263,7 +265,7 @@ class Submitter:
         return (self.client or KowalskiQueue(self.submit.url, None)).put_request(body)
 
     def _submit(self, sub: Submission) -> Submission | None:
-        """PUT every queue of the set not yet accepted (or POST the plan); the row afterwards, or None (retry)."""
+        """PUT every queue (or POST every SkyPortal plan, (T2)) of the set not yet accepted; the row, or None."""
         assert sub.body is not None and self.client is not None
         plan_end = self._plan_end(sub.plan_id)
         if plan_end is not None and plan_end <= time.time():
@@ -271,25 +273,41 @@ class Submitter:
                 return None
             return self._finish(sub, State.FAILED, reason=f"validity window ended before the queue was accepted "
                                 f"({sub.attempts} attempt(s); last: {sub.answer or '-'})")
-        if isinstance(self.client, SkyPortalPlans):
-            return self._post(sub)
-        if sub.progress.get("rejected"):  # a queue of the set was refused: take the accepted ones back first
+        if sub.progress.get("rejected"):  # a request of the set was refused: take the accepted ones back first
             return self._finish_rejection(sub)
         last: Verdict | None = None
-        for queue in set_of(sub.body):
-            name = str(queue.get("queue_name"))
+        found, sky = None, isinstance(self.client, SkyPortalPlans)
+        for part in set_of(sub.body):
+            name = name_of(part)
             if name in sub.progress.get("put", ()):
                 continue
-            sub = self._mark_attempt(sub)
-            last = send_queue(self.client, queue, name)
+            posted = self._posted_before(sub, name) if sky else False
+            if posted is None:
+                return None
+            if posted:  # SkyPortal's import is not keyed by name: found by it after an interrupted POST
+                sub, found = self._note(sub, "put", name), FOUND_BY_NAME
+                continue
+            sub = self._mark_attempt(sub, tried=name if sky else None)
+            last = send_queue(self.client, part, name)
             if last.state == "retry":
                 return self._retry(sub, last.answer.status if last.answer else None, last.reason or "")
             if last.state == "rejected":
                 reason = f"{name}: {last.reason or (last.answer.message() if last.answer else '-')}"
                 sub = self._note(sub, "rejected", reason, last.answer)
                 return self._finish_rejection(sub)
-            sub = self._note(sub, "put", name)
-        return self._finish(sub, State.SUBMITTED, last.answer if last else None, reason=last.reason if last else None)
+            sub = self._note(sub, "put", name, remote_id=last.remote_id)
+        return self._finish(sub, State.SUBMITTED, last.answer if last else None,
+                            reason=(last.reason if last else None) or found, remote_id=sub.request_ids())
+
+    def _posted_before(self, sub: Submission, name: str) -> bool | None:
+        """SkyPortal: whether plan ``name``, POSTed before a crash, was imported (T3) (None: unknown yet, retry)."""
+        assert isinstance(self.client, SkyPortalPlans)
+        if name not in sub.maybe_sent():
+            return False
+        try:
+            return self.client.exists(name)
+        except (Unreachable, RuntimeError) as exc:
+            return self._retry(sub, None, str(exc))
 
     def _finish_rejection(self, sub: Submission) -> Submission | None:
         """A set with a refused queue: remove its accepted queues, then the row is ``rejected``."""
@@ -297,31 +315,12 @@ class Submitter:
             return None
         return self._finish(sub, State.REJECTED, reason=str(sub.progress["rejected"]))
 
-    def _post(self, sub: Submission) -> Submission | None:
-        """SkyPortal: one plan per revision, looked up by name after an interrupted POST."""
-        assert isinstance(self.client, SkyPortalPlans)
-        if sub.attempts > 0:
-            try:  # an import interrupted by a crash may have happened: look before posting again
-                if self.client.exists(sub.body["plan_name"]):
-                    return self._finish(sub, State.SUBMITTED, reason="found by plan name after an interrupted POST "
-                                        "(request id unknown)")
-            except (Unreachable, RuntimeError) as exc:
-                return self._retry(sub, None, str(exc))
-        sub = self._mark_attempt(sub)
-        verdict = send_queue(self.client, sub.body, str(sub.queue_name))
-        if verdict.state == "retry":
-            return self._retry(sub, verdict.answer.status if verdict.answer else None, verdict.reason or "")
-        return self._finish(sub, verdict.state, verdict.answer, reason=verdict.reason, remote_id=verdict.remote_id)
-
     def _remove(self, sub: Submission, end_state: str, reason: str | None = None) -> bool:
         """DELETE an older (or retracted) revision; True when settled (removed, gone, or failed for good)."""
         assert self.client is not None
-        if isinstance(self.client, SkyPortalPlans):
-            return self._remove_plan(sub, end_state)
         if not self._remove_all(sub, end_state, reason):
             return False
-        current = submission_from_row(self.store.connection().execute("SELECT * FROM submissions WHERE plan_id=?",
-                                                       (sub.plan_id,)).fetchone())
+        current = _row(self.store.connection(), sub.plan_id)
         if current.state in OPEN:
             self._finish(current, end_state, reason=reason or ("not on the server (already removed)"
                                                                if current.progress.get("absent") else None))
@@ -330,6 +329,8 @@ class Submitter:
     def _remove_all(self, sub: Submission, end_state: str, reason: str | None) -> bool:
         """DELETE every queue of the set not yet removed; True when all are gone (or the row failed for good)."""
         assert self.client is not None
+        if isinstance(self.client, SkyPortalPlans):
+            return self._remove_plans(sub)
         for name in sub.queue_names():
             if name in sub.progress.get("gone", ()):
                 continue
@@ -361,29 +362,48 @@ class Submitter:
             sub = self._note(sub, "gone", name, answer, absent=True)
         return True
 
-    def _remove_plan(self, sub: Submission, end_state: str) -> bool:
-        """SkyPortal: DELETE the observation plan request by its id."""
+    def _remove_plans(self, sub: Submission) -> bool:
+        """SkyPortal: DELETE each plan by request id (refused or id unknown: gone if no longer listed by name) (T3)."""
         assert isinstance(self.client, SkyPortalPlans)
-        if not sub.remote_id:
-            self._finish(sub, State.FAILED, reason="SkyPortal request id unknown (interrupted POST): remove "
-                         f"plan {sub.queue_name} by hand")
-            return True
-        try:
-            answer = self.client.delete(sub.remote_id)
-        except Unreachable as exc:
-            self._retry(sub, None, str(exc))
-            return False
-        if not (answer.ok or answer.refused):
-            self._retry(sub, answer.status, answer.message())
-            return False
-        self._finish(sub, *((end_state, answer) if answer.ok else (State.FAILED, answer)),
-                     reason=None if answer.ok else f"DELETE refused: {answer.message()}")
+        names, sent = sub.queue_names(), sub.maybe_sent()
+        ids = dict(sub.progress.get("ids") or ({names[0]: sub.remote_id} if sub.remote_id and len(names) == 1 else {}))
+        by_hand = []
+        for name in names:
+            if name in sub.progress.get("gone", ()) or name not in sent:
+                continue  # removed already, or never sent
+            try:
+                answer = self.client.delete(ids[name]) if name in ids else None
+                if answer is not None and answer.ok and answer.problem is None:
+                    sub = self._note(sub, "gone", name, answer)
+                    continue
+                if answer is not None and answer.redirected:
+                    self._finish(sub, State.FAILED, answer, reason=f"DELETE {name}: {answer.status}: {answer.problem}")
+                    return True
+                if answer is not None and not answer.refused:  # 5xx, or a 200 that is not SkyPortal's JSON
+                    self._retry(sub, answer.status, answer.problem if answer.ok else answer.message())
+                    return False
+                listed = self.client.exists(name)
+            except (Unreachable, RuntimeError) as exc:
+                self._retry(sub, None, str(exc))
+                return False
+            if not listed:
+                sub = self._note(sub, "gone", name, answer, absent=True)
+            elif answer is not None:
+                self._finish(sub, State.FAILED, answer, reason=f"DELETE {name} refused: {answer.message()}")
+                return True
+            else:
+                by_hand.append(name)
+        if by_hand:
+            self._finish(sub, State.FAILED, reason="SkyPortal request id unknown (interrupted POST): remove plan(s) "
+                         f"{', '.join(by_hand)} by hand")
         return True
 
     def _note(self, sub: Submission, key: str, value: str, answer: Answer | None = None,
-              absent: bool = False) -> Submission:
-        """Record durably that queue ``value`` was accepted (``put``) or removed (``gone``), or the refusal."""
+              absent: bool = False, remote_id: str | None = None) -> Submission:
+        """Record durably that queue ``value`` was accepted (``put``, with its SkyPortal id) or removed (``gone``)."""
         progress = dict(sub.progress)
+        if remote_id is not None:
+            progress["ids"] = {**progress.get("ids", {}), value: remote_id}
         if key == "rejected":
             progress["rejected"] = value
         else:
@@ -395,8 +415,7 @@ class Submitter:
                       " answer=COALESCE(?, answer) WHERE plan_id=?",
                       (json.dumps(progress), answer.status if answer else None, answer.text if answer else None,
                        sub.plan_id))
-            return submission_from_row(c.execute("SELECT * FROM submissions WHERE plan_id=?",
-                                                 (sub.plan_id,)).fetchone())
+            return _row(c, sub.plan_id)
 
     # ------------------------------------------------------------ rows
     def _plan_end(self, plan_id: str) -> float | None:
@@ -408,13 +427,15 @@ class Submitter:
         except (KeyError, ValueError):
             return None
 
-    def _mark_attempt(self, sub: Submission) -> Submission:
-        """Count the attempt durably *before* the HTTP call (a crash after it is then known to the restart)."""
+    def _mark_attempt(self, sub: Submission, tried: str | None = None) -> Submission:
+        """Count the attempt (and the SkyPortal plan ``tried``) durably *before* the HTTP call (known to a restart)."""
+        progress = dict(sub.progress)
+        if tried is not None:
+            progress["tried"] = sorted(set(progress.get("tried", [])) | {tried})
         with self.store.transaction() as c:
-            c.execute("UPDATE submissions SET attempts=attempts+1, attempted_at=? WHERE plan_id=?",
-                      (_now_iso(), sub.plan_id))
-            return submission_from_row(c.execute("SELECT * FROM submissions WHERE plan_id=?",
-                                                 (sub.plan_id,)).fetchone())
+            c.execute("UPDATE submissions SET attempts=attempts+1, attempted_at=?, progress=? WHERE plan_id=?",
+                      (_now_iso(), json.dumps(progress), sub.plan_id))
+            return _row(c, sub.plan_id)
 
     def _retry(self, sub: Submission, status: int | None, error: str) -> None:
         with self.store.transaction() as c:
@@ -444,7 +465,7 @@ class Submitter:
                  int(terminal), now, sub.plan_id, sub.state))
             if not cur.rowcount:
                 return None  # another pass moved it meanwhile
-            new = submission_from_row(c.execute("SELECT * FROM submissions WHERE plan_id=?", (sub.plan_id,)).fetchone())
+            new = _row(c, sub.plan_id)
             if state in PUBLISHED:
                 self._queue_document(c, new)
         fields = (f"superevent_id={new.superevent_id} plan_id={new.plan_id} queue_name={new.queue_name} "
@@ -470,3 +491,8 @@ class Submitter:
                 self._on_result(state, self.target)
             except Exception:
                 log.exception("event=submission_callback_failed")
+
+
+def _row(c: Any, plan_id: str) -> Submission:
+    """The ``submissions`` row of ``plan_id`` (connection or transaction ``c``)."""
+    return submission_from_row(c.execute("SELECT * FROM submissions WHERE plan_id=?", (plan_id,)).fetchone())

@@ -35,7 +35,7 @@ from ..tables import dataclass_from_table
 if TYPE_CHECKING:  # an annotation only: reading [export] imports no numpy/astropy (the document does)
     from .document import Plan
 
-__all__ = ["ExportConfig", "to_trigger_queue", "to_trigger_queues", "timed_queue_set", "filter_passes", "to_skyportal", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
+__all__ = ["ExportConfig", "to_trigger_queue", "to_trigger_queues", "timed_queue_set", "filter_passes", "to_skyportal", "to_skyportal_plans", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
 
 #: ZTF queue filter ids.
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
@@ -43,6 +43,8 @@ FILTER_IDS = {"g": 1, "r": 2, "i": 3}
 PROGRAM_IDS = {"Partnership": 2, "Caltech": 3}
 #: SkyPortal's names of ZTF's filters.
 SKYPORTAL_FILTERS = {"g": "ztfg", "r": "ztfr", "i": "ztfi"}
+#: ``[export] skyportal_plans``: one SkyPortal plan per filter pass, or one per plan.
+SKYPORTAL_PLANS = ("per_pass", "single")
 
 
 @dataclass(frozen=True)
@@ -63,6 +65,11 @@ class ExportConfig:
         SkyPortal allocation of the ZTF MMA instrument; ``--skyportal`` needs it.
     skyportal_status : str
         Status of the submitted observation plan.
+    skyportal_plans : str
+        ``per_pass`` (default): one SkyPortal observation plan per filter pass,
+        which SkyPortal's ZTF API turns into the timed queue set of
+        :func:`to_trigger_queues`; ``single``: one plan over the whole plan's
+        window (one list queue: fewer cadence-valid pairs as executed).
     """
 
     program: str = "Partnership"
@@ -71,8 +78,12 @@ class ExportConfig:
     user: str = "mushrooms"
     skyportal_allocation_id: int | None = setting(None, 1, 2_147_483_647, why="a SkyPortal database id")
     skyportal_status: str = "complete"
+    skyportal_plans: str = "per_pass"
 
     def __post_init__(self) -> None:
+        if self.skyportal_plans not in SKYPORTAL_PLANS:
+            raise ValueError(f"[export] skyportal_plans must be {' or '.join(SKYPORTAL_PLANS)}, "
+                             f"got {self.skyportal_plans!r}")
         if self.program not in PROGRAM_IDS:
             raise ValueError(f"[export] program must be {' or '.join(PROGRAM_IDS)}, got {self.program!r}")
         for name in ("program_pi", "subprogram_name", "user"):
@@ -201,6 +212,16 @@ def timed_queue_set(plan: "Plan", export: ExportConfig = ExportConfig(), name_ba
     """
     import numpy as np
 
+    out, kept, sky = _timed_passes(plan, export, name_base, slack_s, robust)
+    rows = [i for a, b in kept for i in range(a, b)]
+    return out, sky.take(np.asarray(rows, int))
+
+
+def _timed_passes(plan: "Plan", export: ExportConfig, name_base: str | None, slack_s: float | None,
+                  robust: bool) -> tuple[list[dict[str, Any]], list[tuple[int, int]], Any]:
+    """The timed queue set, the observation rows ``[a, b)`` of each of its queues, and the sky grid."""
+    import numpy as np
+
     from ..telescope.executor import SkyGrid, queue_set_from_payloads
     from ..telescope.queue_windows import PASS_SLACK_S, time_pass_windows
     from ..telescope.timing import TelescopeTiming
@@ -217,7 +238,7 @@ def timed_queue_set(plan: "Plan", export: ExportConfig = ExportConfig(), name_ba
     weight = np.asarray([_field_weight(o) for o in plan.observations], float) if robust else None
     opens, closes = time_pass_windows(qs, plan.start, planned, end_s, cadence_s,
                                       slack_s=PASS_SLACK_S if slack_s is None else slack_s, sky=sky, weight=weight)
-    out, rows = [], []
+    out, kept = [], []
     for (a, b), draft, t_open, t_close in zip(passes, drafts, opens, closes):
         if not t_open < end_s:
             continue
@@ -225,8 +246,8 @@ def timed_queue_set(plan: "Plan", export: ExportConfig = ExportConfig(), name_ba
         targets = [dict(t, request_id=i + 1) for i, t in enumerate(draft["targets"])]
         out.append({**draft, "queue_name": f"{base}_{len(out) + 1}",
                     "validity_window_mjd": [float(window[0]), float(window[1])], "targets": targets})
-        rows.extend(range(a, b))
-    return out, sky.take(np.asarray(rows, int))
+        kept.append((a, b))
+    return out, kept, sky
 
 
 def _field_weight(o: Any) -> float:
@@ -310,6 +331,70 @@ def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization
             "planned_observations": planned,
         }],
     }
+
+
+def to_skyportal_plans(plan: "Plan", export: ExportConfig = ExportConfig(), name_base: str | None = None,
+                       localization_name: str | None = None) -> list[dict[str, Any]]:
+    """The plan as the SkyPortal observation plans to POST, in submission order (``[export] skyportal_plans``).
+
+    ``per_pass``: one plan per queue of :func:`to_trigger_queues` (the same
+    filter passes and validity windows, not derived again), named
+    ``f"{name_base}_{k}"`` like the queues, each holding its pass's planned
+    observations, with ``start_date``/``end_date`` (and the plan's validity
+    window) = the queue's window, to the millisecond.  SkyPortal's ZTF API
+    sends each as one list queue ``ToO_<queue_name>`` over that window with
+    those targets in order: the Kowalski target's queue set
+    (docs/design/submission.md, (T1)).  ``single``: :func:`to_skyportal`
+    named ``name_base`` (one list queue over the plan's window).
+
+    Parameters
+    ----------
+    plan : Plan
+        A plan with at least one observation and a known event time.
+    export : ExportConfig
+        Allocation and program fields, and ``skyportal_plans``.
+    name_base : str, optional
+        Plan name (SkyPortal adds ``ToO_`` for the queue); default that of
+        :func:`to_skyportal`.
+    localization_name : str, optional
+        As :func:`to_skyportal`.
+
+    Raises
+    ------
+    ValueError
+        As :func:`to_skyportal`, or no pass of the plan can open before its end.
+    """
+    whole = to_skyportal(plan, export, localization_name)
+    base = name_base or whole["plan_name"]
+    whole["plan_name"] = base
+    whole["payload"] = dict(whole["payload"], queue_name=base)
+    if export.skyportal_plans == "single":
+        return [whole]
+    queues, kept, _ = _timed_passes(plan, export, f"ToO_{base}", None, True)
+    if not queues:
+        raise ValueError(f"plan {plan.plan_id}: no filter pass opens before the plan's end: no SkyPortal plan")
+    planned = whole["observation_plans"][0]["planned_observations"]
+    out = []
+    for k, (queue, (a, b)) in enumerate(zip(queues, kept), start=1):
+        name = f"{base}_{k}"
+        start, end = _time_from_mjd(queue["validity_window_mjd"])
+        observations = plan.observations[a:b]
+        out.append({**whole, "plan_name": name,
+                    "payload": {**whole["payload"], "queue_name": name, "start_date": start.utc.iso[:23],
+                                "end_date": end.utc.iso[:23], "filters": observations[0].filter,
+                                "exposure_time": _plan_exposure_s(plan.with_(observations=observations)),
+                                "field_ids": ",".join(str(int(o.field_id)) for o in observations)},
+                    "observation_plans": [{**whole["observation_plans"][0],
+                                           "validity_window_start": start.utc.isot[:23],
+                                           "validity_window_end": end.utc.isot[:23],
+                                           "planned_observations": planned[a:b]}]})
+    return out
+
+
+def _time_from_mjd(window: list[float]) -> Any:
+    from astropy.time import Time
+
+    return Time(window, format="mjd", scale="utc")
 
 
 def _payload_filters(plan: "Plan") -> str:
