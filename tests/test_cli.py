@@ -160,5 +160,5 @@ def test_cli_solver_choices_are_the_schedulers_names() -> None:
 
     assert tuple(SOLVER_CHOICES) == SOLVER_NAMES
     assert CONFIG_NAMES is SOLVER_NAMES and SOLVERS is SOLVER_NAMES and OURS is SOLVER_NAMES
-    assert BENCH_SOLVERS == SOLVER_NAMES + ("gwemopt", "gwemopt-repaired")
-    assert all(name in SOLVER_CHOICES for name in SOLVER_NAMES) and "gwemopt" not in SOLVER_CHOICES
+    assert BENCH_SOLVERS == SOLVER_NAMES + ("service", "gwemopt", "gwemopt-repaired")  # service: the daemon's anytime flow
+    assert all(name in SOLVER_CHOICES for name in SOLVER_NAMES) and "gwemopt" not in SOLVER_CHOICES and "service" not in SOLVER_CHOICES
