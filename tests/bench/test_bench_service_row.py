@@ -8,7 +8,7 @@ import dataclasses
 import pytest
 
 from mushrooms.evaluation.bench import BenchConfig, BenchSettings, run_bench
-from mushrooms.evaluation.bench.scoring import executed_coverage
+from mushrooms.evaluation.bench.scoring import execution_cells_under
 from mushrooms.evaluation.study.graph import plan_and_score
 from mushrooms.evaluation.study.store import study_config
 from mushrooms.scheduler_core.config import PlanningConfig
@@ -76,12 +76,12 @@ def test_every_row_has_its_coverage_as_executed_and_a_plan_without_it_gets_the_s
     footprints = field_footprints(load_ztf_fields(), 64)
     bare = plan.with_(config=None, metrics=dataclasses.replace(plan.metrics, coverage_as_executed=None))
     # a baseline's plan names no filters or cadence: the planning configuration's are used
-    assert executed_coverage(bare, FAST, footprints, sky.prob) == pytest.approx(
+    assert execution_cells_under(bare, FAST, footprints, sky.prob)["coverage_as_executed"] == pytest.approx(
         plan.metrics.coverage_as_executed, abs=1e-6)
     slow = dataclasses.replace(FAST, cadence_s=6 * 3600.0)  # pairs must now be 6 h apart: fewer fields count
-    assert executed_coverage(bare, slow, footprints, sky.prob) < plan.metrics.coverage_as_executed
+    assert execution_cells_under(bare, slow, footprints, sky.prob)["coverage_as_executed"] < plan.metrics.coverage_as_executed
     empty = bare.with_(observations=())
-    assert executed_coverage(empty, FAST, footprints, sky.prob) == 0.0
+    assert execution_cells_under(empty, FAST, footprints, sky.prob)["coverage_as_executed"] == 0.0
 
 
 def test_the_supersede_margin_comes_from_the_daemon_section_and_keys_the_study_results() -> None:

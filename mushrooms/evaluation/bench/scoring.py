@@ -18,9 +18,8 @@ the coverage's paired change against the reference row; ``exposure_mix``
 (``30:4 300:20``: exposures of that length) and ``exposure_mean_s`` (mean
 exposure of the planned fields weighted by their probability) say which
 exposures a plan took.  ``coverage_as_executed`` is the plan's coverage as
-ZTF's scheduler would execute its queues (the telescope model,
-:func:`~mushrooms.scheduler_core.telescope.coverage.queue_coverage`): the
-plan's queue set executed by the model (the configuration's filters and
+ZTF's scheduler would execute its queues: the
+plan's queue set executed by the telescope model (the configuration's filters and
 cadence for a plan that names none: gwemopt's), with ``coverage_late_<min>``,
 ``coverage_single_queue`` (the old one-list-queue export) and ``n_queues``
 beside it (:func:`~mushrooms.evaluation.queue_sim.execution_cells`).
@@ -35,7 +34,7 @@ import numpy as np
 from .rows import fmt
 from .settings import BenchSettings
 
-__all__ = ["score_plan", "pair_with_reference", "executed_coverage"]
+__all__ = ["score_plan", "pair_with_reference", "execution_cells_under"]
 
 
 def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, injections: Any,
@@ -79,7 +78,7 @@ def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any,
         out.update(cells)
         out[f"expected_{key}"] = _expected(plan, skymap, footprints, lc, merger_time)
     out.update(_exposure_cells(plan, footprints, skymap.prob))
-    out.update(_execution_cells(plan, settings.config, footprints, skymap.prob))
+    out.update(execution_cells_under(plan, settings.config, footprints, skymap.prob))
     return out, hits
 
 
@@ -90,8 +89,10 @@ def _under_config(plan: Any, config: Any) -> Any:
     return plan
 
 
-def _execution_cells(plan: Any, config: Any, footprints: Any, prob: np.ndarray) -> dict[str, Any]:
+def execution_cells_under(plan: Any, config: Any, footprints: Any, prob: np.ndarray) -> dict[str, Any]:
     """What ZTF's scheduler keeps of the plan's queues (Q14): on time, late, and the old single queue.
+
+    A plan that names no filters or cadence (a baseline's) is run under ``config``'s.
 
     A plan without exposures (a not-observable answer) executes nothing: its
     ``coverage_as_executed`` is 0, its late and single-queue cells empty.
@@ -102,24 +103,6 @@ def _execution_cells(plan: Any, config: Any, footprints: Any, prob: np.ndarray) 
     if not plan.observations:
         cells["coverage_as_executed"] = 0.0
     return cells
-
-
-def executed_coverage(plan: Any, config: Any, footprints: Any, prob: np.ndarray) -> float:
-    """Cadence-valid coverage of ``plan``'s queues as ZTF executes them (Q14), 0 to 1.
-
-    The plan's ``metrics.coverage_as_executed`` when it carries one (every
-    plan ``make_plan`` builds); otherwise (a baseline's plan, an empty one)
-    computed on ``footprints`` with the filters and cadence of ``config``
-    (the planning configuration) when the plan does not name its own.
-    """
-    from ...scheduler_core.telescope.coverage import queue_coverage
-
-    own = getattr(plan.metrics, "coverage_as_executed", None)
-    if own is not None:
-        return float(own)
-    if not plan.observations:
-        return 0.0
-    return float(queue_coverage(_under_config(plan, config), footprints, prob))
 
 
 def _expected(plan: Any, skymap: Any, footprints: Any, lc: Any, merger_time: Any) -> Any:
