@@ -76,18 +76,18 @@ def test_footprints_are_cached_on_disk(tmp_path, monkeypatch):
 
 
 def test_cache_directory_follows_the_environment(monkeypatch, tmp_path):
-    import mushrooms.scheduler_core.sky.fields as fields
+    from mushrooms.scheduler_core.cachedir import cache_dir  # the footprints' and Earth-orientation caches' folder
 
     for var in ("MUSHROOMS_CACHE_DIR", "CACHE_DIRECTORY", "XDG_CACHE_HOME"):
         monkeypatch.delenv(var, raising=False)
     monkeypatch.setenv("HOME", str(tmp_path))
-    assert fields._cache_dir() == tmp_path / ".cache" / "mushrooms"
+    assert cache_dir() == tmp_path / ".cache" / "mushrooms"
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
-    assert fields._cache_dir() == tmp_path / "xdg" / "mushrooms"
+    assert cache_dir() == tmp_path / "xdg" / "mushrooms"
     monkeypatch.setenv("CACHE_DIRECTORY", f"{tmp_path}/systemd:{tmp_path}/other")  # systemd's list
-    assert fields._cache_dir() == tmp_path / "systemd"
+    assert cache_dir() == tmp_path / "systemd"
     monkeypatch.setenv("MUSHROOMS_CACHE_DIR", str(tmp_path / "ours"))
-    assert fields._cache_dir() == tmp_path / "ours"
+    assert cache_dir() == tmp_path / "ours"
 
 
 def test_index_of_does_not_assume_sorted_ids():

@@ -103,7 +103,7 @@ def _ccd_vertices(ra0_deg: float, dec0_deg: float) -> np.ndarray:
     to the West (``x = -cos(dec) sin(ra - ra0)``), y to the North, so a
     corner is ``x * west + y * north + sqrt(1 - x^2 - y^2) * centre``.
     """
-    ra0, dec0 = np.radians(ra0_deg), np.radians(dec0_deg)
+    ra0 = np.radians(ra0_deg)
     centre = _unit(ra0_deg, dec0_deg)
     west = np.array([np.sin(ra0), -np.cos(ra0), 0.0])
     north = np.cross(centre, -west)

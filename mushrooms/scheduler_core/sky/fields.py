@@ -18,7 +18,6 @@ import logging
 import os
 from dataclasses import dataclass
 from importlib import resources
-from pathlib import Path
 
 import numpy as np
 
@@ -170,10 +169,6 @@ def _compute_footprints(grid: FieldGrid, nside: int) -> Footprints:
     return Footprints(nside=nside, field_ids=grid.ids.copy(), indptr=indptr, indices=indices)
 
 
-def _cache_dir() -> Path | None:
-    return cache_dir()
-
-
 def _grid_key(grid: FieldGrid, nside: int) -> str:
     h = hashlib.sha256()
     for arr in (grid.ids, grid.ra, grid.dec, ccd_corners()):
@@ -208,10 +203,9 @@ def field_footprints(grid: FieldGrid | None = None, nside: int = 256) -> Footpri
     key = _grid_key(grid, nside)
     if key in _memory_cache:
         return _memory_cache[key]
-    directory = _cache_dir()
-    path = directory / f"footprints-{key}.npz" if directory else None
+    path = cache_dir() / f"footprints-{key}.npz"
     fp = None
-    if path is not None and path.exists():
+    if path.exists():
         try:
             with np.load(path) as z:
                 fp = Footprints(int(z["nside"]), z["field_ids"], z["indptr"], z["indices"])
@@ -219,13 +213,12 @@ def field_footprints(grid: FieldGrid | None = None, nside: int = 256) -> Footpri
             log.warning("ignoring unreadable footprint cache %s: %s", path, exc)
     if fp is None:
         fp = _compute_footprints(grid, nside)
-        if path is not None:
-            try:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-                np.savez(tmp, nside=nside, field_ids=fp.field_ids, indptr=fp.indptr, indices=fp.indices)
-                os.replace(tmp, path)
-            except OSError as exc:
-                log.debug("footprint cache not written (%s)", exc)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+            np.savez(tmp, nside=nside, field_ids=fp.field_ids, indptr=fp.indptr, indices=fp.indices)
+            os.replace(tmp, path)
+        except OSError as exc:
+            log.debug("footprint cache not written (%s)", exc)
     _memory_cache[key] = fp
     return fp

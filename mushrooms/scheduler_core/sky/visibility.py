@@ -36,15 +36,15 @@ from astropy.time import Time, TimeDelta
 from ..config import PlanningConfig
 from .constraints import (AirmassBelow, Constraint, MoonSeparation, MountLimits, SunBelow,
                           observing_geometry)
-from .ephemeris import GRID_ANCHOR as EPHEMERIS_ANCHOR
+from .ephemeris import GRID_ANCHOR
 from .windows import Windows
 
 __all__ = ["site", "observability_windows", "observing_conditions", "windows_from_mask", "ztf_constraints", "PALOMAR",
            "GRID_ANCHOR", "NIGHT_S", "ConstraintMasks", "constraint_masks", "night_steps", "night_epoch", "grid_times", "windows_on_grid"]
 
-#: Local mean noon at Palomar (lon -116.86 deg) on 2000-01-01 (:data:`.ephemeris.GRID_ANCHOR`): grid times are
-#: this plus whole time steps, and nights run from one such noon to the next.
-GRID_ANCHOR = EPHEMERIS_ANCHOR
+# GRID_ANCHOR (re-exported from .ephemeris): local mean noon at Palomar (lon -116.86 deg) on 2000-01-01; grid
+# times are it plus whole time steps, and nights run from one such noon to the next.
+
 #: Length of a night block (s).
 NIGHT_S = 86400.0
 
