@@ -37,6 +37,7 @@ def test_bench_csv_on_one_small_map_with_greedy(tmp_path, data_dir, monkeypatch,
         header = next(csv.reader(fh))
     assert header[:9] == REQUIRED
     assert set(COLUMNS) <= set(header)
+    assert len(header) == len(set(header))  # each column once: a duplicated name would write its value twice
     rows = read_csv(out)
     assert [(r["skymap"].split("/")[-1], r["solver"]) for r in rows] == [
         ("S200129m_cWB_RING.fits.gz", "greedy"), ("S200129m_cWB_RING.fits.gz", "gwemopt"),

@@ -25,7 +25,6 @@ COLUMNS = (
     "prepare_s", "solve_s", "solver_detail", "n_problems", "first_problem",
     "area90_deg2", "distmean_mpc", "n_injections", "distance_source", "start", "note",
     "bound", "coverage_over_bound",
-    "coverage_as_executed",
     "expected_detections",
     "detection_stage",
     "objective",
