@@ -99,7 +99,9 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     cfg = problem.config
     if cfg.objective != "detection" or solver == "greedy":
         return scheduler(problem, solver, should_stop)
-    if len(cfg.filters) != 2:  # (F4) the detection stage plans pairs: a sequence is planned for coverage
+    from .sequences import is_pair
+
+    if not is_pair(cfg.filters):  # (F4) the detection stage plans pairs: a sequence is planned for coverage
         result = scheduler(problem, solver, should_stop)
         log.info("objective detection: the detection stage plans pairs of filters; the sequence %s is planned "
                  "for coverage", "-".join(cfg.filters))

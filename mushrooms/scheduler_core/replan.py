@@ -51,7 +51,7 @@ from .schedulers.completions import (
 )
 from .schedulers.gain import worth_a_visit
 from .schedulers.slew import overhead_time
-from .sequences import done_covering, sequence_progress
+from .sequences import done_covering, is_pair, sequence_progress
 from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
 from .sky.footprints import Footprints
 from .sky.skymap import SkyMap
@@ -131,7 +131,7 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
     covered_pixels = footprints.union(covered)
     coverage_executed = float(skymap.prob[covered_pixels].sum())
     uncovered[covered_pixels] = 0.0
-    if len(config.filters) != 2:  # (F3) a covered field's next visit; the others are planned anew
+    if not is_pair(config.filters):  # (F3) a covered field's next visit; the others are planned anew
         pending = _sequence_pending(skymap, config, start, executed, footprints, grid, covered,
                                     min_processed_fraction)
         return ExecutedState(pairs, covered, uncovered, coverage_executed, pending, unknown)

@@ -25,7 +25,7 @@ from ..plan.document import Observation
 from ..problem import PlanningProblem, ScheduleResult, StopCheck
 from .slew import overhead_time
 
-__all__ = ["greedy_schedule", "time_two_passes", "time_passes"]
+__all__ = ["greedy_schedule", "time_passes"]
 
 
 def _window_rows(problem: PlanningProblem) -> np.ndarray:
@@ -94,17 +94,6 @@ def time_passes(
             t = starts[p, i] + exp
             prev = (ra[i], dec[i], band)
     return starts
-
-
-def time_two_passes(
-    problem: PlanningProblem,
-    rows: list[int],
-    free_at: float,
-    previous: tuple[float, float, str] | None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`time_passes` of a pair: the start times (s) of the first and the second pass."""
-    starts = time_passes(problem, rows, free_at, previous)
-    return starts[0], starts[1]
 
 
 def greedy_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None) -> ScheduleResult:

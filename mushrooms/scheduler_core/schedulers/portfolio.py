@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import Callable, Mapping
 
 from ..problem import PlanningProblem, PortfolioEntry, ScheduleResult, Scheduler, StopCheck, UpperBound
+from ..sequences import is_pair
 from ..solvers_registry import register
 from .gain import published_coverage
 from .greedy import greedy_schedule
@@ -184,7 +185,7 @@ class Portfolio:
         bound_s = 0.0  # the bound's wall time, not charged to the stages
         skipped: list[str] = []
         times: dict[str, float] = {}  # wall time (s) of each stage run, and of the bound
-        pair_stages = [s.name for s in self.stages if s.pairs_only and len(problem.config.filters) != 2]
+        pair_stages = [s.name for s in self.stages if s.pairs_only and not is_pair(problem.config.filters)]
         if pair_stages:  # (F4) they model two exposures per field
             log.info("%s: %s plan pairs of filters; skipped for the sequence %s", self.label,
                      ", ".join(pair_stages), "-".join(problem.config.filters))
@@ -216,7 +217,6 @@ class Portfolio:
                 times["bound"] = round(bound_s, 3)
                 if ran[stage.name].upper_bound is None:  # the stages after see it (an LNS stops at it)
                     ran[stage.name] = dataclasses.replace(ran[stage.name], upper_bound=upper)
-        names = list(ran)
         from ..telescope.coverage import AS_EXECUTED_MEMO
 
         name, executed, memo = choose_as_executed(problem, ran, covs)

@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from ..plan.document import Plan
     from ..sky.footprints import Footprints
 
-__all__ = ["cadence_coverage", "execute_plan_queues", "queue_coverage", "result_coverage_as_executed",
+__all__ = ["cadence_coverage", "execute_plan_queues", "queue_coverage",
            "keyed_coverage_as_executed", "execution_key", "AS_EXECUTED_MEMO"]
 
 #: ``ScheduleResult.details`` key of the executed coverages already computed: :func:`execution_key` -> value.
@@ -98,14 +98,9 @@ def execution_key(problem: Any, observations: Sequence[Any]) -> tuple:
     made from these, :func:`~..plan.exports.timed_queue_set`).
     """
     config = problem.config
-    return (float(problem.start.mjd), float(config.horizon_s), float(config.cadence_s), tuple(config.filters)[:2],
+    return (float(problem.start.mjd), float(config.horizon_s), float(config.cadence_s), tuple(config.filters),
             tuple((int(o.field_id), o.filter, float(o.start), float(o.exposure_s), float(o.ra), float(o.dec))
                   for o in observations))
-
-
-def result_coverage_as_executed(problem: Any, result: Any) -> float:
-    """:func:`keyed_coverage_as_executed`'s value."""
-    return keyed_coverage_as_executed(problem, result)[1]
 
 
 def keyed_coverage_as_executed(problem: Any, result: Any, memo: dict[tuple, float] | None = None
