@@ -32,6 +32,12 @@ options above): ``<key>.dat`` is gwemopt's ``schedule_ZTF.dat`` verbatim and
 "status", "message", "created"}``.  Only successful runs are cached; an
 entry is written atomically (temporary name, then rename), so concurrent
 benchmarks may share one directory.
+
+Threads: gwemopt's libraries each start their own pools (OpenMP in
+ligo.skymap and numpy's BLAS, rayon in mocpy, numba), sized to the machine.
+Beside a study's other workers that oversubscribes the cores, so each pool is
+capped at one thread (:data:`THREAD_CAPS`) unless the caller's environment
+already sets it.
 """
 
 from __future__ import annotations
@@ -53,11 +59,29 @@ from ..scheduler_core.config import PlanningConfig
 from ..scheduler_core.plan.document import Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 
 __all__ = ["GwemoptRun", "gwemopt_python", "run_gwemopt", "parse_schedule", "gwemopt_plan", "cache_key", "Repair",
-           "repair_observations",
+           "repair_observations", "gwemopt_env", "THREAD_CAPS",
            "ENV_PYTHON"]
 
 #: Environment variable naming the interpreter of a gwemopt installation.
 ENV_PYTHON = "MUSHROOMS_GWEMOPT_PYTHON"
+
+#: Thread-pool sizes given to gwemopt's process where the environment sets none.
+THREAD_CAPS = {name: "1" for name in (
+    "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
+    "NUMBA_NUM_THREADS", "RAYON_NUM_THREADS")}
+
+
+def gwemopt_env(base: dict[str, str] | None = None) -> dict[str, str]:
+    """The environment gwemopt runs in: ``base`` (default ``os.environ``), Agg plots, no warnings, thread caps.
+
+    A thread cap already in ``base`` is kept (the caller chose it).
+    """
+    env = dict(os.environ if base is None else base)
+    for name, value in THREAD_CAPS.items():
+        env.setdefault(name, value)
+    env.update(MPLBACKEND="Agg", PYTHONWARNINGS="ignore")
+    return env
+
 
 #: Runs gwemopt's CLI offline (our own three lines, executed by gwemopt's interpreter).
 _LAUNCHER = (
@@ -281,7 +305,7 @@ def run_gwemopt(
     with tempfile.TemporaryDirectory(prefix="gwemopt-") as tmp:
         out = Path(workdir) if workdir is not None else Path(tmp) / "out"
         cmd = [exe, "-c", _LAUNCHER, *gwemopt_args(skymap_path, start, config, out)]
-        env = dict(os.environ, MPLBACKEND="Agg", PYTHONWARNINGS="ignore")
+        env = gwemopt_env()
         t0 = time.perf_counter()
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, env=env,

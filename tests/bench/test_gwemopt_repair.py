@@ -63,3 +63,13 @@ def test_gwemopt_cache_is_keyed_on_map_and_options_and_read_back(tmp_path):
     other = run_gwemopt(MAP, start + TimeDelta(3600, format="sec"), cfg, python="/nonexistent/python", cache_dir=tmp_path)
     assert other.status == "unavailable"
     assert len(list(tmp_path.iterdir())) == 2
+
+
+def test_gwemopt_runs_with_one_thread_per_pool_unless_the_caller_chose():
+    from mushrooms.evaluation.gwemopt_baseline import THREAD_CAPS, gwemopt_env
+
+    env = gwemopt_env({"PATH": "/usr/bin", "OMP_NUM_THREADS": "3", "MPLBACKEND": "TkAgg"})
+    assert env["OMP_NUM_THREADS"] == "3"
+    assert env["RAYON_NUM_THREADS"] == "1" and env["NUMBA_NUM_THREADS"] == "1"
+    assert all(name in env for name in THREAD_CAPS)
+    assert env["MPLBACKEND"] == "Agg" and env["PATH"] == "/usr/bin"
