@@ -96,15 +96,22 @@ def paired_differences(rows: Sequence[Mapping[str, Any]], ours: Sequence[str]) -
     return lines
 
 
-def lumos_metric(rows: Sequence[Mapping[str, Any]], solver: str, reference: str = "gwemopt",
-                 key: str = "coverage") -> tuple[int, float | None]:
-    """(events, percent): mean ``key`` (coverage) of ``solver`` relative to ``reference``'s over the events both
-    planned (and both have ``key``)."""
+def lumos_pairs(rows: Sequence[Mapping[str, Any]], solver: str, reference: str = "gwemopt",
+                key: str = "coverage") -> list[tuple[float, float]]:
+    """``(solver's, reference's)`` ``key`` per event both planned (and both have ``key``)."""
     pairs = []
     for sol in by_map(rows).values():
         ra, rb = sol.get(solver), sol.get(reference)
         if scored(ra) and scored(rb) and num(ra.get(key)) is not None and num(rb.get(key)) is not None:
             pairs.append((num(ra[key]), num(rb[key])))
+    return pairs
+
+
+def lumos_metric(rows: Sequence[Mapping[str, Any]], solver: str, reference: str = "gwemopt",
+                 key: str = "coverage") -> tuple[int, float | None]:
+    """(events, percent): mean ``key`` (coverage) of ``solver`` relative to ``reference``'s over the events both
+    planned (and both have ``key``)."""
+    pairs = lumos_pairs(rows, solver, reference, key)
     if not pairs:
         return 0, None
     base = sum(b for _, b in pairs)
@@ -117,11 +124,7 @@ def lumos_interval(rows: Sequence[Mapping[str, Any]], solver: str, reference: st
     (a seeded bootstrap: the metric's spread from which events happen to be in the population)."""
     import numpy as np
 
-    pairs = []
-    for sol in by_map(rows).values():
-        ra, rb = sol.get(solver), sol.get(reference)
-        if scored(ra) and scored(rb) and num(ra.get(key)) is not None and num(rb.get(key)) is not None:
-            pairs.append((num(ra[key]), num(rb[key])))
+    pairs = lumos_pairs(rows, solver, reference, key)
     if len(pairs) < 2:
         return None
     a, b = np.array(pairs, dtype=float).T
