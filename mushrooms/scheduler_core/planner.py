@@ -6,7 +6,6 @@ import dataclasses
 import json
 import logging
 import time
-from pathlib import Path
 from typing import Callable, Collection, Mapping
 
 import numpy as np
@@ -18,6 +17,7 @@ from .config import PlanningConfig
 from .errors import InputError, PlanCheckError
 from .schedulers.gain import drop_low_gain
 from .schedulers.portfolio import MIN_BLOCKS_S  # noqa: F401  (the hybrid's; re-exported)
+from .plan.localization import with_map_details
 from .plan.document import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 from .clock import on_merger_clock
 from .prepare import prepare_problem
@@ -300,7 +300,7 @@ def build_plan(
     if result.dropped_low_gain:
         log.info("least gain %.2g: dropped %d field(s) adding less", config.min_gain, len(result.dropped_low_gain))
     skymap, event = on_merger_clock(skymap, event)  # the same clock for the document and its detections
-    event = _with_map_details(event, skymap)
+    event = with_map_details(event, skymap)
     observations = _with_airmass_and_probability(sorted_observations(result.observations), problem)
     ids = {o.field_id for o in observations}
     bound = result.mip_bound
@@ -341,15 +341,6 @@ def _coverage_as_executed(plan: Plan, problem: PlanningProblem, result: Schedule
     memo = result.details.get(AS_EXECUTED_MEMO, {})
     known = memo.get(execution_key(problem, plan.observations)) if memo else None
     return float(known) if known is not None else queue_coverage(plan, problem.footprints, problem.prob)
-
-
-def _with_map_details(event: EventInfo, skymap: SkyMap) -> EventInfo:
-    """The event with the sky-map name, credible areas and distance filled in from the map."""
-    from .plan.localization import localization_facts
-
-    name = None if skymap.source.startswith("<") else Path(skymap.source).name
-    facts = {k: v for k, v in localization_facts(skymap).items() if getattr(event, k) is None}
-    return dataclasses.replace(event, skymap_name=event.skymap_name or name, **facts)
 
 
 def _with_airmass_and_probability(observations: tuple[Observation, ...],

@@ -55,6 +55,7 @@ from .sequences import done_covering, is_pair, sequence_progress
 from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
 from .sky.footprints import Footprints
 from .sky.skymap import SkyMap
+from .plan.localization import with_map_details
 from .sky.visibility import observability_windows
 from .sky.windows import Windows
 
@@ -372,8 +373,10 @@ def _build(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGrid,
                               windows=windows)
     merged = dataclasses.replace(result, observations=tuple(observations), upper_bound=None, mip_bound=None,
                                  expected_detections=None, expected_detections_lightcurve=None)
-    # (P8) on the remaining probability: what the plan adds (coverage, expected detections)
+    # (P8) on the remaining probability: what the plan adds (coverage, expected detections); the event's
+    # areas and distance are the whole map's, as in the plan this one supersedes
     remaining = dataclasses.replace(skymap, prob=state.uncovered)
+    event = with_map_details(event, skymap)
     plan = build_plan(problem, merged, remaining, solver, event=event, supersedes=supersedes, runtime_s=runtime_s,
                       keep_fields={v.field_id for v in state.pending if v.worth is not None})
     field_prob = dict(zip(ids.tolist(), footprints.subset(ids).field_probability(skymap.prob).tolist()))

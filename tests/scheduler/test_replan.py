@@ -163,3 +163,15 @@ def test_executed_state_reads_done_half_done_failed_and_too_close_exposures(skym
     # a start 10 min after the first exposure: the other filter falls due 20 min later
     soon = executed_state(skymap_220722v, CFG, t0 + TimeDelta(600.0, format="sec"), record, fp, grid)
     assert {v.field_id: v.due_s for v in soon.pending}[843] == pytest.approx(CFG.cadence_s - 600.0)
+
+
+def test_a_replan_describes_the_same_localization_as_the_plan_it_supersedes(first_plan, skymap_220722v):
+    # the re-plan plans on the probability still to cover, but its event block (areas, distance) is the map's
+    executed = executed_from(first_plan, 20)
+    start = executed[-1].end + TimeDelta(10 * 60, format="sec")
+    replan = plan_remaining(skymap_220722v, CFG, start, executed, event=first_plan.event)
+    fresh = plan_remaining(skymap_220722v, CFG, start, executed)
+    assert replan.metrics.coverage_executed > 0.02  # a real share of the map is done and left out of the planning
+    for plan in (replan, fresh):
+        for key in ("area_50_deg2", "area_90_deg2", "distance_mpc", "distance_std_mpc"):
+            assert getattr(plan.event, key) == getattr(first_plan.event, key), key

@@ -2,13 +2,28 @@
 
 from __future__ import annotations
 
+import dataclasses
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..sky.skymap import SkyMap
+from .document import EventInfo
 
-__all__ = ["localization_facts"]
+__all__ = ["localization_facts", "with_map_details"]
+
+
+def with_map_details(event: EventInfo, skymap: SkyMap) -> EventInfo:
+    """The event with the sky-map name, credible areas and distance filled in from the map.
+
+    What the event already states is kept. Give the whole sky map: a re-plan's
+    map of the probability still to cover would shrink the areas and move the
+    distance (the plan document describes the localization, not the remainder).
+    """
+    name = None if skymap.source.startswith("<") else Path(skymap.source).name
+    facts = {k: v for k, v in localization_facts(skymap).items() if getattr(event, k) is None}
+    return dataclasses.replace(event, skymap_name=event.skymap_name or name, **facts)
 
 
 def localization_facts(skymap: SkyMap) -> dict[str, Any]:
