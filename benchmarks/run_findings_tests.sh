@@ -1,7 +1,8 @@
 #!/bin/sh
 # Run the robustness finding tests (creation order, crashes, ranges, hostile input) against a tree: run_findings_tests.sh TREE LABEL
 # TREE's mushrooms package is used (PYTHONPATH=TREE); the tests are h25's (copied into TREE/tests for the pre-fix tree).
-TREE=$1; LABEL=$2
+TREE=${1:?usage: run_findings_tests.sh TREE LABEL}; LABEL=${2:?usage: run_findings_tests.sh TREE LABEL}
+PY=${PY:-$(cd "$(dirname "$0")/.." && pwd)/.venv/bin/python}
 OUT=${OUT:-$PWD/benchmarks/results/findings_tests}/tests_$LABEL
 mkdir -p $OUT
 cd $TREE
@@ -11,6 +12,6 @@ for f in tests/handlers/test_decisions_order.py tests/attack/test_creation_order
          tests/attack/test_hostile_input.py $EXTRA; do
   n=$(echo "$f" | tr '/:' '__')
   (date -u; uptime; echo "PYTHONPATH=$TREE python -m pytest -q -p no:cacheprovider -rA --tb=line $f") > $OUT/$n.txt
-  PYTHONPATH=$TREE timeout 1200 nice -n 5 /work/main/.venv/bin/python -m pytest -q -p no:cacheprovider -rA --tb=line "$f" >> $OUT/$n.txt 2>&1
+  PYTHONPATH=$TREE timeout 1200 nice -n 5 "$PY" -m pytest -q -p no:cacheprovider -rA --tb=line "$f" >> $OUT/$n.txt 2>&1
   echo "rc=$?" >> $OUT/$n.txt
 done

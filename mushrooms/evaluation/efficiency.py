@@ -55,7 +55,7 @@ __all__ = [
     "REFERENCE_EXPOSURE_S",
     "draw_injections",
     "injection_seed",
-    "limiting_magnitude",
+    "flat_limiting_magnitude",
     "exposure_limits",
     "detected",
     "detection_efficiency",
@@ -184,13 +184,14 @@ def draw_injections(
     return Injections(ipix=ipix, nside=skymap.nside, ra=ra, dec=dec, distance_mpc=dist, distance_source=source)
 
 
-def limiting_magnitude(
+def flat_limiting_magnitude(
     filters: np.ndarray,
     exposure_s: np.ndarray,
     maglim_by_filter: Mapping[str, float] = DEFAULT_MAGLIM_300S,
     reference_exposure_s: float = REFERENCE_EXPOSURE_S,
 ) -> np.ndarray:
-    """Limiting magnitude of each exposure (background-limited scaling).
+    """Limiting magnitude of each exposure from flat per-filter limits (first-release scoring; D2 is
+    :func:`mushrooms.scheduler_core.source.depth.limiting_magnitude`).
 
     Parameters
     ----------
@@ -235,7 +236,7 @@ def exposure_limits(plan: Plan, depth: DepthModel | Mapping[str, float] = ZTF_DE
     filters = np.array([o.filter for o in obs], dtype=str)
     expo = np.array([o.exposure_s for o in obs], dtype=float)
     if not isinstance(depth, DepthModel):
-        return limiting_magnitude(filters, expo, depth, reference_exposure_s)
+        return flat_limiting_magnitude(filters, expo, depth, reference_exposure_s)
     return exposure_depths(obs, plan.start, depth)
 
 

@@ -14,7 +14,7 @@ from mushrooms.evaluation.efficiency import (
     detected,
     detection_efficiency,
     draw_injections,
-    limiting_magnitude,
+    flat_limiting_magnitude,
 )
 from mushrooms.scheduler_core.source.lightcurves import load_lightcurve, parse_lightcurve
 from mushrooms.scheduler_core.plan.document import Observation, Plan, PlanMetrics
@@ -188,11 +188,11 @@ def test_one_covering_exposure_suffices_and_uncovered_fields_do_not_count() -> N
     np.testing.assert_array_equal(hits, inj.ipix >= NPIX // 2)
 
 
-def test_limiting_magnitude_scales_with_exposure_time() -> None:
-    m = limiting_magnitude(np.array(["r", "g", "r"]), np.array([300.0, 300.0, 30.0]))
+def test_flat_limiting_magnitude_scales_with_exposure_time() -> None:
+    m = flat_limiting_magnitude(np.array(["r", "g", "r"]), np.array([300.0, 300.0, 30.0]))
     np.testing.assert_allclose(m, [21.7, 21.7, 21.7 - 1.25])
     with pytest.raises(ValueError, match="filter"):
-        limiting_magnitude(np.array(["z"]), np.array([300.0]))
+        flat_limiting_magnitude(np.array(["z"]), np.array([300.0]))
 
 
 def test_vectorised_detection_matches_a_plain_reference() -> None:
