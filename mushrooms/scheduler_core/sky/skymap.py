@@ -14,7 +14,7 @@ mixture it stands for.  Header metadata are read as ligo.skymap's
 ``FITS_META_MAPPING`` reads them (``DATE-OBS`` -> ``gps_time``, ``OBJECT``,
 ``DISTMEAN``; :func:`_metadata`, tested against it).
 
-The route is ours, because ligo.skymap's costs the map's
+The route is ours (the arithmetic per working pixel in :mod:`.working_order`), because ligo.skymap's costs the map's
 unpacked size: ``read_sky_map`` reads the whole table (astropy), and a
 public O3 LALInference map (flat NSIDE 1024, four columns, 1.5 MB gzip)
 unpacks to 384 MiB and cost 2.0 GB of RSS and 11.7 s before a greedy plan.
@@ -63,6 +63,7 @@ from astropy.time import Time
 from ..errors import SkyMapError
 from .distance_layers import usable_distance_layers
 from .fitstable import BinaryTable, open_table
+from .working_order import DIST_COLUMNS, WorkingOrder
 
 __all__ = ["SkyMap", "read_skymap", "check_uniq", "DEFAULT_CHUNK", "MAX_NSIDE", "MAX_MOC_ROWS"]
 
@@ -86,7 +87,6 @@ MAX_MOC_ROWS = 1 << 22
 #: HEALPix's deepest order (NUNIQ indices beyond it are invalid).
 MAX_ORDER = 29
 
-DIST_COLUMNS = ("DISTMU", "DISTSIGMA", "DISTNORM")
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,101 +208,6 @@ def _metadata(header: Any) -> dict[str, Any]:
     return meta
 
 
-class _Working:
-    """Probability and distance layers accumulated at the working order, chunk by chunk.
-
-    A working pixel is either *direct* (one source pixel at the working
-    order, or a coarser one shared among its children: its layers copied)
-    or *merged* (finer source pixels: probability and the probability-
-    weighted first and second conditional distance moments summed).
-    """
-
-    def __init__(self, order: int, with_distance: bool):
-        self.order = order
-        self.npix = 12 * 4**order
-        self.prob = np.zeros(self.npix)
-        self.with_distance = with_distance
-        if with_distance:
-            self.layers = [np.full(self.npix, np.inf), np.ones(self.npix), np.zeros(self.npix)]
-            self.merged = np.zeros(self.npix, bool)
-            self.moment1 = np.zeros(self.npix)
-            self.moment2 = np.zeros(self.npix)
-            self.mixed = np.zeros(self.npix, bool)  # merged children whose (DISTMU, DISTSIGMA) differ
-            self.first = [np.zeros(self.npix), np.zeros(self.npix), np.zeros(self.npix)]  # one child's layers
-
-    def add(self, order: np.ndarray | int, ipix: np.ndarray, prob: np.ndarray,
-            layers: list[np.ndarray] | None) -> None:
-        """Add source pixels (NESTED ``ipix`` at ``order``, probability ``prob``, layers mu/sigma/norm)."""
-        order = np.broadcast_to(np.asarray(order, np.int64), ipix.shape)
-        for part, pick in ((self._same, order == self.order), (self._coarse, order < self.order),
-                           (self._fine, order > self.order)):
-            if np.any(pick):
-                part(order[pick], ipix[pick], prob[pick], None if layers is None else [x[pick] for x in layers])
-
-    def _same(self, order, ipix, prob, layers) -> None:
-        self.prob[ipix] += prob
-        if self.with_distance:
-            for out, values in zip(self.layers, layers):
-                out[ipix] = values
-
-    def _coarse(self, order, ipix, prob, layers) -> None:
-        shift = 2 * (self.order - order)
-        n = np.int64(1) << shift  # children per pixel
-        start = np.repeat(ipix << shift, n)
-        rank = np.arange(start.size, dtype=np.int64) - np.repeat(np.cumsum(n) - n, n)
-        self._same(None, start + rank, np.repeat(prob / n, n),
-                   None if layers is None else [np.repeat(x, n) for x in layers])
-
-    def _fine(self, order, ipix, prob, layers) -> None:
-        target = ipix >> (2 * (order - self.order))
-        lo, hi = int(target.min()), int(target.max())
-        span, local = slice(lo, hi + 1), target - lo
-
-        def add(acc: np.ndarray, weights: np.ndarray) -> None:
-            acc[span] += np.bincount(local, weights, minlength=hi - lo + 1)
-
-        add(self.prob, prob)
-        if not self.with_distance:
-            return
-        from ligo.skymap.distance import parameters_to_moments
-
-        mu, sigma, norm = layers
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            mean, std, _ = parameters_to_moments(mu, sigma)
-        bad = ~(np.isfinite(mu) & np.isfinite(sigma))
-        mean[bad] = std[bad] = np.nan
-        with np.errstate(invalid="ignore"):
-            add(self.moment1, prob * mean)
-            add(self.moment2, prob * (std**2 + mean**2))
-        new = ~self.merged[target]
-        self.merged[target] = True
-        for ref, values in zip(self.first, (mu, sigma, norm)):
-            ref[target[new]] = values[new]  # any one child's layers
-        differ = bad | (mu != self.first[0][target]) | (sigma != self.first[1][target])
-        self.mixed[target[differ]] = True
-
-    def result(self) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """Probability per working pixel and the distance layers (empty dict without distance)."""
-        if not self.with_distance:
-            return self.prob, {}
-        from ligo.skymap.distance import moments_to_parameters
-
-        mu, sigma, norm = self.layers
-        # children all alike: their layers (what ligo.skymap's derasterize makes of equal siblings, even
-        # where the probability is 0 and the moments are undefined)
-        keep = self.merged & ~self.mixed
-        for out, ref in zip(self.layers, self.first):
-            out[keep] = ref[keep]
-        solve = self.merged & ~keep
-        if np.any(solve):
-            with np.errstate(invalid="ignore", divide="ignore"):
-                w = self.prob[solve]
-                first = self.moment1[solve] / w
-                std = np.sqrt(self.moment2[solve] / w - first**2)
-                mu[solve], sigma[solve], norm[solve] = moments_to_parameters(first, std)
-        return self.prob, dict(zip(DIST_COLUMNS, self.layers))
-
-
 def _open(source: str | Path | bytes) -> tuple[Any, str, int, str | None]:
     """File object, name, size and (for bytes) SHA-256 of a sky-map source."""
     if isinstance(source, (bytes, bytearray, memoryview)):
@@ -408,7 +313,7 @@ def _read_healpix(table: BinaryTable, name: str, order: int, chunk: int
         raise SkyMapError(f"sky map {name} is in coordinates {coordsys!r}, not equatorial (COORDSYS = 'C')")
     ordering = str(header.get("ORDERING", "")).strip().upper()
     with_distance = set(DIST_COLUMNS) <= names
-    working = _Working(order, with_distance)
+    working = WorkingOrder(order, with_distance)
     if "UNIQ" in names or ordering == "NUNIQ":
         _stream_multiorder(table, name, ordering, chunk, working)
     else:
@@ -424,7 +329,7 @@ def _need_columns(table: BinaryTable, name: str, columns: list[str]) -> None:
         raise SkyMapError(f"{name} has no {missing[0]} column (columns: {', '.join(table.names) or 'none'})")
 
 
-def _stream_multiorder(table: BinaryTable, name: str, ordering: str, chunk: int, working: _Working) -> None:
+def _stream_multiorder(table: BinaryTable, name: str, ordering: str, chunk: int, working: WorkingOrder) -> None:
     from ligo.skymap.moc import uniq2nest
 
     if ordering not in ("NUNIQ", ""):
@@ -457,7 +362,7 @@ def _stream_multiorder(table: BinaryTable, name: str, ordering: str, chunk: int,
         raise SkyMapError(f"{name}: {exc}") from None
 
 
-def _stream_flat(table: BinaryTable, name: str, ordering: str, chunk: int, working: _Working) -> None:
+def _stream_flat(table: BinaryTable, name: str, ordering: str, chunk: int, working: WorkingOrder) -> None:
     from .healpix import hp
 
     if not ordering:
