@@ -15,7 +15,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["night_grid", "draw_airmass", "AIRMASS_TOP"]
+__all__ = ["night_grid", "draw_airmass", "place_field_labels", "AIRMASS_TOP"]
 
 #: Airmass at the top of the panel (the panel's y axis is inverted: 1 at the bottom ... this at the top).
 AIRMASS_TOP = 2.6
@@ -96,15 +96,13 @@ def draw_airmass(ax: Any, plan: Any, grid: dict[str, Any], executed: Sequence[An
         for o in obs:
             ax.plot([o.start / 3600.0, o.end / 3600.0], [o.airmass or np.nan] * 2,
                     color=FILTER_COLOURS.get(o.filter, "k"), lw=3.5, solid_capstyle="butt", zorder=3)
-        for f in fields:
-            o = first[f]
-            ax.annotate(str(f), (o.start / 3600.0, o.airmass or 1.0), xytext=(0, -9), textcoords="offset points",
-                        fontsize=6.5, ha="center", va="top", color="#222", zorder=4)
     shown = _draw_executed(ax, plan, executed)
     moon = _airmass(grid["moon_alt"])
     ax.plot(hours, moon, color="#c9a400", lw=1.6, ls=(0, (4, 2)), zorder=2)
     ax.set_ylim(AIRMASS_TOP, 1.0)
     _night_axis(ax, plan, hours, grid["sun_alt"])
+    if fields:
+        place_field_labels(ax, [(str(f), first[f].start / 3600.0, first[f].airmass or 1.0) for f in fields])
     ax.set_ylabel("airmass", fontsize=9)
     handles = [Line2D([], [], color="#8a8a8a", lw=0.8, label="planned field"),
                Line2D([], [], color="#c9a400", lw=1.6, ls=(0, (4, 2)),
@@ -115,6 +113,46 @@ def draw_airmass(ax: Any, plan: Any, grid: dict[str, Any], executed: Sequence[An
         handles.append(Line2D([], [], color="k", marker="o", mfc="none", ls="none", label="executed before"))
     ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles), fontsize=8,
               frameon=False)
+
+
+#: Where a field's id may go around its first exposure (offset in points, alignment), in order of preference.
+LABEL_PLACES = (((0, -9), "center", "top"), ((0, 6), "center", "bottom"), ((9, -2), "left", "center"),
+                ((-9, -2), "right", "center"), ((0, -19), "center", "top"), ((0, 16), "center", "bottom"))
+
+
+def place_field_labels(ax: Any, labels: Sequence[tuple[str, float, float]], fontsize: float = 6.5) -> None:
+    """Each field's id beside its first exposure (hour, airmass), in the first place no earlier id takes.
+
+    Boxes are estimated in points (a digit ~0.6 of the font size wide), on the axes' current limits.
+    """
+    scale = ax.figure.dpi / 72.0
+    placed: list[tuple[float, float, float, float]] = []
+    for text, hour, airmass in sorted(labels, key=lambda item: item[1]):
+        x0, y0 = ax.transData.transform((hour, airmass)) / scale  # points
+        w, h = 0.62 * fontsize * len(text) + 1.0, fontsize + 1.0
+        choice = LABEL_PLACES[0]
+        for place in LABEL_PLACES:
+            box = _label_box(x0, y0, w, h, *place)
+            if not any(_overlap(box, other) for other in placed):
+                choice = place
+                break
+        placed.append(_label_box(x0, y0, w, h, *choice))
+        (dx, dy), ha, va = choice
+        ax.annotate(text, (hour, airmass), xytext=(dx, dy), textcoords="offset points", fontsize=fontsize,
+                    ha=ha, va=va, color="#222", zorder=4)
+
+
+def _label_box(x: float, y: float, w: float, h: float, offset: tuple[float, float], ha: str,
+               va: str) -> tuple[float, float, float, float]:
+    """(left, bottom, right, top) in points of a label at ``(x, y)`` + ``offset`` aligned by ``ha``/``va``."""
+    x, y = x + offset[0], y + offset[1]
+    left = {"left": x, "center": x - w / 2, "right": x - w}[ha]
+    bottom = {"bottom": y, "center": y - h / 2, "top": y - h}[va]
+    return left, bottom, left + w, bottom + h
+
+
+def _overlap(a: tuple[float, float, float, float], b: tuple[float, float, float, float]) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
 
 
 def _dark_span(hours: np.ndarray, dark: np.ndarray, busy: Sequence[float]) -> tuple[float, float]:

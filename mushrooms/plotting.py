@@ -26,7 +26,7 @@ from .scheduler_core.sky.fields import ccd_corners, deproject, load_ztf_fields
 from .scheduler_core.plan.document import Plan
 from .scheduler_core.sky.skymap import SkyMap
 
-__all__ = ["plot_plan", "plan_picture_png", "FILTER_COLOURS", "plot_title"]
+__all__ = ["plot_plan", "plan_picture_png", "FILTER_COLOURS", "plot_title", "zoom_holding_fields"]
 
 #: Executed fields (a re-plan), filled on the sky panels.
 EXECUTED_COLOUR = "#9a9a9a"
@@ -122,7 +122,41 @@ def _zoom_region(prob: np.ndarray, region: np.ndarray, nside: int) -> tuple[floa
     order = np.argsort(sep)
     cum = np.cumsum(weight[order])
     r90 = float(sep[order][min(np.searchsorted(cum, 0.9 * cum[-1]), len(order) - 1)])
-    return ra_c, dec_c, float(min(max(1.3 * r90 + 3.0, 12.0), 40.0))
+    return ra_c, dec_c, float(min(max(1.3 * r90 + 3.0, ZOOM_MIN_DEG), ZOOM_MAX_DEG))
+
+
+#: The zoom panel's radius (deg): at least, at most.
+ZOOM_MIN_DEG, ZOOM_MAX_DEG = 12.0, 40.0
+
+#: Half the diagonal of a ZTF field (deg; 7.0 x 7.0 deg incl. the chip gaps), with a margin for the zoom's
+#: projection: a field whose centre lies this far inside the zoom is drawn whole.
+FIELD_HALF_DIAGONAL_DEG = 5.5
+
+
+def zoom_holding_fields(ra_c: float, dec_c: float, radius: float, ra: np.ndarray,
+                        dec: np.ndarray) -> tuple[float, np.ndarray]:
+    """The zoom radius widened (up to :data:`ZOOM_MAX_DEG`) to hold the planned fields whole.
+
+    Parameters
+    ----------
+    ra_c, dec_c, radius : float
+        The zoom's centre and radius (deg) from the probability.
+    ra, dec : numpy.ndarray
+        Planned field centres (deg).
+
+    Returns
+    -------
+    (float, numpy.ndarray)
+        The radius (deg) and a mask of the fields still outside it (too far from the probability's centre:
+        the picture names them).
+    """
+    from astropy.coordinates import angular_separation
+
+    sep = np.degrees(angular_separation(np.radians(ra_c), np.radians(dec_c), np.radians(np.asarray(ra, float)),
+                                        np.radians(np.asarray(dec, float))))
+    need = np.asarray(sep, float) + FIELD_HALF_DIAGONAL_DEG
+    fits = need <= ZOOM_MAX_DEG
+    return float(min(max(radius, float(need[fits].max(initial=0.0))), ZOOM_MAX_DEG)), ~fits
 
 
 def _figure(plan: Plan, skymap: SkyMap | None, answer: Any, executed: Any) -> Any:
@@ -218,10 +252,21 @@ def _zoom_axes(fig: Any, grid: Any, skymap: SkyMap, first_visit: dict[int, float
         covered = np.zeros(prob.size, dtype=bool)
         covered[field_footprints(grid, skymap.nside).union(list(first_visit))] = True
         ra_c, dec_c, radius = _zoom_region(prob, covered & (prob > 0), skymap.nside)
+        ids = np.array(list(first_visit), dtype=int)
+        rows = grid.index_of(ids)
+        radius, outside = zoom_holding_fields(ra_c, dec_c, radius, grid.ra[rows], grid.dec[rows])
     else:
         ra_c, dec_c, radius = _zoom_region(prob, credible <= 90.0, skymap.nside)
-    return fig.add_axes([0.60, 0.49, 0.33, 0.41], projection="astro degrees zoom",
-                        center=SkyCoord(ra_c * u.deg, dec_c * u.deg), radius=radius * u.deg)
+        ids, outside = np.array([], dtype=int), np.array([], dtype=bool)
+    ax = fig.add_axes([0.60, 0.49, 0.33, 0.41], projection="astro degrees zoom",
+                      center=SkyCoord(ra_c * u.deg, dec_c * u.deg), radius=radius * u.deg)
+    if outside.any():
+        far = ids[outside].tolist()
+        named = ", ".join(map(str, far[:8])) + (f" and {len(far) - 8} more" if len(far) > 8 else "")
+        ax.text(0.02, 0.98, f"{len(far)} field{'s' if len(far) > 1 else ''} outside this zoom"
+                f" (see the whole sky):\n{named}", transform=ax.transAxes, fontsize=7, ha="left", va="top", color="#0b2a6f",
+                zorder=6, bbox=dict(boxstyle="round,pad=0.25", fc="white", ec="#0b2a6f", lw=0.6, alpha=0.9))
+    return ax
 
 
 def _sky_panel(ax: Any, layer: tuple[np.ndarray, np.ndarray], norm: Any, grid: Any, first_visit: dict[int, float],

@@ -20,3 +20,43 @@ def test_exposures_outside_the_dark_hours_widen_the_axis_and_none_shows_the_long
     assert _dark_span(hours, dark, [14.0, 14.2, 16.0])[0] == 14.0  # a twilight exposure stays in view
     lo, hi = _dark_span(hours, dark, [])
     assert lo == 15.0 and hi > 23.3
+
+
+def test_field_ids_of_exposures_close_in_time_and_airmass_do_not_cover_each_other():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from mushrooms.plot_airmass import place_field_labels
+
+    fig, ax = plt.subplots(figsize=(11.6, 1.7), dpi=120)
+    ax.set_xlim(2.0, 14.0)
+    ax.set_ylim(2.6, 1.0)
+    # a cluster like G476954's first hour: five first exposures within 20 min and 0.3 in airmass
+    labels = [("312", 3.55, 1.72), ("1355", 3.62, 1.66), ("1354", 3.70, 1.78), ("311", 3.58, 1.84),
+              ("1303", 3.50, 1.94), ("262", 3.63, 2.07), ("1532", 7.5, 2.35)]
+    place_field_labels(ax, labels)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    boxes = [t.get_window_extent(renderer) for t in ax.texts]
+    assert sorted(t.get_text() for t in ax.texts) == sorted(text for text, _, _ in labels)
+    overlaps = [(ax.texts[i].get_text(), ax.texts[j].get_text()) for i in range(len(boxes))
+                for j in range(i + 1, len(boxes)) if boxes[i].overlaps(boxes[j])]
+    assert overlaps == []
+    plt.close(fig)
+
+
+def test_the_zoom_widens_to_hold_planned_fields_whole_and_names_those_too_far():
+    from mushrooms.plotting import FIELD_HALF_DIAGONAL_DEG, ZOOM_MAX_DEG, zoom_holding_fields
+
+    ra = np.array([120.0, 135.0, 280.0])
+    dec = np.array([-20.0, 0.0, -10.0])
+    radius, outside = zoom_holding_fields(120.0, -20.0, 12.0, ra, dec)
+    assert outside.tolist() == [False, False, True]  # 160 deg away: the whole sky shows it
+    near = float(np.degrees(np.arccos(np.sin(np.radians(0.0)) * np.sin(np.radians(-20.0))
+                                      + np.cos(np.radians(0.0)) * np.cos(np.radians(-20.0))
+                                      * np.cos(np.radians(15.0)))))
+    assert abs(radius - (near + FIELD_HALF_DIAGONAL_DEG)) < 1e-9
+    assert radius <= ZOOM_MAX_DEG
+    assert zoom_holding_fields(120.0, -20.0, 30.0, ra[:1], dec[:1])[0] == 30.0  # never narrower than the map asks
