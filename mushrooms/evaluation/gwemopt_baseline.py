@@ -37,7 +37,12 @@ Threads: gwemopt's libraries each start their own pools (OpenMP in
 ligo.skymap and numpy's BLAS, rayon in mocpy, numba), sized to the machine.
 Beside a study's other workers that oversubscribes the cores, so each pool is
 capped at one thread (:data:`THREAD_CAPS`) unless the caller's environment
-already sets it.
+already sets it. The cap does not stop the churn: gwemopt's chip-gap
+footprints call mocpy once per field, and mocpy's rayon pools come and go
+with the calls, so on a starved machine thousands of exiting threads pile up
+(one run was seen holding 4339). Under a limit of 600 processes (a cgroup's
+``pids.max``) 18 of 40 runs failed with ``OSError: Resource temporarily
+unavailable (os error 11)``; give gwemopt a limit of several thousand.
 """
 
 from __future__ import annotations
