@@ -105,6 +105,11 @@ def test_greedy_keeps_each_g_r_g_within_a_short_pair_separation():
     assert_within_rules(plan, [], tight)
 
 
+def test_a_pair_separation_too_short_for_the_sequence_is_refused_in_one_line():
+    with pytest.raises(ValueError, match=r"pair_max_s \(3000 s\) must be 0 or hold the sequence g-r-g: at least 2 x"):
+        dataclasses.replace(GRG, pair_max_s=3000.0)
+
+
 # ----------------------------------------------------------------- F9 by hand
 
 F687 = (687, 306.08789, 33.35)
