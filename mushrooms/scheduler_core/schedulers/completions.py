@@ -16,7 +16,11 @@ pair, so it is placed before the schedulers see the rest of the night:
   the gaps of the finished plan (the earliest gap where the overheads on
   both sides, the due time and a window allow), and failing that
   (:func:`swap_in_completions`) in the place of a planned field that adds
-  less than the completion would.
+  less than the completion would;
+* :func:`shift_in_completions` (F3) makes room for a sequence's next visit
+  by delaying what follows it, and :func:`trim_to_rules` (F9) then drops
+  what the delay made break its field's rules (span, window, latest start),
+  keeping the credit F1 allows.
 
 Times are seconds since the re-plan's start.  The equations are in
 ``docs/design/replan.md``.
