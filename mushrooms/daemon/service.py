@@ -126,9 +126,9 @@ class Service:
             refused = self._open_state(opened)
             if refused is not None:
                 return refused
-            self._start_parts(submit_token)
-            self._start_timers(scheduler, executed_token)
-            self._loop()
+            if self._start_parts(submit_token):  # False: a stop came during the warm-up
+                self._start_timers(scheduler, executed_token)
+                self._loop()
             return 0
         finally:
             self._stop_all(scheduler, lock, opened)
@@ -154,8 +154,8 @@ class Service:
             return 1
         return None
 
-    def _start_parts(self, submit_token: str | None) -> None:
-        """Metrics, the submitter, the warm-up, the job runner; then what a crash left (outbox, jobs, triggers)."""
+    def _start_parts(self, submit_token: str | None) -> bool:
+        """Metrics, the submitter, the warm-up, the job runner, what a crash left; False: stopped in the warm-up."""
         self.observe()
         self.timers.prune_raw()
         from .submission.thread import open_submitter
@@ -169,14 +169,17 @@ class Service:
                 self.pipeline.sink, sub.superevent_id, sub.queue_name, sub.attempts, error)
             self.submit_drain.kick()  # reconcile what a crash left half done
         self.phase = "warming"
+        log.info("event=warm_up_starting solver=%s nside=%d", self.config.scheduler.solver, self.config.scheduler.nside)
         self._warm_up(self.sky_cache)  # only once the state file is ours: a refused start is quick
+        if self.signals.stop.is_set():  # systemd's stop during the warm-up: no job runner, no consumer
+            log.info("event=start_abandoned phase=warming startup_s=%.2f", time.monotonic() - self.started)
+            return False
         self.jobs = JobRunner(self._run_job, self.scheduler, self.config.daemon.max_jobs,
-                              self.config.daemon.job_deadline_s, on_done=self._job_done,
-                              on_failure=self._job_failed)
-        log.info("event=service_starting pid=%d config=%s state=%s sink=%s triggers=%s",
-                 os.getpid(), self.config.source, self.paths.state, self._sink_text(),
-                 self.paths.trigger_dir)
+                              self.config.daemon.job_deadline_s, on_done=self._job_done, on_failure=self._job_failed)
+        log.info("event=service_starting pid=%d config=%s state=%s sink=%s triggers=%s", os.getpid(),
+                 self.config.source, self.paths.state, self._sink_text(), self.paths.trigger_dir)
         self.outbox.kick()  # what a crash left in the outbox goes out first
+        return True
 
     def _start_timers(self, scheduler: BackgroundScheduler, executed_token: str | None) -> None:
         """Resume jobs, scan triggers, open the consumer and start the timed jobs; then ready."""
@@ -423,7 +426,7 @@ class Service:
         """Imports, grid, footprints and tonight's visibility, and one throw-away plan, before consuming."""
         from .planning.warm import warm_up
 
-        return warm_up(cache, self.config.scheduler)
+        return warm_up(cache, self.config.scheduler, should_stop=self.signals.stop.is_set)
 
     def _flush_outbox(self) -> Any:
         if self.closing.is_set():  # a retry that fires during shutdown: the next start publishes it

@@ -4,7 +4,10 @@ The fast scheduler (greedy) answers within a second; the configured one
 (MILP or hybrid) may need tens of seconds.  :func:`anytime_plans` yields the
 fast plan first and then the optimised one, each checked, so a caller can
 publish the first while the second is being found; :func:`is_better` is the
-rule by which a later plan replaces an earlier one.  The two stages are also
+rule by which a later plan replaces an earlier one, and :func:`supersession`
+the whole decision after the optimisation (revision 1 stands or revision 2
+replaces it, and why), the one the daemon and the bench's ``service`` row
+both take.  The two stages are also
 :func:`first_plan` and :func:`optimised_plan`, for a caller that publishes
 between them and runs the second later (the daemon's
 :class:`~mushrooms.daemon.planning.revisions.JobPlanner`, which queues optimisations
@@ -17,19 +20,22 @@ the same flow.  Plan documents carry ``revision`` (1, 2, ...) and ``final``
 from __future__ import annotations
 
 import time
-from typing import Callable, Iterator
+from dataclasses import dataclass
+from typing import Callable, Iterator, Literal
 
 from .plan.checker import check_plan
 from .errors import PlanCheckError
 from .plan.document import EventInfo, Plan
 from .plan.messages import revision_document
+from .plan.observability import not_observable
 from .planner import build_plan, optimise, run_scheduler
 from .preference import is_preferred
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .sky.skymap import SkyMap
+from .config import PlanningConfig
 
 __all__ = ["FIRST_SOLVER", "checked_plan", "first_plan", "optimised_plan", "anytime_plans", "is_better",
-           "revision_document"]
+           "Supersession", "supersession", "revision_document"]
 
 #: The scheduler of every first plan (fast, never needs a time limit).
 FIRST_SOLVER = "greedy"
@@ -84,6 +90,69 @@ def is_better(candidate: Plan, incumbent: Plan, min_gain: float, objective: str 
     return is_preferred(float(candidate.metrics.coverage), candidate.metrics.expected_detections, c_old,
                         incumbent.metrics.expected_detections, min_gain, objective,
                         coverage_floor=(1.0 - max_coverage_loss) * c_old)
+
+
+@dataclass(frozen=True)
+class Supersession:
+    """Which plan of a sky map is published once the optimisation is over, and why.
+
+    Attributes
+    ----------
+    revision : int
+        1 (the first plan stands) or 2 (the optimised plan replaces it).
+    plan : Plan
+        The plan published: the first or the optimised one.
+    reason : str
+        ``"better"`` (revision 2); for revision 1: ``"no_plan"`` (the
+        optimisation gave none: it failed, or its plan failed the checker;
+        the caller knows which), ``"below_min_coverage"`` (the optimised plan
+        would be the ``not_observable`` answer), ``"not_better"`` (the same
+        plan, or not better by the margin, :func:`is_better`).
+    """
+
+    revision: Literal[1, 2]
+    plan: Plan
+    reason: Literal["better", "no_plan", "below_min_coverage", "not_better"]
+
+
+def supersession(first: Plan, optimised: Plan | None, skymap: SkyMap, config: PlanningConfig,
+                 min_gain: float) -> Supersession:
+    """Decide whether the optimised plan replaces the published first plan (revision 2) or the first stands.
+
+    The optimised plan replaces the first when there is one, it covers at
+    least ``config.min_coverage`` (else it would be the ``not_observable``
+    answer, :func:`~.plan.observability.not_observable`), it is another plan
+    (another ``plan_id``) and it is better by ``min_gain`` under
+    ``config.objective`` (:func:`is_better`, rule R1-R3).
+
+    Parameters
+    ----------
+    first : Plan
+        Revision 1, the first plan (:func:`first_plan`), published.
+    optimised : Plan or None
+        The checked plan of ``config.solver`` (:func:`optimised_plan`); None
+        when the optimisation gave none.
+    skymap : SkyMap
+        The sky map both plans were made for.
+    config : PlanningConfig
+        ``objective``, ``detection_max_coverage_loss`` (relative) and
+        ``min_coverage`` (0 to 1).
+    min_gain : float
+        What revision 2 must gain (``[daemon] supersede_min_gain``; coverage
+        or expected detections, 0 to 1).
+
+    Returns
+    -------
+    Supersession
+    """
+    if optimised is None:
+        return Supersession(1, first, "no_plan")
+    if not_observable(optimised, skymap, config) is not None:
+        return Supersession(1, first, "below_min_coverage")
+    if optimised.plan_id != first.plan_id and is_better(optimised, first, min_gain, config.objective,
+                                                        config.detection_max_coverage_loss):
+        return Supersession(2, optimised, "better")
+    return Supersession(1, first, "not_better")
 
 
 def first_plan(problem: PlanningProblem, skymap: SkyMap, event: EventInfo | None = None,

@@ -310,7 +310,8 @@ class PlanningConfig:
     exposure_s: float = setting(300.0, 1, 3600, "s", why="ZTF ToO exposures are 30-300 s")
     filters: tuple[str, ...] = ("g", "r")
     cadence_s: float = setting(1800.0, 0, 43200, "s", lo_open=True, why="up to half a day between two visits")
-    pair_max_s: float = setting(0.0, 600, 604800, "s", off=0, why="0: one night (12 h); at least cadence_s")
+    pair_max_s: float = setting(0.0, 600, 604800, "s", off=0,
+                                why="0: one night (12 h); at least cadence_s, (k − 1) × cadence_s for k filters")
     filter_change_s: float = setting(120.0, 0, 900, "s")
     slew_estimate_s: float = setting(10.0, 0, 600, "s")
     n_fields: int | None = setting(None, 1, 5000, why="unset: sized from the horizon; ZTF's grids hold 1 778 fields")
@@ -345,6 +346,10 @@ class PlanningConfig:
         if self.pair_max_s and self.pair_max_s < self.cadence_s:
             problems.append(f"pair_max_s ({self.pair_max_s:g} s) must be 0 or at least cadence_s "
                             f"({self.cadence_s:g} s)")
+        elif self.pair_max_s and self.pair_max_s < (len(self.filters) - 1) * self.cadence_s:  # (F6) k visits
+            problems.append(f"pair_max_s ({self.pair_max_s:g} s) must be 0 or hold the sequence "
+                            f"{'-'.join(self.filters)}: at least {len(self.filters) - 1} x cadence_s "
+                            f"({(len(self.filters) - 1) * self.cadence_s:g} s)")
         if self.dec_min_deg >= self.dec_max_deg:
             problems.append(f"dec_min_deg ({self.dec_min_deg:g}) must be less than dec_max_deg ({self.dec_max_deg:g})")
         if self.time_step_s > 0 and self.horizon_s / self.time_step_s > MAX_TIME_STEPS:

@@ -319,7 +319,7 @@ def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGr
         placed, left = swap_in_completions(placed, left, footprints, state.uncovered, windows, config,
                                            keep=completions)
     if any(v.worth is not None for v in left):  # (F3) a sequence's next visits: delay what follows them
-        placed, left = shift_in_completions(placed, left, windows, config)
+        placed, left = shift_in_completions(placed, left, windows, config, pending=state.pending)
     if left:
         log.info("re-plan: %d half-done field(s) found no time for their other filter: %s",
                  len(left), ", ".join(str(v.field_id) for v in left))

@@ -10,7 +10,7 @@ real solve is still running when the test acts:
 * removing ``DIR/hold`` lets every held job go on with the real scheduler;
 * while ``DIR/fail`` exists, a job's scheduler raises (a job that fails);
 * while ``DIR/hold-warm`` exists, the daemon's start-up warm-up waits
-  (``/readyz`` during warm-up).
+  (``/readyz`` during warm-up); ``DIR/warming`` says it got there.
 """
 
 from __future__ import annotations
@@ -57,6 +57,7 @@ def install(gate: Path) -> None:
     original_warm = service.Service._warm_up
 
     def warm_up(self, cache):
+        (gate / "warming").touch()  # the start-up reached its warm-up
         while (gate / "hold-warm").exists():
             time.sleep(0.05)
         return original_warm(self, cache)

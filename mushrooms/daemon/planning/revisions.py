@@ -3,7 +3,7 @@
 ::
 
     job ─ sky map ▸ prepare (warm cache) ▸ anytime.first_plan ▸ store revision 1 + outbox
-        ─ anytime.optimised_plan ▸ is_better by supersede_min_gain ? revision 2 : plan_final
+        ─ anytime.optimised_plan ▸ anytime.supersession (supersede_min_gain) ? revision 2 : plan_final
 
 The flow is :mod:`~mushrooms.scheduler_core.anytime`'s (the one
 ``mushrooms plan --deadline`` runs); what is the daemon's own here is the
@@ -275,9 +275,8 @@ class JobPlanner:
             return read_skymap(skymap_bytes, nside=nside, max_bytes=limit), event
 
     def _second_stage(self, work: _Work, should_stop: StopCheck | None) -> Outcome:
-        """Run the configured solver; publish revision 2 if better by the margin, else ``plan_final``."""
-        from ...scheduler_core import not_observable
-        from ...scheduler_core.anytime import is_better, optimised_plan
+        """Run the configured solver; revision 2 or ``plan_final``, as ``anytime.supersession`` decides."""
+        from ...scheduler_core.anytime import optimised_plan, supersession
 
         job, first, sched = work.job, work.first, self.planning
         solver = sched.solver
@@ -298,17 +297,16 @@ class JobPlanner:
         except Exception as exc:
             log.exception("job superevent_id=%s job=%s optimisation failed", job.superevent_id, job.job_id)
             better, why = None, f"the {solver} optimisation failed: {type(exc).__name__}: {exc}"
-        gain = self.gain
-        if better is not None and not_observable(better, work.skymap, sched) is not None:
-            better, why = None, (f"{solver} covered {better.metrics.coverage:.4f}: still below min_coverage "
-                                 f"{sched.min_coverage:g}")
-        if better is not None and better.plan_id != first.plan_id and is_better(
-                better, first, gain, sched.objective, sched.detection_max_coverage_loss):
-            return self._publish_revision(work, better, 2, True)
-        if better is not None:
+        decided = supersession(first, better, work.skymap, sched, self.gain)
+        if decided.revision == 2:
+            return self._publish_revision(work, decided.plan, 2, True)
+        if decided.reason == "below_min_coverage":
+            why = f"{solver} covered {better.metrics.coverage:.4f}: still below min_coverage {sched.min_coverage:g}"
+        elif decided.reason == "not_better":
             from .final_words import first_plan_stands
 
-            why = first_plan_stands(solver, better, first, gain, sched.objective, sched.detection_max_coverage_loss)
+            why = first_plan_stands(solver, better, first, self.gain, sched.objective,
+                                    sched.detection_max_coverage_loss)
         return self._close_with_first(work, why)
 
     # ------------------------------------------------------------ store + outbox

@@ -16,11 +16,12 @@ pieces to :func:`~mushrooms.scheduler_core.prepare.prepare_problem`.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import threading
 import time
 from collections import OrderedDict
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from astropy.time import Time, TimeDelta
@@ -33,7 +34,6 @@ __all__ = ["SkyCache", "warm_up", "NIGHT_S", "NIGHT_ANCHOR"]
 log = logging.getLogger("mushrooms.daemon.warm")
 #: the service's own log lines (the warm-up at start)
 service_log = logging.getLogger("mushrooms.daemon")
-
 
 
 def _visibility_key(config: Any) -> tuple[float, ...]:
@@ -149,8 +149,13 @@ class SkyCache:
         return time.perf_counter() - t0
 
 
-def warm_up(cache: SkyCache, config: Any) -> SkyCache:
+def warm_up(cache: SkyCache, config: Any, should_stop: Callable[[], bool] | None = None) -> SkyCache:
     """Imports, grid, footprints and tonight's visibility, and one throw-away plan, before the first alert.
+
+    The warm-up is a few steps (:func:`_warm_steps`); ``should_stop`` is asked
+    before each, so a stop asked for meanwhile (systemd's SIGTERM) ends it at
+    the next step boundary: ``event=warm_up_stopped`` names the step not
+    taken, and the warm-up's own ``event=warm_up`` line is not written.
 
     Parameters
     ----------
@@ -158,6 +163,8 @@ def warm_up(cache: SkyCache, config: Any) -> SkyCache:
         Warmed for ``config``.
     config : PlanningConfig
         The ``[scheduler]`` section.
+    should_stop : callable, optional
+        True when the service is stopping.
 
     Returns
     -------
@@ -166,21 +173,53 @@ def warm_up(cache: SkyCache, config: Any) -> SkyCache:
         is an optimisation, never a reason not to start.
     """
     t0 = time.perf_counter()
-    cache.warm(config)
-    t_cache = time.perf_counter() - t0
-    try:  # the first alert must not pay for first calls (checker, greedy, MILP imports)
+    t_cache = 0.0
+    for name, step in _warm_steps(cache, config, Time.now()):
+        if should_stop is not None and should_stop():
+            service_log.info("event=warm_up_stopped before=%s seconds=%.2f reason='stop requested'", name,
+                             time.perf_counter() - t0)
+            return cache
+        step()
+        if name.startswith("visibility"):
+            t_cache = time.perf_counter() - t0
+    service_log.info("event=warm_up cache_s=%.2f total_s=%.2f", t_cache, time.perf_counter() - t0)
+    return cache
+
+
+def _warm_steps(cache: SkyCache, config: Any, now: Time) -> tuple[tuple[str, Callable[[], Any]], ...]:
+    """The warm-up's steps, in order, each a few seconds at most: (name, what it does).
+
+    Footprints; the visibility of the night holding ``now`` (one hour's
+    horizon), then of the rest of the horizon (the next night); the
+    solvers' imports; one throw-away plan of the bundled demo map.
+    """
+    tonight = dataclasses.replace(config, horizon_h=1.0)
+    return (("footprints", lambda: cache.footprints(config.nside)),
+            ("visibility_tonight", lambda: cache.windows(now, tonight)),
+            ("visibility_horizon", lambda: cache.windows(now, config)),
+            ("solver_imports", lambda: _import_solvers(config)),
+            ("first_plan", lambda: _throw_away_plan(cache, config)))
+
+
+def _import_solvers(config: Any) -> None:
+    """The first alert must not pay for first imports (checker, greedy, the MILP's HiGHS)."""
+    from ...scheduler_core.anytime import FIRST_SOLVER, checked_plan  # noqa: F401
+    from ...scheduler_core.planner import run_scheduler  # noqa: F401
+
+    if config.solver != FIRST_SOLVER:
+        from ...scheduler_core.schedulers import block_schedule  # noqa: F401
+
+
+def _throw_away_plan(cache: SkyCache, config: Any) -> None:
+    """One checked greedy plan of the bundled demo map (first calls of every stage); a failure is logged."""
+    try:
         from ...bundled import demo_skymap_path
         from ...scheduler_core import read_skymap
         from ...scheduler_core.anytime import FIRST_SOLVER, checked_plan
         from ...scheduler_core.planner import run_scheduler
-
-        if config.solver != FIRST_SOLVER:
-            from ...scheduler_core.schedulers import block_schedule  # noqa: F401
 
         skymap = read_skymap(demo_skymap_path(), nside=config.nside)
         problem = cache.prepare(skymap, config, Time.now())
         checked_plan(problem, run_scheduler(problem, FIRST_SOLVER), skymap, FIRST_SOLVER)
     except Exception as exc:  # warming is an optimisation, never a reason not to start
         service_log.warning("event=warm_up_plan_failed error=%r", f"{type(exc).__name__}: {exc}")
-    service_log.info("event=warm_up cache_s=%.2f total_s=%.2f", t_cache, time.perf_counter() - t0)
-    return cache

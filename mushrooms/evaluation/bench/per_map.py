@@ -300,14 +300,15 @@ def service_row(scene: MapScene, solver: str, settings: BenchSettings) -> tuple[
     The fast plan is revision 1 (:func:`~mushrooms.scheduler_core.anytime.first_plan`);
     ``config.solver``'s plan (:func:`~mushrooms.scheduler_core.anytime.optimised_plan`,
     the detection stage included under ``objective = "detection"``) replaces it
-    when it passes the checker and ``min_coverage`` and is better by
-    ``settings.supersede_min_gain`` (:func:`~mushrooms.scheduler_core.anytime.is_better`).
+    as :func:`~mushrooms.scheduler_core.anytime.supersession` decides (the
+    daemon's rule: it passes the checker and ``min_coverage`` and is better by
+    ``settings.supersede_min_gain``).
     A published plan below ``min_coverage`` is the ``not_observable`` answer:
     no exposures, so coverage and efficiencies 0, status ``not_observable``.
     ``solver_detail`` says which revision stands.  (The daemon's horizon
     starts at the alert's receipt; here at the map's event time.)
     """
-    from ...scheduler_core.anytime import FIRST_SOLVER, first_plan, is_better, optimised_plan
+    from ...scheduler_core.anytime import FIRST_SOLVER, first_plan, optimised_plan, supersession
     from ...scheduler_core.errors import PlanCheckError
     from ...scheduler_core.plan.observability import not_observable
 
@@ -320,13 +321,9 @@ def service_row(scene: MapScene, solver: str, settings: BenchSettings) -> tuple[
         try:
             better = optimised_plan(problem, scene.skymap, rcfg.solver, first)
         except PlanCheckError:
-            better, stage = None, f"revision 1 ({FIRST_SOLVER}) stands: the {rcfg.solver} plan failed the checker"
-        if better is not None and not_observable(better, scene.skymap, rcfg) is None \
-                and better.plan_id != first.plan_id and is_better(
-                    better, first, settings.supersede_min_gain, rcfg.objective, rcfg.detection_max_coverage_loss):
-            published, stage = better, f"revision 2 ({rcfg.solver})"
-        elif better is not None:
-            stage = f"revision 1 ({FIRST_SOLVER}) stands: {rcfg.solver} not better by {settings.supersede_min_gain:g}"
+            better = None
+        decided = supersession(first, better, scene.skymap, rcfg, settings.supersede_min_gain)
+        published, stage = decided.plan, _service_stage(decided.reason, rcfg, settings.supersede_min_gain)
     solve_s = time.perf_counter() - t0
     status, note = published.metrics.status, scene.note
     answer = not_observable(published, scene.skymap, rcfg)
@@ -342,6 +339,19 @@ def service_row(scene: MapScene, solver: str, settings: BenchSettings) -> tuple[
                     solver_detail=f"{stage}; {published.metrics.solver}", note=note, objective=objective,
                     **scene.with_bound(scores))
     return row, hits
+
+
+def _service_stage(reason: str, config: Any, gain: float) -> str:
+    """The ``solver_detail`` head of the ``service`` row: which revision stands, after :func:`supersession`."""
+    from ...scheduler_core.anytime import FIRST_SOLVER
+
+    stands = f"revision 1 ({FIRST_SOLVER}) stands"
+    return {
+        "better": f"revision 2 ({config.solver})",
+        "no_plan": f"{stands}: the {config.solver} plan failed the checker",
+        "below_min_coverage": f"{stands}: {config.solver} below min_coverage {config.min_coverage:g}",
+        "not_better": f"{stands}: {config.solver} not better by {gain:g}",
+    }[reason]
 
 
 def detection_stage_text(result: Any) -> str:

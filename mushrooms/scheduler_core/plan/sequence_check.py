@@ -5,7 +5,9 @@ planner's F1-F3): the checker reads the plan and the executed record on
 their own.
 
 * (F6) a field without covering executed exposures is planned in the whole
-  sequence: its exposures, in time order, are ``filters`` exactly, each at
+  sequence, or (F9, a re-plan: with an executed record) in a prefix of it
+  holding its first two visits (the re-plan's shift may cut the rest): its
+  exposures, in time order, are ``filters`` or such a prefix, each at
   least ``cadence_s`` after the one before, the last at most
   ``pair_separation_s`` after the first;
 * (F7) a field the executed record covers (the pair rule on the first two
@@ -88,9 +90,10 @@ def check_sequences(add: Callable[[str, str], None], ids: np.ndarray, flt: np.nd
             i = int(short[0])
             add("cadence", f"field {fid}: {bands[i]} and {bands[i + 1]} only {times[i + 1] - times[i]:.0f} s apart "
                            f"(cadence {cadence_s:.0f} s)")
-        if int(fid) not in covered:  # (F6) the whole sequence
-            if bands != seq:
-                add("cadence", f"field {fid} is observed in {'-'.join(bands)}, not the sequence {'-'.join(seq)}")
+        if int(fid) not in covered:  # (F6) the whole sequence; (F9) in a re-plan, its first two visits on
+            if bands != seq and not (done and bands == seq[:len(bands)] and len(bands) >= min(2, len(seq))):
+                add("cadence", f"field {fid} is observed in {'-'.join(bands)}, not the sequence {'-'.join(seq)}"
+                               + (" nor its first two visits or more" if done else ""))
             elif times[-1] - times[0] > separation_s + TOL_S:
                 add("cadence", f"field {fid}: its sequence spans {times[-1] - times[0]:.0f} s, more than "
                                f"{separation_s:.0f} s")

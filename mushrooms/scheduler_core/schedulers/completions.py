@@ -16,7 +16,11 @@ pair, so it is placed before the schedulers see the rest of the night:
   the gaps of the finished plan (the earliest gap where the overheads on
   both sides, the due time and a window allow), and failing that
   (:func:`swap_in_completions`) in the place of a planned field that adds
-  less than the completion would.
+  less than the completion would;
+* :func:`shift_in_completions` (F3) makes room for a sequence's next visit
+  by delaying what follows it, and :func:`trim_to_rules` (F9) then drops
+  what the delay made break its field's rules (span, window, latest start),
+  keeping the credit F1 allows.
 
 Times are seconds since the re-plan's start.  The equations are in
 ``docs/design/replan.md``.
@@ -25,7 +29,7 @@ Times are seconds since the re-plan's start.  The equations are in
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -36,7 +40,7 @@ from ..sky.windows import Windows
 from .slew import overhead_time
 
 __all__ = ["PendingVisit", "completion_pass", "insert_completions", "swap_in_completions", "shift_in_completions",
-           "drop_repeats", "gains_of"]
+           "trim_to_rules", "drop_repeats", "gains_of"]
 
 
 @dataclass(frozen=True)
@@ -295,15 +299,32 @@ def swap_in_completions(observations: Sequence[Observation], visits: Sequence[Pe
 
 
 def shift_in_completions(observations: Sequence[Observation], visits: Sequence[PendingVisit], windows: Windows,
-                         config: PlanningConfig) -> tuple[tuple[Observation, ...], tuple[PendingVisit, ...]]:
+                         config: PlanningConfig, pending: Sequence[PendingVisit] = ()
+                         ) -> tuple[tuple[Observation, ...], tuple[PendingVisit, ...]]:
     """(F3) Make room for a sequence's next visits: insert each, most worth first, delaying what follows it.
 
     A visit goes at the earliest place where it can start at or after its
-    due time inside a window; every later exposure moves by the same delay
-    (its overheads and every cadence stay: a field's later visits only move
-    later), and a field one of whose moved exposures leaves its windows or
-    the horizon is dropped, all of it.  Only visits with a ``worth`` (a
-    covered field's next visit) are placed; the others come back in ``left``.
+    due time inside a window; every later exposure moves by the same delay.
+    A field with visits on both sides of the insertion is stretched by it,
+    and a moved exposure may leave its window, the horizon or (a pending
+    visit) its ``latest_s``: (F9) what then breaks its rules goes, by
+    :func:`trim_to_rules`.  Only visits with a ``worth`` (a covered field's
+    next visit) are placed; the others come back in ``left``.
+
+    Parameters
+    ----------
+    observations : sequence of Observation
+        The plan (s since the start).
+    visits : sequence of PendingVisit
+        The visits no gap took.
+    windows : Windows
+        Observability windows (s since the start) of the plan's and the visits' fields.
+    config : PlanningConfig
+        Exposure, overheads, horizon, sequence, cadence and pair separation.
+    pending : sequence of PendingVisit
+        Every pending visit of the re-plan (those already in the plan
+        included): a field with one is a continuation (F7), held to its
+        visit's ``latest_s``.
 
     Returns
     -------
@@ -313,13 +334,14 @@ def shift_in_completions(observations: Sequence[Observation], visits: Sequence[P
         Visits that found no place.
     """
     plan = sorted(observations, key=lambda o: o.start)
+    latest = {v.field_id: v.latest_s for v in (*pending, *visits) if v.worth is not None}
     left: list[PendingVisit] = []
     for v in sorted(visits, key=lambda v: -(v.worth or 0.0)):
         moved = None if v.worth is None else _shift_in(plan, v, windows, config)
         if moved is None:
             left.append(v)
         else:
-            plan = moved
+            plan = trim_to_rules(moved, latest, windows, config)
     return tuple(plan), tuple(left)
 
 
@@ -341,12 +363,62 @@ def _shift_in(plan: list[Observation], v: PendingVisit, windows: Windows,
             v.ra, v.dec, nxt.ra, nxt.dec, config.slew,
             config.filter_change_s if nxt.filter != v.filter else 0.0)) - nxt.start)
         after = [o if delay == 0.0 else replace(o, start=o.start + delay) for o in plan[i:]]
-        gone = {o.field_id for o in after
-                if o.end > config.horizon_s or not windows.contains(o.field_id, o.start, o.end)}
         block = prev.block if prev is not None else 0
-        visit = Observation(v.field_id, v.ra, v.dec, v.filter, s, exp, block)
-        return [o for o in plan[:i] + [visit] + after if o.field_id not in gone or o is visit]
+        return plan[:i] + [Observation(v.field_id, v.ra, v.dec, v.filter, s, exp, block)] + after
     return None
+
+
+def trim_to_rules(plan: Sequence[Observation], latest: Mapping[int, float], windows: Windows,
+                  config: PlanningConfig) -> list[Observation]:
+    """(F9) Drop what a shift left breaking its field's rules, keeping all the credit F1 allows.
+
+    An exposure is *in place* when it lies inside a window of its field and
+    ends within the horizon.  A continuation (a field in ``latest``: its
+    covering pair is executed, F7) keeps the visits in place that start by
+    its ``latest_s`` (they add no coverage: dropping one loses no credit).
+    A field planned anew (F6) keeps its longest prefix of visits in place,
+    each at least the cadence after the one before, the last at most the
+    pair separation after the first; when that prefix holds the sequence's
+    first two visits (its covering pair: F1 credits it whole) it stays,
+    else the field goes, all of it (a lone first visit is credited
+    nothing).  Removing exposures never breaks the overheads of the rest.
+
+    Parameters
+    ----------
+    plan : sequence of Observation
+        In time order (s since the start).
+    latest : mapping of int to float
+        Continuing field -> latest start of its next visit (s).
+    windows : Windows
+    config : PlanningConfig
+
+    Returns
+    -------
+    list of Observation
+        ``plan`` without the exposures that break their field's rules, in time order.
+    """
+    tol = 1e-3
+    credited = min(2, len(config.filters))
+    keep: set[int] = set()
+    by_field: dict[int, list[int]] = {}
+    for i, o in enumerate(plan):
+        by_field.setdefault(o.field_id, []).append(i)
+    for fid, rows in by_field.items():
+        in_place = [i for i in rows if plan[i].end <= config.horizon_s + tol
+                    and windows.contains(fid, plan[i].start + tol, plan[i].end - tol)]
+        if fid in latest:
+            keep.update(i for i in in_place if plan[i].start <= latest[fid] + tol)
+            continue
+        prefix = [rows[0]] if rows[0] in in_place else []
+        for i in rows[1:] if prefix else ():
+            first, last = plan[prefix[0]], plan[prefix[-1]]
+            if (i not in in_place or plan[i].start - last.start < config.cadence_s - tol
+                    or plan[i].start - first.start > config.pair_separation_s + tol):
+                break
+            prefix.append(i)
+        if len(prefix) >= credited:
+            keep.update(prefix)
+    return [o for i, o in enumerate(plan) if i in keep]
 
 
 def _place(plan: list[Observation], v: PendingVisit, windows: Windows,

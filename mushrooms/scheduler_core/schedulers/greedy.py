@@ -9,8 +9,9 @@ observed once per filter of the sequence (``config.filters``: two passes
 for the pair g, r; three for g, r, g), each pass a cadence after the one
 before for every field.  A field is only taken when it is observable now
 and (by estimate) when its later visits fall due; when the real times of a
-batch put an exposure outside a window, that field is dropped and the batch
-re-timed.  When nothing is observable, the clock jumps to the next window
+batch put an exposure outside a window, or (a sequence other than a pair,
+F6) spread a field's visits over more than the pair separation, that field
+is dropped and the batch re-timed.  When nothing is observable, the clock jumps to the next window
 opening.
 """
 
@@ -244,12 +245,14 @@ class _Greedy:
         return max(float(later.min()), self.free_at + self.cfg.time_step_s / 2)
 
     def time_batch(self, batch: list[int], saved: np.ndarray) -> tuple[list[int], np.ndarray]:
-        """Time every pass; drop the fields whose real times leave their windows (re-timing the rest)."""
+        """Time every pass; drop the fields whose real times leave their windows or (F6) span (re-timing the rest)."""
         starts = np.empty((len(self.cfg.filters), 0))
         while batch:
             starts = time_passes(self.problem, batch, self.free_at, self.previous)
             rows = np.asarray(batch)
             ok = starts[-1] + self.exp <= self.cfg.horizon_s
+            if len(self.cfg.filters) != 2:  # (F6) a sequence's visits within the pair separation of its first
+                ok &= starts[-1] - starts[0] <= self.cfg.pair_separation_s
             for pass_starts in starts:
                 ok &= _observable_each(self.w_rows, self.w_start, self.w_end, rows, pass_starts, self.exp)
             if ok.all():
