@@ -183,6 +183,7 @@ def solve_milp(
     threads: int = 0,
     should_stop: StopCheck | None = None,
     start: np.ndarray | None = None,
+    abs_gap: float = 0.0,
 ) -> SolveResult:
     """Solve a :class:`MilpModel` with HiGHS or Gurobi.
 
@@ -203,6 +204,11 @@ def solve_milp(
         incumbent, if any, is kept; status ``interrupted``).
     start : numpy.ndarray, optional
         A feasible (or partial) solution to start from.
+    abs_gap : float
+        Absolute gap (objective units) at which to stop as well: a caller
+        that only wants a solution better than its start by more than this
+        (e.g. ``min_gain``) stops as soon as the bound proves there is none
+        (V6), instead of at the time limit.  0: the relative gap alone.
 
     Returns
     -------
@@ -213,19 +219,19 @@ def solve_milp(
     backend = resolve_backend(backend)
     if backend == "gurobi":
         try:
-            return _solve_gurobi(model, time_limit_s, mip_gap, threads, should_stop, start)
+            return _solve_gurobi(model, time_limit_s, mip_gap, threads, should_stop, start, abs_gap)
         except _GurobiUnavailable as exc:
             log.warning("Gurobi unavailable (%s); solving with HiGHS", exc)
-            result = _solve_highs(model, time_limit_s, mip_gap, threads, should_stop, start)
+            result = _solve_highs(model, time_limit_s, mip_gap, threads, should_stop, start, abs_gap)
             result.note = f"gurobi fallback: {exc}"
             return result
-    return _solve_highs(model, time_limit_s, mip_gap, threads, should_stop, start)
+    return _solve_highs(model, time_limit_s, mip_gap, threads, should_stop, start, abs_gap)
 
 
 # --------------------------------------------------------------------- HiGHS
 
 def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads: int,
-                 should_stop: StopCheck | None, start: np.ndarray | None) -> SolveResult:
+                 should_stop: StopCheck | None, start: np.ndarray | None, abs_gap: float = 0.0) -> SolveResult:
     import highspy
 
     t0 = time.perf_counter()
@@ -240,6 +246,8 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
     h.setOptionValue("output_flag", False)
     h.setOptionValue("time_limit", float(max(time_limit_s, 0.01)))
     h.setOptionValue("mip_rel_gap", float(mip_gap))
+    if abs_gap > 0:
+        h.setOptionValue("mip_abs_gap", float(abs_gap))
     h.setOptionValue("random_seed", 0)
     if threads > 0:
         h.setOptionValue("threads", int(threads))
@@ -391,7 +399,7 @@ def gurobi_fully_licensed() -> bool:
 
 
 def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads: int,
-                  should_stop: StopCheck | None, start: np.ndarray | None) -> SolveResult:
+                  should_stop: StopCheck | None, start: np.ndarray | None, abs_gap: float = 0.0) -> SolveResult:
     gp, env = _gurobi_env()
     GRB = gp.GRB
     t0 = time.perf_counter()
@@ -401,6 +409,8 @@ def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads
         m = gp.Model(env=env)
         m.Params.TimeLimit = float(max(time_limit_s, 0.01))
         m.Params.MIPGap = float(mip_gap)
+        if abs_gap > 0:
+            m.Params.MIPGapAbs = float(abs_gap)
         m.Params.Seed = 0
         if threads > 0:
             m.Params.Threads = int(threads)
