@@ -93,3 +93,15 @@ def test_no_incumbent_falls_back_to_greedy(monkeypatch):
     result = milp.milp_schedule(problem, should_stop=lambda: True)    # ... and stop at once
     assert result.status == "no_incumbent_greedy_fallback"
     assert result.details["attempts"][0]["objective"] is None
+
+
+def test_a_whole_call_budget_spent_by_the_first_solve_leaves_no_re_solve():
+    # a portfolio's block stage: its re-solves come out of the stage's budget, not on top of it
+    cfg = tiny_config(slew_estimate_s=1.0, cadence_s=232.0, max_retries=2)
+    problem = tiny_problem(cfg, window_5=(3000.0, 3440.0))
+    spent = milp.milp_schedule(problem, total_s=milp.MIN_RESOLVE_S / 100)
+    assert spent.details["retries"] == 0
+    assert spent.dropped_by_slews == (5,)  # the first solve's plan, its offending field dropped
+    assert check_observations(problem, spent.observations) == []
+    roomy = milp.milp_schedule(problem, total_s=60.0)
+    assert roomy.details["retries"] == 1 and roomy.dropped_by_slews == ()
