@@ -457,7 +457,8 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
                               min(SLICE_LIMIT_S, left, idle_left), should_stop, max_free)
         new = _state(problem, plan, memo) if plan is not None else None
         if new is not None and state.beaten_by(new):  # (H5) strictly better only
-            log.info("lns: slice %s s: coverage %.5f -> %.5f", _name(intervals), state.coverage, new.coverage)
+            log.info("lns: slice %s s: coverage %.5f -> %.5f (executed %.5f -> %.5f)", _name(intervals),
+                     state.coverage, new.coverage, state.executed, new.executed)
             state = new
             pairs = _pairs_of(problem, plan)
             details["slices_improved"] += 1
@@ -467,6 +468,9 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
             since_gain = 0
             last_gain = time.perf_counter()
         else:
+            if new is not None and new.executed < state.executed - MIN_IMPROVEMENT:
+                log.info("lns: slice %s s: coverage %.5f -> %.5f refused: executed %.5f -> %.5f (Q14)",
+                         _name(intervals), state.coverage, new.coverage, state.executed, new.executed)
             since_gain += 1
     status = "interrupted" if interrupted else ("improved" if state is not seed_state else "no_improvement")
     if state is seed_state:  # unchanged: the seed's own observations, in its order
