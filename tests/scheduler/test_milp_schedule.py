@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 import mushrooms.scheduler_core.schedulers.block_schedule as milp
-from conftest_milp import TINY_BLOCKS, check_observations, random_problem, tiny_config, tiny_problem
+from conftest_milp import TINY_BLOCKS, TINY_OPTIMUM, check_observations, random_problem, tiny_config, tiny_problem
 
 
 @pytest.mark.parametrize("backend", ["highs", "gurobi"])
@@ -105,3 +105,13 @@ def test_a_whole_call_budget_spent_by_the_first_solve_leaves_no_re_solve():
     assert check_observations(problem, spent.observations) == []
     roomy = milp.milp_schedule(problem, total_s=60.0)
     assert roomy.details["retries"] == 1 and roomy.dropped_by_slews == ()
+
+
+def test_a_cutoff_above_the_optimum_ends_the_solve_with_no_plan_and_one_below_changes_nothing():
+    problem = tiny_problem(tiny_config())
+    beaten = milp.milp_schedule(problem, cutoff=TINY_OPTIMUM + 0.01)  # the bound proves no plan reaches it
+    assert beaten.status == "cutoff" and beaten.observations == ()
+    assert beaten.mip_bound is None or beaten.mip_bound < TINY_OPTIMUM + 0.01
+    reached = milp.milp_schedule(problem, cutoff=TINY_OPTIMUM - 0.01)
+    plain = milp.milp_schedule(problem)
+    assert reached.status == "optimal" and reached.observations == plain.observations

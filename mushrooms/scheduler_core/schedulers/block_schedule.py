@@ -279,7 +279,7 @@ MIN_RESOLVE_S = 0.2
 
 
 def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None,
-                  total_s: float | None = None) -> ScheduleResult:
+                  total_s: float | None = None, cutoff: float | None = None) -> ScheduleResult:
     """Plan the horizon with MUSHROOMS (pruning, block MILP, TSP, post-processing).
 
     Parameters
@@ -295,6 +295,11 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
         portfolio's stage): each solve gets at most what is left of it, and
         no re-solve starts with less than :data:`MIN_RESOLVE_S` left.  None:
         the first solve gets ``time_limit_s``, each re-solve its own share.
+    cutoff : float, optional
+        Coverage the plan must beat to matter (a portfolio's best plan so
+        far plus ``min_gain``): the solve stops as soon as its bound proves
+        no block plan reaches it (the executable plan covers no more than the
+        MILP's objective), and the result is then empty, status ``cutoff``.
 
     Returns
     -------
@@ -336,8 +341,12 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
                 break  # the stage's budget is spent: the best plan so far
             limit = min(limit, max(left, 0.01))
         res = solve_milp(model.milp, cfg.milp_backend, limit, cfg.mip_gap, cfg.threads, should_stop,
-                         start=start)
+                         start=start, cutoff=cutoff)
         attempts.append(_attempt_record(model, start, res))
+        if res.status == "cutoff":  # (V6) its own relaxation: no block plan beats the cutoff
+            details.update(attempts=attempts, cutoff=cutoff)
+            return ScheduleResult((), f"milp:{res.backend}", "cutoff", res.gap, time.perf_counter() - t_wall,
+                                  details, mip_bound=res.bound)
         if attempt == 0:
             details.update(model_size=model.milp.size(), backend=res.backend, backend_note=res.note,
                            time_to_first_s=res.time_to_first_s, time_to_gap_s=res.time_to_gap_s)

@@ -133,6 +133,10 @@ def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
                  earlier: Mapping[str, ScheduleResult], left_s: float) -> ScheduleResult:
     """The block MILP with what is left, at most :data:`BLOCKS_LIMIT_S`, its re-solves included.
 
+    Its solve stops as soon as its bound proves no block plan covers more
+    than the best plan of the stages before it plus ``min_gain`` (V6; the
+    result is then empty, status ``cutoff``).
+
     It is a coverage scheduler: its budget is that, whatever the objective
     (a detection config would refuse a budget shorter than its detection
     stage's share).
@@ -142,7 +146,10 @@ def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     limit = min(left_s, BLOCKS_LIMIT_S)
     timed = dataclasses.replace(problem, config=dataclasses.replace(
         problem.config, time_limit_s=limit, objective="coverage"))
-    return milp_schedule(timed, should_stop, total_s=limit)  # its re-solves within the stage's budget too
+    # (V6) it matters only if it beats the best plan so far by min_gain: its solve stops once its bound says no
+    best = max((published_coverage(problem, r) for r in earlier.values()), default=None)
+    cutoff = None if best is None or problem.config.penalty else best + problem.config.min_gain
+    return milp_schedule(timed, should_stop, total_s=limit, cutoff=cutoff)  # re-solves within the budget too
 
 
 def reaches_bound(coverage: float, bound: UpperBound, min_gain: float = 0.0) -> bool:
