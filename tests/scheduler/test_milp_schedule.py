@@ -115,3 +115,18 @@ def test_a_cutoff_above_the_optimum_ends_the_solve_with_no_plan_and_one_below_ch
     reached = milp.milp_schedule(problem, cutoff=TINY_OPTIMUM - 0.01)
     plain = milp.milp_schedule(problem)
     assert reached.status == "optimal" and reached.observations == plain.observations
+
+
+def test_the_hybrid_s_block_stage_stops_when_it_cannot_beat_the_best_plan_by_min_gain():
+    import dataclasses
+
+    from mushrooms.scheduler_core.schedulers.portfolio import blocks_stage
+
+    problem = tiny_problem(tiny_config(penalty=0.0, min_gain=0.001))
+    alone = blocks_stage(problem, None, {}, 5.0)
+    assert alone.observations and alone.status == "optimal"
+    beaten = blocks_stage(problem, None, {"slots": alone}, 5.0)  # the same plan already found: it cannot gain
+    assert beaten.status == "cutoff" and beaten.observations == ()
+    gone = alone.observations[0].field_id
+    thinner = dataclasses.replace(alone, observations=tuple(o for o in alone.observations if o.field_id != gone))
+    assert blocks_stage(problem, None, {"slots": thinner}, 5.0).observations == alone.observations
