@@ -157,10 +157,7 @@ def run(args: argparse.Namespace) -> int:
         _write_not_observable(args, answer, plan, skymap, cfg, outputs, t0)
         return 0
     write_json_atomic(args.output, doc)
-    if args.queue:
-        write_json_atomic(args.queue, submitted_queues(plan, config.export))
-    if getattr(args, "skyportal", None):
-        write_json_atomic(args.skyportal, submitted_skyportal(plan, config.export))
+    _write_submissions(args.queue, getattr(args, "skyportal", None), plan, config.export)
     picture = _write_summary(args, doc, plan, skymap)
     progress.done()
     if args.plot:
@@ -333,25 +330,40 @@ def read_executed(spec: str, around: Any | None) -> tuple[Any, ...]:
     return tuple(exposures)
 
 
-def submitted_queues(plan: Any, export: Any) -> Any:
-    """What the daemon submits to Kowalski for ``plan`` as revision 1: one queue, or a list in submission order."""
+def _write_submissions(queue_path: str | None, skyportal_path: str | None, plan: Any, export: Any) -> None:
+    """``--queue`` and ``--skyportal`` files: both from one timing of the plan's queue set."""
+    from ..outputs import write_json_atomic
+
+    if not (queue_path or skyportal_path):
+        return
+    passes = None
+    if queue_path:
+        from ..scheduler_core.plan.exports import timed_passes
+
+        passes = timed_passes(plan, export, _submission_base(plan, export))
+        write_json_atomic(queue_path, passes.queues[0] if len(passes.queues) == 1 else passes.queues)
+    if skyportal_path:
+        write_json_atomic(skyportal_path, submitted_skyportal(plan, export, passes))
+
+
+def _submission_base(plan: Any, export: Any) -> str:
+    """The name base of revision 1's queues (``ToO_<subprogram>_<superevent>_r1``)."""
     from ..daemon.submission.submitter import queue_name
-    from ..scheduler_core.plan.exports import to_trigger_queues
 
-    base = queue_name(export.subprogram_name, plan.event.superevent_id or plan.plan_id, 1)
-    queues = to_trigger_queues(plan, export, name_base=base)
-    return queues[0] if len(queues) == 1 else queues
+    return queue_name(export.subprogram_name, plan.event.superevent_id or plan.plan_id, 1)
 
 
-def submitted_skyportal(plan: Any, export: Any) -> Any:
-    """What the daemon POSTs to SkyPortal for ``plan`` as revision 1: one plan, or a list in submission order."""
-    from ..daemon.submission.submitter import queue_name
+def submitted_skyportal(plan: Any, export: Any, passes: Any = None) -> Any:
+    """What the daemon POSTs to SkyPortal for ``plan`` as revision 1: one plan, or a list in submission order.
+
+    ``passes``: revision 1's timed queue set (:func:`~..scheduler_core.plan.exports.timed_passes`), if known.
+    """
     from ..scheduler_core.errors import InputError
     from ..scheduler_core.plan.exports import to_skyportal_plans
 
-    base = queue_name(export.subprogram_name, plan.event.superevent_id or plan.plan_id, 1).removeprefix("ToO_")
+    base = _submission_base(plan, export).removeprefix("ToO_")
     try:
-        plans = to_skyportal_plans(plan, export, name_base=base)
+        plans = to_skyportal_plans(plan, export, name_base=base, passes=passes)
     except ValueError as exc:  # no event time, or no pass opens before the plan's end: one line
         raise InputError(f"--skyportal: {exc}") from None
     return plans[0] if len(plans) == 1 else plans
@@ -377,10 +389,9 @@ def _write_night(args: argparse.Namespace, config: Any, skymap: Any, plan: Any, 
     doc = revision_document(plan, 1, True)
     write_json_atomic(output, doc)
     picture = _write_summary(argparse.Namespace(**{**vars(args), "output": output}), doc, plan, skymap)
-    if args.queue:
-        write_json_atomic(night_path(args.queue, n), submitted_queues(plan, config.export))
-    if getattr(args, "skyportal", None):
-        write_json_atomic(night_path(args.skyportal, n), submitted_skyportal(plan, config.export))
+    skyportal = getattr(args, "skyportal", None)
+    _write_submissions(args.queue and night_path(args.queue, n), skyportal and night_path(skyportal, n), plan,
+                       config.export)
     if args.plot and picture is not None:
         write_bytes_atomic(night_path(args.plot, n), picture)
     _print_answer(argparse.Namespace(**{**vars(args), "output": output}), output, doc,

@@ -128,3 +128,21 @@ def test_gurobi_size_limit_falls_back_to_highs(caplog):
     assert res.has_solution
     assert sum("solving with HiGHS" in r.message for r in caplog.records) == 1
     assert solve_milp(model, "auto", time_limit_s=5).backend == "highs"
+
+
+def test_an_absolute_gap_stops_the_solve_once_the_bound_is_that_close():
+    model = _knapsack(200, seed=5)  # proving the optimum takes HiGHS about 40 s
+    tight = solve_milp(model, "highs", time_limit_s=5, mip_gap=0.0)
+    assert tight.status == "time_limit"
+    loose = solve_milp(model, "highs", time_limit_s=5, mip_gap=0.0, abs_gap=50.0)
+    assert loose.status == "optimal"  # the bound within 50 of the incumbent: proven to within that
+    assert 0.0 <= loose.bound - loose.objective <= 50.0 + 1e-6
+    assert loose.objective >= tight.bound - 50.0 - 1e-6
+
+
+@pytest.mark.parametrize("backend", ["highs", "gurobi"])
+def test_a_cutoff_the_bound_cannot_reach_stops_the_solve(backend):
+    model = _knapsack(200, seed=5)  # optimum 3373; proving it takes HiGHS about 40 s
+    res = solve_milp(model, backend, time_limit_s=20, mip_gap=0.0, cutoff=4000.0)
+    assert res.status == "cutoff"
+    assert res.bound is None or res.bound < 4000.0

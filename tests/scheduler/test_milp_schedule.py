@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 import mushrooms.scheduler_core.schedulers.block_schedule as milp
-from conftest_milp import TINY_BLOCKS, check_observations, random_problem, tiny_config, tiny_problem
+from conftest_milp import TINY_BLOCKS, TINY_OPTIMUM, check_observations, random_problem, tiny_config, tiny_problem
 
 
 @pytest.mark.parametrize("backend", ["highs", "gurobi"])
@@ -93,3 +93,40 @@ def test_no_incumbent_falls_back_to_greedy(monkeypatch):
     result = milp.milp_schedule(problem, should_stop=lambda: True)    # ... and stop at once
     assert result.status == "no_incumbent_greedy_fallback"
     assert result.details["attempts"][0]["objective"] is None
+
+
+def test_a_whole_call_budget_spent_by_the_first_solve_leaves_no_re_solve():
+    # a portfolio's block stage: its re-solves come out of the stage's budget, not on top of it
+    cfg = tiny_config(slew_estimate_s=1.0, cadence_s=232.0, max_retries=2)
+    problem = tiny_problem(cfg, window_5=(3000.0, 3440.0))
+    spent = milp.milp_schedule(problem, total_s=milp.MIN_RESOLVE_S / 100)
+    assert spent.details["retries"] == 0
+    assert spent.dropped_by_slews == (5,)  # the first solve's plan, its offending field dropped
+    assert check_observations(problem, spent.observations) == []
+    roomy = milp.milp_schedule(problem, total_s=60.0)
+    assert roomy.details["retries"] == 1 and roomy.dropped_by_slews == ()
+
+
+def test_a_cutoff_above_the_optimum_ends_the_solve_with_no_plan_and_one_below_changes_nothing():
+    problem = tiny_problem(tiny_config())
+    beaten = milp.milp_schedule(problem, cutoff=TINY_OPTIMUM + 0.01)  # the bound proves no plan reaches it
+    assert beaten.status == "cutoff" and beaten.observations == ()
+    assert beaten.mip_bound is None or beaten.mip_bound < TINY_OPTIMUM + 0.01
+    reached = milp.milp_schedule(problem, cutoff=TINY_OPTIMUM - 0.01)
+    plain = milp.milp_schedule(problem)
+    assert reached.status == "optimal" and reached.observations == plain.observations
+
+
+def test_the_hybrid_s_block_stage_stops_when_it_cannot_beat_the_best_plan_by_min_gain():
+    import dataclasses
+
+    from mushrooms.scheduler_core.schedulers.portfolio import blocks_stage
+
+    problem = tiny_problem(tiny_config(penalty=0.0, min_gain=0.001))
+    alone = blocks_stage(problem, None, {}, 5.0)
+    assert alone.observations and alone.status == "optimal"
+    beaten = blocks_stage(problem, None, {"slots": alone}, 5.0)  # the same plan already found: it cannot gain
+    assert beaten.status == "cutoff" and beaten.observations == ()
+    gone = alone.observations[0].field_id
+    thinner = dataclasses.replace(alone, observations=tuple(o for o in alone.observations if o.field_id != gone))
+    assert blocks_stage(problem, None, {"slots": thinner}, 5.0).observations == alone.observations

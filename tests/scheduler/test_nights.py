@@ -112,3 +112,34 @@ def test_revisit_false_keeps_plan_ids():
     # revisit is recorded only when true: the documents (and plan ids) of other plans do not change
     assert "revisit" not in PlanningConfig().record()
     assert PlanningConfig(revisit=True).record()["revisit"] is True
+
+
+def astropy_night(start: Time, sun_limit_deg: float) -> tuple[Time, Time]:
+    """The first night's window from astropy's Sun at every step of the same grid (the twilights' old way)."""
+    from mushrooms.scheduler_core.sky.visibility import GRID_ANCHOR, NIGHT_S
+
+    t0 = float((start - GRID_ANCHOR).to_value("s"))
+    block = int(np.floor(t0 / NIGHT_S))
+    for b in (block, block + 1):
+        offsets = np.arange(b * NIGHT_S, (b + 1) * NIGHT_S, NIGHT_GRID_S)
+        offsets = offsets[offsets >= t0 - 1e-6]
+        times = GRID_ANCHOR + TimeDelta(offsets, format="sec")
+        dark = np.flatnonzero(sun_alt(times) <= sun_limit_deg) if offsets.size else []
+        if len(dark):
+            return times[dark[0]], times[dark[-1]]
+    raise AssertionError("no night")
+
+
+@pytest.mark.parametrize("limit", [-12.0, -18.0])
+def test_twilights_from_the_ephemeris_are_astropy_s_to_within_one_grid_step(limit):
+    config = dataclasses.replace(CFG, sun_alt_max_deg=limit)
+    moved = 0
+    for day in range(0, 365, 23):  # the year round: short and long nights, both twilights
+        start = Time("2026-01-03T18:00:00", scale="utc") + TimeDelta(day * 86400.0, format="sec")
+        (evening, morning), = night_windows(start, config, 1)
+        old_evening, old_morning = astropy_night(start, limit)
+        for new, old in ((evening, old_evening), (morning, old_morning)):
+            step = abs(float((new - old).to_value("s")))
+            assert step <= NIGHT_GRID_S + 1e-3
+            moved += step > 1e-3
+    assert moved <= 4  # most twilights do not move at all

@@ -69,3 +69,16 @@ def test_the_single_plan_switch_gives_one_plan_over_the_plans_window(planned):
 def test_an_unknown_skyportal_plans_value_is_refused_in_one_line():
     with pytest.raises(ValueError, match="skyportal_plans must be per_pass or single, got 'per_block'"):
         ExportConfig(skyportal_plans="per_block")
+
+
+def test_plans_from_the_queue_set_already_timed_are_those_timed_again(planned):
+    from mushrooms.scheduler_core.plan.exports import timed_passes
+
+    _, _, plan, _ = planned
+    passes = timed_passes(plan, EXPORT, "ToO_GW_S1_r2")
+    assert passes.queues == to_trigger_queues(plan, EXPORT, name_base="ToO_GW_S1_r2")
+    again = to_skyportal_plans(plan, EXPORT, name_base="GW_S1_r2")
+    assert to_skyportal_plans(plan, EXPORT, name_base="GW_S1_r2", passes=passes) == again
+    # a set timed under another name is not taken for this one
+    other = timed_passes(plan, EXPORT, "ToO_other_r1")
+    assert to_skyportal_plans(plan, EXPORT, name_base="GW_S1_r2", passes=other) == again

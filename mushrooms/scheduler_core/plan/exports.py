@@ -35,7 +35,7 @@ from ..tables import dataclass_from_table
 if TYPE_CHECKING:  # an annotation only: reading [export] imports no numpy/astropy (the document does)
     from .document import Plan
 
-__all__ = ["ExportConfig", "to_trigger_queue", "to_trigger_queues", "timed_queue_set", "filter_passes", "to_skyportal", "to_skyportal_plans", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
+__all__ = ["ExportConfig", "to_trigger_queue", "to_trigger_queues", "timed_queue_set", "timed_passes", "TimedPasses", "filter_passes", "to_skyportal", "to_skyportal_plans", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
 
 #: ZTF queue filter ids.
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
@@ -250,6 +250,21 @@ def _timed_passes(plan: "Plan", export: ExportConfig, name_base: str | None, sla
     return out, kept, sky
 
 
+@dataclass(frozen=True)
+class TimedPasses:
+    """A plan's timed queue set (:func:`to_trigger_queues`) and the observation rows ``[a, b)`` of each queue."""
+
+    queues: list[dict[str, Any]]
+    rows: list[tuple[int, int]]
+
+
+def timed_passes(plan: "Plan", export: ExportConfig = ExportConfig(), name_base: str | None = None) -> TimedPasses:
+    """:func:`to_trigger_queues` (robust closes) with each queue's observation rows, timed once for both
+    the queues and :func:`to_skyportal_plans` (give it ``passes``)."""
+    out, kept, _ = _timed_passes(plan, export, name_base, None, True)
+    return TimedPasses(out, kept)
+
+
 def _field_weight(o: Any) -> float:
     """What a field's pair is worth when the closes are chosen (Q17): its share, else its probability, else 1."""
     for value in (o.probability_share, o.probability):
@@ -334,7 +349,8 @@ def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization
 
 
 def to_skyportal_plans(plan: "Plan", export: ExportConfig = ExportConfig(), name_base: str | None = None,
-                       localization_name: str | None = None) -> list[dict[str, Any]]:
+                       localization_name: str | None = None, passes: "TimedPasses | None" = None
+                       ) -> list[dict[str, Any]]:
     """The plan as the SkyPortal observation plans to POST, in submission order (``[export] skyportal_plans``).
 
     ``per_pass``: one plan per queue of :func:`to_trigger_queues` (the same
@@ -358,6 +374,10 @@ def to_skyportal_plans(plan: "Plan", export: ExportConfig = ExportConfig(), name
         :func:`to_skyportal`.
     localization_name : str, optional
         As :func:`to_skyportal`.
+    passes : TimedPasses, optional
+        The plan's timed queue set named ``f"ToO_{name_base}"``
+        (:func:`timed_passes`), when the caller already has it (the queues
+        submitted beside): the windows are then not timed again.
 
     Raises
     ------
@@ -370,7 +390,9 @@ def to_skyportal_plans(plan: "Plan", export: ExportConfig = ExportConfig(), name
     whole["payload"] = dict(whole["payload"], queue_name=base)
     if export.skyportal_plans == "single":
         return [whole]
-    queues, kept, _ = _timed_passes(plan, export, f"ToO_{base}", None, True)
+    if passes is None or (passes.queues and not passes.queues[0]["queue_name"].startswith(f"ToO_{base}_")):
+        passes = timed_passes(plan, export, f"ToO_{base}")
+    queues, kept = passes.queues, passes.rows
     if not queues:
         raise ValueError(f"plan {plan.plan_id}: no filter pass opens before the plan's end: no SkyPortal plan")
     planned = whole["observation_plans"][0]["planned_observations"]

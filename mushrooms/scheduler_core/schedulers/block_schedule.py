@@ -274,7 +274,12 @@ def _executable(problem: PlanningProblem, model: BlockModel, x: np.ndarray, rows
     return blocks, timed, valid, dropped, coverage
 
 
-def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None) -> ScheduleResult:
+#: With a whole-call budget (``milp_schedule(total_s=...)``), no re-solve starts with less than this (s) left.
+MIN_RESOLVE_S = 0.2
+
+
+def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None,
+                  total_s: float | None = None, cutoff: float | None = None) -> ScheduleResult:
     """Plan the horizon with MUSHROOMS (pruning, block MILP, TSP, post-processing).
 
     Parameters
@@ -285,6 +290,16 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
         ``time_limit_s``, ``mip_gap``, ``threads``, ``max_retries``, ...).
     should_stop : callable, optional
         Polled by the solver; True interrupts it (the incumbent is used).
+    total_s : float, optional
+        Wall-clock budget (s) of the whole call, re-solves included (a
+        portfolio's stage): each solve gets at most what is left of it, and
+        no re-solve starts with less than :data:`MIN_RESOLVE_S` left.  None:
+        the first solve gets ``time_limit_s``, each re-solve its own share.
+    cutoff : float, optional
+        Coverage the plan must beat to matter (a portfolio's best plan so
+        far plus ``min_gain``): the solve stops as soon as its bound proves
+        no block plan reaches it (the executable plan covers no more than the
+        MILP's objective), and the result is then empty, status ``cutoff``.
 
     Returns
     -------
@@ -320,9 +335,18 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
         start = heuristic_start(model, candidates, cells, p)
         # a re-solve only moves blocks a little: it gets a third of the limit (at least 5 s)
         limit = cfg.time_limit_s if attempt == 0 else max(min(5.0, cfg.time_limit_s), cfg.time_limit_s / 3)
+        if total_s is not None:
+            left = total_s - (time.perf_counter() - t_wall)
+            if attempt > 0 and left < MIN_RESOLVE_S:
+                break  # the stage's budget is spent: the best plan so far
+            limit = min(limit, max(left, 0.01))
         res = solve_milp(model.milp, cfg.milp_backend, limit, cfg.mip_gap, cfg.threads, should_stop,
-                         start=start)
+                         start=start, cutoff=cutoff)
         attempts.append(_attempt_record(model, start, res))
+        if res.status == "cutoff":  # (V6) its own relaxation: no block plan beats the cutoff
+            details.update(attempts=attempts, cutoff=cutoff)
+            return ScheduleResult((), f"milp:{res.backend}", "cutoff", res.gap, time.perf_counter() - t_wall,
+                                  details, mip_bound=res.bound)
         if attempt == 0:
             details.update(model_size=model.milp.size(), backend=res.backend, backend_note=res.note,
                            time_to_first_s=res.time_to_first_s, time_to_gap_s=res.time_to_gap_s)

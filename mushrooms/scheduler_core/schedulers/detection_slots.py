@@ -288,7 +288,9 @@ class _Stage:
         else:
             limit = left * FIRST_GRID_SHARE if i == 0 else left / max(n_grids - i, 1)
         limit = max(limit, min(left, MIN_SOLVE_S))
-        res = solve_milp(model.milp, self.backend, limit, cfg.mip_gap, cfg.threads, self.should_stop, start=x0)
+        # (V6) stop once the bound proves no solution beats the incumbent by min_gain
+        res = solve_milp(model.milp, self.backend, limit, cfg.mip_gap, cfg.threads, self.should_stop, start=x0,
+                         abs_gap=cfg.min_gain)
         if not res.has_solution:
             return {"grid": grid.name, "status": res.status}, None, False
         t_post = time.perf_counter()

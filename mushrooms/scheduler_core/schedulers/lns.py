@@ -26,7 +26,12 @@ takes the best plan so far and repeatedly
 
 It stops when the budget ends, ``should_stop`` says so, the plan is
 within ``min_gain`` of the certified bound (``enough``), or a whole round
-of slices or :data:`MAX_IDLE_S` seconds bring nothing.
+of slices or :data:`MAX_IDLE_S` seconds bring nothing (a slice's solve
+never runs past that idle stop, and stops as soon as its bound proves it
+cannot add ``min_gain``).  A slice's plan replaces the incumbent only when
+ZTF's scheduler executes it no worse (H5, :mod:`..telescope.coverage`):
+a plan packed to the cadence and the night's end loses what the executor's
+later start of each pass pushes out of the night.
 """
 
 from __future__ import annotations
@@ -114,24 +119,35 @@ def plan_rule_problems(problem: PlanningProblem, observations: Sequence[Observat
 
 @dataclass
 class _State:
-    """The incumbent: its observations and what they cover (as published, after the least-gain rule; raw)."""
+    """The incumbent: its observations and what they cover (as published, after the least-gain rule; raw; as
+    ZTF's scheduler executes its queues, Q14)."""
 
     observations: list[Observation]
     published: float
     coverage: float
+    executed: float
 
     def beaten_by(self, other: "_State") -> bool:
-        """(H5) ``other`` publishes more, or as much (within :data:`MIN_IMPROVEMENT`) and covers more raw."""
+        """(H5) ``other`` executes no worse, and publishes more, or as much (within :data:`MIN_IMPROVEMENT`)
+        and covers more raw."""
+        if other.executed < self.executed - MIN_IMPROVEMENT:
+            return False
         if other.published > self.published + MIN_IMPROVEMENT:
             return True
         return other.published >= self.published - MIN_IMPROVEMENT and other.coverage > self.coverage + MIN_IMPROVEMENT
 
 
-def _state(problem: PlanningProblem, observations: Sequence[Observation]) -> _State:
+def _state(problem: PlanningProblem, observations: Sequence[Observation], memo: dict[tuple, float]) -> _State:
+    """The state of a plan; ``memo`` (:func:`~..telescope.coverage.execution_key` -> executed coverage) is filled."""
+    from ..telescope.coverage import keyed_coverage_as_executed
+
     obs = sorted(observations, key=lambda o: o.start)
     res = ScheduleResult(tuple(obs), "lns", "", None, 0.0)
+    key, executed = keyed_coverage_as_executed(problem, res, memo)
+    if key is not None:
+        memo[key] = executed
     return _State(obs, published_coverage(problem, res),
-                  problem.footprints.coverage({o.field_id for o in obs}, problem.prob))
+                  problem.footprints.coverage({o.field_id for o in obs}, problem.prob), executed)
 
 
 def _pairs_of(problem: PlanningProblem, observations: Sequence[Observation]) -> dict[int, list[Observation]] | None:
@@ -321,7 +337,8 @@ def _resolve_slice(problem: PlanningProblem, state: _State, pairs: dict[int, lis
             col_lo[e] = col_hi[e] = x0[e]
     milp = dataclasses.replace(milp, col_lo=col_lo, col_hi=col_hi)
     start_obj = float(milp.c @ x0)
-    res = solve_milp(milp, "highs", time_limit_s, SLICE_GAP, cfg.threads, should_stop, start=x0)
+    # (V6) a slice that cannot add min_gain to the coverage stops once its bound proves it
+    res = solve_milp(milp, "highs", time_limit_s, SLICE_GAP, cfg.threads, should_stop, start=x0, abs_gap=cfg.min_gain)
     if res.x is None or res.objective is None or res.objective <= start_obj + MIN_IMPROVEMENT:
         return None
     fixed_mask = np.zeros(data.n_fields, bool)
@@ -410,7 +427,11 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
         return result(seed.observations, "no_improvement", seed_cov)
     lo = max(0.0, float(w.start.min()))
     hi = min(problem.horizon_s, float(w.end.max()))
-    state = seed_state = _state(problem, seed.observations)
+    from ..telescope.coverage import AS_EXECUTED_MEMO
+
+    memo: dict[tuple, float] = dict((seed.details or {}).get(AS_EXECUTED_MEMO, {}))
+    details[AS_EXECUTED_MEMO] = memo  # the executed coverage of the seed and every plan scored: the hybrid reuses it
+    state = seed_state = _state(problem, seed.observations, memo)
     interrupted = False
     field_prob = fp.field_probability(problem.prob)
     slices = _slices(problem, state, lo, hi, slice_s, field_prob)
@@ -421,7 +442,8 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
         if should_stop is not None and should_stop():
             interrupted = True
             break
-        if left < MIN_SLICE_S or time.perf_counter() - last_gain > max_idle_s:
+        idle_left = max_idle_s - (time.perf_counter() - last_gain)  # a slice never outlasts the idle stop
+        if min(left, idle_left) < MIN_SLICE_S:
             break
         if enough is not None and state.published >= enough:
             details["stopped_at"] = "bound"
@@ -432,10 +454,11 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
             slices, i = _slices(problem, state, lo, hi, slice_s, field_prob), 0
         details["slices_tried"] += 1
         plan = _resolve_slice(problem, state, pairs, intervals, row_of, pool, pool_ok,
-                              min(SLICE_LIMIT_S, left), should_stop, max_free)
-        new = _state(problem, plan) if plan is not None else None
+                              min(SLICE_LIMIT_S, left, idle_left), should_stop, max_free)
+        new = _state(problem, plan, memo) if plan is not None else None
         if new is not None and state.beaten_by(new):  # (H5) strictly better only
-            log.info("lns: slice %s s: coverage %.5f -> %.5f", _name(intervals), state.coverage, new.coverage)
+            log.info("lns: slice %s s: coverage %.5f -> %.5f (executed %.5f -> %.5f)", _name(intervals),
+                     state.coverage, new.coverage, state.executed, new.executed)
             state = new
             pairs = _pairs_of(problem, plan)
             details["slices_improved"] += 1
@@ -445,6 +468,9 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
             since_gain = 0
             last_gain = time.perf_counter()
         else:
+            if new is not None and new.executed < state.executed - MIN_IMPROVEMENT:
+                log.info("lns: slice %s s: coverage %.5f -> %.5f refused: executed %.5f -> %.5f (Q14)",
+                         _name(intervals), state.coverage, new.coverage, state.executed, new.executed)
             since_gain += 1
     status = "interrupted" if interrupted else ("improved" if state is not seed_state else "no_improvement")
     if state is seed_state:  # unchanged: the seed's own observations, in its order

@@ -131,7 +131,11 @@ def _enough(problem: PlanningProblem, earlier: Mapping[str, ScheduleResult]) -> 
 
 def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
                  earlier: Mapping[str, ScheduleResult], left_s: float) -> ScheduleResult:
-    """The block MILP with what is left, at most :data:`BLOCKS_LIMIT_S`.
+    """The block MILP with what is left, at most :data:`BLOCKS_LIMIT_S`, its re-solves included.
+
+    Its solve stops as soon as its bound proves no block plan covers more
+    than the best plan of the stages before it plus ``min_gain`` (V6; the
+    result is then empty, status ``cutoff``).
 
     It is a coverage scheduler: its budget is that, whatever the objective
     (a detection config would refuse a budget shorter than its detection
@@ -139,9 +143,13 @@ def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     """
     from .block_schedule import milp_schedule
 
+    limit = min(left_s, BLOCKS_LIMIT_S)
     timed = dataclasses.replace(problem, config=dataclasses.replace(
-        problem.config, time_limit_s=min(left_s, BLOCKS_LIMIT_S), objective="coverage"))
-    return milp_schedule(timed, should_stop)
+        problem.config, time_limit_s=limit, objective="coverage"))
+    # (V6) it matters only if it beats the best plan so far by min_gain: its solve stops once its bound says no
+    best = max((published_coverage(problem, r) for r in earlier.values()), default=None)
+    cutoff = None if best is None or problem.config.penalty else best + problem.config.min_gain
+    return milp_schedule(timed, should_stop, total_s=limit, cutoff=cutoff)  # re-solves within the budget too
 
 
 def reaches_bound(coverage: float, bound: UpperBound, min_gain: float = 0.0) -> bool:
@@ -248,12 +256,14 @@ def choose_as_executed(problem: PlanningProblem, ran: dict[str, ScheduleResult],
         the same by :func:`~..telescope.coverage.execution_key` (the memo that
         spares the published plan a second run of the executor).
     """
-    from ..telescope.coverage import keyed_coverage_as_executed
+    from ..telescope.coverage import AS_EXECUTED_MEMO, keyed_coverage_as_executed
 
     names = list(ran)
     order = sorted(names, key=lambda n: (-covs[n], names.index(n)))
     executed: dict[str, float] = {}
     memo: dict[tuple, float] = {}
+    for n in names:  # what a stage already knows (the LNS scores its seed and its plans as executed)
+        memo.update((ran[n].details or {}).get(AS_EXECUTED_MEMO, {}))
     for n in order:
         if executed and covs[n] <= max(executed.values()) + 1e-12:
             break

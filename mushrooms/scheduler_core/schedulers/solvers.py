@@ -20,7 +20,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -160,11 +160,14 @@ class _Progress:
         self.first: float | None = None
         self.at_gap: float | None = None
         self.trace: list[tuple[float, float, float]] = []
+        self.bound = math.inf  # the latest dual bound reported
 
     def update(self, objective: float, bound: float) -> None:
         # the solvers report "none yet" as +-inf (HiGHS) or +-1e100 (Gurobi)
         objective = objective if abs(objective) < 1e99 else math.inf
         bound = bound if abs(bound) < 1e99 else math.inf
+        if math.isfinite(bound):
+            self.bound = float(bound)
         now = time.perf_counter() - self.t0
         if math.isfinite(objective) and self.first is None:
             self.first = now
@@ -175,6 +178,20 @@ class _Progress:
             self.trace.append((now, float(objective), float(bound)))
 
 
+def _stop_check(progress: _Progress, should_stop: StopCheck | None, cutoff: float | None
+                ) -> tuple[Callable[[], bool], list[bool]]:
+    """The backends' stop test (the caller's ``should_stop``, or the bound below ``cutoff``) and its cutoff flag."""
+    cut = [False]
+
+    def stop_now() -> bool:
+        if cutoff is not None and progress.bound < cutoff:
+            cut[0] = True
+            return True
+        return should_stop is not None and bool(should_stop())
+
+    return stop_now, cut
+
+
 def solve_milp(
     model: MilpModel,
     backend: str = "highs",
@@ -183,6 +200,8 @@ def solve_milp(
     threads: int = 0,
     should_stop: StopCheck | None = None,
     start: np.ndarray | None = None,
+    abs_gap: float = 0.0,
+    cutoff: float | None = None,
 ) -> SolveResult:
     """Solve a :class:`MilpModel` with HiGHS or Gurobi.
 
@@ -203,6 +222,16 @@ def solve_milp(
         incumbent, if any, is kept; status ``interrupted``).
     start : numpy.ndarray, optional
         A feasible (or partial) solution to start from.
+    abs_gap : float
+        Absolute gap (objective units) at which to stop as well: a caller
+        that only wants a solution better than its start by more than this
+        (e.g. ``min_gain``) stops as soon as the bound proves there is none
+        (V6), instead of at the time limit.  0: the relative gap alone.
+    cutoff : float, optional
+        Stop (status ``cutoff``) as soon as the solver's bound proves no
+        solution reaches this objective: a stage that only matters when it
+        beats a plan already found stops once its own relaxation shows it
+        cannot.  The incumbent, if any, is returned.
 
     Returns
     -------
@@ -211,21 +240,26 @@ def solve_milp(
     if backend not in ("auto", "highs", "gurobi"):
         raise ValueError(f"unknown MILP backend {backend!r}")
     backend = resolve_backend(backend)
+    result = None
     if backend == "gurobi":
         try:
-            return _solve_gurobi(model, time_limit_s, mip_gap, threads, should_stop, start)
+            result = _solve_gurobi(model, time_limit_s, mip_gap, threads, should_stop, start, abs_gap, cutoff)
         except _GurobiUnavailable as exc:
             log.warning("Gurobi unavailable (%s); solving with HiGHS", exc)
-            result = _solve_highs(model, time_limit_s, mip_gap, threads, should_stop, start)
+            result = _solve_highs(model, time_limit_s, mip_gap, threads, should_stop, start, abs_gap, cutoff)
             result.note = f"gurobi fallback: {exc}"
-            return result
-    return _solve_highs(model, time_limit_s, mip_gap, threads, should_stop, start)
+    if result is None:
+        result = _solve_highs(model, time_limit_s, mip_gap, threads, should_stop, start, abs_gap, cutoff)
+    if cutoff is not None and result.bound is not None and result.bound < cutoff:
+        result.status = "cutoff"  # proven before any callback (presolve, the root): the same answer
+    return result
 
 
 # --------------------------------------------------------------------- HiGHS
 
 def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads: int,
-                 should_stop: StopCheck | None, start: np.ndarray | None) -> SolveResult:
+                 should_stop: StopCheck | None, start: np.ndarray | None, abs_gap: float = 0.0,
+                 cutoff: float | None = None) -> SolveResult:
     import highspy
 
     t0 = time.perf_counter()
@@ -240,6 +274,8 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
     h.setOptionValue("output_flag", False)
     h.setOptionValue("time_limit", float(max(time_limit_s, 0.01)))
     h.setOptionValue("mip_rel_gap", float(mip_gap))
+    if abs_gap > 0:
+        h.setOptionValue("mip_abs_gap", float(abs_gap))
     h.setOptionValue("random_seed", 0)
     if threads > 0:
         h.setOptionValue("threads", int(threads))
@@ -252,6 +288,7 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
 
     progress = _Progress(t0)
     interrupted = [False]
+    stop_now, cut = _stop_check(progress, should_stop, cutoff)
 
     def on_improving(event) -> None:
         out = event.data_out
@@ -261,7 +298,7 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
     def on_interrupt(event) -> None:
         out = event.data_out
         progress.update(out.mip_primal_bound, out.mip_dual_bound)
-        if should_stop is not None and should_stop():
+        if stop_now():
             interrupted[0] = True
             event.interrupt()
 
@@ -278,7 +315,9 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
     x = np.asarray(sol.col_value, float) if has_x else None
     objective = float(info.objective_function_value) if has_x else None
     bound = float(info.mip_dual_bound) if math.isfinite(info.mip_dual_bound) else None
-    if ms == MS.kOptimal:
+    if cut[0]:
+        status = "cutoff"
+    elif ms == MS.kOptimal:
         status = "optimal"
         if bound is None and objective is not None:
             bound = objective
@@ -391,16 +430,20 @@ def gurobi_fully_licensed() -> bool:
 
 
 def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads: int,
-                  should_stop: StopCheck | None, start: np.ndarray | None) -> SolveResult:
+                  should_stop: StopCheck | None, start: np.ndarray | None, abs_gap: float = 0.0,
+                  cutoff: float | None = None) -> SolveResult:
     gp, env = _gurobi_env()
     GRB = gp.GRB
     t0 = time.perf_counter()
     progress = _Progress(t0)
     interrupted = [False]
+    stop_now, cut = _stop_check(progress, should_stop, cutoff)
     try:
         m = gp.Model(env=env)
         m.Params.TimeLimit = float(max(time_limit_s, 0.01))
         m.Params.MIPGap = float(mip_gap)
+        if abs_gap > 0:
+            m.Params.MIPGapAbs = float(abs_gap)
         m.Params.Seed = 0
         if threads > 0:
             m.Params.Threads = int(threads)
@@ -429,8 +472,7 @@ def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads
             elif where == GRB.Callback.MIPSOL:
                 progress.update(cb_model.cbGet(GRB.Callback.MIPSOL_OBJBST),
                                 cb_model.cbGet(GRB.Callback.MIPSOL_OBJBND))
-            if should_stop is not None and where in (GRB.Callback.MIP, GRB.Callback.MIPNODE,
-                                                     GRB.Callback.MIPSOL) and should_stop():
+            if where in (GRB.Callback.MIP, GRB.Callback.MIPNODE, GRB.Callback.MIPSOL) and stop_now():
                 interrupted[0] = True
                 cb_model.terminate()
 
@@ -448,7 +490,9 @@ def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads
         xv = np.asarray(x.X, float) if has_x else None
         objective = float(m.ObjVal) if has_x else None
         bound = float(m.ObjBound) if has_x or st == GRB.OPTIMAL else None
-        if st == GRB.OPTIMAL:
+        if cut[0]:
+            status = "cutoff"
+        elif st == GRB.OPTIMAL:
             status = "optimal"
         elif st == GRB.TIME_LIMIT:
             status = "time_limit"

@@ -5,17 +5,20 @@ A night is the dark part of one block from local noon to local noon
 most ``sun_alt_max_deg`` high.  Its window runs from the first to the last
 time of a one-minute grid at which the Sun is that low, so it lies inside
 the true dark interval (the Sun's altitude is monotonic across a twilight),
-by less than a minute at each end.  The equations are in
-``docs/design/replan.md`` (N1-N3).
+by less than a minute at each end.  The Sun's altitude is the ephemeris's
+(:mod:`.ephemeris`, E1-E3: astropy every 10 minutes, interpolated), within
+1e-3 deg of astropy's at every grid time: where astropy's altitude at a grid
+time lies that close to the limit, a twilight may move by one grid step.
+The equations are in ``docs/design/replan.md`` (N1-N3).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from astropy.coordinates import AltAz, get_body
 from astropy.time import Time, TimeDelta
 
 from ..config import PlanningConfig
+from .ephemeris import ephemeris
 from .visibility import GRID_ANCHOR, NIGHT_S, site
 
 __all__ = ["night_windows", "night_evening", "NIGHT_GRID_S"]
@@ -60,8 +63,7 @@ def night_windows(start: Time, config: PlanningConfig, nights: int) -> tuple[tup
         if offsets.size == 0:
             continue
         times = GRID_ANCHOR + TimeDelta(offsets, format="sec")
-        sun = get_body("sun", times, site()).transform_to(AltAz(obstime=times, location=site()))
-        dark = np.flatnonzero(sun.alt.deg <= config.sun_alt_max_deg)
+        dark = np.flatnonzero(ephemeris(times, site()).sun_alt_deg <= config.sun_alt_max_deg)
         if dark.size == 0:
             continue
         # (N1) the night: first to last grid time with the Sun below the limit, never before the start

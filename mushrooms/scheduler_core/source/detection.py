@@ -85,10 +85,20 @@ def exposure_depths(observations: Sequence[Observation], start: Time,
     """
     if not observations:
         return np.zeros(0)
+    return _depths(observations, *_mid_exposures(observations, start), depth)
+
+
+def _mid_exposures(observations: Sequence[Observation], start: Time) -> tuple[np.ndarray, np.ndarray, Time]:
+    """(exposure times (s), filters, mid-exposure times) of observations timed from ``start``."""
     expo = np.array([o.exposure_s for o in observations], dtype=float)
     mid = np.array([o.start for o in observations], dtype=float) + 0.5 * expo
     filters = np.array([o.filter for o in observations], dtype=str)
-    times = Time(start) + TimeDelta(mid, format="sec")
+    return expo, filters, Time(start) + TimeDelta(mid, format="sec")
+
+
+def _depths(observations: Sequence[Observation], expo: np.ndarray, filters: np.ndarray, times: Time,
+            depth: DepthModel) -> np.ndarray:
+    """(D2) limiting magnitudes at the given mid-exposure times."""
     cond = sky_conditions(np.array([o.ra for o in observations]), np.array([o.dec for o in observations]), times)
     return limiting_magnitude(filters, expo, cond, depth)
 
@@ -104,10 +114,8 @@ def plan_reach(plan: Plan, kilonova: Kilonova, merger_time: Time,
     obs = plan.observations
     if not obs:
         return np.zeros(0)
-    expo = np.array([o.exposure_s for o in obs], dtype=float)
-    filters = np.array([o.filter for o in obs], dtype=str)
-    times = plan.absolute_time(np.array([o.start for o in obs], dtype=float) + 0.5 * expo)
-    m5 = exposure_depths(obs, plan.start, depth)
+    expo, filters, times = _mid_exposures(obs, plan.start)
+    m5 = _depths(obs, expo, filters, times, depth)
     age = (times - Time(merger_time)).to_value("day")
     absmag = np.empty(len(obs))
     for band in np.unique(filters).tolist():  # loop over bands, not exposures
