@@ -1,25 +1,31 @@
 """The fixed-grid slot-assignment MILP: grid, eligibility, model, decoding.
 
 The observable time is cut once into back-to-back *blocks* of ``n``
-position pairs (``docs/design/milp.md``, section "Slot-assignment MILP").
-Position ``q`` of block ``j`` has fixed exposure starts (s since the
-horizon start)
+positions (``docs/design/milp.md``, section "Slot-assignment MILP").  A
+block is ``k`` filter passes over its positions, one per filter of the
+sequence ``S = (s_1, ..., s_k)`` (``[scheduler] filters``, F0; the pair
+``k = 2`` by default).  Position ``q`` of block ``j`` has fixed exposure
+starts (s since the horizon start)
 
-    t1 = T_j + q s                          (first filter)
-    t2 = T_j + D_n + q s,   D_n = max(n s + t_filt, cadence)   (second filter)
+    t_p = T_j + (p - 1) D_n + q s,   D_n = max(n s + t_filt, cadence),   p = 1..k   (S4)
 
-with ``s = t_exp + t_slew`` (the slew estimate).  A block lasts
-``L_n = D_n + n s + t_filt + margin``: both passes, the filter change back
-to the first filter and a small margin for slews longer than the estimate.
-A (field, slot) pair is *eligible* only when both of its exposures lie
-inside a window of the field, so every constraint is a plain assignment
-row: no big-M, no continuous times.
+with ``s = t_exp + t_slew`` (the slew estimate), so consecutive visits of
+a position are ``D_n >= cadence`` apart.  A block lasts
+``L_n = (k - 1) D_n + n s + δ t_filt + margin`` (S5): every pass, the
+filter change back to ``s_1`` when ``s_k != s_1`` (``δ = 1``; a g-r-g block
+ends in the next block's filter) and a small margin for slews longer than
+the estimate.  A (field, slot) pair is *eligible* only when each of its
+``k`` exposures lies inside a window of the field and, for ``k > 2``, the
+last starts at most the pair separation ``M`` after the first (S6), so
+every constraint is a plain assignment row: no big-M, no continuous times.
+A chosen slot is the field's whole sequence: its first two visits cover it
+(F1), the later ones take their passes' time.
 
 Variables: ``x_k`` binary for each eligible pair ``k = (field, slot)``;
 ``z_f`` in [0, 1] (field f is observed); ``y_c`` in [0, 1] (cell c is
 covered).  (S0) Maximise ``Σ_c w_c y_c + Σ_k v_k x_k − p Σ_f z_f`` subject to
 
-- (S1) ``Σ_{k ∋ slot} x_k <= 1``: one field per position;
+- (S1) ``Σ_{k ∋ slot} x_k <= 1``: one field per position (all passes);
 - (S2) ``z_f − Σ_{k ∋ f} x_k = 0``, ``z_f <= 1``: each field at most once;
 - (S3) ``y_c − Σ_{f ∋ c} z_f <= 0``: a cell counts when a field holding it
   is observed.
@@ -32,6 +38,7 @@ any per-pixel weight (e.g. a detection probability), and per-pair weights
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,8 +50,8 @@ from ..sky.windows import union_intervals
 from .rows import Columns, Family, RowBuilder
 from .solvers import MilpModel
 
-__all__ = ["SlotGrid", "SlotInstance", "SlotModel", "block_length_s", "second_pass_delay_s",
-           "observable_segments", "make_slot_grid", "eligible_pairs", "slot_instance", "build_slot_model",
+__all__ = ["SlotGrid", "SlotInstance", "SlotModel", "block_length_s", "second_pass_delay_s", "n_passes",
+           "sequence_span_s", "observable_segments", "make_slot_grid", "eligible_pairs", "eligible_visits", "slot_instance", "build_slot_model",
            "slot_model_rows", "decode_slots", "start_vector"]
 
 #: Phases of the grid: blocks laid out from each segment's start, or ending at its end.
@@ -52,21 +59,38 @@ PHASES = ("start", "end")
 
 
 def second_pass_delay_s(n: int, config: PlanningConfig) -> float:
-    """D_n (s): from a position's first-filter start to its second-filter start."""
+    """D_n (s): from a position's start in one filter pass to its start in the next (S4)."""
     s = config.exposure_s + config.slew_estimate_s
     return max(n * s + config.filter_change_s, config.cadence_s)
 
 
+def n_passes(config: PlanningConfig) -> int:
+    """k, the filter passes of a block: one per filter of the sequence."""
+    return len(tuple(config.filters))
+
+
+def _return_change_s(config: PlanningConfig) -> float:
+    """The filter change (s) from a block's last pass back to the next block's first (S5): 0 when ``s_k = s_1``."""
+    seq = tuple(config.filters)
+    return 0.0 if len(seq) > 2 and seq[-1] == seq[0] else config.filter_change_s
+
+
 def block_length_s(n: int, config: PlanningConfig) -> float:
-    """L_n (s): a block of ``n`` positions from its first start to the next block's."""
+    """L_n (s): a block of ``n`` positions from its first start to the next block's (S5)."""
     s = config.exposure_s + config.slew_estimate_s
-    return second_pass_delay_s(n, config) + n * s + config.filter_change_s + config.slot_margin_s
+    k = n_passes(config)
+    return (k - 1) * second_pass_delay_s(n, config) + n * s + _return_change_s(config) + config.slot_margin_s
 
 
 def _active_s(n: int, config: PlanningConfig) -> float:
     """From a block's first start to the end of its last exposure (s)."""
     s = config.exposure_s + config.slew_estimate_s
-    return second_pass_delay_s(n, config) + (n - 1) * s + config.exposure_s
+    return (n_passes(config) - 1) * second_pass_delay_s(n, config) + (n - 1) * s + config.exposure_s
+
+
+def sequence_span_s(n: int, config: PlanningConfig) -> float:
+    """(S6) From a position's first visit to its last (s): ``(k - 1) D_n``."""
+    return (n_passes(config) - 1) * second_pass_delay_s(n, config)
 
 
 @dataclass(frozen=True)
@@ -87,6 +111,9 @@ class SlotGrid:
         (S,) block j and position q of each slot.
     t1, t2 : numpy.ndarray
         (S,) first- and second-filter exposure starts (s).
+    t_later : numpy.ndarray
+        (k - 2, S) starts (s) of the passes after the second (S4): empty
+        for the pair.
     """
 
     n_positions: int
@@ -97,6 +124,13 @@ class SlotGrid:
     slot_position: np.ndarray
     t1: np.ndarray
     t2: np.ndarray
+    t_later: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
+
+    @property
+    def pass_starts(self) -> np.ndarray:
+        """(k, S) exposure starts (s) of every pass (S4), in sequence order."""
+        later = np.asarray(self.t_later, float).reshape(-1, self.t1.size)
+        return np.vstack([self.t1, self.t2, later])
 
     @property
     def n_slots(self) -> int:
@@ -196,23 +230,16 @@ def make_slot_grid(segments: list[tuple[float, float]], config: PlanningConfig, 
     delay = np.array([second_pass_delay_s(int(m), config) for m in size]) if size.size else np.zeros(0)
     t1 = T[slot_block] + slot_position * s
     t2 = t1 + delay[slot_block]
-    return SlotGrid(n, phase, T, size, slot_block, slot_position.astype(np.int64), t1, t2)
+    # (S4) the passes after the second, D_n after the one before
+    later = t1[None, :] + np.arange(2, n_passes(config))[:, None] * delay[slot_block][None, :]
+    return SlotGrid(n, phase, T, size, slot_block, slot_position.astype(np.int64), t1, t2, later)
 
 
 def eligible_pairs(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, exposure_s: float | None = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(field, slot) pairs whose two exposures each lie inside a window of the field.
+    """(field, slot) pairs whose exposures each lie inside a window of the field.
 
-    Parameters
-    ----------
-    problem : PlanningProblem
-    rows : numpy.ndarray
-        Rows of ``problem.field_ids`` taking part (the model's fields are
-        ``0..len(rows)-1`` in this order).
-    grid : SlotGrid
-    exposure_s : float, optional
-        Length (s) of each of the pair's two exposures; default
-        ``config.exposure_s``.
+    :func:`eligible_visits` with the windows of the first two passes.
 
     Returns
     -------
@@ -222,6 +249,32 @@ def eligible_pairs(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, e
         (K,) index into ``problem.windows`` of the window holding the first
         and the second exposure.
     """
+    f, slot, win = eligible_visits(problem, rows, grid, exposure_s)
+    return f, slot, win[:, 0], win[:, 1]
+
+
+def eligible_visits(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, exposure_s: float | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(field, slot) pairs whose ``k`` exposures each lie inside a window of the field (S6).
+
+    Parameters
+    ----------
+    problem : PlanningProblem
+    rows : numpy.ndarray
+        Rows of ``problem.field_ids`` taking part (the model's fields are
+        ``0..len(rows)-1`` in this order).
+    grid : SlotGrid
+    exposure_s : float, optional
+        Length (s) of each exposure; default ``config.exposure_s``.
+
+    Returns
+    -------
+    field, slot : numpy.ndarray
+        (K,) model field index and slot index of each eligible pair.
+    windows : numpy.ndarray
+        (K, k) index into ``problem.windows`` of the window holding each
+        pass's exposure (the earliest such window).
+    """
     w = problem.windows
     e = problem.config.exposure_s if exposure_s is None else float(exposure_s)
     ids = problem.field_ids[np.asarray(rows, np.int64)]
@@ -230,19 +283,23 @@ def eligible_pairs(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, e
     wsel = np.flatnonzero(w_field >= 0)
     H = problem.horizon_s
     ws, we = w.start[wsel][:, None], np.minimum(w.end[wsel], H)[:, None]
-    in1 = (ws <= grid.t1[None, :]) & (grid.t1[None, :] + e <= we)     # (W, S)
-    in2 = (ws <= grid.t2[None, :]) & (grid.t2[None, :] + e <= we)
     F = len(ids)
-    # per field: the first window holding each exposure (-1: none)
-    win1 = np.full((F, grid.n_slots), -1, np.int64)
-    win2 = np.full((F, grid.n_slots), -1, np.int64)
-    for arr, inside in ((win1, in1), (win2, in2)):
+    wins = []
+    for t in grid.pass_starts:
+        inside = (ws <= t[None, :]) & (t[None, :] + e <= we)  # (W, S)
+        # per field: the first window holding the exposure (-1: none)
+        win = np.full((F, grid.n_slots), -1, np.int64)
         wi, si = np.nonzero(inside)
         # later windows first, so the earliest one is written last and wins
         order = np.argsort(-wi, kind="stable")
-        arr[w_field[wsel[wi[order]]], si[order]] = wsel[wi[order]]
-    f, slot = np.nonzero((win1 >= 0) & (win2 >= 0))
-    return f.astype(np.int64), slot.astype(np.int64), win1[f, slot], win2[f, slot]
+        win[w_field[wsel[wi[order]]], si[order]] = wsel[wi[order]]
+        wins.append(win)
+    ok = np.logical_and.reduce([win >= 0 for win in wins])
+    if len(wins) > 2:  # (S6) a sequence's last visit within the pair separation of its first
+        ok &= (grid.pass_starts[-1] - grid.t1 <= problem.config.pair_separation_s)[None, :]
+    f, slot = np.nonzero(ok)
+    windows = np.stack([win[f, slot] for win in wins], axis=1).reshape(f.size, len(wins))
+    return f.astype(np.int64), slot.astype(np.int64), windows
 
 
 @dataclass(frozen=True)
@@ -266,6 +323,9 @@ class SlotInstance:
     pair_span : numpy.ndarray or None
         (K,) consecutive positions, from ``pair_slot`` on, each pair
         occupies in both passes (X7); None: one each.
+    pair_window_later : numpy.ndarray or None
+        (K, k - 2) windows holding the exposures of the passes after the
+        second (S4); None for the pair.
     """
 
     rows: np.ndarray
@@ -277,6 +337,12 @@ class SlotInstance:
     pair_window2: np.ndarray
     pair_exposure: np.ndarray | None = None
     pair_span: np.ndarray | None = None
+    pair_window_later: np.ndarray | None = None
+
+    def windows(self) -> np.ndarray:
+        """(K, k) the window (index into ``problem.windows``) holding each pass's exposure of every pair."""
+        later = np.zeros((self.n_pairs, 0), np.int64) if self.pair_window_later is None else self.pair_window_later
+        return np.column_stack([self.pair_window1, self.pair_window2, later]).astype(np.int64)
 
     def exposures(self, default_s: float) -> np.ndarray:
         """(K,) exposure (s) of every pair (``default_s`` without a menu)."""
@@ -289,7 +355,7 @@ class SlotInstance:
         pick = (lambda a: None if a is None else np.asarray(a)[keep])
         return SlotInstance(self.rows, self.grid, self.cells, self.pair_field[keep], self.pair_slot[keep],
                             self.pair_window1[keep], self.pair_window2[keep], pick(self.pair_exposure),
-                            pick(self.pair_span))
+                            pick(self.pair_span), pick(self.pair_window_later))
 
     @property
     def n_fields(self) -> int:
@@ -329,8 +395,9 @@ def slot_instance(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid,
     if cells is None:
         weight = problem.prob if pixel_weight is None else np.asarray(pixel_weight, float)
         cells = merge_cells(shortlist_footprints(problem.footprints, rows), weight)
-    f, slot, w1, w2 = eligible_pairs(problem, rows, grid)
-    return SlotInstance(rows, grid, cells, f, slot, w1, w2)
+    f, slot, win = eligible_visits(problem, rows, grid)
+    later = win[:, 2:] if win.shape[1] > 2 else None
+    return SlotInstance(rows, grid, cells, f, slot, win[:, 0], win[:, 1], pair_window_later=later)
 
 
 @dataclass(frozen=True)
