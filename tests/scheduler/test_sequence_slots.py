@@ -170,3 +170,14 @@ def test_the_hybrid_grg_queues_run_in_sequence_and_the_executor_credits_f1(grg_h
     assert as_executed == pytest.approx(footprints.coverage(credited, skymap_220722v.prob), abs=1e-9)
     assert as_executed == pytest.approx(grg_hybrid.metrics.coverage_as_executed, abs=1e-6)
     assert 0 < as_executed <= grg_hybrid.metrics.coverage + 1e-6
+
+
+def test_the_portfolio_adds_the_grid_whose_pass_fills_the_cadence_and_keeps_the_default_at_300s():
+    from mushrooms.scheduler_core.schedulers.slot_schedule import cadence_positions, grid_positions
+
+    default = PlanningConfig()
+    assert cadence_positions(default) == 6 and grid_positions(default) == list(default.slot_positions)
+    at180 = PlanningConfig(exposure_s=180.0, filters=("g", "r", "g"))
+    # (1800 - 120) / 190 = 8.8: 9 positions, a pass of 1710 s + 120 s filter change fills the 1800 s cadence
+    assert cadence_positions(at180) == 9
+    assert grid_positions(at180) == [9, *default.slot_positions]
