@@ -6,8 +6,9 @@
 # maps with distance layers (public/, simulated/bns_o3, simulated/nsbh_o3), every STRIDE-th in name order
 # (STRIDE 1: all 52); nside 128, threads 1, 10 000 injections, config beside the results.
 #   benchmarks/bench_grg.sh RESULTS_DIR [SOLVERS] [LOAD]
-# SOLVERS default hybrid,hybrid@e180,hybrid@menu,hybrid@grg; LOAD=busy starts one busy loop beside the two
-# jobs (a load of ~4 on 2 cores with two plans at once) and ends it after.  Run under nice; quote uptime.
+# SOLVERS default hybrid,hybrid@e180,hybrid@menu,hybrid@grg; LOAD=busy starts BUSY (default 2) busy loops
+# beside the two jobs (two plans at once plus the loops: a load of 4 on 2 cores of this run's own), at the
+# plans' nice level, and ends them after.  Everything runs under nice 10; uptime is logged every minute.
 set -eu
 cd "$(dirname "$0")/.."
 res=$1; solvers=${2:-hybrid,hybrid@e180,hybrid@menu,hybrid@grg}; load=${3:-quiet}
@@ -33,7 +34,9 @@ print(f"{len(sorted(found)[::stride])} of {len(found)} maps (every {stride}th in
 PY
 [ -f "$res/config.toml" ] || printf '# g-r-g default bench: default [scheduler] except nside 128 and threads 1\n[scheduler]\nnside = 128\nthreads = 1\n' > "$res/config.toml"
 busy=""
-if [ "$load" = busy ]; then (while :; do :; done) & busy=$!; fi
+if [ "$load" = busy ]; then
+  for _ in $(seq "${BUSY:-2}"); do nice -n 10 bash -c 'while :; do :; done' & busy="$busy $!"; done
+fi
 trap '[ -n "$busy" ] && kill $busy' EXIT
 (uptime; date -u) > "$res/uptime_start.txt"
 PYTHONPATH=$(pwd) MUSHROOMS_PROGRESS=0 nice -n 10 "${MUSHROOMS:-/work/main/.venv/bin/mushrooms}" bench "$maps" --config "$res/config.toml" --solvers "$solvers" \
