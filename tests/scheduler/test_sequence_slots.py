@@ -81,13 +81,24 @@ def test_a_field_whose_third_visit_leaves_its_window_is_not_eligible():
 
 
 def test_a_sequence_longer_than_the_pair_separation_is_not_eligible():
-    # cadence 400 s: D = 400 s, the third visit 800 s after the first, over a 600 s separation
-    problem = grg_hand_problem(cadence_s=400.0, pair_max_s=600.0, horizon_h=2000.0 / 3600.0)
+    # n = 4 positions: D = max(4 * 110 + 30, 250) = 470 s, the third visit 940 s after the first, over a
+    # 600 s separation (two cadences, 500 s, would fit it: the config is accepted)
+    problem = grg_hand_problem(pair_max_s=600.0, horizon_h=2000.0 / 3600.0, slot_positions=(4,))
     problem = dataclasses.replace(problem, windows=Windows(problem.field_ids, np.zeros(5), np.full(5, 2000.0)))
-    grid = make_slot_grid(observable_segments(problem), problem.config, 2, "start")
-    assert grid.n_slots and slot_instance(problem, np.arange(5), grid).n_pairs == 0
-    wider = dataclasses.replace(problem, config=dataclasses.replace(problem.config, pair_max_s=800.0))
-    assert slot_instance(wider, np.arange(5), grid).n_pairs > 0
+    grid = make_slot_grid(observable_segments(problem), problem.config, 4, "start")
+    span = grid.pass_starts[-1] - grid.t1
+    # a full block (spans 940 s) and, in the 620 s left, a partial one of 1 position (D = 250 s: 500 s)
+    assert sorted(set(span.tolist())) == [500.0, 940.0]
+    inst = slot_instance(problem, np.arange(5), grid)
+    assert inst.n_pairs == 5 and set(span[inst.pair_slot].tolist()) == {500.0}
+    wider = dataclasses.replace(problem, config=dataclasses.replace(problem.config, pair_max_s=940.0))
+    assert slot_instance(wider, np.arange(5), grid).n_pairs == 5 * grid.n_slots
+
+
+def test_a_sequence_whose_cadences_exceed_the_pair_separation_is_refused_in_one_line():
+    with pytest.raises(ValueError, match=r"need 2 cadences of 1800 s within pair_max_s = 3000 s"):
+        PlanningConfig(filters=("g", "r", "g"), pair_max_s=3000.0)
+    assert PlanningConfig(filters=("g", "r"), pair_max_s=3000.0).pair_max_s == 3000.0  # one cadence: the pair fits
 
 
 def test_the_hand_grg_instance_is_solved_to_its_known_optimum_each_field_g_r_g():
