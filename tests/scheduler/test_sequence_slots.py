@@ -14,9 +14,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from astropy.time import Time
 
-from conftest_milp import tiny_config
+from conftest_milp import slot_hand_problem
 from mushrooms.scheduler_core import PlanningConfig, check_plan, make_plan, prepare_problem
 from mushrooms.scheduler_core.errors import InputError
 from mushrooms.scheduler_core.plan.exports import FILTER_IDS, to_trigger_queues
@@ -27,24 +26,11 @@ from mushrooms.scheduler_core.schedulers.slot_schedule import slot_schedule
 from mushrooms.scheduler_core.schedulers.slots import (block_length_s, make_slot_grid, observable_segments,
                                                        slot_instance)
 from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
-from mushrooms.scheduler_core.sky.footprints import Footprints
 from mushrooms.scheduler_core.sky.windows import Windows
 from mushrooms.scheduler_core.telescope.coverage import execute_plan_queues, queue_coverage
 
-GRG_HAND = dict(horizon_h=1000.0 / 3600.0, slot_margin_s=0.0, slot_positions=(2,), penalty=0.0, n_fields=None,
-                filters=("g", "r", "g"))
-
-
 def grg_hand_problem(**overrides) -> PlanningProblem:
-    cfg = tiny_config(**{**GRG_HAND, **overrides})
-    prob = np.array([0.12, 0.2, 0.1, 0.15, 0.05, 0.1, 0.12, 0.04, 0.04, 0.04, 0.02, 0.02])
-    ids = np.arange(1, 6)
-    members = [[0, 1], [1, 2], [3], [4], [5, 6]]
-    indptr = np.concatenate([[0], np.cumsum([len(m) for m in members])])
-    footprints = Footprints(1, ids, indptr, np.concatenate(members))
-    windows = Windows(ids, np.zeros(5), np.array([760.0, 470.0, 1000.0, 1000.0, 1000.0]))
-    return PlanningProblem(cfg, Time("2026-01-01T00:00:00", scale="utc"), prob, ids,
-                           np.array([0.0, 5.0, 10.0, 15.0, 20.0]), np.zeros(5), footprints, windows)
+    return slot_hand_problem((760.0, 470.0, 1000.0, 1000.0, 1000.0), **{"filters": ("g", "r", "g"), **overrides})
 
 
 def test_a_grg_block_is_three_passes_a_cadence_apart_and_needs_no_filter_change_back():
