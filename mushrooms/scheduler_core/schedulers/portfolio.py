@@ -191,8 +191,9 @@ class Portfolio:
         times: dict[str, float] = {}  # wall time (s) of each stage run, and of the bound
         pair_stages = [s.name for s in self.stages if not s.plans(problem.config.filters)]
         if pair_stages:  # (F4) they model another number of exposures per field
-            log.info("%s: %s do not plan a sequence of %d filters; skipped for the sequence %s", self.label,
-                     ", ".join(pair_stages), len(problem.config.filters), "-".join(problem.config.filters))
+            what = ", ".join(f"{s.name} ({_filters_range(s)})" for s in self.stages if s.name in pair_stages)
+            log.info("%s: skipped for the sequence %s of %d filters, which these stages' models do not hold: %s",
+                     self.label, "-".join(problem.config.filters), len(problem.config.filters), what)
         for i, stage in enumerate(self.stages):
             if stage.name in pair_stages:
                 continue
@@ -267,6 +268,12 @@ def choose_as_executed(problem: PlanningProblem, ran: dict[str, ScheduleResult],
             memo[key] = value
     name = max(executed, key=lambda n: (executed[n], covs[n], -names.index(n)))
     return name, executed, memo
+
+
+def _filters_range(stage: Stage) -> str:
+    """What a stage plans, e.g. ``2 filters`` or ``2-8 filters`` (F4)."""
+    lo, hi = stage.sequences
+    return f"{lo} filters" if lo == hi else f"{lo}-{hi} filters"
 
 
 def best_of(label: str, *stages: Stage, bound: BoundRun | None = None) -> Portfolio:
