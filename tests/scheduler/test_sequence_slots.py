@@ -170,11 +170,12 @@ def test_the_hybrid_grg_queues_run_in_sequence_and_the_executor_credits_f1(grg_h
 
 
 def test_the_portfolio_adds_the_grid_whose_pass_fills_the_cadence_and_keeps_the_default_at_300s():
-    from mushrooms.scheduler_core.schedulers.slot_schedule import cadence_positions, grid_positions
+    from mushrooms.scheduler_core.schedulers.blocks import cadence_block_size
+    from mushrooms.scheduler_core.schedulers.slot_schedule import grid_positions
 
     default = PlanningConfig()
-    assert cadence_positions(default) == 6 and grid_positions(default) == list(default.slot_positions)
+    assert cadence_block_size(default) == 6 and grid_positions(default) == list(default.slot_positions)
     at180 = PlanningConfig(exposure_s=180.0, filters=("g", "r", "g"))
     # (1800 - 120) / 190 = 8.8: 9 positions, a pass of 1710 s + 120 s filter change fills the 1800 s cadence
-    assert cadence_positions(at180) == 9
+    assert cadence_block_size(at180) == 9
     assert grid_positions(at180) == [9, *default.slot_positions]

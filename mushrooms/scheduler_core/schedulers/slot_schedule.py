@@ -39,13 +39,14 @@ from ..config import PlanningConfig
 from .ordering import order_fields
 from ..plan.document import Observation
 from ..problem import PlanningProblem, ScheduleResult, StopCheck
+from .blocks import cadence_block_size
 from .prune import shortlist_fields
 from .slew import overhead_time
 from .slots import (SlotGrid, SlotInstance, SlotModel, build_slot_model, decode_slots, make_slot_grid,
                     observable_segments, slot_instance, start_vector)
 from .solvers import SolveResult, resolve_backend, solve_milp
 
-__all__ = ["slot_schedule", "slot_rows", "slot_portfolio", "cadence_positions", "grid_positions", "map_start", "time_slot_plan", "GridSolution"]
+__all__ = ["slot_schedule", "slot_rows", "slot_portfolio", "grid_positions", "map_start", "time_slot_plan", "GridSolution"]
 
 log = logging.getLogger(__name__)
 
@@ -69,24 +70,16 @@ def slot_rows(problem: PlanningProblem, start_fields: np.ndarray | None = None) 
     return np.asarray(rows, np.int64)
 
 
-def cadence_positions(config: PlanningConfig) -> int:
-    """n*: the fewest positions whose pass and filter change fill the cadence, ``ceil((c - t_filt) / s)`` (at least 1).
-
-    With fewer, a block idles ``c - n s - t_filt`` between its passes (S4):
-    6 at 300 s, 9 at 180 s (``s = t_exp + t_slew``, default cadence and
-    filter change).
-    """
-    s = config.exposure_s + config.slew_estimate_s
-    return max(1, int(np.ceil((config.cadence_s - config.filter_change_s) / s - 1e-9)))
-
-
 def grid_positions(config: PlanningConfig) -> list[int]:
-    """Positions per block of the portfolio's grids: n* (:func:`cadence_positions`) first, then ``slot_positions``.
+    """Positions per block of the portfolio's grids: n* first, then ``slot_positions``.
 
-    n* is added only when ``slot_positions`` lacks it (the default list
-    holds 6, n* at 300 s: the default portfolio is unchanged).
+    n* = ``ceil((c - t_filt) / s)`` (:func:`.blocks.cadence_block_size`) is
+    the fewest positions whose pass and filter change fill the cadence:
+    with fewer, a block idles ``c - n s - t_filt`` between its passes (S4).
+    It is added only when ``slot_positions`` lacks it (the default list
+    holds 6, n* at 300 s: the default portfolio is unchanged; 9 at 180 s).
     """
-    n_star = cadence_positions(config)
+    n_star = cadence_block_size(config)
     listed = [int(n) for n in config.slot_positions]
     return listed if n_star in listed else [n_star] + listed
 
