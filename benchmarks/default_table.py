@@ -40,20 +40,22 @@ METRICS = {"coverage": ("coverage", 1e-4), "E opt": ("expected_optimistic", 1e-3
            "E cons": ("expected_conservative", 1e-3), "E nsbh": ("expected_nsbh", 1e-3),
            "cov executed": ("coverage_as_executed", 1e-4)}
 REFERENCE = "hybrid"
+#: g-r-g planned by the hybrid (greedy + slot MILP) against greedy alone, when the run has both rows
+GRG_STAGES = ("hybrid@grg", "greedy@grg")
 
 
-def load(path: Path) -> dict[str, dict[str, dict[str, float]]]:
-    """solver -> map name -> {column: value}, only maps every strategy planned with a valid plan."""
+def load(path: Path, arms=ARMS) -> dict[str, dict[str, dict[str, float]]]:
+    """solver -> map name -> {column: value}, only maps every one of ``arms`` planned with a valid plan."""
     out: dict[str, dict[str, dict[str, float]]] = {}
     with open(path, newline="") as fh:
         for row in csv.DictReader(fh):
-            if row["solver"] not in ARMS or row.get("valid") != "True":
+            if row["solver"] not in arms or row.get("valid") != "True":
                 continue
             name = Path(row["skymap"]).name
             cols = {c: float(row[c] or "nan") for _, (c, _) in METRICS.items()}
             out.setdefault(row["solver"], {})[name] = dict(cols, runtime_s=float(row["runtime_s"]),
                                                            won=row["solver_detail"], stage=row["detection_stage"])
-    common = set.intersection(*(set(v) for v in out.values())) if len(out) == len(ARMS) else set()
+    common = set.intersection(*(set(v) for v in out.values())) if len(out) == len(arms) else set()
     return {s: {m: v[m] for m in sorted(common)} for s, v in out.items()} if common else {}
 
 
@@ -98,6 +100,25 @@ def run_rows(table, maps: list[str]) -> list[str]:
     return lines
 
 
+def stage_rows(path: Path) -> list[str]:
+    """g-r-g: the hybrid's plan (greedy + slot MILP) against greedy's, paired (empty without a greedy@grg row)."""
+    table = load(path, GRG_STAGES)
+    if not table:
+        return []
+    maps = sorted(table[GRG_STAGES[0]])
+    lines = [f"g-r-g, hybrid (greedy + slot MILP) − greedy, {len(maps)} maps:", "",
+             "| | " + " | ".join(METRICS) + " |", "|" + "---|" * (len(METRICS) + 1)]
+    cells, counts = [], []
+    for c, tie in METRICS.values():
+        d = values(table, GRG_STAGES[0], c, maps) - values(table, GRG_STAGES[1], c, maps)
+        diff, err = paired_difference(d, np.zeros_like(d))
+        cells.append(fmt(diff, err))
+        counts.append(f"{int((d > tie).sum())} / {int((d < -tie).sum())}")
+    lines.append("| mean ± s.e. | " + " | ".join(cells) + " |")
+    lines.append("| better / worse | " + " | ".join(counts) + " |")
+    return lines
+
+
 def split_rows(table, maps: list[str], column: str) -> list[str]:
     """Choose on one half (most mean ``column``), report the choice's paired differences on the other."""
     halves = {"A": maps[0::2], "B": maps[1::2]}
@@ -136,6 +157,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"## {label}: {len(maps)} maps with a valid plan of all four strategies\n")
         print("\n".join(paired_rows(table, maps)) + "\n")
         print("\n".join(run_rows(table, maps)) + "\n")
+        stages = stage_rows(Path(path))
+        if stages:
+            print("\n".join(stages) + "\n")
         for curve in ("optimistic", "conservative", "nsbh"):
             mark = " (the decision curve)" if curve == args.curve else ""
             print(f"Split halves, chosen by E {curve}{mark}:\n")
