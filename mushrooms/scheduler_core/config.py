@@ -365,6 +365,11 @@ class PlanningConfig:
         if self.airmass_max < 1:
             problems.append(f"airmass_max must be >= 1, got {self.airmass_max}")
         problems += filter_sequence_problems(self.filters)
+        if (isinstance(self.filters, (tuple, list)) and len(self.filters) > 2
+                and (len(self.filters) - 1) * self.cadence_s > self.pair_separation_s):
+            problems.append(f"filters {list(self.filters)!r} need {len(self.filters) - 1} cadences of "
+                            f"{self.cadence_s:g} s within pair_max_s = {self.pair_separation_s:g} s: no field "
+                            f"could be planned (F6)")
         if self.exposure_menu_s and isinstance(self.filters, (tuple, list)) and len(self.filters) != 2:
             problems.append(f"exposure_menu_s needs a pair of filters (the detection stage plans pairs), got the "
                             f"sequence {list(self.filters)!r}")

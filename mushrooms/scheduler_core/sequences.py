@@ -22,8 +22,9 @@ for, ``("g", "r", "g")`` what ZTF's GW programme ran in O4
   whatever it adds); a field with done exposures but not covered is planned
   as a whole new sequence when ``k != 2`` (the pair keeps P2: its other
   filter);
-* (F4) the schedulers that model a field as exactly two exposures (the slot
-  and block MILPs, the LNS, the detection stage) refuse a sequence of
+* (F4) the slot MILP plans any sequence of two or more (S4-S6); the
+  schedulers that model a field as exactly two exposures (the block MILP,
+  the exact model, the LNS, the detection stage) refuse a sequence of
   another length (:func:`require_pair`); the hybrid skips them and says so.
 
 Pure: no I/O, no globals.
@@ -70,17 +71,23 @@ def is_pair(filters: Sequence[str]) -> bool:
     return len(tuple(filters)) == 2
 
 
-def require_pair(filters: Sequence[str], scheduler: str) -> None:
-    """(F4) Refuse a sequence other than a pair for a scheduler that models two exposures per field.
+def require_pair(filters: Sequence[str], scheduler: str, longer: bool = False) -> None:
+    """(F4) Refuse a sequence a scheduler does not model: other than a pair, or (``longer``) shorter than one.
+
+    ``longer``: the scheduler plans any sequence of ``k >= 2`` visits (the
+    slot MILP, S4-S6); else only the pair.
 
     Raises
     ------
     InputError
         One line naming the scheduler, the sequence and what to use instead.
     """
-    if not is_pair(filters):
-        raise InputError(f"the {scheduler} plans each field in two filters; [scheduler] filters = "
-                         f"{list(filters)!r} is a sequence of {len(tuple(filters))}: use solver greedy or hybrid")
+    k = len(tuple(filters))
+    if k == 2 or (longer and k > 2):
+        return
+    what = "a sequence of two or more filters" if longer else "each field in two filters"
+    raise InputError(f"the {scheduler} plans {what}; [scheduler] filters = {list(filters)!r} is a sequence "
+                     f"of {k}: use solver greedy or hybrid")
 
 
 def _done_by_field(exposures: Iterable[ExecutedExposure], filters: Sequence[str],

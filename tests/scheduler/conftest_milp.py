@@ -57,6 +57,25 @@ def tiny_problem(config: PlanningConfig | None = None, window_5: tuple[float, fl
                            np.array([0.0, 5.0, 10.0, 15.0, 20.0]), np.zeros(5), footprints, windows)
 
 
+def slot_hand_problem(window_end: tuple[float, ...], **overrides) -> PlanningProblem:
+    """The slot model's hand instance: fields 1-5 as :func:`tiny_problem`'s, windows ``[0, window_end]``.
+
+    Pixels (nside 1): f1 = {0 (.12), 1 (.2)}, f2 = {1, 2 (.1)}, f3 = {3 (.15)},
+    f4 = {4 (.05)}, f5 = {5 (.1), 6 (.12)}; horizon 1000 s, no margin, one
+    grid of 2 positions, no penalty unless ``overrides`` say otherwise.
+    """
+    values = dict(horizon_h=1000.0 / 3600.0, slot_margin_s=0.0, slot_positions=(2,), penalty=0.0, n_fields=None)
+    cfg = tiny_config(**{**values, **overrides})
+    prob = np.array([0.12, 0.2, 0.1, 0.15, 0.05, 0.1, 0.12, 0.04, 0.04, 0.04, 0.02, 0.02])
+    ids = np.arange(1, 6)
+    members = [[0, 1], [1, 2], [3], [4], [5, 6]]
+    indptr = np.concatenate([[0], np.cumsum([len(m) for m in members])])
+    footprints = Footprints(1, ids, indptr, np.concatenate(members))
+    windows = Windows(ids, np.zeros(5), np.asarray(window_end, float))
+    return PlanningProblem(cfg, Time("2026-01-01T00:00:00", scale="utc"), prob, ids,
+                           np.array([0.0, 5.0, 10.0, 15.0, 20.0]), np.zeros(5), footprints, windows)
+
+
 def random_problem(seed: int, n_fields: int = 14, nside: int = 4, config: PlanningConfig | None = None
                    ) -> PlanningProblem:
     """Fields with overlapping random footprints and one or two windows each."""

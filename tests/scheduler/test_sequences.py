@@ -149,7 +149,7 @@ def test_a_field_done_in_one_filter_is_planned_anew_in_the_whole_sequence(flat_m
     assert report.counts == {"cadence": 1}
 
 
-# ----------------------------------------------------------------- F4: greedy plans it, the MILPs refuse it
+# ----------------------------------------------------------------- F4: greedy plans it, the pair's MILPs refuse it
 
 @pytest.fixture(scope="module")
 def grg_plan(skymap_220722v):
@@ -176,21 +176,19 @@ def test_a_grg_plan_covers_less_than_the_pair_in_the_same_night(grg_plan, skymap
     assert grg_plan.metrics.upper_bound is None or grg_plan.metrics.coverage <= grg_plan.metrics.upper_bound
 
 
-def test_the_milp_schedulers_refuse_a_sequence_and_the_hybrid_skips_them(skymap_220722v):
+def test_the_pair_schedulers_refuse_a_sequence_and_the_hybrid_skips_them(skymap_220722v):
     from mushrooms.scheduler_core.planner import run_scheduler
     from mushrooms.scheduler_core.schedulers.block_schedule import milp_schedule
-    from mushrooms.scheduler_core.schedulers.slot_schedule import slot_schedule
 
     cfg = PlanningConfig(filters=("g", "r", "g"), time_limit_s=5.0, bound_time_limit_s=0.0, objective="coverage")
     problem = prepare_problem(skymap_220722v, cfg, skymap_220722v.event_time)
-    for scheduler, name in ((slot_schedule, "slot MILP"), (milp_schedule, "block MILP")):
-        with pytest.raises(InputError, match=f"the {name} plans each field in two filters"):
-            scheduler(problem)
+    with pytest.raises(InputError, match="the block MILP plans each field in two filters"):
+        milp_schedule(problem)
     result = run_scheduler(problem, "hybrid")
-    assert result.details["skipped_for_sequence"] == ["slots", "lns", "blocks"]
-    assert [e.name for e in result.portfolio] == ["greedy"]
-    with pytest.raises(InputError, match="slot MILP"):
-        run_scheduler(problem, "slots")
+    assert result.details["skipped_for_sequence"] == ["lns", "blocks"]
+    assert [e.name for e in result.portfolio][0] == "greedy"
+    with pytest.raises(InputError, match="block MILP"):
+        run_scheduler(problem, "blocks")
 
 
 def test_one_filter_plans_one_visit_per_field_and_publishes_no_bound(skymap_220722v):

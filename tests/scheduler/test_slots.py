@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 from astropy.time import Time
 
-from conftest_milp import check_observations, random_problem, tiny_config
+from conftest_milp import check_observations, random_problem, slot_hand_problem, tiny_config
 from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
-from mushrooms.scheduler_core.sky.footprints import Footprints
 from mushrooms.scheduler_core.problem import PlanningProblem
 from mushrooms.scheduler_core.sky.windows import Windows
 from mushrooms.scheduler_core.schedulers.slot_schedule import map_start, slot_portfolio, slot_rows, slot_schedule, time_slot_plan
@@ -31,16 +30,7 @@ HAND_FIELDS = {1, 3, 4, 5}
 
 
 def hand_problem(backend: str = "highs") -> PlanningProblem:
-    cfg = tiny_config(horizon_h=1000.0 / 3600.0, slot_margin_s=0.0, slot_positions=(2,), penalty=0.0,
-                      milp_backend=backend, n_fields=None)
-    prob = np.array([0.12, 0.2, 0.1, 0.15, 0.05, 0.1, 0.12, 0.04, 0.04, 0.04, 0.02, 0.02])
-    ids = np.arange(1, 6)
-    members = [[0, 1], [1, 2], [3], [4], [5, 6]]
-    indptr = np.concatenate([[0], np.cumsum([len(m) for m in members])])
-    footprints = Footprints(1, ids, indptr, np.concatenate(members))
-    windows = Windows(ids, np.zeros(5), np.array([470.0, 470.0, 1000.0, 1000.0, 470.0]))
-    return PlanningProblem(cfg, Time("2026-01-01T00:00:00", scale="utc"), prob, ids,
-                           np.array([0.0, 5.0, 10.0, 15.0, 20.0]), np.zeros(5), footprints, windows)
+    return slot_hand_problem((470.0, 470.0, 1000.0, 1000.0, 470.0), milp_backend=backend)
 
 
 def test_hand_grid_has_the_designed_slots():

@@ -74,6 +74,11 @@ def block_size(config: PlanningConfig) -> int:
     """
     if config.min_block_size > 0:
         return int(config.min_block_size)
+    return cadence_block_size(config)
+
+
+def cadence_block_size(config: PlanningConfig) -> int:
+    """The cadence rule alone: ``ceil((cadence − t_filt) / (t_exp + t_slew))``, at least 1 (6 at 300 s, 9 at 180 s)."""
     per_visit = config.exposure_s + config.slew_estimate_s
     return max(1, int(math.ceil((config.cadence_s - config.filter_change_s) / per_visit - 1e-9)))
 

@@ -245,16 +245,17 @@ class _Greedy:
         return max(float(later.min()), self.free_at + self.cfg.time_step_s / 2)
 
     def time_batch(self, batch: list[int], saved: np.ndarray) -> tuple[list[int], np.ndarray]:
-        """Time every pass; drop the fields whose real times leave their windows or (F6) span (re-timing the rest)."""
+        """Time every pass; drop the fields whose real times leave their windows, or whose sequence spans more
+        than the pair separation (re-timing the rest)."""
         starts = np.empty((len(self.cfg.filters), 0))
         while batch:
             starts = time_passes(self.problem, batch, self.free_at, self.previous)
             rows = np.asarray(batch)
             ok = starts[-1] + self.exp <= self.cfg.horizon_s
-            if len(self.cfg.filters) != 2:  # (F6) a sequence's visits within the pair separation of its first
-                ok &= starts[-1] - starts[0] <= self.cfg.pair_separation_s
             for pass_starts in starts:
                 ok &= _observable_each(self.w_rows, self.w_start, self.w_end, rows, pass_starts, self.exp)
+            if len(self.cfg.filters) > 2:  # (F6) a sequence's last visit within the pair separation of its first
+                ok &= starts[-1] - starts[0] <= self.cfg.pair_separation_s + 1e-6
             if ok.all():
                 break
             bad = [b for b, good in zip(batch, ok) if not good]

@@ -28,7 +28,6 @@ from dataclasses import dataclass
 from typing import Callable, Mapping
 
 from ..problem import PlanningProblem, PortfolioEntry, ScheduleResult, Scheduler, StopCheck, UpperBound
-from ..sequences import is_pair
 from ..solvers_registry import register
 from .gain import published_coverage
 from .greedy import greedy_schedule
@@ -79,15 +78,20 @@ class Stage:
         None: the stage always runs.  Else it runs only when at least this
         much of the budget is left and ``should_stop`` (polled once, before
         it) does not say stop.
-    pairs_only : bool
-        The stage plans each field in exactly two filters (F4): with a
-        sequence of another length it is skipped.
+    sequences : tuple of (int, int)
+        The least and most filters of a sequence the stage plans (F4): with
+        a sequence of another length it is skipped.  (2, 2): each field in
+        exactly two filters; (2, 8): the slot MILP (S4-S6).
     """
 
     name: str
     run: StageRun
     min_left_s: float | None = None
-    pairs_only: bool = False
+    sequences: tuple[int, int] = (1, 8)
+
+    def plans(self, filters) -> bool:
+        """True when the stage plans the sequence ``filters`` (F4)."""
+        return self.sequences[0] <= len(tuple(filters)) <= self.sequences[1]
 
 
 def greedy_stage(problem: PlanningProblem, should_stop: StopCheck | None,
@@ -193,10 +197,11 @@ class Portfolio:
         bound_s = 0.0  # the bound's wall time, not charged to the stages
         skipped: list[str] = []
         times: dict[str, float] = {}  # wall time (s) of each stage run, and of the bound
-        pair_stages = [s.name for s in self.stages if s.pairs_only and not is_pair(problem.config.filters)]
-        if pair_stages:  # (F4) they model two exposures per field
-            log.info("%s: %s plan pairs of filters; skipped for the sequence %s", self.label,
-                     ", ".join(pair_stages), "-".join(problem.config.filters))
+        pair_stages = [s.name for s in self.stages if not s.plans(problem.config.filters)]
+        if pair_stages:  # (F4) they model another number of exposures per field
+            what = ", ".join(f"{s.name} ({_filters_range(s)})" for s in self.stages if s.name in pair_stages)
+            log.info("%s: skipped for the sequence %s of %d filters, which these stages' models do not hold: %s",
+                     self.label, "-".join(problem.config.filters), len(problem.config.filters), what)
         for i, stage in enumerate(self.stages):
             if stage.name in pair_stages:
                 continue
@@ -275,6 +280,12 @@ def choose_as_executed(problem: PlanningProblem, ran: dict[str, ScheduleResult],
     return name, executed, memo
 
 
+def _filters_range(stage: Stage) -> str:
+    """What a stage plans, e.g. ``2 filters`` or ``2-8 filters`` (F4)."""
+    lo, hi = stage.sequences
+    return f"{lo} filters" if lo == hi else f"{lo}-{hi} filters"
+
+
 def best_of(label: str, *stages: Stage, bound: BoundRun | None = None) -> Portfolio:
     """The :class:`Portfolio` of ``stages``, its results' solver named ``label(...)``; ``bound``: stop at it."""
     return Portfolio(label, tuple(stages), bound)
@@ -343,9 +354,9 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
 #: :data:`MIN_BLOCKS_S` is left) the block MILP with the time left, at most :data:`BLOCKS_LIMIT_S`; the plan covering the most as published
 #: (ties: greedy, slots, lns, blocks; the LNS only returns a plan other than its seed when it covers more).
 #: The certified bound is computed after greedy, and the stages left are skipped once a plan reaches it.
-hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage, pairs_only=True),
-                 Stage("lns", lns_stage, min_left_s=MIN_LNS_S, pairs_only=True),
-                 Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S, pairs_only=True), bound=published_bound)
+hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage, sequences=(2, 8)),
+                 Stage("lns", lns_stage, min_left_s=MIN_LNS_S, sequences=(2, 2)),
+                 Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S, sequences=(2, 2)), bound=published_bound)
 
 register("greedy", greedy_schedule)
 register("slots", with_upper_bound(slots_from_greedy))

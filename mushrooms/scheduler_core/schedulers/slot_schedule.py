@@ -39,13 +39,14 @@ from ..config import PlanningConfig
 from .ordering import order_fields
 from ..plan.document import Observation
 from ..problem import PlanningProblem, ScheduleResult, StopCheck
+from .blocks import cadence_block_size
 from .prune import shortlist_fields
 from .slew import overhead_time
 from .slots import (SlotGrid, SlotInstance, SlotModel, build_slot_model, decode_slots, make_slot_grid,
                     observable_segments, slot_instance, start_vector)
 from .solvers import SolveResult, resolve_backend, solve_milp
 
-__all__ = ["slot_schedule", "slot_rows", "slot_portfolio", "map_start", "time_slot_plan", "GridSolution"]
+__all__ = ["slot_schedule", "slot_rows", "slot_portfolio", "grid_positions", "map_start", "time_slot_plan", "GridSolution"]
 
 log = logging.getLogger(__name__)
 
@@ -58,22 +59,36 @@ PORTFOLIO_SPLIT = 3
 def slot_rows(problem: PlanningProblem, start_fields: np.ndarray | None = None) -> np.ndarray:
     """Rows the slot model schedules: the pruning shortlist plus a start plan's fields.
 
-    Only fields with a window long enough for a pair in one window
-    (``cadence + exposure``) enter the shortlist.
+    Only fields with a window long enough for their sequence in one window
+    (``(k - 1) cadence + exposure``) enter the shortlist.
     """
     cfg = problem.config
-    rows = shortlist_fields(problem, min_window_s=cfg.cadence_s + cfg.exposure_s)
+    rows = shortlist_fields(problem, min_window_s=(len(cfg.filters) - 1) * cfg.cadence_s + cfg.exposure_s)
     if start_fields is not None and len(start_fields):
         extra = np.flatnonzero(np.isin(problem.field_ids, np.asarray(start_fields)))
         rows = np.union1d(rows, extra)
     return np.asarray(rows, np.int64)
 
 
+def grid_positions(config: PlanningConfig) -> list[int]:
+    """Positions per block of the portfolio's grids: n* first, then ``slot_positions``.
+
+    n* = ``ceil((c - t_filt) / s)`` (:func:`.blocks.cadence_block_size`) is
+    the fewest positions whose pass and filter change fill the cadence:
+    with fewer, a block idles ``c - n s - t_filt`` between its passes (S4).
+    It is added only when ``slot_positions`` lacks it (the default list
+    holds 6, n* at 300 s: the default portfolio is unchanged; 9 at 180 s).
+    """
+    n_star = cadence_block_size(config)
+    listed = [int(n) for n in config.slot_positions]
+    return listed if n_star in listed else [n_star] + listed
+
+
 def slot_portfolio(problem: PlanningProblem, rows: np.ndarray) -> list[SlotGrid]:
-    """The grids solved: ``config.slot_positions`` × phases ``start``, ``end``."""
+    """The grids solved: :func:`grid_positions` × phases ``start``, ``end``."""
     segments = observable_segments(problem, rows)
     grids = []
-    for n in problem.config.slot_positions:
+    for n in grid_positions(problem.config):
         for phase in ("start", "end"):
             g = make_slot_grid(segments, problem.config, int(n), phase)
             if g.n_slots:
@@ -119,24 +134,66 @@ class GridSolution:
     start_objective: float | None
 
 
-def _block_times(problem: PlanningProblem, order: np.ndarray, lb1: np.ndarray, lb2: np.ndarray,
-                 block_start: float, prev: tuple[float, float, str, float] | None, exp: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Earliest real starts of a block's two passes in the given field order (``exp``: each field's exposure, s)."""
+def _block_times(problem: PlanningProblem, order: np.ndarray, lbs: np.ndarray, block_start: float,
+                 prev: tuple[float, float, str, float] | None, exp: np.ndarray) -> np.ndarray:
+    """Earliest real starts (k, m) of a block's ``k`` passes in the given field order.
+
+    ``lbs`` (k, m): each exposure's window opening; ``exp`` (m,): each field's
+    exposure (s).  A visit waits the cadence after the field's visit in the
+    pass before.
+    """
     cfg = problem.config
-    f1, f2 = cfg.filters
     ra, dec = problem.ra[order], problem.dec[order]
-    first, second = np.empty(order.size), np.empty(order.size)
-    for flt, times, lbs in ((f1, first, lb1), (f2, second, lb2)):
+    times = np.empty((len(cfg.filters), order.size))
+    for p, flt in enumerate(cfg.filters):
         for m in range(order.size):
             t = block_start if prev is None else prev[3] + float(overhead_time(
                 prev[0], prev[1], ra[m], dec[m], cfg.slew, cfg.filter_change_s if prev[2] != flt else 0.0))
-            t = max(t, lbs[m], block_start)
-            if flt == f2:
-                t = max(t, first[m] + cfg.cadence_s)
-            times[m] = t
+            t = max(t, lbs[p, m], block_start)
+            if p > 0:
+                t = max(t, times[p - 1, m] + cfg.cadence_s)
+            times[p, m] = t
             prev = (float(ra[m]), float(dec[m]), flt, t + float(exp[m]))
-    return first, second
+    return times
+
+
+def _time_block(problem: PlanningProblem, inst: SlotInstance, pairs: list[int], T: float,
+                prev: tuple[float, float, str, float] | None, pair_exp: np.ndarray, dropped: list[int]
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool] | None:
+    """Time one block's pairs: (rows in observing order, their exposures, starts (k, m), TSP order used).
+
+    The TSP order over the true slews is tried first, then the MILP's
+    position order; when neither keeps every exposure inside its window
+    (and a sequence within the pair separation), the first offending field
+    of the MILP order is dropped (its ID appended to ``dropped``) and the
+    block timed again.  None when no field is left.
+    """
+    cfg = problem.config
+    w = problem.windows
+    while pairs:
+        k = np.asarray(pairs)
+        prow = inst.rows[inst.pair_field[k]]
+        win = inst.windows()[k]  # (m, k passes)
+        orders = [np.arange(k.size)]
+        if k.size > 1:
+            tsp = order_fields(problem.ra[prow], problem.dec[prow], cfg.slew)
+            if not np.array_equal(tsp, orders[0]):
+                orders.insert(0, tsp)
+        kexp = pair_exp[k]
+        for o in orders:
+            exp = kexp[o]
+            times = _block_times(problem, prow[o], w.start[win[o]].T, T, prev, exp)
+            ends = np.minimum(w.end[win[o]].T, problem.horizon_s)
+            bad = np.any(times + exp[None, :] > ends + 1e-6, axis=0)
+            if times.shape[0] > 2:  # (S6) the sequence within the pair separation
+                bad |= times[-1] - times[0] > cfg.pair_separation_s + 1e-6
+            if not bad.any():
+                return prow[o], exp, times, len(orders) == 2 and o is orders[0]
+        # neither order fits: drop the first offending field of the MILP order
+        offender = int(np.flatnonzero(bad)[0])
+        dropped.append(int(problem.field_ids[prow[o][offender]]))
+        del pairs[int(o[offender])]
+    return None
 
 
 def time_slot_plan(problem: PlanningProblem, model: SlotModel, x: np.ndarray
@@ -153,62 +210,31 @@ def time_slot_plan(problem: PlanningProblem, model: SlotModel, x: np.ndarray
     Returns
     -------
     observations : list of Observation
-        In time order.
+        In time order: every chosen field once per filter of the sequence.
     dropped : list of int
         Field IDs dropped because an exposure fell outside its window.
     n_tsp : int
         Blocks observed in the TSP order (the others keep the MILP's order).
     """
     cfg = problem.config
-    f1, f2 = cfg.filters
     inst = model.instance
     pair_exp = inst.exposures(cfg.exposure_s)  # each pair's own exposure (the menu's, or exposure_s)
-    w = problem.windows
     obs: list[Observation] = []
     dropped: list[int] = []
     prev: tuple[float, float, str, float] | None = None
     n_tsp = 0
     for b, (j, pairs) in enumerate(decode_slots(model, x)):
-        T = float(inst.grid.block_start[j])
-        pairs = list(pairs)
-        while pairs:
-            k = np.asarray(pairs)
-            prow = inst.rows[inst.pair_field[k]]
-            w1, w2 = inst.pair_window1[k], inst.pair_window2[k]
-            orders = [np.arange(k.size)]
-            if k.size > 1:
-                tsp = order_fields(problem.ra[prow], problem.dec[prow], cfg.slew)
-                if not np.array_equal(tsp, orders[0]):
-                    orders.insert(0, tsp)
-            chosen = None
-            kexp = pair_exp[k]
-            for o in orders:
-                exp = kexp[o]
-                first, second = _block_times(problem, prow[o], w.start[w1[o]], w.start[w2[o]], T, prev, exp)
-                bad = (first + exp > np.minimum(w.end[w1[o]], problem.horizon_s) + 1e-6) | (
-                    second + exp > np.minimum(w.end[w2[o]], problem.horizon_s) + 1e-6)
-                if not bad.any():
-                    chosen = (o, first, second)
-                    break
-            if chosen is not None:
-                break
-            # neither order fits: drop the first offending field of the MILP order
-            offender = int(np.flatnonzero(bad)[0])
-            dropped.append(int(problem.field_ids[prow[o][offender]]))
-            del pairs[int(o[offender])]
-        if not pairs:
+        timed = _time_block(problem, inst, list(pairs), float(inst.grid.block_start[j]), prev, pair_exp, dropped)
+        if timed is None:
             continue
-        o, first, second = chosen
-        if len(orders) == 2 and o is orders[0]:
-            n_tsp += 1
-        rows_o = prow[o]
-        exp = kexp[o]
+        rows_o, exp, times, tsp = timed
+        n_tsp += int(tsp)
         for m, r in enumerate(rows_o):
             fid, ra, dec = int(problem.field_ids[r]), float(problem.ra[r]), float(problem.dec[r])
-            obs.append(Observation(fid, ra, dec, f1, float(first[m]), float(exp[m]), b))
-            obs.append(Observation(fid, ra, dec, f2, float(second[m]), float(exp[m]), b))
+            for p, flt in enumerate(cfg.filters):
+                obs.append(Observation(fid, ra, dec, flt, float(times[p, m]), float(exp[m]), b))
         last = rows_o[-1]
-        prev = (float(problem.ra[last]), float(problem.dec[last]), f2, float(second[-1] + exp[-1]))
+        prev = (float(problem.ra[last]), float(problem.dec[last]), cfg.filters[-1], float(times[-1, -1] + exp[-1]))
     obs.sort(key=lambda ob: ob.start)
     return obs, dropped, n_tsp
 
@@ -254,7 +280,7 @@ def slot_schedule(
         fields the real timing dropped; ``details`` hold the per-grid
         objectives, bounds and times and the mapped start's objective.
     """
-    require_pair(problem.config.filters, "slot MILP")
+    require_pair(problem.config.filters, "slot MILP", longer=True)
     t_wall = time.perf_counter()
     cfg: PlanningConfig = problem.config
     budget = cfg.time_limit_s if time_limit_s is None else float(time_limit_s)

@@ -1,25 +1,31 @@
-"""The fixed-grid slot-assignment MILP: grid, eligibility, model, decoding.
+"""The fixed-grid slot-assignment MILP: eligibility, model, decoding (the grid: :mod:`.slot_grid`).
 
 The observable time is cut once into back-to-back *blocks* of ``n``
-position pairs (``docs/design/milp.md``, section "Slot-assignment MILP").
-Position ``q`` of block ``j`` has fixed exposure starts (s since the
-horizon start)
+positions (``docs/design/milp.md``, section "Slot-assignment MILP").  A
+block is ``k`` filter passes over its positions, one per filter of the
+sequence ``S = (s_1, ..., s_k)`` (``[scheduler] filters``, F0; the pair
+``k = 2`` by default).  Position ``q`` of block ``j`` has fixed exposure
+starts (s since the horizon start)
 
-    t1 = T_j + q s                          (first filter)
-    t2 = T_j + D_n + q s,   D_n = max(n s + t_filt, cadence)   (second filter)
+    t_p = T_j + (p - 1) D_n + q s,   D_n = max(n s + t_filt, cadence),   p = 1..k   (S4)
 
-with ``s = t_exp + t_slew`` (the slew estimate).  A block lasts
-``L_n = D_n + n s + t_filt + margin``: both passes, the filter change back
-to the first filter and a small margin for slews longer than the estimate.
-A (field, slot) pair is *eligible* only when both of its exposures lie
-inside a window of the field, so every constraint is a plain assignment
-row: no big-M, no continuous times.
+with ``s = t_exp + t_slew`` (the slew estimate), so consecutive visits of
+a position are ``D_n >= cadence`` apart.  A block lasts
+``L_n = (k - 1) D_n + n s + δ t_filt + margin`` (S5): every pass, the
+filter change back to ``s_1`` when ``s_k != s_1`` (``δ = 1``; a g-r-g block
+ends in the next block's filter) and a small margin for slews longer than
+the estimate.  A (field, slot) pair is *eligible* only when each of its
+``k`` exposures lies inside a window of the field and, for ``k > 2``, the
+last starts at most the pair separation ``M`` after the first (S6), so
+every constraint is a plain assignment row: no big-M, no continuous times.
+A chosen slot is the field's whole sequence: its first two visits cover it
+(F1), the later ones take their passes' time.
 
 Variables: ``x_k`` binary for each eligible pair ``k = (field, slot)``;
 ``z_f`` in [0, 1] (field f is observed); ``y_c`` in [0, 1] (cell c is
 covered).  (S0) Maximise ``Σ_c w_c y_c + Σ_k v_k x_k − p Σ_f z_f`` subject to
 
-- (S1) ``Σ_{k ∋ slot} x_k <= 1``: one field per position;
+- (S1) ``Σ_{k ∋ slot} x_k <= 1``: one field per position (all passes);
 - (S2) ``z_f − Σ_{k ∋ f} x_k = 0``, ``z_f <= 1``: each field at most once;
 - (S3) ``y_c − Σ_{f ∋ c} z_f <= 0``: a cell counts when a field holding it
   is observed.
@@ -37,182 +43,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..sky.cells import Cells, merge_cells
-from ..config import PlanningConfig
 from ..problem import PlanningProblem
-from ..sky.windows import union_intervals
 from .rows import Columns, Family, RowBuilder
+from .slot_grid import SlotGrid, block_length_s, make_slot_grid, n_passes, observable_segments, second_pass_delay_s
 from .solvers import MilpModel
 
-__all__ = ["SlotGrid", "SlotInstance", "SlotModel", "block_length_s", "second_pass_delay_s",
-           "observable_segments", "make_slot_grid", "eligible_pairs", "slot_instance", "build_slot_model",
+__all__ = ["SlotGrid", "SlotInstance", "SlotModel", "block_length_s", "second_pass_delay_s", "n_passes",
+           "observable_segments", "make_slot_grid", "eligible_pairs", "eligible_visits", "slot_instance", "build_slot_model",
            "slot_model_rows", "decode_slots", "start_vector"]
-
-#: Phases of the grid: blocks laid out from each segment's start, or ending at its end.
-PHASES = ("start", "end")
-
-
-def second_pass_delay_s(n: int, config: PlanningConfig) -> float:
-    """D_n (s): from a position's first-filter start to its second-filter start."""
-    s = config.exposure_s + config.slew_estimate_s
-    return max(n * s + config.filter_change_s, config.cadence_s)
-
-
-def block_length_s(n: int, config: PlanningConfig) -> float:
-    """L_n (s): a block of ``n`` positions from its first start to the next block's."""
-    s = config.exposure_s + config.slew_estimate_s
-    return second_pass_delay_s(n, config) + n * s + config.filter_change_s + config.slot_margin_s
-
-
-def _active_s(n: int, config: PlanningConfig) -> float:
-    """From a block's first start to the end of its last exposure (s)."""
-    s = config.exposure_s + config.slew_estimate_s
-    return second_pass_delay_s(n, config) + (n - 1) * s + config.exposure_s
-
-
-@dataclass(frozen=True)
-class SlotGrid:
-    """Fixed exposure times of every position of every block.
-
-    Attributes
-    ----------
-    n_positions : int
-        n, positions of a full block.
-    phase : str
-        ``start`` or ``end`` (see :func:`make_slot_grid`).
-    block_start : numpy.ndarray
-        (J,) T_j (s), in time order.
-    block_size : numpy.ndarray
-        (J,) positions of block j (n, or fewer for a segment's partial block).
-    slot_block, slot_position : numpy.ndarray
-        (S,) block j and position q of each slot.
-    t1, t2 : numpy.ndarray
-        (S,) first- and second-filter exposure starts (s).
-    """
-
-    n_positions: int
-    phase: str
-    block_start: np.ndarray
-    block_size: np.ndarray
-    slot_block: np.ndarray
-    slot_position: np.ndarray
-    t1: np.ndarray
-    t2: np.ndarray
-
-    @property
-    def n_slots(self) -> int:
-        """Number of slots S."""
-        return int(self.t1.size)
-
-    @property
-    def name(self) -> str:
-        """Short label, e.g. ``n6/start``."""
-        return f"n{self.n_positions}/{self.phase}"
-
-
-def observable_segments(problem: PlanningProblem, rows: np.ndarray | None = None) -> list[tuple[float, float]]:
-    """Disjoint time intervals (s) in which at least one of the fields is observable.
-
-    Parameters
-    ----------
-    problem : PlanningProblem
-    rows : numpy.ndarray, optional
-        Rows of ``problem.field_ids`` to consider (default all).
-
-    Returns
-    -------
-    list of (start, end)
-        In time order, clipped to the horizon.
-    """
-    w = problem.windows
-    sel = np.ones(w.field_ids.size, bool) if rows is None else np.isin(w.field_ids, problem.field_ids[rows])
-    starts, ends = union_intervals(np.clip(w.start[sel], 0.0, problem.horizon_s),
-                                   np.clip(w.end[sel], 0.0, problem.horizon_s))
-    return [(float(s), float(e)) for s, e in zip(starts, ends)]
-
-
-def make_slot_grid(segments: list[tuple[float, float]], config: PlanningConfig, n: int,
-                   phase: str = "start") -> SlotGrid:
-    """Cut the observable segments into back-to-back blocks of ``n`` positions.
-
-    Each segment holds as many full blocks as fit (the last exposure of a
-    block ends inside the segment) and, in the time left, one partial
-    block of the most positions that still fit.  Phase ``start`` lays the
-    full blocks out from the segment's start, the partial block last;
-    phase ``end`` puts the partial block first and ends the last block at
-    the segment's end.
-
-    Parameters
-    ----------
-    segments : list of (start, end)
-        Observable intervals (s), e.g. from :func:`observable_segments`.
-    config : PlanningConfig
-        Exposure, slew estimate, filter change, cadence and ``slot_margin_s``.
-    n : int
-        Positions per full block (>= 1).
-    phase : str
-        ``start`` or ``end``.
-
-    Returns
-    -------
-    SlotGrid
-    """
-    if n < 1:
-        raise ValueError(f"a block needs at least one position, got n={n}")
-    if phase not in PHASES:
-        raise ValueError(f"phase must be one of {PHASES}, got {phase!r}")
-    s = config.exposure_s + config.slew_estimate_s
-    starts: list[float] = []
-    sizes: list[int] = []
-    for a, b in segments:
-        length = b - a
-        if length < _active_s(1, config):
-            continue
-        L = block_length_s(n, config)
-        n_full = int(np.floor((length - _active_s(n, config)) / L + 1e-9)) + 1 if length >= _active_s(n, config) else 0
-        left = length - n_full * L  # time after the last full block's full length
-        partial = 0
-        for m in range(n - 1, 0, -1):
-            if _active_s(m, config) <= left + 1e-9:
-                partial = m
-                break
-        layout = [n] * n_full + ([partial] if partial else [])
-        if phase == "end":
-            layout = ([partial] if partial else []) + [n] * n_full
-        t = a
-        block_t = []
-        for m in layout:
-            block_t.append(t)
-            t += block_length_s(m, config)
-        if phase == "end" and layout:
-            shift = b - (block_t[-1] + _active_s(layout[-1], config))
-            block_t = [x + max(shift, 0.0) for x in block_t]
-        starts += block_t
-        sizes += layout
-    T = np.asarray(starts, float)
-    size = np.asarray(sizes, np.int64)
-    slot_block = np.repeat(np.arange(T.size), size)
-    first = np.concatenate([[0], np.cumsum(size)[:-1]]) if size.size else np.zeros(0, np.int64)
-    slot_position = np.arange(int(size.sum())) - np.repeat(first, size)
-    delay = np.array([second_pass_delay_s(int(m), config) for m in size]) if size.size else np.zeros(0)
-    t1 = T[slot_block] + slot_position * s
-    t2 = t1 + delay[slot_block]
-    return SlotGrid(n, phase, T, size, slot_block, slot_position.astype(np.int64), t1, t2)
 
 
 def eligible_pairs(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, exposure_s: float | None = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(field, slot) pairs whose two exposures each lie inside a window of the field.
+    """(field, slot) pairs whose exposures each lie inside a window of the field.
 
-    Parameters
-    ----------
-    problem : PlanningProblem
-    rows : numpy.ndarray
-        Rows of ``problem.field_ids`` taking part (the model's fields are
-        ``0..len(rows)-1`` in this order).
-    grid : SlotGrid
-    exposure_s : float, optional
-        Length (s) of each of the pair's two exposures; default
-        ``config.exposure_s``.
+    :func:`eligible_visits` with the windows of the first two passes.
 
     Returns
     -------
@@ -222,6 +67,32 @@ def eligible_pairs(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, e
         (K,) index into ``problem.windows`` of the window holding the first
         and the second exposure.
     """
+    f, slot, win = eligible_visits(problem, rows, grid, exposure_s)
+    return f, slot, win[:, 0], win[:, 1]
+
+
+def eligible_visits(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, exposure_s: float | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(field, slot) pairs whose ``k`` exposures each lie inside a window of the field (S6).
+
+    Parameters
+    ----------
+    problem : PlanningProblem
+    rows : numpy.ndarray
+        Rows of ``problem.field_ids`` taking part (the model's fields are
+        ``0..len(rows)-1`` in this order).
+    grid : SlotGrid
+    exposure_s : float, optional
+        Length (s) of each exposure; default ``config.exposure_s``.
+
+    Returns
+    -------
+    field, slot : numpy.ndarray
+        (K,) model field index and slot index of each eligible pair.
+    windows : numpy.ndarray
+        (K, k) index into ``problem.windows`` of the window holding each
+        pass's exposure (the earliest such window).
+    """
     w = problem.windows
     e = problem.config.exposure_s if exposure_s is None else float(exposure_s)
     ids = problem.field_ids[np.asarray(rows, np.int64)]
@@ -230,19 +101,23 @@ def eligible_pairs(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, e
     wsel = np.flatnonzero(w_field >= 0)
     H = problem.horizon_s
     ws, we = w.start[wsel][:, None], np.minimum(w.end[wsel], H)[:, None]
-    in1 = (ws <= grid.t1[None, :]) & (grid.t1[None, :] + e <= we)     # (W, S)
-    in2 = (ws <= grid.t2[None, :]) & (grid.t2[None, :] + e <= we)
     F = len(ids)
-    # per field: the first window holding each exposure (-1: none)
-    win1 = np.full((F, grid.n_slots), -1, np.int64)
-    win2 = np.full((F, grid.n_slots), -1, np.int64)
-    for arr, inside in ((win1, in1), (win2, in2)):
+    wins = []
+    for t in grid.pass_starts:
+        inside = (ws <= t[None, :]) & (t[None, :] + e <= we)  # (W, S)
+        # per field: the first window holding the exposure (-1: none)
+        win = np.full((F, grid.n_slots), -1, np.int64)
         wi, si = np.nonzero(inside)
         # later windows first, so the earliest one is written last and wins
         order = np.argsort(-wi, kind="stable")
-        arr[w_field[wsel[wi[order]]], si[order]] = wsel[wi[order]]
-    f, slot = np.nonzero((win1 >= 0) & (win2 >= 0))
-    return f.astype(np.int64), slot.astype(np.int64), win1[f, slot], win2[f, slot]
+        win[w_field[wsel[wi[order]]], si[order]] = wsel[wi[order]]
+        wins.append(win)
+    ok = np.logical_and.reduce([win >= 0 for win in wins])
+    if len(wins) > 2:  # (S6) a sequence's last visit within the pair separation of its first
+        ok &= (grid.pass_starts[-1] - grid.t1 <= problem.config.pair_separation_s)[None, :]
+    f, slot = np.nonzero(ok)
+    windows = np.stack([win[f, slot] for win in wins], axis=1).reshape(f.size, len(wins))
+    return f.astype(np.int64), slot.astype(np.int64), windows
 
 
 @dataclass(frozen=True)
@@ -266,6 +141,9 @@ class SlotInstance:
     pair_span : numpy.ndarray or None
         (K,) consecutive positions, from ``pair_slot`` on, each pair
         occupies in both passes (X7); None: one each.
+    pair_window_later : numpy.ndarray or None
+        (K, k - 2) windows holding the exposures of the passes after the
+        second (S4); None for the pair.
     """
 
     rows: np.ndarray
@@ -277,6 +155,12 @@ class SlotInstance:
     pair_window2: np.ndarray
     pair_exposure: np.ndarray | None = None
     pair_span: np.ndarray | None = None
+    pair_window_later: np.ndarray | None = None
+
+    def windows(self) -> np.ndarray:
+        """(K, k) the window (index into ``problem.windows``) holding each pass's exposure of every pair."""
+        later = np.zeros((self.n_pairs, 0), np.int64) if self.pair_window_later is None else self.pair_window_later
+        return np.column_stack([self.pair_window1, self.pair_window2, later]).astype(np.int64)
 
     def exposures(self, default_s: float) -> np.ndarray:
         """(K,) exposure (s) of every pair (``default_s`` without a menu)."""
@@ -289,7 +173,7 @@ class SlotInstance:
         pick = (lambda a: None if a is None else np.asarray(a)[keep])
         return SlotInstance(self.rows, self.grid, self.cells, self.pair_field[keep], self.pair_slot[keep],
                             self.pair_window1[keep], self.pair_window2[keep], pick(self.pair_exposure),
-                            pick(self.pair_span))
+                            pick(self.pair_span), pick(self.pair_window_later))
 
     @property
     def n_fields(self) -> int:
@@ -329,8 +213,9 @@ def slot_instance(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid,
     if cells is None:
         weight = problem.prob if pixel_weight is None else np.asarray(pixel_weight, float)
         cells = merge_cells(shortlist_footprints(problem.footprints, rows), weight)
-    f, slot, w1, w2 = eligible_pairs(problem, rows, grid)
-    return SlotInstance(rows, grid, cells, f, slot, w1, w2)
+    f, slot, win = eligible_visits(problem, rows, grid)
+    later = win[:, 2:] if win.shape[1] > 2 else None
+    return SlotInstance(rows, grid, cells, f, slot, win[:, 0], win[:, 1], pair_window_later=later)
 
 
 @dataclass(frozen=True)
