@@ -1,7 +1,7 @@
-"""The slot MILP on a sequence of k visits (S4-S6): a hand-solved g-r-g instance, the pair unchanged, a real map.
+"""The slot MILP on a sequence of k visits (G1-G3): a hand-solved g-r-g instance, the pair unchanged, a real map.
 
 Hand instance.  Exposure 100 s, slew estimate 10 s (s = 110 s), filter change 30 s, cadence 250 s, no
-margin, g-r-g: a block of n = 2 positions has D = max(2 s + 30, 250) = 250 s and (S5, ends in g, no
+margin, g-r-g: a block of n = 2 positions has D = max(2 s + 30, 250) = 250 s and (G2, ends in g, no
 change back) L = 2 * 250 + 220 = 720 s; its slots are (t1, t2, t3) = (0, 250, 500) and (110, 360, 610).
 Horizon 1000 s: one block.  Windows: field 2 closes at 470 s (its third visit cannot fit), field 1 at
 760 s (either slot's third visit ends before, with room for the real slews), the others never.  Eligible: fields 1, 3, 4, 5; two

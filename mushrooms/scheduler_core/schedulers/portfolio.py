@@ -81,7 +81,7 @@ class Stage:
     sequences : tuple of (int, int)
         The least and most filters of a sequence the stage plans (F4): with
         a sequence of another length it is skipped.  (2, 2): each field in
-        exactly two filters; (2, 8): the slot MILP (S4-S6).
+        exactly two filters; (2, 8): the slot MILP (G1-G3).
     """
 
     name: str

@@ -1,4 +1,4 @@
-"""The slot MILP's time grid: blocks of ``n`` positions, ``k`` filter passes each (S4, S5).
+"""The slot MILP's time grid: blocks of ``n`` positions, ``k`` filter passes each (G1, G2).
 
 ``docs/design/milp.md``, section "Slot-assignment MILP": position ``q`` of
 block ``j`` has its visit in pass ``p`` at ``t_p = T_j + (p - 1) D_n + q s``
@@ -27,7 +27,7 @@ PHASES = ("start", "end")
 
 
 def second_pass_delay_s(n: int, config: PlanningConfig) -> float:
-    """D_n (s): from a position's start in one filter pass to its start in the next (S4)."""
+    """D_n (s): from a position's start in one filter pass to its start in the next (G1)."""
     s = config.exposure_s + config.slew_estimate_s
     return max(n * s + config.filter_change_s, config.cadence_s)
 
@@ -38,13 +38,13 @@ def n_passes(config: PlanningConfig) -> int:
 
 
 def _return_change_s(config: PlanningConfig) -> float:
-    """The filter change (s) from a block's last pass back to the next block's first (S5): 0 when ``s_k = s_1``."""
+    """The filter change (s) from a block's last pass back to the next block's first (G2): 0 when ``s_k = s_1``."""
     seq = tuple(config.filters)
     return 0.0 if len(seq) > 2 and seq[-1] == seq[0] else config.filter_change_s
 
 
 def block_length_s(n: int, config: PlanningConfig) -> float:
-    """L_n (s): a block of ``n`` positions from its first start to the next block's (S5)."""
+    """L_n (s): a block of ``n`` positions from its first start to the next block's (G2)."""
     s = config.exposure_s + config.slew_estimate_s
     k = n_passes(config)
     return (k - 1) * second_pass_delay_s(n, config) + n * s + _return_change_s(config) + config.slot_margin_s
@@ -75,7 +75,7 @@ class SlotGrid:
     t1, t2 : numpy.ndarray
         (S,) first- and second-filter exposure starts (s).
     t_later : numpy.ndarray
-        (k - 2, S) starts (s) of the passes after the second (S4): empty
+        (k - 2, S) starts (s) of the passes after the second (G1): empty
         for the pair.
     """
 
@@ -91,7 +91,7 @@ class SlotGrid:
 
     @property
     def pass_starts(self) -> np.ndarray:
-        """(k, S) exposure starts (s) of every pass (S4), in sequence order."""
+        """(k, S) exposure starts (s) of every pass (G1), in sequence order."""
         later = np.asarray(self.t_later, float).reshape(-1, self.t1.size)
         return np.vstack([self.t1, self.t2, later])
 
@@ -193,6 +193,6 @@ def make_slot_grid(segments: list[tuple[float, float]], config: PlanningConfig, 
     delay = np.array([second_pass_delay_s(int(m), config) for m in size]) if size.size else np.zeros(0)
     t1 = T[slot_block] + slot_position * s
     t2 = t1 + delay[slot_block]
-    # (S4) the passes after the second, D_n after the one before
+    # (G1) the passes after the second, D_n after the one before
     later = t1[None, :] + np.arange(2, n_passes(config))[:, None] * delay[slot_block][None, :]
     return SlotGrid(n, phase, T, size, slot_block, slot_position.astype(np.int64), t1, t2, later)

@@ -75,7 +75,7 @@ def grid_positions(config: PlanningConfig) -> list[int]:
 
     n* = ``ceil((c - t_filt) / s)`` (:func:`.blocks.cadence_block_size`) is
     the fewest positions whose pass and filter change fill the cadence:
-    with fewer, a block idles ``c - n s - t_filt`` between its passes (S4).
+    with fewer, a block idles ``c - n s - t_filt`` between its passes (G1).
     It is added only when ``slot_positions`` lacks it (the default list
     holds 6, n* at 300 s: the default portfolio is unchanged; 9 at 180 s).
     """
@@ -185,7 +185,7 @@ def _time_block(problem: PlanningProblem, inst: SlotInstance, pairs: list[int], 
             times = _block_times(problem, prow[o], w.start[win[o]].T, T, prev, exp)
             ends = np.minimum(w.end[win[o]].T, problem.horizon_s)
             bad = np.any(times + exp[None, :] > ends + 1e-6, axis=0)
-            if times.shape[0] > 2:  # (S6) the sequence within the pair separation
+            if times.shape[0] > 2:  # (G3) the sequence within the pair separation
                 bad |= times[-1] - times[0] > cfg.pair_separation_s + 1e-6
             if not bad.any():
                 return prow[o], exp, times, len(orders) == 2 and o is orders[0]

@@ -7,16 +7,16 @@ sequence ``S = (s_1, ..., s_k)`` (``[scheduler] filters``, F0; the pair
 ``k = 2`` by default).  Position ``q`` of block ``j`` has fixed exposure
 starts (s since the horizon start)
 
-    t_p = T_j + (p - 1) D_n + q s,   D_n = max(n s + t_filt, cadence),   p = 1..k   (S4)
+    t_p = T_j + (p - 1) D_n + q s,   D_n = max(n s + t_filt, cadence),   p = 1..k   (G1)
 
 with ``s = t_exp + t_slew`` (the slew estimate), so consecutive visits of
 a position are ``D_n >= cadence`` apart.  A block lasts
-``L_n = (k - 1) D_n + n s + δ t_filt + margin`` (S5): every pass, the
+``L_n = (k - 1) D_n + n s + δ t_filt + margin`` (G2): every pass, the
 filter change back to ``s_1`` when ``s_k != s_1`` (``δ = 1``; a g-r-g block
 ends in the next block's filter) and a small margin for slews longer than
 the estimate.  A (field, slot) pair is *eligible* only when each of its
 ``k`` exposures lies inside a window of the field and, for ``k > 2``, the
-last starts at most the pair separation ``M`` after the first (S6), so
+last starts at most the pair separation ``M`` after the first (G3), so
 every constraint is a plain assignment row: no big-M, no continuous times.
 A chosen slot is the field's whole sequence: its first two visits cover it
 (F1), the later ones take their passes' time.
@@ -73,7 +73,7 @@ def eligible_pairs(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, e
 
 def eligible_visits(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, exposure_s: float | None = None
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(field, slot) pairs whose ``k`` exposures each lie inside a window of the field (S6).
+    """(field, slot) pairs whose ``k`` exposures each lie inside a window of the field (G3).
 
     Parameters
     ----------
@@ -113,7 +113,7 @@ def eligible_visits(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, 
         win[w_field[wsel[wi[order]]], si[order]] = wsel[wi[order]]
         wins.append(win)
     ok = np.logical_and.reduce([win >= 0 for win in wins])
-    if len(wins) > 2:  # (S6) a sequence's last visit within the pair separation of its first
+    if len(wins) > 2:  # (G3) a sequence's last visit within the pair separation of its first
         ok &= (grid.pass_starts[-1] - grid.t1 <= problem.config.pair_separation_s)[None, :]
     f, slot = np.nonzero(ok)
     windows = np.stack([win[f, slot] for win in wins], axis=1).reshape(f.size, len(wins))
@@ -143,7 +143,7 @@ class SlotInstance:
         occupies in both passes (X7); None: one each.
     pair_window_later : numpy.ndarray or None
         (K, k - 2) windows holding the exposures of the passes after the
-        second (S4); None for the pair.
+        second (G1); None for the pair.
     """
 
     rows: np.ndarray
