@@ -96,7 +96,7 @@ class SlewModel:
 
 #: Keys a plan records only when set (non-empty, true): added after plan ids existed, they leave the
 #: document and the plan id of a configuration without them as they were (:meth:`PlanningConfig.record`).
-RECORDED_WHEN_SET = ("exposure_menu_s", "revisit", "bound_refine_ends", "pair_max_s")
+RECORDED_WHEN_SET = ("exposure_menu_s", "revisit", "bound_refine_ends", "pair_max_s", "hybrid_blocks")
 #: (P10) A pair's largest separation when ``pair_max_s = 0``: one night (12 h: longer than any night at
 #: Palomar, shorter than the day to the next one).
 ONE_NIGHT_PAIR_S = 43200.0
@@ -184,7 +184,7 @@ class PlanningConfig:
         portfolio, the time left to the LNS re-solves (which stop early
         when a round of slices or 3 s bring nothing) and what is then
         left (if at least ``MIN_BLOCKS_S``; at most ``BLOCKS_LIMIT_S``, 1 s)
-        to the block MILP.  With
+        to the block MILP when ``hybrid_blocks``.  With
         ``objective = "detection"`` it is the budget of the whole
         optimisation: the scheduler gets ``time_limit_s -
         detection_time_limit_s``, the detection stage the rest.
@@ -274,6 +274,15 @@ class PlanningConfig:
         every eighth of a time step, instead of by a whole step (V7,
         ``docs/design/milp.md``): a tighter bound (``bns_o3/14``: 0.640 to
         0.566) for 0.1-1 s more of Sun and Moon positions.  Default false.
+    hybrid_blocks : bool
+        The hybrid runs the paper's block MILP as its last coverage stage
+        (when ``MIN_BLOCKS_S`` is left, for at most ``BLOCKS_LIMIT_S``).
+        Default false: on the 56 shared maps, side by side with the default
+        optimisation, it took a median 0.86 s and changed nothing beyond its
+        error (coverage -0.0001 +- 0.0004, expected detections +0.0001 +-
+        0.0003, executed coverage -0.0016 +- 0.0013;
+        ``benchmarks/block_stage_value.py``).  ``--solver blocks`` runs it
+        alone whatever this says.
 
     Examples
     --------
@@ -339,6 +348,7 @@ class PlanningConfig:
     exposure_menu_s: tuple[float, ...] = setting((), 1, 3600, "s", why="each element; empty: every visit exposure_s")
     bound_time_limit_s: float = setting(2.0, 0, 600, "s", why="0: the online bound U4 alone")
     bound_refine_ends: bool = False
+    hybrid_blocks: bool = False
 
     def __post_init__(self) -> None:
         require_finite(self, "scheduler")
@@ -423,8 +433,8 @@ class PlanningConfig:
     def record(self) -> dict[str, Any]:
         """The configuration as the plan records it (and its plan id hashes).
 
-        ``exposure_menu_s`` appears only when set, ``revisit`` and
-        ``bound_refine_ends`` only when true, so a plan without them has the
+        ``exposure_menu_s`` appears only when set, ``revisit``,
+        ``bound_refine_ends`` and ``hybrid_blocks`` only when true, so a plan without them has the
         same document and the same plan id as before they existed.
         """
         out = dataclasses.asdict(self)

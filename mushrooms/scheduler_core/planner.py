@@ -76,7 +76,9 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     left of ``time_limit_s`` (at most ``detection_time_limit_s``; the
     certified upper bound comes on top, as for ``coverage``), started
     from the scheduler's coverage plan and kept only above its coverage
-    floor (X6) with more expected detections.
+    floor (X6: within ``detection_max_coverage_loss`` of it and never below
+    the coverage of greedy's plan in the scheduler's portfolio) with more
+    expected detections.
 
     Parameters
     ----------
@@ -120,7 +122,9 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     if cfg.exposure_menu_s and result.upper_bound is not None:
         result = dataclasses.replace(result, upper_bound=_menu_upper_bound(problem))
     t_detection = time.perf_counter()
-    result = detection_stage(problem, skymap, result, should_stop, time_limit_s=max(left, 0.0))
+    greedy = [e.coverage for e in result.portfolio if e.name == "greedy"]
+    result = detection_stage(problem, skymap, result, should_stop, time_limit_s=max(left, 0.0),
+                             baseline_coverage=greedy[0] if greedy else None)
     times = dict(result.details.get("stage_times_s", {}), detection=round(time.perf_counter() - t_detection, 3))
     return dataclasses.replace(result, details=dict(result.details, stage_times_s=times))
 

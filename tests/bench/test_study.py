@@ -220,4 +220,6 @@ def test_gwemopt_repaired_waits_for_the_raw_row_of_its_map_on_the_cluster(tmp_pa
         spans[str(t["key"])] = (compute[0]["start"], compute[-1]["stop"])
     raw, repaired = (spans[f"plan-{digest([study.result_key(maps[0].key, s, config_hash)], 16)}"]
                      for s in ("gwemopt", "gwemopt-repaired"))
-    assert repaired[0] >= raw[1]  # one gwemopt run per map, never two side by side
+    # one gwemopt run per map, never two side by side; the worker stamps a task's stop after its result is
+    # handed on, so under load the next task can start ~ms before it (seen: 1.6 ms); a run overlaps by seconds
+    assert repaired[0] >= raw[1] - 0.05

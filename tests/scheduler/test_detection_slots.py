@@ -121,6 +121,26 @@ def test_detection_stage_never_returns_fewer_expected_detections_than_its_covera
     assert plan.metrics.expected_detections == pytest.approx(fresh, abs=2e-6)
 
 
+def test_a_detection_plan_never_covers_less_than_greedy_however_much_coverage_it_may_give_up(data_dir) -> None:
+    """(X6) C_f = max((1 - ε) C₀, C_g): with ε = 0.5 the floor is greedy's coverage, found in the portfolio."""
+    cfg = PlanningConfig(nside=64, objective="detection", time_limit_s=6.0, detection_time_limit_s=2.5,
+                         detection_max_coverage_loss=0.5)
+    sm = read_skymap(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=64)
+    problem = prepare_problem(sm, cfg, sm.event_time)
+    det = optimise(problem, sm, "hybrid")
+    c_greedy = {e.name: e.coverage for e in det.portfolio}["greedy"]
+    c0 = max(e.coverage for e in det.portfolio)
+    assert 0 < 0.5 * c0 < c_greedy <= c0
+    assert det.detection.coverage_floor == pytest.approx(c_greedy)
+    assert published_coverage(problem, det) >= c_greedy - 1e-9
+    # every grid plan the stage could have chosen respects it
+    ran = [g for g in det.detection.grids if "coverage" in g]
+    assert all(g["above_floor"] == (g["coverage"] >= c_greedy - 1e-9) for g in ran)
+    # without a greedy plan to compare with, the floor is (1 - ε) C₀
+    alone = detection_stage(problem, sm, run_scheduler(problem, "greedy"), time_limit_s=1.0)
+    assert alone.detection.coverage_floor == pytest.approx(0.5 * published_coverage(problem, run_scheduler(problem, "greedy")))
+
+
 def test_the_detection_objective_shares_one_budget_between_its_two_stages(data_dir) -> None:
     """objective = detection: the scheduler gets time_limit_s minus the detection share, the stage the rest."""
     cfg = PlanningConfig(nside=64, objective="detection", time_limit_s=6.0, detection_time_limit_s=2.5)
@@ -160,3 +180,19 @@ def test_no_plan_has_more_expected_detections_than_the_ceiling_and_a_far_source_
     kept = detection_stage(problem, far, cov, time_limit_s=4.0)
     assert kept.detection.choice == "coverage (at the detection ceiling)" and kept.detection.grids == ()
     assert kept.observations == cov.observations and kept.expected_detections < cfg.min_gain
+
+
+def test_the_stage_solves_at_most_max_grids_grids_and_says_which_it_did_not_try(data_dir, monkeypatch) -> None:
+    from mushrooms.scheduler_core.schedulers import detection_slots
+
+    cfg = PlanningConfig(nside=64, time_limit_s=5.0, detection_time_limit_s=4.0)
+    sm = read_skymap(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=64)
+    problem = prepare_problem(sm, cfg, sm.event_time)
+    cov = run_scheduler(problem, "greedy")
+    monkeypatch.setattr(detection_slots, "MAX_GRIDS", None)
+    every = detection_stage(problem, sm, cov, time_limit_s=30.0).detection.grids
+    assert len(every) > 2  # the portfolio has more grids than the cap below
+    monkeypatch.setattr(detection_slots, "MAX_GRIDS", 2)
+    capped = detection_stage(problem, sm, cov, time_limit_s=30.0).detection.grids
+    assert [g["grid"] for g in capped[:2]] == [g["grid"] for g in every[:2]]  # the coverage plan's own grid first
+    assert capped[2] == {"grid": every[2]["grid"], "status": "not tried"} and len(capped) == 3

@@ -44,11 +44,25 @@ def test_hybrid_under_a_detection_config_gives_its_blocks_stage_what_is_left(sky
     monkeypatch.setattr(slot_module, "slot_schedule",
                         lambda problem, should_stop=None, start=None, time_limit_s=None:
                         real(problem, should_stop, start=start, time_limit_s=0.5))
-    cfg = PlanningConfig(time_limit_s=8.0, detection_time_limit_s=7.99, milp_backend="highs", objective="detection")
+    cfg = PlanningConfig(time_limit_s=8.0, detection_time_limit_s=7.99, milp_backend="highs", objective="detection",
+                         hybrid_blocks=True)
     problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
     result = run_scheduler(problem, "hybrid")
     assert "blocks" in [e.name for e in result.portfolio]  # > MIN_BLOCKS_S was left, < 7.99 s
     assert result.observations
+
+
+def test_the_hybrid_runs_its_block_stage_only_when_asked_and_a_plan_records_the_key_only_then(skymap_220722v):
+    """hybrid_blocks (default false): the block MILP is not in the portfolio, and the config a plan records
+    (and its plan id hashes) is the one from before the key existed."""
+    from mushrooms.scheduler_core.schedulers import portfolio
+
+    cfg = PlanningConfig(time_limit_s=4.0, milp_backend="highs", objective="coverage")
+    assert "blocks" in [s.name for s in portfolio.hybrid.stages]
+    problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
+    assert [e.name for e in run_scheduler(problem, "hybrid").portfolio] == ["greedy", "slots", "lns"]
+    assert "hybrid_blocks" not in cfg.record()
+    assert PlanningConfig(hybrid_blocks=True).record()["hybrid_blocks"] is True
 
 
 def test_the_stage_times_name_every_stage_that_ran_in_order(skymap_220722v, caplog):

@@ -48,7 +48,7 @@ from .exposure_menu import (dominated_pairs, map_start_menu, menu_instance, menu
 from .slots import SlotInstance, slot_instance
 from .solvers import resolve_backend, solve_milp
 
-__all__ = ["plan_expected_detections", "detection_stage"]
+__all__ = ["plan_expected_detections", "detection_stage", "coverage_floor"]
 
 log = logging.getLogger(__name__)
 
@@ -59,10 +59,30 @@ MIN_SOLVE_S = 0.3
 #: on 12 shared maps 0.9 found more than 0.5 (solving one grid well beats a wide, shallow portfolio).
 FIRST_GRID_SHARE = 0.9
 
+#: The stage solves at most this many grids (the coverage plan's own first); None: as many as its budget allows.
+MAX_GRIDS: int | None = None
+
 #: With an exposure menu: share of the stage's time left given to the fixed exposure's own grid, solved
 #: first (small, fast); the first menu grid, warm-started from the best plan so far, gets FIRST_GRID_SHARE
 #: of what is left after it.
 MENU_FIXED_SHARE = 0.3
+
+
+def coverage_floor(coverage: float, max_loss: float, baseline: float | None = None) -> float:
+    """The least coverage a detection plan may have (X6): ``max((1 - ε) C₀, C_g)``.
+
+    Parameters
+    ----------
+    coverage : float
+        ``C₀``, the published coverage of the coverage plan the stage starts from.
+    max_loss : float
+        ``ε``, ``config.detection_max_coverage_loss`` (relative).
+    baseline : float, optional
+        ``C_g``, the published coverage of greedy's plan when known: a
+        detection plan never covers less than the fast heuristic's.
+    """
+    floor = (1.0 - max_loss) * coverage
+    return floor if baseline is None else max(floor, min(float(baseline), coverage))
 
 
 def plan_expected_detections(problem: PlanningProblem, skymap: SkyMap, observations: tuple[Observation, ...] | list,
@@ -78,7 +98,8 @@ def plan_expected_detections(problem: PlanningProblem, skymap: SkyMap, observati
 
 def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: ScheduleResult,
                     should_stop: StopCheck | None = None, kilonova: Kilonova | None = None,
-                    depth: DepthModel = ZTF_DEPTH, time_limit_s: float | None = None) -> ScheduleResult:
+                    depth: DepthModel = ZTF_DEPTH, time_limit_s: float | None = None,
+                    baseline_coverage: float | None = None) -> ScheduleResult:
     """Improve a coverage plan's expected detections on the slot grids, within a coverage floor.
 
     Parameters
@@ -102,14 +123,19 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
         timing); default ``config.detection_time_limit_s``.  A grid is only
         started when at least :data:`MIN_SOLVE_S` of solve time is left
         after the time its solution will take to time and score.
+    baseline_coverage : float, optional
+        Published coverage of the fast heuristic's plan (greedy's, in the
+        hybrid's portfolio): the floor (X6) is at least this, so the stage
+        never returns a plan covering less than greedy's.
 
     Returns
     -------
     ScheduleResult
         The detection plan when, as it will be published (after the
         least-gain rule), it has more expected detections (X1) than
-        ``coverage`` by ``config.min_gain`` and covers at least ``(1 - ε)``
-        of ``coverage``'s published coverage (X6), or ties on expected
+        ``coverage`` by ``config.min_gain`` and covers at least
+        ``max((1 - ε) C₀, C_g)`` (X6; ``C₀`` is ``coverage``'s published
+        coverage, ``C_g`` ``baseline_coverage``), or ties on expected
         detections and covers more by ``min_gain`` (R1-R3); else
         ``coverage`` itself.  ``expected_detections`` (and
         ``expected_detections_lightcurve``) hold the returned plan's score,
@@ -128,7 +154,7 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
     t_score = time.perf_counter()
     c_cov, e_cov = stage.published(coverage)
     stage.post_s = time.perf_counter() - t_score + 0.1  # time to time and score one solution (updated as measured)
-    floor = (1.0 - cfg.detection_max_coverage_loss) * c_cov
+    floor = coverage_floor(c_cov, cfg.detection_max_coverage_loss, baseline_coverage)
     lightcurve = cfg.detection_lightcurve if own_kilonova else None
     ceiling = detection_ceiling(problem, skymap, kilonova, depth)
     if ceiling < e_cov + cfg.min_gain:  # (X7) no plan detects min_gain more: the answer cannot change
@@ -216,6 +242,9 @@ class _Stage:
         for i, (grid, on_menu) in enumerate(grids):
             if self.should_stop is not None and self.should_stop():
                 break
+            if MAX_GRIDS is not None and i >= MAX_GRIDS:
+                runs.append({"grid": grid.name, "status": "not tried"})
+                break
             if self.left_s() < MIN_SOLVE_S:
                 runs.append({"grid": grid.name, "status": "no time left"})
                 break
@@ -300,11 +329,21 @@ class _Stage:
         ok = c >= self.floor - 1e-9
         run = {"grid": grid.name, "status": res.status, "levels": int(self.levels.size), "pairs": inst.n_pairs,
                "objective": res.objective, "bound": res.bound, "expected_detections": e, "coverage": c,
-               "above_floor": ok, "dropped": len(dropped), "runtime_s": round(res.runtime_s, 3)}
+               "above_floor": ok, "dropped": len(dropped), "runtime_s": round(res.runtime_s, 3),
+               "last_gain_s": _last_gain_s(res.progress, cfg.min_gain)}
         if on_menu:
             run["pairs_offered"] = n_offered
             run["exposures"] = _exposure_counts(obs)
         return run, ((e, obs, res, c) if ok else None), False
+
+
+def _last_gain_s(trace: list[tuple[float, float, float]], gain: float) -> float | None:
+    """When (s into the solve) the incumbent last improved by more than ``gain``; None without an incumbent."""
+    at, best = None, -np.inf
+    for t, objective, _ in trace:
+        if objective > best + gain:
+            at, best = round(t, 3), objective
+    return at
 
 
 def _grid_name(name: str | None, config) -> str | None:

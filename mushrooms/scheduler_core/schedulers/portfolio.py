@@ -27,6 +27,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Mapping
 
+from ..config import PlanningConfig
 from ..problem import PlanningProblem, PortfolioEntry, ScheduleResult, Scheduler, StopCheck, UpperBound
 from ..solvers_registry import register
 from .gain import published_coverage
@@ -82,12 +83,16 @@ class Stage:
         The least and most filters of a sequence the stage plans (F4): with
         a sequence of another length it is skipped.  (2, 2): each field in
         exactly two filters; (2, 8): the slot MILP (G1-G3).
+    enabled : callable or None
+        ``enabled(config) -> bool``: the stage runs only when it says so
+        (None: always); a stage it turns off is not in the portfolio.
     """
 
     name: str
     run: StageRun
     min_left_s: float | None = None
     sequences: tuple[int, int] = (1, 8)
+    enabled: Callable[[PlanningConfig], bool] | None = None
 
     def plans(self, filters) -> bool:
         """True when the stage plans the sequence ``filters`` (F4)."""
@@ -203,7 +208,7 @@ class Portfolio:
             log.info("%s: skipped for the sequence %s of %d filters, which these stages' models do not hold: %s",
                      self.label, "-".join(problem.config.filters), len(problem.config.filters), what)
         for i, stage in enumerate(self.stages):
-            if stage.name in pair_stages:
+            if stage.name in pair_stages or (stage.enabled is not None and not stage.enabled(problem.config)):
                 continue
             # (V6) the best plan so far reaches the certified bound, less min_gain: no stage left can beat it
             # by more than the least gain a field must bring
@@ -350,13 +355,15 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
 
 
 #: The hybrid: greedy, the slot portfolio from it, the LNS re-solves (:mod:`.lns`) of the best plan so far with
-#: the time left (they stop early once a round of slices or 3 s bring nothing), then (when at least
-#: :data:`MIN_BLOCKS_S` is left) the block MILP with the time left, at most :data:`BLOCKS_LIMIT_S`; the plan covering the most as published
+#: the time left (they stop early once a round of slices or 1 s bring nothing), then (with
+#: ``config.hybrid_blocks``, when at least :data:`MIN_BLOCKS_S` is left) the block MILP with the time left, at
+#: most :data:`BLOCKS_LIMIT_S`; the plan covering the most as published
 #: (ties: greedy, slots, lns, blocks; the LNS only returns a plan other than its seed when it covers more).
 #: The certified bound is computed after greedy, and the stages left are skipped once a plan reaches it.
 hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage, sequences=(2, 8)),
                  Stage("lns", lns_stage, min_left_s=MIN_LNS_S, sequences=(2, 2)),
-                 Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S, sequences=(2, 2)), bound=published_bound)
+                 Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S, sequences=(2, 2),
+                       enabled=lambda config: config.hybrid_blocks), bound=published_bound)
 
 register("greedy", greedy_schedule)
 register("slots", with_upper_bound(slots_from_greedy))
