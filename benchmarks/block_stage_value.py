@@ -16,7 +16,6 @@ Every *.fits / *.fits.gz under ../shared/data/skymaps/{public,simulated} unless 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import sys
@@ -25,7 +24,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-SKYMAPS = ROOT.parent / "shared" / "data" / "skymaps"
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from paired_maps import map_key, paired_rows, shared_maps, write_summary  # noqa: E402
 ARMS = ("shipped", "no_blocks")
 
 
@@ -55,7 +56,7 @@ def run_map(path: Path, first: int) -> dict:
     cfg = load_config(ROOT / "config.toml").scheduler
     sm = read_skymap(path, nside=cfg.nside)
     problem = prepare_problem(sm, cfg, sm.event_time)
-    row: dict = {"map": f"{path.parent.name}/{path.name}"}
+    row: dict = {"map": map_key(path)}
     for arm in ARMS[first:] + ARMS[:first]:
         t0 = time.perf_counter()
         result = optimise(problem, sm, cfg.solver, scheduler=scheduler_for(arm))
@@ -101,31 +102,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("maps", nargs="*", type=Path)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "speed" / "block_stage_value.jsonl")
     args = ap.parse_args(argv)
-    maps = args.maps or sorted(p for d in ("public", "simulated") for p in (SKYMAPS / d).rglob("*.fits*")
-                               if p.name.endswith((".fits", ".fits.gz")))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    done = {}
-    if args.out.exists():
-        done = {json.loads(line)["map"]: json.loads(line) for line in args.out.read_text().splitlines() if line}
-    rows = []
-    with open(args.out, "a") as fh:
-        for i, path in enumerate(maps):
-            key = f"{path.parent.name}/{path.name}"
-            if key in done:
-                rows.append(done[key])
-                continue
-            row = run_map(path, i % 2)
-            fh.write(json.dumps(row) + "\n")
-            fh.flush()
-            rows.append(row)
-            print(f"[{i + 1}/{len(maps)}] {key}: " + "  ".join(
-                f"{a} {row[a]['wall_s']:.2f} s cov {row[a]['coverage']:.4f} E {row[a]['expected']:.4f}" for a in ARMS)
-                + f"  (load {row['load']:.1f})", file=sys.stderr, flush=True)
+    def describe(row: dict) -> str:
+        return "  ".join(f"{a} {row[a]['wall_s']:.2f} s cov {row[a]['coverage']:.4f} E {row[a]['expected']:.4f}"
+                         for a in ARMS)
+
+    rows = paired_rows(args.out, shared_maps(args.maps), lambda path, i: run_map(path, i % 2), describe)
     text = summary(rows)
-    Path(f"{args.out}.summary.txt").write_text(
-        f"# {time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())} {os.cpu_count()} cores; the default's "
-        f"optimisation with and without the hybrid's block stage, arms alternating first\n{text}\n")
-    print(text)
+    write_summary(args.out, "the default's optimisation with and without the hybrid's block stage, arms alternating first", text)
     return 0
 
 

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 import statistics
 import sys
@@ -28,7 +27,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-SKYMAPS = ROOT.parent / "shared" / "data" / "skymaps"
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from paired_maps import map_key, paired_rows, shared_maps, write_summary  # noqa: E402
 
 
 def arm_name(arm: str) -> str:
@@ -72,7 +73,7 @@ def run_map(path: Path, arms: list[str], first: int) -> dict:
         cfg, objective="coverage", time_limit_s=cfg.time_limit_s - cfg.detection_time_limit_s, exposure_menu_s=()))
     cov = run_scheduler(covering, cfg.solver)
     greedy = [e.coverage for e in cov.portfolio if e.name == "greedy"]
-    row: dict = {"map": f"{path.parent.name}/{path.name}", "coverage_plan": published_coverage(problem, cov),
+    row: dict = {"map": map_key(path), "coverage_plan": published_coverage(problem, cov),
                  "greedy": greedy[0] if greedy else None}
     order = arms[first:] + arms[:first]
     for arm in order:
@@ -143,36 +144,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path,
                     default=ROOT / "benchmarks" / "results" / "speed" / "detection_stage_variants.jsonl")
     args = ap.parse_args(argv)
-    maps = args.maps or sorted(p for d in ("public", "simulated") for p in (SKYMAPS / d).rglob("*.fits*")
-                               if p.name.endswith((".fits", ".fits.gz")))
     from mushrooms.scheduler_core.schedulers import detection_slots
 
     global SHIPPED
     SHIPPED = detection_slots.MAX_GRIDS
     arms: list[str] = args.arms
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    done = {}
-    if args.out.exists():
-        done = {json.loads(line)["map"]: json.loads(line) for line in args.out.read_text().splitlines() if line}
-    rows = []
-    with open(args.out, "a") as fh:
-        for i, path in enumerate(maps):
-            key = f"{path.parent.name}/{path.name}"
-            if key in done:
-                rows.append(done[key])
-                continue
-            row = run_map(path, arms, i % len(arms))
-            fh.write(json.dumps(row) + "\n")
-            fh.flush()
-            rows.append(row)
-            cells = "  ".join(f"{arm_name(a)} {row[arm_name(a)]['wall_s']:.2f} s E {row[arm_name(a)]['expected']:.4f}"
-                              for a in arms)
-            print(f"[{i + 1}/{len(maps)}] {key}: {cells}  (load {row['load']:.1f})", file=sys.stderr, flush=True)
+
+    def describe(row: dict) -> str:
+        return "  ".join(f"{arm_name(a)} {row[arm_name(a)]['wall_s']:.2f} s E {row[arm_name(a)]['expected']:.4f}"
+                         for a in arms)
+
+    rows = paired_rows(args.out, shared_maps(args.maps), lambda path, i: run_map(path, arms, i % len(arms)), describe)
     text = summary(rows, arms)
-    Path(f"{args.out}.summary.txt").write_text(
-        f"# {time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())} {os.cpu_count()} cores; detection stage on the "
-        f"same coverage plan per map, arms alternating first\n{text}\n")
-    print(text)
+    write_summary(args.out, "the detection stage on the same coverage plan per map, arms alternating first", text)
     return 0
 
 
