@@ -158,18 +158,30 @@ def projection(costs: dict[str, list[float]], injections_per_detection: float, e
             "would use up to that budget more.")
 
 
+#: (finished before, which code planned a row): the run's stages, in order.  The second session ran the study
+#: from the main checkout while merges moved it (the service row's LNS and block-stage budgets changed there);
+#: the rest from fixed snapshots.
+CODE_PERIODS = (("2026-12-06T01:34", "snapshots 50ed030 / ddf8b45 (2026-12-05)"),
+                ("2026-12-06T04:25", "the main checkout, 0f793b0 to 70a04bc (2026-12-06 01:34-04:21 UTC)"),
+                ("9999", "snapshot 975aa11 (= 70a04bc's code; 2026-12-06 04:28-05:55 UTC)"))
+
+
 def software(root: Path) -> list[str]:
     """Where the code that made the results came from (``ROOT/code-<commit>``: the snapshot the run used) and the
     versions its workers recorded."""
     codes = sorted(p.name.removeprefix("code-") for p in root.glob("code-*"))
     versions: dict[str, set[str]] = {}
+    by_period = {label: 0 for _, label in CODE_PERIODS}
     for rec in ResultStore(root / "study" / "results.jsonl").records().values():
         for name, v in (rec.get("versions") or {}).items():
             versions.setdefault(name, set()).add(str(v))
-    return [f"Code: branch `population` at {', '.join(codes) or '(unknown)'} (main as of 0f793b0 plus this "
-            "branch's evaluation changes), run from a snapshot in ROOT/code-<commit>; package versions on the "
+        finished = str(rec.get("finished") or "")
+        by_period[next((label for until, label in CODE_PERIODS if finished < until), CODE_PERIODS[-1][1])] += 1
+    return [f"Code: the commits {', '.join(codes) or '(unknown)'}, each run from a snapshot in ROOT/code-<commit> "
+            "(50ed030 and ddf8b45: branch `population` on main 0f793b0; later commits: main's); package versions on the "
             "workers: " + ", ".join(f"{k} {'/'.join(sorted(v))}" for k, v in sorted(versions.items()))
-            + " (`mushrooms` is the editable install's version, not the snapshot's)."]
+            + " (`mushrooms` is the editable install's version, not the snapshot's). (event, solver) rows by the code "
+            "that planned them: " + "; ".join(f"{label}: {n}" for label, n in by_period.items()) + "."]
 
 
 def main() -> int:
