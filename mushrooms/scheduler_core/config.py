@@ -188,7 +188,7 @@ class PlanningConfig:
         ``objective = "detection"`` it is the budget of the whole
         optimisation: the scheduler gets ``time_limit_s -
         detection_time_limit_s``, the detection stage the rest.
-        Default 12.5 s = 10 s for the scheduler + 2.5 s detection share.
+        Default 14 s = 10 s for the scheduler + 4 s detection share.
         Preparation, greedy, the upper bound and the checker
         come on top (about 2-4 s; imports about 3 s more for the CLI).
     mip_gap : float
@@ -237,9 +237,7 @@ class PlanningConfig:
         one from the coverage solver's run-to-run variance.  Splitting a
         10 s budget 6 + 4 instead gave only x1.06 / x1.07 with 5 maps worse
         (``objective_detection_floor.txt``): the coverage stage needs its
-        10 s.  The detection share is 2.5 s since the stage stops after
-        four grids (``schedulers/detection_slots.py`` ``MAX_GRIDS``): on the
-        56 shared maps 1.25 s faster per map for -0.35 % expected detections.
+        10 s.
     detection_levels : int
         L, distance levels per slot of the detection objective.
     detection_coverage_weight : float
@@ -332,7 +330,7 @@ class PlanningConfig:
     block_gap_s: float = setting(0.0, 0, 7200, "s")
     solver: str = "hybrid"
     milp_backend: str = "auto"
-    time_limit_s: float = setting(12.5, 0, 3600, "s", lo_open=True, why="an alert's plan is wanted within minutes")
+    time_limit_s: float = setting(14.0, 0, 3600, "s", lo_open=True, why="an alert's plan is wanted within minutes")
     mip_gap: float = setting(0.01, 0, 1, why="relative gap")
     threads: int = setting(0, 0, 256, why="0: the solver decides")
     max_retries: int = setting(3, 0, 20)
@@ -345,7 +343,7 @@ class PlanningConfig:
     objective: str = "detection"
     detection_levels: int = setting(8, 1, 64)
     detection_coverage_weight: float = setting(0.05, 0, 10)
-    detection_time_limit_s: float = setting(2.5, 0, 3600, "s", lo_open=True, why="less than time_limit_s")
+    detection_time_limit_s: float = setting(4.0, 0, 3600, "s", lo_open=True, why="less than time_limit_s")
     detection_max_coverage_loss: float = setting(0.02, 0, 1, hi_open=True, why="relative")
     exposure_menu_s: tuple[float, ...] = setting((), 1, 3600, "s", why="each element; empty: every visit exposure_s")
     bound_time_limit_s: float = setting(2.0, 0, 600, "s", why="0: the online bound U4 alone")

@@ -1,7 +1,7 @@
 """Through ``mushrooms run``: one merger clock, and ties in expected detections go to coverage.
 
 A real daemon process on the mock broker with the shipped ``[scheduler]``
-defaults (hybrid, objective detection, nside 256, 12.5 s; ``[daemon]
+defaults (hybrid, objective detection, nside 256, 14 s; ``[daemon]
 supersede_min_gain`` 0.005) gets two live copies of MS230425l's preliminary
 notice (``time_created`` = ``event.time`` = now, GW map only):
 
@@ -51,7 +51,7 @@ def _now() -> str:
     return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
 
 
-@pytest.mark.slow  # a scenario: the shipped hybrid (nside 256, 12.5 s) on two live events, about 25 s
+@pytest.mark.slow  # a scenario: the shipped hybrid (nside 256, 14 s) on two live events, about 25 s
 def test_live_notice_with_a_stale_map_and_a_distant_event_through_the_daemon(broker, daemons, tmp_path: Path) -> None:
     tag = time.time_ns()
     topic, out, group = f"gwalert-{tag}", f"plans-{tag}", f"mushrooms-{tag}"
