@@ -1,8 +1,8 @@
 """What the hybrid's block MILP stage buys in the default plan, side by side with the hybrid without it.
 
 Per map, the shipped configuration's whole optimisation (``planner.optimise``: the hybrid coverage stage,
-then the detection stage) runs twice: with the hybrid as shipped (greedy, slots, LNS, blocks) and with the
-same portfolio less its ``blocks`` stage, the arm that goes first alternating per map.  Per map and arm: the
+then the detection stage) runs twice: with ``[scheduler] hybrid_blocks = true`` (greedy, slots, LNS, blocks)
+and false (no block stage), the arm that goes first alternating per map.  Per map and arm: the
 optimisation's wall time, the published plan's coverage, expected detections (X1, the configured light
 curve) and coverage as ZTF's scheduler executes it (``metrics.coverage_as_executed``), and the stage whose
 plan the hybrid kept.
@@ -27,27 +27,14 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from paired_maps import map_key, paired_rows, shared_maps, write_summary  # noqa: E402
-ARMS = ("shipped", "no_blocks")
-
-
-def scheduler_for(arm: str):
-    """A ``run_scheduler``-compatible function planning with the arm's hybrid."""
-    from mushrooms.scheduler_core.planner import run_scheduler
-    from mushrooms.scheduler_core.schedulers import portfolio as pf
-
-    if arm == "shipped":
-        return run_scheduler
-    without = pf.with_upper_bound(pf.best_of("hybrid", *(s for s in pf.hybrid.stages if s.name != "blocks"),
-                                             bound=pf.published_bound))
-
-    def run(problem, solver, should_stop=None):
-        return without(problem, should_stop) if solver == "hybrid" else run_scheduler(problem, solver, should_stop)
-
-    return run
+#: arm -> ``hybrid_blocks``
+ARMS = {"blocks": True, "no_blocks": False}
 
 
 def run_map(path: Path, first: int) -> dict:
-    """One map, both arms (starting with ``ARMS[first]``)."""
+    """One map, both arms (starting with the ``first``-th)."""
+    import dataclasses
+
     from mushrooms.scheduler_core.planner import build_plan, optimise
     from mushrooms.scheduler_core.prepare import prepare_problem
     from mushrooms.scheduler_core.sky.skymap import read_skymap
@@ -57,21 +44,23 @@ def run_map(path: Path, first: int) -> dict:
     sm = read_skymap(path, nside=cfg.nside)
     problem = prepare_problem(sm, cfg, sm.event_time)
     row: dict = {"map": map_key(path)}
-    for arm in ARMS[first:] + ARMS[:first]:
+    arms = list(ARMS)
+    for arm in arms[first:] + arms[:first]:
+        arm_problem = dataclasses.replace(problem, config=dataclasses.replace(cfg, hybrid_blocks=ARMS[arm]))
         t0 = time.perf_counter()
-        result = optimise(problem, sm, cfg.solver, scheduler=scheduler_for(arm))
+        result = optimise(arm_problem, sm, cfg.solver)
         wall = time.perf_counter() - t0
-        m = build_plan(problem, result, sm, cfg.solver).metrics
+        m = build_plan(arm_problem, result, sm, cfg.solver).metrics
         row[arm] = {"wall_s": round(wall, 3), "coverage": m.coverage, "expected": m.expected_detections or 0.0,
-                    "executed": m.coverage_as_executed, "kept": result.details.get("kept_stage", result.solver),
+                    "executed": m.coverage_as_executed, "kept": result.solver,
                     "stage_times_s": result.details.get("stage_times_s")}
     row["load"] = os.getloadavg()[0]
     return row
 
 
 def paired(rows: list[dict], key: str) -> str:
-    """``no_blocks - shipped``: mean ± s.e. over maps (maps better / worse beyond 1e-4)."""
-    d = [(r["no_blocks"][key] or 0.0) - (r["shipped"][key] or 0.0) for r in rows]
+    """``no_blocks - blocks``: mean ± s.e. over maps (maps better / worse beyond 1e-4)."""
+    d = [(r["no_blocks"][key] or 0.0) - (r["blocks"][key] or 0.0) for r in rows]
     n = len(d)
     se = statistics.stdev(d) / n ** 0.5 if n > 1 else float("nan")
     return (f"{sum(d) / n:+.4f} ± {se:.4f} ({sum(x > 1e-4 for x in d)}/{sum(x < -1e-4 for x in d)}), "
@@ -90,10 +79,10 @@ def summary(rows: list[dict]) -> str:
                      f"{statistics.fmean(r[arm]['coverage'] for r in rows):.4f}, E mean "
                      f"{statistics.fmean(r[arm]['expected'] for r in rows):.4f}, executed mean "
                      f"{statistics.fmean((r[arm]['executed'] or 0.0) for r in rows):.4f}")
-    saved = [r["shipped"]["wall_s"] - r["no_blocks"]["wall_s"] for r in rows]
+    saved = [r["blocks"]["wall_s"] - r["no_blocks"]["wall_s"] for r in rows]
     lines.append(f"wall saved without blocks: median {statistics.median(saved):.2f} s, mean {statistics.fmean(saved):.2f} s")
     for key in ("coverage", "expected", "executed"):
-        lines.append(f"no_blocks - shipped, {key}: {paired(rows, key)}")
+        lines.append(f"no_blocks - blocks, {key}: {paired(rows, key)}")
     return "\n".join(lines)
 
 

@@ -18,7 +18,6 @@ summary (paired differences against None: mean ± s.e., maps better / worse) goe
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import statistics
 import sys
@@ -32,14 +31,9 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from paired_maps import map_key, paired_rows, shared_maps, write_summary  # noqa: E402
 
 
-def arm_name(arm: str) -> str:
-    """Column name of an arm."""
-    return arm
-
-
-def set_arm(stage_module, arm: str) -> None:
-    """Set the detection stage's constants for ``arm`` (``base``, ``grids=K``, ``budget=S``)."""
-    stage_module.MAX_GRIDS = SHIPPED
+def set_arm(stage_module, arm: str, shipped: int | None) -> None:
+    """Set the detection stage's constants for ``arm`` (``base``, ``grids=K``, ``budget=S``); ``shipped``: MAX_GRIDS."""
+    stage_module.MAX_GRIDS = shipped
     for part in arm.split(","):
         if part.startswith("budget="):
             continue  # :func:`arm_budget`
@@ -49,9 +43,6 @@ def set_arm(stage_module, arm: str) -> None:
             raise SystemExit(f"unknown arm {arm!r}")
 
 
-SHIPPED: int | None = None
-
-
 def arm_budget(arm: str, default: float) -> float:
     """The stage's budget (s) in ``arm``."""
     return next((float(p[7:]) for p in arm.split(",") if p.startswith("budget=")), default)
@@ -59,7 +50,7 @@ def arm_budget(arm: str, default: float) -> float:
 
 def run_map(path: Path, arms: list[str], first: int) -> dict:
     """One map: the coverage plan once, then the detection stage per arm (starting with ``arms[first]``)."""
-    from mushrooms.scheduler_core.planner import run_scheduler
+    from mushrooms.scheduler_core.planner import coverage_stage_problem, greedy_coverage, run_scheduler
     from mushrooms.scheduler_core.prepare import prepare_problem
     from mushrooms.scheduler_core.schedulers import detection_slots
     from mushrooms.scheduler_core.schedulers.gain import published_coverage
@@ -69,15 +60,12 @@ def run_map(path: Path, arms: list[str], first: int) -> dict:
     cfg = load_config(ROOT / "config.toml").scheduler
     sm = read_skymap(path, nside=cfg.nside)
     problem = prepare_problem(sm, cfg, sm.event_time)
-    covering = dataclasses.replace(problem, config=dataclasses.replace(
-        cfg, objective="coverage", time_limit_s=cfg.time_limit_s - cfg.detection_time_limit_s, exposure_menu_s=()))
-    cov = run_scheduler(covering, cfg.solver)
-    greedy = [e.coverage for e in cov.portfolio if e.name == "greedy"]
+    cov = run_scheduler(coverage_stage_problem(problem), cfg.solver)
     row: dict = {"map": map_key(path), "coverage_plan": published_coverage(problem, cov),
-                 "greedy": greedy[0] if greedy else None}
-    order = arms[first:] + arms[:first]
-    for arm in order:
-        set_arm(detection_slots, arm)
+                 "greedy": greedy_coverage(cov)}
+    shipped = detection_slots.MAX_GRIDS
+    for arm in arms[first:] + arms[:first]:
+        set_arm(detection_slots, arm, shipped)
         t0 = time.perf_counter()
         det = detection_slots.detection_stage(problem, sm, cov, time_limit_s=arm_budget(arm, cfg.detection_time_limit_s),
                                               baseline_coverage=row["greedy"])
@@ -88,7 +76,7 @@ def run_map(path: Path, arms: list[str], first: int) -> dict:
         if det.detection and det.detection.choice == "detection":
             kept = next((i for i, g in enumerate(grids) if g.get("above_floor")
                          and abs(g.get("expected_detections", -1.0) - e) < 1e-12), None)
-        row[arm_name(arm)] = {
+        row[arm] = {
             "wall_s": round(wall, 3), "coverage": published_coverage(problem, det), "expected": e,
             "choice": det.detection.choice if det.detection else None, "kept_grid": kept,
             "grids": [(g["grid"], g["status"], g.get("runtime_s"), g.get("last_gain_s")) for g in grids]}
@@ -107,13 +95,13 @@ def paired(rows: list[dict], a: str, b: str, key: str) -> tuple[float, float, in
 
 def summary(rows: list[dict], arms: list[str]) -> str:
     """The paired table against the first arm."""
-    base = arm_name(arms[0])
+    base = arms[0]
     lines = [f"maps: {len(rows)}; load (1-min) at each map: median {statistics.median(r['load'] for r in rows):.1f}, "
              f"max {max(r['load'] for r in rows):.1f}",
              f"{'arm':10} {'wall p50':>8} {'wall mean':>9} {'wall p95':>8} {'E mean':>8} {'cov mean':>9}   "
              f"{'E - ' + base:>26} {'coverage - ' + base:>26}"]
     for arm in arms:
-        name = arm_name(arm)
+        name = arm
         walls = sorted(r[name]["wall_s"] for r in rows)
         p95 = walls[min(len(walls) - 1, int(round(0.95 * (len(walls) - 1))))]
         e = statistics.fmean(r[name]["expected"] for r in rows)
@@ -127,10 +115,10 @@ def summary(rows: list[dict], arms: list[str]) -> str:
         lines.append(f"{name:10} {statistics.median(walls):8.2f} {statistics.fmean(walls):9.2f} {p95:8.2f} "
                      f"{e:8.4f} {c:9.4f}   {cols}")
     below = [r["map"] for r in rows for arm in arms if r["greedy"] is not None
-             and r[arm_name(arm)]["coverage"] < r["greedy"] - 1e-9]
+             and r[arm]["coverage"] < r["greedy"] - 1e-9]
     lines.append(f"plans covering less than greedy's: {len(below)} {below}")
     for arm in arms:
-        kept = [r[arm_name(arm)]["kept_grid"] for r in rows if r[arm_name(arm)]["kept_grid"] is not None]
+        kept = [r[arm]["kept_grid"] for r in rows if r[arm]["kept_grid"] is not None]
         lines.append(f"{arm}: detection plan kept on {len(kept)} maps, from grid #"
                      + ", #".join(f"{k}: {kept.count(k)}" for k in sorted(set(kept))))
     return "\n".join(lines)
@@ -144,14 +132,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path,
                     default=ROOT / "benchmarks" / "results" / "speed" / "detection_stage_variants.jsonl")
     args = ap.parse_args(argv)
-    from mushrooms.scheduler_core.schedulers import detection_slots
-
-    global SHIPPED
-    SHIPPED = detection_slots.MAX_GRIDS
     arms: list[str] = args.arms
 
     def describe(row: dict) -> str:
-        return "  ".join(f"{arm_name(a)} {row[arm_name(a)]['wall_s']:.2f} s E {row[arm_name(a)]['expected']:.4f}"
+        return "  ".join(f"{a} {row[a]['wall_s']:.2f} s E {row[a]['expected']:.4f}"
                          for a in arms)
 
     rows = paired_rows(args.out, shared_maps(args.maps), lambda path, i: run_map(path, arms, i % len(arms)), describe)

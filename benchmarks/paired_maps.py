@@ -7,7 +7,9 @@ map's position) and returns a JSON-able row; rows already in the output file are
 from __future__ import annotations
 
 import json
+import os
 import sys
+import time
 from pathlib import Path
 from typing import Callable
 
@@ -53,9 +55,6 @@ def paired_rows(out: Path, maps: list[Path], run_map: Callable[[Path, int], dict
 
 def write_summary(out: Path, what: str, text: str) -> None:
     """``text`` to ``out``.summary.txt under a line saying when, on how many cores, and ``what`` was run; printed too."""
-    import os
-    import time
-
     Path(f"{out}.summary.txt").write_text(
         f"# {time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())} {os.cpu_count()} cores; {what}\n{text}\n")
     print(text)

@@ -26,7 +26,8 @@ from .sky.skymap import SkyMap
 from .telescope.coverage import AS_EXECUTED_MEMO, execution_key, queue_coverage
 from .solvers_registry import SOLVER_NAMES, get_scheduler, unknown_solver_message
 
-__all__ = ["make_plan", "build_plan", "run_scheduler", "optimise", "SOLVERS"]
+__all__ = ["make_plan", "build_plan", "run_scheduler", "optimise", "coverage_stage_problem", "greedy_coverage",
+           "SOLVERS"]
 
 log = logging.getLogger(__name__)
 
@@ -114,20 +115,34 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
 
     t0 = time.perf_counter()
     share = cfg.detection_time_limit_s
-    covering = dataclasses.replace(problem, config=dataclasses.replace(  # the coverage stage plans exposure_s
-        cfg, objective="coverage", time_limit_s=cfg.time_limit_s - share, exposure_menu_s=()))
-    result = scheduler(covering, solver, should_stop)
+    result = scheduler(coverage_stage_problem(problem), solver, should_stop)
     bound_s = 0.0 if result.upper_bound is None else round(result.upper_bound.runtime_s, 3)
     spent = time.perf_counter() - t0 - bound_s  # the bound comes on top
     left = min(share, cfg.time_limit_s - spent)
     if cfg.exposure_menu_s and result.upper_bound is not None:
         result = dataclasses.replace(result, upper_bound=_menu_upper_bound(problem))
     t_detection = time.perf_counter()
-    greedy = [e.coverage for e in result.portfolio if e.name == "greedy"]
     result = detection_stage(problem, skymap, result, should_stop, time_limit_s=max(left, 0.0),
-                             baseline_coverage=greedy[0] if greedy else None)
+                             baseline_coverage=greedy_coverage(result))
     times = dict(result.details.get("stage_times_s", {}), detection=round(time.perf_counter() - t_detection, 3))
     return dataclasses.replace(result, details=dict(result.details, stage_times_s=times))
+
+
+def coverage_stage_problem(problem: PlanningProblem) -> PlanningProblem:
+    """The problem the coverage scheduler solves under ``objective = "detection"``.
+
+    The coverage objective, ``time_limit_s - detection_time_limit_s`` and
+    every visit ``exposure_s`` (no exposure menu): the detection stage
+    (:func:`optimise`) then starts from its plan.
+    """
+    cfg = problem.config
+    return dataclasses.replace(problem, config=dataclasses.replace(
+        cfg, objective="coverage", time_limit_s=cfg.time_limit_s - cfg.detection_time_limit_s, exposure_menu_s=()))
+
+
+def greedy_coverage(result: ScheduleResult) -> float | None:
+    """Published coverage of greedy's plan in a portfolio's result (the hybrid's first stage); None without one."""
+    return next((e.coverage for e in result.portfolio if e.name == "greedy"), None)
 
 
 def _menu_upper_bound(problem: PlanningProblem):

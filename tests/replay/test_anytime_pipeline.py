@@ -240,15 +240,11 @@ def detecting(min_gain: float, loss: float = 0.02):
 @pytest.fixture(scope="module")
 def detection_run(tmp_path_factory):
     """Revision 1 (half the greedy plan) and revision 2 (the detection stage started from the whole greedy plan)."""
-    from mushrooms.scheduler_core.schedulers import detection_slots
-
     s = Store(tmp_path_factory.mktemp("detection") / "state.sqlite")
     sink = MemorySink()
     planner = HalfThenWhole()
     p = NoticePipeline.from_config(detecting(0.0), s, sink, planner=planner)
-    with pytest.MonkeyPatch.context() as mp:  # every grid: on this small map the detection gain is in a late one
-        mp.setattr(detection_slots, "MAX_GRIDS", None)
-        out = p.run_job(accept(p, PRELIM).job)
+    out = p.run_job(accept(p, PRELIM).job)
     s.close()
     assert planner.calls == ["greedy", "hybrid"] and out.revision == 2, [m.get("reason") for m in sink.messages]
     first, second = [m for m in sink.messages if m["type"] == "plan"]
@@ -257,12 +253,8 @@ def detection_run(tmp_path_factory):
 
 
 @pytest.mark.parametrize("above", [False, True])
-def test_detection_objective_supersedes_by_expected_detections_within_the_floor(store, detection_run, above,
-                                                                                  monkeypatch):
+def test_detection_objective_supersedes_by_expected_detections_within_the_floor(store, detection_run, above):
     """objective = detection: revision 2 must expect supersede_min_gain more detections, within the floor."""
-    from mushrooms.scheduler_core.schedulers import detection_slots
-
-    monkeypatch.setattr(detection_slots, "MAX_GRIDS", None)  # as in detection_run
     first, second = detection_run
     m1, m2 = first["metrics"], second["metrics"]
     d_gain = m2["expected_detections"] - m1["expected_detections"]

@@ -75,7 +75,7 @@ MENU_FIXED_SHARE = 0.3
 
 
 def coverage_floor(coverage: float, max_loss: float, baseline: float | None = None) -> float:
-    """The least coverage a detection plan may have (X6): ``max((1 - ε) C₀, C_g)``.
+    """The least coverage a detection plan may have (X6): ``max((1 - ε) C₀, min(C_g, C₀))``.
 
     Parameters
     ----------
@@ -85,7 +85,8 @@ def coverage_floor(coverage: float, max_loss: float, baseline: float | None = No
         ``ε``, ``config.detection_max_coverage_loss`` (relative).
     baseline : float, optional
         ``C_g``, the published coverage of greedy's plan when known: a
-        detection plan never covers less than the fast heuristic's.
+        detection plan never covers less than the fast heuristic's (nor
+        need it cover more than ``C₀``, which the coverage plan itself meets).
     """
     floor = (1.0 - max_loss) * coverage
     return floor if baseline is None else max(floor, min(float(baseline), coverage))
@@ -140,8 +141,9 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
         The detection plan when, as it will be published (after the
         least-gain rule), it has more expected detections (X1) than
         ``coverage`` by ``config.min_gain`` and covers at least
-        ``max((1 - ε) C₀, C_g)`` (X6; ``C₀`` is ``coverage``'s published
-        coverage, ``C_g`` ``baseline_coverage``), or ties on expected
+        ``max((1 - ε) C₀, min(C_g, C₀))`` (X6, :func:`coverage_floor`; ``C₀``
+        is ``coverage``'s published coverage, ``C_g``
+        ``baseline_coverage``), or ties on expected
         detections and covers more by ``min_gain`` (R1-R3); else
         ``coverage`` itself.  ``expected_detections`` (and
         ``expected_detections_lightcurve``) hold the returned plan's score,
@@ -170,7 +172,7 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
                               (e_cov, floor, lightcurve), ())
     # (X6) the model keeps (1 - ε) C₀: a floor at C₀ itself (greedy's plan kept) would refuse the coverage plan's
     # own mapped start, which the grid's rounding puts a little below it, and leave the solver without one
-    model_floor = (1.0 - cfg.detection_max_coverage_loss) * c_cov
+    model_floor = coverage_floor(c_cov, cfg.detection_max_coverage_loss)
     best, runs = stage.solve_grids(coverage, model_floor, floor, (e_cov, None, None, c_cov))
     if best[1] is None:
         return _kept_coverage(coverage, t_wall, "coverage", budget, (e_cov, floor, lightcurve), tuple(runs))
