@@ -16,7 +16,10 @@ plan goes through the independent checker.
 
 Printed per instance: optimum (or incumbent and proven bound), hybrid,
 greedy, bound, and the split ``bound slack = bound - optimum``,
-``optimiser loss = optimum - hybrid``; then the means over the instances
+``optimiser loss = optimum - hybrid``; then the exact plan, the hybrid and
+greedy as ZTF's scheduler executes their queues (Q14), and the loss as
+executed, ``exec loss = exact plan executed - hybrid executed`` (the exact
+plan is optimal as planned, not as executed: it can be negative); then the means over the instances
 proven optimal, and the instances not proven with their gap.  Default maps:
 the four hardest maps of the block-stage run at ``k`` and ``--k-hard``, and every third map of
 ``shared/data/skymaps`` (public, simulated BNS, simulated NSBH) at ``k``.
@@ -71,6 +74,7 @@ def measure(path: Path, k: int, exact_limit: float, plan_limit: float, interval_
     from mushrooms.scheduler_core.planner import build_plan, run_scheduler
     from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound
     from mushrooms.scheduler_core.schedulers.interval_bound import interval_upper_bound
+    from mushrooms.scheduler_core.telescope.coverage import keyed_coverage_as_executed
 
     cfg = PlanningConfig(objective="coverage", threads=1, time_limit_s=plan_limit, milp_backend="highs",
                          min_gain=0.0, min_coverage=0.0)
@@ -94,6 +98,8 @@ def measure(path: Path, k: int, exact_limit: float, plan_limit: float, interval_
     plan = build_plan(problem, ex.result, sm, "hybrid")
     report = check_plan(plan, sm, cfg)
     opt = cov(ex.result)
+    executed = {name: keyed_coverage_as_executed(problem, r)[1]
+                for name, r in (("greedy", greedy), ("hybrid", hybrid), ("optimum", ex.result))}
     proven_bound = ex.bound if ex.bound is not None else opt
     extra = {}
     if refined:  # the exact optimum on windows with refined ends (evaluation/true_windows.py)
@@ -117,7 +123,11 @@ def measure(path: Path, k: int, exact_limit: float, plan_limit: float, interval_
         "bound_slack": online.value - opt, "bound_slack_min": online.value - proven_bound,
         "interval_slack": interval.value - opt,
         "optimiser_loss": opt - cov(hybrid), "optimiser_loss_max": proven_bound - cov(hybrid),
-        "greedy_loss": opt - cov(greedy), "exact_fields": len({o.field_id for o in ex.result.observations}),
+        "greedy_loss": opt - cov(greedy),
+        "greedy_executed": executed["greedy"], "hybrid_executed": executed["hybrid"],
+        "optimum_executed": executed["optimum"],
+        "optimiser_loss_executed": executed["optimum"] - executed["hybrid"],
+        "exact_fields": len({o.field_id for o in ex.result.observations}),
         "hybrid_fields": len({o.field_id for o in hybrid.observations}),
         "exact_valid": report.ok, "first_problem": report.problems[0] if report.problems else "",
         "exact_s": round(exact_s, 2), "vars": ex.size.get("vars"), "cuts": ex.size.get("cuts"),
@@ -125,7 +135,8 @@ def measure(path: Path, k: int, exact_limit: float, plan_limit: float, interval_
 
 
 HEADER = (f"{'map':42s} {'k':>3s} {'status':>10s} {'optimum':>8s} {'hybrid':>8s} {'greedy':>8s} {'bound':>8s} "
-          f"{'slack':>8s} {'loss':>8s} {'gap':>7s} {'V':>8s} {'V slack':>8s} ok")
+          f"{'slack':>8s} {'loss':>8s} {'gap':>7s} {'V':>8s} {'V slack':>8s} {'exec opt':>8s} {'exec hyb':>8s} "
+          f"{'exec gre':>8s} {'exec loss':>9s} ok")
 
 
 def line(r: dict) -> str:
@@ -133,11 +144,13 @@ def line(r: dict) -> str:
     check = "ok" if r["exact_valid"] else "INVALID: " + r["first_problem"]
     return (f"{r['map'][-42:]:42s} {r['k']:3d} {r['status'][:10]:>10s} {r['optimum']:8.4f} {r['hybrid']:8.4f} "
             f"{r['greedy']:8.4f} {r['bound']:8.4f} {r['bound_slack']:8.4f} {r['optimiser_loss']:8.4f} {gap:>7s} "
-            f"{r['bound_interval']:8.4f} {r['interval_slack']:8.4f} {check}")
+            f"{r['bound_interval']:8.4f} {r['interval_slack']:8.4f} {r['optimum_executed']:8.4f} {r['hybrid_executed']:8.4f} "
+            f"{r['greedy_executed']:8.4f} {r['optimiser_loss_executed']:9.4f} {check}")
 
 
 MEANS = ("optimum", "hybrid", "greedy", "bound", "bound_u0", "bound_interval", "bound_slack", "interval_slack",
-         "optimiser_loss", "greedy_loss")
+         "optimiser_loss", "greedy_loss", "optimum_executed", "hybrid_executed", "greedy_executed",
+         "optimiser_loss_executed")
 
 
 def summary(rows: list[dict]) -> list[str]:
@@ -155,6 +168,9 @@ def summary(rows: list[dict]) -> list[str]:
                    + f"; optimum/bound {ratio_opt:.3f}, optimum/V {ratio_int:.3f}, hybrid/optimum {ratio_hyb:.3f}")
     out.append(f"exact plans passing the checker: {sum(r['exact_valid'] for r in rows)}/{len(rows)}; "
                f"hybrid = optimum (1e-6) on {sum(r['optimiser_loss'] <= 1e-6 for r in rows)}/{len(rows)}; "
+               f"as executed, hybrid >= the exact plan on {sum(r['optimiser_loss_executed'] <= 1e-6 for r in rows)}"
+               f"/{len(rows)} and >= greedy on {sum(r['hybrid_executed'] >= r['greedy_executed'] - 1e-6 for r in rows)}"
+               f"/{len(rows)}; "
                f"V >= optimum on {sum(r['bound_interval'] >= r['optimum'] - 1e-9 for r in rows)}/{len(rows)}; "
                f"V <= bound on {sum(r['bound_interval'] <= r['bound'] + 1e-9 for r in rows)}/{len(rows)}; "
                f"median V time {statistics.median(r['bound_interval_s'] for r in rows):.2f} s")
