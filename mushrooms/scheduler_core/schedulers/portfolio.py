@@ -183,7 +183,9 @@ class Portfolio:
     ``time_limit_s``, as it did after the scheduler) and is the result's
     ``upper_bound``; when the best plan so far reaches it
     (:func:`reaches_bound`) the stages left are skipped, logged and listed
-    in ``details["skipped_at_bound"]``.  The plan is the one the full run
+    in ``details["skipped_at_bound"]`` (only those that would have run:
+    a stage switched off by the config, or skipped for the filter sequence
+    (``details["skipped_for_sequence"]``), is not listed).  The plan is the one the full run
     would keep: no later stage can cover more, and a tie goes to the
     earlier stage.  ``details["stage_times_s"]``: each stage run's wall
     time (s), and the bound's (``bound``), in the order they ran.
@@ -207,13 +209,14 @@ class Portfolio:
             what = ", ".join(f"{s.name} ({_filters_range(s)})" for s in self.stages if s.name in pair_stages)
             log.info("%s: skipped for the sequence %s of %d filters, which these stages' models do not hold: %s",
                      self.label, "-".join(problem.config.filters), len(problem.config.filters), what)
-        for i, stage in enumerate(self.stages):
-            if stage.name in pair_stages or (stage.enabled is not None and not stage.enabled(problem.config)):
-                continue
+        # the stages this problem runs: those that plan its sequence (F4) and its config switches on
+        runnable = [s for s in self.stages if s.name not in pair_stages
+                    and (s.enabled is None or s.enabled(problem.config))]
+        for i, stage in enumerate(runnable):
             # (V6) the best plan so far reaches the certified bound, less min_gain: no stage left can beat it
             # by more than the least gain a field must bring
             if upper is not None and covs and reaches_bound(max(covs.values()), upper, problem.config.min_gain):
-                skipped = [s.name for s in self.stages[i:]]
+                skipped = [s.name for s in runnable[i:]]
                 within = f" within min_gain {problem.config.min_gain:g}" if problem.config.min_gain else ""
                 log.info("%s: %s's plan covers %.4f, the certified bound is %.4f (%s): it is optimal%s, "
                          "skipping %s", self.label, max(covs, key=covs.get), max(covs.values()), upper.value,
