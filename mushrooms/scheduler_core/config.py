@@ -96,7 +96,10 @@ class SlewModel:
 
 #: Keys a plan records only when set (non-empty, true): added after plan ids existed, they leave the
 #: document and the plan id of a configuration without them as they were (:meth:`PlanningConfig.record`).
-RECORDED_WHEN_SET = ("exposure_menu_s", "revisit", "bound_refine_ends", "pair_max_s", "hybrid_blocks")
+RECORDED_WHEN_SET = ("exposure_menu_s", "revisit", "bound_refine_ends", "pair_max_s", "hybrid_blocks",
+                     "hybrid_paced_slots")
+#: Keys a plan records only when false (switches that are on by default and were always on before they existed).
+RECORDED_WHEN_CLEARED = ("hybrid_lns",)
 #: (P10) A pair's largest separation when ``pair_max_s = 0``: one night (12 h: longer than any night at
 #: Palomar, shorter than the day to the next one).
 ONE_NIGHT_PAIR_S = 43200.0
@@ -281,8 +284,17 @@ class PlanningConfig:
         optimisation, it took a median 0.86 s and changed nothing beyond its
         error (coverage -0.0001 +- 0.0004, expected detections +0.0001 +-
         0.0003, executed coverage -0.0016 +- 0.0013;
-        ``benchmarks/block_stage_value.py``).  ``--solver blocks`` runs it
+        ``benchmarks/hybrid_stage_value.py``).  ``--solver blocks`` runs it
         alone whatever this says.
+    hybrid_paced_slots : bool
+        The hybrid also plans greedy and the slot grids at the cadence ZTF's
+        scheduler keeps, ``cadence_s`` plus the queue windows' 120 s margin
+        (Q11, Q19 in ``docs/design/executed.md``), after its slot stage and
+        for at most ``PACED_SLOTS_LIMIT_S``; its choice (Q15) weighs that plan
+        by the coverage executed.  Pairs of filters only.  Default true.
+    hybrid_lns : bool
+        The hybrid runs its LNS re-solves (H1-H5, ``docs/design/milp.md``)
+        after its slot stages.  Default true.
 
     Examples
     --------
@@ -349,6 +361,8 @@ class PlanningConfig:
     bound_time_limit_s: float = setting(2.0, 0, 600, "s", why="0: the online bound U4 alone")
     bound_refine_ends: bool = False
     hybrid_blocks: bool = False
+    hybrid_paced_slots: bool = True
+    hybrid_lns: bool = True
 
     def __post_init__(self) -> None:
         require_finite(self, "scheduler")
@@ -434,12 +448,16 @@ class PlanningConfig:
         """The configuration as the plan records it (and its plan id hashes).
 
         ``exposure_menu_s`` appears only when set, ``revisit``,
-        ``bound_refine_ends`` and ``hybrid_blocks`` only when true, so a plan without them has the
+        ``bound_refine_ends``, ``hybrid_blocks`` and ``hybrid_paced_slots`` only when true,
+        ``hybrid_lns`` only when false, so a plan without them has the
         same document and the same plan id as before they existed.
         """
         out = dataclasses.asdict(self)
         for key in RECORDED_WHEN_SET:
             if not out[key]:
+                del out[key]
+        for key in RECORDED_WHEN_CLEARED:
+            if out[key]:
                 del out[key]
         return out
 

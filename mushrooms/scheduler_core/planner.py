@@ -79,7 +79,8 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     certified upper bound comes on top, as for ``coverage``), started
     from the scheduler's coverage plan and kept only above its coverage
     floor (X6: within ``detection_max_coverage_loss`` of it and never below
-    the coverage of greedy's plan in the scheduler's portfolio) with more
+    the coverage of greedy's plan in the scheduler's portfolio), and above
+    the same floor as ZTF's scheduler executes the queues (X10), with more
     expected detections.
 
     Parameters
@@ -123,7 +124,8 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
         result = dataclasses.replace(result, upper_bound=_menu_upper_bound(problem))
     t_detection = time.perf_counter()
     result = detection_stage(problem, skymap, result, should_stop, time_limit_s=max(left, 0.0),
-                             baseline_coverage=greedy_coverage(result))
+                             baseline_coverage=greedy_coverage(result),
+                             baseline_executed=result.details.get("coverage_as_executed", {}).get("greedy"))
     times = dict(result.details.get("stage_times_s", {}), detection=round(time.perf_counter() - t_detection, 3))
     return dataclasses.replace(result, details=dict(result.details, stage_times_s=times))
 

@@ -153,7 +153,9 @@ class DetectionReport:
         The floor (X6) its plans had to reach.
     grids : tuple of dict
         Free-form per-grid diagnostics (``grid``, ``status``, and for the
-        grids solved ``expected_detections``, ``coverage``, ``above_floor``, ...).
+        grids solved ``expected_detections``, ``coverage``, ``above_floor``, and
+        for a plan the rule would keep ``coverage_as_executed`` and
+        ``above_executed_floor`` (X10), ...).
     """
 
     choice: str

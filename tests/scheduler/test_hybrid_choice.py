@@ -60,7 +60,7 @@ def test_the_hybrid_runs_its_block_stage_only_when_asked_and_a_plan_records_the_
     cfg = PlanningConfig(time_limit_s=4.0, milp_backend="highs", objective="coverage")
     assert "blocks" in [s.name for s in portfolio.hybrid.stages]
     problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
-    assert [e.name for e in run_scheduler(problem, "hybrid").portfolio] == ["greedy", "slots", "lns"]
+    assert [e.name for e in run_scheduler(problem, "hybrid").portfolio] == ["greedy", "slots", "slots_paced", "lns"]
     assert "hybrid_blocks" not in cfg.record()
     assert PlanningConfig(hybrid_blocks=True).record()["hybrid_blocks"] is True
 

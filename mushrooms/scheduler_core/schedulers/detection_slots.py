@@ -47,6 +47,7 @@ from .exposure_menu import (dominated_pairs, map_start_menu, menu_instance, menu
                             menu_start_pairs)
 from .slots import SlotInstance, slot_instance
 from .solvers import resolve_backend, solve_milp
+from ..telescope.coverage import AS_EXECUTED_MEMO
 
 __all__ = ["plan_expected_detections", "detection_stage", "coverage_floor"]
 
@@ -106,7 +107,7 @@ def plan_expected_detections(problem: PlanningProblem, skymap: SkyMap, observati
 def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: ScheduleResult,
                     should_stop: StopCheck | None = None, kilonova: Kilonova | None = None,
                     depth: DepthModel = ZTF_DEPTH, time_limit_s: float | None = None,
-                    baseline_coverage: float | None = None) -> ScheduleResult:
+                    baseline_coverage: float | None = None, baseline_executed: float | None = None) -> ScheduleResult:
     """Improve a coverage plan's expected detections on the slot grids, within a coverage floor.
 
     Parameters
@@ -134,6 +135,10 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
         Published coverage of the fast heuristic's plan (greedy's, in the
         hybrid's portfolio): the floor (X6) is at least this, so the stage
         never returns a plan covering less than greedy's.
+    baseline_executed : float, optional
+        The same plan's coverage as ZTF's scheduler executes its queues
+        (Q14), when known: the floor as executed (X10) is at least
+        ``min(this, Cx₀)``.
 
     Returns
     -------
@@ -144,7 +149,10 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
         ``max((1 - ε) C₀, min(C_g, C₀))`` (X6, :func:`coverage_floor`; ``C₀``
         is ``coverage``'s published coverage, ``C_g``
         ``baseline_coverage``), or ties on expected
-        detections and covers more by ``min_gain`` (R1-R3); else
+        detections and covers more by ``min_gain`` (R1-R3), and, as ZTF's
+        scheduler executes its queues, covers at least
+        ``max((1 - ε) Cx₀, min(Cx_g, Cx₀))`` (X10: ``Cx₀`` the coverage
+        plan's executed coverage, ``Cx_g`` ``baseline_executed``); else
         ``coverage`` itself.  ``expected_detections`` (and
         ``expected_detections_lightcurve``) hold the returned plan's score,
         ``detection`` (:class:`~..problem.DetectionReport`) the choice, the
@@ -173,7 +181,11 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
     # (X6) the model keeps (1 - ε) C₀: a floor at C₀ itself (greedy's plan kept) would refuse the coverage plan's
     # own mapped start, which the grid's rounding puts a little below it, and leave the solver without one
     model_floor = coverage_floor(c_cov, cfg.detection_max_coverage_loss)
+    # (X10) the floor as executed: what ZTF's scheduler does with the coverage plan's queues, and greedy's
+    stage.executed_floor = coverage_floor(stage.executed(coverage), cfg.detection_max_coverage_loss, baseline_executed)
     best, runs = stage.solve_grids(coverage, model_floor, floor, (e_cov, None, None, c_cov))
+    memo = {**coverage.details.get(AS_EXECUTED_MEMO, {}), **stage.memo}
+    coverage = dataclasses.replace(coverage, details=dict(coverage.details, **{AS_EXECUTED_MEMO: memo}))
     if best[1] is None:
         return _kept_coverage(coverage, t_wall, "coverage", budget, (e_cov, floor, lightcurve), tuple(runs))
     e, obs, res, c = best
@@ -212,6 +224,17 @@ class _Stage:
         self.post_s = 0.1
         self.levels: np.ndarray | None = None
         self.W: np.ndarray | None = None
+        self.memo: dict[tuple, float] = {}  # execution key -> coverage as executed (Q14)
+        self.executed_floor = 0.0  # (X10)
+
+    def executed(self, result: ScheduleResult) -> float:
+        """A result's coverage as ZTF's scheduler executes its published plan's queues (Q14), remembered."""
+        from ..telescope.coverage import keyed_coverage_as_executed
+
+        key, value = keyed_coverage_as_executed(self.problem, result, self.memo)
+        if key is not None:
+            self.memo[key] = value
+        return value
 
     def published(self, result: ScheduleResult) -> tuple[float, float]:
         """(coverage, expected detections) of a result as its plan will be published."""
@@ -267,14 +290,23 @@ class _Stage:
             run, found, stop = self._solve_grid(grid, i, len(grids), on_menu)
             if run is not None:
                 runs.append(run)
-            if found is not None and is_preferred(found[3], found[0], best[3], best[0], problem.config.min_gain,
-                                                  "detection", coverage_floor=accept_floor):
+            if (found is not None and is_preferred(found[3], found[0], best[3], best[0], problem.config.min_gain,
+                                                   "detection", coverage_floor=accept_floor)
+                    and self._executes_above_floor(found, run)):
                 best = found  # R2, or R3: a tie in expected detections and more coverage
                 if self.menu:
                     self._start_from(best[1])
             if stop:
                 break
         return best, runs
+
+    def _executes_above_floor(self, found: tuple, run: dict | None) -> bool:
+        """(X10) the candidate's queues, as ZTF's scheduler executes them, cover at least the executed floor."""
+        executed = self.executed(ScheduleResult(tuple(found[1]), "detection", found[2].status))
+        ok = executed >= self.executed_floor - 1e-9
+        if run is not None:
+            run["coverage_as_executed"], run["above_executed_floor"] = round(executed, 6), ok
+        return ok
 
     def _start_from(self, observations) -> None:
         """The next grids start from these exposures: each field's first start and its exposure."""

@@ -34,6 +34,7 @@ from .gain import published_coverage
 from .greedy import greedy_schedule
 
 __all__ = ["Stage", "StageRun", "Portfolio", "best_of", "with_upper_bound", "greedy_stage", "slots_stage",
+           "paced_slots_stage", "PACED_SLOTS_LIMIT_S",
            "blocks_stage", "slots_from_greedy", "blocks", "hybrid", "MIN_BLOCKS_S", "BLOCKS_LIMIT_S", "BOUND_RTOL", "reaches_bound",
            "published_bound"]
 
@@ -47,6 +48,12 @@ MIN_BLOCKS_S = 1.0
 #: on 34 maps for 87 s in all and beat the stages before it on 7, by at most 0.0026; six of those wins took
 #: under 0.25 s, the seventh (bns_o3/18, +0.0026) 10 s.  On the rest it lost by up to 0.31 after up to 9 s.
 BLOCKS_LIMIT_S = 1.0
+
+#: The hybrid's slot portfolio at the executor's cadence (:func:`paced_slots_stage`) gets at most this long (s).
+PACED_SLOTS_LIMIT_S = 1.5
+
+#: It runs only when at least this much (s) of the budget is left.
+MIN_PACED_SLOTS_S = 0.3
 
 #: The hybrid runs the LNS re-solves (:mod:`.lns`) only when at least this much (s) of its budget is left.
 MIN_LNS_S = 0.5
@@ -111,6 +118,31 @@ def slots_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     from .slot_schedule import slot_schedule
 
     return slot_schedule(problem, should_stop, start=earlier.get("greedy"), time_limit_s=max(left_s, 0.0))
+
+
+def paced_slots_stage(problem: PlanningProblem, should_stop: StopCheck | None,
+                      earlier: Mapping[str, ScheduleResult], left_s: float) -> ScheduleResult:
+    """The slot portfolio planned at the cadence ZTF's scheduler keeps (Q19), at most :data:`PACED_SLOTS_LIMIT_S`.
+
+    The executor opens a filter pass the cadence plus
+    :data:`~..telescope.queue_windows.CADENCE_MARGIN_S` after the executed
+    first visits of its fields (Q11): a plan whose pairs are packed at the
+    cadence loses its last pairs as executed.  This stage plans greedy and
+    the slot grids on the problem with ``cadence_s`` widened by that margin
+    (greedy's plan there is the start); its plan keeps every pair that much
+    further apart, so it is a plan of the real problem too, and the
+    hybrid's choice (Q15) weighs it by what is executed.
+    """
+    from ..telescope.queue_windows import CADENCE_MARGIN_S
+    from .slot_schedule import slot_schedule
+
+    paced = dataclasses.replace(problem, config=dataclasses.replace(
+        problem.config, cadence_s=problem.config.cadence_s + CADENCE_MARGIN_S))
+    start = greedy_schedule(paced, should_stop)
+    result = slot_schedule(paced, should_stop, start=start, time_limit_s=max(min(left_s, PACED_SLOTS_LIMIT_S), 0.0))
+    if not result.observations and start.observations:
+        return dataclasses.replace(start, status=f"{result.status}_greedy_fallback")
+    return result
 
 
 def lns_stage(problem: PlanningProblem, should_stop: StopCheck | None,
@@ -357,14 +389,18 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
     return bounded
 
 
-#: The hybrid: greedy, the slot portfolio from it, the LNS re-solves (:mod:`.lns`) of the best plan so far with
+#: The hybrid: greedy, the slot portfolio from it, (with ``config.hybrid_paced_slots``) the slot portfolio at the
+#: executor's cadence (:func:`paced_slots_stage`, at most :data:`PACED_SLOTS_LIMIT_S`), the LNS re-solves (:mod:`.lns`) of the best plan so far with
 #: the time left (they stop early once a round of slices or 1 s bring nothing), then (with
 #: ``config.hybrid_blocks``, when at least :data:`MIN_BLOCKS_S` is left) the block MILP with the time left, at
 #: most :data:`BLOCKS_LIMIT_S`; the plan covering the most as published
 #: (ties: greedy, slots, lns, blocks; the LNS only returns a plan other than its seed when it covers more).
 #: The certified bound is computed after greedy, and the stages left are skipped once a plan reaches it.
 hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage, sequences=(2, 8)),
-                 Stage("lns", lns_stage, min_left_s=MIN_LNS_S, sequences=(2, 2)),
+                 Stage("slots_paced", paced_slots_stage, min_left_s=MIN_PACED_SLOTS_S, sequences=(2, 2),
+                       enabled=lambda config: config.hybrid_paced_slots),
+                 Stage("lns", lns_stage, min_left_s=MIN_LNS_S, sequences=(2, 2),
+                       enabled=lambda config: config.hybrid_lns),
                  Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S, sequences=(2, 2),
                        enabled=lambda config: config.hybrid_blocks), bound=published_bound)
 
