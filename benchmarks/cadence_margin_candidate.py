@@ -117,7 +117,8 @@ def main(argv: list[str] | None = None) -> int:
                 + " ".join(f"m{m:g} exec {row[f'margin={m:g}']['executed']:.4f}" for m in args.margins))
 
     rows = paired_rows(args.out, shared_maps(args.maps), lambda p, i: run_map(p, args.margins), describe)
-    write_summary(args.out, f"the hybrid's candidates and slots at cadence + {args.margins} s", summary(rows, args.margins))
+    write_summary(args.out, f"the hybrid's candidates and slots at cadence + {args.margins} s",
+                  summary(rows, args.margins))
     return 0
 
 

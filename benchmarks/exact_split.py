@@ -144,7 +144,8 @@ def line(r: dict) -> str:
     check = "ok" if r["exact_valid"] else "INVALID: " + r["first_problem"]
     return (f"{r['map'][-42:]:42s} {r['k']:3d} {r['status'][:10]:>10s} {r['optimum']:8.4f} {r['hybrid']:8.4f} "
             f"{r['greedy']:8.4f} {r['bound']:8.4f} {r['bound_slack']:8.4f} {r['optimiser_loss']:8.4f} {gap:>7s} "
-            f"{r['bound_interval']:8.4f} {r['interval_slack']:8.4f} {r['optimum_executed']:8.4f} {r['hybrid_executed']:8.4f} "
+            f"{r['bound_interval']:8.4f} {r['interval_slack']:8.4f} {r['optimum_executed']:8.4f} "
+            f"{r['hybrid_executed']:8.4f} "
             f"{r['greedy_executed']:8.4f} {r['optimiser_loss_executed']:9.4f} {check}")
 
 

@@ -5,8 +5,9 @@ then the detection stage) runs twice: with the stage's ``[scheduler]`` switch tr
 goes first alternating per map.  ``--switch hybrid_blocks`` (arms ``blocks`` / ``no_blocks``): the block
 MILP after the LNS; ``--switch hybrid_paced_slots`` (``paced`` / ``no_paced``): the slot portfolio at the
 executor's cadence (Q19); ``--switch hybrid_lns`` (``lns`` / ``no_lns``): the LNS re-solves.  Per map and
-arm: the optimisation's wall time, the published plan's coverage, expected detections (X1, the configured light curve) and coverage as ZTF's scheduler executes it
-(``metrics.coverage_as_executed``), and the stage whose plan the hybrid kept.
+arm: the optimisation's wall time, the published plan's coverage, expected detections (X1, the configured
+light curve) and coverage as ZTF's scheduler executes it (``metrics.coverage_as_executed``), and the stage
+whose plan the hybrid kept.
 
     python benchmarks/hybrid_stage_value.py [--switch hybrid_blocks] [--out FILE] [MAP ...]
 

@@ -46,12 +46,15 @@ def run_scheduler(problem: PlanningProblem, solver: str,
         ``greedy``; ``slots`` (slot-assignment MILP portfolio, started from
         greedy's plan); ``blocks`` (the paper's block MILP; ``milp`` is an
         alias); ``hybrid``: greedy, then the slot portfolio started from it,
-        then the LNS re-solves of the best plan, then (with
+        then (``config.hybrid_paced_slots``) the slot portfolio at the
+        cadence ZTF's scheduler keeps (Q19), then (``config.hybrid_lns``)
+        the LNS re-solves of the best plan, then (with
         ``config.hybrid_blocks``, when at least :data:`MIN_BLOCKS_S` of
         ``config.time_limit_s`` is left) the block MILP with the time
-        left, at most ``BLOCKS_LIMIT_S``; the plan
-        covering the most probability is kept (on a tie the earlier of
-        greedy, slots, lns, blocks): :data:`.schedulers.portfolio.hybrid`.
+        left, at most ``BLOCKS_LIMIT_S``; the plan ZTF's scheduler executes
+        best is kept (Q15; on a tie the one covering the most as planned,
+        then the earlier of greedy, slots, slots_paced, lns, blocks):
+        :data:`.schedulers.portfolio.hybrid`.
     should_stop : callable, optional
         Polled by every scheduler; True stops the run with the best plan so
         far.

@@ -229,6 +229,10 @@ def test_restart_after_revision_1_republishes_nothing_and_finishes_with_the_same
 
 # ---------------------------------------------------------------- objective = detection
 
+#: detection_max_coverage_loss of the runs whose revision 2 must expect more detections than revision 1.
+LOOSE_FLOOR = 0.1
+
+
 def detecting(min_gain: float, loss: float = 0.02):
     """The hybrid config with the detection objective (a small budget: the maps are small at nside 64)."""
     cfg = hybrid(min_gain)
@@ -239,11 +243,14 @@ def detecting(min_gain: float, loss: float = 0.02):
 
 @pytest.fixture(scope="module")
 def detection_run(tmp_path_factory):
-    """Revision 1 (half the greedy plan) and revision 2 (the detection stage started from the whole greedy plan)."""
+    """Revision 1 (half the greedy plan) and revision 2 (the detection stage started from the whole greedy plan).
+
+    A 10 % coverage floor: the stage's best plan on this small map executes 0.000544 of the probability where
+    the whole greedy plan executes 0.000577, below a 2 % floor as executed (X10)."""
     s = Store(tmp_path_factory.mktemp("detection") / "state.sqlite")
     sink = MemorySink()
     planner = HalfThenWhole()
-    p = NoticePipeline.from_config(detecting(0.0), s, sink, planner=planner)
+    p = NoticePipeline.from_config(detecting(0.0, LOOSE_FLOOR), s, sink, planner=planner)
     out = p.run_job(accept(p, PRELIM).job)
     s.close()
     assert planner.calls == ["greedy", "hybrid"] and out.revision == 2, [m.get("reason") for m in sink.messages]
@@ -260,11 +267,11 @@ def test_detection_objective_supersedes_by_expected_detections_within_the_floor(
     d_gain = m2["expected_detections"] - m1["expected_detections"]
     assert d_gain > 1e-4, "revision 2 must expect clearly more detections for the margin tests to mean anything"
     c_gain = m2["coverage"] - m1["coverage"]
-    assert m2["coverage"] >= (1 - 0.02) * m1["coverage"]
+    assert m2["coverage"] >= (1 - LOOSE_FLOOR) * m1["coverage"]
     assert second["supersedes"] == first["plan_id"]
     margin = d_gain * (0.5 if above else 1.5)
     sink = MemorySink()
-    p = NoticePipeline.from_config(detecting(margin), store, sink, planner=HalfThenWhole())
+    p = NoticePipeline.from_config(detecting(margin, LOOSE_FLOOR), store, sink, planner=HalfThenWhole())
     out = p.run_job(accept(p, PRELIM).job)
     kinds = [m["type"] for m in sink.messages]
     if above:

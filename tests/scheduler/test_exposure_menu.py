@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mushrooms.scheduler_core.config import RECORDED_WHEN_SET, PlanningConfig
+from mushrooms.scheduler_core.config import RECORDED_WHEN_CLEARED, RECORDED_WHEN_SET, PlanningConfig
 from mushrooms.scheduler_core.plan.checker import check_plan
 from mushrooms.scheduler_core.plan.document import make_plan_id, iso_utc
 from mushrooms.scheduler_core.plan.exports import ExportConfig, to_skyportal, to_trigger_queue
@@ -103,7 +103,11 @@ def test_menu_off_gives_the_plans_and_plan_ids_of_before(data_dir) -> None:
     plan = build_plan(problem, run_scheduler(problem, "greedy"), sm, "greedy")
     before = dataclasses.asdict(cfg)
     for key in RECORDED_WHEN_SET:  # recorded only when set
-        del before[key]
+        if not before[key]:
+            del before[key]
+    for key in RECORDED_WHEN_CLEARED:  # recorded only when cleared
+        if before[key]:
+            del before[key]
     assert "exposure_menu_s" not in plan.config
     assert plan.plan_id == make_plan_id(sm.sha256, iso_utc(problem.start), before, "greedy", plan.event.superevent_id)
     assert {o.exposure_s for o in plan.observations} == {cfg.exposure_s}

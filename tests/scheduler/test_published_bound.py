@@ -69,9 +69,9 @@ def test_hybrid_stops_when_greedy_reaches_the_bound_and_keeps_the_same_plan(gree
     assert reaches_bound(published_coverage(problem, greedy), bound)  # the premise: greedy is optimal here
     with caplog.at_level(logging.INFO, logger="mushrooms.scheduler_core.schedulers.portfolio"):
         stopped = run_scheduler(problem, "hybrid")
-    assert stopped.details["skipped_at_bound"] == ["slots", "lns"]  # blocks: off (hybrid_blocks), never run
+    assert stopped.details["skipped_at_bound"] == ["slots", "slots_paced", "lns"]  # blocks: off (hybrid_blocks)
     assert [e.name for e in stopped.portfolio] == ["greedy"]
-    assert re.search(r"it is optimal, skipping slots, lns$", caplog.text, re.M)
+    assert re.search(r"it is optimal, skipping slots, slots_paced, lns$", caplog.text, re.M)
     assert stopped.upper_bound.value == pytest.approx(bound.value, abs=1e-9)
     # the same portfolio without the bound runs on (blocks too when 3 s are left) and keeps the same plan
     full = Portfolio("hybrid", hybrid.stages)(problem)
@@ -87,19 +87,21 @@ def test_hybrid_stops_when_greedy_reaches_the_bound_and_keeps_the_same_plan(gree
 def test_the_stages_skipped_at_the_bound_are_those_the_config_would_have_run(greedy_optimal_problem):
     skymap, problem = greedy_optimal_problem
     with_blocks = dataclasses.replace(problem, config=dataclasses.replace(problem.config, hybrid_blocks=True))
-    assert run_scheduler(with_blocks, "hybrid").details["skipped_at_bound"] == ["slots", "lns", "blocks"]
-    assert run_scheduler(problem, "hybrid").details["skipped_at_bound"] == ["slots", "lns"]
+    assert run_scheduler(with_blocks, "hybrid").details["skipped_at_bound"] == ["slots", "slots_paced", "lns", "blocks"]
+    bare = dataclasses.replace(problem, config=dataclasses.replace(problem.config, hybrid_paced_slots=False,
+                                                                   hybrid_lns=False))
+    assert run_scheduler(bare, "hybrid").details["skipped_at_bound"] == ["slots"]
 
 
 def test_hybrid_runs_on_until_a_stage_reaches_the_bound():
-    # greedy is below V = .62 here; the slot portfolio reaches the optimum .62, so lns and blocks are skipped
+    # greedy is below V = .62 here; the slot portfolio reaches the optimum .62, so the stages after it are skipped
     problem = _crowded_problem()
     result = run_scheduler(problem, "hybrid")
     covs = {e.name: e.coverage for e in result.portfolio}
     assert not reaches_bound(covs["greedy"], result.upper_bound)
     assert list(covs) == ["greedy", "slots"]
     assert reaches_bound(covs["slots"], result.upper_bound)
-    assert result.details["skipped_at_bound"] == ["lns"]
+    assert result.details["skipped_at_bound"] == ["slots_paced", "lns"]
     assert result.portfolio_choice == "slots"
 
 

@@ -87,7 +87,7 @@ def test_the_hybrid_composition_keeps_the_winner_the_string_branch_kept(seed):
     result = run_scheduler(problem, "hybrid")
     # the stages left once a plan reaches the certified bound are skipped; the winner is the same
     skipped = result.details.get("skipped_at_bound", [])
-    assert [e.name for e in result.portfolio] + skipped == ["greedy", "slots", "lns"]  # blocks: off by default
+    assert [e.name for e in result.portfolio] + skipped == ["greedy", "slots", "slots_paced", "lns"]  # no blocks
     if skipped:
         assert reaches_bound(max(e.coverage for e in result.portfolio), result.upper_bound)
     assert all(e.status in ("optimal", "greedy") for e in result.portfolio if e.name != "lns")
@@ -118,7 +118,7 @@ def test_the_hybrid_stops_once_no_stage_can_add_min_gain_and_keeps_a_plan_within
     bound = result.upper_bound
     greedy = result.portfolio[0].coverage
     assert not reaches_bound(greedy, bound) and reaches_bound(greedy, bound, 0.001)
-    assert result.details["skipped_at_bound"] == ["slots", "lns"]
+    assert result.details["skipped_at_bound"] == ["slots", "slots_paced", "lns"]
     assert [e.name for e in result.portfolio] == ["greedy"] and result.portfolio_choice == "greedy"
     # what the full run found instead is at most min_gain more
     assert greedy <= published_coverage(problem, exact) <= greedy + 0.001

@@ -185,7 +185,7 @@ def test_the_pair_schedulers_refuse_a_sequence_and_the_hybrid_skips_them(skymap_
     with pytest.raises(InputError, match="the block MILP plans each field in two filters"):
         milp_schedule(problem)
     result = run_scheduler(problem, "hybrid")
-    assert result.details["skipped_for_sequence"] == ["lns", "blocks"]
+    assert result.details["skipped_for_sequence"] == ["slots_paced", "lns"]  # blocks: off (hybrid_blocks)
     assert [e.name for e in result.portfolio][0] == "greedy"
     with pytest.raises(InputError, match="block MILP"):
         run_scheduler(problem, "blocks")

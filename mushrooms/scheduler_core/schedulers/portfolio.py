@@ -217,7 +217,8 @@ class Portfolio:
     (:func:`reaches_bound`) the stages left are skipped, logged and listed
     in ``details["skipped_at_bound"]`` (only those that would have run:
     a stage switched off by the config, or skipped for the filter sequence
-    (``details["skipped_for_sequence"]``), is not listed).  The plan is the one the full run
+    (``details["skipped_for_sequence"]``, which lists only the stages the
+    config switches on), is not listed).  The plan is the one the full run
     would keep: no later stage can cover more, and a tie goes to the
     earlier stage.  ``details["stage_times_s"]``: each stage run's wall
     time (s), and the bound's (``bound``), in the order they ran.
@@ -236,14 +237,13 @@ class Portfolio:
         bound_s = 0.0  # the bound's wall time, not charged to the stages
         skipped: list[str] = []
         times: dict[str, float] = {}  # wall time (s) of each stage run, and of the bound
-        pair_stages = [s.name for s in self.stages if not s.plans(problem.config.filters)]
+        enabled = [s for s in self.stages if s.enabled is None or s.enabled(problem.config)]
+        pair_stages = [s.name for s in enabled if not s.plans(problem.config.filters)]
         if pair_stages:  # (F4) they model another number of exposures per field
             what = ", ".join(f"{s.name} ({_filters_range(s)})" for s in self.stages if s.name in pair_stages)
             log.info("%s: skipped for the sequence %s of %d filters, which these stages' models do not hold: %s",
                      self.label, "-".join(problem.config.filters), len(problem.config.filters), what)
-        # the stages this problem runs: those that plan its sequence (F4) and its config switches on
-        runnable = [s for s in self.stages if s.name not in pair_stages
-                    and (s.enabled is None or s.enabled(problem.config))]
+        runnable = [s for s in enabled if s.name not in pair_stages]  # those the config switches on, for its sequence
         for i, stage in enumerate(runnable):
             # (V6) the best plan so far reaches the certified bound, less min_gain: no stage left can beat it
             # by more than the least gain a field must bring
@@ -390,11 +390,12 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
 
 
 #: The hybrid: greedy, the slot portfolio from it, (with ``config.hybrid_paced_slots``) the slot portfolio at the
-#: executor's cadence (:func:`paced_slots_stage`, at most :data:`PACED_SLOTS_LIMIT_S`), the LNS re-solves (:mod:`.lns`) of the best plan so far with
-#: the time left (they stop early once a round of slices or 1 s bring nothing), then (with
-#: ``config.hybrid_blocks``, when at least :data:`MIN_BLOCKS_S` is left) the block MILP with the time left, at
-#: most :data:`BLOCKS_LIMIT_S`; the plan covering the most as published
-#: (ties: greedy, slots, lns, blocks; the LNS only returns a plan other than its seed when it covers more).
+#: executor's cadence (:func:`paced_slots_stage`, at most :data:`PACED_SLOTS_LIMIT_S`), (with
+#: ``config.hybrid_lns``) the LNS re-solves (:mod:`.lns`) of the best plan so far with the time left (they stop
+#: early once a round of slices or 1 s bring nothing), then (with ``config.hybrid_blocks``, when at least
+#: :data:`MIN_BLOCKS_S` is left) the block MILP with the time left, at most :data:`BLOCKS_LIMIT_S`; of their plans
+#: the one ZTF's scheduler executes best (Q15; ties: the planned coverage, then greedy, slots, slots_paced, lns,
+#: blocks; the LNS only returns a plan other than its seed when it covers more).
 #: The certified bound is computed after greedy, and the stages left are skipped once a plan reaches it.
 hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage, sequences=(2, 8)),
                  Stage("slots_paced", paced_slots_stage, min_left_s=MIN_PACED_SLOTS_S, sequences=(2, 2),
