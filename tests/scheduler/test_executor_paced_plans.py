@@ -38,7 +38,7 @@ def test_the_paced_plan_keeps_every_pair_the_executor_margin_past_the_cadence_an
         skymap_220722v, two_hour_night):
     problem = two_hour_night
     paced = paced_slots_stage(problem, None, {}, 1.5)
-    assert paced.observations
+    assert paced.observations and paced.solver.startswith("slots_paced:")
     gaps = _pair_gaps(paced.observations)
     assert min(gaps) >= problem.config.cadence_s + CADENCE_MARGIN_S - 1e-6
     assert plan_rule_problems(problem, paced.observations) == []  # a plan of the real problem

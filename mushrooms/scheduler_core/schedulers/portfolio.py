@@ -141,8 +141,9 @@ def paced_slots_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     start = greedy_schedule(paced, should_stop)
     result = slot_schedule(paced, should_stop, start=start, time_limit_s=max(min(left_s, PACED_SLOTS_LIMIT_S), 0.0))
     if not result.observations and start.observations:
-        return dataclasses.replace(start, status=f"{result.status}_greedy_fallback")
-    return result
+        result = dataclasses.replace(start, status=f"{result.status}_greedy_fallback")
+    # the published solver says which plan it is: hybrid(slots_paced:highs)
+    return dataclasses.replace(result, solver="slots_paced:" + result.solver.split(":", 1)[-1])
 
 
 def lns_stage(problem: PlanningProblem, should_stop: StopCheck | None,
