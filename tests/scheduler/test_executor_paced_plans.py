@@ -12,7 +12,7 @@ from mushrooms.scheduler_core.planner import build_plan, run_scheduler
 from mushrooms.scheduler_core.schedulers.detection_slots import detection_stage
 from mushrooms.scheduler_core.schedulers.gain import published_coverage
 from mushrooms.scheduler_core.schedulers.lns import plan_rule_problems
-from mushrooms.scheduler_core.schedulers.portfolio import paced_slots_stage
+from mushrooms.scheduler_core.schedulers.portfolio import paced_cadence, paced_slots_stage
 from mushrooms.scheduler_core.telescope.coverage import keyed_coverage_as_executed, queue_coverage
 from mushrooms.scheduler_core.telescope.queue_windows import CADENCE_MARGIN_S
 
@@ -88,3 +88,14 @@ def test_a_detection_plan_that_loses_pairs_as_executed_is_not_published(skymap_2
     executed = queue_coverage(plan, problem.footprints, problem.prob)
     assert executed >= floor - 1e-9
     assert plan.metrics.coverage_as_executed == pytest.approx(executed, abs=1e-6)
+
+
+def test_a_pair_span_caps_the_paced_cadence_and_one_at_the_cadence_leaves_no_paced_candidate(two_hour_night):
+    cfg = dataclasses.replace(two_hour_night.config, objective="coverage", pair_max_s=1860.0)
+    assert paced_cadence(cfg) == 1860.0  # the pairs stay pairs of the problem (its config would refuse more)
+    capped = dataclasses.replace(two_hour_night, config=cfg)
+    paced = paced_slots_stage(capped, None, {}, 1.5)
+    assert paced.observations and min(_pair_gaps(paced.observations)) >= 1860.0 - 1e-6
+    assert max(_pair_gaps(paced.observations)) <= 1860.0 + 1e-6
+    plain = dataclasses.replace(two_hour_night, config=dataclasses.replace(cfg, pair_max_s=cfg.cadence_s))
+    assert "slots_paced" not in [e.name for e in run_scheduler(plain, "hybrid").portfolio]

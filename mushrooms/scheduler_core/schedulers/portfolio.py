@@ -34,7 +34,7 @@ from .gain import published_coverage
 from .greedy import greedy_schedule
 
 __all__ = ["Stage", "StageRun", "Portfolio", "best_of", "with_upper_bound", "greedy_stage", "slots_stage",
-           "paced_slots_stage", "PACED_SLOTS_LIMIT_S",
+           "paced_slots_stage", "paced_cadence", "PACED_SLOTS_LIMIT_S",
            "blocks_stage", "slots_from_greedy", "blocks", "hybrid", "MIN_BLOCKS_S", "BLOCKS_LIMIT_S", "BOUND_RTOL", "reaches_bound",
            "published_bound"]
 
@@ -129,21 +129,38 @@ def paced_slots_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     first visits of its fields (Q11): a plan whose pairs are packed at the
     cadence loses its last pairs as executed.  This stage plans greedy and
     the slot grids on the problem with ``cadence_s`` widened by that margin
-    (greedy's plan there is the start); its plan keeps every pair that much
+    (:func:`paced_cadence`: at most ``pair_max_s``; greedy's plan there is
+    the start); its plan keeps every pair that much
     further apart, so it is a plan of the real problem too, and the
     hybrid's choice (Q15) weighs it by what is executed.
     """
-    from ..telescope.queue_windows import CADENCE_MARGIN_S
     from .slot_schedule import slot_schedule
 
     paced = dataclasses.replace(problem, config=dataclasses.replace(
-        problem.config, cadence_s=problem.config.cadence_s + CADENCE_MARGIN_S))
+        problem.config, cadence_s=paced_cadence(problem.config)))
     start = greedy_schedule(paced, should_stop)
     result = slot_schedule(paced, should_stop, start=start, time_limit_s=max(min(left_s, PACED_SLOTS_LIMIT_S), 0.0))
     if not result.observations and start.observations:
         result = dataclasses.replace(start, status=f"{result.status}_greedy_fallback")
     # the published solver says which plan it is: hybrid(slots_paced:highs)
     return dataclasses.replace(result, solver="slots_paced:" + result.solver.split(":", 1)[-1])
+
+
+def paced_cadence(config: PlanningConfig) -> float:
+    """The cadence (s) the paced candidate plans at (Q19): ``cadence_s`` plus the executor's pass margin.
+
+    A ``pair_max_s`` (the longest a pair may span) caps it: the paced pairs
+    must still be pairs of the problem.
+    """
+    from ..telescope.queue_windows import CADENCE_MARGIN_S
+
+    paced = config.cadence_s + CADENCE_MARGIN_S
+    return min(paced, config.pair_max_s) if config.pair_max_s else paced
+
+
+def _paces(config: PlanningConfig) -> bool:
+    """The paced candidate runs: switched on, and its cadence is not the plain one (a ``pair_max_s`` at it)."""
+    return config.hybrid_paced_slots and paced_cadence(config) > config.cadence_s
 
 
 def lns_stage(problem: PlanningProblem, should_stop: StopCheck | None,
@@ -400,7 +417,7 @@ def with_upper_bound(scheduler: Scheduler) -> Scheduler:
 #: The certified bound is computed after greedy, and the stages left are skipped once a plan reaches it.
 hybrid = best_of("hybrid", Stage("greedy", greedy_stage), Stage("slots", slots_stage, sequences=(2, 8)),
                  Stage("slots_paced", paced_slots_stage, min_left_s=MIN_PACED_SLOTS_S, sequences=(2, 2),
-                       enabled=lambda config: config.hybrid_paced_slots),
+                       enabled=_paces),
                  Stage("lns", lns_stage, min_left_s=MIN_LNS_S, sequences=(2, 2),
                        enabled=lambda config: config.hybrid_lns),
                  Stage("blocks", blocks_stage, min_left_s=MIN_BLOCKS_S, sequences=(2, 2),
