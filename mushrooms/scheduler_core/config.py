@@ -289,7 +289,8 @@ class PlanningConfig:
     hybrid_paced_slots : bool
         The hybrid also plans greedy and the slot grids at the cadence ZTF's
         scheduler keeps, ``cadence_s`` plus the queue windows' 120 s margin
-        (Q11, Q19 in ``docs/design/executed.md``), after its slot stage and
+        (at most ``pair_max_s`` when set; Q11, Q19 in
+        ``docs/design/executed.md``), after its slot stage and
         for at most ``PACED_SLOTS_LIMIT_S``; its choice (Q15) weighs that plan
         by the coverage executed.  Pairs of filters only.  Default true.
     hybrid_lns : bool
