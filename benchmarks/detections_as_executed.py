@@ -3,10 +3,13 @@
 ``metrics.expected_detections`` (X1) scores the planned exposures; ``metrics.coverage_as_executed`` (Q14)
 the queues as the executor runs them.  This scores X1 on the executed exposures too: each exposure the
 executor completes (Q1-Q10, clear night, on time), at the time it starts, with the planned field's centre.
-X1 takes each field's best exposure, so a field whose second visit the executor loses still counts once.
+X1 takes each field's best exposure, so a field whose second visit the executor loses still counts once;
+``expected_executed_pairs`` counts only the fields the executor took in both filters at least the cadence
+apart (the pairs of Q14, what ZTF needs to tell a transient from a moving object).
 
 Per map, the shipped configuration's default plan (``planner.optimise`` then ``build_plan``) under the tree
-on ``PYTHONPATH``: planned coverage, executed coverage, expected detections planned and executed.
+on ``PYTHONPATH``: planned coverage, executed coverage, expected detections planned, executed and in
+executed pairs.
 
     PYTHONPATH=TREE python benchmarks/detections_as_executed.py --out FILE.jsonl [MAP ...]
     python benchmarks/detections_as_executed.py --compare BEFORE.jsonl AFTER.jsonl
@@ -34,6 +37,7 @@ def run_map(path: Path, config_path: Path) -> dict:
     """One map's default plan, scored as planned and as executed."""
     from mushrooms.scheduler_core.executed import MIN_PROCESSED_FRACTION, is_done
     from mushrooms.scheduler_core.planner import build_plan, optimise
+    from mushrooms.scheduler_core.sequences import covered_fields
     from mushrooms.scheduler_core.prepare import prepare_problem
     from mushrooms.scheduler_core.sky.skymap import read_skymap
     from mushrooms.scheduler_core.source.detection import expected_detections
@@ -49,14 +53,21 @@ def run_map(path: Path, config_path: Path) -> dict:
 
     row = {"map": map_key(path), "tree": str(Path(mushrooms.__file__).parents[1]), "solver": plan.metrics.solver, "coverage": plan.metrics.coverage,
            "executed": plan.metrics.coverage_as_executed, "expected": plan.metrics.expected_detections,
-           "expected_executed": None, "load": os.getloadavg()[0]}
+           "expected_executed": None, "expected_executed_pairs": None, "load": os.getloadavg()[0]}
     if plan.observations and plan.metrics.expected_detections is not None:
         planned = {o.field_id: o for o in plan.observations}
+        executed = execute_plan_queues(plan)
         done = tuple(dataclasses.replace(planned[e.field_id], filter=e.filter, exposure_s=e.exposure_s,
                                          start=float((e.start - plan.start).to_value("s")))
-                     for e in execute_plan_queues(plan) if is_done(e, MIN_PROCESSED_FRACTION))
+                     for e in executed if is_done(e, MIN_PROCESSED_FRACTION))
+        kilonova = load_kilonova(cfg.detection_lightcurve)
         row["expected_executed"] = expected_detections(dataclasses.replace(plan, observations=done), sm,
-                                                       problem.footprints, load_kilonova(cfg.detection_lightcurve))
+                                                       problem.footprints, kilonova)
+        # only the fields the executor took in both filters at least the cadence apart (Q14's pairs)
+        paired = covered_fields(executed, cfg.filters, MIN_PROCESSED_FRACTION, cfg.cadence_s)
+        row["expected_executed_pairs"] = expected_detections(
+            dataclasses.replace(plan, observations=tuple(o for o in done if o.field_id in paired)), sm,
+            problem.footprints, kilonova)
     return row
 
 
@@ -66,7 +77,7 @@ def compare(before: Path, after: Path) -> str:
     b = {r["map"]: r for r in map(json.loads, after.read_text().splitlines())}
     maps = sorted(set(a) & set(b))
     lines = [f"maps: {len(maps)}; {before.name} -> {after.name}"]
-    for key in ("coverage", "executed", "expected", "expected_executed"):
+    for key in ("coverage", "executed", "expected", "expected_executed", "expected_executed_pairs"):
         pairs = [(a[m][key], b[m][key]) for m in maps if a[m][key] is not None and b[m][key] is not None]
         d = [y - x for x, y in pairs]
         se = statistics.stdev(d) / len(d) ** 0.5 if len(d) > 1 else float("nan")
