@@ -21,7 +21,6 @@ Every *.fits / *.fits.gz under ../shared/data/skymaps/{public,simulated} unless 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import statistics
@@ -35,13 +34,14 @@ from paired_maps import map_key, paired_rows, shared_maps  # noqa: E402
 
 def run_map(path: Path, config_path: Path) -> dict:
     """One map's default plan, scored as planned and as executed."""
-    from mushrooms.scheduler_core.executed import MIN_PROCESSED_FRACTION, is_done
+    import mushrooms
+    from mushrooms.evaluation.loop import executed_detections
+    from mushrooms.scheduler_core.executed import MIN_PROCESSED_FRACTION
     from mushrooms.scheduler_core.planner import build_plan, optimise
-    from mushrooms.scheduler_core.sequences import covered_fields
     from mushrooms.scheduler_core.prepare import prepare_problem
+    from mushrooms.scheduler_core.sequences import covered_fields
+    from mushrooms.scheduler_core.sky.fields import load_ztf_fields
     from mushrooms.scheduler_core.sky.skymap import read_skymap
-    from mushrooms.scheduler_core.source.detection import expected_detections
-    from mushrooms.scheduler_core.source.kilonova import load_kilonova
     from mushrooms.scheduler_core.telescope.coverage import execute_plan_queues
     from mushrooms.tool.config import load_config
 
@@ -49,25 +49,21 @@ def run_map(path: Path, config_path: Path) -> dict:
     sm = read_skymap(path, nside=cfg.nside)
     problem = prepare_problem(sm, cfg, sm.event_time)
     plan = build_plan(problem, optimise(problem, sm, cfg.solver), sm, cfg.solver)
-    import mushrooms
-
-    row = {"map": map_key(path), "tree": str(Path(mushrooms.__file__).parents[1]), "solver": plan.metrics.solver, "coverage": plan.metrics.coverage,
-           "executed": plan.metrics.coverage_as_executed, "expected": plan.metrics.expected_detections,
-           "expected_executed": None, "expected_executed_pairs": None, "load": os.getloadavg()[0]}
+    row = {"map": map_key(path), "tree": str(Path(mushrooms.__file__).parents[1]), "solver": plan.metrics.solver,
+           "coverage": plan.metrics.coverage, "executed": plan.metrics.coverage_as_executed,
+           "expected": plan.metrics.expected_detections, "expected_executed": None,
+           "expected_executed_pairs": None, "load": os.getloadavg()[0]}
     if plan.observations and plan.metrics.expected_detections is not None:
-        planned = {o.field_id: o for o in plan.observations}
         executed = execute_plan_queues(plan)
-        done = tuple(dataclasses.replace(planned[e.field_id], filter=e.filter, exposure_s=e.exposure_s,
-                                         start=float((e.start - plan.start).to_value("s")))
-                     for e in executed if is_done(e, MIN_PROCESSED_FRACTION))
-        kilonova = load_kilonova(cfg.detection_lightcurve)
-        row["expected_executed"] = expected_detections(dataclasses.replace(plan, observations=done), sm,
-                                                       problem.footprints, kilonova)
+        grid = load_ztf_fields()
+
+        def score(record) -> float | None:
+            return executed_detections(record, plan, sm, problem.footprints, grid, cfg.detection_lightcurve)
+
+        row["expected_executed"] = score(executed)
         # only the fields the executor took in both filters at least the cadence apart (Q14's pairs)
         paired = covered_fields(executed, cfg.filters, MIN_PROCESSED_FRACTION, cfg.cadence_s)
-        row["expected_executed_pairs"] = expected_detections(
-            dataclasses.replace(plan, observations=tuple(o for o in done if o.field_id in paired)), sm,
-            problem.footprints, kilonova)
+        row["expected_executed_pairs"] = score([e for e in executed if e.field_id in paired])
     return row
 
 

@@ -88,8 +88,8 @@ def summary(rows: list[dict], switch: str) -> str:
     lines.append(f"wall saved by {off}: median {statistics.median(saved):.2f} s, mean {statistics.fmean(saved):.2f} s")
     for key in ("coverage", "expected", "executed"):
         lines.append(f"{off} - {on}, {key}: {paired(rows, key, on, off)}")
-    kept = [r["map"] for r in rows if r[on].get("choice") == "slots_paced"]
     if switch == "hybrid_paced_slots":
+        kept = [r["map"] for r in rows if r[on].get("choice") == "slots_paced"]
         lines.append(f"the paced slot plan kept by the hybrid on {len(kept)} maps")
     return "\n".join(lines)
 
