@@ -22,7 +22,7 @@ the outbound topic, and whether the outcome is what creation order demands.
 
 Run from the repository root, niced::
 
-    PYTHONPATH=$PWD nice -n 5 python benchmarks/attacks/order_attack.py [--out benchmarks/results/order_attack/order_attack.txt]
+    PYTHONPATH=$PWD nice -n 5 python benchmarks/attacks/order_attack.py [--out benchmarks/results/attacks/order_attack/order_attack.txt]
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ before the merger clock), rescored with ``source.detection.expected_detections``
 Run (about 2 min with nothing else on 2 cores)::
 
     PYTHONPATH=. python benchmarks/loop/clock_and_ties_daemon.py \
-        --out benchmarks/results/clock_and_ties/daemon_clock_ties.txt
+        --out benchmarks/results/loop/clock_and_ties/daemon_clock_ties.txt
 """
 
 from __future__ import annotations

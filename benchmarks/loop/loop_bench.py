@@ -19,7 +19,7 @@ the daemon's solver.
 
 Writes ``loop_bench.csv``, ``loop_bench.txt`` (the table and the summary)
 and ``loop_gain.png`` (per-map coverage gain (b)-(a), sorted) into
-``--out`` (default ``benchmarks/results/loop_bench``) and prints the summary.
+``--out`` (default ``benchmarks/results/loop/loop_bench``) and prints the summary.
 
     PYTHONPATH=. python benchmarks/loop/loop_bench.py [--maps N] [--nside 128] [--solver greedy] [--seed 28]
 """

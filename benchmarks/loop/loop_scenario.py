@@ -12,8 +12,8 @@ the configuration given (default: the built-in one, the daemon's: hybrid at
 nside 256; ``--fast``: the tests' greedy at nside 64).  The poll and the
 closure use the night's clock (the 10th exposure's end + 60 s), so the run
 is the same every time.  Documents go to ``--out`` (default
-``benchmarks/results/loop_scenario``); the report to stdout
-(``benchmarks/results/loop_scenario.txt`` is the ``--fast`` run,
+``benchmarks/results/loop/loop_scenario``); the report to stdout
+(``benchmarks/results/loop/loop_scenario.txt`` is the ``--fast`` run,
 ``loop_scenario_default.txt`` the default one).
 
     PYTHONPATH=. python benchmarks/loop/loop_scenario.py [--fast] [--config config.toml] [--out DIR]

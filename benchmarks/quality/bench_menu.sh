@@ -6,7 +6,7 @@
 # every shared map with distance layers
 # (public/, simulated/bns_o3, simulated/nsbh_o3; 52 maps), nside 128, threads 1 (config beside the results).
 #   benchmarks/quality/bench_menu.sh [JOBS]       (maps from $SKYMAPS, default ../shared/data/skymaps; JOBS default 2)
-#   RESULTS=DIR benchmarks/quality/bench_menu.sh    (results in DIR instead of benchmarks/results/bench_menu)
+#   RESULTS=DIR benchmarks/quality/bench_menu.sh    (results in DIR instead of benchmarks/results/quality/bench_menu)
 # Expected detections and efficiencies of these clock-limited solves depend on the machine's load: say it.
 set -eu
 cd "$(dirname "$0")/../.."

@@ -13,8 +13,8 @@ mean difference over maps.  A map counts as better / worse when the
 difference exceeds ``min_gain`` (0.001).
 
     python benchmarks/quality/exposure_menu.py [--maps bns_o3,nsbh_o3] [--limit N] [--nside 128] \
-        [--menu 30,60,120,300,600] -o benchmarks/results/exposure_menu/exposure_menu.csv \
-        --plot benchmarks/results/exposure_menu/exposure_vs_distance.png
+        [--menu 30,60,120,300,600] -o benchmarks/results/quality/exposure_menu/exposure_menu.csv \
+        --plot benchmarks/results/quality/exposure_menu/exposure_vs_distance.png
 """
 
 from __future__ import annotations

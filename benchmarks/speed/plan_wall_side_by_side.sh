@@ -5,7 +5,7 @@
 #   benchmarks/speed/plan_wall_side_by_side.sh BASE_TREE NEW_TREE [MAP...]
 #       every *.fits / *.fits.gz under $SKYMAPS (default /work/shared/data/skymaps: public + simulated) unless
 #       maps are given; REPEAT=N greedy runs per map and tree (default 3: the median is the map's greedy wall);
-#       OUT=FILE the raw rows (default benchmarks/results/plan_wall_side_by_side.txt); the summary table
+#       OUT=FILE the raw rows (default benchmarks/results/speed/plan_wall_side_by_side.txt); the summary table
 #       (benchmarks/speed/plan_wall_summary.py --trees) goes beside it as FILE.summary.txt.
 #   benchmarks/speed/plan_wall_side_by_side.sh                (one tree, this one: the old greedy vs default rows)
 #

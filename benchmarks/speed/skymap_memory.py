@@ -12,7 +12,7 @@ three bombs (a header declaring NSIDE 2^20, the plain NSIDE 1024 map cut in
 half, the gzipped NSIDE 1024 map followed by 1 GiB of zeros) must each be
 one line, exit 2.
 
-    PYTHONPATH=$PWD python benchmarks/speed/skymap_memory.py [--work DIR] [--out benchmarks/results/skymap_memory]
+    PYTHONPATH=$PWD python benchmarks/speed/skymap_memory.py [--work DIR] [--out benchmarks/results/speed/skymap_memory]
         [--old-python /work/main/.venv/bin/python --old-path /work/main]
 
 Maps are written to ``--work`` (about 4.5 GB; not committed); results are
@@ -126,7 +126,7 @@ def observations(plan: Path) -> list[tuple]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--work", type=Path, default=Path("/tmp/mushrooms-skymap-memory"))
-    ap.add_argument("--out", type=Path, default=REPO / "benchmarks/results/skymap_memory")
+    ap.add_argument("--out", type=Path, default=REPO / "benchmarks/results/speed/skymap_memory")
     ap.add_argument("--old-python", default=None, help="interpreter of the code before the change (for 'before' rows)")
     ap.add_argument("--old-path", default=None, help="PYTHONPATH of the code before the change")
     ap.add_argument("--skip-2048", action="store_true")
