@@ -284,7 +284,7 @@ class PlanningConfig:
         optimisation, it took a median 0.86 s and changed nothing beyond its
         error (coverage -0.0001 +- 0.0004, expected detections +0.0001 +-
         0.0003, executed coverage -0.0016 +- 0.0013;
-        ``benchmarks/hybrid_stage_value.py``).  ``--solver blocks`` runs it
+        ``benchmarks/quality/hybrid_stage_value.py``).  ``--solver blocks`` runs it
         alone whatever this says.
     hybrid_paced_slots : bool
         The hybrid also plans greedy and the slot grids at the cadence ZTF's

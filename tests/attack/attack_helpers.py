@@ -1,7 +1,7 @@
 """Shared bits of the attack suite: real notices and sky maps turned hostile.
 
 Every helper builds a message a hostile or broken sender could put on the
-topic; the tests (fast) and ``benchmarks/attack.py`` (heavy) feed them to
+topic; the tests (fast) and ``benchmarks/attacks/attack.py`` (heavy) feed them to
 the real pipeline, store and daemon.
 """
 

@@ -2,7 +2,7 @@
 unstorable text, hostile XML.  Real sky maps, real SQLite, real pipeline.
 
 The heavy versions (a 1 GiB bomb with peak RSS, a 50-event burst, SIGKILL
-at several points) are ``benchmarks/attack.py``.
+at several points) are ``benchmarks/attacks/attack.py``.
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def test_a_gzip_bomb_is_refused_by_its_header_without_unpacking_it() -> None:
 
 def test_a_gzip_grown_past_its_declared_table_is_refused() -> None:
     """A valid map, then 64 MiB of zeros: reading stops at the declared table, the rest is refused
-    (the first block past it is unpacked, not the 64 MiB: timed in benchmarks/skymap_memory.py)."""
+    (the first block past it is unpacked, not the 64 MiB: timed in benchmarks/speed/skymap_memory.py)."""
     bomb = grown_gzip(64 << 20)
     with pytest.raises(SkyMapError, match="more bytes follow its declared table"):
         read_skymap(bomb, nside=64)

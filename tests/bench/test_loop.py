@@ -63,7 +63,7 @@ def test_replanning_keeps_what_was_done_and_night_two_adds_what_is_left(outcome)
     footprints = field_footprints(load_ztf_fields(), cfg.nside)
     before = [e for e in out.queue.executed if e.start < closure.start]
     # guaranteed: (b) keeps (a)'s record before the closure, so it never ends below it, by either count.
-    # Not asserted, because not guaranteed: (b) >= (a).  The benchmark (benchmarks/loop_bench.py) has maps
+    # Not asserted, because not guaranteed: (b) >= (a).  The benchmark (benchmarks/loop/loop_bench.py) has maps
     # with a closure over the middle of the night where the list queue alone covers more by pairs at any
     # separation (it takes a field's second filter right after the first; the re-plan keeps the cadence).
     assert out.loop.coverage >= achieved_coverage(before, skymap, footprints) - 1e-12

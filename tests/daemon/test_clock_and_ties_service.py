@@ -16,8 +16,8 @@ notice (``time_created`` = ``event.time`` = now, GW map only):
 
 Which outcome the optimiser reaches depends on the sky at the time of the
 run (the horizon starts at receipt); the rule applied to the published
-numbers does not. ``benchmarks/clock_and_ties_daemon.py`` prints the numbers
-(``benchmarks/clock_and_ties_daemon.py``).
+numbers does not. ``benchmarks/loop/clock_and_ties_daemon.py`` prints the numbers
+(``benchmarks/loop/clock_and_ties_daemon.py``).
 """
 
 from __future__ import annotations

@@ -203,7 +203,7 @@ def test_the_menu_gives_a_more_distant_map_longer_exposures(data_dir) -> None:
     On the menu grid alone (solved to the MIP gap, not against the fixed
     grid within a few seconds), so the choice is the model's, not the
     clock's; the full stage on the shared maps is in
-    ``benchmarks/exposure_menu.py``.
+    ``benchmarks/quality/exposure_menu.py``.
     """
     sm = _map(data_dir)
     near_problem, near = menu_grid_plan(scaled(sm, 0.35))

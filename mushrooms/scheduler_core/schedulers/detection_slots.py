@@ -61,8 +61,8 @@ MIN_SOLVE_S = 0.3
 FIRST_GRID_SHARE = 0.9
 
 #: The stage solves at most this many grids (the coverage plan's own first); None: as many as its budget allows.
-#: Measured on the 56 shared maps, the same coverage plans side by side (``benchmarks/detection_stage_variants.py``,
-#: ``benchmarks/results/speed/detection_stage_variants_56maps_b.txt``): the plan kept came from the first four grids on 11
+#: Measured on the 56 shared maps, the same coverage plans side by side (``benchmarks/quality/detection_stage_variants.py``,
+#: ``benchmarks/results/speed/runs/detection_stage_variants_56maps_b.txt``): the plan kept came from the first four grids on 11
 #: of the 16 maps where a detection plan won; 4 grids with a 2.5 s budget instead of every grid in 4 s saved a
 #: median 1.25 s per map for -0.0005 +- 0.0003 expected detections (-0.35 %; 6 maps worse, by up to 0.009), but
 #: in the whole default, side by side with the last release, expected detections fell by 0.007 a map, most of

@@ -70,7 +70,7 @@ SLICE_LIMIT_S = 2.0
 MIN_SLICE_S = 0.3
 #: The search stops after a whole round of slices without a gain, or after this long (s) without one.  A count
 #: of slices is no stop: on a reduced bns_o3/11 the gains come after 8 quick slices without one.  Measured on
-#: the 51 shared maps the LNS runs on (``benchmarks/lns_idle_replay.py`` on a run to the budget,
+#: the 51 shared maps the LNS runs on (``benchmarks/quality/lns_idle_replay.py`` on a run to the budget,
 #: ``lns_idle_*`` in benchmarks/results): it gains +0.0012 coverage on average run to the end of its budget;
 #: a 5 s stop keeps all but 0.00012 of that in a median 7.1 s, 3 s all but 0.0005 in 5.1 s, 2 s all but
 #: 0.00076 in 4.1 s, 1 s all but 0.0008 in 3.1 s.  1 s: waiting 3 s instead gains 0.0003 on average, less than

@@ -1,0 +1,225 @@
+#!/usr/bin/env python3
+"""The O4 population study's results in the papers' layout, and its provenance, from the running study.
+
+Reads what ``benchmarks/science/population_o4.sh`` writes under ROOT (default /work/population_o4: the population
+cache and ``study/results.jsonl``, ``realizations.jsonl``, ``localisations.jsonl``) and writes, under OUT
+(default benchmarks/results/science/population_o4/):
+
+* ``results.csv``: one row per (event, solver), :data:`POPULATION_COLUMNS` (``coverage_executed``: the plan's
+  coverage as ZTF would execute its queues);
+* ``tables.md`` and ``figures/``: every table and figure, rebuilt from ``results.csv`` alone (``--tables-only``
+  does just that);
+* ``provenance.md`` and ``population/``: the recipe, commands, seeds, PSDs, counts per class, the CPU cost
+  per event and stage; the small files (``population.json``, ``psds.xml``, ``intrinsic_samples.ecsv``,
+  ``injections.xml.gz``, every realised chunk's ``events-KKKK.xml.gz``), enough for ``population_o4.sh`` to
+  resume on another machine without simulating again (it seeds its cache from them). The sky maps stay
+  under ROOT (``bayestar-localize-coincs`` makes them again, deterministically, from the chunks).
+
+    .venv/bin/python benchmarks/science/population_o4_results.py [--root DIR] [--out DIR] [--tables-only]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import statistics
+from pathlib import Path
+
+from mushrooms.evaluation.study.mass_models import FARAH_PDB
+from mushrooms.evaluation.study.population_rows import (population_events, population_rows,
+                                                        read_population_csv, write_population_csv)
+from mushrooms.evaluation.study.population_figures import population_figures
+from mushrooms.evaluation.study.population_tables import population_tables
+from mushrooms.evaluation.study.recipes import O4_DEVIATIONS, O4_RANGES_MPC, RECIPES, recipe_population
+from mushrooms.evaluation.study.store import ResultStore
+
+HERE = Path(__file__).resolve().parent
+
+
+def _jsonl(path: Path) -> list[dict]:
+    if not path.exists():
+        return []
+    out = []
+    for line in path.read_text().splitlines():
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            pass
+    return out
+
+
+def _gzip(source: Path, target: Path) -> None:
+    """``target``: ``source`` gzipped (reproducibly: no name, no time in the header), when it changed."""
+    import gzip
+
+    if target.exists() and target.stat().st_mtime >= source.stat().st_mtime:
+        return
+    with open(source, "rb") as fin, open(target, "wb") as raw:
+        with gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as fout:
+            shutil.copyfileobj(fin, fout)
+
+
+def _median(xs: list[float]) -> str:
+    return f"{statistics.median(xs):.3g}" if xs else "-"
+
+
+def cpu_costs(study: Path, realized: list[dict]) -> dict[str, list[float]]:
+    """CPU seconds per event and stage: realisation per injection, localisation, each solver's task."""
+    loc = [r["cpu_s"] for r in _jsonl(study / "localisations.jsonl") if r.get("ok") and not r.get("cached")]
+    plans: dict[str, list[float]] = {}
+    for rec in ResultStore(study / "results.jsonl").records().values():
+        if rec.get("ok") and rec.get("cpu_s") is not None:
+            plans.setdefault(rec["solver"], []).append(float(rec["cpu_s"]))
+    fresh = [r for r in realized if not r.get("cached")]
+    per_inj = [r["cpu_s"] / r["injections"] for r in fresh if r["injections"]]
+    return {"realise_per_injection": per_inj, "localise": loc, **{f"plan_{k}": v for k, v in plans.items()}}
+
+
+def provenance(pop_dir: Path, events_files: list[Path], events: dict, rows: list[dict], costs: dict,
+               injections: int, seed: int) -> str:
+    """provenance.md: recipe, commands, seeds, PSDs, counts per class, CPU per stage."""
+    pop, loc = recipe_population("o4", injections, seed=seed)
+    n_real = min(len(events_files) * pop.chunk, injections)
+    classes: dict[str, int] = {}
+    for e in events.values():
+        classes[e["event_class"]] = classes.get(e["event_class"], 0) + 1
+    planned = {r["event"] for r in rows}
+    planned_classes: dict[str, int] = {}
+    for e in events.values():
+        if e["event"] in planned:
+            planned_classes[e["event_class"]] = planned_classes.get(e["event_class"], 0) + 1
+    psd_cmd = " ".join(f"--{d} {m} --{d}-scale {s}" for d, m, s in pop.psd_scales)
+    lines = [
+        "# O4 population (recipe `o4`): provenance", "",
+        f"Recipe: {RECIPES['o4'].description}. Population key `{pop.key()}` "
+        f"(cache `{pop_dir}`), {injections} injections, seed {seed}, chunks of {pop.chunk}.", "",
+        "Commands (run by `mushrooms study --simulate %d --population o4 --seed %d --chunk %d`):" % (
+            injections, seed, pop.chunk), "", "```",
+        f"bayestar-sample-model-psd -o psds.xml {psd_cmd}",
+        f"bayestar-inject -l error --seed {seed} --distribution-samples intrinsic_samples.ecsv "
+        f"--reference-psd psds.xml --waveform {pop.waveform} --snr-threshold 4 --min-triggers 1 "
+        f"--nsamples {injections} -j 1 -o injections.xml",
+        f"# chunk k = injections [{pop.chunk}k, {pop.chunk}(k+1)):",
+        f"bayestar-realize-coincs --seed {seed}+1+k -j 1 -l error -o events-k.xml.gz injections-k.xml "
+        f"--reference-psd psds.xml --snr-threshold 1 --net-snr-threshold {pop.net_snr_threshold} "
+        f"--min-triggers 1 --duty-cycle {pop.duty_cycle} --keep-subthreshold --measurement-error gaussian-noise "
+        f"--detector {' '.join(d for d, _, _ in pop.psd_scales)}",
+        f"bayestar-localize-coincs events-k.xml.gz --coinc-event-id ID {' '.join(loc.arguments())}", "```", "",
+        f"`intrinsic_samples.ecsv`: {pop.intrinsic_samples} draws (numpy default_rng({seed})) of the PDB model "
+        f"(`mass_models.sample_pdb_binaries`, hyperparameters {FARAH_PDB}).",
+        f"Noise curves: BNS ranges {O4_RANGES_MPC} Mpc (`recipes.bns_range_mpc`).", "",
+        "Where this differs from Kiendrebeogo et al. 2023 (lpsinger/observing-scenarios-simulations 06d4e93):",
+        *[f"- {d}" for d in O4_DEVIATIONS], "",
+        f"Realised so far (the cache's leading chunks, made here or taken from the committed ones): "
+        f"{len(events_files)} chunks ({n_real} injections), {len(events)} coincidences "
+        f"({', '.join(f'{k} {v}' for k, v in sorted(classes.items()))}); planned: {len(planned)} events "
+        f"({', '.join(f'{k} {v}' for k, v in sorted(planned_classes.items()))}).", "",
+        "CPU cost per event and stage (CPU-s, rusage; this machine, 2 cores shared by 7 sessions, nice 19): "
+        "realisation (per injection) and localisation are the tools' CPU time, each plan row its task's "
+        "(the worker process and the tools it waited for, gwemopt's interpreter included; gwemopt runs once per "
+        "event, its schedule cached for the repaired row):", "",
+        "| stage | n | median | mean |", "|---|---|---|---|",
+    ]
+    for k, xs in costs.items():
+        lines.append(f"| {k} | {len(xs)} | {_median(xs)} | {sum(xs) / len(xs):.3g} |" if xs else f"| {k} | 0 | - | - |")
+    n_coinc = sum(len(population_events([f])) for f in events_files) or 1
+    lines += ["", projection(costs, n_real / n_coinc)]
+    return "\n".join(lines + ["", *software(pop_dir.parent.parent.parent)]) + "\n"
+
+
+#: CPU-s of ``bayestar-sample-model-psd`` and ``bayestar-inject`` (``--nsamples 15000``, 1000 intrinsic samples,
+#: ``-j 1``) measured on 2026-12-05 (rusage of the tools).
+INJECT_CPU_S_2026_12_05 = 144.0
+#: CPU-s per injection of ``bayestar-realize-coincs`` measured on 2026-12-04 (1350 injections), used when a run
+#: realised no chunk itself (its chunks came from the committed ones).
+REALISE_PER_INJECTION_2026_12_04 = 0.588
+
+
+def projection(costs: dict[str, list[float]], injections_per_detection: float, events: int = 1199) -> str:
+    """What ``events`` events cost: the mean CPU-s per event of every stage (realising the injections behind one
+    detection, localising it, each row's plan), their sum, and the wall time on N single-thread workers."""
+    mean = {k: sum(v) / len(v) for k, v in costs.items() if v}
+    per_inj = mean.get("realise_per_injection")
+    source = "this run" if per_inj is not None else "2026-12-04's run"
+    per_inj = REALISE_PER_INJECTION_2026_12_04 if per_inj is None else per_inj
+    parts = {"realise": per_inj * injections_per_detection, **{k: v for k, v in mean.items()
+                                                              if k != "realise_per_injection"}}
+    total = sum(parts.values())
+    hours = events * total / 3600.0
+    return (f"Per event (means, CPU-s): " + ", ".join(f"{k} {v:.1f}" for k, v in parts.items())
+            + f" (realisation: {per_inj:.3f} CPU-s per injection ({source}) x {injections_per_detection:.1f} "
+            f"injections per detection); total {total:.0f} CPU-s. {events} events: {hours:.0f} CPU-hours, i.e. "
+            + ", ".join(f"{hours / n:.1f} h on {n} worker{'s' if n > 1 else ''}" for n in (1, 2, 8, 32, 128))
+            + f" (plus bayestar-inject once, serial: {INJECT_CPU_S_2026_12_05:.0f} CPU-s measured on 2026-12-05 for "
+            "15,000 injections from 1000 intrinsic samples). gwemopt's runs have a long tail (its rows that "
+            "timed out or were killed are not in the means); the service row's optimisation has a wall-clock "
+            "budget (`time_limit_s`), so on a loaded machine it gets fewer CPU-s than on a free core, where it "
+            "would use up to that budget more.")
+
+
+#: (finished before, which code planned a row): the run's stages, in order.  The second session ran the study
+#: from the main checkout while merges moved it (the service row's LNS and block-stage budgets changed there);
+#: the rest from fixed snapshots.
+CODE_PERIODS = (("2026-12-06T01:34", "snapshots 50ed030 / ddf8b45 (2026-12-05)"),
+                ("2026-12-06T04:25", "the main checkout, 0f793b0 to 70a04bc (2026-12-06 01:34-04:21 UTC)"),
+                ("9999", "snapshot 975aa11 (= 70a04bc's code; 2026-12-06 04:28-05:55 UTC)"))
+
+
+def software(root: Path) -> list[str]:
+    """Where the code that made the results came from (``ROOT/code-<commit>``: the snapshot the run used) and the
+    versions its workers recorded."""
+    codes = sorted(p.name.removeprefix("code-") for p in root.glob("code-*"))
+    versions: dict[str, set[str]] = {}
+    by_period = {label: 0 for _, label in CODE_PERIODS}
+    for rec in ResultStore(root / "study" / "results.jsonl").records().values():
+        for name, v in (rec.get("versions") or {}).items():
+            versions.setdefault(name, set()).add(str(v))
+        finished = str(rec.get("finished") or "")
+        by_period[next((label for until, label in CODE_PERIODS if finished < until), CODE_PERIODS[-1][1])] += 1
+    return [f"Code: the commits {', '.join(codes) or '(unknown)'}, each run from a snapshot in ROOT/code-<commit> "
+            "(50ed030 and ddf8b45: branch `population` on main 0f793b0; later commits: main's); package versions on the "
+            "workers: " + ", ".join(f"{k} {'/'.join(sorted(v))}" for k, v in sorted(versions.items()))
+            + " (`mushrooms` is the editable install's version, not the snapshot's). (event, solver) rows by the code "
+            "that planned them: " + "; ".join(f"{label}: {n}" for label, n in by_period.items()) + "."]
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--root", type=Path, default=Path("/work/population_o4"))
+    ap.add_argument("--out", type=Path, default=HERE.parent / "results" / "science" / "population_o4")
+    ap.add_argument("--injections", type=int, default=15000)
+    ap.add_argument("--seed", type=int, default=2)
+    ap.add_argument("--tables-only", action="store_true", help="rebuild tables.md from OUT/results.csv alone")
+    args = ap.parse_args()
+    if not args.tables_only:
+        pop, _ = recipe_population("o4", args.injections, seed=args.seed)
+        pop_dir = args.root / "cache" / "populations" / pop.key()
+        chunk_dir = pop_dir / f"realized-{pop.chunk}"
+        files = sorted(chunk_dir.glob("events-*.xml.gz"))
+        files = [f for k, f in enumerate(files) if f.name == f"events-{k:04d}.xml.gz"]  # the leading run only
+        events = population_events(files)
+        records = list(ResultStore(args.root / "study" / "results.jsonl").records().values())
+        rows = population_rows(records, events)
+        write_population_csv(rows, args.out / "results.csv")
+        keep = args.out / "population"
+        (keep / "chunks").mkdir(parents=True, exist_ok=True)
+        for name in ("population.json", "psds.xml", "intrinsic_samples.ecsv"):
+            shutil.copy2(pop_dir / name, keep / name)
+        (keep / "population.key").write_text(pop.key() + "\n")  # what population_o4.sh seeds its cache with
+        if (pop_dir / "injections.xml").exists():  # (made only once a chunk had to be realised)
+            _gzip(pop_dir / "injections.xml", keep / "injections.xml.gz")
+        for f in files:
+            shutil.copy2(f, keep / "chunks" / f.name)
+        costs = cpu_costs(args.root / "study", _jsonl(args.root / "study" / "realizations.jsonl"))
+        (args.out / "provenance.md").write_text(
+            provenance(pop_dir, files, events, rows, costs, args.injections, args.seed))
+    rows = read_population_csv(args.out / "results.csv")
+    (args.out / "tables.md").write_text(population_tables(rows) + "\n")
+    figures = population_figures(rows, args.out / "figures")
+    print(f"{len(rows)} rows -> {args.out}; figures: {', '.join(str(f) for f in figures)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
