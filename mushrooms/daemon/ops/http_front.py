@@ -244,7 +244,10 @@ class Front:
         if self._serving.is_set():
             self._served.wait(5.0)
         for _ in self._workers:
-            self._jobs.put(None)
+            try:
+                self._jobs.put(None, timeout=self.timeout_s)
+            except queue.Full:  # workers stuck on dead clients: they are daemon threads, left to their timeout
+                break
         for t in self._workers:
             t.join(self.timeout_s + 1.0)
         for conn in list(self._heads):
