@@ -13,7 +13,7 @@ One line per check, ``ok``, ``FAIL`` or ``skip`` and why (never a secret):
                  /api/triggers/ztf``; SkyPortal: the token's user, ``GET /api/internal/profile``, with the
                  permission to manage observation plans);
 ``webhook``      the ``[notify]`` URL is found and is an http(s) URL; a test message only with ``--notify-test``;
-``state``        the state file (``[daemon] state_path`` resolved as the service does) is a SQLite file of a
+``state``        (these three: :mod:`.preflight_paths`) the state file (``[daemon] state_path`` resolved as the service does) is a SQLite file of a
                  schema this program reads, or can be created; not a FIFO, directory or device; writable by
                  this user, not world-readable;
 ``directories``  the trigger and quarantine directories and the pid file's directory exist or can be created,
@@ -27,14 +27,12 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import stat
 import sys
 import time
-from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from .common import add_common_options, execute, tool_parser
+from .preflight_paths import directories_check, outbox_directory_check, state_check
 from .settings_flag import add_set_option
 
 __all__ = ["HELP", "parser", "run", "main", "kafka_check", "Result"]
@@ -99,8 +97,8 @@ def run(args: argparse.Namespace) -> int:
         ("kafka", lambda c: kafka_check(c.kafka, args.timeout)),
         ("submission", lambda c: _submission_check(c.submit, args.timeout)),
         ("webhook", lambda c: _webhook_check(c.notify, args.notify_test)),
-        ("state", _state_check),
-        ("directories", _directories_check),
+        ("state", state_check),
+        ("directories", directories_check),
         ("outbox", lambda c: _outbox_check(c.outbound, args.timeout)),
     )
     for name, check in checks:
@@ -185,20 +183,47 @@ def kafka_check(kafka: Any, timeout_s: float, credentials: Any = None, extra: di
     if md is None:
         return "FAIL", "kafka", _redact(f"{where}: {why}", secret)
     took = time.monotonic() - started
-    found = []
+    found, parts = [], []
     for topic in kafka.topics:
         t = admin.list_topics(topic, timeout=max(1.0, timeout_s - took)).topics.get(topic)
         if t is None or t.error is not None or not t.partitions:
             err = "no partitions" if t is None or t.error is None else t.error.str()
             return "FAIL", "kafka", _redact(f"{where} answered in {took:.1f} s, but topic {topic}: {err} "
                                             "(the topic's name, or the credentials' access to it)", secret)
+        parts += [(topic, p) for p in sorted(t.partitions)]
         leaderless = sorted(p for p, pm in t.partitions.items() if pm.leader < 0 or pm.error is not None)
         found.append(f"{topic}: {len(t.partitions)} partition(s)"
                      + (f", WITHOUT a leader: {leaderless}" if leaderless else ""))
         if leaderless:
             return "FAIL", "kafka", f"{where}: " + "; ".join(found)
+    group_ok, group = _group_offsets(admin, getattr(kafka, "group_id", None), parts, timeout_s)
+    if group:
+        found.append(group)
+    if not group_ok:
+        return "FAIL", "kafka", _redact(f"{where}: " + "; ".join(found), secret)
     auth = "" if not login else f" as {login['client_id']} (OIDC token and SASL login accepted)"
     return "ok", "kafka", f"{where} answered in {took:.1f} s{auth}" + "".join(f"; {f}" for f in found)
+
+
+def _group_offsets(admin: Any, group: str | None, parts: list[tuple[str, int]], timeout_s: float) -> tuple[bool, str]:
+    """(readable, what the consumer group has committed on ``parts``): the group must be readable with the credentials."""
+    from confluent_kafka import ConsumerGroupTopicPartitions, KafkaException, TopicPartition
+
+    if not group or not parts:
+        return True, ""
+    request = [ConsumerGroupTopicPartitions(group, [TopicPartition(t, p) for t, p in parts])]
+    try:
+        (future,) = admin.list_consumer_group_offsets(request, request_timeout=timeout_s).values()
+        answer = future.result(timeout=timeout_s + 5)
+    except (KafkaException, TimeoutError) as exc:
+        why = exc.args[0].str() if exc.args and hasattr(exc.args[0], "str") else str(exc) or type(exc).__name__
+        return False, f"group {group}: its committed offsets cannot be read: {why}"
+    bad = [tp for tp in answer.topic_partitions if tp.error is not None]
+    if bad:
+        return False, f"group {group}: {bad[0].topic}[{bad[0].partition}]: {bad[0].error.str()}"
+    done = [tp for tp in answer.topic_partitions if tp.offset >= 0]
+    return True, (f"group {group}: committed offsets on {len(done)} of {len(parts)} partition(s)"
+                  + (" (the others start where [kafka] offset_reset says)" if len(done) < len(parts) else ""))
 
 
 def _metadata(admin: Any, errors: list[Any], timeout_s: float) -> tuple[Any, str]:
@@ -345,6 +370,7 @@ def _post_test(url: str, notify: Any) -> tuple[bool, str]:
     hook_log = logging.getLogger("mushrooms.daemon.webhook")
     keep = _Keep()
     hook_log.addHandler(keep)
+    hook = None
     try:
         hook = Webhook(url, notify.target, timeout_s=notify.timeout_s, max_pending=1)
         hook.post("preflight_test", f"mushrooms preflight on {socket.gethostname()}: test message, nothing "
@@ -354,114 +380,6 @@ def _post_test(url: str, notify: Any) -> tuple[bool, str]:
         hook_log.removeHandler(keep)
     last = said[-1] if said else "no answer before the deadline"
     return (getattr(hook, "sent", 0) >= 1 and not getattr(hook, "failed", 0)), _redact(last, url)
-
-
-# ---------------------------------------------------------------- files
-_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
-          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"), (stat.S_ISLNK, "a symbolic link"))
-
-
-def _kind(mode: int) -> str:
-    return next((what for test, what in _KINDS if test(mode)), "not a regular file")
-
-
-def _creatable(path: Path) -> tuple[bool, str]:
-    """Whether ``path`` can be created by this user: its nearest existing ancestor is a writable directory."""
-    parent = path.parent
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
-    if not parent.is_dir():
-        return False, f"{parent} is {_kind(parent.lstat().st_mode)}, not a directory"
-    if not os.access(parent, os.W_OK | os.X_OK):
-        return False, f"{parent} is not writable by this user ({_who()})"
-    return True, f"will be created in {parent}"
-
-
-def _who() -> str:
-    import pwd
-
-    try:
-        return pwd.getpwuid(os.geteuid()).pw_name
-    except KeyError:
-        return f"uid {os.geteuid()}"
-
-
-def _state_check(config: Any) -> Result:
-    from ..daemon.settings import resolve_paths
-
-    path = resolve_paths(config.daemon).state
-    base = ("" if Path(config.daemon.state_path).expanduser().is_absolute() else
-            " ([daemon] state_path is relative: resolved against $STATE_DIRECTORY" if os.environ.get(
-                "STATE_DIRECTORY") else " ([daemon] state_path is relative: resolved against the working directory, "
-            "as the service does only when systemd sets no $STATE_DIRECTORY")
-    base += ")" if base else ""
-    try:
-        st = path.lstat()
-    except FileNotFoundError:
-        ok, why = _creatable(path)
-        return ("ok" if ok else "FAIL"), "state", f"{path}: not there yet, {why}{base}"
-    if not stat.S_ISREG(st.st_mode):
-        return "FAIL", "state", f"{path} is {_kind(st.st_mode)}, not a SQLite state file{base}"
-    mode = stat.S_IMODE(st.st_mode)
-    if not os.access(path, os.R_OK | os.W_OK):
-        return "FAIL", "state", f"{path} (mode {mode:04o}) is not readable and writable by this user ({_who()})"
-    if mode & 0o004:
-        return "FAIL", "state", (f"{path} is world-readable (mode {mode:04o}): it keeps every notice, plan and "
-                                 "answer of the submission target; chmod o-rwx it (the service makes it 0600, "
-                                 "0640 with [daemon] group_readable)")
-    problem = _sqlite_problem(path, st.st_size)
-    if problem:
-        return "FAIL", "state", f"{path}: {problem}"
-    return "ok", "state", f"{path}: SQLite state file, mode {mode:04o}, writable by {_who()}{base}"
-
-
-def _sqlite_problem(path: Path, size: int) -> str | None:
-    """Why ``path`` is not a state file this program can run on, or None."""
-    import sqlite3
-
-    from ..daemon.state.schema import SCHEMA_VERSION
-    from ..daemon.state.views import connect_readonly
-
-    if size == 0:
-        return "an empty file (0 bytes): the service refuses it; restore it, or remove it to start a new history"
-    with open(path, "rb") as fh:
-        if fh.read(16) != b"SQLite format 3\x00":
-            return "not a SQLite file"
-    try:
-        conn = connect_readonly(path, timeout_s=2.0)
-        try:
-            version = conn.execute("PRAGMA user_version").fetchone()[0]
-        finally:
-            conn.close()
-    except sqlite3.Error as exc:
-        return f"not readable as SQLite ({exc})"
-    if version > SCHEMA_VERSION:
-        return f"schema {version}, newer than this program's {SCHEMA_VERSION}: use a newer mushrooms"
-    return None
-
-
-def _directory_problem(path: Path) -> str | None:
-    try:
-        st = path.lstat()
-    except FileNotFoundError:
-        ok, why = _creatable(path)
-        return None if ok else f"{path}: {why}"
-    if not stat.S_ISDIR(st.st_mode):
-        return f"{path} is {_kind(st.st_mode)}, not a directory"
-    if not os.access(path, os.W_OK | os.X_OK):
-        return f"{path} is not writable by this user ({_who()})"
-    return None
-
-
-def _directories_check(config: Any) -> Result:
-    from ..daemon.settings import resolve_paths
-
-    paths = resolve_paths(config.daemon)
-    wanted = (paths.trigger_dir, paths.quarantine_dir, paths.pid_file.parent)
-    problems = [p for p in map(_directory_problem, wanted) if p]
-    if problems:
-        return "FAIL", "directories", "; ".join(problems)
-    return "ok", "directories", ", ".join(str(p) for p in wanted) + ": there or creatable, writable"
 
 
 def _outbox_check(outbound: Any, timeout_s: float) -> Result:
@@ -476,17 +394,7 @@ def _outbox_check(outbound: Any, timeout_s: float) -> Result:
         probe = type("_Outbound", (), {"bootstrap": outbound.bootstrap, "topics": ()})()
         status, _, reason = kafka_check(probe, timeout_s, extra=security)
         return status, "outbox", f"Kafka sink, topic {outbound.topic}, {described}: {reason}"
-    path = Path(outbound.directory).expanduser().absolute()
-    relative = "" if Path(outbound.directory).expanduser().is_absolute() else \
-        " ([outbound] directory is relative: resolved against the working directory, as the service does)"
-    problem = _directory_problem(path)
-    if problem:
-        return "FAIL", "outbox", problem
-    if not path.exists():
-        return "ok", "outbox", f"{path}: not there yet, will be created by the service{relative}"
-    mode = stat.S_IMODE(path.stat().st_mode)
-    readers = "everyone" if mode & 0o005 == 0o005 else "its group" if mode & 0o050 == 0o050 else "its owner only"
-    return "ok", "outbox", f"{path}: directory, mode {mode:04o} (plans readable by {readers}), writable{relative}"
+    return outbox_directory_check(outbound)
 
 
 if __name__ == "__main__":

@@ -97,6 +97,7 @@ def test_all_ok_against_a_local_broker_and_kowalski_with_a_good_token(broker, to
                           "outbox"}, text
     assert all(status in ("ok", "skip") for status, _ in lines.values()), text
     assert f"{topic}: 4 partition(s)" in lines["kafka"][1]
+    assert "group mushrooms-ztf: committed offsets on 0 of 4 partition(s)" in lines["kafka"][1]
     assert lines["submission"][0] == "ok" and "1 queue(s) listed" in lines["submission"][1]
     assert lines["credentials"][0] == "skip" and lines["webhook"][0] == "skip"
     assert TOKEN not in text
