@@ -118,7 +118,13 @@ def run(args: argparse.Namespace) -> int:
 def _config_check(args: argparse.Namespace, say: Callable[[Result], None]) -> Any:
     from .config import ConfigError
     from .overrides import effective_config
+    from .settings_flag import parse_set
 
+    for text in getattr(args, "set", None) or ():
+        try:
+            parse_set(text)
+        except ValueError as exc:  # a malformed --set is bad usage (exit 2), not a failed check
+            raise ConfigError(str(exc)) from None
     try:
         config = effective_config(args)
     except ConfigError as exc:

@@ -250,6 +250,8 @@ def test_a_bad_config_fails_and_bad_usage_exits_2(tmp_path, capsys) -> None:
         with pytest.raises(SystemExit) as stop:
             main(["preflight", "--timeout", bad])
         assert stop.value.code == 2
+    code, lines, text = _preflight(capsys, "--config", str(cfg), "--set", "kafka")  # no KEY=VALUE
+    assert code == 2 and not lines and "expected SECTION.KEY=VALUE" in text
 
 
 def test_preflight_runs_as_a_command(broker, topic, tmp_path) -> None:
