@@ -39,6 +39,7 @@ class Timers:
         self.service = service
         self.last_prune = 0.0  # time.monotonic() of the last pruning
         self.executed_loop: Any = None  # [loop]: the executed-observation loop once started
+        self.brokers: Any = None  # what the state file says of the brokers (ops.broker_record.BrokerRecord)
 
     # ------------------------------------------------------------ scheduling
     def add_warm(self, scheduler: BackgroundScheduler) -> None:
@@ -161,10 +162,24 @@ class Timers:
                  "active=%s loop_age_s=%.1f", up, health.describe() if health else "-", counts["notices"],
                  counts["triggers"], counts["jobs"], counts["quarantined"],
                  ",".join(active) or "-", time.monotonic() - service.last_loop)
+        self.record_brokers()
         if time.monotonic() - self.last_prune > PRUNE_EVERY_S:
             self.prune_raw()
         if hasattr(service, "jobs"):
             service.jobs.check_workers()
+
+    def record_brokers(self) -> None:
+        """Keep the brokers' state in the state file on a change, for ``mushrooms status`` (no listener needed)."""
+        from .ops.broker_record import BrokerRecord
+
+        store = getattr(getattr(self.service, "pipeline", None), "store", None)
+        if store is None:
+            return
+        if self.brokers is None or self.brokers.store is not store:
+            self.brokers = BrokerRecord(store)
+        sink = getattr(self.service.pipeline, "sink", None)
+        self.brokers.update({"consumer": getattr(self.service.consumer, "health", None),
+                             "sink": getattr(sink, "health", None)})
 
     def watchdog(self, interval_s: float) -> None:
         """Ping systemd's watchdog only while the main loop turns."""

@@ -98,9 +98,28 @@ def _submission_attention(conn: sqlite3.Connection, max_pending_s: float) -> lis
             f"telescope; [submit] max_pending_s = {max_pending_s:g} s): {oldest['answer'] or '-'}"]
 
 
+#: The Kafka clients whose broker the daemon records, in words.
+_BROKER_NAMES = {"consumer": "input", "sink": "outbound"}
+
+
+def _broker_attention(brokers: dict[str, Any]) -> list[str]:
+    """A line for each broker the daemon last recorded as unreachable."""
+    return [f"the {_BROKER_NAMES.get(client, client)} Kafka broker is unreachable since {b['since']} (recorded by "
+            f"the daemon at {b['recorded_at']}): {b['error'] or '-'}" for client, b in sorted(brokers.items())
+            if not b["up"]]
+
+
+def _broker_lines(brokers: dict[str, Any]) -> list[str]:
+    if not brokers:
+        return ["input broker: not recorded yet (no daemon of this version has run on this state file)"]
+    return [f"{_BROKER_NAMES.get(client, client)} broker ({client}): "
+            + (f"up since {b['since']}" if b["up"] else f"UNREACHABLE since {b['since']}: {b['error'] or '-'}")
+            + f" (recorded {b['recorded_at']})" for client, b in sorted(brokers.items())]
+
+
 def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_hours: float) -> dict[str, Any]:
     """The status document (what ``--json`` prints)."""
-    from ..daemon.state.views import attention, incidents, outbox_backlog, recent_events
+    from ..daemon.state.views import attention, broker_reachability, incidents, outbox_backlog, recent_events
 
     now = datetime.now(timezone.utc)
     pending, oldest, error = outbox_backlog(conn, now)
@@ -115,6 +134,7 @@ def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_
         "event_incidents": [i for i in incidents(conn, limit=limit)
                             if i["kind"] != "offset_jump" and isinstance(i["detail"], dict)
                             and i["detail"].get("superevent_id")],
+        "brokers": broker_reachability(conn),
         "attention": attention(conn, now, outbox_minutes * 60.0, window_hours * 3600.0),
     }
 
@@ -147,6 +167,7 @@ def render(doc: dict[str, Any]) -> str:
     ob = doc["outbox"]
     out.append(f"outbox: {ob['pending']} pending" + (f", the oldest {ob['oldest_age_s']:.0f} s old"
                                                      if ob["oldest_age_s"] is not None else ""))
+    out.extend(_broker_lines(doc.get("brokers") or {}))
     out.append("")
     if not doc["events"]:
         out.append("no superevent heard of yet")
@@ -199,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f"mushrooms status: error: {path}: {problem}", file=sys.stderr)
                 return EXIT_INPUT
             doc = collect(conn, args.limit, args.outbox_minutes, args.window_hours)
-            doc["attention"] += _submission_attention(conn, max_pending_s)
+            doc["attention"] += _broker_attention(doc["brokers"]) + _submission_attention(conn, max_pending_s)
         finally:
             conn.close()
     except sqlite3.OperationalError as exc:

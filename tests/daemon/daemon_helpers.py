@@ -255,6 +255,8 @@ class Daemon:
         e = dict(os.environ)
         e.pop("NOTIFY_SOCKET", None)
         e.pop("WATCHDOG_USEC", None)
+        # the code under test, not whatever `mushrooms` the venv installed (a git worktree's own checkout)
+        e["PYTHONPATH"] = os.pathsep.join(p for p in (str(REPO), e.get("PYTHONPATH", "")) if p)
         e.update(env or {})
         if gate is not None:
             gate.mkdir(parents=True, exist_ok=True)

@@ -24,9 +24,12 @@ broker not known down), ``submission`` when ``[submit]`` is on
 back-off, none pending longer than ``[submit] max_pending_s``), and
 whatever :meth:`HealthServer.add_check` added.
 
-The listener serves at most :data:`MAX_CONNECTIONS` connections at once,
-each with a socket timeout of :data:`CONNECTION_TIMEOUT_S`; more are
-closed when accepted (a thread per connection is the unit's ``TasksMax``).
+The listener (:class:`~.http_front.Front`) reads request heads in one thread
+without blocking and answers complete ones in :data:`MAX_CONNECTIONS` worker
+threads; a connection has :data:`CONNECTION_TIMEOUT_S` to send its head, and
+at most :data:`~.http_front.MAX_OPEN` are kept open (a new one closes the
+oldest idle one), so idle or dripping clients never silence ``/healthz``
+nor take the unit's ``TasksMax`` threads.
 """
 
 from __future__ import annotations
@@ -38,12 +41,11 @@ import sqlite3
 import threading
 import time
 from pathlib import Path
-from socketserver import ThreadingMixIn
 from typing import Any, Callable, Iterable
-from wsgiref.simple_server import WSGIRequestHandler, WSGIServer, make_server
 
 from prometheus_client import make_wsgi_app
 
+from .http_front import Front
 from .metrics import ServiceMetrics
 from ..state.views import connect_readonly, outbox_backlog
 
@@ -60,53 +62,10 @@ LIVENESS_DEFAULT_S = 60.0
 MIN_FREE_BYTES = 64 * 2**20
 
 
-#: Connections served at once (one thread each); more are closed at once (threads are the unit's TasksMax).
-MAX_CONNECTIONS = 16
-#: Socket timeout (s) of one connection: an idle or dripping client is dropped after it.
+#: Threads that answer complete requests (idle connections take none; threads are the unit's TasksMax).
+MAX_CONNECTIONS = 4
+#: Time (s) a connection has to send its request head: an idle or dripping client is dropped after it.
 CONNECTION_TIMEOUT_S = 10.0
-
-
-class _Server(ThreadingMixIn, WSGIServer):
-    """A threaded WSGI server with at most :attr:`max_connections` threads.
-
-    The standard library's ``ThreadingMixIn`` starts a thread per accepted
-    connection without a limit: 256 idle connections took the unit's
-    ``TasksMax=256`` and the next planning job died in OpenMP.  Here a
-    connection beyond the bound is closed as soon as it is accepted, and each
-    served one has a socket timeout (:class:`_Quiet`'s ``timeout``).
-    """
-
-    daemon_threads = True  # a stuck scraper never holds the service's exit
-    allow_reuse_address = True
-    request_queue_size = 64
-    max_connections = MAX_CONNECTIONS
-
-    def server_activate(self) -> None:
-        self._slots = threading.BoundedSemaphore(self.max_connections)
-        super().server_activate()
-
-    def process_request(self, request: Any, client_address: Any) -> None:
-        if not self._slots.acquire(blocking=False):
-            self.shutdown_request(request)  # full: this connection gets no thread
-            return
-        try:
-            super().process_request(request, client_address)
-        except Exception:
-            self._slots.release()
-            raise
-
-    def process_request_thread(self, request: Any, client_address: Any) -> None:
-        try:
-            super().process_request_thread(request, client_address)
-        finally:
-            self._slots.release()
-
-
-class _Quiet(WSGIRequestHandler):
-    timeout = CONNECTION_TIMEOUT_S  # StreamRequestHandler sets it on the connection's socket
-
-    def log_message(self, format: str, *args: Any) -> None:  # scrapes every 15 s are not log lines
-        pass
 
 
 class HealthServer:
@@ -122,9 +81,10 @@ class HealthServer:
     checks : dict
         Readiness checks by name.
     max_connections : int
-        Connections served at once (a thread each); more are closed when accepted.
+        Requests answered at once (a worker thread each); connections still sending their
+        request head take no thread.
     connection_timeout_s : float
-        Socket timeout (s) of each connection.
+        Time (s) a connection has to send its request head (and the socket timeout of the answer).
     """
 
     def __init__(self, host: str, port: int, metrics: ServiceMetrics, alive: Callable[[], tuple[bool, dict]],
@@ -133,10 +93,8 @@ class HealthServer:
         self._alive = alive
         self._checks: dict[str, Check] = dict(checks or {})
         self._metrics_app = make_wsgi_app(metrics.registry)
-        server_class = type("_BoundServer", (_Server,), {"max_connections": int(max_connections)})
-        handler_class = type("_TimedHandler", (_Quiet,), {"timeout": float(connection_timeout_s)})
-        self._server = make_server(host, port, self._app, server_class=server_class, handler_class=handler_class)
-        self.address = self._server.server_address[:2]
+        self._server = Front(host, port, self._app, workers=max_connections, timeout_s=connection_timeout_s)
+        self.address = self._server.address
         self._thread = threading.Thread(target=self._server.serve_forever, kwargs={"poll_interval": 0.5},
                                         name="metrics-http", daemon=True)
 
@@ -183,8 +141,9 @@ class HealthServer:
 
     def close(self) -> None:
         """Stop listening."""
-        self._server.shutdown()
-        self._server.server_close()
+        self._server.close()
+        if self._thread.is_alive():
+            self._thread.join(5.0)
 
 
 def liveness(phase: Callable[[], str], loop_age_s: Callable[[], float], limit_s: float) -> Callable[[], tuple[bool, dict]]:

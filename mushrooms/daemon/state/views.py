@@ -20,7 +20,7 @@ from typing import Any
 from urllib.parse import quote
 
 __all__ = ["connect_readonly", "outbox_backlog", "oldest_pending_submission", "recent_events", "attention", "incidents", "has_table",
-           "parse_iso"]
+           "parse_iso", "broker_reachability"]
 
 
 def connect_readonly(path: str | Path, timeout_s: float = 5.0) -> sqlite3.Connection:
@@ -77,6 +77,22 @@ def incidents(conn: sqlite3.Connection, kind: str | None = None, limit: int = 50
         q, args = q + " WHERE kind=?", (kind,)
     rows = conn.execute(q + " ORDER BY incident_id DESC LIMIT ?", args + (limit,)).fetchall()
     return [dict(r) | {"detail": _loads(r["detail"])} for r in rows]
+
+
+def broker_reachability(conn: sqlite3.Connection) -> dict[str, dict[str, Any]]:
+    """What the daemon last recorded of each Kafka client's broker: ``{client: {up, since, error, recorded_at}}``.
+
+    From the newest incident of kind ``broker`` per client
+    (:mod:`mushrooms.daemon.ops.broker_record`); {} when none was recorded.
+    """
+    out: dict[str, dict[str, Any]] = {}
+    for inc in incidents(conn, "broker", limit=200):
+        d = inc["detail"] if isinstance(inc["detail"], dict) else {}
+        client = str(d.get("client") or "?")
+        if client not in out:
+            out[client] = {"up": bool(d.get("up")), "since": d.get("since"), "error": d.get("error"),
+                           "recorded_at": inc["created_at"]}
+    return out
 
 
 def _loads(text: str | None) -> Any:

@@ -1,0 +1,66 @@
+"""Whether the brokers answer, kept in the state file so that ``mushrooms status`` can tell it.
+
+The broker-down alert of docs/operations.md needs the metrics listener,
+which is off by default; wrong GCN credentials then showed only as
+``event=broker_unreachable`` in the log.  At each heartbeat the daemon
+compares each client's :class:`~mushrooms.daemon.kafka.broker_log.BrokerHealth`
+(``consumer``: the GCN input; ``sink``: an outbound Kafka sink) with what it
+last wrote, and writes a change as an incident of kind ``broker`` (detail:
+``client``, ``up``, ``since``, ``error``).  So the state file holds one row
+per change of state (and one at each start, once the state is known), and
+``status`` reads the newest row of each client
+(:func:`~mushrooms.daemon.state.views.broker_reachability`).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Any, Mapping
+
+from ...handlers.text import storable
+
+__all__ = ["BrokerRecord", "KIND"]
+
+log = logging.getLogger("mushrooms.daemon")
+
+#: The incident kind of a broker's change of state.
+KIND = "broker"
+#: Characters of the client's last error kept.
+ERROR_CHARS = 300
+
+
+class BrokerRecord:
+    """Writes each client's broker state to the store when it changes.
+
+    Parameters
+    ----------
+    store : Store
+        The state store (:meth:`~mushrooms.daemon.state.store.Store.record_incident`).
+    """
+
+    def __init__(self, store: Any) -> None:
+        self.store = store
+        self._written: dict[str, bool] = {}
+
+    def update(self, healths: Mapping[str, Any]) -> None:
+        """Write the clients whose state (up or down; unknown is skipped) changed since the last write.
+
+        Parameters
+        ----------
+        healths : mapping
+            Client name -> its ``BrokerHealth`` (or None: no such client).
+        """
+        for client, health in healths.items():
+            up = getattr(health, "up", None)
+            if up is None or self._written.get(client) is up:
+                continue
+            error = None if up else storable(health.last_error or "-", ERROR_CHARS)
+            detail = {"client": client, "up": bool(up), "error": error,
+                      "since": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(health.since))}
+            try:
+                self.store.record_incident(KIND, detail)
+            except Exception as exc:  # a full disk must not stop the heartbeat; said, tried again next time
+                log.error("event=incident_not_stored kind=broker error=%r", f"{type(exc).__name__}: {exc}")
+                continue
+            self._written[client] = bool(up)
