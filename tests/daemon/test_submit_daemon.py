@@ -193,6 +193,34 @@ def test_kill9_during_the_delete_then_restart(broker, daemons, tmp_path, kowalsk
     assert d2.stop() == 0
 
 
+@pytest.mark.slow
+def test_kill9_after_put_3_of_a_set_while_a_target_of_it_was_observed(broker, daemons, tmp_path, kowalski) -> None:
+    """Issue 52, finding 4: SIGKILL after Kowalski accepted PUT #3 of a set, before the commit; meanwhile the
+    telescope observes a target of queue #3, so the list shows it without that target.  The restart's PUT #3
+    is a 409 on our own queue: the revision is kept, not rejected with its accepted queues deleted."""
+    s = Setup(broker, tmp_path, kowalski.url)
+    d1 = s.daemon(daemons, wrapper_kill="after_put:3")
+    d1.wait_log("event=service_ready", 120)
+    s.send("MS181101ab-preliminary.json", SID)
+    d1.proc.wait(300)
+    assert d1.proc.returncode == -9, d1.text()[-3000:]
+    set_names = [q["queue_name"] for q in json.loads(s.rows("SELECT body FROM submissions WHERE revision=1")[0][0])]
+    assert len(set_names) >= 3 and sorted(kowalski.queues) == sorted(set_names[:3])
+    third = kowalski.queues[set_names[2]]
+    assert len(third["targets"]) >= 2
+    kowalski.queues[set_names[2]] = {**third, "targets": third["targets"][1:]}  # its first target observed
+    d2 = s.daemon(daemons)
+    _wait(lambda: s.rows("SELECT state FROM submissions WHERE revision=1")[0][0] != "pending", 180, d2,
+          "the restart to settle the revision")
+    print("\n".join(kowalski.lines()))
+    assert sorted(kowalski.queues) == sorted(set_names), "the accepted queues of the revision were deleted"
+    assert not [e for e in kowalski.log if e["method"] == "DELETE"]
+    assert f"PUT /api/triggers/ztf {set_names[2]} -> 409" in kowalski.lines()
+    assert s.states() == [(_name(SID, 1), "submitted")]
+    _no_duplicates(kowalski)
+    assert d2.stop() == 0
+
+
 def _latency(text: str, sid: str) -> float:
     m = re.search(rf"event=job_done superevent_id={sid} .*?latency_s=([0-9.]+)", text)
     assert m, f"no job_done for {sid}"
