@@ -36,8 +36,8 @@ or ``hang_s`` passed; ``"drip"``: applied to nothing, answered 200 with a
 body of one byte every 0.1 s for ``hang_s``; ``"late"``: held unanswered until :attr:`land`
 is set, *then applied* (a slow mountain link: Kowalski applies a PUT after the client's
 deadline; :attr:`late_held` is set while one is held, :attr:`landed` once applied); ``None``:
-no fault).  :attr:`faults_by_name` does the same for the requests naming one queue (taken
-before the method's faults).  :attr:`KowalskiContract.block_after` holds a method
+no fault).  :attr:`faults_by_name` maps ``(method, queue name)`` to such a list for the requests
+of that method naming that queue (taken before the method's faults).  :attr:`KowalskiContract.block_after` holds a method
 *after* applying it, until :attr:`release` (a request that reached the
 server while the client dies).  Every request is appended to :attr:`log`.
 """
@@ -90,7 +90,7 @@ class _Contract:
         self.token = token
         self.log: list[dict[str, Any]] = []
         self.faults: dict[str, list[Any]] = {}
-        self.faults_by_name: dict[str, list[Any]] = {}
+        self.faults_by_name: dict[tuple[str, str], list[Any]] = {}
         self.land = threading.Event()  # a "late" request is applied once this is set
         self.late_held = threading.Event()  # a "late" request is held
         self.landed = threading.Event()  # a "late" request was applied
@@ -120,7 +120,7 @@ class _Contract:
     def _next_fault(self, method: str, body: Any) -> Any:
         name = (body.get("queue_name") or body.get("plan_name")) if isinstance(body, dict) else None
         with self._lock:
-            queue = self.faults_by_name.get(name) if name else None
+            queue = self.faults_by_name.get((method, name)) if name else None
             if not queue:
                 queue = self.faults.get(method)
             return queue.pop(0) if queue else None

@@ -45,7 +45,7 @@ def late(sets, tmp_path, kowalski):
     """A world whose first PUT (queue 1 of revision 1) is applied by Kowalski only after the client gave up."""
     w = World(tmp_path / "state.sqlite", _config(kowalski.url, timeout_s=1.0))
     kowalski.hang_s = 60.0
-    kowalski.faults_by_name[names(1)[0]] = ["late"]
+    kowalski.faults_by_name["PUT", names(1)[0]] = ["late"]
     try:
         w.notice("MS181101ab-preliminary.json")
         assert w.submitter.step() == 1  # no answer within the deadline: waits for a retry
@@ -157,7 +157,7 @@ def test_a_409_on_our_queue_whose_target_was_observed_keeps_the_revision(killed_
 def test_a_409_on_a_name_this_revision_sent_is_ours_when_the_list_no_longer_shows_it(killed_after_put_3, kowalski):
     third = names(1)[2]
     del kowalski.queues[third]  # all its targets observed: the mountain dropped the empty queue ...
-    kowalski.faults_by_name[third] = [409]  # ... after it answered the restart's PUT with 409
+    kowalski.faults_by_name["PUT", third] = [409]  # ... after it answered the restart's PUT with 409
     killed_after_put_3.restart()
     killed_after_put_3.submitter.step()
     print("\n".join(kowalski.lines()))

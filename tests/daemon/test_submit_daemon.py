@@ -26,6 +26,7 @@ from daemon_helpers import Daemon, notice_bytes, write_config
 
 TOKEN = "daemon-s3cr3t-9f8e7d6c5b4a"
 SID = "MS181101ab"
+LATER = "2023-04-26T00:00:00Z"  # a retraction dated after the 2023 map an update relabels
 FAULT_RUN = Path(__file__).with_name("submit_fault_run.py")
 
 
@@ -219,6 +220,51 @@ def test_kill9_after_put_3_of_a_set_while_a_target_of_it_was_observed(broker, da
     assert s.states() == [(_name(SID, 1), "submitted")]
     _no_duplicates(kowalski)
     assert d2.stop() == 0
+
+
+def _late_then_settled(s: Setup, d: Daemon, kowalski, sid: str, settle: tuple[str, str, str | None],
+                       end_states: list[tuple[str, str]]) -> list[tuple]:
+    """``sid``'s first PUT is applied by Kowalski only after the daemon's deadline (its retries answered 503);
+    ``settle`` (a notice) settles that revision; then the late PUT lands.  The states seen before it landed."""
+    first = _name(sid, 1)
+    kowalski.land.clear(), kowalski.late_held.clear(), kowalski.landed.clear()
+    kowalski.faults_by_name["PUT", first] = ["late"] + [503] * 5000
+    s.send("MS181101ab-preliminary.json", sid)
+    assert kowalski.late_held.wait(180), d.text()[-3000:]
+    s.send(*settle)
+    _wait(lambda: f"DELETE /api/triggers/ztf {first} -> 400" in kowalski.lines(), 180, d, "the settling DELETE")
+    before = s.states(sid)
+    kowalski.faults_by_name.pop(("PUT", first))
+    kowalski.land.set()
+    assert kowalski.landed.wait(30) and first in kowalski.queues
+    _wait(lambda: first not in kowalski.queues, 60, d, f"the late queue {first} to be deleted once it appeared")
+    _wait(lambda: s.states(sid) == end_states, 30, d, "the final states")
+    return before
+
+
+@pytest.mark.slow
+def test_a_put_applied_after_the_deadline_is_deleted_after_an_update_and_after_a_retraction(broker, daemons, tmp_path,
+                                                                                           kowalski) -> None:
+    """Issue 52, finding 1, end to end: the daemon, the loopback broker, a Kowalski stand-in that applies a PUT
+    after the client's ``timeout_s``.  An updated map, then (another event) a retraction settle the revision
+    whose PUT had no answer; its queue lands afterwards and is deleted once it shows in the list, and the row
+    claims ``replaced`` / ``deleted`` only then.  At the end only the update's queue set is live."""
+    s = Setup(broker, tmp_path, kowalski.url)
+    kowalski.hang_s = 120.0
+    d = s.daemon(daemons)
+    d.wait_log("event=service_ready", 120)
+    other = "MS190425x"
+    r1, r2, o1 = _name(SID, 1), _name(SID, 2), _name(other, 1)
+    before_update = _late_then_settled(s, d, kowalski, SID, ("MS230425l-preliminary.json", SID, None),
+                                       [(r1, "replaced"), (r2, "submitted")])
+    before_retraction = _late_then_settled(s, d, kowalski, other, ("MS181101ab-retraction.json", other, LATER),
+                                           [(o1, "deleted")])
+    assert d.stop() == 0
+    print("\n".join(kowalski.lines()))
+    assert _revisions(kowalski, SID) == [2] and _revisions(kowalski, other) == []
+    assert before_update == [(r1, "pending"), (r2, "submitted")] and before_retraction == [(o1, "pending")]
+    assert "event=submission_watch" in d.text()
+    _no_duplicates(kowalski)
 
 
 def _latency(text: str, sid: str) -> float:
