@@ -164,3 +164,32 @@ def test_a_409_on_a_name_this_revision_sent_is_ours_when_the_list_no_longer_show
     assert sorted(kowalski.queues) == names(1)[:2], "the accepted queues of the revision were deleted"
     assert _deletes(kowalski) == []
     assert _states(killed_after_put_3) == [(1, "submitted")]
+
+
+def test_a_row_from_before_tried_was_kept_counts_its_first_queue_not_accepted_as_sent():
+    from mushrooms.daemon.submission.rows import Submission
+
+    set_ = [{"queue_name": n, "targets": [], "validity_window_mjd": [1.0, 2.0]} for n in names(1)]
+    row = Submission("p", SID, "kowalski", 1, "ToO_GW_r1", "pending", None, set_, None, None, None, 1,
+                     "2026-01-01T00:00:00Z", None, None, None, {"put": names(1)[:1]})
+    assert row.maybe_sent() == set(names(1)[:2])  # a set is PUT in order: the pass stopped at queue 2
+    assert row.to_settle() == names(1)[:2]  # queue 3 was never sent: never DELETEd
+    refused = Submission(**{**row.__dict__, "progress": {"put": names(1)[:1], "tried": names(1)[:2],
+                                                         "refused": names(1)[1:2]}})
+    assert refused.to_settle() == names(1)[:1]
+
+
+def test_the_submitter_thread_passes_again_while_a_queue_is_watched_for():
+    import threading
+
+    from mushrooms.daemon.submission.thread import _Recheck
+
+    kicked = threading.Event()
+    recheck = _Recheck(kicked.set, initial_s=0.01, max_s=0.04)
+    recheck.after_pass(0)
+    assert not kicked.wait(0.2)  # nothing watched: no pass is asked for
+    recheck.after_pass(1)
+    assert kicked.wait(10)  # watching: the drain is kicked again (hang guard only)
+    kicked.clear()
+    recheck.after_pass(1)
+    assert kicked.wait(10)
