@@ -78,6 +78,20 @@ def test_a_put_that_lands_after_the_deadline_is_deleted_when_it_appears_after_an
     assert late.submitter.step() == 0 and late.submitter.watching == 0
 
 
+def test_a_late_queue_is_deleted_while_a_newer_revision_is_still_being_retried(sets, late, kowalski):
+    late.notice(*UPDATE)
+    late.submitter.step()  # revision 2 accepted; revision 1 watched
+    kowalski.faults["PUT"] = [503] * 50  # revision 3's PUTs fail for now
+    late.notice("MS181101ab-ext-update.json", SID, time_created="2024-01-01T00:00:00Z")
+    assert late.submitter.step() == 1
+    _land(kowalski)
+    assert late.submitter.step() == 1  # revision 3 still waits for a retry ...
+    print("\n".join(kowalski.lines()))
+    assert names(1)[0] not in kowalski.queues, "the late queue waited for revision 3"  # ... revision 1's is gone
+    assert sorted(kowalski.queues) == names(2)
+    assert _states(late) == [(1, "replaced"), (2, "submitted"), (3, "pending")]
+
+
 def test_a_put_that_lands_after_the_deadline_of_a_retracted_event_is_deleted_after_a_restart(sets, late, kowalski):
     late.notice(RETRACTION, time_created=LATER)
     late.submitter.step()  # the retraction settles revision 1: its queue is not listed (yet)
