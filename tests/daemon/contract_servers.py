@@ -33,7 +33,11 @@ Faults for the tests: :attr:`KowalskiContract.faults` maps a method to a
 list of answers for its next requests (a status code; ``"hang"``: the
 request is applied to nothing and answered only after :attr:`release` is set
 or ``hang_s`` passed; ``"drip"``: applied to nothing, answered 200 with a
-body of one byte every 0.1 s for ``hang_s``).  :attr:`KowalskiContract.block_after` holds a method
+body of one byte every 0.1 s for ``hang_s``; ``"late"``: held unanswered until :attr:`land`
+is set, *then applied* (a slow mountain link: Kowalski applies a PUT after the client's
+deadline; :attr:`late_held` is set while one is held, :attr:`landed` once applied); ``None``:
+no fault).  :attr:`faults_by_name` maps ``(method, queue name)`` to such a list for the requests
+of that method naming that queue (taken before the method's faults).  :attr:`KowalskiContract.block_after` holds a method
 *after* applying it, until :attr:`release` (a request that reached the
 server while the client dies).  Every request is appended to :attr:`log`.
 """
@@ -86,6 +90,10 @@ class _Contract:
         self.token = token
         self.log: list[dict[str, Any]] = []
         self.faults: dict[str, list[Any]] = {}
+        self.faults_by_name: dict[tuple[str, str], list[Any]] = {}
+        self.land = threading.Event()  # a "late" request is applied once this is set
+        self.late_held = threading.Event()  # a "late" request is held
+        self.landed = threading.Event()  # a "late" request was applied
         self.block_after: set[str] = set()
         self.release = threading.Event()
         self.hang_s = 60.0
@@ -109,10 +117,24 @@ class _Contract:
             return _error("token is invalid", 400)
         return None
 
-    def _fault(self, method: str) -> Response | None:
+    def _next_fault(self, method: str, body: Any) -> Any:
+        name = (body.get("queue_name") or body.get("plan_name")) if isinstance(body, dict) else None
         with self._lock:
-            queue = self.faults.get(method)
-            fault = queue.pop(0) if queue else None
+            queue = self.faults_by_name.get((method, name)) if name else None
+            if not queue:
+                queue = self.faults.get(method)
+            return queue.pop(0) if queue else None
+
+    def _late(self, request: Request, body: Any) -> Response:
+        """Hold the request past the client's deadline until :attr:`land`, then apply it (answered to no one)."""
+        self.late_held.set()
+        self.land.wait(self.hang_s)
+        response = self._apply(request, body)
+        self._record(request, response.status_code, body, late=True)
+        self.landed.set()
+        return response
+
+    def _fault(self, fault: Any) -> Response | None:
         if fault is None:
             return None
         if fault == "drip":  # a 200 whose body comes one byte every 0.1 s for hang_s: no recv ever times out
@@ -141,7 +163,12 @@ class _Contract:
             body = None
         if self.delay_s:
             time.sleep(self.delay_s)
-        response = self._auth(request) or self._fault(request.method) or self._apply(request, body)
+        response = self._auth(request)
+        if response is None:
+            fault = self._next_fault(request.method, body)
+            if fault == "late":
+                return self._late(request, body)
+            response = self._fault(fault) or self._apply(request, body)
         self._record(request, response.status_code, body)
         if request.method in self.block_after and response.status_code == 200:
             self.blocked.set()
@@ -151,9 +178,11 @@ class _Contract:
     def _apply(self, request: Request, body: Any) -> Response:
         raise NotImplementedError
 
-    def _record(self, request: Request, status: int, body: Any) -> None:
+    def _record(self, request: Request, status: int, body: Any, late: bool = False) -> None:
         entry = {"t": round(time.time(), 3), "method": request.method, "path": request.path, "status": status,
                  "authorization": request.headers.get("Authorization", "")}
+        if late:
+            entry["late"] = True
         if isinstance(body, dict):
             for k in ("queue_name", "plan_name", "user"):
                 if k in body:
@@ -164,7 +193,7 @@ class _Contract:
     def lines(self) -> list[str]:
         """The request log as ``METHOD path name -> status`` lines (for reports)."""
         return [f"{e['method']} {e['path']} {e.get('queue_name') or e.get('plan_name') or ''} -> {e['status']}"
-                for e in self.log]
+                + (" (applied after the client's deadline)" if e.get("late") else "") for e in self.log]
 
 
 class KowalskiContract(_Contract):

@@ -3,7 +3,8 @@
 ``MUSHROOMS_TEST_SUBMIT_KILL``:
 
 * ``before_put``: the attempt is committed, the PUT not sent;
-* ``after_put``: the server took the PUT and answered; the answer is not committed.
+* ``after_put``: the server took the PUT and answered; the answer is not committed;
+* ``after_put:<n>``: the same after the n-th PUT of the run (a kill inside a queue set).
 
 A kill *during* a DELETE is made by the contract server instead (it applies
 the DELETE and holds its answer while the test kills the daemon).
@@ -20,12 +21,15 @@ def install(point: str) -> None:
     from mushrooms.daemon.submission.remote import KowalskiQueue
 
     real_put = KowalskiQueue.put
+    point, _, nth = point.partition(":")
+    calls = []
 
     def put(self, queue):
         if point == "before_put":
             os.kill(os.getpid(), signal.SIGKILL)
         answer = real_put(self, queue)
-        if point == "after_put":
+        calls.append(queue.get("queue_name"))
+        if point == "after_put" and len(calls) == int(nth or 1):
             os.kill(os.getpid(), signal.SIGKILL)
         return answer
 

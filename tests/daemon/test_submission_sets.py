@@ -153,9 +153,17 @@ def test_an_interrupted_older_revision_is_settled_when_the_newest_plan_is_gated_
     world.submitter.submit = dataclasses.replace(world.submitter.submit, min_coverage=0.9999)
     world.notice("MS181101ab-ext-update.json", SID, time_created="2024-01-01T00:00:00Z")  # gated out
     assert world.submitter.step() == 0
+    # r2's PUT had no usable answer (a 5xx: maybe applied): it is watched for until its queue's window ends
+    # (issue 52, finding 1), not a submission waiting
+    assert world.submitter.watching == 1 and "watching for" in submissions(world.store)[1].reason
+    with world.store.transaction() as c:  # the night passed: r2's queues' windows ended
+        (plan_id, body), = c.execute("SELECT plan_id, body FROM submissions WHERE revision=2").fetchall()
+        queues = [{**q, "validity_window_mjd": [50000.0, 50000.5]} for q in json.loads(body)]
+        c.execute("UPDATE submissions SET body=? WHERE plan_id=?", (json.dumps(queues), plan_id))
+    assert world.submitter.step() == 0
     states = [(s.revision, s.state) for s in submissions(world.store)]
     assert states[0] == (1, "submitted") and states[1][1] not in ("pending", "submitted") and states[2][1] == "skipped"
-    assert world.submitter.step() == 0
+    assert world.submitter.step() == 0 and world.submitter.watching == 0
 
 
 def test_a_submitted_queue_whose_window_ended_is_no_longer_an_open_row(world, kowalski) -> None:

@@ -26,6 +26,7 @@ from daemon_helpers import Daemon, notice_bytes, write_config
 
 TOKEN = "daemon-s3cr3t-9f8e7d6c5b4a"
 SID = "MS181101ab"
+LATER = "2023-04-26T00:00:00Z"  # a retraction dated after the 2023 map an update relabels
 FAULT_RUN = Path(__file__).with_name("submit_fault_run.py")
 
 
@@ -109,6 +110,12 @@ def _wait(predicate, timeout_s: float, d: Daemon, what: str) -> None:
         time.sleep(0.1)
 
 
+def _set_names(s: "Setup", sid: str, revision: int) -> list[str]:
+    """The queue names of ``sid``'s revision ``revision``, in set order (from its stored body)."""
+    (body,), = s.rows(f"SELECT body FROM submissions WHERE superevent_id='{sid}' AND revision={revision}")
+    return [q["queue_name"] for q in json.loads(body)]
+
+
 def _no_duplicates(kowalski: KowalskiContract) -> None:
     accepted = [e["queue_name"] for e in kowalski.log if e["method"] == "PUT" and e["status"] == 200]
     assert len(accepted) == len(set(accepted)), kowalski.lines()
@@ -158,10 +165,12 @@ def test_kill9_around_the_put_then_restart(broker, daemons, tmp_path, kowalski, 
     assert list(kowalski.queues) == ([] if point == "before_put" else [r1])
     d2 = s.daemon(daemons)
     _wait(lambda: s.states() == [(r1, "submitted")], 180, d2, "the restart to settle the submission")
-    assert list(kowalski.queues) == [r1]
-    expected = ([f"PUT /api/triggers/ztf {r1} -> 200"] if point == "before_put" else
+    set_names = _set_names(s, SID, 1)
+    assert sorted(kowalski.queues) == sorted(set_names)
+    expected = ([] if point == "before_put" else
                 [f"PUT /api/triggers/ztf {r1} -> 200", f"PUT /api/triggers/ztf {r1} -> 409",
                  "GET /api/triggers/ztf  -> 200"])
+    expected += [f"PUT /api/triggers/ztf {n} -> 200" for n in set_names[point == "after_put":]]
     print(point, kowalski.lines())
     assert kowalski.lines() == expected
     assert d2.stop() == 0
@@ -181,16 +190,90 @@ def test_kill9_during_the_delete_then_restart(broker, daemons, tmp_path, kowalsk
     d1.kill9()
     kowalski.block_after.clear()
     kowalski.release.set()
-    assert list(kowalski.queues) == [r2] and s.states() == [(r1, "submitted"), (r2, "submitted")]
+    old, new = _set_names(s, SID, 1), _set_names(s, SID, 2)
+    assert sorted(kowalski.queues) == sorted(old[1:] + new) and s.states() == [(r1, "submitted"), (r2, "submitted")]
     d2 = s.daemon(daemons)
     _wait(lambda: s.states() == [(r1, "replaced"), (r2, "submitted")], 180, d2, "the restart to finish the DELETE")
     print(kowalski.lines())
-    assert kowalski.lines() == [f"PUT /api/triggers/ztf {r1} -> 200", f"PUT /api/triggers/ztf {r2} -> 200",
-                                f"DELETE /api/triggers/ztf {r1} -> 200", f"DELETE /api/triggers/ztf {r1} -> 400",
-                                "GET /api/triggers/ztf  -> 200"]
-    assert list(kowalski.queues) == [r2]
+    restart = [f"DELETE /api/triggers/ztf {r1} -> 400", "GET /api/triggers/ztf  -> 200"]  # gone, not listed
+    restart += [f"DELETE /api/triggers/ztf {n} -> 200" for n in old[1:]]
+    assert kowalski.lines()[-len(restart) - 1:] == [f"DELETE /api/triggers/ztf {r1} -> 200"] + restart
+    assert sorted(kowalski.queues) == sorted(new)
     _no_duplicates(kowalski)
     assert d2.stop() == 0
+
+
+@pytest.mark.slow
+def test_kill9_after_put_3_of_a_set_while_a_target_of_it_was_observed(broker, daemons, tmp_path, kowalski) -> None:
+    """Issue 52, finding 4: SIGKILL after Kowalski accepted PUT #3 of a set, before the commit; meanwhile the
+    telescope observes a target of queue #3, so the list shows it without that target.  The restart's PUT #3
+    is a 409 on our own queue: the revision is kept, not rejected with its accepted queues deleted."""
+    s = Setup(broker, tmp_path, kowalski.url)
+    d1 = s.daemon(daemons, wrapper_kill="after_put:3")
+    d1.wait_log("event=service_ready", 120)
+    s.send("MS181101ab-preliminary.json", SID)
+    d1.proc.wait(300)
+    assert d1.proc.returncode == -9, d1.text()[-3000:]
+    set_names = [q["queue_name"] for q in json.loads(s.rows("SELECT body FROM submissions WHERE revision=1")[0][0])]
+    assert len(set_names) >= 3 and sorted(kowalski.queues) == sorted(set_names[:3])
+    third = kowalski.queues[set_names[2]]
+    assert len(third["targets"]) >= 2
+    kowalski.queues[set_names[2]] = {**third, "targets": third["targets"][1:]}  # its first target observed
+    d2 = s.daemon(daemons)
+    _wait(lambda: s.rows("SELECT state FROM submissions WHERE revision=1")[0][0] != "pending", 180, d2,
+          "the restart to settle the revision")
+    print("\n".join(kowalski.lines()))
+    assert sorted(kowalski.queues) == sorted(set_names), "the accepted queues of the revision were deleted"
+    assert not [e for e in kowalski.log if e["method"] == "DELETE"]
+    assert f"PUT /api/triggers/ztf {set_names[2]} -> 409" in kowalski.lines()
+    assert s.states() == [(_name(SID, 1), "submitted")]
+    _no_duplicates(kowalski)
+    assert d2.stop() == 0
+
+
+def _late_then_settled(s: Setup, d: Daemon, kowalski, sid: str, settle: tuple[str, str, str | None],
+                       end_states: list[tuple[str, str]]) -> list[tuple]:
+    """``sid``'s first PUT is applied by Kowalski only after the daemon's deadline (its retries answered 503);
+    ``settle`` (a notice) settles that revision; then the late PUT lands.  The states seen before it landed."""
+    first = _name(sid, 1)
+    kowalski.land.clear(), kowalski.late_held.clear(), kowalski.landed.clear()
+    kowalski.faults_by_name["PUT", first] = ["late"] + [503] * 5000
+    s.send("MS181101ab-preliminary.json", sid)
+    assert kowalski.late_held.wait(180), d.text()[-3000:]
+    s.send(*settle)
+    _wait(lambda: f"DELETE /api/triggers/ztf {first} -> 400" in kowalski.lines(), 180, d, "the settling DELETE")
+    before = s.states(sid)
+    kowalski.faults_by_name.pop(("PUT", first))
+    kowalski.land.set()
+    assert kowalski.landed.wait(30) and first in kowalski.queues
+    _wait(lambda: first not in kowalski.queues, 60, d, f"the late queue {first} to be deleted once it appeared")
+    _wait(lambda: s.states(sid) == end_states, 30, d, "the final states")
+    return before
+
+
+@pytest.mark.slow
+def test_a_put_applied_after_the_deadline_is_deleted_after_an_update_and_after_a_retraction(broker, daemons, tmp_path,
+                                                                                           kowalski) -> None:
+    """Issue 52, finding 1, end to end: the daemon, the loopback broker, a Kowalski stand-in that applies a PUT
+    after the client's ``timeout_s``.  An updated map, then (another event) a retraction settle the revision
+    whose PUT had no answer; its queue lands afterwards and is deleted once it shows in the list, and the row
+    claims ``replaced`` / ``deleted`` only then.  At the end only the update's queue set is live."""
+    s = Setup(broker, tmp_path, kowalski.url)
+    kowalski.hang_s = 120.0
+    d = s.daemon(daemons)
+    d.wait_log("event=service_ready", 120)
+    other = "MS190425x"
+    r1, r2, o1 = _name(SID, 1), _name(SID, 2), _name(other, 1)
+    before_update = _late_then_settled(s, d, kowalski, SID, ("MS230425l-preliminary.json", SID, None),
+                                       [(r1, "replaced"), (r2, "submitted")])
+    before_retraction = _late_then_settled(s, d, kowalski, other, ("MS181101ab-retraction.json", other, LATER),
+                                           [(o1, "deleted")])
+    assert d.stop() == 0
+    print("\n".join(kowalski.lines()))
+    assert _revisions(kowalski, SID) == [2] and _revisions(kowalski, other) == []
+    assert before_update == [(r1, "pending"), (r2, "submitted")] and before_retraction == [(o1, "pending")]
+    assert "event=submission_watch" in d.text()
+    _no_duplicates(kowalski)
 
 
 def _latency(text: str, sid: str) -> float:
@@ -229,7 +312,8 @@ def test_refusals_server_errors_and_a_hanging_server(broker, daemons, tmp_path, 
     assert len(errors) == 2, errors  # one per refusal, never repeated
     assert sum("event=submission_rejected" in e for e in errors) == 2
     assert "injected 400" in s.rows(f"SELECT answer FROM submissions WHERE superevent_id='{a}'")[0][0]
-    assert s.rows(f"SELECT reason FROM submissions WHERE superevent_id='{c}'")[0][0].startswith("409: a queue")
+    assert "409: a queue of that name exists with other content" in \
+        s.rows(f"SELECT reason FROM submissions WHERE superevent_id='{c}'")[0][0]
     # the faults go to whichever PUT comes next (b's retries or c's first): together they took them all
     puts = [e["status"] for e in kowalski.log if e["method"] == "PUT" and e.get("queue_name") in (_name(b, 1),
                                                                                                  _name(c, 1))]

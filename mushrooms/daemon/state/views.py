@@ -207,11 +207,15 @@ def attention(conn: sqlite3.Connection, now: datetime | None = None, outbox_max_
 def oldest_pending_submission(conn: sqlite3.Connection, now: datetime | None = None) -> dict[str, Any] | None:
     """The submission pending longest: ``{queue_name, superevent_id, age_s, attempts, answer}``, None when none.
 
-    A file without a ``submissions`` table has none.
+    A file without a ``submissions`` table has none.  A superseded or withdrawn row that only watches for
+    a queue it sent without an answer (``progress.watch``: it is not waiting to be submitted) is not one.
     """
     now = now or datetime.now(timezone.utc)
     try:
-        row = conn.execute("SELECT * FROM submissions WHERE state='pending' ORDER BY created_at LIMIT 1").fetchone()
+        watching = " AND NOT (json_valid(progress) AND json_extract(progress, '$.watch') IS NOT NULL)" \
+            if "progress" in {r[1] for r in conn.execute("PRAGMA table_info(submissions)")} else ""
+        row = conn.execute(f"SELECT * FROM submissions WHERE state='pending'{watching} ORDER BY created_at"
+                           " LIMIT 1").fetchone()
     except sqlite3.OperationalError as exc:
         if "no such table" in str(exc):
             return None

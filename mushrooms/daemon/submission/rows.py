@@ -2,9 +2,12 @@
 
 One row per plan id (:mod:`~mushrooms.daemon.submission.submitter` owns the lifecycle; the states are
 in its docstring).  ``progress`` records which queues of a revision's queue
-set were accepted (``put``) or removed (``gone``), and a refusal of one of
-them (``rejected``), so that a pass interrupted between two queues goes on
-where it stopped.
+set were sent (``tried``), accepted (``put``) or removed (``gone``), and a
+refusal of one of them (``rejected``, the name ``refused``), so that a pass
+interrupted between two queues goes on where it stopped.  A queue sent and
+neither accepted nor refused may be live (:meth:`Submission.maybe_live`: its
+answer was lost to the deadline, a cut or a kill); one that was not listed
+when its revision was settled is watched for (``watch``) until its window ends.
 """
 
 from __future__ import annotations
@@ -69,8 +72,10 @@ class Submission:
     attempted_at: str | None
     submitted_at: str | None
     finished_at: str | None
-    #: ``{"put": [names accepted], "gone": [names removed], "rejected": reason}``; SkyPortal also
-    #: ``"tried": [plan names POSTed at least once]`` and ``"ids": {plan name: request id}``
+    #: ``{"tried": [names sent at least once], "put": [names accepted], "gone": [names removed],
+    #: "rejected": reason, "refused": [the name refused], "watch": [names sent without an answer, not
+    #: listed when the revision was settled], "expired": [watched names whose window ended unseen]}``;
+    #: SkyPortal also ``"ids": {plan name: request id}``
     progress: dict[str, Any] = field(default_factory=dict)
 
     def queue_names(self) -> list[str]:
@@ -86,10 +91,35 @@ class Submission:
         return ",".join(str(ids[n]) for n in self.queue_names() if n in ids) or None
 
     def maybe_sent(self) -> set[str]:
-        """Names that may be on the server: accepted, or sent at least once (rows from before sets: all, once tried)."""
-        tried = self.progress.get("tried")
-        return set(self.progress.get("put", ())) | set(self.queue_names() if tried is None and self.attempts
-                                                        else tried or ())
+        """Names that may be on the server: accepted, or sent at least once.
+
+        A row written before ``tried`` was kept for Kowalski, once attempted:
+        its accepted queues and the first one not accepted (a set is PUT in
+        order and a pass stops at the first queue not accepted); for
+        SkyPortal, all of them.
+        """
+        tried, put = self.progress.get("tried"), set(self.progress.get("put", ()))
+        if tried is not None or not self.attempts:
+            return put | set(tried or ())
+        names = self.queue_names()
+        if self.target == "kowalski":
+            return put | set(next(([n] for n in names if n not in put), []))
+        return put | set(names)
+
+    def maybe_live(self) -> set[str]:
+        """Names sent whose fate is unknown: neither accepted, nor refused, nor removed (they may still land)."""
+        known = set(self.progress.get("put", ())) | set(self.progress.get("gone", ())) | \
+            set(self.progress.get("refused", ()))
+        return self.maybe_sent() - known
+
+    def to_settle(self) -> list[str]:
+        """The names a settlement of this revision must remove, in set order: accepted or maybe live, not gone.
+
+        Never a name that was not sent (nothing to DELETE) nor one refused outright.
+        """
+        wanted = set(self.progress.get("put", ())) | self.maybe_live()
+        gone = set(self.progress.get("gone", ()))
+        return [n for n in self.queue_names() if n in wanted and n not in gone]
 
 
 def submission_from_row(r: Any) -> Submission:

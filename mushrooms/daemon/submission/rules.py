@@ -21,8 +21,11 @@ if TYPE_CHECKING:
     from ...scheduler_core.plan.exports import ExportConfig
     from .settings import SubmitConfig
 
-__all__ = ["Verdict", "queue_name", "gate", "build_body", "same_content", "send_queue", "set_of", "name_of", "unix",
-           "total_coverage"]
+__all__ = ["Verdict", "queue_name", "gate", "build_body", "same_content", "listed_as_ours", "send_queue", "set_of",
+           "name_of", "unix", "window_end", "total_coverage"]
+
+#: The Unix time of MJD 0 is -40587 days (1858-11-17 is 40587 days before 1970-01-01).
+_MJD_UNIX_DAYS = 40587.0
 
 
 def unix(iso: str) -> float:
@@ -117,21 +120,62 @@ def name_of(part: dict[str, Any]) -> str:
     return str(part.get("queue_name") or part.get("plan_name"))
 
 
+def window_end(queue: dict[str, Any]) -> float | None:
+    """The end of a queue's ``validity_window_mjd`` as Unix seconds (None: the queue has none that parses).
+
+    After it the queue cannot be executed: ZTF's scheduler switches only to a queue whose window
+    holds now and deletes the expired ones (ztf_sim ``Scheduler.check_for_timed_queue_and_switch``,
+    ``remove_empty_and_expired_queues``).
+    """
+    try:
+        end = float(queue["validity_window_mjd"][1])
+    except (KeyError, IndexError, TypeError, ValueError):
+        return None
+    return (end - _MJD_UNIX_DAYS) * 86400.0 if end == end else None
+
+
 def _targets_key(targets: Any) -> list[tuple[int, int, float]]:
     if isinstance(targets, str):
         targets = json.loads(targets)
     return sorted((int(t["field_id"]), int(t["filter_id"]), round(float(t["exposure_time"]), 3)) for t in targets)
 
 
+def _same_window(body: dict[str, Any], listed: dict[str, Any]) -> bool:
+    mine, theirs = body["validity_window_mjd"], listed.get("validity_window_mjd")
+    return (theirs is not None and len(theirs) == 2
+            and all(abs(float(a) - float(b)) <= 1e-6 for a, b in zip(mine, theirs)))
+
+
 def same_content(body: dict[str, Any], listed: dict[str, Any]) -> bool:
     """Whether a queue listed by ``GET /api/triggers/ztf`` is ``body``: same validity window, fields, filters, exposures."""
     try:
-        mine, theirs = body["validity_window_mjd"], listed.get("validity_window_mjd")
-        if theirs is None or len(theirs) != 2 or any(abs(float(a) - float(b)) > 1e-6 for a, b in zip(mine, theirs)):
-            return False
-        return _targets_key(body["targets"]) == _targets_key(listed.get("queue", listed.get("targets", [])))
+        return _same_window(body, listed) and \
+            _targets_key(body["targets"]) == _targets_key(listed.get("queue", listed.get("targets", [])))
     except (KeyError, TypeError, ValueError):
         return False
+
+
+def listed_as_ours(body: dict[str, Any], listed: dict[str, Any]) -> tuple[bool, int]:
+    """Whether a listed queue is ``body`` as the telescope left it, and how many of its targets are still listed.
+
+    The mountain's list shows a list queue's targets *not yet observed*: an
+    observed target leaves it (ztf_sim ``ListQueueManager._remove_requests``,
+    ``return_queue``).  So our queue is listed with our validity window (to
+    1e-6 d) and a sub-multiset of our (field, filter, exposure) targets.
+    """
+    try:
+        if not _same_window(body, listed):
+            return False, 0
+        left = list(_targets_key(listed.get("queue", listed.get("targets", []))))
+        mine = _targets_key(body["targets"])
+    except (KeyError, TypeError, ValueError):
+        return False, 0
+    pool = list(mine)
+    for t in left:
+        if t not in pool:
+            return False, len(left)
+        pool.remove(t)
+    return True, len(left)
 
 
 @dataclass(frozen=True)
@@ -144,17 +188,23 @@ class Verdict:
     remote_id: str | None = None
 
 
-def send_queue(client: KowalskiQueue | SkyPortalPlans, body: dict[str, Any], name: str) -> Verdict:
+def send_queue(client: KowalskiQueue | SkyPortalPlans, body: dict[str, Any], name: str,
+               sent_before: bool = False) -> Verdict:
     """Send one queue (Kowalski ``PUT``) or plan (SkyPortal ``POST``) and classify the answer.
 
     200 with a JSON answer: submitted (a 200 that is not JSON, or larger than
     the cap, is retried: a captive portal or a proxy said it, not the
     server; a repeat finds Kowalski's queue by its 409).  Kowalski's 409 (a
-    queue of that name exists) counts as submitted when ``GET`` lists the
-    queue with the same content (a repeat after a crash), else rejected.  A
-    3xx: rejected with its target (redirects are never followed).  Other
-    4xx: rejected (the server's text kept).  5xx, the deadline, no
-    connection, a cut or non-HTTP answer: retry.
+    queue of that name exists): see :func:`_conflict`.  A 3xx: rejected with
+    its target (redirects are never followed).  Other 4xx: rejected (the
+    server's text kept).  5xx, the deadline, no connection, a cut or
+    non-HTTP answer: retry.
+
+    Parameters
+    ----------
+    sent_before : bool
+        This queue was sent before by the same revision (a PUT whose answer
+        was lost: a kill -9, the deadline): a 409 may be our own queue.
     """
     try:
         answer = client.put(body) if isinstance(client, KowalskiQueue) else client.post(body)
@@ -170,14 +220,34 @@ def send_queue(client: KowalskiQueue | SkyPortalPlans, body: dict[str, Any], nam
     if answer.redirected:
         return Verdict("rejected", answer, f"{answer.status}: {answer.problem}")
     if answer.status == 409 and isinstance(client, KowalskiQueue):
-        try:
-            listed = [q for q in client.queues() if q.get("queue_name") == name]
-        except (Unreachable, RuntimeError) as exc:
-            return Verdict("retry", answer, f"409, and the queue list could not be read: {exc}")
-        if listed and same_content(body, listed[0]):
-            return Verdict("submitted", answer, "409: already queued with the same content (accepted)")
-        return Verdict("rejected", answer, "409: a queue of that name exists with other content" if listed
-                       else "409, but the queue list does not show it")
+        return _conflict(client, body, name, answer, sent_before)
     if answer.refused:
         return Verdict("rejected", answer)
     return Verdict("retry", answer, answer.message())
+
+
+def _conflict(client: KowalskiQueue, body: dict[str, Any], name: str, answer: Answer, sent_before: bool) -> Verdict:
+    """Kowalski's 409 (the mountain already holds a queue of that name) against what ``GET`` lists.
+
+    Queue names are unique per revision, so the queue is ours when it is
+    listed with our window and a sub-multiset of our targets (the telescope
+    took the others: :func:`listed_as_ours`), or when this revision sent it
+    before and it is no longer listed (emptied or expired since the 409).
+    A listed queue with another window or other targets is someone else's:
+    rejected.
+    """
+    try:
+        listed = [q for q in client.queues() if q.get("queue_name") == name]
+    except (Unreachable, RuntimeError) as exc:
+        return Verdict("retry", answer, f"409, and the queue list could not be read: {exc}")
+    if listed:
+        ours, left = listed_as_ours(body, listed[0])
+        if ours:
+            n = len(body.get("targets") or ())
+            return Verdict("submitted", answer, "409: already queued with the same content (accepted)" if left == n
+                           else f"409: our queue, {n - left} of its {n} targets already observed (accepted)")
+        return Verdict("rejected", answer, "409: a queue of that name exists with other content")
+    if sent_before:
+        return Verdict("submitted", answer, "409 on a queue this revision sent before, no longer listed "
+                       "(observed or expired since; accepted)")
+    return Verdict("rejected", answer, "409, but the queue list does not show it")

@@ -4,7 +4,7 @@ One row per plan id in the store's ``submissions`` table::
 
     pending ─► submitted ─► replaced   (a newer revision of the event was accepted)
        │           └──────► deleted    (the event was retracted)
-       ├─► rejected  (the server refused it: 4xx, or 409 with other content; never retried)
+       ├─► rejected  (the server refused it: 4xx, or 409 on a queue not ours; never retried)
        ├─► failed    (no queue could be built, the validity window ended before it was
        │              accepted, or a DELETE was refused: the operator must look)
        └─► skipped   (gates, dry run, or superseded/withdrawn before it was sent)
@@ -15,18 +15,27 @@ the gates): to Kowalski a revision is the ordered list of queues of
 :func:`~mushrooms.scheduler_core.plan.exports.to_trigger_queues`.
 :meth:`Submitter.step` (run by its own thread, kicked after a plan is
 stored or a withdrawal recorded) first ``PUT``\\s every queue of the wanted
-set and only once all were accepted ``DELETE``\\s every queue of the event's
-older sets, so the telescope is never left with nothing; a retraction
-deletes every queue of every revision.  The row's ``progress`` records each
-accepted or removed queue (an interrupted pass goes on where it stopped).
+set and only once all were accepted ``DELETE``\\s the queues of the event's
+older sets that may be live (accepted, or sent without an answer: never one
+that was not sent), so the telescope is never left with nothing; a
+retraction does so for every revision.  The row's ``progress`` records each
+queue sent, accepted or removed (an interrupted pass goes on where it
+stopped).  A queue sent without an answer (the deadline, a cut, a 5xx) may
+still be applied by Kowalski later: when its revision is settled and the
+list does not show it, it is watched for until its window ends and deleted
+when it appears; the row says ``replaced``/``deleted`` only after that
+(:mod:`~mushrooms.daemon.submission.removal`).
 
 Crash safety: a queue's name and body are stored before anything is sent,
-and the attempt is committed *before* the HTTP call.  After a kill -9
-between the call and the commit the restart sends the same name and body
-again: Kowalski answers 409 and the queue list (``GET``) shows the same
-content, which counts as accepted; a DELETE repeated after a crash finds
-the queue gone (400, not in the list), which counts as done.  So no queue is
-sent twice nor left orphaned.  To SkyPortal a revision is the ordered list
+and the attempt (with the name, ``progress.tried``) is committed *before*
+the HTTP call.  After a kill -9 between the call and the commit the restart
+sends the same name and body again: Kowalski answers 409, and the queue is
+ours when the list (``GET``) shows it with our window and a sub-multiset of
+our targets (the telescope may have observed some meanwhile), or, the name
+having been sent by this revision, when the list no longer shows it: that
+counts as accepted; a DELETE repeated after a crash finds the queue gone
+(400, not in the list), which counts as done.  So no queue is sent twice
+nor left orphaned.  To SkyPortal a revision is the ordered list
 of observation plans of :func:`~mushrooms.scheduler_core.plan.exports.to_skyportal_plans`
 (one per filter pass), POSTed in order and DELETEd by request id; its import
 is not keyed by name, so each plan is marked ``tried`` before its POST and a
@@ -51,6 +60,7 @@ from typing import TYPE_CHECKING, Any, Callable
 from ..state import current_event
 from ..state.records import now_iso as _now_iso
 from ..state.store import Store
+from .removal import DONE, RETRY, WATCH, Removal
 from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
 from .rows import OPEN, PUBLISHED, STATES, Submission, status_document, submission_from_row, submissions
 from .rows import SubmissionState as State
@@ -68,7 +78,7 @@ log = logging.getLogger("mushrooms.daemon.submit")
 FOUND_BY_NAME = "found by plan name after an interrupted POST (request id unknown)"
 
 
-class Submitter:
+class Submitter(Removal):
     """The submission lifecycle over the store (see the module docstring); :meth:`step` does one pass.
 
     Parameters
@@ -101,6 +111,9 @@ class Submitter:
         self._on_outbox = on_outbox
         self._on_result = on_result
         self.results: dict[str, int] = {s: 0 for s in STATES}
+        #: Rows of the last pass watching for a queue sent without an answer (not a failure: no back-off,
+        #: but the list must be read again; the submitter's thread passes again later)
+        self.watching = 0
 
     @property
     def target(self) -> str:
@@ -117,6 +130,7 @@ class Submitter:
             unreachable server): the caller backs off before the next pass.
         """
         self.adopt()
+        self.watching = 0
         if self.submit.dry_run:
             return 0  # a dry run sends nothing, not even the DELETEs of queues an earlier run submitted
         waiting = 0
@@ -215,9 +229,10 @@ class Submitter:
         latest_id = self._latest(sid)
         wanted = next((r for r in rows if r.plan_id == latest_id), None)
         if wanted is not None and wanted.state == State.PENDING:
-            wanted = self._submit(wanted)
-            if wanted is None:
-                return 1  # not accepted yet: the older queues stay
+            accepted = self._submit(wanted)
+            if accepted is None:  # not accepted yet: the older queues stay (those being watched are looked for)
+                return 1 + self._settle_rows([r for r in rows if r.progress.get("watch")], wanted, False, True)
+            wanted = accepted
             if again and self._latest(sid) != latest_id:  # retracted or replaced while the PUT was in flight
                 return self._settle(sid, again=False)
         retracted = latest_id is None
@@ -227,6 +242,15 @@ class Submitter:
             newest = submission_from_row(found) if found is not None else None
         given_up = newest is not None and newest.state not in OPEN  # the newest plan is not submitted
         may_remove = retracted or (wanted is not None and wanted.state == State.SUBMITTED)
+        why = f"by a plan not submitted ({newest.reason})" if given_up and newest is not None else None
+        return self._settle_rows(rows, wanted, retracted, may_remove, why)
+
+    def _settle_rows(self, rows: list[Submission], wanted: Submission | None, retracted: bool, may_remove: bool,
+                     given_up: str | None = None) -> int:
+        """Settle an event's rows other than ``wanted``; the number left waiting for a retry.
+
+        ``given_up``: why the newest plan is not submitted (its older pending rows are then skipped).
+        """
         waiting = 0
         for r in rows:
             if wanted is not None and r.plan_id == wanted.plan_id:
@@ -236,14 +260,13 @@ class Submitter:
                              else "superseded before it was sent")
                 continue
             if r.state == State.PENDING and given_up and not retracted:
-                why = f"superseded after {r.attempts} attempt(s) by a plan not submitted ({newest.reason})"
-                if not self._remove(r, State.SKIPPED, why):
-                    waiting += 1
-                continue
-            if not may_remove:
+                outcome = self._remove(r, State.SKIPPED, f"superseded after {r.attempts} attempt(s) {given_up}")
+            elif may_remove:
+                outcome = self._remove(r, State.DELETED if retracted else State.REPLACED)
+            else:
                 continue  # kept until the newer queues are accepted
-            if not self._remove(r, State.DELETED if retracted else State.REPLACED):
-                waiting += 1
+            waiting += outcome == RETRY
+            self.watching += outcome == WATCH
         return waiting
 
     def _close_if_expired(self, sub: Submission) -> bool:
@@ -269,7 +292,7 @@ class Submitter:
         assert sub.body is not None and self.client is not None
         plan_end = self._plan_end(sub.plan_id)
         if plan_end is not None and plan_end <= time.time():
-            if sub.progress.get("put") and not self._remove_all(sub, State.FAILED, "validity window ended"):
+            if sub.to_settle() and self._remove_all(sub, State.FAILED, "validity window ended") != DONE:
                 return None
             return self._finish(sub, State.FAILED, reason=f"validity window ended before the queue was accepted "
                                 f"({sub.attempts} attempt(s); last: {sub.answer or '-'})")
@@ -287,12 +310,14 @@ class Submitter:
             if posted:  # SkyPortal's import is not keyed by name: found by it after an interrupted POST
                 sub, found = self._note(sub, "put", name), FOUND_BY_NAME
                 continue
-            sub = self._mark_attempt(sub, tried=name if sky else None)
-            last = send_queue(self.client, part, name)
+            sent_before = name in sub.maybe_sent()  # a 409 on it may be our own queue (a lost answer)
+            sub = self._mark_attempt(sub, tried=name)
+            last = send_queue(self.client, part, name, sent_before=sent_before)
             if last.state == "retry":
                 return self._retry(sub, last.answer.status if last.answer else None, last.reason or "")
             if last.state == "rejected":
                 reason = f"{name}: {last.reason or (last.answer.message() if last.answer else '-')}"
+                sub = self._note(sub, "refused", name)
                 sub = self._note(sub, "rejected", reason, last.answer)
                 return self._finish_rejection(sub)
             sub = self._note(sub, "put", name, remote_id=last.remote_id)
@@ -311,96 +336,14 @@ class Submitter:
 
     def _finish_rejection(self, sub: Submission) -> Submission | None:
         """A set with a refused queue: remove its accepted queues, then the row is ``rejected``."""
-        if sub.progress.get("put") and not self._remove_all(sub, State.REJECTED, "a queue of the set was refused"):
+        if sub.to_settle() and self._remove_all(sub, State.REJECTED, "a queue of the set was refused") != DONE:
             return None
         return self._finish(sub, State.REJECTED, reason=str(sub.progress["rejected"]))
 
-    def _remove(self, sub: Submission, end_state: str, reason: str | None = None) -> bool:
-        """DELETE an older (or retracted) revision; True when settled (removed, gone, or failed for good)."""
-        assert self.client is not None
-        if not self._remove_all(sub, end_state, reason):
-            return False
-        current = _row(self.store.connection(), sub.plan_id)
-        if current.state in OPEN:
-            self._finish(current, end_state, reason=reason or ("not on the server (already removed)"
-                                                               if current.progress.get("absent") else None))
-        return True
-
-    def _remove_all(self, sub: Submission, end_state: str, reason: str | None) -> bool:
-        """DELETE every queue of the set not yet removed; True when all are gone (or the row failed for good)."""
-        assert self.client is not None
-        if isinstance(self.client, SkyPortalPlans):
-            return self._remove_plans(sub)
-        for name in sub.queue_names():
-            if name in sub.progress.get("gone", ()):
-                continue
-            try:
-                answer = self.client.delete(name, self.export.user)
-            except Unreachable as exc:
-                self._retry(sub, None, str(exc))
-                return False
-            if answer.ok and answer.problem is None:
-                sub = self._note(sub, "gone", name, answer)
-                continue
-            if answer.ok:  # a 200 that is not Kowalski's JSON: not known to be removed
-                self._retry(sub, answer.status, f"DELETE {name}: {answer.status}, but {answer.problem}")
-                return False
-            if answer.redirected:
-                self._finish(sub, State.FAILED, answer, reason=f"DELETE {name}: {answer.status}: {answer.problem}")
-                return True
-            if not answer.refused:
-                self._retry(sub, answer.status, answer.message())
-                return False
-            try:
-                names = {q.get("queue_name") for q in self.client.queues()}
-            except (Unreachable, RuntimeError) as exc:
-                self._retry(sub, answer.status, f"DELETE refused and the queue list could not be read: {exc}")
-                return False
-            if name in names:
-                self._finish(sub, State.FAILED, answer, reason=f"DELETE {name} refused: {answer.message()}")
-                return True
-            sub = self._note(sub, "gone", name, answer, absent=True)
-        return True
-
-    def _remove_plans(self, sub: Submission) -> bool:
-        """SkyPortal: DELETE each plan by request id (refused or id unknown: gone if no longer listed by name) (T3)."""
-        assert isinstance(self.client, SkyPortalPlans)
-        names, sent = sub.queue_names(), sub.maybe_sent()
-        ids = dict(sub.progress.get("ids") or ({names[0]: sub.remote_id} if sub.remote_id and len(names) == 1 else {}))
-        by_hand = []
-        for name in names:
-            if name in sub.progress.get("gone", ()) or name not in sent:
-                continue  # removed already, or never sent
-            try:
-                answer = self.client.delete(ids[name]) if name in ids else None
-                if answer is not None and answer.ok and answer.problem is None:
-                    sub = self._note(sub, "gone", name, answer)
-                    continue
-                if answer is not None and answer.redirected:
-                    self._finish(sub, State.FAILED, answer, reason=f"DELETE {name}: {answer.status}: {answer.problem}")
-                    return True
-                if answer is not None and not answer.refused:  # 5xx, or a 200 that is not SkyPortal's JSON
-                    self._retry(sub, answer.status, answer.problem if answer.ok else answer.message())
-                    return False
-                listed = self.client.exists(name)
-            except (Unreachable, RuntimeError) as exc:
-                self._retry(sub, None, str(exc))
-                return False
-            if not listed:
-                sub = self._note(sub, "gone", name, answer, absent=True)
-            elif answer is not None:
-                self._finish(sub, State.FAILED, answer, reason=f"DELETE {name} refused: {answer.message()}")
-                return True
-            else:
-                by_hand.append(name)
-        if by_hand:
-            self._finish(sub, State.FAILED, reason="SkyPortal request id unknown (interrupted POST): remove plan(s) "
-                         f"{', '.join(by_hand)} by hand")
-        return True
-
     def _note(self, sub: Submission, key: str, value: str, answer: Answer | None = None,
-              absent: bool = False, remote_id: str | None = None) -> Submission:
-        """Record durably that queue ``value`` was accepted (``put``, with its SkyPortal id) or removed (``gone``)."""
+              absent: bool = False, remote_id: str | None = None, reason: str | None = None) -> Submission:
+        """Record durably what became of queue ``value``: ``put`` (with its SkyPortal id), ``gone``, ``refused``,
+        ``watch``, ``expired`` (or the set's ``rejected`` reason); ``reason`` replaces the row's."""
         progress = dict(sub.progress)
         if remote_id is not None:
             progress["ids"] = {**progress.get("ids", {}), value: remote_id}
@@ -412,12 +355,15 @@ class Submitter:
             progress["absent"] = True
         with self.store.transaction() as c:
             c.execute("UPDATE submissions SET progress=?, http_status=COALESCE(?, http_status),"
-                      " answer=COALESCE(?, answer) WHERE plan_id=?",
+                      " answer=COALESCE(?, answer), reason=COALESCE(?, reason) WHERE plan_id=?",
                       (json.dumps(progress), answer.status if answer else None, answer.text if answer else None,
-                       sub.plan_id))
+                       reason, sub.plan_id))
             return _row(c, sub.plan_id)
 
     # ------------------------------------------------------------ rows
+    def _current(self, plan_id: str) -> Submission:
+        return _row(self.store.connection(), plan_id)
+
     def _plan_end(self, plan_id: str) -> float | None:
         row = self.store.connection().execute("SELECT document FROM plans WHERE plan_id=?", (plan_id,)).fetchone()
         if row is None:
@@ -428,7 +374,7 @@ class Submitter:
             return None
 
     def _mark_attempt(self, sub: Submission, tried: str | None = None) -> Submission:
-        """Count the attempt (and the SkyPortal plan ``tried``) durably *before* the HTTP call (known to a restart)."""
+        """Count the attempt (and the queue or plan ``tried``) durably *before* the HTTP call (known to a restart)."""
         progress = dict(sub.progress)
         if tried is not None:
             progress["tried"] = sorted(set(progress.get("tried", [])) | {tried})
