@@ -18,8 +18,12 @@ from __future__ import annotations
 
 import json
 import logging
+import select
+import socket
+import subprocess
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -141,24 +145,83 @@ def test_a_trickling_webhook_is_cut_at_the_posts_deadline_and_its_socket_closed(
     assert SECRET not in said
 
 
+class _Trickler:
+    """A webhook on loopback that answers one byte every 0.2 s, or at once after :meth:`recover`.
+
+    At each new connection it notes how many earlier ones the client still holds open
+    (:attr:`open_at_accept`): the client sends nothing after its request, so an earlier
+    connection whose socket is readable (end of file, or reset) was closed by the client.
+    """
+
+    def __init__(self) -> None:
+        self._sock = socket.create_server(("127.0.0.1", 0))
+        self.url = f"http://127.0.0.1:{self._sock.getsockname()[1]}"
+        self.conns: list[socket.socket] = []
+        self.open_at_accept: list[int] = []
+        self.texts: list[str] = []
+        self.healthy = False
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def recover(self) -> None:
+        self.healthy = True
+
+    def close(self) -> None:
+        self._sock.close()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                conn, _ = self._sock.accept()
+            except OSError:
+                return
+            live = [c for c in self.conns if c.fileno() >= 0]
+            readable = select.select(live, [], [], 0)[0] if live else []
+            self.open_at_accept.append(len(live) - len(readable))
+            self.conns.append(conn)
+            threading.Thread(target=self._one, args=(conn,), daemon=True).start()
+
+    def _one(self, conn: socket.socket) -> None:
+        data = b""
+        try:
+            while b"\r\n\r\n" not in data:
+                data += conn.recv(65536) or b"!"
+            head, body = data.split(b"\r\n\r\n", 1)
+            n = int(next(v for k, v in (h.split(b":", 1) for h in head.split(b"\r\n")[1:])
+                         if k.lower() == b"content-length"))
+            while len(body) < n:
+                body += conn.recv(65536) or b"!"
+            self.texts.append(json.loads(body)["text"])
+            if self.healthy:
+                conn.sendall(b"HTTP/1.1 200 OK\r\nContent-Length: 2\r\nConnection: close\r\n\r\nok")
+            else:
+                for i in range(len(TRICKLE)):
+                    conn.sendall(TRICKLE[i:i + 1])
+                    time.sleep(0.2)
+        except (OSError, ValueError, StopIteration):
+            pass
+        finally:
+            conn.close()
+
+
 def test_one_sender_and_a_bounded_queue_and_messages_flow_again_once_the_webhook_answers(caplog):
     caplog.set_level(logging.INFO, logger="mushrooms")
-    with HostileServer(drip(TRICKLE, 0.2)) as server:
+    server = _Trickler()
+    try:
         hook = Webhook(server.url + PATH, "json", timeout_s=0.4, max_pending=3)
         for k in range(12):
             hook.post("submission_failed", f"message {k}")
-        _wait(lambda: hook.failed >= 2, 30, "two POSTs to be given up on")
-        open_now = len(server.requests) - len(server.sent)
-        assert open_now <= 1 and len(_sender_threads()) == 1  # one POST at a time, by one thread
-        server.behaviour = answer("200 OK", b"ok")  # the webhook recovers
+        _wait(lambda: hook.failed >= 3, 30, "three POSTs to be given up on")
+        assert len(_sender_threads()) == 1  # one sender thread, none per POST
+        server.recover()
         hook.post("plan_published", "after recovery")
-        _wait(lambda: any(r["body"] and json.loads(r["body"])["text"] == "after recovery" for r in server.requests),
-              30, "a message after the recovery")
+        _wait(lambda: "after recovery" in server.texts, 30, "a message after the recovery")
         hook.close(5)
-    assert hook.dropped >= 12 - 3 - 2  # the queue holds 3: older messages made room for newer ones
-    assert hook.sent + hook.failed + hook.dropped == 13
-    texts = [json.loads(r["body"])["text"] for r in server.requests]
-    assert texts[-1] == "after recovery" and "message 11" in texts  # the newest were kept
+    finally:
+        server.close()
+    assert len(server.open_at_accept) >= 4 and max(server.open_at_accept) == 0  # one POST, one socket at a time
+    assert hook.dropped >= 12 - 3 - 1  # the queue holds 3: older messages made room for newer ones
+    assert hook.sent + hook.failed + hook.dropped == 13 and hook.sent >= 1
+    assert server.texts[-1] == "after recovery" and "message 11" in server.texts  # the newest were kept
     said = _said(caplog)
     assert "event=notify_dropped" in said and SECRET not in said
     metrics = ServiceMetrics("test")
@@ -240,3 +303,98 @@ def test_the_webhook_url_is_in_no_repr_or_count():
     finally:
         hook.close(0.1)
 
+
+
+# ------------------------------------------------------------------ the sender's own HTTP, guarded
+def _self_signed(tmp_path: Path) -> tuple[Path, Path]:
+    cert, key = tmp_path / "cert.pem", tmp_path / "key.pem"
+    try:
+        subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj",
+                        "/CN=localhost", "-addext", "subjectAltName=IP:127.0.0.1,DNS:localhost",
+                        "-keyout", str(key), "-out", str(cert)], check=True, capture_output=True, timeout=60)
+    except (OSError, subprocess.CalledProcessError) as exc:
+        pytest.skip(f"openssl cannot make a test certificate: {exc}")
+    return cert, key
+
+
+def _raw_server(family: int, host: str, script) -> tuple[socket.socket, list[int]]:
+    """A one-connection server on loopback; ``script(conn)`` answers; the list gets the bytes it sent."""
+    srv = socket.create_server((host, 0), family=family)
+    sent: list[int] = []
+
+    def serve() -> None:
+        conn, _ = srv.accept()
+        n = 0
+        try:
+            n = script(conn)
+        except OSError:
+            pass
+        finally:
+            sent.append(n)
+            conn.close()
+
+    threading.Thread(target=serve, daemon=True).start()
+    return srv, sent
+
+
+def _read_request(conn: socket.socket) -> bytes:
+    data = b""
+    while b"\r\n\r\n" not in data:
+        data += conn.recv(65536) or b"\r\n\r\n"
+    return data
+
+
+def test_the_sender_speaks_tls_and_ipv6_skips_interim_answers_and_cuts_a_trickling_handshake(tmp_path, monkeypatch,
+                                                                                           caplog):
+    """Guards of the sender's own HTTP/1.1 (what ``urllib`` did before): none of this is a finding."""
+    import ssl
+
+    from pytest_httpserver import HTTPServer
+
+    caplog.set_level(logging.INFO, logger="mushrooms")
+    cert, key = _self_signed(tmp_path)
+    monkeypatch.setenv("SSL_CERT_FILE", str(cert))  # the default context trusts the test certificate
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+    context.load_cert_chain(cert, key)
+    tls = HTTPServer(host="127.0.0.1", port=0, ssl_context=context)
+    tls.expect_request(PATH, method="POST").respond_with_data("ok")
+    tls.start()
+    try:
+        hook = Webhook(f"https://127.0.0.1:{tls.port}{PATH}", "slack", timeout_s=5)
+        hook.post("plan_published", "over TLS")
+        _wait(lambda: hook.sent + hook.failed == 1, 20, "the TLS POST")
+        hook.close(1)
+        assert hook.sent == 1 and json.loads(tls.log[0][0].get_data()) == {"text": "over TLS"}
+    finally:
+        tls.stop()
+
+    def interim_then_ok(conn: socket.socket) -> int:
+        request = _read_request(conn)
+        assert b"Host: [::1]:" in request and request.startswith(f"POST {PATH} HTTP/1.1\r\n".encode())
+        answer_bytes = b"HTTP/1.1 100 Continue\r\n\r\nHTTP/1.1 204 No Content\r\nConnection: close\r\n\r\n"
+        conn.sendall(answer_bytes)
+        return len(answer_bytes)
+
+    srv, _ = _raw_server(socket.AF_INET6, "::1", interim_then_ok)
+    hook = Webhook(f"http://[::1]:{srv.getsockname()[1]}{PATH}", "json", timeout_s=5)
+    hook.post("plan_published", "over IPv6")
+    _wait(lambda: hook.sent + hook.failed == 1, 20, "the IPv6 POST")
+    hook.close(1)
+    srv.close()
+    assert hook.sent == 1
+
+    def trickled_handshake(conn: socket.socket) -> int:  # a TLS record header, then its 16 kB one byte at a time
+        conn.recv(65536)
+        conn.sendall(b"\x16\x03\x03\x40\x00")
+        for n in range(16384):
+            conn.sendall(b"\x00")
+            time.sleep(0.2)
+        return n
+
+    srv, sent = _raw_server(socket.AF_INET, "127.0.0.1", trickled_handshake)
+    hook = Webhook(f"https://127.0.0.1:{srv.getsockname()[1]}{PATH}", "slack", timeout_s=1.0)
+    hook.post("plan_published", "trickled")
+    _wait(lambda: len(sent) == 1, 30, "the trickled handshake to be cut")
+    hook.close(1)
+    srv.close()
+    assert hook.failed == 1 and "error=deadline" in _said(caplog) and SECRET not in _said(caplog)
