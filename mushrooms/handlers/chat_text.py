@@ -36,7 +36,7 @@ CHAT_LIMIT = 3000
 
 _MARKUP = str.maketrans({"&": "&amp;", "<": "&lt;", ">": "&gt;"})
 _BREAKS = re.compile(r"[\t\n\r\v\f\u2028\u2029]+")
-_BROADCAST = re.compile(r"(?i)@(channel|here|everyone|all)\b")
+_BROADCAST = re.compile(r"(?i)(?<![\w.+-])@(channel|here|everyone|all)\b")  # not an e-mail address
 _MD_LINK = re.compile(r"\]\s*\(")
 #: Unicode categories never said as they are: control, format, surrogate, unassigned, private use.
 _HIDDEN = {"Cc", "Cf", "Cs", "Cn", "Co"}

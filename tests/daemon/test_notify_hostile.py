@@ -252,7 +252,7 @@ def test_a_redirect_is_never_followed_and_is_a_failure(httpserver, loopback, sta
 
 # ------------------------------------------------------------------ 7: remote text in the chat
 HOSTILE = ("<!channel> queue refused: <https://evil.example/login|log in to Kowalski to keep your queue> "
-           "[log in](https://evil.example/x) @here \u202etxt.exe\u202c \x85\x1b[31m\u200b\ufeff\u2066ok\u2069\nnext")
+           "[log in](https://evil.example/x) @here ops@all.example \u202etxt.exe\u202c \x85\x1b[31m\u200b\ufeff\u2066ok\u2069\nnext")
 #: What must not reach a chat: its markup, and characters that reorder, hide or break the text.
 FORBIDDEN = ("<", ">", "](", "@here", "\u202e", "\u202c", "\x85", "\x1b", "\u200b", "\ufeff", "\u2066", "\u2069", "\n")
 
@@ -278,7 +278,7 @@ def test_remote_text_reaches_the_chat_with_its_markup_and_control_characters_neu
             assert not any(bad in s for bad in FORBIDDEN), (target, s)
         text = body["text"]
         assert "&lt;!channel&gt; queue refused" in text and "&lt;https://evil.example/login|log in" in text
-        assert "[log in] (https://evil.example/x)" in text and "@ here" in text
+        assert "[log in] (https://evil.example/x)" in text and "@ here ops@all.example" in text
         assert "\\u202etxt.exe\\u202c" in text and "\\x85\\x1b[31m" in text and " next" in text
     assert bodies[0]["text"].startswith("S1\\u202e: queue ToO_&lt;!here&gt; (kowalski) was REJECTED: ")
     assert bodies[1]["text"].startswith("S2: planning FAILED: ")
