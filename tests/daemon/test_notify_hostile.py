@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import logging
 import select
+import signal
 import socket
 import subprocess
 import threading
@@ -398,3 +399,34 @@ def test_the_sender_speaks_tls_and_ipv6_skips_interim_answers_and_cuts_a_trickli
     hook.close(1)
     srv.close()
     assert hook.failed == 1 and "error=deadline" in _said(caplog) and SECRET not in _said(caplog)
+
+
+def test_a_reload_that_changes_the_outbound_sink_keeps_telling_the_webhook(broker, daemons, tmp_path, httpserver):
+    """Found while attacking this change: a SIGHUP with a new ``[outbound]`` dropped the webhook silently."""
+    from daemon_helpers import notice_bytes
+
+    httpserver.expect_request(PATH, method="POST").respond_with_data("ok")
+    topic, out, group = broker.fresh_topics()
+    out2 = out + "-after-reload"
+    broker.ensure_topic(out2)
+    cfg = write_config(tmp_path / "config.toml", topic, out, group, '\n[notify]\ntarget = "json"\ntimeout_s = 2.0\n')
+    d = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(tmp_path / "s.sqlite")],
+               env={"MUSHROOMS_NOTIFY_URL": httpserver.url_for(PATH)})
+    daemons.append(d)
+    d.wait_log("event=service_ready", 120)
+    cfg.write_text(cfg.read_text().replace(f'topic = "{out}"', f'topic = "{out2}"'))
+    d.proc.send_signal(signal.SIGHUP)
+    d.wait_log("event=config_reloaded", 60)
+    broker.produce(topic, notice_bytes("MS181101ab-preliminary.json", "MS181101ab"), key=b"MS181101ab")
+    reader = broker.reader(out2, group + "-reader")
+    try:
+        reader.wait_for(lambda ms: any(m.get("type") == "plan" for m in ms), 180, alive=d.alive)
+    finally:
+        reader.close()
+    end = time.monotonic() + 30  # hang guard: the message follows the publication within timeout_s
+    while not any(json.loads(req.get_data()).get("event") == "plan_published" for req, _ in httpserver.log):
+        d.alive()
+        assert time.monotonic() < end, "the plan was published after the reload, but the webhook was not told"
+        time.sleep(0.1)
+    assert d.stop() == 0
+    assert SECRET not in d.text()
