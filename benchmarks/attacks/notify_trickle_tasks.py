@@ -192,6 +192,25 @@ say("after_recovery")
 """
 
 
+def report(hook: TricklingWebhook, group: Path | None, peak: int, before: int | None, last: dict, text: str) -> None:
+    """The peaks, the refused task creations, the messages after recovery, the log's counts."""
+    after = [t for t in hook.texts[before:] if "b: queue" in t] if before is not None else []
+    events = Path(f"{group}/pids.events").read_text().split() if group is not None else []
+    print()
+    print(f"peak tasks in the cgroup: {peak if group else '-'} (pids.max {PIDS_MAX if group else '-'}); "
+          f"task creations refused (pids.events): {events[1] if len(events) > 1 else '-'}")
+    print(f"webhook: {hook.accepted} connections accepted, at most {hook.peak_open} open at once")
+    print(f"after recovery: {len(after)} of {AFTER} new messages reached the webhook; sender alive at the end: "
+          f"{last.get('sender_alive')}")
+    counts = {e: text.count(f"event={e}") for e in ("notify_sent", "notify_failed", "notify_dropped")}
+    print(f"log: {counts}, 'Exception in thread': {text.count('Exception in thread')}, "
+          f"\"can't start new thread\": {text.count(chr(39).join(['can', 't start new thread']))}, "
+          f"secret in the log: {SECRET in text}")
+    tail = [line for line in text.splitlines() if line.strip() and " INFO " not in line and " WARNING " not in line][-6:]
+    if tail:
+        print("child's stderr, last lines:\n  " + "\n  ".join(tail))
+
+
 def main() -> int:
     global PACE_S
     import mushrooms
@@ -248,22 +267,7 @@ def main() -> int:
             child.stdin.flush()
     child.wait(60)
     stop.set()
-    after = [t for t in hook.texts[before:] if "b: queue" in t] if before is not None else []
-    events = Path(f"{group}/pids.events").read_text().split() if group is not None else []
-    text = log.read_text() + "".join(stderr)
-    print()
-    print(f"peak tasks in the cgroup: {peak['pids'] if group else '-'} (pids.max {PIDS_MAX if group else '-'}); "
-          f"task creations refused (pids.events): {events[1] if len(events) > 1 else '-'}")
-    print(f"webhook: {hook.accepted} connections accepted, at most {hook.peak_open} open at once")
-    print(f"after recovery: {len(after)} of {AFTER} new messages reached the webhook; sender alive at the end: "
-          f"{last.get('sender_alive')}")
-    counts = {e: text.count(f"event={e}") for e in ("notify_sent", "notify_failed", "notify_dropped")}
-    print(f"log: {counts}, 'Exception in thread': {text.count('Exception in thread')}, "
-          f"\"can't start new thread\": {text.count(chr(39).join(['can', 't start new thread']))}, "
-          f"secret in the log: {SECRET in text}")
-    tail = [line for line in "".join(stderr).splitlines() if line.strip()][-6:]
-    if tail:
-        print("child's stderr, last lines:\n  " + "\n  ".join(tail))
+    report(hook, group, peak["pids"], before, last, log.read_text() + "".join(stderr))
     print(f"child exit status: {child.returncode}; wall {time.monotonic() - t0:.0f} s; "
           f"load {os.getloadavg()[0]:.2f}")
     hook.stop = True

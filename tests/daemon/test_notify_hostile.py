@@ -29,7 +29,7 @@ from pathlib import Path
 import pytest
 
 from daemon_helpers import Daemon, write_config
-from hostile_http import HostileServer, answer, drip
+from hostile_http import HostileServer, drip
 from mushrooms.daemon.credentials import CredentialsError
 from mushrooms.daemon.ops.announce import NotifyingSink, job_failed, open_webhook, submission_trouble
 from mushrooms.daemon.ops.metrics import ServiceMetrics
