@@ -220,3 +220,16 @@ def test_a_rehearsal_tells_the_webhook_and_fails_when_the_submission_target_is_d
     told = [json.loads(req.get_data())["event"] for req, _ in httpserver.log]
     assert told[0] == "plan_published" and "submission_failing" in told
     assert "tok-rehearse" not in r.stdout + r.stderr and "/hook" not in r.stdout
+
+
+def test_a_rehearsal_refuses_a_webhook_url_that_cannot_be_parsed_and_leaves_no_secret(tmp_path):
+    secret = "s3cr3t-rehearse-hook"
+    out = tmp_path / "rehearsal"
+    r = rehearse(tmp_path, "--out", str(out), "--dry-run", "--set", "notify.target=slack",
+                 env={"MUSHROOMS_NOTIFY_URL": f"hooks.slack.com/services/T0/B0/{secret}"})
+    assert r.returncode == 2, r.stdout + r.stderr  # today: 0, the notifier dead and the URL in service.log
+    errors = [line for line in r.stderr.splitlines() if line.startswith("mushrooms rehearse:")]
+    assert len(errors) == 1 and "webhook URL" in errors[0], r.stderr
+    left = [p.read_bytes() for p in out.rglob("*") if p.is_file()] if out.exists() else []
+    assert not any(secret.encode() in data for data in left)
+    assert secret not in r.stdout + r.stderr and "Traceback" not in r.stdout + r.stderr

@@ -32,7 +32,7 @@ def reload_service(service: Any) -> None:
     service.notifier.reloading()
     try:
         new = service.reload_config() if service.reload_config is not None else service.config
-        sink = service.pipeline.sink if new.outbound == service.config.outbound else make_sink(new.outbound)
+        sink = service.pipeline.sink if new.outbound == service.config.outbound else _new_sink(service, new)
     except Exception as exc:  # a bad file, bad sink settings, a missing password: keep running as before
         log.error("event=reload_failed error=%r (keeping the running configuration)", str(exc))
         service.notifier.ready("reload failed; old configuration kept")
@@ -49,6 +49,8 @@ def reload_service(service: Any) -> None:
         log.warning("event=reload_partial reason='[loop] source and poll interval change at the next start'")
     if new.submit != service.config.submit:
         log.warning("event=reload_partial reason='[submit] changes apply at the next start'")
+    if getattr(new, "notify", None) != getattr(service.config, "notify", None):
+        log.warning("event=reload_partial reason='[notify] changes apply at the next start'")
     service.observe()
     if new.kafka != service.config.kafka:
         from .kafka.consumer import NoticeConsumer
@@ -61,3 +63,12 @@ def reload_service(service: Any) -> None:
     service.config = new
     service.notifier.ready("configuration reloaded")
     log.info("event=config_reloaded source=%s", new.source)
+
+
+def _new_sink(service: Any, new: Any) -> Any:
+    """The sink of the new ``[outbound]``, telling the running webhook (``[notify]``) as the old one did."""
+    from .ops.announce import NotifyingSink, webhook_of
+
+    sink = make_sink(new.outbound)
+    hook = webhook_of(service.pipeline.sink)
+    return NotifyingSink(sink, hook) if hook is not None else sink

@@ -38,6 +38,7 @@ from .intake.trigger import (
 from .ops.announce import job_failed, submission_trouble
 from .ops.journal import setup_logging
 from .ops.systemd import Notifier, Readiness
+from .ops.webhook_url import notify_url_usable
 from .ops.watch import broker_states, observe
 from .planning.jobs import JobRunner
 from .reload import reload_service
@@ -111,6 +112,7 @@ class Service:
     def run(self) -> int:
         """Run until SIGTERM/SIGINT; returns the exit status."""
         submit_token, executed_token = service_tokens(self.config)  # fail fast, with one line, before touching any state
+        notify_url_usable(getattr(self.config, "notify", None))  # [notify]: a missing or unusable URL, the same
         lock = PidLock(self.paths.pid_file)
         try:
             lock.acquire()

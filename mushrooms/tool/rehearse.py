@@ -153,6 +153,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--timeout must be > 0 s, got {args.timeout:g}")
     name, raw = _notice_bytes(args.notice)
     live_copy(raw)  # a notice that cannot be copied is refused before the service starts
+    from ..daemon.ops.webhook_url import notify_url_usable
+
+    notify_url_usable(config.notify)  # a webhook URL that is missing or cannot be used: refused, never shown
     out = _out_dir(args.out)
     t0 = time.monotonic()
     say(f"rehearsal in {out}", t0)

@@ -16,7 +16,7 @@ from typing import Any, Mapping
 
 from .webhook import Webhook
 
-__all__ = ["announcement", "NotifyingSink", "open_webhook", "job_failed", "submission_trouble"]
+__all__ = ["announcement", "NotifyingSink", "open_webhook", "webhook_of", "job_failed", "submission_trouble"]
 
 log = logging.getLogger("mushrooms.daemon.webhook")
 
@@ -113,18 +113,20 @@ def open_webhook(notify: Any, environ: Mapping[str, str] | None = None) -> Webho
     """The webhook of ``[notify]`` (the URL from the credential ``notify_url`` or ``$MUSHROOMS_NOTIFY_URL``).
 
     None when ``[notify]`` is off.  Raises
-    :class:`~.credentials.CredentialsError` when it is on and the URL is missing.
+    :class:`~.credentials.CredentialsError` when it is on and the URL is missing
+    or cannot be used (:class:`~.webhook_url.WebhookURLError`: one line, never the URL).
     """
     if notify is None or not notify.enabled:
         return None
-    from ..credentials import load_notify_url
+    from .webhook_url import checked_notify_url
 
-    url, source = load_notify_url(environ)
-    log.info("event=notify_on target=%s url_source=%s timeout_s=%g", notify.target, source, notify.timeout_s)
-    return Webhook(url, notify.target, notify.timeout_s, notify.max_pending)
+    url, source, _ = checked_notify_url(environ)
+    log.info("event=notify_on target=%s url_source=%s timeout_s=%g max_pending=%d", notify.target, source,
+             notify.timeout_s, notify.max_pending)
+    return Webhook(url, notify.target, notify.timeout_s, notify.max_pending, source=source)
 
 
-def _webhook_of(sink: Any) -> Webhook | None:
+def webhook_of(sink: Any) -> Webhook | None:
     """The webhook of a :class:`NotifyingSink`, however many wrappers (``inner``, ``sink``) lie around it."""
     for _ in range(8):
         if isinstance(sink, NotifyingSink):
@@ -137,7 +139,7 @@ def _webhook_of(sink: Any) -> Webhook | None:
 
 def job_failed(sink: Any, superevent_id: str | None, reason: str) -> None:
     """Hook: a planning job failed (nothing was published for it)."""
-    hook = _webhook_of(sink)
+    hook = webhook_of(sink)
     if hook is not None:
         hook.post("job_failed", f"{superevent_id or '-'}: planning FAILED: {reason}",
                   {"superevent_id": superevent_id})
@@ -146,7 +148,7 @@ def job_failed(sink: Any, superevent_id: str | None, reason: str) -> None:
 def submission_trouble(sink: Any, superevent_id: str | None, queue_name: str | None, attempts: int,
                        error: str) -> None:
     """Hook: a submission's first attempt failed (it is retried; the failure is said once)."""
-    hook = _webhook_of(sink)
+    hook = webhook_of(sink)
     if hook is not None:
         hook.post("submission_failing", f"{superevent_id or '-'}: queue {queue_name or '-'} could not be "
                   f"submitted (attempt {attempts}: {error}); retrying", {"superevent_id": superevent_id,

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
 from prometheus_client import CollectorRegistry, Counter, Histogram, Info
-from prometheus_client.core import GaugeMetricFamily
+from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily
 from prometheus_client.registry import Collector
 
 from ..state.views import connect_readonly, oldest_pending_submission, outbox_backlog
@@ -201,10 +201,11 @@ class _Live(Collector):
     ``mushrooms_scrape_errors``): ``jobs() -> {"queued": n, "running": n}``,
     ``brokers() -> {client: True | False | None}``,
     ``lag() -> {topic: messages}``, ``loop_age() -> s``,
-    ``assigned() -> number of partitions``.
+    ``assigned() -> number of partitions``,
+    ``notify() -> {"sent": n, "failed": n, "dropped": n, "pending": n}`` (the webhook's counts).
     """
 
-    SOURCES = ("jobs", "brokers", "lag", "loop_age", "assigned")
+    SOURCES = ("jobs", "brokers", "lag", "loop_age", "assigned", "notify")
 
     def __init__(self, metrics: ServiceMetrics) -> None:
         self.metrics = metrics
@@ -252,9 +253,22 @@ class _Live(Collector):
         yield GaugeMetricFamily("mushrooms_executed_observations_last_read_timestamp_seconds",
                                 "When the executed observations were last read (Unix s; 0: never)",
                                 value=m._last_observations_read)
+        yield from self._notify()
         yield from self._state()
         yield GaugeMetricFamily("mushrooms_scrape_errors", "Metric sources that failed during scrapes "
                                 "(since start)", value=float(self.errors))
+
+    def _notify(self) -> Iterable[Any]:
+        """The webhook's messages by outcome, and those waiting (zeros when ``[notify]`` is off)."""
+        counts = self._call("notify") or {}
+        total = CounterMetricFamily("mushrooms_notify_messages", "Webhook messages by outcome (sent: 2xx; failed: "
+                                    "no answer within [notify] timeout_s, a redirect or an error status; dropped: "
+                                    "the queue was full or the service stopped)", labels=["outcome"])
+        for outcome in ("sent", "failed", "dropped"):
+            total.add_metric([outcome], float(counts.get(outcome, 0)))
+        yield total
+        yield GaugeMetricFamily("mushrooms_notify_pending_messages", "Webhook messages waiting to be posted",
+                                value=float(counts.get("pending", 0)))
 
     def _state(self) -> Iterable[Any]:
         path = self.metrics.state_path

@@ -30,6 +30,14 @@ def broker_states(consumer: Any, sink: Any) -> dict[str, Any]:
     return out
 
 
+def _notify_counts(sink: Any) -> dict[str, int] | None:
+    """The webhook's counts (``[notify]``), or None when it is off."""
+    from .announce import webhook_of
+
+    hook = webhook_of(sink)
+    return hook.counts() if hook is not None else None
+
+
 def observe(service: Any) -> None:
     """Count what the service's sink publishes, and open the metrics/health listener when configured.
 
@@ -50,6 +58,7 @@ def observe(service: Any) -> None:
         lag=lambda: dict(service.consumer.health.lag) if service.consumer is not None else {},
         loop_age=lambda: time.monotonic() - service.last_loop,
         assigned=lambda: len(service.consumer.assigned) if service.consumer is not None else 0,
+        notify=lambda: _notify_counts(getattr(service.pipeline, "sink", None)),
     )
     address = service.config.daemon.metrics_address
     if not address or service.listener is not None:

@@ -30,10 +30,11 @@ class NotifyConfig:
         webhooks and the chat tools that accept their format) or ``json``
         (``{"event": ..., "text": ..., ...}``, a generic JSON webhook).
     timeout_s : float
-        Deadline (s) of one POST; a webhook that does not answer in time is
-        given up on (the message is dropped, logged without the URL).
+        Hard deadline (s) of one POST, connect to answer (the socket is closed
+        at it, however slowly the answer trickles); a webhook that does not
+        answer in time is given up on (the message is dropped, logged without the URL).
     max_pending : int
-        Messages waiting to be posted at most; beyond, new ones are dropped
+        Messages waiting to be posted at most; beyond, the oldest is dropped
         (a hanging webhook never holds planning or submission up).
     """
 
