@@ -305,8 +305,8 @@ class SaslGate:
             corr = struct.unpack(">i", frame[:4])[0]
             api, version = session.pending.pop(corr, (-1, 0))
             head_len = 4
-            if api != API_API_VERSIONS and flexible(api, version):
-                head_len = Reader(frame, 4).tags().__len__() + 4  # response header v1
+            if api != API_API_VERSIONS and flexible(api, version):  # response header v1: tagged fields follow
+                head_len += len(Reader(frame, 4).tags())
             head, body = frame[:head_len], frame[head_len:]
             if api == API_API_VERSIONS:
                 body = rewrite_api_versions(body, version)
