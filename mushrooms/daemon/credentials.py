@@ -206,7 +206,10 @@ def load_notify_url(environ: Mapping[str, str] | None = None) -> tuple[str, str]
 def service_tokens(config: Any) -> tuple[str | None, str | None]:
     """The secrets ``mushrooms run`` needs, read before it touches any state (a missing one fails the start fast).
 
-    Kafka's client id and secret are checked (the consumer reads them again);
+    The Kafka clients' versions are checked first (on GCN an older pair,
+    which would lose its token after an hour, raises
+    :class:`~.kafka.versions.KafkaClientTooOld`; on a local broker it is a
+    warning).  Kafka's client id and secret are checked (the consumer reads them again);
     the submission token when ``[submit]`` sends for real; the token of an
     executed-observation source that is a URL.  Only where each came from is
     logged, never a value.
@@ -225,6 +228,9 @@ def service_tokens(config: Any) -> tuple[str | None, str | None]:
     CredentialsError
         A credential the configuration needs is missing or unreadable.
     """
+    from .kafka.versions import check_kafka_clients
+
+    check_kafka_clients(gcn=not config.kafka.bootstrap)  # clients that keep GCN's token: else one line (GCN)
     if not config.kafka.bootstrap:
         load_credentials()
     submit_token = None

@@ -23,6 +23,7 @@ import astropy.units as _u
 from ..scheduler_core.errors import InputError
 from ..scheduler_core.sky.sniff import sniff_fits
 from .alert_records import ALERT_TYPES, Alert, EventDetails, ExternalCoinc, NoticeError
+from .chirp_mass import parse_mchirp_source
 from .text import storable
 
 __all__ = [
@@ -188,11 +189,13 @@ def _event(ev: Any, raw_bytes: bool) -> EventDetails:
     instruments = ev.get("instruments", [])
     if not isinstance(instruments, (list, tuple)) or not all(isinstance(i, str) for i in instruments):
         raise NoticeError("event.instruments must be a list of strings")
-    skymap = _fits_bytes(_need(ev, "skymap", "event"), "event.skymap", raw_bytes)
+    sky = _need(ev, "skymap", "event")
+    skymap = b"" if sky is None else _fits_bytes(sky, "event.skymap", raw_bytes)  # null: schema 1.3.0, no map
     far = _num(_need(ev, "far", "event"), "event.far")
     assert far is not None
     if far < 0:
         raise NoticeError(f"event.far is negative: {far}")
+    chirp, chirp_note = parse_mchirp_source(ev.get("mchirp_source"))
     return EventDetails(
         time=parse_time(_need(ev, "time", "event"), "event.time"),
         far=far,
@@ -207,6 +210,8 @@ def _event(ev: Any, raw_bytes: bool) -> EventDetails:
         skymap_sha256=hashlib.sha256(skymap).hexdigest(),
         duration=_num(ev.get("duration"), "event.duration", optional=True),
         central_frequency=_num(ev.get("central_frequency"), "event.central_frequency", optional=True),
+        mchirp_source=chirp,
+        mchirp_note=chirp_note,
     )
 
 
@@ -215,9 +220,11 @@ def _external(ext: Any, raw_bytes: bool) -> ExternalCoinc:
         raise NoticeError(f"external_coinc must be an object, got {type(ext).__name__}")
     sky = ext.get("combined_skymap")
     data = b"" if sky is None else _fits_bytes(sky, "external_coinc.combined_skymap", raw_bytes)
-    gid = ext.get("gcn_notice_id")
-    if gid is not None and (isinstance(gid, bool) or not isinstance(gid, int)):
-        raise NoticeError("external_coinc.gcn_notice_id must be an integer")
+    gid = ext.get("gcn_notice_id")  # schema 1.3.0: an integer or a string; informational, so a bad one is dropped
+    if isinstance(gid, str):
+        gid = storable(gid) if 0 < len(gid) <= 128 else None
+    elif isinstance(gid, bool) or not isinstance(gid, int):
+        gid = None
     return ExternalCoinc(
         observatory=_str(ext, "observatory", "external_coinc"),
         search=_str(ext, "search", "external_coinc"),

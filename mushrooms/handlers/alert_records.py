@@ -10,6 +10,7 @@ from datetime import datetime
 from typing import Mapping
 
 from ..scheduler_core.errors import InputError
+from .chirp_mass import ChirpMass
 
 __all__ = ["Alert", "EventDetails", "ExternalCoinc", "NoticeError", "ALERT_TYPES"]
 
@@ -41,13 +42,18 @@ class EventDetails:
     properties : dict of str to float
         ``HasNS``, ``HasRemnant``, ``HasMassGap``, ...; may be empty.
     skymap : bytes
-        The decoded multi-order FITS sky map (b"" for a VOEvent, see ``skymap_url``).
+        The decoded multi-order FITS sky map (b"" for a VOEvent, see ``skymap_url``, and for a
+        notice whose ``event.skymap`` is null, which schema 1.3.0 allows).
     skymap_sha256 : str
         Hex SHA-256 of ``skymap`` (of the URL text for a VOEvent).
     duration, central_frequency : float or None
         Burst-only properties (s, Hz).
     skymap_url : str or None
         Sky map URL (VOEvent notices only; not downloaded).
+    mchirp_source : ChirpMass or None
+        Source-frame chirp-mass bins (schema 1.3.0's optional ``event.mchirp_source``).
+    mchirp_note : str
+        Why a malformed ``mchirp_source`` was left out ("" when absent or used).
     """
 
     time: datetime
@@ -64,6 +70,13 @@ class EventDetails:
     duration: float | None = None
     central_frequency: float | None = None
     skymap_url: str | None = None
+    mchirp_source: ChirpMass | None = None
+    mchirp_note: str = ""
+
+    @property
+    def has_skymap(self) -> bool:
+        """The notice carries a sky map (bytes, or a VOEvent's URL)."""
+        return bool(self.skymap) or self.skymap_url is not None
 
 
 @dataclass(frozen=True)
@@ -74,8 +87,8 @@ class ExternalCoinc:
     ----------
     observatory, search, ivorn : str
         Where the external trigger came from.
-    gcn_notice_id : int or None
-        GCN notice number of the external trigger.
+    gcn_notice_id : int, str or None
+        GCN notice id of the external trigger (schema 1.3.0: an integer or a string).
     time_difference : float or None
         External minus GW time (s).
     time_coincidence_far, time_sky_position_coincidence_far : float or None
@@ -89,7 +102,7 @@ class ExternalCoinc:
     observatory: str
     search: str
     ivorn: str
-    gcn_notice_id: int | None
+    gcn_notice_id: int | str | None
     time_difference: float | None
     time_coincidence_far: float | None
     time_sky_position_coincidence_far: float | None

@@ -8,6 +8,7 @@ is :mod:`mushrooms.handlers.decisions`' business.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, Mapping
@@ -16,9 +17,9 @@ from ..scheduler_core.tables import dataclass_from_table
 from ..scheduler_core.ranges import require_finite, setting
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .alert import Alert
+    from .alert import Alert, EventDetails
 
-__all__ = ["PolicyConfig", "Verdict", "evaluate", "superevent_kind", "PLAN_START_CHOICES"]
+__all__ = ["PolicyConfig", "Verdict", "evaluate", "superevent_kind", "sub_solar_mass", "PLAN_START_CHOICES"]
 
 PLAN_START_CHOICES = ("received", "event", "created")
 _ALERT_TYPES = ("EARLYWARNING", "PRELIMINARY", "INITIAL", "UPDATE", "RETRACTION")
@@ -35,6 +36,16 @@ class PolicyConfig:
     ``P(BNS) + P(NSBH) >= min_p_bns_nsbh`` **or** ``HasNS >= min_has_ns``.
     A RETRACTION is never filtered by the source cuts (it has no ``event``);
     only its prefix and notice age are checked.
+
+    Shapes that the neutron-star cut cannot read are decided by their own
+    keys, and every reason names the key that decided it
+    (``docs/configuration.md``, "The alert shapes of the next observing
+    run"): a sub-solar-mass alert (``search = SSM``, or a sub-solar-mass
+    probability ``HasSSM`` without classification) by
+    ``plan_sub_solar_mass``; a CBC notice with no classification and no
+    ``HasNS`` by ``plan_unclassified``; an early warning whose merger lies
+    ahead by ``max_early_warning_lead_s``.  A notice whose sky map is null
+    is ignored with a warning (nothing to plan until a map comes).
 
     Attributes
     ----------
@@ -97,6 +108,23 @@ class PolicyConfig:
         A notice whose ``time_created`` or merger time lies more than this
         (s) after the receipt clock is rejected: dated in the future, it is
         broken or hostile.  Default 300 s.
+    max_early_warning_lead_s : float
+        An ``EARLYWARNING`` is sent *before* its merger: its merger time may
+        lie up to this much (s) after receipt, on top of
+        ``max_clock_skew_s``.  Default 1200 s: a 1.4 + 1.4 Msun binary spends
+        about 17 min above 10 Hz, the longest lead any detector of the next
+        run can give.  The plan starts at the merger, never before.
+    plan_sub_solar_mass : bool
+        Plan sub-solar-mass alerts (the SSM search's: no BNS/NSBH/BBH/
+        Terrestrial classification, no ``HasRemnant``, a sub-solar-mass
+        probability instead).  Default False: no bright counterpart is
+        predicted for a merger with a sub-solar-mass compact object, and
+        every plan spends ZTF's target-of-opportunity time.
+    plan_unclassified : bool
+        Plan a notice that carries neither a source classification nor
+        ``HasNS`` (so the neutron-star cut cannot be applied).  Default
+        False: most CBC candidates are binary black holes.  The ignore is
+        logged as a WARNING so that an operator sees it.
     """
 
     allow_mock: bool = False
@@ -113,6 +141,10 @@ class PolicyConfig:
     use_combined_skymap: bool = True
     max_skymap_bytes: int = setting(67_108_864, 2880, 4_294_967_296, "bytes", why="one FITS block to 4 GiB")
     max_clock_skew_s: float = setting(300.0, 0, 86400, "s")
+    max_early_warning_lead_s: float = setting(1200.0, 0, 3600, "s",
+                                              why="a BNS spends ~17 min above 10 Hz")
+    plan_sub_solar_mass: bool = False
+    plan_unclassified: bool = False
 
     def __post_init__(self) -> None:
         require_finite(self, "policy")
@@ -124,7 +156,8 @@ class PolicyConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
                 raise ValueError(f"[policy] {name} must be a probability in [0, 1], got {v!r}")
-        for name in ("max_far_hz", "max_notice_age_s", "max_event_age_s", "max_clock_skew_s"):
+        for name in ("max_far_hz", "max_notice_age_s", "max_event_age_s", "max_clock_skew_s",
+                     "max_early_warning_lead_s"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)):
                 raise ValueError(f"[policy] {name} must be a number, got {v!r}")
@@ -136,7 +169,8 @@ class PolicyConfig:
             raise ValueError(f"[policy] max_skymap_bytes must be an integer >= 2880, got {self.max_skymap_bytes!r}")
         if self.max_clock_skew_s < 0:
             raise ValueError(f"[policy] max_clock_skew_s must be >= 0, got {self.max_clock_skew_s!r}")
-        for name in ("allow_mock", "require_significant", "use_combined_skymap"):
+        for name in ("allow_mock", "require_significant", "use_combined_skymap", "plan_sub_solar_mass",
+                     "plan_unclassified"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"[policy] {name} must be true or false, got {getattr(self, name)!r}")
         for name in ("groups", "alert_types"):
@@ -172,11 +206,15 @@ class Verdict:
     reject : bool
         The alert is not merely out of scope but invalid (e.g. dated in the
         future): it is recorded as ``rejected``, not ``ignore``.
+    warn : bool
+        An ignore an operator should see (logged as a WARNING): a candidate
+        that could not be classified, or that came without a sky map.
     """
 
     keep: bool
     reason: str
     reject: bool = False
+    warn: bool = False
 
 
 def superevent_kind(superevent_id: str) -> str:
@@ -194,16 +232,25 @@ def _seconds_between(later: datetime, earlier: datetime) -> float:
     return (later - earlier).total_seconds()
 
 
-def _in_the_future(alert: "Alert", now: datetime, skew_s: float) -> str | None:
-    """Why the notice or its event is dated after ``now`` + ``skew_s``, or None."""
-    times = [("notice time_created", alert.time_created)]
+def _in_the_future(alert: "Alert", now: datetime, config: PolicyConfig) -> str | None:
+    """Why the notice or its event is dated after ``now`` + the allowed skew, or None.
+
+    An early warning's merger may lie ``max_early_warning_lead_s`` further ahead.
+    """
+    skew = config.max_clock_skew_s
+    times = [("notice time_created", alert.time_created, skew, "")]
     if alert.event is not None and alert.event.time is not None:
-        times.append(("event time", alert.event.time))
-    for what, t in times:
+        if alert.alert_type == "EARLYWARNING":
+            lead = config.max_early_warning_lead_s
+            times.append(("early warning's merger time", alert.event.time, skew + lead,
+                          f" + max_early_warning_lead_s {lead:.0f}"))
+        else:
+            times.append(("event time", alert.event.time, skew, ""))
+    for what, t, allowed, extra in times:
         ahead = _seconds_between(t, now)
-        if ahead > skew_s:
+        if ahead > allowed:
             return (f"{what} {t.isoformat()} is {ahead:.0f} s in the future "
-                    f"(max_clock_skew_s {skew_s:.0f})")
+                    f"(max_clock_skew_s {skew:.0f}{extra})")
     return None
 
 
@@ -225,7 +272,7 @@ def evaluate(alert: "Alert", config: PolicyConfig, now: datetime | None = None) 
     Verdict
     """
     now = now or datetime.now(timezone.utc)
-    future = _in_the_future(alert, now, config.max_clock_skew_s)
+    future = _in_the_future(alert, now, config)
     if future:
         return Verdict(False, future, reject=True)
     kind = superevent_kind(alert.superevent_id)
@@ -245,6 +292,21 @@ def evaluate(alert: "Alert", config: PolicyConfig, now: datetime | None = None) 
     ev = alert.event
     if ev is None:
         return Verdict(False, f"{alert.alert_type} notice without event")
+    cut = _event_cuts(ev, config, now)
+    if cut is not None:
+        return cut
+    verdict = _source_verdict(ev, config)
+    notes = [n for n in (_significance_note(ev) if verdict.keep else "", _early_warning_note(alert, now),
+                         ev.mchirp_source.summary() if ev.mchirp_source else ev.mchirp_note) if n]
+    reason = "; ".join([verdict.reason, *notes])
+    if verdict.keep and not ev.has_skymap:
+        return Verdict(False, f"{reason}; but the notice carries no sky map (event.skymap is null): nothing to "
+                              "plan until a notice brings one", warn=True)
+    return dataclasses.replace(verdict, reason=reason)
+
+
+def _event_cuts(ev: "EventDetails", config: PolicyConfig, now: datetime) -> Verdict | None:
+    """The first cut on the event's age, group, significance and FAR that fails, or None."""
     if config.max_event_age_s > 0 and ev.time is not None:
         age = _seconds_between(now, ev.time)
         if age > config.max_event_age_s:
@@ -252,19 +314,65 @@ def evaluate(alert: "Alert", config: PolicyConfig, now: datetime | None = None) 
     if ev.group not in config.groups:
         return Verdict(False, f"group {ev.group} not in {', '.join(config.groups)}")
     if config.require_significant and not ev.significant:
-        return Verdict(False, "not significant")
+        return Verdict(False, f"not significant: a low-significance alert (significant = false, FAR {ev.far:.3g} Hz); "
+                              "[policy] require_significant = true")
     if config.max_far_hz > 0 and (ev.far is None or ev.far > config.max_far_hz):
         return Verdict(False, f"FAR {ev.far:.3g} Hz above max_far_hz {config.max_far_hz:.3g}"
                        if ev.far is not None else "no FAR")
+    return None
+
+
+def sub_solar_mass(ev: "EventDetails") -> tuple[bool, float | None]:
+    """Whether the event is a sub-solar-mass alert, and its sub-solar-mass probability if given.
+
+    An alert of the SSM search (``search == "SSM"``), or one that carries a
+    ``HasSSM`` (or ``has_SSM``) property and no source classification.  A
+    classified alert with such a property is decided as usual: a property
+    added to every alert must not take ordinary BNS alerts with it.
+    """
+    p = next((v for k, v in ev.properties.items() if k.replace("_", "").lower() == "hasssm"), None)
+    return (ev.search.upper() == "SSM" or (p is not None and not ev.classification)), p
+
+
+def _source_verdict(ev: "EventDetails", config: PolicyConfig) -> Verdict:
+    """Keep or ignore on what the source is: sub-solar mass, unclassified, or the neutron-star cut."""
+    ssm, p_ssm = sub_solar_mass(ev)
+    if ssm:
+        what = (f"sub-solar-mass candidate (search {ev.search}"
+                + (f", HasSSM {p_ssm:.3f}" if p_ssm is not None else "") + ")")
+        key = f"[policy] plan_sub_solar_mass = {str(config.plan_sub_solar_mass).lower()}"
+        return Verdict(config.plan_sub_solar_mass, f"{what}; {key}")
+    has_ns = ev.properties.get("HasNS")
+    if not ev.classification:
+        if has_ns is not None:
+            ok = has_ns >= config.min_has_ns
+            return Verdict(ok, f"no source classification in the notice; HasNS {has_ns:.3f} "
+                               f"{'>=' if ok else '<'} {config.min_has_ns}")
+        key = f"[policy] plan_unclassified = {str(config.plan_unclassified).lower()}"
+        return Verdict(config.plan_unclassified, f"no source classification and no HasNS in the notice (a "
+                                                 f"{ev.group}/{ev.pipeline}/{ev.search} candidate): a neutron star "
+                                                 f"cannot be told; {key}", warn=not config.plan_unclassified)
     p_ns = ev.classification.get("BNS", 0.0) + ev.classification.get("NSBH", 0.0)
-    has_ns = ev.properties.get("HasNS", 0.0)
     if p_ns >= config.min_p_bns_nsbh:
         return Verdict(True, f"P(BNS)+P(NSBH) {p_ns:.3f} >= {config.min_p_bns_nsbh}")
-    if has_ns >= config.min_has_ns:
+    if has_ns is not None and has_ns >= config.min_has_ns:
         return Verdict(True, f"HasNS {has_ns:.3f} >= {config.min_has_ns}")
     best = max(ev.classification.items(), key=lambda kv: kv[1], default=("none", 0.0))
     return Verdict(
         False,
-        f"no neutron star: P(BNS)+P(NSBH) {p_ns:.3f} < {config.min_p_bns_nsbh}, HasNS {has_ns:.3f} < "
+        f"no neutron star: P(BNS)+P(NSBH) {p_ns:.3f} < {config.min_p_bns_nsbh}, HasNS {has_ns or 0.0:.3f} < "
         f"{config.min_has_ns} (most likely {best[0]} {best[1]:.3f})",
     )
+
+
+def _significance_note(ev: "EventDetails") -> str:
+    """Said of a kept low-significance alert (only ``require_significant = false`` keeps one)."""
+    return "" if ev.significant else "low-significance alert accepted (require_significant = false)"
+
+
+def _early_warning_note(alert: "Alert", now: datetime) -> str:
+    """Said of an early warning received before its merger: the plan waits for the merger."""
+    ev = alert.event
+    if alert.alert_type != "EARLYWARNING" or ev is None or ev.time is None or ev.time <= now:
+        return ""
+    return f"early warning: merger {_seconds_between(ev.time, now):.0f} s after receipt (the plan starts at the merger)"

@@ -90,7 +90,7 @@ def test_real_burst_event_is_ignored_with_reason():
     assert not v.keep and v.reason == "group Burst not in CBC"
     # even with Burst allowed, it is not significant
     v = evaluate(a, PolicyConfig(groups=("CBC", "Burst")), at(a))
-    assert not v.keep and v.reason == "not significant"
+    assert not v.keep and v.reason.startswith("not significant: a low-significance alert")
 
 
 def test_bbh_dominated_event_is_ignored():
@@ -115,7 +115,7 @@ def test_far_and_significance_cuts():
     assert not v.keep and "FAR 1e-05 Hz above max_far_hz" in v.reason
     assert evaluate(a, dataclasses.replace(MOCK, max_far_hz=0), at(a)).keep
     b = alert(significant=False)
-    assert evaluate(b, MOCK, at(b)).reason == "not significant"
+    assert evaluate(b, MOCK, at(b)).reason.startswith("not significant:")
     assert evaluate(b, dataclasses.replace(MOCK, require_significant=False), at(b)).keep
 
 

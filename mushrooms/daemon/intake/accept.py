@@ -140,7 +140,8 @@ class Intake:
             plan_ids=decision.plan_ids if decision.action == "withdraw" else (),
             withdrawal_id=key,
         )
-        level = logging.WARNING if decision.action == "rejected" else logging.INFO
+        level = logging.WARNING if decision.action == "rejected" or (verdict.warn and decision.action == "ignore") \
+            else logging.INFO  # an unclassified candidate, a notice without a map: the operator should see it
         log.log(level, "notice origin=%s superevent_id=%s alert_type=%s decision=%s reason=%r%s%s",
                 origin, alert.superevent_id, alert.alert_type, decision.action, decision.reason,
                 f" job={job.job_id} start={job.start}" if job else "",
@@ -148,7 +149,11 @@ class Intake:
         return acc
 
     def plan_start(self, alert: Alert, now: datetime) -> str | None:
-        """The horizon start of a job planning ``alert`` (``[policy] plan_start``); None without a sky map."""
+        """The horizon start of a job planning ``alert`` (``[policy] plan_start``); None without a sky map.
+
+        Never before the merger: an early warning is created (and received)
+        before it, and nothing is there to observe until it has happened.
+        """
         ev = alert.event
         if ev is None or not ev.skymap:
             return None
@@ -156,7 +161,7 @@ class Intake:
         if mode == "event":
             return iso_z(ev.time)
         if mode == "created":
-            return iso_z(alert.time_created)
+            return iso_z(max(alert.time_created, ev.time))
         return iso_z(max(now, ev.time))
 
     # ------------------------------------------------------------ bare sky maps

@@ -19,7 +19,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import confluent_kafka
 import gcn_kafka
@@ -27,6 +27,7 @@ import gcn_kafka
 from ..credentials import Credentials, load_credentials
 from .broker_log import BrokerHealth, client_settings
 from ..settings import KafkaConfig
+from .versions import require_kafka_clients
 
 __all__ = ["Received", "NoticeConsumer", "consumer_config", "OffsetJump"]
 
@@ -100,6 +101,13 @@ class NoticeConsumer:
         Told about every offset jump (:data:`OffsetJump`), after the ERROR line.
     instance_id : str, optional
         Static group membership (:func:`~.settings.group_instance_id`).
+    overrides : mapping, optional
+        librdkafka settings laid over the service's and gcn-kafka's (tests: a
+        loopback OAUTHBEARER broker and token endpoint in place of GCN's).
+
+    On GCN (no ``bootstrap``) the Kafka clients must be recent enough to keep
+    the session past its token (:mod:`~.versions`): an older pair raises
+    :class:`~.versions.KafkaClientTooOld` (one line, exit status 2).
 
     In ``manual`` mode a topic that does not exist yet is waited for (one
     warning, then a retry every :data:`TOPIC_RETRY_S`; :meth:`poll` returns
@@ -107,7 +115,8 @@ class NoticeConsumer:
     """
 
     def __init__(self, config: KafkaConfig, credentials: Credentials | None = None,
-                 on_offset_jump: OffsetJump | None = None, instance_id: str | None = None) -> None:
+                 on_offset_jump: OffsetJump | None = None, instance_id: str | None = None,
+                 overrides: Mapping[str, Any] | None = None) -> None:
         self.config = config
         self.on_offset_jump = on_offset_jump
         self.instance_id = instance_id if config.assignment == "group" else None
@@ -121,10 +130,12 @@ class NoticeConsumer:
         #: whether the input cluster answers (heartbeat, systemd status)
         self.health = BrokerHealth("consumer")
         conf = consumer_config(config, self.instance_id) | client_settings(self.health, stats_interval_s=5.0)
+        conf |= dict(overrides or {})
         if config.bootstrap:
             self._consumer = gcn_kafka.Consumer(config=conf)
             where = f"{config.bootstrap} (plaintext, no credentials)"
         else:
+            require_kafka_clients()
             creds = credentials or load_credentials()
             self._consumer = gcn_kafka.Consumer(
                 config=conf, client_id=creds.client_id, client_secret=creds.client_secret,
