@@ -78,14 +78,20 @@ class Config:
             "loop": LoopConfig,
             "notify": NotifyConfig,
         }
+        from ..scheduler_core.tables import TableError, shown_value, toml_type, unknown_names
+
         unknown = sorted(set(data) - set(sections))
         if unknown:
-            raise ConfigError(f"{source}: unknown section(s): {', '.join(unknown)}")
+            raise ConfigError(f"{source}: unknown section(s): {unknown_names(unknown, list(sections))}")
         kwargs: dict[str, Any] = {"source": source}
         try:
             for name, cls_ in sections.items():
-                if name in data:
-                    kwargs[name] = cls_.from_mapping(data[name])
+                if name not in data:
+                    continue
+                if not isinstance(data[name], Mapping):  # `scheduler = 1` at the top of the file
+                    raise TableError(f"{name} = {shown_value(data[name])}: expected a table ([{name}]), got "
+                                     f"{toml_type(data[name])}", section=name, value=data[name], expected="a table")
+                kwargs[name] = cls_.from_mapping(data[name])
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"{source}: {exc}") from None
         return cls(**kwargs)
