@@ -55,9 +55,24 @@ def _file_text(dotted: str, literal: str) -> str:
     return f"[{'.'.join(tables)}]\n{key} = {literal}\n"
 
 
-def test_the_table_valued_keys_are_found():
+def test_the_loader_takes_as_tables_exactly_the_keys_whose_defaults_are_tables():
     # the discovery is not vacuous: the one that failed every job and the bench's tables are among them
     assert {"scheduler.slew", "bench.lightcurves", "bench.maglim", "bench.arms"} <= set(TABLE_KEYS)
+    import typing
+
+    from mushrooms.scheduler_core.tables import is_table_hint
+
+    def hinted(cls: type, prefix: str) -> list[str]:
+        out = []
+        for name, hint in typing.get_type_hints(cls).items():
+            if name in {f.name for f in dataclasses.fields(cls)} and is_table_hint(hint):
+                out.append(f"{prefix}.{name}")
+                if dataclasses.is_dataclass(hint):
+                    out += hinted(hint, f"{prefix}.{name}")
+        return out
+
+    by_type = [key for s in _sections() for key in hinted(type(getattr(Config(), s)), s)]
+    assert sorted(by_type) == sorted(TABLE_KEYS[:-1])  # the arm is a name of the user's, not a field
 
 
 @pytest.mark.parametrize("kind", NOT_TABLES)
@@ -161,3 +176,21 @@ def test_the_type_of_an_array_is_said_in_plain_english(tmp_path, text, said):
     with pytest.raises(ConfigError) as refused:
         load_config(cfg)
     assert said in str(refused.value) and " a strings" not in str(refused.value)
+
+
+@pytest.mark.parametrize("content, why", [(b"garbage\n", "first line must be a header"),
+                                          (b"# t[days] g r\n0.1 -15 x\n", "non-numeric value"),
+                                          (b"\xff\xfe\n", "not UTF-8 text")])
+def test_a_light_curve_file_that_does_not_parse_is_refused_at_load_not_in_every_job(tmp_path, content, why):
+    # it passed validation (the file exists) and every job was then `rejected`, blaming the notice
+    curve = tmp_path / "curve.txt"
+    curve.write_bytes(content)
+    cfg = tmp_path / "config.toml"
+    cfg.write_text(f'[scheduler]\ndetection_lightcurve = "{curve}"\n')
+    for load in (lambda: load_config(cfg), lambda: load_config(None, [f'scheduler.detection_lightcurve="{curve}"'])):
+        with pytest.raises(ConfigError) as refused:
+            load()
+        assert f"[scheduler] detection_lightcurve = '{curve}': " in str(refused.value) and why in str(refused.value)
+        assert "\n" not in str(refused.value)
+    curve.write_text("# t[days] g r\n0.1 -15.0 -15.5\n1.0 -14.0 -14.8\n")  # one that parses is taken
+    assert load_config(cfg).scheduler.detection_lightcurve == str(curve)

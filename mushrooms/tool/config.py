@@ -92,9 +92,41 @@ class Config:
                     raise TableError(f"{name} = {shown_value(data[name])}: expected a table ([{name}]), got "
                                      f"{toml_type(data[name])}", section=name, value=data[name], expected="a table")
                 kwargs[name] = cls_.from_mapping(data[name])
+            if "scheduler" in kwargs:
+                _check_lightcurve(kwargs["scheduler"].detection_lightcurve)
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"{source}: {exc}") from None
         return cls(**kwargs)
+
+
+#: Largest light-curve file read at load (bytes); the packaged ones are 10-20 KB.
+MAX_LIGHTCURVE_BYTES = 16 * 1024 * 1024
+
+
+def _check_lightcurve(spec: str) -> None:
+    """A ``detection_lightcurve`` file must parse now, not in every job (each of which would be ``rejected``).
+
+    The packaged names are not read; a file is (numpy is imported only then).
+
+    Raises
+    ------
+    ValueError
+        ``[scheduler] detection_lightcurve = '...': <why>``.
+    """
+    from ..scheduler_core.source.named import PAPER_LIGHTCURVES
+
+    if spec in PAPER_LIGHTCURVES:
+        return
+    from ..inputs import read_regular_file
+    from ..scheduler_core.errors import InputError
+    from ..scheduler_core.source.lightcurves import parse_lightcurve
+
+    try:
+        text = read_regular_file(spec, MAX_LIGHTCURVE_BYTES, what="light curve").decode()
+        parse_lightcurve(text, name=Path(spec).stem)
+    except (InputError, UnicodeDecodeError) as exc:
+        why = "not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else str(exc)
+        raise ValueError(f"[scheduler] detection_lightcurve = {spec!r}: {why}") from None
 
 
 def resolve_config_path(given: str | Path | None, environ: Mapping[str, str] | None = None,
