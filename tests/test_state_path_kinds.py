@@ -57,6 +57,9 @@ def test_a_tool_names_what_the_state_path_is_and_exits_2(tmp_path, odd_state, co
     assert len(lines) == 1 and f"{path}: {kind}, not a state file" in lines[0], r.stderr
     assert "no such state file" not in r.stderr
     assert sorted(p.name for p in path.parent.iterdir()) == before  # no -journal, no triggers directory
+    if command == ["status"]:  # and a state file that is not there is still called so
+        r = _cli(tmp_path, "status", "--state", str(path.parent / "nope.sqlite"))
+        assert r.returncode == 2 and f"{path.parent / 'nope.sqlite'}: no such state file" in r.stderr
 
 
 def test_the_service_refuses_it_before_creating_anything(tmp_path, odd_state):
@@ -68,18 +71,15 @@ def test_the_service_refuses_it_before_creating_anything(tmp_path, odd_state):
     assert sorted(p.name for p in path.parent.iterdir()) == before
 
 
-def test_the_store_refuses_it_too(tmp_path, odd_state):
-    # the library's own check (a caller that builds the Store itself): a StoreError, the service's exit 65
+def test_the_store_refuses_it_too(tmp_path):
+    # the library's own check (a caller that builds the Store itself): a StoreError, the service's exit 65;
+    # a device is given through a link, which the store refuses first (its older rule)
     from mushrooms.daemon.state.store import Store, StoreError
 
-    path, kind = odd_state
-    # our device is a link to /dev/null: the store refuses a link first (its older rule)
-    why = "the state file is a symbolic link" if kind == "a device" else f"{kind}, not a state file"
-    with pytest.raises(StoreError, match=why):
-        Store(path)
-    assert sorted(p.name for p in path.parent.iterdir()) == ["state.sqlite"]
-
-
-def test_a_missing_state_file_is_still_no_such_state_file(tmp_path):
-    r = _cli(tmp_path, "status", "--state", str(tmp_path / "nope.sqlite"))
-    assert r.returncode == 2 and "no such state file" in r.stderr
+    fifo, directory = tmp_path / "fifo.sqlite", tmp_path / "dir.sqlite"
+    os.mkfifo(fifo)
+    directory.mkdir()
+    for path, kind in ((fifo, "a FIFO"), (directory, "a directory")):
+        with pytest.raises(StoreError, match=f"{kind}, not a state file"):
+            Store(path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.sqlite", "fifo.sqlite"]
