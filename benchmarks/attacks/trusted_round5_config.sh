@@ -14,7 +14,7 @@ PY=${PYTHON:-/work/main/.venv/bin/python}
 W=$(mktemp -d /tmp/mushrooms-round5-config-XXXXXX)
 MAP=$REPO/tests/data/skymaps/MS220722v_bayestar.multiorder.fits
 NOTICE=$REPO/mushrooms/data/demo/MS260605l-preliminary.json
-echo "# repo $REPO at $(git -C "$REPO" rev-parse --short HEAD 2>/dev/null)$(git -C "$REPO" diff --quiet 2>/dev/null || echo '+changes'); scratch $W"
+echo "# repo $REPO at $(git -C "$REPO" rev-parse --short HEAD 2>/dev/null || echo "(not a git checkout)")$(git -C "$REPO" diff --quiet 2>/dev/null || echo " +changes"); scratch $W"
 echo "# $(uptime)"
 cd "$W" || exit 1
 
