@@ -148,8 +148,9 @@ def toml_type(value: Any) -> str:
 
 
 def shown_value(value: Any) -> str:
-    """``repr(value)`` for a message, at most :data:`MAX_SHOWN` characters (a huge ``--set`` stays one short line)."""
-    text = repr(value)
+    """``repr(value)`` for a message (a boolean as TOML writes it), at most :data:`MAX_SHOWN` characters (a huge
+    ``--set`` stays one short line)."""
+    text = str(value).lower() if isinstance(value, bool) else repr(value)
     return text if len(text) <= MAX_SHOWN else text[:MAX_SHOWN - 3] + "..."
 
 
