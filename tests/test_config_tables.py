@@ -194,3 +194,12 @@ def test_a_light_curve_file_that_does_not_parse_is_refused_at_load_not_in_every_
         assert "\n" not in str(refused.value)
     curve.write_text("# t[days] g r\n0.1 -15.0 -15.5\n1.0 -14.0 -14.8\n")  # one that parses is taken
     assert load_config(cfg).scheduler.detection_lightcurve == str(curve)
+
+
+def test_a_hostile_set_is_refused_in_one_short_line():
+    # a 100 kB key, a 100 000-element array where a table belongs, 30 unknown keys: each one short line
+    for sets in (["scheduler." + "k" * 100_000 + "=1"], ["scheduler.slew=[" + ",".join(["1"] * 100_000) + "]"],
+                 [f"scheduler.zz{i}=1" for i in range(30)]):
+        with pytest.raises(ConfigError) as refused:
+            load_config(None, sets)
+        assert len(str(refused.value)) < 1000 and "\n" not in str(refused.value), str(refused.value)[:300]

@@ -133,10 +133,11 @@ def check_table(cls: type, table: Mapping[str, Any], section: str) -> None:
 def unknown_names(unknown: list[str], known: list[str]) -> str:
     """The unknown names, each with its nearest known one when close enough: ``slwe (did you mean slew?)``."""
     said = []
-    for name in unknown:
-        near = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
-        said.append(f"{name} (did you mean {near[0]}?)" if near else name)
-    return ", ".join(said)
+    for name in unknown[:10]:  # a hostile --set's thousand keys, or one of 100 kB, stay one short line
+        shown = name if len(name) <= MAX_SHOWN else name[:MAX_SHOWN - 3] + "..."
+        near = difflib.get_close_matches(name, known, n=1, cutoff=0.6) if len(name) <= MAX_SHOWN else []
+        said.append(f"{shown} (did you mean {near[0]}?)" if near else shown)
+    return ", ".join(said) + (f" and {len(unknown) - 10} more" if len(unknown) > 10 else "")
 
 
 def toml_type(value: Any) -> str:

@@ -175,7 +175,8 @@ def load_config(path: str | Path | None = None, sets: Any = ()) -> Config:
         table = apply_sets({} if path is None else read_config_table(path), sets)
     except ValueError as exc:
         raise ConfigError(str(exc)) from None
-    return Config.from_mapping(table, source=f"{path or '<embedded defaults>'} with --set {' '.join(sets)}")
+    shown = " ".join(s if len(s) <= 80 else s[:77] + "..." for s in sets)  # a hostile --set: one short line
+    return Config.from_mapping(table, source=f"{path or '<embedded defaults>'} with --set {shown}")
 
 
 def read_config_table(path: str | Path) -> dict[str, Any]:
