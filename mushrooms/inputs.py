@@ -23,7 +23,7 @@ from pathlib import Path
 
 from .scheduler_core.errors import InputError
 
-__all__ = ["read_regular_file", "regular_file", "MAX_INPUT_BYTES"]
+__all__ = ["read_regular_file", "regular_file", "MAX_INPUT_BYTES", "file_kind", "state_file_problem"]
 
 #: Default bound (bytes) of a file read whole: 64 MiB (a notice is at most 8 MiB, a plan < 1 MiB).
 MAX_INPUT_BYTES = 64 * 1024 * 1024
@@ -42,10 +42,36 @@ def _open(path: str | Path, what: str, follow_symlinks: bool) -> int:
     st = os.fstat(fd)
     if not stat.S_ISREG(st.st_mode):
         os.close(fd)
-        kind = ("a directory" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode)
-                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file")
-        raise InputError(f"{what}{path}: {kind}, not a regular file: refused")
+        raise InputError(f"{what}{path}: {_kind(st.st_mode)}, not a regular file: refused")
     return fd
+
+
+def _kind(mode: int) -> str:
+    """What a file that is not a regular file is, in words."""
+    return ("a directory" if stat.S_ISDIR(mode) else "a FIFO" if stat.S_ISFIFO(mode)
+            else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+            else "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
+
+
+def file_kind(path: str | Path) -> str | None:
+    """What ``path`` is when it exists and is not a regular file (``a directory``, ``a FIFO``, ``a device``,
+    ``a socket``), following links; None when it is a regular file or does not exist (or cannot be looked at)."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    return None if stat.S_ISREG(mode) else _kind(mode)
+
+
+def state_file_problem(path: str | Path) -> str | None:
+    """Why ``path`` cannot be a state file (``X: a FIFO, not a state file ...``), or None.
+
+    A missing file is no problem here (the service creates it); a directory,
+    FIFO, device or socket is, before SQLite opens it (a FIFO or a device
+    gave ``disk I/O error`` and a ``-journal`` file created beside it).
+    """
+    kind = file_kind(path)
+    return None if kind is None else f"{path}: {kind}, not a state file (an SQLite file the service creates)"
 
 
 def _prefix(what: str) -> str:

@@ -46,7 +46,7 @@ def test_bad_log_level_is_one_line(capsys):
     ("[scheduler]\nn_blocks_max = 2.5\n", "[scheduler] n_blocks_max = 2.5: expected an integer, got float"),
     ('[policy]\nallow_mock = "yes"\n', "[policy] allow_mock = 'yes': expected a boolean, got string"),
     ('[scheduler]\nfilters = ["g", "x"]\n', "filters must be ZTF filters (g, r, i)"),
-    ("[scheduler]\nfilters = [1, 2]\n", "expected an array of a strings"),
+    ("[scheduler]\nfilters = [1, 2]\n", "expected an array of strings"),
     ('[export]\nprogram = "MSIP"\n', "program must be Partnership or Caltech"),
 ])
 def test_config_errors_name_key_value_and_type(tmp_path, capsys, text, message):
@@ -240,3 +240,16 @@ def test_plan_writes_queue_and_skyportal_from_the_same_plan(tmp_path, capsys):
     assert [p["field_id"] for p in planned] == [t["field_id"] for t in targets]
     assert all(p["dateobs"] + "Z" == obs[p["planned_observation_id"]]["start"] for p in planned)
     assert all(q["user"] == "bob" for q in queues) and {p["allocation_id"] for p in plans} == {3}
+
+
+def test_the_demo_output_directory_is_ignored_by_git():
+    # `mushrooms demo` writes mushrooms-demo/ in the working directory: a checkout's `git status` stays clean
+    import shutil
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    if shutil.which("git") is None or not (root / ".git").exists():
+        pytest.skip("not a git checkout")
+    for path in ("mushrooms-demo/plan.png", "mushrooms-demo/outbox/x.json", "mushrooms-demo/state.sqlite"):
+        r = subprocess.run(["git", "check-ignore", "-q", path], cwd=root, timeout=60)
+        assert r.returncode == 0, f"{path} is not ignored"

@@ -92,6 +92,7 @@ def test_the_section_tables_are_read_by_one_leaf_helper_with_typed_errors():
     assert str(wrong_type.value) == "[daemon] heartbeat_s = 'often': expected a number, got string"
     with pytest.raises(TableError) as unknown:
         DaemonConfig.from_mapping({"heartbeats": 1})
-    assert unknown.value.keys == ("heartbeats",) and str(unknown.value) == "unknown [daemon] key(s): heartbeats"
+    assert unknown.value.keys == ("heartbeats",)
+    assert str(unknown.value) == "unknown [daemon] key(s): heartbeats (did you mean heartbeat_s?)"
     with pytest.raises(ConfigError, match=r"\[daemon\] heartbeat_s = 0: outside its range"):
         Config.from_mapping({"daemon": {"heartbeat_s": 0}})

@@ -24,6 +24,7 @@ from mushrooms.tool.live_notice import MAX_LEAD_S, live_copy
 from mushrooms.tool.rehearse_watch import log_words, parse_log_line
 
 NOTICES = Path(__file__).resolve().parent / "data" / "notices" / "json"
+ROOT = Path(__file__).resolve().parents[1]
 
 GREEDY = """
 [scheduler]
@@ -40,6 +41,7 @@ def rehearse(tmp_path: Path, *args: str, env: dict[str, str] | None = None, time
     cfg = tmp_path / "config.toml"
     cfg.write_text(GREEDY)
     e = {k: v for k, v in os.environ.items() if not k.startswith("MUSHROOMS_SUBMIT")}
+    e["PYTHONPATH"] = str(ROOT)  # this checkout's mushrooms, for the rehearsal and for its service
     e.update(env or {})
     return subprocess.run([sys.executable, "-m", "mushrooms.cli", "rehearse", "--config", str(cfg), *args],
                           capture_output=True, text=True, env=e, cwd=tmp_path, timeout=timeout)
@@ -233,3 +235,62 @@ def test_a_rehearsal_refuses_a_webhook_url_that_cannot_be_parsed_and_leaves_no_s
     left = [p.read_bytes() for p in out.rglob("*") if p.is_file()] if out.exists() else []
     assert not any(secret.encode() in data for data in left)
     assert secret not in r.stdout + r.stderr and "Traceback" not in r.stdout + r.stderr
+
+
+def test_a_timeout_that_is_not_a_positive_number_of_seconds_is_refused_before_anything_starts(tmp_path):
+    # nan and inf were accepted: a rehearsal whose plan never became final never ended (the subprocess
+    # timeout is a hang guard); 0 and negative numbers were refused already
+    for timeout in ("nan", "inf", "1e300", "-inf", "-5", "0"):
+        r = rehearse(tmp_path, f"--timeout={timeout}", timeout=120)
+        assert r.returncode == 2, timeout + ": " + r.stdout[-2000:] + r.stderr[-2000:]
+        errors = [line for line in r.stderr.splitlines() if "error" in line]
+        assert len(errors) == 1 and "--timeout must be a number of seconds in (0, 86400]" in errors[0], r.stderr
+        assert "loopback broker" not in r.stdout and "service started" not in r.stdout
+
+
+def test_a_first_stage_job_failure_ends_the_rehearsal_at_once_with_one_line(tmp_path):
+    # a real failure of the job's first stage: the notice's sky map is larger than [policy] allows, so the
+    # job logs `decision=rejected` (no `event=job_failed`); the rehearsal once waited out its --timeout
+    r = rehearse(tmp_path, "--set", "policy.max_skymap_bytes=2880", "--timeout", "400", timeout=600)
+    assert r.returncode == 1, r.stdout + r.stderr
+    errors = [line for line in r.stderr.splitlines() if line.startswith("mushrooms rehearse:")]
+    assert len(errors) == 1, r.stderr
+    assert "planning MS260605l failed (rejected)" in errors[0] and "2880-byte limit" in errors[0], errors
+    assert "gave up" not in errors[0] and "--timeout" not in errors[0]
+    assert "service stopped cleanly (exit 0)" in r.stdout  # stopped all the same
+
+
+#: What the service logs when a job's first stage fails (``mushrooms run`` of today, ``[scheduler] slew = 1``).
+JOB_FAILED = ("2026-12-06 14:08:51,956 INFO mushrooms.daemon.jobs: event=job_done superevent_id=MS260605l job=1 "
+              "action=failed decision=failed reason=\"internal error: AttributeError: 'int' object has no attribute "
+              "'ha_accel_deg_s2'\" latency_s=0.081 run_s=0.068")
+WARM_FAILED = ("2026-12-06 14:08:47,001 ERROR mushrooms.daemon: event=warm_up_plan_failed "
+               "error=\"SkyMapError: broken-demo-map.fits: not a FITS file\" reason='the service is not ready'")
+
+
+@pytest.mark.parametrize("text, said", [
+    (JOB_FAILED, "planning MS260605l failed (failed): internal error: AttributeError: 'int' object has no "
+                 "attribute 'ha_accel_deg_s2'"),
+    (WARM_FAILED, "the service is not ready: its warm-up plan failed: SkyMapError: broken-demo-map.fits: not a "
+                  "FITS file"),
+])
+def test_the_rehearsal_fails_on_the_lines_a_failing_job_and_a_failing_warm_up_write(tmp_path, text, said):
+    from mushrooms.tool.rehearsal import Rehearsal, RehearsalFailed
+
+    watch = Rehearsal([], tmp_path, 0.0, 60.0, None)
+    with pytest.raises(RehearsalFailed) as failed:
+        watch._judge(parse_log_line(text))
+    assert str(failed.value) == said
+
+
+def test_a_rehearsal_in_a_temporary_directory_removes_it_when_it_passes_and_keeps_it_when_it_fails(tmp_path):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    r = rehearse(tmp_path, env={"TMPDIR": str(tmp)})
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert list(tmp.glob("mushrooms-rehearse-*")) == []
+    assert "give --out DIR to keep" in r.stdout
+    r = rehearse(tmp_path, str(NOTICES / "MS181101ab-retraction.json"), env={"TMPDIR": str(tmp)})
+    assert r.returncode == 1
+    [kept] = tmp.glob("mushrooms-rehearse-*")
+    assert (kept / "service.log").is_file() and str(kept / "service.log") in r.stdout + r.stderr

@@ -125,11 +125,16 @@ class Timers:
             service.start_jobs(accepted, time.time())
 
     def rewarm(self) -> None:
-        """Compute the coming night's visibility before an alert needs it."""
+        """Compute the coming night's visibility before an alert needs it; try a failed warm-up plan again."""
+        cache = self.service.sky_cache
         try:
-            self.service.sky_cache.warm(self.service.config.scheduler)
+            cache.warm(self.service.config.scheduler)
         except Exception:
             log.exception("event=warm_failed")
+        if getattr(cache, "plan_failure", None) is not None:  # not ready until a plan succeeds
+            from .planning.warm import warm_plan
+
+            warm_plan(cache, self.service.config.scheduler)
 
     def prune_raw(self) -> None:
         """Forget raw bytes no longer needed (rejected and planned notices, :meth:`Store.prune_raw`)."""

@@ -368,6 +368,8 @@ class PlanningConfig:
     def __post_init__(self) -> None:
         require_finite(self, "scheduler")
         problems = []
+        if not isinstance(self.slew, SlewModel):  # a hand-built config; a file's is refused as "expected a table"
+            problems.append(f"slew must be a SlewModel (the [scheduler.slew] table), got {self.slew!r}")
         if self.pair_max_s and self.pair_max_s < self.cadence_s:
             problems.append(f"pair_max_s ({self.pair_max_s:g} s) must be 0 or at least cadence_s "
                             f"({self.cadence_s:g} s)")

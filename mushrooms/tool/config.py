@@ -78,17 +78,55 @@ class Config:
             "loop": LoopConfig,
             "notify": NotifyConfig,
         }
+        from ..scheduler_core.tables import TableError, shown_value, toml_type, unknown_names
+
         unknown = sorted(set(data) - set(sections))
         if unknown:
-            raise ConfigError(f"{source}: unknown section(s): {', '.join(unknown)}")
+            raise ConfigError(f"{source}: unknown section(s): {unknown_names(unknown, list(sections))}")
         kwargs: dict[str, Any] = {"source": source}
         try:
             for name, cls_ in sections.items():
-                if name in data:
-                    kwargs[name] = cls_.from_mapping(data[name])
+                if name not in data:
+                    continue
+                if not isinstance(data[name], Mapping):  # `scheduler = 1` at the top of the file
+                    raise TableError(f"{name} = {shown_value(data[name])}: expected a table ([{name}]), got "
+                                     f"{toml_type(data[name])}", section=name, value=data[name], expected="a table")
+                kwargs[name] = cls_.from_mapping(data[name])
+            if "scheduler" in kwargs:
+                _check_lightcurve(kwargs["scheduler"].detection_lightcurve)
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"{source}: {exc}") from None
         return cls(**kwargs)
+
+
+#: Largest light-curve file read at load (bytes); the packaged ones are 10-20 KB.
+MAX_LIGHTCURVE_BYTES = 16 * 1024 * 1024
+
+
+def _check_lightcurve(spec: str) -> None:
+    """A ``detection_lightcurve`` file must parse now, not in every job (each of which would be ``rejected``).
+
+    The packaged names are not read; a file is (numpy is imported only then).
+
+    Raises
+    ------
+    ValueError
+        ``[scheduler] detection_lightcurve = '...': <why>``.
+    """
+    from ..scheduler_core.source.named import PAPER_LIGHTCURVES
+
+    if spec in PAPER_LIGHTCURVES:
+        return
+    from ..inputs import read_regular_file
+    from ..scheduler_core.errors import InputError
+    from ..scheduler_core.source.lightcurves import parse_lightcurve
+
+    try:
+        text = read_regular_file(spec, MAX_LIGHTCURVE_BYTES, what="light curve").decode()
+        parse_lightcurve(text, name=Path(spec).stem)
+    except (InputError, UnicodeDecodeError) as exc:
+        why = "not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else str(exc)
+        raise ValueError(f"[scheduler] detection_lightcurve = {spec!r}: {why}") from None
 
 
 def resolve_config_path(given: str | Path | None, environ: Mapping[str, str] | None = None,
@@ -137,7 +175,8 @@ def load_config(path: str | Path | None = None, sets: Any = ()) -> Config:
         table = apply_sets({} if path is None else read_config_table(path), sets)
     except ValueError as exc:
         raise ConfigError(str(exc)) from None
-    return Config.from_mapping(table, source=f"{path or '<embedded defaults>'} with --set {' '.join(sets)}")
+    shown = " ".join(s if len(s) <= 80 else s[:77] + "..." for s in sets)  # a hostile --set: one short line
+    return Config.from_mapping(table, source=f"{path or '<embedded defaults>'} with --set {shown}")
 
 
 def read_config_table(path: str | Path) -> dict[str, Any]:

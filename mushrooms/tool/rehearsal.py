@@ -32,6 +32,8 @@ _NOTIFY_OUTCOMES = {"notify_sent", "notify_failed", "notify_dropped"}
 #: Submission events that mean the plan did not reach the queue (yet).
 _FAILED_SUBMISSION = {"submission_failed", "submission_rejected", "submission_retry"}
 _ANNOUNCED = ("plan", "plan_final", "not_observable", "withdrawal", "submission")
+#: A job's decisions that mean its planning failed (``event=job_done decision=...``).
+_FAILED_JOB = ("failed", "rejected")
 
 
 def say(text: str, t0: float) -> None:
@@ -63,10 +65,14 @@ class Rehearsal:
     config : Config
         The effective configuration (what to wait for after the plan: a
         submission, a webhook message; how long the service may take to stop).
+    temporary : bool
+        ``out`` is a temporary directory, removed when the rehearsal passes.
     """
 
-    def __init__(self, command: list[str], out: Path, t0: float, timeout_s: float, config: Any) -> None:
+    def __init__(self, command: list[str], out: Path, t0: float, timeout_s: float, config: Any,
+                 temporary: bool = False) -> None:
         self.command, self.out, self.t0, self.timeout_s, self.config = command, Path(out), t0, timeout_s, config
+        self.temporary = temporary  # the directory goes when the rehearsal passes: say so, not where its files are
         self.log = LogTail(self.out / "service.log")
         self.outbox = OutboxWatch(self.out / "outbox")
         self.proc: subprocess.Popen | None = None
@@ -137,6 +143,11 @@ class Rehearsal:
             raise RehearsalFailed(f"the service did not plan the notice: {decision} ({f.get('reason', '')})")
         if line.event == "job_failed":
             raise RehearsalFailed(f"planning failed at {f.get('stage', '?')}: {f.get('error', '')}")
+        if line.event == "job_done" and decision in _FAILED_JOB:  # a job whose stage failed ends so (no job_failed)
+            raise RehearsalFailed(f"planning {f.get('superevent_id', '-')} failed ({decision}): "
+                                  f"{' '.join(f.get('reason', '').split())[:300]}")
+        if line.event == "warm_up_plan_failed":
+            raise RehearsalFailed(f"the service is not ready: its warm-up plan failed: {f.get('error', '')}")
         if line.event == "start_refused":
             raise RehearsalFailed(f"the service refused to start: {f.get('reason', '')}")
 
@@ -221,7 +232,8 @@ class Rehearsal:
         print("", flush=True)
         print(summary_text(doc, rows=False), flush=True)
         stem = self.out / "outbox" / str(doc.get("plan_id"))
-        self.say(f"the plan: {stem}.json, its summary {stem}.txt (one row per exposure) and page {stem}.html")
+        if not self.temporary:
+            self.say(f"the plan: {stem}.json, its summary {stem}.txt (one row per exposure) and page {stem}.html")
 
     # ------------------------------------------------------------ stopping
     def _stop(self, ok: bool = True) -> int:
@@ -249,7 +261,8 @@ class Rehearsal:
             return 1
         self.say("service stopped cleanly (exit 0)")
         if ok:
-            self.say(f"rehearsal passed: {self.answer or 'the plan is final'}; everything in {self.out}")
+            where = "" if self.temporary else f"; everything in {self.out}"
+            self.say(f"rehearsal passed: {self.answer or 'the plan is final'}{where}")
         return 0
 
     def _look_quietly(self) -> None:

@@ -18,8 +18,11 @@ new temporary directory) and the metrics listener (off, so a running
 service's port is not taken).
 
 Exit status: 0 the plan became final and the service stopped cleanly; 1 the
-service failed, refused the notice, or the plan did not become final within
-``--timeout`` (one line says which); 2 bad input.
+service failed, refused the notice, its warm-up plan or the notice's planning
+job failed, or the plan did not become final within ``--timeout`` (one line
+says which); 2 bad input (``--timeout`` not in (0, 86400] s included).
+Without ``--out`` the temporary directory is removed when the rehearsal
+passes and kept when it fails.
 """
 
 from __future__ import annotations
@@ -38,6 +41,9 @@ __all__ = ["HELP", "parser", "run", "main", "service_command"]
 
 HELP = "rehearse an alert: a local broker, the service with your config, a live notice, until the plan is final"
 
+#: Longest ``--timeout`` (s): a day; a rehearsal still waiting then has hung.
+MAX_TIMEOUT_S = 86400.0
+
 #: What a rehearsal owns in the configuration (``--set`` after the user's, so they win).
 REHEARSAL_SETS = ("daemon.trigger_dir=\"triggers\"", "daemon.pid_file=\"mushrooms.pid\"",
                   "daemon.quarantine_dir=\"quarantine\"", "daemon.metrics_address=\"\"",
@@ -52,7 +58,8 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="state, outbox and the service's log (default: a new temporary "
                                                  "directory, printed)")
     p.add_argument("--timeout", type=float, default=900.0, metavar="S",
-                   help="give up when the plan is not final this long after the service was started (default 900)")
+                   help="give up when the plan is not final this long after the service was started (default 900, "
+                        f"at most {MAX_TIMEOUT_S:g})")
     p.add_argument("--dry-run", action="store_true",
                    help="submission as a dry run (the request logged, token as ***), whatever [submit] says")
     add_set_option(p)
@@ -148,9 +155,9 @@ def run(args: argparse.Namespace) -> int:
     from .live_notice import live_copy
     from .overrides import effective_config
 
+    if not (0.0 < args.timeout <= MAX_TIMEOUT_S):  # nan and inf too: a rehearsal that never ends
+        raise InputError(f"--timeout must be a number of seconds in (0, {MAX_TIMEOUT_S:g}], got {args.timeout:g}")
     config = effective_config(args)  # a bad config or --set is one line, exit 2, before anything starts
-    if args.timeout <= 0:
-        raise InputError(f"--timeout must be > 0 s, got {args.timeout:g}")
     name, raw = _notice_bytes(args.notice)
     live_copy(raw)  # a notice that cannot be copied is refused before the service starts
     from ..daemon.ops.webhook_url import notify_url_usable
@@ -158,7 +165,8 @@ def run(args: argparse.Namespace) -> int:
     notify_url_usable(config.notify)  # a webhook URL that is missing or cannot be used: refused, never shown
     out = _out_dir(args.out)
     t0 = time.monotonic()
-    say(f"rehearsal in {out}", t0)
+    say(f"rehearsal in {out}" + ("" if args.out else " (a temporary directory: removed if the rehearsal passes, "
+                                                     "kept if it fails)"), t0)
     _describe_config(config, args, t0)
     from .loopback_broker import BrokerError, LoopbackBroker
     from .rehearsal import Rehearsal
@@ -169,11 +177,26 @@ def run(args: argparse.Namespace) -> int:
                 broker.ensure_topic(topic)
             say(f"loopback broker on {broker.bootstrap} (librdkafka's mock cluster), topic(s) "
                 f"{', '.join(config.kafka.topics)}", t0)
-            rehearsal = Rehearsal(service_command(args, broker.bootstrap, out), out, t0, args.timeout, config)
-            return rehearsal.run(lambda: _send(broker, config, name, raw, t0))
+            rehearsal = Rehearsal(service_command(args, broker.bootstrap, out), out, t0, args.timeout, config,
+                                  temporary=args.out is None)
+            status = rehearsal.run(lambda: _send(broker, config, name, raw, t0))
     except BrokerError as exc:
         print(f"mushrooms rehearse: error: {exc}", file=sys.stderr, flush=True)
-        return 1
+        status = 1
+    if args.out is None:
+        _tidy(out, status, t0)
+    return status
+
+
+def _tidy(out: Path, status: int, t0: float) -> None:
+    """Remove the rehearsal's temporary directory when it passed; keep it (and say where) when it did not."""
+    import shutil
+
+    if status == 0:
+        shutil.rmtree(out, ignore_errors=True)
+        say(f"removed the temporary directory {out}: give --out DIR to keep the plan and the service's log", t0)
+    else:
+        say(f"the rehearsal's files are kept in {out} (the service's log: {out / 'service.log'})", t0)
 
 
 def _send(broker: Any, config: Any, name: str, raw: bytes, t0: float) -> None:

@@ -36,8 +36,13 @@ def run(args: argparse.Namespace) -> int:
     from ..offline import configure_astropy_offline
     from .overrides import override_config
 
+    from ..inputs import state_file_problem
+    from ..scheduler_core.errors import InputError
+
     configure_astropy_offline()
     config = override_config(load_config(args.config), allow_mock=args.allow_mock)
+    if args.state and (problem := state_file_problem(args.state)) is not None:
+        raise InputError(problem)
     report = replay_notices(args.notices, args.out, config, state=args.state, on_outcome=print_outcome)
     print_summary(report)
     return report.status

@@ -39,8 +39,15 @@ def run(args: argparse.Namespace) -> int:
     at every SIGHUP) and the runtime paths resolved from it.
     """
     from ..daemon.service import main as service_main
+    from ..daemon.settings import resolve_paths
+    from ..inputs import state_file_problem
+    from ..scheduler_core.errors import InputError
     from .overrides import effective_config
 
+    # a directory, FIFO or device as the state file: one line, exit 2, before the pid file or the trigger
+    # directory is made beside it (the unit does not restart on 2)
+    if (problem := state_file_problem(resolve_paths(effective_config(args).daemon).state)) is not None:
+        raise InputError(problem)
     return service_main(lambda: effective_config(args))
 
 

@@ -13,6 +13,8 @@ import argparse
 import tomllib
 from typing import Any, Iterable, Mapping
 
+from ..scheduler_core.tables import shown_value
+
 __all__ = ["add_set_option", "parse_set", "apply_sets"]
 
 
@@ -48,9 +50,12 @@ def apply_sets(table: Mapping[str, Any], sets: Iterable[str]) -> dict[str, Any]:
     for text in sets:
         path, value = parse_set(text)
         node = merged
-        for part in path[:-1]:
-            child = node.get(part)
-            child = dict(child) if isinstance(child, Mapping) else {}
+        for depth, part in enumerate(path[:-1]):
+            child = node.get(part, {})
+            if not isinstance(child, Mapping):  # `slew = 1` in the file is an error, not a table to fill
+                raise ValueError(f"--set {text}: {'.'.join(path[:depth + 1])} is not a table (it is "
+                                 f"{shown_value(child)}): correct the file")
+            child = dict(child)
             node[part] = child
             node = child
         node[path[-1]] = value

@@ -205,9 +205,12 @@ def render(doc: dict[str, Any]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Print the status; 1 when something needs attention."""
+    from ..inputs import state_file_problem
+
     path = _state_path(args)
-    if not path.is_file():
-        print(f"mushrooms status: error: {path}: no such state file", file=sys.stderr)
+    problem = state_file_problem(path)  # a directory, FIFO or device is named for what it is
+    if problem is not None or not path.is_file():
+        print(f"mushrooms status: error: {problem or f'{path}: no such state file'}", file=sys.stderr)
         return EXIT_INPUT
     from ..daemon.state.views import connect_readonly
 

@@ -69,6 +69,10 @@ def run(args: argparse.Namespace) -> int:
                                                                                           "--closed-until")))
     config = effective_config(args)
     paths = resolve_paths(config.daemon)
+    from ..inputs import state_file_problem
+
+    if (problem := state_file_problem(paths.state)) is not None:  # before anything is created beside it
+        raise InputError(problem)
     from .state_plans import documents_since, last_seq, read_state
 
     before = read_state(paths.state, last_seq, 0)

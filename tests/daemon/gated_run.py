@@ -10,7 +10,9 @@ real solve is still running when the test acts:
 * removing ``DIR/hold`` lets every held job go on with the real scheduler;
 * while ``DIR/fail`` exists, a job's scheduler raises (a job that fails);
 * while ``DIR/hold-warm`` exists, the daemon's start-up warm-up waits
-  (``/readyz`` during warm-up); ``DIR/warming`` says it got there.
+  (``/readyz`` during warm-up); ``DIR/warming`` says it got there;
+* while ``DIR/fail-warm`` exists, the bundled demo sky map the warm-up plans
+  is a file that is not FITS (a broken install): the warm-up plan fails.
 """
 
 from __future__ import annotations
@@ -63,6 +65,19 @@ def install(gate: Path) -> None:
         return original_warm(self, cache)
 
     service.Service._warm_up = warm_up
+
+    from mushrooms import bundled
+
+    original_demo = bundled.demo_skymap_path
+
+    def demo_skymap_path():
+        if (gate / "fail-warm").exists():
+            broken = gate / "broken-demo-map.fits"
+            broken.write_bytes(b"this is not a FITS file\n" * 200)
+            return str(broken)
+        return original_demo()
+
+    bundled.demo_skymap_path = demo_skymap_path
 
 
 if __name__ == "__main__":

@@ -136,3 +136,20 @@ def test_replay_is_a_library_call_with_the_shared_overrides(tmp_path, fast_confi
     assert seen == [(notice.name, "plan")]
     docs = [json.loads(p.read_text()) for p in (tmp_path / "out").glob("*.json")]
     assert state.exists() and [d["type"] for d in docs] == ["plan"]
+
+
+@pytest.mark.parametrize("content, why", [(b"{not json", "not valid JSON"), (b"[1, 2]", "superevent_id"),
+                                          (b"", "empty")])
+def test_replay_of_a_malformed_notice_is_bad_input_exit_2_with_one_line(tmp_path, fast_config, capsys, content, why):
+    # the README: bad input is one line on stderr and exit status 2; the good notices are replayed all the same
+    bad = tmp_path / "bad.json"
+    bad.write_bytes(content)
+    good = NOTICES / "json" / "MS181101ab-preliminary.json"
+    rc = cli_main(["replay", str(bad), str(good), "--allow-mock", "--out", str(tmp_path / "o"),
+                   "--config", str(fast_config)])
+    assert rc == 2
+    out, err = capsys.readouterr()
+    assert {line.split()[0]: line.split()[3] for line in out.splitlines() if line.strip()} == {
+        "bad.json": "rejected", "MS181101ab-preliminary.json": "plan"}
+    errors = [line for line in err.splitlines() if line.startswith("mushrooms replay: error:")]
+    assert len(errors) == 1 and errors[0].startswith(f"mushrooms replay: error: {bad}: "), err

@@ -114,11 +114,14 @@ class ReplayReport:
     state : Path
         The SQLite state file.
     errors : tuple of str
-        Inputs that are missing, unreadable, or directories with no notice (one line each).
+        Inputs that are missing, unreadable, not a usable notice (``rejected``:
+        malformed, a sky map that does not decode) or directories with no
+        notice (one line each).
     status : int
-        The exit status: 0 every notice processed (rejected and ignored ones
-        included), 1 some failed on our side (plan checker, internal error),
-        2 an input missing or unreadable, or a directory with no notice.
+        The exit status: 0 every notice processed (ignored ones included),
+        1 some failed on our side (plan checker, internal error), 2 bad input:
+        an input missing, unreadable or rejected, or a directory with no
+        notice (the README's rule; the other notices are replayed all the same).
     """
 
     results: tuple[tuple[Path, Outcome], ...]
@@ -199,8 +202,8 @@ def replay_notices(notices: Sequence[str | Path], out_dir: str | Path, config: S
     Returns
     -------
     ReplayReport
-        Its ``status`` is 2 when an input is missing or unreadable, or a
-        directory holds no notice (the others are still replayed), else 1
+        Its ``status`` is 2 when an input is missing, unreadable or rejected,
+        or a directory holds no notice (the others are still replayed), else 1
         when some notice failed on our side, else 0.
     """
     missing = [p for p in map(Path, notices) if not p.exists()]
@@ -226,7 +229,7 @@ def replay_notices(notices: Sequence[str | Path], out_dir: str | Path, config: S
     errors = [f"{p}: no such file or directory" for p in missing] + \
              [f"{p}: no notice files (*.json, *.avro, *.xml) in this directory" for p in empty] + \
              [f"{p}: unreadable" for p in unreadable] + \
-             [f"{p}: {oc.reason}" for p, oc in results if oc.reason.startswith("cannot read") and p not in missing]
+             [f"{p}: {oc.reason}" for p, oc in results if oc.decision == "rejected" and p not in missing]
     errors = list(dict.fromkeys(errors))
     failed = any(oc.decision == "failed" for _, oc in results)
     report = ReplayReport(tuple(results), out_dir, Path(state), tuple(errors), 2 if errors else 1 if failed else 0)

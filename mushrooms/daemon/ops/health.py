@@ -14,7 +14,7 @@ process is alive, just not consuming yet.
 
 ``/readyz`` (readiness): 200 only when every check passes, else 503; the
 JSON body names each check, whether it passed and why.  Checks: ``warm_up``
-(the caches and the throw-away plan are done), ``partitions`` (the consumer
+(the caches and the throw-away plan are done, and the plan did not fail), ``partitions`` (the consumer
 has partitions assigned), ``store`` (the state file takes a write lock and
 its disk has room), ``broker`` (the input cluster answers), ``outbound``
 (the outbox is being published: no failed publish waiting for its back-off,
@@ -194,7 +194,13 @@ def service_checks(service: Any) -> dict[str, Check]:
 
     def warm_up() -> tuple[bool, str]:
         p = service.phase
-        return (p == "running", "done" if p == "running" else f"not done ({p})")
+        if p != "running":
+            return False, f"not done ({p})"
+        failure = getattr(getattr(service, "sky_cache", None), "plan_failure", None)
+        if failure is not None:
+            return False, (f"the warm-up plan failed: {failure}: every job may fail the same way (tried again "
+                           f"every re-warm; the log's event=warm_up_plan_failed)")
+        return True, "done"
 
     def partitions() -> tuple[bool, str]:
         c = service.consumer

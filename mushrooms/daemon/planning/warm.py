@@ -29,7 +29,7 @@ from astropy.time import Time, TimeDelta
 from ...scheduler_core.sky.visibility import GRID_ANCHOR as NIGHT_ANCHOR
 from ...scheduler_core.sky.visibility import NIGHT_S, night_steps
 
-__all__ = ["SkyCache", "warm_up", "NIGHT_S", "NIGHT_ANCHOR"]
+__all__ = ["SkyCache", "warm_up", "warm_plan", "NIGHT_S", "NIGHT_ANCHOR"]
 
 log = logging.getLogger("mushrooms.daemon.warm")
 #: the service's own log lines (the warm-up at start)
@@ -64,6 +64,8 @@ class SkyCache:
         self._night_locks: dict[tuple[Any, ...], threading.Lock] = {}
         self.hits = 0
         self.misses = 0
+        #: why the last throw-away plan (:func:`warm_plan`) failed, or None: the service is not ready while set
+        self.plan_failure: str | None = None
 
     # ------------------------------------------------------------ footprints
     def footprints(self, nside: int) -> Any:
@@ -169,8 +171,13 @@ def warm_up(cache: SkyCache, config: Any, should_stop: Callable[[], bool] | None
     Returns
     -------
     SkyCache
-        ``cache``.  A failed throw-away plan is logged, never raised: warming
-        is an optimisation, never a reason not to start.
+        ``cache``.  A failed throw-away plan is never raised: it is logged
+        at ERROR and kept in ``cache.plan_failure``, and the service is not
+        ready while it is set (``/readyz``'s ``warm_up`` check).  The service
+        still starts: the plan runs the first stage of every job on the
+        bundled map, so its failure may concern that map only (a broken
+        install), and a running service stores every notice and tries every
+        job; the re-warm timer tries the plan again (:func:`warm_plan`).
     """
     t0 = time.perf_counter()
     t_cache = 0.0
@@ -198,7 +205,7 @@ def _warm_steps(cache: SkyCache, config: Any, now: Time) -> tuple[tuple[str, Cal
             ("visibility_tonight", lambda: cache.windows(now, tonight)),
             ("visibility_horizon", lambda: cache.windows(now, config)),
             ("solver_imports", lambda: _import_solvers(config)),
-            ("first_plan", lambda: _throw_away_plan(cache, config)))
+            ("first_plan", lambda: warm_plan(cache, config)))
 
 
 def _import_solvers(config: Any) -> None:
@@ -210,8 +217,22 @@ def _import_solvers(config: Any) -> None:
         from ...scheduler_core.schedulers import block_schedule  # noqa: F401
 
 
-def _throw_away_plan(cache: SkyCache, config: Any) -> None:
-    """One checked greedy plan of the bundled demo map (first calls of every stage); a failure is logged."""
+def warm_plan(cache: SkyCache, config: Any) -> str | None:
+    """One checked greedy plan of the bundled demo map (the first calls of every stage of a job's first plan).
+
+    Parameters
+    ----------
+    cache : SkyCache
+        Its ``plan_failure`` is set to the error, or cleared.
+    config : PlanningConfig
+        The ``[scheduler]`` section.
+
+    Returns
+    -------
+    str or None
+        The error (``Type: message``), or None when the plan succeeded.
+    """
+    before = cache.plan_failure
     try:
         from ...bundled import demo_skymap_path
         from ...scheduler_core import read_skymap
@@ -221,5 +242,12 @@ def _throw_away_plan(cache: SkyCache, config: Any) -> None:
         skymap = read_skymap(demo_skymap_path(), nside=config.nside)
         problem = cache.prepare(skymap, config, Time.now())
         checked_plan(problem, run_scheduler(problem, FIRST_SOLVER), skymap, FIRST_SOLVER)
-    except Exception as exc:  # warming is an optimisation, never a reason not to start
-        service_log.warning("event=warm_up_plan_failed error=%r", f"{type(exc).__name__}: {exc}")
+    except Exception as exc:  # never raised: the service runs, not ready, and says why
+        cache.plan_failure = " ".join(f"{type(exc).__name__}: {exc}".split())[:500]
+        service_log.error("event=warm_up_plan_failed error=%r reason='every job may fail the same way: the service "
+                          "is not ready until a plan succeeds'", cache.plan_failure)
+        return cache.plan_failure
+    cache.plan_failure = None
+    if before is not None:
+        service_log.info("event=warm_up_plan_recovered after=%r", before)
+    return None

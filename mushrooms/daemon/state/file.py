@@ -91,6 +91,10 @@ def create_or_check_file(path: Path, mode: int) -> None:
     try:
         fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, mode)
     except FileExistsError:
+        from ...inputs import state_file_problem
+
+        if (problem := state_file_problem(path)) is not None:
+            raise StoreError(problem) from None
         if path.is_file() and path.stat().st_size == 0:
             raise StoreError(f"{path}: the state file exists but is empty (0 bytes); refusing to start "
                              "from nothing: restore it, or remove it to start a new history") from None

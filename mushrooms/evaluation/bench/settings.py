@@ -23,7 +23,7 @@ from typing import Any, Mapping, Sequence
 
 from ...scheduler_core.ranges import Range, setting
 from ...scheduler_core.solvers_registry import SOLVER_NAMES
-from ...scheduler_core.tables import TableError, check_value, dataclass_from_table
+from ...scheduler_core.tables import TableError, check_value, dataclass_from_table, shown_value, toml_type
 
 __all__ = ["OURS", "SOLVERS", "GWEMOPT_ROWS", "SERVICE_ROW", "OBJECTIVE_SUFFIXES", "ARM_SEPARATOR", "row_arm",
            "ROW_NAMES_VERSION", "MAGLIM_RANGE",
@@ -138,12 +138,13 @@ class BenchConfig:
 def _check_names(key: str, table: Any, kind: type | tuple[type, ...], expected: str) -> None:
     """Refuse a ``[bench.<key>]`` that is not a table of ``name = <expected>``."""
     if not isinstance(table, Mapping):
-        raise TableError(f"[bench] {key} = {table!r}: expected a table", section="bench", key=key, value=table,
-                         expected="a table")
+        raise TableError(f"[bench] {key} = {shown_value(table)}: expected a table, got {toml_type(table)}",
+                         section="bench", key=key, value=table, expected="a table")
     for name, value in table.items():
         if not isinstance(value, kind) or isinstance(value, bool):
-            raise TableError(f"[bench] {key}.{name} = {value!r}: expected {expected}", section="bench",
-                             key=f"{key}.{name}", value=value, expected=expected)
+            raise TableError(f"[bench] {key}.{name} = {shown_value(value)}: expected {expected}, got "
+                             f"{toml_type(value)}", section="bench", key=f"{key}.{name}", value=value,
+                             expected=expected)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,127 @@
+"""A warm-up plan that fails makes the service not ready, with the reason, until a plan succeeds.
+
+The warm-up's throw-away plan runs the first stage of every job (the sky map
+read, the problem, the fast scheduler, the checker).  It once failed with a
+mere WARNING while ``/readyz`` was green and every job failed the same way
+(``[scheduler] slew = 1``, now refused at load).  Here the bundled demo map
+the warm-up plans is not FITS (a broken install): the real warm-up, the
+readiness check of the service, the re-warm timer that tries the plan again,
+and the real daemon (through the test gate) whose ``/readyz`` says why it is
+not ready while it still plans the alerts it receives.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import socket
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+from types import SimpleNamespace
+
+from mushrooms.daemon.ops.health import service_checks
+from mushrooms.daemon.planning.warm import SkyCache, warm_up
+from mushrooms.daemon.timers import Timers
+from mushrooms.scheduler_core import PlanningConfig
+
+from daemon_helpers import Daemon, notice_bytes, write_config
+
+CFG = PlanningConfig(nside=64, time_step_s=600.0)
+
+
+def _service(cache: SkyCache, tmp_path: Path) -> SimpleNamespace:
+    return SimpleNamespace(phase="running", sky_cache=cache, paths=SimpleNamespace(state=tmp_path / "s.sqlite"),
+                           config=SimpleNamespace(scheduler=CFG), submit_drain=None)
+
+
+def _break_the_demo_map(monkeypatch, tmp_path: Path) -> None:
+    """The bundled map the warm-up plans is not FITS (a broken install): its plan fails for real."""
+    import mushrooms.bundled
+
+    broken = tmp_path / "broken-demo-map.fits"
+    broken.write_bytes(b"this is not a FITS file\n" * 200)
+    monkeypatch.setattr(mushrooms.bundled, "demo_skymap_path", lambda: str(broken))
+
+
+def test_a_failing_warm_up_plan_is_an_error_and_the_service_is_not_ready_until_a_plan_succeeds(
+        tmp_path, caplog, monkeypatch):
+    caplog.set_level(logging.INFO, logger="mushrooms.daemon")
+    _break_the_demo_map(monkeypatch, tmp_path)
+    cache = SkyCache()
+    warm_up(cache, CFG)
+    errors = [r for r in caplog.records if r.getMessage().startswith("event=warm_up_plan_failed")]
+    assert [r.levelno for r in errors] == [logging.ERROR], [r.getMessage() for r in caplog.records]
+    assert cache.plan_failure is not None and "broken-demo-map.fits" in cache.plan_failure
+
+    service = _service(cache, tmp_path)
+    ok, detail = service_checks(service)["warm_up"]()
+    assert ok is False
+    assert "warm-up plan failed" in detail and "broken-demo-map.fits" in detail, detail
+
+    # the re-warm timer tries the plan again: still failing, still not ready
+    Timers(service).rewarm()
+    assert service_checks(service)["warm_up"]()[0] is False
+    # once the plan succeeds (here: the install repaired), the service is ready
+    caplog.clear()
+    monkeypatch.undo()
+    Timers(service).rewarm()
+    assert cache.plan_failure is None
+    assert service_checks(service)["warm_up"]() == (True, "done")
+    assert any(r.getMessage().startswith("event=warm_up_plan_recovered") for r in caplog.records)
+
+
+def test_a_warm_up_plan_that_succeeds_leaves_the_service_ready(tmp_path):
+    cache = SkyCache()
+    warm_up(cache, CFG)
+    assert cache.plan_failure is None
+    assert service_checks(_service(cache, tmp_path))["warm_up"]() == (True, "done")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _readyz(port: int) -> tuple[int, dict]:
+    try:
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/readyz", timeout=10) as r:
+            return r.status, json.loads(r.read())
+    except urllib.error.HTTPError as e:
+        return e.code, json.loads(e.read())
+
+
+def test_the_daemon_whose_warm_up_plan_fails_is_not_ready_says_why_and_still_plans(broker, daemons, tmp_path):
+    # not refused at start: the failure may concern the warm-up's own map only (here: a broken
+    # install's demo map), and a running service still stores every notice and tries every job
+    topic, out, group = broker.fresh_topics()
+    port = _free_port()
+    cfg = write_config(tmp_path / "config.toml", topic, out, group)
+    cfg.write_text(cfg.read_text().replace("[daemon]\n", f'[daemon]\nmetrics_address = "127.0.0.1:{port}"\n'))
+    gate = tmp_path / "gate"
+    gate.mkdir()
+    (gate / "fail-warm").touch()
+    d = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", broker.bootstrap,
+                          "--state", str(tmp_path / "state.sqlite")], gate=gate)
+    daemons.append(d)
+    d.wait_log("event=consuming", 180)
+    text = d.text()
+    assert " ERROR mushrooms.daemon: event=warm_up_plan_failed " in text, text[-3000:]
+    end = time.monotonic() + 60
+    while True:  # partitions and the broker turn green; the warm-up stays red
+        code, body = _readyz(port)
+        if body["failed"] == ["warm_up"] or time.monotonic() > end:
+            break
+        time.sleep(0.2)
+    assert code == 503 and body["failed"] == ["warm_up"], body
+    assert "warm-up plan failed" in body["checks"]["warm_up"]["detail"], body
+
+    reader = broker.reader(out, f"{group}-reader")
+    try:
+        broker.produce(topic, notice_bytes("MS181101ab-preliminary.json", "MS991231w"))
+        reader.wait_for(lambda ms: any(m.get("type") in ("plan", "not_observable") for m in ms), 180, d.alive)
+    finally:
+        reader.close()
+    assert d.stop() == 0
