@@ -110,7 +110,7 @@ def declination_band_grid(width_deg: float, height_deg: float, overlap: float = 
     --------
     >>> ids, ra, dec = declination_band_grid(6.9, 6.9, 0.1)
     >>> len(ids), float(dec.min()), float(dec.max())
-    (1174, -90.0, 90.0)
+    (1138, -90.0, 90.0)
     """
     if not (0 < width_deg <= 60 and 0 < height_deg <= 60 and 0 <= overlap < 0.5):
         raise ValueError("width and height must be in (0, 60] deg and overlap in [0, 0.5)")
