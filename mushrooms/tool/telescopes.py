@@ -124,27 +124,30 @@ def _execution_text(e: Any) -> str:
 
 def describe(d: Any) -> dict[str, Any]:
     """The description as JSON-ready data (the grid as its size and extent, the footprint's polygons in full)."""
-    import dataclasses
-
     out = {"name": d.name, "title": d.title, "source": d.source, "path": d.path, "queue": d.queue,
-           "site": dataclasses.asdict(d.site),
+           "site": _plain(d.site),
            "grid": {"fields": len(d.grid), "origin": d.grid.origin, "dec_min_deg": float(d.grid.dec.min()),
                     "dec_max_deg": float(d.grid.dec.max()), "first_id": int(d.grid.ids[0]), "source": d.grid.source},
            "footprint": {"detectors": len(d.footprint.polygons), "area_deg2": d.footprint.area_deg2,
                          "radius_deg": d.footprint.radius_deg,
                          "polygons": [p.tolist() for p in d.footprint.polygons], "source": d.footprint.source},
-           "filters": {k: dataclasses.asdict(f) for k, f in d.filters.items()}}
+           "filters": _plain(d.filters)}
     for group in ("depth", "overheads", "limits", "planning", "execution"):
-        out[group] = dataclasses.asdict(getattr(d, group))
-    return _finite(out)
+        out[group] = _plain(getattr(d, group))
+    return out
 
 
-def _finite(value: Any) -> Any:
-    """``inf`` as the strings ``"inf"``/``"-inf"`` (JSON has no infinity), recursively."""
+def _plain(value: Any) -> Any:
+    """Dataclasses, mappings and tuples as dicts and lists; ``inf`` as ``"inf"``/``"-inf"`` (JSON has none)."""
+    import dataclasses
+    from collections.abc import Mapping
+
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
     if isinstance(value, float) and value in (float("inf"), float("-inf")):
         return "inf" if value > 0 else "-inf"
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
     return value

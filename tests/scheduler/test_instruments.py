@@ -141,7 +141,7 @@ def test_every_problem_at_once_one_line_each(tmp_path):
     (lambda t: t.replace("ha_max_deg = -17.6", "ha_max_deg = -inf", 1),
      "ztf.toml: [limits.keep_out.0] needs ha_min_deg < ha_max_deg and dec_min_deg < dec_max_deg"),
     (lambda t: t.replace('night_anchor_utc = "2000-01-01T19:47:26.4"', 'night_anchor_utc = "noon"'),
-     "ztf.toml: [site] night_anchor_utc = 'noon': not an ISO time (2000-01-01T19:47:26.4)"),
+     "ztf.toml: [site] night_anchor_utc = 'noon': not an ISO UTC time (2000-01-01T19:47:26.4)"),
 ])
 def test_values_that_contradict_each_other(tmp_path, edit, line):
     assert _load(tmp_path, edit(ZTF_TEXT)).problems == (line,)
@@ -175,6 +175,26 @@ def test_a_huge_description_is_refused_unread(tmp_path):
     path.write_text(ZTF_TEXT + "#" * (1 << 20))
     with pytest.raises(DescriptionError, match="larger than 1048576 bytes"):
         load_description(path)
+
+
+def test_a_grid_or_camera_too_big_is_refused_before_it_is_built(tmp_path):
+    ls4 = (DATA_DIR / "ls4.toml").read_text()
+    err = _load(tmp_path, ls4.replace("width_deg = 4.55", "width_deg = 0.0001"), name="ls4")
+    assert err.problems == ("ls4.toml: [grid] a 0.0001 x 4.55 deg field would need more than 200000 fields",)
+    err = _load(tmp_path, ls4.replace("mosaic_rows = [8, 8, 8, 8]", "mosaic_rows = [" + "100, " * 20 + "]"),
+                name="ls4")
+    assert err.problems == ("ls4.toml: [footprint] mosaic_rows needs detector_width_deg and detector_height_deg, "
+                            "and at most 1000 detectors",)
+
+
+def test_a_loaded_description_cannot_be_changed():
+    d = load_description("ztf")  # shared by every caller of load_description
+    with pytest.raises(TypeError):
+        d.filters["u"] = d.filters["g"]
+    with pytest.raises(TypeError):
+        d.execution.program_ids["Mine"] = 9
+    with pytest.raises(ValueError):
+        d.footprint.polygons[0][0, 0] = 1.0
 
 
 def test_parse_description_alone():

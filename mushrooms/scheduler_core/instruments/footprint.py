@@ -62,7 +62,9 @@ def read_ccd_layout(text: str) -> tuple[np.ndarray, ...]:
     if not rows:
         raise ValueError("no corners")
     table = np.array(rows, float)
-    ccds = np.unique(table[:, 2])
+    ccds, corners = np.unique(table[:, 2], return_counts=True)
+    if corners.min() < 3 or ccds.size > 1000:
+        raise ValueError("every CCD needs 3 or more corners, and at most 1000 CCDs")
     return tuple(table[table[:, 2] == c, :2].copy() for c in ccds)
 
 

@@ -15,9 +15,9 @@ from __future__ import annotations
 import difflib
 import re
 import tomllib
-from datetime import datetime
 from importlib import resources
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any, Callable
 
 import numpy as np
@@ -30,13 +30,16 @@ from .tessellation import declination_band_grid, read_field_list
 from .validate import DescriptionError, read_table, shown
 
 __all__ = ["DATA_DIR", "known_telescopes", "description_path", "load_description", "parse_description",
-           "MAX_DESCRIPTION_BYTES", "MAX_DATA_BYTES"]
+           "MAX_DESCRIPTION_BYTES", "MAX_DATA_BYTES", "MAX_DETECTORS"]
 
 #: The largest description file read (bytes).
 MAX_DESCRIPTION_BYTES = 1 << 20
 #: The largest grid or layout file a description may name (bytes).
 MAX_DATA_BYTES = 64 << 20
+#: The most detectors a footprint may have (DECam: 62).
+MAX_DETECTORS = 1000
 _NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
+_ISO_UTC = re.compile(r"^\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}(\.\d{1,9})?$")
 _FILTER_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,15}$")
 
 
@@ -148,11 +151,9 @@ class _Refused(Exception):
 
 def _site(r: _Reader, v: dict[str, Any]) -> Site:
     anchor = v.get("night_anchor_utc") or local_mean_noon(v["longitude_deg"])
-    try:
-        datetime.fromisoformat(anchor)
-    except ValueError:
-        r.problem("site", f"night_anchor_utc = {shown(anchor)}: not an ISO time (2000-01-01T19:47:26.4)")
-        raise _Refused from None
+    if not _ISO_UTC.match(anchor):
+        r.problem("site", f"night_anchor_utc = {shown(anchor)}: not an ISO UTC time (2000-01-01T19:47:26.4)")
+        raise _Refused
     return Site(float(v["latitude_deg"]), float(v["longitude_deg"]), float(v["height_m"]), anchor, v["source"])
 
 
@@ -206,11 +207,15 @@ def _footprint(r: _Reader, v: dict[str, Any]) -> Footprint:
     elif "polygons" in v:
         polygons = tuple(np.array(p, float) for p in v["polygons"])
     else:
-        if not {"detector_width_deg", "detector_height_deg"} <= set(v):
-            r.problem("footprint", "mosaic_rows needs detector_width_deg and detector_height_deg")
+        if not {"detector_width_deg", "detector_height_deg"} <= set(v) or sum(v["mosaic_rows"]) > MAX_DETECTORS:
+            r.problem("footprint", f"mosaic_rows needs detector_width_deg and detector_height_deg, and at most "
+                      f"{MAX_DETECTORS} detectors")
             raise _Refused
         polygons = mosaic_polygons(v["mosaic_rows"], v["detector_width_deg"], v["detector_height_deg"],
                                    v.get("gap_x_deg", 0.0), v.get("gap_y_deg", 0.0))
+    if len(polygons) > MAX_DETECTORS:
+        r.problem("footprint", f"{len(polygons)} detectors, more than {MAX_DETECTORS}")
+        raise _Refused
     for p in polygons:
         p.setflags(write=False)
     return Footprint(polygons, float(v.get("radius_deg", outer_radius_deg(polygons))), v["source"])
@@ -313,7 +318,8 @@ def _execution(r: _Reader, v: dict[str, Any], queue: str | None) -> Execution:
     if set(v) - {"source"} != set(wanted):
         raise _Refused
     return Execution(queue, _opt(v, "survey_step_s"), _opt(v, "lost_pointing_slew_s"),
-                     _opt(v, "default_max_airmass"), dict(v.get("program_ids", {})), v.get("skyportal_instrument"),
+                     _opt(v, "default_max_airmass"), MappingProxyType(dict(v.get("program_ids", {}))),
+                     v.get("skyportal_instrument"),
                      tuple(v.get("formats", ())), v["source"])
 
 
@@ -353,5 +359,5 @@ def parse_description(text: str, path: Path) -> TelescopeDescription:
             parts[name] = r.read(section[name], keys, name, build)
     if r.problems:
         raise DescriptionError(r.problems)
-    return TelescopeDescription(top["name"], top["title"], top["source"], str(path), site, grid, foot, filters,
-                                **parts)
+    return TelescopeDescription(top["name"], top["title"], top["source"], str(path), site, grid, foot,
+                                MappingProxyType(filters), **parts)

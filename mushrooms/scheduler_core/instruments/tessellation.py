@@ -118,6 +118,8 @@ def declination_band_grid(width_deg: float, height_deg: float, overlap: float = 
     sy = np.radians(height_deg / 2.0)
     cap = np.degrees(np.arcsin(min(np.radians(width_deg), np.radians(height_deg)) / 2.0))  # (A1)
     edge = 90.0 - cap * (1.0 - overlap)
+    if 41253.0 / (width_deg * height_deg * (1.0 - overlap) ** 2) > MAX_FIELDS:  # before any array: a tiny field
+        raise ValueError(f"a {width_deg:g} x {height_deg:g} deg field would need more than {MAX_FIELDS} fields")
     n_bands = int(np.ceil(2.0 * edge / (height_deg * (1.0 - overlap))))
     bounds = np.radians(np.linspace(-edge, edge, n_bands + 1))
     lo, hi = bounds[:-1], bounds[1:]
@@ -126,6 +128,8 @@ def declination_band_grid(width_deg: float, height_deg: float, overlap: float = 
     if np.any(half <= 0):
         raise ValueError("the rectangle is too small for its declination bands")  # pragma: no cover
     counts = np.ceil(np.pi / half - 1e-9).astype(np.int64)
+    if int(counts.sum()) + 2 > MAX_FIELDS:
+        raise ValueError(f"the grid would hold {int(counts.sum()) + 2} fields, more than {MAX_FIELDS}")
     band = np.repeat(np.arange(n_bands), counts)
     step = 360.0 / counts[band]
     j = np.arange(band.size) - np.repeat(np.cumsum(counts) - counts, counts)
@@ -133,8 +137,6 @@ def declination_band_grid(width_deg: float, height_deg: float, overlap: float = 
     dec = np.degrees(centre[band])
     ra = np.concatenate([[0.0], ra, [0.0]])
     dec = np.concatenate([[-90.0], dec, [90.0]])
-    if ra.size > MAX_FIELDS:
-        raise ValueError(f"the grid would hold {ra.size} fields, more than {MAX_FIELDS}")
     return np.arange(first_id, first_id + ra.size, dtype=np.int64), ra, dec
 
 
