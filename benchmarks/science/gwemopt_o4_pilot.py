@@ -41,7 +41,7 @@ ROOT = HERE.parents[1]
 SIMULATED = Path("/work/shared/data/skymaps/simulated")
 #: Default pilot: four BNS and two NSBH maps of the shared O3-like sets.
 DEFAULT_MAPS = ("bns_o3/0.fits", "bns_o3/1.fits", "bns_o3/2.fits", "bns_o3/3.fits",
-                "nsbh_o3/allsky_0to399/0.fits", "nsbh_o3/allsky_0to399/1.fits")
+                "nsbh_o3/allsky_0to399/3.fits", "nsbh_o3/allsky_0to399/4.fits")
 
 
 def truth(simulated: Path) -> dict[str, dict[str, str]]:

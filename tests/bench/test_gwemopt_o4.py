@@ -225,3 +225,38 @@ def test_service_grg_is_the_service_under_g_r_g_at_180_s():
     assert (base, rcfg.filters, rcfg.exposure_s) == ("service", ("g", "r", "g"), 180.0)
     assert objective == PlanningConfig().objective
     assert row_config(settings.config, "service", settings)[1] == settings.config
+
+
+def test_bench_rows_carry_the_pair_rule_the_open_shutter_and_the_commit(monkeypatch):
+    """Our own plan pairs every field inside its window: the pair rule gives back the checker's coverage."""
+    from mushrooms.evaluation.bench.per_map import bench_map
+    from mushrooms.evaluation.bench.settings import BenchSettings
+    from mushrooms.evaluation.commit import code_commit
+
+    monkeypatch.setenv("MUSHROOMS_CODE_COMMIT", "cafe123")
+    code_commit.cache_clear()
+    try:
+        settings = BenchSettings(config=PlanningConfig(solver="greedy", nside=64), solvers=("greedy",),
+                                 n_injections=200)
+        row = bench_map(MAP, settings)[0]
+    finally:
+        code_commit.cache_clear()
+    assert row["commit"] == "cafe123" and row["valid"] is True
+    assert row["coverage_pairs"] == pytest.approx(row["coverage"], abs=2e-3) and row["coverage_pairs"] > 0.1
+    assert row["open_shutter_s"] == pytest.approx(300.0 * row["n_exposures"])
+    assert 0 < row["open_shutter_executed_s"] <= row["open_shutter_s"]
+    assert 0 < row["open_shutter_single_queue_s"] <= row["open_shutter_s"]
+
+
+def test_the_code_commit_is_the_trees_head_unless_a_snapshot_names_it(monkeypatch):
+    from mushrooms.evaluation.commit import code_commit
+
+    root = Path(__file__).resolve().parents[2]
+    monkeypatch.delenv("MUSHROOMS_CODE_COMMIT", raising=False)
+    code_commit.cache_clear()
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
+                              check=True).stdout.strip()
+        assert code_commit().removesuffix("-dirty") == head
+    finally:
+        code_commit.cache_clear()
