@@ -31,6 +31,7 @@ from ..bench.per_map import bench_map
 from ..bench.rows import make_row, num
 from ..bench.run import worker_init
 from ..bench.settings import BenchSettings
+from ..commit import code_commit
 from .localisation import Localisation, MapTask, localise
 from .provenance import digest, future_traceback, software_versions, traceback_summary
 from .store import ResultStore, result_key, study_config
@@ -64,7 +65,9 @@ def plan_and_score(skymap: str | Mapping[str, Any], solver: str, settings: Bench
         ``traceback`` (a failure: a raised exception, or a row the bench
         could not score), ``versions``, ``task_s`` (wall time, s) and
         ``cpu_s`` (CPU time of this process and of the tools it waited for,
-        gwemopt's interpreter included, s).
+        gwemopt's interpreter included, s) and ``commit`` (the code that
+        planned the row, :func:`~mushrooms.evaluation.commit.code_commit`; also
+        in the row).
     """
     worker_init()
     path = skymap["path"] if isinstance(skymap, Mapping) else str(skymap)
@@ -72,14 +75,15 @@ def plan_and_score(skymap: str | Mapping[str, Any], solver: str, settings: Bench
     try:
         row = bench_map(path, dataclasses.replace(settings, solvers=(solver,)), raise_errors=True)[0]
     except Exception as exc:  # recorded; the study goes on
-        row = make_row(path, solver, status=f"error: {type(exc).__name__}: {exc}"[:300], valid=False)
+        row = make_row(path, solver, status=f"error: {type(exc).__name__}: {exc}"[:300], valid=False,
+                       commit=code_commit())
         return dict(row=row, ok=False, error=f"{type(exc).__name__}: {exc}"[:500],
                     traceback=traceback_summary(exc), versions=software_versions(),
-                    task_s=round(time.perf_counter() - t0, 3), cpu_s=round(_cpu_s() - c0, 3))
+                    task_s=round(time.perf_counter() - t0, 3), cpu_s=round(_cpu_s() - c0, 3), commit=code_commit())
     ok = scored(row)
     return dict(row=row, ok=ok, error=None if ok else str(row.get("status")), traceback=None,
                 versions=software_versions(), task_s=round(time.perf_counter() - t0, 3),
-                cpu_s=round(_cpu_s() - c0, 3))
+                cpu_s=round(_cpu_s() - c0, 3), commit=code_commit())
 
 
 def _cpu_s() -> float:
