@@ -202,7 +202,7 @@ def test_parse_description_alone():
     assert d.name == "ztf" and len(d.grid) == 1778
 
 
-# --------------------------------------------------------------------------- built grids (A1-A2)
+# --------------------------------------------------------------------------- built grids (I1-I2)
 def _uniform_sphere(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     return rng.uniform(0.0, 360.0, n), np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, n)))

@@ -9,8 +9,8 @@ plan for the planner to read descriptions: ``docs/design/telescopes.md``.
 Modules: :mod:`.description` (the dataclasses), :mod:`.schema` (every key's
 type, unit and range), :mod:`.validate` (one line per problem),
 :mod:`.loader` (files to dataclasses), :mod:`.tessellation` (field grids,
-A1-A2), :mod:`.footprint` (detector polygons, A3), :mod:`.limits` (mount
-limits, A4).  Pure functions; nothing here is used by the planner yet.
+I1-I2), :mod:`.footprint` (detector polygons, I3), :mod:`.limits` (mount
+limits, I4).  Pure functions; nothing here is used by the planner yet.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ The plane is the one of ZTF's CCD layout table and of the planner's
 footprints (``sky/fields.py``): orthographic offsets from the pointing in
 degrees of direction cosine, ``x = -cos(dec) sin(ra - ra0)`` (growing to
 the west) and ``y = cos(dec0) sin(dec) - sin(dec0) cos(dec) cos(ra - ra0)``
-(to the north).  (A3) a sky position is seen by a pointing when it lies on
+(to the north).  (I3) a sky position is seen by a pointing when it lies on
 the pointing's side of the sky and its offsets fall inside one detector's
 polygon (even-odd rule: any simple polygon, convex or not).
 """
@@ -110,7 +110,7 @@ def outer_radius_deg(polygons: tuple[np.ndarray, ...]) -> float:
 
 
 def inside_polygons(x: ArrayLike, y: ArrayLike, polygons: tuple[np.ndarray, ...]) -> np.ndarray:
-    """(A3) Offsets inside any of the polygons (even-odd rule; broadcasts over ``x``, ``y``)."""
+    """(I3) Offsets inside any of the polygons (even-odd rule; broadcasts over ``x``, ``y``)."""
     x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
     hit = np.zeros(x.shape, bool)
     for poly in polygons:  # one vectorised pass per detector, never per point
@@ -128,6 +128,6 @@ def inside_polygons(x: ArrayLike, y: ArrayLike, polygons: tuple[np.ndarray, ...]
 
 def seen_by_pointing(ra_deg: ArrayLike, dec_deg: ArrayLike, ra0_deg: ArrayLike, dec0_deg: ArrayLike,
                      polygons: tuple[np.ndarray, ...]) -> np.ndarray:
-    """(A3) Sky positions falling on a detector of pointings at (ra0, dec0) (broadcasts)."""
+    """(I3) Sky positions falling on a detector of pointings at (ra0, dec0) (broadcasts)."""
     x, y, near = project(ra_deg, dec_deg, ra0_deg, dec0_deg)
     return near & inside_polygons(x, y, polygons)

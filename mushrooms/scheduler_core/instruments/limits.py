@@ -1,6 +1,6 @@
 """Where a described mount can point: its hour-angle limit and its keep-out boxes.
 
-(A4) a pointing at hour angle ``HA`` (deg, in [-180, 180)) and declination
+(I4) a pointing at hour angle ``HA`` (deg, in [-180, 180)) and declination
 ``Dec`` is reachable when ``|HA| <= 15 ha_max_h`` and it lies in none of the
 open boxes ``ha_min < HA < ha_max, dec_min < Dec < dec_max`` of
 ``[[limits.keep_out]]``.  ZTF's five rules (``sky/constraints.py``,
@@ -21,7 +21,7 @@ __all__ = ["pointing_allowed"]
 
 
 def pointing_allowed(limits: PointingLimits, ha_deg: ArrayLike, dec_deg: ArrayLike) -> np.ndarray:
-    """(A4) The mount can point at (HA, Dec) (broadcasts).
+    """(I4) The mount can point at (HA, Dec) (broadcasts).
 
     Parameters
     ----------

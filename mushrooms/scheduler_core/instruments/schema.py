@@ -106,7 +106,7 @@ GRID: Mapping[str, Key] = {
                      lo_open=True, required=False),
     "height_deg": Key("number", "generated grid: height of the tiling rectangle (north-south)", "deg", 0, 60,
                       lo_open=True, required=False),
-    "overlap": Key("number", "generated grid: least overlap of neighbours, a fraction of the width (A2)", "",
+    "overlap": Key("number", "generated grid: least overlap of neighbours, a fraction of the width (I2)", "",
                    0, 0.5, hi_open=True, required=False),
     "first_id": Key("integer", "generated grid: id of the first field (default 1)", "", 0, 1e9, required=False),
     "source": _source(),

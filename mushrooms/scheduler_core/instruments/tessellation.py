@@ -1,13 +1,13 @@
 """Field grids: read from a list (ZTF's ``ZTF_Fields.txt``, gwemopt's ``.tess``) or built from the field of view.
 
-The built grid (``docs/design/telescopes.md`` §3, A1-A2) tiles the sphere with
+The built grid (``docs/design/telescopes.md`` §3, I1-I2) tiles the sphere with
 a w x h rectangle (deg, in the plane of :mod:`.footprint`):
 
-* (A1) two polar caps, one field centred on each pole, covering
+* (I1) two polar caps, one field centred on each pole, covering
   ``|dec| >= 90 - c`` with ``sin c = (pi / 180) min(w, h) / 2`` (the circle
   inscribed in the rectangle); declination bands of equal height ``H <= h (1 - f)``
   tile ``|dec| <= 90 - c (1 - f)``, overlapping the caps;
-* (A2) band k (centre ``d0``) holds ``n_k = ceil(180 / a_k)`` fields evenly
+* (I2) band k (centre ``d0``) holds ``n_k = ceil(180 / a_k)`` fields evenly
   in RA, every other band shifted by half a step, where ``a_k`` is the
   largest RA offset (deg) at which the band's whole height still lies in
   the rectangle shrunk to ``w (1 - f)`` across: the offsets grow with the
@@ -75,7 +75,7 @@ def read_field_list(text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _band_half_step(d0: np.ndarray, lo: np.ndarray, hi: np.ndarray, sx: float, sy: float) -> np.ndarray:
-    """(A2) Largest RA offset (rad) covering each band [lo, hi] (rad) from fields at d0 (rad)."""
+    """(I2) Largest RA offset (rad) covering each band [lo, hi] (rad) from fields at d0 (rad)."""
     sign = np.where(d0 < 0, -1.0, 1.0)  # mirror the south onto the north
     c0, plo, phi = d0 * sign, np.minimum(lo * sign, hi * sign), np.maximum(lo * sign, hi * sign)
     d_eq = np.where((plo < 0) & (phi > 0), 0.0, np.where(np.abs(plo) < np.abs(phi), plo, phi))
@@ -89,7 +89,7 @@ def _band_half_step(d0: np.ndarray, lo: np.ndarray, hi: np.ndarray, sx: float, s
 
 def declination_band_grid(width_deg: float, height_deg: float, overlap: float = 0.1,
                           first_id: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A field grid covering the whole sphere with a ``width_deg`` x ``height_deg`` rectangle (A1-A2).
+    """A field grid covering the whole sphere with a ``width_deg`` x ``height_deg`` rectangle (I1-I2).
 
     Parameters
     ----------
@@ -116,7 +116,7 @@ def declination_band_grid(width_deg: float, height_deg: float, overlap: float = 
         raise ValueError("width and height must be in (0, 60] deg and overlap in [0, 0.5)")
     sx = np.radians(width_deg * (1.0 - overlap) / 2.0)  # the rectangle's half-sizes, in direction cosines
     sy = np.radians(height_deg / 2.0)
-    cap = np.degrees(np.arcsin(min(np.radians(width_deg), np.radians(height_deg)) / 2.0))  # (A1)
+    cap = np.degrees(np.arcsin(min(np.radians(width_deg), np.radians(height_deg)) / 2.0))  # (I1)
     edge = 90.0 - cap * (1.0 - overlap)
     if 41253.0 / (width_deg * height_deg * (1.0 - overlap) ** 2) > MAX_FIELDS:  # before any array: a tiny field
         raise ValueError(f"a {width_deg:g} x {height_deg:g} deg field would need more than {MAX_FIELDS} fields")
