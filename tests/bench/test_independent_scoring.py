@@ -220,3 +220,31 @@ def test_ztf_sim_depth_against_the_formula_by_hand():
     assert ztf_sim_limiting_mag(np.array(["r"]), np.array([30.0]), np.array([np.inf]), np.array([21.0]))[0] == -np.inf
     assert ztf_sim_limiting_mag(np.array(["r"]), np.array([120.0]), np.array([1.0]), np.array([21.0]))[0] == \
         pytest.approx(21.5815 + 1.25 * math.log10(4), abs=1e-3)  # sky limited: 1.25 log10 t
+
+
+# --------------------------------------------------------------------------- the bench row
+
+
+def test_a_bench_row_scores_two_detections_at_the_injected_truth(data_dir):
+    from mushrooms.evaluation.bench import BenchSettings
+    from mushrooms.evaluation.bench.per_map import bench_map
+    from mushrooms.scheduler_core.config import PlanningConfig
+    from mushrooms.scheduler_core.sky.skymap import read_skymap
+
+    path = data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits"
+    config = PlanningConfig(solver="greedy", nside=64, threads=1)
+    settings = BenchSettings(config=config, solvers=("greedy",), n_injections=200)
+    posterior = bench_map(path, settings)[0]
+    assert 0.0 <= posterior["efficiency_two_detections"] <= posterior["efficiency_one_detection"] <= 1.0
+    assert posterior["efficiency_two_detections_perturbed"] <= posterior["efficiency_two_detections"] + 0.05
+    from mushrooms.scheduler_core.planner import build_plan, optimise
+    from mushrooms.scheduler_core.prepare import prepare_problem
+
+    sm = read_skymap(path, nside=64)
+    problem = prepare_problem(sm, config, Time(sm.event_time, scale="utc"))
+    plan = build_plan(problem, optimise(problem, sm, "greedy"), sm, "greedy")  # the row's plan (greedy: same)
+    first = plan.observations[0]
+    ra, dec = first.ra, first.dec  # a field the plan observes in g and r
+    near = bench_map(path, dataclasses.replace(settings, truth=(float(ra), float(dec), 20.0)))[0]
+    assert near["efficiency_two_detections"] > 0.9  # seen in g and r 30 min apart at 20 Mpc
+    assert near["coverage"] == posterior["coverage"]  # the truth changes the scoring, not the plan

@@ -23,6 +23,9 @@ plan's queue set executed by the telescope model (the configuration's filters an
 cadence for a plan that names none: gwemopt's), with ``coverage_late_<min>``,
 ``coverage_single_queue`` (the old one-list-queue export) and ``n_queues``
 beside it (:func:`~mushrooms.evaluation.queue_sim.execution_cells`).
+``efficiency_two_detections`` and its siblings are the scoring the planner
+does not see (:mod:`.independent`: ZTF's two-detection rule on the executed
+record, a kilonova grid, dust, ztf_sim's depth, perturbed execution).
 """
 
 from __future__ import annotations
@@ -79,7 +82,16 @@ def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any,
         out[f"expected_{key}"] = _expected(plan, skymap, footprints, lc, merger_time)
     out.update(_exposure_cells(plan, footprints, skymap.prob))
     out.update(execution_cells_under(plan, settings.config, footprints, skymap.prob))
+    out.update(_independent(plan, skymap, settings, footprints, merger_time))
     return out, hits
+
+
+def _independent(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, merger_time: Any) -> dict:
+    """The scoring the planner does not see (:mod:`.independent`), on the plan's executed queue set."""
+    from .independent import independent_cells
+
+    return independent_cells(_under_config(plan, settings.config), skymap, footprints, merger_time,
+                             getattr(settings, "truth", None))
 
 
 def _under_config(plan: Any, config: Any) -> Any:
