@@ -130,7 +130,7 @@ def ztf_sim_limiting_mag(bands: np.ndarray, exposure_s: np.ndarray, airmass: np.
 
 
 def exposure_depths(filters: Sequence[str], exposure_s: np.ndarray, ra_deg: np.ndarray, dec_deg: np.ndarray,
-                    mid_times: Time, depth_model: str = "ztf_sim") -> np.ndarray:
+                    mid_times: Time, depth_model: str = "campaign") -> np.ndarray:
     """(m,) limiting magnitude of each exposure under ``depth_model`` (:data:`DEPTH_MODELS`)."""
     from ..scheduler_core.source.depth import limiting_magnitude, sky_brightness, sky_conditions
 

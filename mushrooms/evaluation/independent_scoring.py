@@ -18,9 +18,10 @@ plan with none of them as the planner used them:
    truth (:func:`truth_sources`: the true position and distance, the kilonova
    drawn per source); for a real map, at positions and distances drawn from
    its posterior (:func:`posterior_sources`, the map's 3-D density).
-6. **Depth** (:mod:`.independent_depth`): ``ztf_sim`` (ZTF's scheduler's
-   formula) by default, or ``campaign`` / ``campaign-o4a`` (flat published
-   medians) or ``mushrooms`` (the planner's own, for comparison).
+6. **Depth** (:mod:`.independent_depth`): ``campaign`` (the flat median the
+   ZTF/GROWTH O3 campaign reached, 20.8) by default, ``campaign-o4a`` (20.2),
+   ``ztf_sim`` (ZTF's scheduler's formula) or ``mushrooms`` (the planner's
+   own, for comparison).
 7. **Perturbed execution** (:mod:`.perturbed_execution`): the same scores
    averaged over seeded draws of the overheads alone and of the overheads
    with weather losses.
@@ -137,7 +138,7 @@ def _covered(footprints: Any, field_ids: np.ndarray, ipix: np.ndarray) -> np.nda
 
 
 def record_detections(executed: Sequence[ExecutedExposure], merger_time: Time, sources: Sources, footprints: Any,
-                      fields: Any, depth_model: str = "ztf_sim", early: str = "fireball",
+                      fields: Any, depth_model: str = "campaign", early: str = "fireball",
                       grid: KilonovaGrid | None = None,
                       min_processed_fraction: float = MIN_PROCESSED_FRACTION) -> tuple[np.ndarray, np.ndarray]:
     """Which done exposure detects which source.
@@ -176,7 +177,7 @@ def record_detections(executed: Sequence[ExecutedExposure], merger_time: Time, s
 
 
 def score_record(executed: Sequence[ExecutedExposure], merger_time: Time, sources: Sources, footprints: Any,
-                 fields: Any, depth_model: str = "ztf_sim", early: str = "fireball",
+                 fields: Any, depth_model: str = "campaign", early: str = "fireball",
                  grid: KilonovaGrid | None = None) -> dict[str, float]:
     """``one_detection`` and ``two_detections`` efficiencies (fractions of the sources) of an executed record."""
     seen, t = record_detections(executed, merger_time, sources, footprints, fields, depth_model, early, grid)
@@ -185,7 +186,7 @@ def score_record(executed: Sequence[ExecutedExposure], merger_time: Time, source
 
 
 def independent_scores(plan: Any, merger_time: Time, sources: Sources, footprints: Any, fields: Any = None,
-                       depth_model: str = "ztf_sim", perturbations: int = DEFAULT_PERTURBATIONS, seed: int = 0,
+                       depth_model: str = "campaign", perturbations: int = DEFAULT_PERTURBATIONS, seed: int = 0,
                        early: str = "fireball") -> dict[str, float]:
     """A plan's independent scores: nominal executor, perturbed overheads, perturbed overheads and weather.
 

@@ -92,12 +92,16 @@ def _cpu_s() -> float:
 
 def _with_truth(settings: BenchSettings, m: MapTask) -> BenchSettings:
     """``settings`` with the injected truth of a simulated coincidence (the independent scoring puts its
-    kilonovae there); unchanged for an existing map or an events file without injections."""
+    kilonovae there); unchanged for an existing map, or an events file that is unreadable (its localisation
+    task reports that) or holds no injections."""
     if m.events is None or m.coinc_id is None:
         return settings
     from .population_rows import coinc_injections
 
-    inj = coinc_injections(m.events).get(int(m.coinc_id))
+    try:
+        inj = coinc_injections(m.events).get(int(m.coinc_id))
+    except Exception:  # noqa: BLE001 - a missing or broken events file fails in its own localisation task
+        return settings
     if inj is None:
         return settings
     return dataclasses.replace(settings, truth=(inj["ra_deg"], inj["dec_deg"], inj["distance_mpc"]))
