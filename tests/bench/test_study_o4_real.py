@@ -91,3 +91,23 @@ def test_an_epoch_without_virgo_removes_virgo_and_keeps_the_ligo_detectors_on(tm
     assert any("V1" in d for d in before.values()) and after
     for cid, dets in after.items():
         assert dets == before[cid] - {"V1"}  # Virgo gone, both LIGO detectors kept (duty cycle 1)
+
+
+def test_the_study_scores_a_simulated_coincidence_at_its_injected_truth(tmp_path):
+    from mushrooms.evaluation.bench import BenchSettings
+    from mushrooms.evaluation.study.graph import _with_truth
+    from mushrooms.evaluation.study.localisation import MapTask
+    from mushrooms.evaluation.study.population_rows import coinc_injections
+    from mushrooms.scheduler_core.config import PlanningConfig
+
+    settings = BenchSettings(config=PlanningConfig(solver="greedy", nside=64), solvers=("greedy",))
+    events = str(CHUNKS / "events-0000.xml.gz")
+    truth = coinc_injections(events)
+    cid = sorted(truth)[0]
+    got = _with_truth(settings, MapTask(key="k", name="n", path=str(tmp_path / "m.fits"), events=events, coinc_id=cid))
+    assert got.truth == (truth[cid]["ra_deg"], truth[cid]["dec_deg"], truth[cid]["distance_mpc"])
+    assert 0.0 <= got.truth[0] < 360.0 and -90.0 <= got.truth[1] <= 90.0 and got.truth[2] > 0
+    plain = MapTask(key="k", name="n", path=str(tmp_path / "m.fits"))
+    assert _with_truth(settings, plain).truth is None  # an existing map: its posterior
+    missing = MapTask(key="k", name="n", path="x", events=str(tmp_path / "none.xml.gz"), coinc_id=0)
+    assert _with_truth(settings, missing).truth is None  # its localisation task reports the missing file
