@@ -125,13 +125,16 @@ def table(rows: list[dict], args: argparse.Namespace) -> str:
     head = ("| event | solver | 90 % area deg² | mean dist Mpc | exposures | coverage planned | executed | "
             "1 det. | **2 det.** | 2 det. overheads | 2 det. weather | 2 det. ztf_sim depth | 2 det. planner depth |")
     lines = [head, "|" + "---|" * 13]
-    pct = lambda r, k: f"{100 * r[k]:.2f}" if r.get(k, "") != "" else ("0" if not r["n_exposures"] else "–")  # noqa: E731
+    def pct(r: dict, k: str) -> str:
+        return f"{100 * r[k]:.2f}" if r.get(k, "") != "" else ("0" if not r["n_exposures"] else "–")
+
     for r in rows:
-        lines.append(f"| {r['event']} | {r['solver']} ({r['plan_solver']}) | {r['area90_deg2']} | {r['distmean_mpc']} | "
-                     f"{r['n_exposures']} | {r['coverage']:.3f} | {r['coverage_as_executed']} | "
-                     f"{pct(r, 'efficiency_one_detection')} | **{pct(r, 'efficiency_two_detections')}** | "
-                     f"{pct(r, 'efficiency_two_detections_overheads')} | {pct(r, 'efficiency_two_detections_perturbed')} | "
-                     f"{pct(r, 'efficiency_two_detections_ztf_sim')} | {pct(r, 'efficiency_two_detections_mushrooms')} |")
+        cells = [f"{r['event']}", f"{r['solver']} ({r['plan_solver']})", f"{r['area90_deg2']}", f"{r['distmean_mpc']}",
+                 f"{r['n_exposures']}", f"{r['coverage']:.3f}", f"{r['coverage_as_executed']}",
+                 pct(r, "efficiency_one_detection"), f"**{pct(r, 'efficiency_two_detections')}**",
+                 pct(r, "efficiency_two_detections_overheads"), pct(r, "efficiency_two_detections_perturbed"),
+                 pct(r, "efficiency_two_detections_ztf_sim"), pct(r, "efficiency_two_detections_mushrooms")]
+        lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + (f"\n\nEfficiencies in % of {args.sources} sources per map drawn from its 3-D "
                                f"posterior; depth: the campaigns' flat 20.8 unless named; {args.perturbations} "
                                "seeded perturbation draws of each kind.\n")

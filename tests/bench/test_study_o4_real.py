@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-CHUNKS = Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "science" / "population_o4" / "population" / "chunks"
+CHUNKS = (Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "science" / "population_o4" / "population"
+          / "chunks")
 
 
 def test_the_far_like_threshold_asks_more_of_a_single_detector():
