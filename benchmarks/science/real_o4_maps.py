@@ -73,7 +73,7 @@ def score_map(name: str, args: argparse.Namespace, out_dir: Path) -> list[dict]:
 
     from mushrooms.evaluation.independent_scoring import (independent_scores, posterior_sources, score_record,
                                                           scoring_seed)
-    from mushrooms.evaluation.perturbed_execution import execute_perturbed
+    from mushrooms.evaluation.perturbed_execution import execute_perturbed, submitted_queues
     from mushrooms.scheduler_core.config import PlanningConfig
     from mushrooms.scheduler_core.plan.document import Plan
     from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
@@ -106,7 +106,7 @@ def score_map(name: str, args: argparse.Namespace, out_dir: Path) -> list[dict]:
         scores = independent_scores(plan, merger, sources, footprints, fields, DEPTHS[0], args.perturbations,
                                     seed=scoring_seed(sm.sha256, "perturbations"))
         row.update({k: round(v, 4) for k, v in scores.items()})
-        record = execute_perturbed(plan) if plan.observations else ()
+        record = execute_perturbed(plan, None, submitted_queues(plan)) if plan.observations else ()
         for depth in DEPTHS[1:]:
             s = score_record(record, merger, sources, footprints, fields, depth)
             row[f"efficiency_one_detection_{depth}"] = round(s["one_detection"], 4)

@@ -46,7 +46,7 @@ from ..scheduler_core.executed import MIN_PROCESSED_FRACTION, ExecutedExposure, 
 from .extinction import ebv_sfd, extinction_mag
 from .independent_depth import exposure_depths
 from .kilonova_grid import KilonovaDraws, KilonovaGrid, draw_kilonovae, grid_absolute_mag, load_kilonova_grid
-from .perturbed_execution import draw_perturbation, execute_perturbed
+from .perturbed_execution import draw_perturbation, execute_perturbed, submitted_queues
 from .vetting import VETTING_SEPARATION_S, one_detection, two_detections
 
 __all__ = ["Sources", "posterior_sources", "truth_sources", "record_detections", "score_record",
@@ -228,14 +228,15 @@ def independent_scores(plan: Any, merger_time: Time, sources: Sources, footprint
     def scored(executed: Sequence[ExecutedExposure]) -> dict[str, float]:
         return score_record(executed, merger_time, sources, footprints, fields, depth_model, early, grid)
 
-    nominal = execute_perturbed(plan) if plan.observations else ()
+    queues = submitted_queues(plan)  # the same submitted queue set under every draw
+    nominal = execute_perturbed(plan, None, queues) if plan.observations else ()
     base = scored(nominal)
     out = {"efficiency_one_detection": base["one_detection"], "efficiency_two_detections": base["two_detections"],
            "n_done": float(sum(is_done(e) for e in nominal))}
     for kind, weather in (("overheads", False), ("perturbed", True)):
         if perturbations < 1 or not plan.observations:
             continue
-        runs = [scored(execute_perturbed(plan, draw_perturbation(plan, seed + k, weather=weather)))
+        runs = [scored(execute_perturbed(plan, draw_perturbation(plan, seed + k, weather=weather), queues))
                 for k in range(perturbations)]
         out[f"efficiency_one_detection_{kind}"] = float(np.mean([r["one_detection"] for r in runs]))
         out[f"efficiency_two_detections_{kind}"] = float(np.mean([r["two_detections"] for r in runs]))

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -41,7 +42,7 @@ from ..scheduler_core.telescope.timing import TelescopeTiming
 
 __all__ = ["Perturbation", "SLEW_FACTOR_RANGE", "FILTER_CHANGE_RANGE_S", "NIGHT_LOST_P", "NIGHT_PARTIAL_P",
            "PARTIAL_LOSS_MAX", "NIGHT_GAP_S", "plan_nights_s", "draw_perturbation", "perturbed_timing",
-           "execute_perturbed"]
+           "submitted_queues", "execute_perturbed"]
 
 #: Slew, settle and readout scale factor range.
 SLEW_FACTOR_RANGE = (0.8, 1.2)
@@ -115,10 +116,25 @@ def perturbed_timing(p: Perturbation, base: TelescopeTiming = TelescopeTiming())
     return dataclasses.replace(base.scaled(p.slew_factor), filter_change_s=p.filter_change_s)
 
 
-def execute_perturbed(plan: Plan, p: Perturbation | None = None) -> tuple[ExecutedExposure, ...]:
-    """The executed record of the plan's queue set under ``p`` (None: the nominal executor, the planner's)."""
+def submitted_queues(plan: Plan) -> list[dict[str, Any]]:
+    """The queue set the service submits for the plan (timed, with the closes that survive a slower telescope).
+
+    It depends on the plan only, not on the perturbation: make it once and
+    execute it under every draw (:func:`execute_perturbed`).
+    """
+    from ..scheduler_core.plan.exports import timed_queue_set
+
+    return list(timed_queue_set(plan, robust=True)[0]) if plan.observations else []
+
+
+def execute_perturbed(plan: Plan, p: Perturbation | None = None,
+                      queues: Sequence[dict[str, Any]] | None = None) -> tuple[ExecutedExposure, ...]:
+    """The executed record of the plan's queue set under ``p`` (None: the nominal executor, the planner's).
+
+    ``queues``: the plan's :func:`submitted_queues`, when already made (default: made here).
+    """
     from ..scheduler_core.telescope.coverage import execute_plan_queues
 
     if p is None:
-        return execute_plan_queues(plan)
-    return execute_plan_queues(plan, None, 0.0, perturbed_timing(p), closures_s=p.closures_s)
+        return execute_plan_queues(plan, queues)
+    return execute_plan_queues(plan, queues, 0.0, perturbed_timing(p), closures_s=p.closures_s)

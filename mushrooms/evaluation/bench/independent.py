@@ -60,7 +60,7 @@ def independent_cells(plan: Any, skymap: Any, footprints: Any, merger_time: Any,
     configuration's first, as for ``coverage_as_executed``).
     """
     from ..independent_scoring import independent_scores, scoring_seed, score_record
-    from ..perturbed_execution import execute_perturbed
+    from ..perturbed_execution import execute_perturbed, submitted_queues
 
     keys = ("efficiency_one_detection", "efficiency_two_detections", "efficiency_one_detection_overheads",
             "efficiency_two_detections_overheads", "efficiency_one_detection_perturbed",
@@ -71,7 +71,7 @@ def independent_cells(plan: Any, skymap: Any, footprints: Any, merger_time: Any,
         return dict.fromkeys(keys, "")
     scores = independent_scores(plan, merger_time, sources, footprints, depth_model="campaign",
                                 perturbations=BENCH_PERTURBATIONS, seed=scoring_seed(skymap.sha256, "perturbations"))
-    record = execute_perturbed(plan) if plan.observations else ()
+    record = execute_perturbed(plan, None, submitted_queues(plan)) if plan.observations else ()
     for model in ("ztf_sim", "mushrooms"):
         scores[f"efficiency_two_detections_{model}"] = score_record(record, merger_time, sources, footprints,
                                                                     _fields(), depth_model=model)["two_detections"]
