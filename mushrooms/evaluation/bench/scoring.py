@@ -28,6 +28,9 @@ counted by the pair rule the executed coverage uses (fields with the first two
 filters' exposures the cadence apart, each inside its window:
 :mod:`~mushrooms.evaluation.pair_coverage`), the same rule for every row, and
 ``open_shutter_s`` the plan's summed exposure time.
+``efficiency_two_detections`` and its siblings are the scoring the planner
+does not see (:mod:`.independent`: ZTF's two-detection rule on the executed
+record, a kilonova grid, dust, ztf_sim's depth, perturbed execution).
 """
 
 from __future__ import annotations
@@ -85,6 +88,7 @@ def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any,
     out.update(_exposure_cells(plan, footprints, skymap.prob))
     out.update(execution_cells_under(plan, settings.config, footprints, skymap.prob))
     out.update(pair_cells(plan, settings.config, footprints, skymap.prob))
+    out.update(_independent(plan, skymap, settings, footprints, merger_time))
     return out, hits
 
 
@@ -95,6 +99,14 @@ def pair_cells(plan: Any, config: Any, footprints: Any, prob: np.ndarray) -> dic
 
     return dict(coverage_pairs=fmt(planned_pair_coverage(plan, footprints, prob, config)),
                 open_shutter_s=fmt(open_shutter_s(plan), 1))
+
+
+def _independent(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, merger_time: Any) -> dict:
+    """The scoring the planner does not see (:mod:`.independent`), on the plan's executed queue set."""
+    from .independent import independent_cells
+
+    return independent_cells(_under_config(plan, settings.config), skymap, footprints, merger_time,
+                             getattr(settings, "truth", None))
 
 
 def _under_config(plan: Any, config: Any) -> Any:

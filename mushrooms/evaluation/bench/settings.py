@@ -173,6 +173,9 @@ class BenchSettings:
     supersede_min_gain : float
         The ``service`` row's rule: the optimised plan replaces the fast one
         when better by this much (``[daemon] supersede_min_gain``, 0 to 1).
+    truth : tuple of float or None
+        ``(ra_deg, dec_deg, distance_mpc)`` of a simulated event's injection: the independent scoring
+        (:mod:`~mushrooms.evaluation.independent_scoring`) puts its kilonovae there (None: drawn from the map).
     """
 
     config: Any
@@ -181,6 +184,7 @@ class BenchSettings:
     start_iso: str | None = None
     n_injections: int = 10_000
     supersede_min_gain: float = 0.005
+    truth: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         check_rows(self.solvers)

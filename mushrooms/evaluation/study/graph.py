@@ -94,6 +94,23 @@ def _cpu_s() -> float:
     return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
 
 
+def _with_truth(settings: BenchSettings, m: MapTask) -> BenchSettings:
+    """``settings`` with the injected truth of a simulated coincidence (the independent scoring puts its
+    kilonovae there); unchanged for an existing map, or an events file that is unreadable (its localisation
+    task reports that) or holds no injections."""
+    if m.events is None or m.coinc_id is None:
+        return settings
+    from .population_rows import coinc_injections
+
+    try:
+        inj = coinc_injections(m.events).get(int(m.coinc_id))
+    except Exception:  # noqa: BLE001 - a missing or broken events file fails in its own localisation task
+        return settings
+    if inj is None:
+        return settings
+    return dataclasses.replace(settings, truth=(inj["ra_deg"], inj["dec_deg"], inj["distance_mpc"]))
+
+
 def open_client(workers: int = 2, scheduler: str | None = None, dashboard: bool = False) -> Any:
     """A Dask client: on ``scheduler`` if given, else on a new LocalCluster.
 
@@ -162,12 +179,13 @@ class _Graph:
                                        key=f"localise-{digest([m.key], 12)}", pure=False)
                 self.futures[source] = ("localise", m)
             submitted: dict[str, Any] = {}
+            mine = _with_truth(settings, m)
             for s in todo:
                 k = result_key(m.key, s, self.config_hash)
                 # gwemopt runs once per map: its repaired row waits for the raw row's run (cached) instead of
                 # running gwemopt a second time beside it
                 after = [submitted["gwemopt"]] if s == "gwemopt-repaired" and "gwemopt" in submitted else []
-                fut = client.submit(plan_and_score, source, s, settings, *after, key=f"plan-{digest([k], 16)}",
+                fut = client.submit(plan_and_score, source, s, mine, *after, key=f"plan-{digest([k], 16)}",
                                     pure=False)
                 submitted[s] = fut
                 self.futures[fut] = ("plan", (m, s, k))

@@ -20,6 +20,7 @@ code that planned the row.
 from __future__ import annotations
 
 import csv
+import math
 import os
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
@@ -45,7 +46,8 @@ POPULATION_COLUMNS = (
 
 def coinc_injections(events: str | Path) -> dict[int, Record]:
     """The injection behind each coincidence of an events file: ``{coinc_id: {mass1, mass2, spin1z, spin2z,
-    distance_mpc}}`` (detector-frame masses, Msun), from its ``sim_inspiral <--> coinc_event`` map."""
+    distance_mpc, ra_deg, dec_deg}}`` (detector-frame masses, Msun; the true sky position, deg), from its
+    ``sim_inspiral <--> coinc_event`` map."""
     from igwn_ligolw import lsctables
     from igwn_ligolw import utils as ligolw_utils
     from ligo.skymap.io.events.ligolw import ContentHandler
@@ -65,7 +67,8 @@ def coinc_injections(events: str | Path) -> dict[int, Record]:
     for link, coinc in coinc_of.items():
         s = sims[sim_of[link]]
         out[coinc] = dict(mass1=float(s.mass1), mass2=float(s.mass2), spin1z=float(s.spin1z),
-                          spin2z=float(s.spin2z), distance_mpc=float(s.distance))
+                          spin2z=float(s.spin2z), distance_mpc=float(s.distance),
+                          ra_deg=math.degrees(float(s.longitude)), dec_deg=math.degrees(float(s.latitude)))
     return out
 
 
