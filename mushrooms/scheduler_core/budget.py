@@ -27,7 +27,8 @@ import time
 from contextlib import contextmanager
 from typing import Iterator
 
-__all__ = ["Clock", "WallClock", "WorkClock", "SolveWork", "new_clock", "solve_work", "highs_work", "STEP_COSTS",
+__all__ = ["Clock", "WallClock", "WorkClock", "SolveWork", "new_clock", "solve_work", "wall_stop", "highs_work",
+           "STEP_COSTS",
            "TICKS_PER_S", "WALL_GUARD_FACTOR", "WALL_GUARD_MIN_S", "HIGHS_CHECK_MIN_S",
            "HIGHS_SOLVE_S", "HIGHS_NONZERO_S", "HIGHS_CHECK_S", "WORK_UNIT"]
 
@@ -196,9 +197,20 @@ class SolveWork:
         self.stopped = self.stopped or highs_work(self.nonzeros, self.checks) >= self.limit
         return self.stopped
 
-    def charge(self) -> None:
-        """Charge the clock the solve's work."""
-        self.clock.charge_ticks(highs_work(self.nonzeros, self.checks))
+    def charge(self, gurobi_work: float | None = None) -> None:
+        """Charge the clock the solve's work (A2): HiGHS's checks, or Gurobi's own work units (its ``Work``)."""
+        if gurobi_work is not None:
+            self.clock.charge_ticks(self.clock.ticks_for(gurobi_work))
+        else:
+            self.clock.charge_ticks(highs_work(self.nonzeros, self.checks))
+
+
+def wall_stop(clock: Clock | None) -> str:
+    """(A5) The status of a solve its wall-clock limit stopped, ``time_limit``; on a work clock that was the guard,
+    and the clock remembers it (the plan then depends on the load)."""
+    if isinstance(clock, WorkClock):
+        clock.interrupted = True
+    return "time_limit"
 
 
 def solve_work(clock: Clock | None, nonzeros: int, limit_s: float) -> SolveWork | None:

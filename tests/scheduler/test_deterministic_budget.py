@@ -51,6 +51,15 @@ def test_a_solve_on_the_work_clock_stops_at_its_work_whatever_the_wall_clock_say
     assert any(highs_work(model.A.nnz, k) == first.ticks for k in range(1, 100_000))
 
 
+def test_gurobi_on_the_work_clock_stops_at_its_own_work_limit_and_is_charged_its_work():
+    model = _knapsack(200, seed=5)  # within the pip licence's 2000 variables
+    runs = [(WorkClock(), None), (WorkClock(), None)]
+    runs = [(c, solve_milp(model, "gurobi", 0.2, mip_gap=0.0, clock=c)) for c, _ in runs]
+    (c1, a), (c2, b) = runs
+    assert a.backend == b.backend == "gurobi" and a.status == b.status == "work_limit"
+    assert np.array_equal(a.x, b.x) and c1.ticks == c2.ticks >= 0.2 * TICKS_PER_S
+
+
 def test_a_solve_on_the_wall_clock_keeps_its_time_limit():
     res = solve_milp(_knapsack(200, seed=5), "highs", 0.5, mip_gap=0.0)  # no clock: the wall clock of before
     assert res.status == "time_limit"

@@ -25,7 +25,7 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
-from ..budget import Clock, solve_work
+from ..budget import Clock, solve_work, wall_stop
 from ..problem import StopCheck
 from .rows import Family, RowBlock
 
@@ -235,10 +235,8 @@ def solve_milp(
         beats a plan already found stops once its own relaxation shows it
         cannot.  The incumbent, if any, is returned.
     clock : Clock, optional
-        The budget's (:mod:`..budget`): on a work clock the solve stops at
-        ``time_limit_s`` work seconds counted from HiGHS's limit checks (A2;
-        Gurobi: its ``WorkLimit``), with one thread (A4), and the clock is
-        charged its work; else (None, the wall clock) a time limit.
+        On a work clock (:mod:`..budget`, A2, A4) the limit is work seconds,
+        one thread, and the clock is charged the solve's work.
 
     Returns
     -------
@@ -335,7 +333,7 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
         if bound is None and objective is not None:
             bound = objective
     elif ms == MS.kTimeLimit:
-        status = _wall_stop(clock)
+        status = wall_stop(clock)
     elif work is not None and work.stopped:
         status = "work_limit"
     elif ms == MS.kInterrupt or interrupted[0]:
@@ -352,13 +350,6 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
         time_to_first_s=progress.first if x is not None else None,
         time_to_gap_s=progress.at_gap, progress=progress.trace,
     )
-
-
-def _wall_stop(clock: Clock | None) -> str:
-    """A solve stopped by its wall-clock limit: ``time_limit``; on a work clock (A5) the guard, and the clock says so."""
-    if clock is not None and clock.kind == "work":
-        clock.interrupted = True
-    return "time_limit"
 
 
 def highs_lp(model: MilpModel, highspy: Any) -> Any:
@@ -511,7 +502,7 @@ def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads
             raise
         runtime = time.perf_counter() - t0
         if work is not None:
-            clock.charge_ticks(clock.ticks_for(m.Work))
+            work.charge(gurobi_work=m.Work)
         st = m.Status
         has_x = m.SolCount > 0
         xv = np.asarray(x.X, float) if has_x else None
@@ -522,7 +513,7 @@ def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads
         elif st == GRB.OPTIMAL:
             status = "optimal"
         elif st == GRB.TIME_LIMIT:
-            status = _wall_stop(clock)
+            status = wall_stop(clock)
         elif st == GRB.WORK_LIMIT:
             status = "work_limit"
         elif st == GRB.INTERRUPTED or interrupted[0]:
