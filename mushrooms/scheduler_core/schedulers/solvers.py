@@ -326,22 +326,9 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
     x = np.asarray(sol.col_value, float) if has_x else None
     objective = float(info.objective_function_value) if has_x else None
     bound = float(info.mip_dual_bound) if math.isfinite(info.mip_dual_bound) else None
-    if cut[0]:
-        status = "cutoff"
-    elif ms == MS.kOptimal:
-        status = "optimal"
-        if bound is None and objective is not None:
-            bound = objective
-    elif ms == MS.kTimeLimit:
-        status = wall_stop(clock)
-    elif work is not None and work.stopped:
-        status = "work_limit"
-    elif ms == MS.kInterrupt or interrupted[0]:
-        status = "interrupted"
-    elif ms in (MS.kInfeasible, MS.kUnboundedOrInfeasible):
-        status = "infeasible"
-    else:
-        status = f"error: {h.modelStatusToString(ms)}"
+    status = _highs_status(h, ms, MS, cut[0], work is not None and work.stopped, interrupted[0], clock)
+    if status == "optimal" and bound is None and objective is not None:
+        bound = objective
     if objective is not None:
         progress.update(objective, bound if bound is not None else math.inf)
     return SolveResult(
@@ -350,6 +337,24 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
         time_to_first_s=progress.first if x is not None else None,
         time_to_gap_s=progress.at_gap, progress=progress.trace,
     )
+
+
+def _highs_status(h: Any, ms: Any, MS: Any, cut: bool, work_stopped: bool, interrupted: bool,
+                  clock: Clock | None) -> str:
+    """The :class:`SolveResult` status of a HiGHS run ending in model status ``ms``."""
+    if cut:
+        return "cutoff"
+    if ms == MS.kOptimal:
+        return "optimal"
+    if ms == MS.kTimeLimit:
+        return wall_stop(clock)
+    if work_stopped:
+        return "work_limit"
+    if ms == MS.kInterrupt or interrupted:
+        return "interrupted"
+    if ms in (MS.kInfeasible, MS.kUnboundedOrInfeasible):
+        return "infeasible"
+    return f"error: {h.modelStatusToString(ms)}"
 
 
 def highs_lp(model: MilpModel, highspy: Any) -> Any:
@@ -508,20 +513,7 @@ def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads
         xv = np.asarray(x.X, float) if has_x else None
         objective = float(m.ObjVal) if has_x else None
         bound = float(m.ObjBound) if has_x or st == GRB.OPTIMAL else None
-        if cut[0]:
-            status = "cutoff"
-        elif st == GRB.OPTIMAL:
-            status = "optimal"
-        elif st == GRB.TIME_LIMIT:
-            status = wall_stop(clock)
-        elif st == GRB.WORK_LIMIT:
-            status = "work_limit"
-        elif st == GRB.INTERRUPTED or interrupted[0]:
-            status = "interrupted"
-        elif st in (GRB.INFEASIBLE, GRB.INF_OR_UNBD):
-            status = "infeasible"
-        else:
-            status = f"error: gurobi status {st}"
+        status = _gurobi_status(GRB, st, cut[0], interrupted[0], clock)
         if objective is not None:
             progress.update(objective, bound if bound is not None else math.inf)
         m.dispose()
@@ -533,3 +525,20 @@ def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads
         time_to_first_s=progress.first if xv is not None else None,
         time_to_gap_s=progress.at_gap, progress=progress.trace,
     )
+
+
+def _gurobi_status(GRB: Any, st: int, cut: bool, interrupted: bool, clock: Clock | None) -> str:
+    """The :class:`SolveResult` status of a Gurobi run ending in status ``st``."""
+    if cut:
+        return "cutoff"
+    if st == GRB.OPTIMAL:
+        return "optimal"
+    if st == GRB.TIME_LIMIT:
+        return wall_stop(clock)
+    if st == GRB.WORK_LIMIT:
+        return "work_limit"
+    if st == GRB.INTERRUPTED or interrupted:
+        return "interrupted"
+    if st in (GRB.INFEASIBLE, GRB.INF_OR_UNBD):
+        return "infeasible"
+    return f"error: gurobi status {st}"
