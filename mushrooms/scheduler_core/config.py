@@ -197,9 +197,9 @@ class PlanningConfig:
     mip_gap : float
         Relative optimality gap at which the solver may stop.
     threads : int
-        Solver threads (0 lets the solver decide).  HiGHS sizes one thread
-        pool per process at its first solve: keep this the same for every
-        solve of a process.
+        Solver threads (0 lets the solver decide; ``deterministic`` solves on
+        one).  HiGHS sizes one thread pool per process at its first solve:
+        keep this the same for every solve of a process.
     max_retries : int
         Re-solves with a larger block gap when real slews push a field out
         of its window.
