@@ -14,7 +14,7 @@ clock (``docs/design/milp.md`` section 7, A1-A5):
   step by a fixed nominal cost.  A stage's budget is then a count of work, and
   a plan depends only on its inputs and the configuration.  The rates below
   make a work second about a second of this machine's time, quiet
-  (``benchmarks/results/deterministic_budget/``): ``time_limit_s`` keeps its
+  (``benchmarks/results/quality/deterministic_budget/``): ``time_limit_s`` keeps its
   meaning there, on a loaded machine the same work takes longer.
 
 Work is counted in integer ticks (microseconds of nominal time): a stage's
@@ -42,7 +42,7 @@ WORK_UNIT = "work_s"
 #: and its search: HiGHS checks its limits (the interrupt callback, with one thread) at every node and every round
 #: of the root's cuts and heuristics, each check's work again in proportion to the model's size (at least
 #: ``HIGHS_CHECK_MIN_S``).  Fitted to the CPU seconds of 350 solves of the default plan on ten shared maps (slot
-#: and detection grids, LNS slices, interval bound; ``benchmarks/deterministic_budget_calibrate.py``): the sum
+#: and detection grids, LNS slices, interval bound; ``benchmarks/speed/deterministic_budget_calibrate.py``): the sum
 #: within 1 %, a map's solves within a factor 0.25-2.
 HIGHS_SOLVE_S = 0.005
 HIGHS_NONZERO_S = 1.15e-5
@@ -50,7 +50,7 @@ HIGHS_CHECK_S = 4.5e-7
 HIGHS_CHECK_MIN_S = 0.001
 
 #: (A3) Nominal work seconds of the Python steps the stages' budgets see: ``(per call, per item)``, the item named
-#: in the comment.  Least squares of their CPU seconds on ten shared maps (``benchmarks/deterministic_budget_calibrate.py``).
+#: in the comment.  Least squares of their CPU seconds on ten shared maps (``benchmarks/speed/deterministic_budget_calibrate.py``).
 STEP_COSTS: dict[str, tuple[float, float]] = {
     "greedy": (0.005, 0.00013),      # per candidate field
     "execute": (0.004, 0.00104),     # the telescope's executor on a plan's queues: per exposure

@@ -8,7 +8,7 @@ many, the CPU seconds and the work seconds charged (sums, and their ratio), and 
 on (1, items) per Python step and on (1, nnz, nnz x checks) for HiGHS; per map the optimisation's whole CPU time
 against the work spent.
 
-    python benchmarks/deterministic_budget_calibrate.py [MAP ...]   (default: six shared maps)
+    python benchmarks/speed/deterministic_budget_calibrate.py [MAP ...]   (default: six shared maps)
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 #: ../shared/data/skymaps from the checkout (or from a worktree one level deeper)
 SKYMAPS = next((p / "shared" / "data" / "skymaps" for p in ROOT.parents if (p / "shared" / "data").is_dir()),

@@ -7,7 +7,7 @@ machine), the published plan's coverage, expected detections (X1, the configured
 scheduler executes it, the work spent (work arm) and the load.  Summary: wall and CPU medians per arm, and the
 paired differences ``work - wall`` (mean ± s.e., maps better / worse beyond 1e-4).
 
-    python benchmarks/deterministic_vs_wall.py [--out FILE] [MAP ...]     (default: eight shared maps)
+    python benchmarks/quality/deterministic_vs_wall.py [--out FILE] [MAP ...]     (default: eight shared maps)
 
 Resumable (maps already in FILE are skipped); the summary goes to FILE.summary.txt.
 """
@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 #: ../shared/data/skymaps from the checkout (or from a worktree one level deeper)
 SKYMAPS = next((p / "shared" / "data" / "skymaps" for p in ROOT.parents if (p / "shared" / "data").is_dir()),
@@ -32,7 +32,7 @@ DEFAULT_MAPS = ["public/G476954_bayestar.fits.gz", "public/S191216ap_bayestar.mu
                 "public/obs-scenarios_sim6_HKL.multiorder.fits", "public/MS220722v_bayestar.multiorder.fits",
                 "simulated/bns_o3/11.fits", "simulated/bns_o3/18.fits"]
 ARMS = ("work", "wall")
-OUT = ROOT / "benchmarks" / "results" / "deterministic_budget" / "deterministic_vs_wall.jsonl"
+OUT = ROOT / "benchmarks" / "results" / "quality" / "deterministic_budget" / "deterministic_vs_wall.jsonl"
 
 
 def run_map(path: Path, first: int) -> dict:

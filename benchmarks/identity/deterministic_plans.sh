@@ -3,13 +3,13 @@
 # afterwards), with [scheduler] deterministic = true: the sha256 of each plan document without its timing fields
 # (created, metrics.runtime_s, metrics.latency_s; docs/design/plan-format.md) must not change with the load.
 #
-#   benchmarks/deterministic_plans.sh              # the work budget (exit 1 if a document changed)
-#   DETERMINISTIC=false benchmarks/deterministic_plans.sh   # the wall budget, for contrast (reports, exit 0)
+#   benchmarks/identity/deterministic_plans.sh              # the work budget (exit 1 if a document changed)
+#   DETERMINISTIC=false benchmarks/identity/deterministic_plans.sh   # the wall budget, for contrast (reports, exit 0)
 #
 # PYTHON (default python3) must import mushrooms' dependencies; this checkout's mushrooms is used.
 set -euo pipefail
 
-ROOT=$(cd "$(dirname "$0")/.." && pwd)
+ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 PY=${PYTHON:-python3}
 DET=${DETERMINISTIC:-true}
 SHARED=""
