@@ -13,9 +13,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from .config import Config, load_config
+from .config import Config, ConfigError, load_config
 
-__all__ = ["override_config", "effective_config"]
+__all__ = ["override_config", "effective_config", "require_sink_broker"]
 
 
 def override_config(config: Config, *, allow_mock: bool = False, solver: str | None = None,
@@ -71,8 +71,31 @@ def effective_config(args: argparse.Namespace) -> Config:
     Kafka sink when it has no broker of its own); ``--outbox DIR`` selects the
     directory sink; ``--state`` the SQLite file; ``--allow-mock`` accepts
     mock and test events.
+
+    Raises
+    ------
+    ConfigError
+        Also when the result cannot run: a Kafka sink without a broker
+        (:func:`require_sink_broker`).
     """
-    return override_config(load_config(getattr(args, "config", None), getattr(args, "set", None) or ()),
-                           allow_mock=bool(getattr(args, "allow_mock", False)),
-                           bootstrap=getattr(args, "bootstrap", None), outbox=getattr(args, "outbox", None),
-                           state=getattr(args, "state", None))
+    return require_sink_broker(override_config(
+        load_config(getattr(args, "config", None), getattr(args, "set", None) or ()),
+        allow_mock=bool(getattr(args, "allow_mock", False)), bootstrap=getattr(args, "bootstrap", None),
+        outbox=getattr(args, "outbox", None), state=getattr(args, "state", None)))
+
+
+def require_sink_broker(config: Config) -> Config:
+    """``config``, unless its Kafka sink has no broker: then :class:`~.config.ConfigError`, one line.
+
+    ``[outbound] bootstrap`` is filled from a local ``[kafka] bootstrap`` or
+    ``--bootstrap`` (:func:`override_config`); with GCN as input and no
+    broker of its own, the sink cannot be built.  Checked here, on the
+    configuration a command runs (``run``, a SIGHUP's reload, ``trigger``,
+    ``rehearse``, ``preflight``), not on the file alone, since the file may
+    leave the broker to the command line.
+    """
+    if config.outbound.sink == "kafka" and not config.outbound.bootstrap.strip():
+        raise ConfigError(f'{config.source}: [outbound] sink = "kafka" needs [outbound] bootstrap (HOST:PORT of '
+                          'the broker the plans go to); only a local input broker ([kafka] bootstrap or '
+                          '--bootstrap) is taken as it when it is not set')
+    return config
