@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 from .remote import Answer, SkyPortalPlans, Unreachable
 from .rows import OPEN, Submission
 from .rows import SubmissionState as State
-from .rules import name_of, set_of, window_end
+from .rules import kowalski_timed_out, name_of, set_of, window_end
 
 if TYPE_CHECKING:
     from ...scheduler_core.plan.exports import ExportConfig
@@ -119,8 +119,8 @@ class Removal:
             if answer.redirected:
                 self._finish(sub, State.FAILED, answer, reason=f"DELETE {name}: {answer.status}: {answer.problem}")
                 return DONE
-            if not answer.refused:
-                self._retry(sub, answer.status, answer.message())
+            if not answer.refused or kowalski_timed_out(answer):  # 5xx, or no answer from the mountain (K0)
+                self._retry(sub, answer.status, f"DELETE {name}: {answer.status} {answer.message()}")
                 return RETRY
             listed = self._listed(sub, f"DELETE {name} refused ({answer.status})")
             if listed is None:
