@@ -146,10 +146,11 @@ def job_failed(sink: Any, superevent_id: str | None, reason: str) -> None:
 
 
 def submission_trouble(sink: Any, superevent_id: str | None, queue_name: str | None, attempts: int,
-                       error: str) -> None:
-    """Hook: a submission's first attempt failed (it is retried; the failure is said once)."""
+                       error: str, action: str = "submitted") -> None:
+    """Hook: a submission's first failure to be ``submitted`` (a PUT) or ``removed`` (a DELETE): retried, said once."""
     hook = webhook_of(sink)
     if hook is not None:
+        why = f"attempt {attempts}: {error}" if action == "submitted" else error
         hook.post("submission_failing", f"{superevent_id or '-'}: queue {queue_name or '-'} could not be "
-                  f"submitted (attempt {attempts}: {error}); retrying", {"superevent_id": superevent_id,
-                                                                       "queue_name": queue_name})
+                  f"{action} ({why}); retrying", {"superevent_id": superevent_id, "queue_name": queue_name,
+                                                  "action": action})
