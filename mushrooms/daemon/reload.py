@@ -2,7 +2,8 @@
 
 The pipeline is rebuilt on the same store (policy, planning, ``[daemon]``),
 the sink when ``[outbound]`` changed, the consumer when ``[kafka]`` changed,
-the heartbeat's period; the state, trigger and pid paths, ``[loop]`` and
+the heartbeat's period, and the warm-up plan is run again (on the timer
+thread); the state, trigger and pid paths, ``[loop]`` and
 ``[submit]`` change only at the next start (said in the log).  A file that
 cannot be loaded leaves the running configuration in place.
 """
@@ -63,6 +64,9 @@ def reload_service(service: Any) -> None:
     service.config = new
     service.notifier.ready("configuration reloaded")
     log.info("event=config_reloaded source=%s", new.source)
+    # the warm-up plan again, with the new configuration (or a repaired install): readiness follows at once,
+    # not at the next re-warm; on the timer thread, so the main loop goes on consuming meanwhile
+    service.timers.warm_plan_soon()
 
 
 def _new_sink(service: Any, new: Any) -> Any:

@@ -176,6 +176,7 @@ class Service:
         if self.signals.stop.is_set():  # systemd's stop during the warm-up: no job runner, no consumer
             log.info("event=start_abandoned phase=warming startup_s=%.2f", time.monotonic() - self.started)
             return False
+        self.timers.record_warm_plan()  # for `mushrooms status` and systemd's STATUS (no listener needed)
         self.jobs = JobRunner(self._run_job, self.scheduler, self.config.daemon.max_jobs,
                               self.config.daemon.job_deadline_s, on_done=self._job_done, on_failure=self._job_failed)
         log.info("event=service_starting pid=%d config=%s state=%s sink=%s triggers=%s", os.getpid(),

@@ -9,6 +9,7 @@ says what runs when.
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from datetime import datetime, timezone
 from typing import Any
@@ -40,6 +41,8 @@ class Timers:
         self.last_prune = 0.0  # time.monotonic() of the last pruning
         self.executed_loop: Any = None  # [loop]: the executed-observation loop once started
         self.brokers: Any = None  # what the state file says of the brokers (ops.broker_record.BrokerRecord)
+        self.warm_record: Any = None  # what it says of the warm-up plan (ops.warm_record.WarmPlanRecord)
+        self._warm_lock = threading.Lock()  # one warm-up plan at a time (the re-warm, a reload's)
 
     # ------------------------------------------------------------ scheduling
     def add_warm(self, scheduler: BackgroundScheduler) -> None:
@@ -132,9 +135,35 @@ class Timers:
         except Exception:
             log.exception("event=warm_failed")
         if getattr(cache, "plan_failure", None) is not None:  # not ready until a plan succeeds
-            from .planning.warm import warm_plan
+            self.warm_plan()
 
-            warm_plan(cache, self.service.config.scheduler)
+    def warm_plan_soon(self) -> None:
+        """Run the warm-up plan once, now, on the timer thread (a reload: the main loop never waits for it)."""
+        self.service.scheduler.add_job(self.warm_plan, id="warm_plan", replace_existing=True,
+                                       misfire_grace_time=None)
+
+    def warm_plan(self) -> None:
+        """The warm-up's throw-away plan with the running configuration, its outcome recorded (never raises)."""
+        from .planning.warm import warm_plan
+
+        with self._warm_lock:
+            try:
+                warm_plan(self.service.sky_cache, self.service.config.scheduler)
+            except Exception:  # warm_plan keeps its own failures; anything else is said and tried again later
+                log.exception("event=warm_failed")
+                return
+            self.record_warm_plan()
+
+    def record_warm_plan(self) -> None:
+        """Keep the warm-up plan's outcome in the state file, for ``mushrooms status`` (no listener needed)."""
+        from .ops.warm_record import WarmPlanRecord
+
+        store = getattr(getattr(self.service, "pipeline", None), "store", None)
+        if store is None:
+            return
+        if self.warm_record is None or self.warm_record.store is not store:
+            self.warm_record = WarmPlanRecord(store)
+        self.warm_record.update(getattr(self.service.sky_cache, "plan_failure", None))
 
     def prune_raw(self) -> None:
         """Forget raw bytes no longer needed (rejected and planned notices, :meth:`Store.prune_raw`)."""
@@ -159,6 +188,9 @@ class Timers:
         service.broker_states()  # serves the sink's statistics callbacks between publishes
         counts = service.counts
         consuming = "" if getattr(service.consumer, "assigned", True) else "NOT consuming (no partitions), "
+        failure = getattr(getattr(service, "sky_cache", None), "plan_failure", None)
+        if failure is not None:  # not ready: said where systemctl status shows it, not only in the log
+            consuming = f"NOT READY: warm-up plan failed ({failure[:120]}), " + consuming
         status = (f"{consuming}{health.status_text() + ', ' if health else ''}up {up / 3600:.1f} h, "
                   f"{counts['notices']} notices, {counts['jobs']} jobs done, "
                   f"active: {','.join(active) or 'none'}")
