@@ -64,7 +64,7 @@ def override_config(config: Config, *, allow_mock: bool = False, solver: str | N
                                scheduler=scheduler)
 
 
-def effective_config(args: argparse.Namespace) -> Config:
+def effective_config(args: argparse.Namespace, runnable: bool = True) -> Config:
     """Config file (or embedded defaults) with the command-line overrides (:func:`override_config`).
 
     ``--bootstrap`` selects the local plaintext broker for input (and for the
@@ -75,13 +75,15 @@ def effective_config(args: argparse.Namespace) -> Config:
     Raises
     ------
     ConfigError
-        Also when the result cannot run: a Kafka sink without a broker
+        Also, with ``runnable`` (a command that runs the service's sink), when
+        the result cannot run: a Kafka sink without a broker
         (:func:`require_sink_broker`).
     """
-    return require_sink_broker(override_config(
+    config = override_config(
         load_config(getattr(args, "config", None), getattr(args, "set", None) or ()),
         allow_mock=bool(getattr(args, "allow_mock", False)), bootstrap=getattr(args, "bootstrap", None),
-        outbox=getattr(args, "outbox", None), state=getattr(args, "state", None)))
+        outbox=getattr(args, "outbox", None), state=getattr(args, "state", None))
+    return require_sink_broker(config) if runnable else config
 
 
 def require_sink_broker(config: Config) -> Config:
@@ -90,9 +92,9 @@ def require_sink_broker(config: Config) -> Config:
     ``[outbound] bootstrap`` is filled from a local ``[kafka] bootstrap`` or
     ``--bootstrap`` (:func:`override_config`); with GCN as input and no
     broker of its own, the sink cannot be built.  Checked here, on the
-    configuration a command runs (``run``, a SIGHUP's reload, ``trigger``,
-    ``rehearse``, ``preflight``), not on the file alone, since the file may
-    leave the broker to the command line.
+    configuration a command runs (``run``, a SIGHUP's reload, ``rehearse``,
+    ``preflight``; ``trigger`` when no daemon runs and it plans itself), not
+    on the file alone, since the file may leave the broker to the command line.
     """
     if config.outbound.sink == "kafka" and not config.outbound.bootstrap.strip():
         raise ConfigError(f'{config.source}: [outbound] sink = "kafka" needs [outbound] bootstrap (HOST:PORT of '

@@ -137,6 +137,26 @@ def webhook_of(sink: Any) -> Webhook | None:
     return None
 
 
+def close_outbound(sink: Any) -> None:
+    """Close a sink the service no longer publishes to, but not the webhook it tells (a reload keeps that one).
+
+    Goes through the service's wrappers (``inner``: the metrics' ``ObservedSink``; a :class:`NotifyingSink`'s
+    ``sink``), whose ``close`` would reach the webhook, to the sink itself (a Kafka sink: its producer is
+    flushed and closed; a directory sink: its page-drawing thread ends).
+    """
+    for _ in range(8):
+        if isinstance(sink, NotifyingSink):
+            sink = sink.sink
+            break
+        inner = vars(sink).get("inner") if hasattr(sink, "__dict__") else None
+        if inner is None:
+            break
+        sink = inner
+    close = getattr(sink, "close", None)
+    if close is not None:
+        close()
+
+
 def job_failed(sink: Any, superevent_id: str | None, reason: str) -> None:
     """Hook: a planning job failed (nothing was published for it)."""
     hook = webhook_of(sink)
