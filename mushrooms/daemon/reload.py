@@ -17,7 +17,7 @@ from typing import Any
 from .settings import resolve_paths
 from .wiring import make_sink
 
-__all__ = ["reload_service"]
+__all__ = ["reload_service", "close_reloaded_sink"]
 
 log = logging.getLogger("mushrooms.daemon")
 
@@ -64,6 +64,7 @@ def reload_service(service: Any) -> None:
         service.scheduler.reschedule_job("heartbeat", trigger="interval", seconds=new.daemon.heartbeat_s)
     service.config = new
     if sink is not old_sink:  # once it has flushed, off the main loop: no thread nor socket left behind
+        service.sink_replaced = True
         service.scheduler.add_job(_close_replaced, args=[service, old_sink], misfire_grace_time=None)
     service.notifier.ready("configuration reloaded")
     log.info("event=config_reloaded source=%s", new.source)
@@ -86,6 +87,18 @@ def _close_replaced(service: Any, sink: Any) -> None:
     finally:
         if took:
             publishing.release()
+
+
+def close_reloaded_sink(service: Any) -> None:
+    """At the stop: close the sink a reload made (the closer of the start closes only the start's), never raising."""
+    if not getattr(service, "sink_replaced", False):
+        return
+    from .ops.announce import close_outbound
+
+    try:
+        close_outbound(service.pipeline.sink)
+    except Exception:
+        log.exception("event=close_failed what=sink")
 
 
 def _new_sink(service: Any, new: Any) -> Any:

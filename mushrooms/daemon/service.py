@@ -32,16 +32,15 @@ from apscheduler.schedulers.background import BackgroundScheduler
 from .credentials import service_tokens
 from .drain import OutboxDrain
 from .outcomes import log_fields
-from .intake.trigger import (
-    DaemonRunning, PidLock, dispatch, outcome_result, pending_triggers, read_trigger, write_result,
-)
+from .intake.trigger import DaemonRunning, PidLock, dispatch, outcome_result, pending_triggers, read_trigger
+from .intake.trigger import write_result
 from .ops.announce import job_failed, submission_trouble
 from .ops.journal import setup_logging
 from .ops.systemd import Notifier, Readiness
 from .ops.webhook_url import notify_url_usable
 from .ops.watch import broker_states, observe
 from .planning.jobs import JobRunner
-from .reload import reload_service
+from .reload import close_reloaded_sink, reload_service
 from .sections import ServiceConfig
 from .settings import RuntimePaths, resolve_paths
 from .signals import Signals
@@ -176,7 +175,6 @@ class Service:
         if self.signals.stop.is_set():  # systemd's stop during the warm-up: no job runner, no consumer
             log.info("event=start_abandoned phase=warming startup_s=%.2f", time.monotonic() - self.started)
             return False
-        self.timers.record_warm_plan()  # for `mushrooms status` and systemd's STATUS (no listener needed)
         self.jobs = JobRunner(self._run_job, self.scheduler, self.config.daemon.max_jobs,
                               self.config.daemon.job_deadline_s, on_done=self._job_done, on_failure=self._job_failed)
         log.info("event=service_starting pid=%d config=%s state=%s sink=%s triggers=%s", os.getpid(),
@@ -443,6 +441,7 @@ class Service:
         publishing = getattr(store, "publish_lock", None)
         took = publishing.acquire(timeout=self.config.outbound.delivery_timeout_s + 5.0) if publishing else False
         try:
+            close_reloaded_sink(self)  # a reload's sink: the closer of the start knows only the first one
             close()
         finally:
             if took:

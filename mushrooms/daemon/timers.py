@@ -46,7 +46,8 @@ class Timers:
 
     # ------------------------------------------------------------ scheduling
     def add_warm(self, scheduler: BackgroundScheduler) -> None:
-        """Re-warm the coming night's visibility every :data:`WARM_INTERVAL_S`."""
+        """Record the start's warm-up plan; re-warm the coming night's visibility every :data:`WARM_INTERVAL_S`."""
+        self.record_warm_plan()  # after a warm-up not stopped: for `mushrooms status` and systemd's STATUS
         scheduler.add_job(self.rewarm, "interval", seconds=WARM_INTERVAL_S, id="warm",
                           misfire_grace_time=None, coalesce=True)
 
