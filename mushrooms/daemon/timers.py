@@ -159,12 +159,20 @@ class Timers:
         """Keep the warm-up plan's outcome in the state file, for ``mushrooms status`` (no listener needed)."""
         from .ops.warm_record import WarmPlanRecord
 
+        record = self._record("warm_record", WarmPlanRecord)
+        if record is not None:
+            record.update(getattr(self.service.sky_cache, "plan_failure", None))
+
+    def _record(self, name: str, make: Any) -> Any:
+        """The state-file record ``name`` of the pipeline's store (made again for a new store), or None."""
         store = getattr(getattr(self.service, "pipeline", None), "store", None)
         if store is None:
-            return
-        if self.warm_record is None or self.warm_record.store is not store:
-            self.warm_record = WarmPlanRecord(store)
-        self.warm_record.update(getattr(self.service.sky_cache, "plan_failure", None))
+            return None
+        record = getattr(self, name)
+        if record is None or record.store is not store:
+            record = make(store)
+            setattr(self, name, record)
+        return record
 
     def prune_raw(self) -> None:
         """Forget raw bytes no longer needed (rejected and planned notices, :meth:`Store.prune_raw`)."""
@@ -210,14 +218,11 @@ class Timers:
         """Keep the brokers' state in the state file on a change, for ``mushrooms status`` (no listener needed)."""
         from .ops.broker_record import BrokerRecord
 
-        store = getattr(getattr(self.service, "pipeline", None), "store", None)
-        if store is None:
-            return
-        if self.brokers is None or self.brokers.store is not store:
-            self.brokers = BrokerRecord(store)
-        sink = getattr(self.service.pipeline, "sink", None)
-        self.brokers.update({"consumer": getattr(self.service.consumer, "health", None),
-                             "sink": getattr(sink, "health", None)})
+        record = self._record("brokers", BrokerRecord)
+        if record is not None:
+            sink = getattr(self.service.pipeline, "sink", None)
+            record.update({"consumer": getattr(self.service.consumer, "health", None),
+                           "sink": getattr(sink, "health", None)})
 
     def watchdog(self, interval_s: float) -> None:
         """Ping systemd's watchdog only while the main loop turns."""

@@ -18,6 +18,7 @@ import json
 from pathlib import Path
 
 from daemon_helpers import notice_path
+from test_trigger import RecordingConsole
 
 from mushrooms.daemon.intake.trigger import classify
 from mushrooms.daemon.intake.trigger_command import run_trigger
@@ -29,25 +30,8 @@ from mushrooms.tool.overrides import override_config
 LIGHT_CURVE = "# t[days] g r\n0.1 -15.0 -15.0\n1.0 -15.5 -15.5\n3.0 -14.0 -14.0\n"
 
 
-class Console:
-    def __init__(self) -> None:
-        self.said: list[tuple[str, str]] = []
-
-    def result(self, text: str) -> None:
-        self.said.append(("result", text))
-
-    def note(self, text: str) -> None:
-        self.said.append(("note", text))
-
-    def warning(self, text: str) -> None:
-        self.said.append(("warning", text))
-
-    def error(self, text: str) -> None:
-        self.said.append(("error", text))
-
-
 def _trigger(config, paths, notice: Path) -> tuple[int, list[tuple[str, str]]]:
-    console = Console()
+    console = RecordingConsole()
     kind, payload = classify(str(notice))
     return run_trigger(str(notice), kind, payload, config, paths, console=console), console.said
 

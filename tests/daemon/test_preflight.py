@@ -1,7 +1,7 @@
 """``mushrooms preflight``: the real installation checked end to end before an event (issue 52, finding 10).
 
 Against librdkafka's mock cluster on loopback (behind a SASL/OAUTHBEARER login
-and an OIDC token endpoint for the credentials: ``sasl_front.py`` says why),
+and an OIDC token endpoint for the credentials: ``sasl_gate.py`` says why),
 a Kowalski and a SkyPortal stand-in (pytest-httpserver) with good and bad
 tokens, a webhook stand-in, and real files.  One line per check, exit 0 / 1 / 2.
 """
@@ -18,7 +18,7 @@ import pytest
 from werkzeug import Request, Response
 
 from daemon_helpers import REPO
-from sasl_front import SaslFront, TokenEndpoint
+from sasl_gate import SaslGate, TokenEndpoint
 
 from mushrooms.cli import main
 from mushrooms.daemon.credentials import Credentials
@@ -134,8 +134,8 @@ def test_a_missing_topic_and_an_unreachable_broker_fail(broker, loopback, tmp_pa
 
 def test_gcn_credentials_good_and_bad_through_the_oidc_token_and_the_sasl_login(broker, topic, loopback) -> None:
     tokens = TokenEndpoint(loopback, "gcn-client-id", "gcn-S3cret-value")
-    front = SaslFront(broker.bootstrap, tokens)
-    over = {"bootstrap.servers": front.bootstrap, "security.protocol": "sasl_plaintext",
+    gate = SaslGate(broker.bootstrap, tokens)  # takes only the tokens that endpoint issued
+    over = {"bootstrap.servers": gate.bootstrap, "security.protocol": "sasl_plaintext",
             "sasl.oauthbearer.token.endpoint.url": tokens.url}  # only where: gcn-kafka sets the rest, as for GCN
     kafka = KafkaConfig(topics=(topic,))
     from mushrooms.tool.preflight import kafka_check  # (imported here: the module is new in issue 52)
@@ -144,20 +144,20 @@ def test_gcn_credentials_good_and_bad_through_the_oidc_token_and_the_sasl_login(
         status, _, reason = kafka_check(kafka, 15, Credentials("gcn-client-id", "gcn-S3cret-value", "test"), over)
         assert status == "ok", reason
         assert "OIDC token and SASL login accepted" in reason and f"{topic}: 4 partition(s)" in reason
-        assert front.logins and all(front.logins)
+        assert gate.authentications >= 1 and gate.refused == 0 and gate.subjects == {"gcn-client-id"}
         status, _, reason = kafka_check(kafka, 15, Credentials("gcn-client-id", "wrong-secret-77", "test"), over)
         assert status == "FAIL" and "credentials refused by the OIDC token endpoint" in reason, reason
         assert "invalid_client" in reason and "wrong-secret-77" not in reason
         # a token the endpoint never issued (an unsigned one): the broker side refuses the login
-        logins = len(front.logins)
+        refused = gate.refused
         unsigned = {**over, "sasl.oauthbearer.method": "default", "enable.sasl.oauthbearer.unsecure.jwt": True,
                     "sasl.oauthbearer.config": "principal=gcn-client-id"}
         status, _, reason = kafka_check(kafka, 15, Credentials("gcn-client-id", "gcn-S3cret-value", "test"),
                                         unsigned)
         assert status == "FAIL" and "credentials refused by the broker (SASL)" in reason, reason
-        assert len(front.logins) > logins and not any(front.logins[logins:])
+        assert gate.refused > refused
     finally:
-        front.close()
+        gate.close()
 
 
 def test_the_state_file_must_be_a_private_sqlite_file(tmp_path, capsys) -> None:

@@ -28,7 +28,7 @@ from mushrooms.daemon.planning.warm import SkyCache, warm_up
 from mushrooms.daemon.timers import Timers
 from mushrooms.scheduler_core import PlanningConfig
 
-from daemon_helpers import Daemon, notice_bytes, write_config
+from daemon_helpers import Daemon, notice_bytes, notify_listener, write_config
 
 CFG = PlanningConfig(nside=64, time_step_s=600.0)
 
@@ -142,25 +142,6 @@ def _status(tmp_path: Path, state: Path) -> "subprocess.CompletedProcess":
                            str(state)], capture_output=True, text=True, cwd=tmp_path, env=env, timeout=120)
 
 
-def _listen(sock_path: Path) -> tuple[Any, list[bytes]]:
-    """A datagram socket standing in for systemd's notify socket, and what it was sent."""
-    import threading
-
-    notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
-    notify.bind(str(sock_path))
-    seen: list[bytes] = []
-
-    def listen() -> None:
-        while True:
-            try:
-                seen.append(notify.recv(4096))
-            except OSError:
-                return
-
-    threading.Thread(target=listen, daemon=True).start()
-    return notify, seen
-
-
 def _wait(what: str, ok, d: Daemon, timeout_s: float = 120.0) -> None:
     end = time.monotonic() + timeout_s  # a hang guard only
     while not ok():
@@ -177,7 +158,7 @@ def _failing_daemon(broker, daemons, tmp_path: Path, systemd: bool = True
     gate, state = tmp_path / "gate", tmp_path / "state.sqlite"
     gate.mkdir()
     (gate / "fail-warm").touch()
-    notify, seen = _listen(tmp_path / "notify.sock") if systemd else (None, [])
+    notify, seen = notify_listener(tmp_path / "notify.sock") if systemd else (None, [])
     d = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state)], gate=gate,
                env={"NOTIFY_SOCKET": str(tmp_path / "notify.sock")} if systemd else None)
     daemons.append(d)

@@ -14,15 +14,12 @@ it says ``failed``.
 
 from __future__ import annotations
 
-import logging
-import time
 from typing import Any
 
 from ...handlers.text import storable
+from .incident_record import IncidentRecord, iso_utc
 
 __all__ = ["WarmPlanRecord", "KIND"]
-
-log = logging.getLogger("mushrooms.daemon")
 
 #: The incident kind of the warm-up plan's outcome.
 KIND = "warm_up_plan"
@@ -30,7 +27,7 @@ KIND = "warm_up_plan"
 ERROR_CHARS = 300
 
 
-class WarmPlanRecord:
+class WarmPlanRecord(IncidentRecord):
     """Writes the warm-up plan's outcome to the store: the first one given, then each change.
 
     Parameters
@@ -40,19 +37,10 @@ class WarmPlanRecord:
     """
 
     def __init__(self, store: Any) -> None:
-        self.store = store
-        self._written: bool | None = None  # failed, as last written (None: nothing written by this process)
+        super().__init__(store, KIND)
 
     def update(self, failure: str | None) -> None:
         """Record the plan's outcome (``failure``: its error, None when it succeeded) when it changed."""
         failed = failure is not None
-        if self._written is failed:
-            return
-        detail = {"failed": failed, "error": storable(failure, ERROR_CHARS) if failed else None,
-                  "since": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-        try:
-            self.store.record_incident(KIND, detail)
-        except Exception as exc:  # a full disk must not stop the timer; said, written at the next change or start
-            log.error("event=incident_not_stored kind=%s error=%r", KIND, f"{type(exc).__name__}: {exc}")
-            return
-        self._written = failed
+        self.write("plan", failed, {"failed": failed, "error": storable(failure, ERROR_CHARS) if failed else None,
+                                    "since": iso_utc()})
