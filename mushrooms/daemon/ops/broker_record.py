@@ -17,27 +17,18 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 from ...handlers.text import storable
-from .incident_record import IncidentRecord, iso_utc
+from .incident_record import ERROR_CHARS, IncidentRecord, iso_utc
 
 __all__ = ["BrokerRecord", "KIND"]
 
 #: The incident kind of a broker's change of state.
 KIND = "broker"
-#: Characters of the client's last error kept.
-ERROR_CHARS = 300
 
 
 class BrokerRecord(IncidentRecord):
-    """Writes each client's broker state to the store when it changes.
+    """Writes each client's broker state to the store (``BrokerRecord(store)``) when it changes."""
 
-    Parameters
-    ----------
-    store : Store
-        The state store (:meth:`~mushrooms.daemon.state.store.Store.record_incident`).
-    """
-
-    def __init__(self, store: Any) -> None:
-        super().__init__(store, KIND)
+    kind = KIND
 
     def update(self, healths: Mapping[str, Any]) -> None:
         """Write the clients whose state (up or down; unknown is skipped) changed since the last write.

@@ -12,9 +12,11 @@ import logging
 import time
 from typing import Any
 
-__all__ = ["IncidentRecord", "iso_utc"]
+__all__ = ["IncidentRecord", "iso_utc", "ERROR_CHARS"]
 
 log = logging.getLogger("mushrooms.daemon")
+#: Characters of an error kept in a record.
+ERROR_CHARS = 300
 
 
 def iso_utc(unix: float | None = None) -> str:
@@ -23,19 +25,19 @@ def iso_utc(unix: float | None = None) -> str:
 
 
 class IncidentRecord:
-    """Writes each keyed state to the store (an incident of ``kind``) when it changed since this process wrote it.
+    """Writes each keyed state to the store (an incident of :attr:`kind`) when it changed since this process wrote it.
 
     Parameters
     ----------
     store : Store
         The state store (:meth:`~mushrooms.daemon.state.store.Store.record_incident`).
-    kind : str
-        The incident kind (``broker``, ``warm_up_plan``).
     """
 
-    def __init__(self, store: Any, kind: str) -> None:
+    #: The incident kind (a subclass's: ``broker``, ``warm_up_plan``).
+    kind = "incident"
+
+    def __init__(self, store: Any) -> None:
         self.store = store
-        self.kind = kind
         self._written: dict[str, bool] = {}
 
     def write(self, key: str, state: bool, detail: dict[str, Any]) -> None:

@@ -14,30 +14,20 @@ it says ``failed``.
 
 from __future__ import annotations
 
-from typing import Any
-
 from ...handlers.text import storable
-from .incident_record import IncidentRecord, iso_utc
+from .incident_record import ERROR_CHARS, IncidentRecord, iso_utc
 
 __all__ = ["WarmPlanRecord", "KIND"]
 
 #: The incident kind of the warm-up plan's outcome.
 KIND = "warm_up_plan"
-#: Characters of the plan's error kept.
-ERROR_CHARS = 300
 
 
 class WarmPlanRecord(IncidentRecord):
-    """Writes the warm-up plan's outcome to the store: the first one given, then each change.
+    """Writes the warm-up plan's outcome to the store (``WarmPlanRecord(store)``): the first one given, then each
+    change."""
 
-    Parameters
-    ----------
-    store : Store
-        The state store (:meth:`~mushrooms.daemon.state.store.Store.record_incident`).
-    """
-
-    def __init__(self, store: Any) -> None:
-        super().__init__(store, KIND)
+    kind = KIND
 
     def update(self, failure: str | None) -> None:
         """Record the plan's outcome (``failure``: its error, None when it succeeded) when it changed."""
