@@ -3,11 +3,11 @@
 Kowalski forwards a PUT (or DELETE) to the mountain with a 10 s timeout
 (``kowalski/api/handlers/ztf.py``); when that runs out, its ``error_middleware``
 turns the exception into **400** ``"TimeoutError: "`` (docs/design/submission.md
-K0), while the mountain may still apply the request.  The submitter took it for
+Y0), while the mountain may still apply the request.  The submitter took it for
 a refusal: the revision ``rejected`` and never retried, and a queue the
 mountain applied afterwards stayed live, watched by no one.  Now such a queue is
-*maybe live* (K2): the PUT is retried (a repeat that finds it applied gets
-Kowalski's 409 on our own queue, K1), and a revision settled meanwhile watches
+*maybe live* (Y2): the PUT is retried (a repeat that finds it applied gets
+Kowalski's 409 on our own queue, Y1), and a revision settled meanwhile watches
 for it and deletes it when it appears.
 
 Kowalski's contract server on loopback (``contract_servers.py``): its

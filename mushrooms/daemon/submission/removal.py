@@ -123,7 +123,7 @@ class Removal:
             if answer.redirected:
                 self._finish(sub, State.FAILED, answer, reason=f"DELETE {name}: {answer.status}: {answer.problem}")
                 return DONE
-            if not answer.refused or kowalski_timed_out(answer):  # 5xx, or no answer from the mountain (K0)
+            if not answer.refused or kowalski_timed_out(answer):  # 5xx, or no answer from the mountain (Y0)
                 self._retry_removal(sub, answer.status, f"DELETE {name}: {answer.status} {answer.message()}")
                 return RETRY
             listed = self._listed(sub, f"DELETE {name} refused ({answer.status})")

@@ -179,7 +179,7 @@ def listed_as_ours(body: dict[str, Any], listed: dict[str, Any]) -> tuple[bool, 
     return True, len(left)
 
 
-#: Kowalski's ``error_middleware`` text for a timeout of its own request to the mountain (K0): ``TimeoutError: ``
+#: Kowalski's ``error_middleware`` text for a timeout of its own request to the mountain (Y0): ``TimeoutError: ``
 #: (aiohttp's total timeout), or a subclass's name (``ServerTimeoutError: ...``, ``SocketTimeoutError: ...``).
 _KOWALSKI_TIMEOUT = re.compile(r"\w*Timeout\w*: ")
 
@@ -190,8 +190,8 @@ def kowalski_timed_out(answer: Answer) -> bool:
     Kowalski forwards a PUT or DELETE to the mountain with a 10 s timeout
     (``kowalski/api/handlers/ztf.py``); when it runs out, ``error_middleware``
     answers 400 ``"<ExceptionName>: <text>"`` while the mountain may apply
-    the request later (docs/design/submission.md K0).  Such an answer is a
-    request without an answer (retried; a PUT's queue is maybe live, K2).
+    the request later (docs/design/submission.md Y0).  Such an answer is a
+    request without an answer (retried; a PUT's queue is maybe live, Y2).
     """
     return answer.status == 400 and _KOWALSKI_TIMEOUT.match(answer.message()) is not None
 
@@ -240,7 +240,7 @@ def send_queue(client: KowalskiQueue | SkyPortalPlans, body: dict[str, Any], nam
         return Verdict("rejected", answer, f"{answer.status}: {answer.problem}")
     if answer.status == 409 and isinstance(client, KowalskiQueue):
         return _conflict(client, body, name, answer, sent_before)
-    if isinstance(client, KowalskiQueue) and kowalski_timed_out(answer):  # K0: not a refusal; maybe live (K2)
+    if isinstance(client, KowalskiQueue) and kowalski_timed_out(answer):  # Y0: not a refusal; maybe live (Y2)
         return Verdict("retry", answer, f"{answer.status} {answer.message()[:200].strip()} (Kowalski's own timeout to the "
                        "mountain: the queue may still be applied; retried)")
     if answer.refused:
