@@ -140,8 +140,8 @@ class Timers:
 
     def warm_plan_soon(self) -> None:
         """Run the warm-up plan once, now, on the timer thread (a reload: the main loop never waits for it)."""
-        self.service.scheduler.add_job(self.warm_plan, id="warm_plan", replace_existing=True,
-                                       misfire_grace_time=None)
+        self.service.scheduler.add_job(self.warm_plan, misfire_grace_time=None)  # a job of its own each time:
+        # one still running is not a reason to skip this one (the lock runs them one after the other)
 
     def warm_plan(self) -> None:
         """The warm-up's throw-away plan with the running configuration, its outcome recorded (never raises)."""

@@ -201,7 +201,6 @@ class JobPlanner:
     def _first_stage(self, job: Job, should_stop: StopCheck | None) -> "_Work | Outcome":
         from ...scheduler_core import not_observable
         from ...scheduler_core.anytime import FIRST_SOLVER, first_plan
-        from ...scheduler_core.clock import on_merger_clock
         from ...scheduler_core.plan.document import parse_time
 
         def stage(name: str) -> None:
@@ -215,8 +214,7 @@ class JobPlanner:
             took[name] = time.perf_counter() - t0 - sum(took.values())
 
         sched = self.planning
-        skymap, event = self.read_skymap(job, stage)
-        skymap, event = on_merger_clock(skymap, event)  # the kilonova's clock: the notice's merger time
+        skymap, event = self.read_skymap(job, stage)  # on the kilonova's clock: the notice's merger time
         lap("read")
         stage("preparing the problem")
         start = parse_time(job.start)
@@ -277,16 +275,19 @@ class JobPlanner:
         return run
 
     def read_skymap(self, job: Job, stage: Callable[[str], None]) -> tuple[Any, Any]:
-        """The job's sky map, decoded (the notice's GW map when its joint map does not decode).
+        """The job's sky map, decoded (the notice's GW map when its joint map does not decode), and its event,
+        both on the merger clock (:func:`~mushrooms.scheduler_core.clock.on_merger_clock`).
 
         Raises
         ------
         _UnreadableNotice
-            The notice or its map cannot be read (what blames the notice:
-            every other bad input of a job is the configuration's).
+            The notice, its map or its times cannot be read (what blames the
+            notice: every other bad input of a job is the configuration's).
         """
+        from ...scheduler_core.clock import on_merger_clock
+
         try:
-            return self._read_skymap(job, stage)
+            return on_merger_clock(*self._read_skymap(job, stage))  # the kilonova's clock: the notice's merger time
         except (NoticeError, InputError) as exc:  # SkyMapError is an InputError
             raise _UnreadableNotice(str(exc)) from exc
 
