@@ -83,3 +83,37 @@ def test_the_store_refuses_it_too(tmp_path):
         with pytest.raises(StoreError, match=f"{kind}, not a state file"):
             Store(path)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.sqlite", "fifo.sqlite"]
+
+
+@pytest.fixture(params=["link", "not_sqlite", "newer_schema"])
+def unusable_state(request, tmp_path) -> tuple[Path, str]:
+    """A state path the store refuses (a StoreError): a link to a real SQLite file, not SQLite, a newer schema."""
+    import sqlite3
+
+    home = tmp_path / "home"
+    home.mkdir()
+    path = home / "state.sqlite"
+    if request.param == "link":
+        real = home / "real.sqlite"
+        sqlite3.connect(real).execute("CREATE TABLE t (x)").connection.close()
+        path.symlink_to(real)
+        return path, "the state file is a symbolic link; give the real path"
+    if request.param == "not_sqlite":
+        path.write_bytes(bytes(range(256)) * 32)
+        return path, "not a usable SQLite database"
+    conn = sqlite3.connect(path)
+    conn.execute("PRAGMA user_version = 999")
+    conn.close()
+    return path, "schema version 999 is newer than this program's"
+
+
+@pytest.mark.parametrize("command", [["trigger", "MS260605l"], ["trigger", str(NOTICE), "--allow-mock"],
+                                     ["replay", str(NOTICE), "--out", "replay-out"]])
+def test_a_state_file_the_store_refuses_is_one_line_and_exit_2(tmp_path, unusable_state, command):
+    """A StoreError in ``trigger`` or ``replay`` was "internal error: StoreError ... (rerun with --debug)", exit 70."""
+    path, why = unusable_state
+    r = _cli(tmp_path, *command, "--state", str(path))
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"mushrooms {command[0]}: error: {path}: {why}"), r.stderr
+    assert "internal error" not in r.stderr and "Traceback" not in r.stderr

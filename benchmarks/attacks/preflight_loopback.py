@@ -5,7 +5,7 @@
    token and none; then with a topic that does not exist and a broker that does not answer.
 2. The GCN credentials: the mock cluster speaks no SASL, so the kafka check (the function the
    command calls, ``mushrooms.tool.preflight.kafka_check``) is run through
-   ``tests/daemon/sasl_front.py``: an OIDC token endpoint and a SASL/OAUTHBEARER login in front of
+   ``tests/daemon/sasl_gate.py``: an OIDC token endpoint and a SASL/OAUTHBEARER login in front of
    the mock cluster; librdkafka is configured by gcn-kafka as for GCN, only the token endpoint's
    URL and the broker's address point at loopback.  Good secret, bad secret, a token the endpoint
    never issued.
@@ -62,7 +62,7 @@ def preflight(tmp: Path, bootstrap: str, topic: str, url: str, token: str | None
 
 def main() -> int:
     from contract_servers import loopback_server
-    from sasl_front import SaslFront, TokenEndpoint
+    from sasl_gate import SaslGate, TokenEndpoint
 
     from mushrooms.daemon.credentials import Credentials
     from mushrooms.daemon.settings import KafkaConfig
@@ -84,8 +84,8 @@ def main() -> int:
         preflight(tmp, "127.0.0.1:9", "igwn.gwalert", url, TOKEN, timeout="3")
     print("## 2. GCN credentials: OIDC token endpoint + SASL/OAUTHBEARER login in front of the mock cluster\n")
     tokens = TokenEndpoint(server, "gcn-client-id", "gcn-S3cret-value")
-    front = SaslFront(broker.bootstrap, tokens)
-    over = {"bootstrap.servers": front.bootstrap, "security.protocol": "sasl_plaintext",
+    gate = SaslGate(broker.bootstrap, tokens)
+    over = {"bootstrap.servers": gate.bootstrap, "security.protocol": "sasl_plaintext",
             "sasl.oauthbearer.token.endpoint.url": tokens.url}
     kafka = KafkaConfig(topics=("igwn.gwalert",))
     unsigned = {**over, "sasl.oauthbearer.method": "default", "enable.sasl.oauthbearer.unsecure.jwt": True,
@@ -95,8 +95,9 @@ def main() -> int:
         status, name, reason = kafka_check(kafka, 15, Credentials("gcn-client-id", secret, "test"), extra)
         print(f"{what}:\n{status:<4} {name}: {reason}")
         print(f"[secret in the line: {secret in reason}]\n")
-    print(f"token endpoint asked {tokens.asked} time(s); SASL logins at the front: {front.logins}")
-    front.close()
+    print(f"token endpoint asked {tokens.asked} time(s), refused {tokens.refused}; SASL logins at the gate: "
+          f"{gate.authentications} accepted, {gate.refused} refused")
+    gate.close()
     server.stop()
     return 0
 

@@ -1,8 +1,9 @@
 """SIGHUP: read the configuration again and apply what can change while running.
 
 The pipeline is rebuilt on the same store (policy, planning, ``[daemon]``),
-the sink when ``[outbound]`` changed, the consumer when ``[kafka]`` changed,
-the heartbeat's period; the state, trigger and pid paths, ``[loop]`` and
+the sink when ``[outbound]`` changed (the old one closed once it has flushed), the consumer when ``[kafka]`` changed,
+the heartbeat's period, and the warm-up plan is run again (on the timer
+thread); the state, trigger and pid paths, ``[loop]`` and
 ``[submit]`` change only at the next start (said in the log).  A file that
 cannot be loaded leaves the running configuration in place.
 """
@@ -16,7 +17,7 @@ from typing import Any
 from .settings import resolve_paths
 from .wiring import make_sink
 
-__all__ = ["reload_service"]
+__all__ = ["reload_service", "close_reloaded_sink"]
 
 log = logging.getLogger("mushrooms.daemon")
 
@@ -30,9 +31,10 @@ def reload_service(service: Any) -> None:
         The running :class:`~mushrooms.daemon.service.Service`.
     """
     service.notifier.reloading()
+    old_sink = service.pipeline.sink
     try:
         new = service.reload_config() if service.reload_config is not None else service.config
-        sink = service.pipeline.sink if new.outbound == service.config.outbound else _new_sink(service, new)
+        sink = old_sink if new.outbound == service.config.outbound else _new_sink(service, new)
     except Exception as exc:  # a bad file, bad sink settings, a missing password: keep running as before
         log.error("event=reload_failed error=%r (keeping the running configuration)", str(exc))
         service.notifier.ready("reload failed; old configuration kept")
@@ -61,8 +63,42 @@ def reload_service(service: Any) -> None:
     if new.daemon.heartbeat_s != service.config.daemon.heartbeat_s:
         service.scheduler.reschedule_job("heartbeat", trigger="interval", seconds=new.daemon.heartbeat_s)
     service.config = new
+    if sink is not old_sink:  # once it has flushed, off the main loop: no thread nor socket left behind
+        service.sink_replaced = True
+        service.scheduler.add_job(_close_replaced, args=[service, old_sink], misfire_grace_time=None)
     service.notifier.ready("configuration reloaded")
     log.info("event=config_reloaded source=%s", new.source)
+    # the warm-up plan again, with the new configuration (or a repaired install): readiness follows at once,
+    # not at the next re-warm; on the timer thread, so the main loop goes on consuming meanwhile
+    service.timers.warm_plan_soon()
+
+
+def _close_replaced(service: Any, sink: Any) -> None:
+    """Close the sink a reload replaced, once no publish runs on it (the store's publish lock), keeping the webhook."""
+    from .ops.announce import close_outbound
+
+    publishing = getattr(service.pipeline.store, "publish_lock", None)
+    took = publishing.acquire(timeout=service.config.outbound.delivery_timeout_s + 5.0) if publishing else False
+    try:
+        close_outbound(sink)
+        log.info("event=sink_closed reason='replaced by a reload'")
+    except Exception:
+        log.exception("event=close_failed what=replaced_sink")
+    finally:
+        if took:
+            publishing.release()
+
+
+def close_reloaded_sink(service: Any) -> None:
+    """At the stop: close the sink a reload made (the closer of the start closes only the start's), never raising."""
+    if not getattr(service, "sink_replaced", False):
+        return
+    from .ops.announce import close_outbound
+
+    try:
+        close_outbound(service.pipeline.sink)
+    except Exception:
+        log.exception("event=close_failed what=sink")
 
 
 def _new_sink(service: Any, new: Any) -> Any:

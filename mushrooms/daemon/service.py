@@ -32,16 +32,15 @@ from apscheduler.schedulers.background import BackgroundScheduler
 from .credentials import service_tokens
 from .drain import OutboxDrain
 from .outcomes import log_fields
-from .intake.trigger import (
-    DaemonRunning, PidLock, dispatch, outcome_result, pending_triggers, read_trigger, write_result,
-)
+from .intake.trigger import DaemonRunning, PidLock, dispatch, outcome_result, pending_triggers, read_trigger
+from .intake.trigger import write_result
 from .ops.announce import job_failed, submission_trouble
 from .ops.journal import setup_logging
 from .ops.systemd import Notifier, Readiness
 from .ops.webhook_url import notify_url_usable
 from .ops.watch import broker_states, observe
 from .planning.jobs import JobRunner
-from .reload import reload_service
+from .reload import close_reloaded_sink, reload_service
 from .sections import ServiceConfig
 from .settings import RuntimePaths, resolve_paths
 from .signals import Signals
@@ -167,8 +166,8 @@ class Service:
                                 closing=self.closing.is_set)
         if opened is not None:
             self.submitter, self.submit_drain = opened
-            self.submitter.on_trouble = lambda sub, error: submission_trouble(  # [notify]
-                self.pipeline.sink, sub.superevent_id, sub.queue_name, sub.attempts, error)
+            self.submitter.on_trouble = lambda sub, error, action: submission_trouble(  # [notify]
+                self.pipeline.sink, sub.superevent_id, sub.queue_name, sub.attempts, error, action)
             self.submit_drain.kick()  # reconcile what a crash left half done
         self.phase = "warming"
         log.info("event=warm_up_starting solver=%s nside=%d", self.config.scheduler.solver, self.config.scheduler.nside)
@@ -442,6 +441,7 @@ class Service:
         publishing = getattr(store, "publish_lock", None)
         took = publishing.acquire(timeout=self.config.outbound.delivery_timeout_s + 5.0) if publishing else False
         try:
+            close_reloaded_sink(self)  # a reload's sink: the closer of the start knows only the first one
             close()
         finally:
             if took:

@@ -216,7 +216,10 @@ class OutboundConfig:
     topic : str
         Output topic of the Kafka sink.
     bootstrap : str
-        Broker of the Kafka sink (defaults to the input broker).
+        Broker of the Kafka sink; needed with ``sink = "kafka"``.  A local
+        input broker (``[kafka] bootstrap``, ``--bootstrap``) stands in for
+        it when empty; with GCN as input an empty one is refused at load
+        (``mushrooms.tool.overrides.require_sink_broker``).
     retry_initial_s, retry_max_s : float
         Back-off (s) for failed publishes.
     max_message_bytes : int

@@ -9,6 +9,7 @@ says what runs when.
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from datetime import datetime, timezone
 from typing import Any
@@ -40,10 +41,13 @@ class Timers:
         self.last_prune = 0.0  # time.monotonic() of the last pruning
         self.executed_loop: Any = None  # [loop]: the executed-observation loop once started
         self.brokers: Any = None  # what the state file says of the brokers (ops.broker_record.BrokerRecord)
+        self.warm_record: Any = None  # what it says of the warm-up plan (ops.warm_record.WarmPlanRecord)
+        self._warm_lock = threading.Lock()  # one warm-up plan at a time (the re-warm, a reload's)
 
     # ------------------------------------------------------------ scheduling
     def add_warm(self, scheduler: BackgroundScheduler) -> None:
-        """Re-warm the coming night's visibility every :data:`WARM_INTERVAL_S`."""
+        """Record the start's warm-up plan; re-warm the coming night's visibility every :data:`WARM_INTERVAL_S`."""
+        self.record_warm_plan()  # after a warm-up not stopped: for `mushrooms status` and systemd's STATUS
         scheduler.add_job(self.rewarm, "interval", seconds=WARM_INTERVAL_S, id="warm",
                           misfire_grace_time=None, coalesce=True)
 
@@ -132,9 +136,43 @@ class Timers:
         except Exception:
             log.exception("event=warm_failed")
         if getattr(cache, "plan_failure", None) is not None:  # not ready until a plan succeeds
-            from .planning.warm import warm_plan
+            self.warm_plan()
 
-            warm_plan(cache, self.service.config.scheduler)
+    def warm_plan_soon(self) -> None:
+        """Run the warm-up plan once, now, on the timer thread (a reload: the main loop never waits for it)."""
+        self.service.scheduler.add_job(self.warm_plan, misfire_grace_time=None)  # a job of its own each time:
+        # one still running is not a reason to skip this one (the lock runs them one after the other)
+
+    def warm_plan(self) -> None:
+        """The warm-up's throw-away plan with the running configuration, its outcome recorded (never raises)."""
+        from .planning.warm import warm_plan
+
+        with self._warm_lock:
+            try:
+                warm_plan(self.service.sky_cache, self.service.config.scheduler)
+            except Exception:  # warm_plan keeps its own failures; anything else is said and tried again later
+                log.exception("event=warm_failed")
+                return
+            self.record_warm_plan()
+
+    def record_warm_plan(self) -> None:
+        """Keep the warm-up plan's outcome in the state file, for ``mushrooms status`` (no listener needed)."""
+        from .ops.warm_record import WarmPlanRecord
+
+        record = self._record("warm_record", WarmPlanRecord)
+        if record is not None:
+            record.update(getattr(self.service.sky_cache, "plan_failure", None))
+
+    def _record(self, name: str, make: Any) -> Any:
+        """The state-file record ``name`` of the pipeline's store (made again for a new store), or None."""
+        store = getattr(getattr(self.service, "pipeline", None), "store", None)
+        if store is None:
+            return None
+        record = getattr(self, name)
+        if record is None or record.store is not store:
+            record = make(store)
+            setattr(self, name, record)
+        return record
 
     def prune_raw(self) -> None:
         """Forget raw bytes no longer needed (rejected and planned notices, :meth:`Store.prune_raw`)."""
@@ -159,6 +197,9 @@ class Timers:
         service.broker_states()  # serves the sink's statistics callbacks between publishes
         counts = service.counts
         consuming = "" if getattr(service.consumer, "assigned", True) else "NOT consuming (no partitions), "
+        failure = getattr(getattr(service, "sky_cache", None), "plan_failure", None)
+        if failure is not None:  # not ready: said where systemctl status shows it, not only in the log
+            consuming = f"NOT READY: warm-up plan failed ({failure[:120]}), " + consuming
         status = (f"{consuming}{health.status_text() + ', ' if health else ''}up {up / 3600:.1f} h, "
                   f"{counts['notices']} notices, {counts['jobs']} jobs done, "
                   f"active: {','.join(active) or 'none'}")
@@ -177,14 +218,11 @@ class Timers:
         """Keep the brokers' state in the state file on a change, for ``mushrooms status`` (no listener needed)."""
         from .ops.broker_record import BrokerRecord
 
-        store = getattr(getattr(self.service, "pipeline", None), "store", None)
-        if store is None:
-            return
-        if self.brokers is None or self.brokers.store is not store:
-            self.brokers = BrokerRecord(store)
-        sink = getattr(self.service.pipeline, "sink", None)
-        self.brokers.update({"consumer": getattr(self.service.consumer, "health", None),
-                             "sink": getattr(sink, "health", None)})
+        record = self._record("brokers", BrokerRecord)
+        if record is not None:
+            sink = getattr(self.service.pipeline, "sink", None)
+            record.update({"consumer": getattr(self.service.consumer, "health", None),
+                           "sink": getattr(sink, "health", None)})
 
     def watchdog(self, interval_s: float) -> None:
         """Ping systemd's watchdog only while the main loop turns."""

@@ -2,7 +2,8 @@
 
 Bad input (:class:`~mushrooms.scheduler_core.errors.InputError`,
 :class:`~mushrooms.tool.config.ConfigError`,
-:class:`~mushrooms.daemon.credentials.CredentialsError`) is answered by one line on stderr and
+:class:`~mushrooms.daemon.credentials.CredentialsError`, and a state file the store refuses:
+:class:`~mushrooms.daemon.state.file.StoreError`) is answered by one line on stderr and
 exit status 2; an internal fault by one line and status 70 unless
 ``--debug``.
 
@@ -170,6 +171,7 @@ def execute(name: str, args: argparse.Namespace, run: Callable[[argparse.Namespa
     if name in SOLVING_COMMANDS:
         silence_solver_banner()  # HiGHS's banner on stdout, once per process
     from ..daemon.credentials import CredentialsError
+    from ..daemon.state.file import StoreError  # a link, not SQLite, damaged, a newer schema: the state path given
     from ..scheduler_core.errors import InputError
     from .config import ConfigError, resolve_config_path
 
@@ -180,7 +182,7 @@ def execute(name: str, args: argparse.Namespace, run: Callable[[argparse.Namespa
             args.config, args.config_explicit = (str(path) if path else None), bool(given)
             logging.getLogger("mushrooms.config").info("config: %s (%s)", path or "embedded defaults", why)
         return int(run(args) or 0)
-    except (InputError, ConfigError, CredentialsError, MissingExtra) as exc:
+    except (InputError, ConfigError, CredentialsError, StoreError, MissingExtra) as exc:
         print(f"mushrooms {name}: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
     except KeyboardInterrupt:

@@ -13,9 +13,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from .config import Config, load_config
+from .config import Config, ConfigError, load_config
 
-__all__ = ["override_config", "effective_config"]
+__all__ = ["override_config", "effective_config", "require_sink_broker"]
 
 
 def override_config(config: Config, *, allow_mock: bool = False, solver: str | None = None,
@@ -64,15 +64,40 @@ def override_config(config: Config, *, allow_mock: bool = False, solver: str | N
                                scheduler=scheduler)
 
 
-def effective_config(args: argparse.Namespace) -> Config:
+def effective_config(args: argparse.Namespace, runnable: bool = True) -> Config:
     """Config file (or embedded defaults) with the command-line overrides (:func:`override_config`).
 
     ``--bootstrap`` selects the local plaintext broker for input (and for the
     Kafka sink when it has no broker of its own); ``--outbox DIR`` selects the
     directory sink; ``--state`` the SQLite file; ``--allow-mock`` accepts
     mock and test events.
+
+    Raises
+    ------
+    ConfigError
+        Also, with ``runnable`` (a command that runs the service's sink), when
+        the result cannot run: a Kafka sink without a broker
+        (:func:`require_sink_broker`).
     """
-    return override_config(load_config(getattr(args, "config", None), getattr(args, "set", None) or ()),
-                           allow_mock=bool(getattr(args, "allow_mock", False)),
-                           bootstrap=getattr(args, "bootstrap", None), outbox=getattr(args, "outbox", None),
-                           state=getattr(args, "state", None))
+    config = override_config(
+        load_config(getattr(args, "config", None), getattr(args, "set", None) or ()),
+        allow_mock=bool(getattr(args, "allow_mock", False)), bootstrap=getattr(args, "bootstrap", None),
+        outbox=getattr(args, "outbox", None), state=getattr(args, "state", None))
+    return require_sink_broker(config) if runnable else config
+
+
+def require_sink_broker(config: Config) -> Config:
+    """``config``, unless its Kafka sink has no broker: then :class:`~.config.ConfigError`, one line.
+
+    ``[outbound] bootstrap`` is filled from a local ``[kafka] bootstrap`` or
+    ``--bootstrap`` (:func:`override_config`); with GCN as input and no
+    broker of its own, the sink cannot be built.  Checked here, on the
+    configuration a command runs (``run``, a SIGHUP's reload, ``rehearse``,
+    ``preflight``; ``trigger`` when no daemon runs and it plans itself), not
+    on the file alone, since the file may leave the broker to the command line.
+    """
+    if config.outbound.sink == "kafka" and not config.outbound.bootstrap.strip():
+        raise ConfigError(f'{config.source}: [outbound] sink = "kafka" needs [outbound] bootstrap (HOST:PORT of '
+                          'the broker the plans go to); only a local input broker ([kafka] bootstrap or '
+                          '--bootstrap) is taken as it when it is not set')
+    return config

@@ -5,14 +5,18 @@ One line per check, ``ok``, ``FAIL`` or ``skip`` and why (never a secret):
 ``config``       the config file loads and is valid (with ``--set``, ``--state``, ``--outbox``, ``--bootstrap``
                  as ``mushrooms run`` takes them);
 ``credentials``  the GCN client id and secret are found (systemd credentials, else the environment);
-``kafka``        the configured broker answers with those credentials (librdkafka itself: the OIDC token
+``kafka``        the installed Kafka clients keep GCN's token (the service's own check,
+                 :func:`~mushrooms.daemon.kafka.versions.kafka_client_problem`: on GCN a failure before
+                 anything is tried, on a local broker a warning); the configured broker answers with those
+                 credentials (librdkafka itself: the OIDC token
                  fetch and the SASL login of gcn-kafka's settings, as the service's consumer) and lists
                  each ``[kafka] topics`` entry with its partitions (``AdminClient.list_topics``, nothing
                  consumed, no topic created);
 ``submission``   the ``[submit]`` target takes the token: a read-only GET (Kowalski: the queue list, ``GET
                  /api/triggers/ztf``; SkyPortal: the token's user, ``GET /api/internal/profile``, with the
                  permission to manage observation plans);
-``webhook``      the ``[notify]`` URL is found and is an http(s) URL; a test message only with ``--notify-test``;
+``webhook``      the ``[notify]`` URL is found and usable as the service checks it at start
+                 (:mod:`~mushrooms.daemon.ops.webhook_url`); a test message only with ``--notify-test``;
 ``state``        (these three: :mod:`.preflight_paths`) the state file (``[daemon] state_path`` resolved as the service does) is a SQLite file of a
                  schema this program reads, or can be created; not a FIFO, directory or device; writable by
                  this user, not world-readable;
@@ -165,12 +169,16 @@ def kafka_check(kafka: Any, timeout_s: float, credentials: Any = None, extra: di
     import gcn_kafka
 
     from ..daemon.credentials import CredentialsError, load_credentials
+    from ..daemon.kafka import versions
 
     conf: dict[str, Any] = {"client.id": "mushrooms-preflight", "allow.auto.create.topics": False}
     secret = None
+    too_old = versions.kafka_client_problem()  # what the service refuses to start with on GCN (warns on a local one)
     if kafka.bootstrap and credentials is None:
         conf.update({"bootstrap.servers": kafka.bootstrap, "security.protocol": "plaintext"})
         where, login = kafka.bootstrap, {}
+    elif too_old is not None:
+        return "FAIL", "kafka", f"not tried: {too_old}"
     else:
         try:
             creds = credentials or load_credentials()
@@ -208,6 +216,8 @@ def kafka_check(kafka: Any, timeout_s: float, credentials: Any = None, extra: di
     if not group_ok:
         return "FAIL", "kafka", _redact(f"{where}: " + "; ".join(found), secret)
     auth = "" if not login else f" as {login['client_id']} (OIDC token and SASL login accepted)"
+    if too_old is not None:  # a local broker needs no token: as the service, a warning
+        found.append(f"warning (a local broker needs no token): {too_old}")
     return "ok", "kafka", f"{where} answered in {took:.1f} s{auth}" + "".join(f"; {f}" for f in found)
 
 
@@ -332,26 +342,16 @@ def _submission_check(submit: Any, timeout_s: float) -> Result:
 
 
 def _webhook_check(notify: Any, send_test: bool) -> Result:
-    from urllib.parse import urlsplit
-
-    from ..daemon.credentials import CredentialsError, load_notify_url
+    from ..daemon.credentials import CredentialsError
+    from ..daemon.ops.webhook_url import checked_notify_url
 
     if not notify.enabled:
         return "skip", "webhook", '[notify] target = "off": no notifications'
-    try:
-        url, source = load_notify_url()
+    try:  # found, then checked as the service checks it at start (never shown), before any test message
+        url, source, address = checked_notify_url()
     except CredentialsError as exc:
         return "FAIL", "webhook", str(exc)
-    try:
-        parts = urlsplit(url)
-        host = parts.hostname
-        parts.port  # a bad port raises here
-    except ValueError:
-        host, parts = None, None
-    if parts is None or parts.scheme not in ("http", "https") or not host:
-        return "FAIL", "webhook", (f"the URL from {source} ({len(url)} characters, not shown: it is a secret) is "
-                                   "not an http(s) URL with a host")
-    where = f"{notify.target} webhook, {parts.scheme} URL at host {host}, from {source}"
+    where = f"{notify.target} webhook, {address.scheme} URL at host {address.host}, from {source}"
     if not send_test:
         return "ok", "webhook", f"{where}; no message sent (--notify-test sends one)"
     sent, why = _post_test(url, notify)

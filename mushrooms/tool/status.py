@@ -9,7 +9,8 @@ state file records submissions.  Then what needs attention: a failed job, an
 outbox message unpublished for ``--outbox-minutes``, a notice stored
 without a decision, messages the consumer skipped (offset jumps), a plan
 submission pending longer than ``[submit] max_pending_s`` (the plan did
-not reach the telescope).
+not reach the telescope), a broker or a warm-up plan the daemon last
+recorded as failing (every job may then fail the same way).
 
 Without ``--state`` the state file is the config's ``[daemon] state_path``.
 
@@ -109,6 +110,22 @@ def _broker_attention(brokers: dict[str, Any]) -> list[str]:
             if not b["up"]]
 
 
+def _warm_attention(warm: dict[str, Any] | None) -> list[str]:
+    """A line when the daemon last recorded its warm-up plan as failing (not ready: every job may fail so)."""
+    if not warm or not warm["failed"]:
+        return []
+    return [f"the warm-up plan failed since {warm['since']} (recorded by the daemon at {warm['recorded_at']}): "
+            f"{warm['error'] or '-'}: every job may fail the same way and the service is not ready; fix it, "
+            "then reload (SIGHUP) to plan it again"]
+
+
+def _warm_line(warm: dict[str, Any] | None) -> list[str]:
+    if not warm:
+        return []
+    return [f"warm-up plan: {'FAILED' if warm['failed'] else 'ok'} since {warm['since']}"
+            + (f": {warm['error'] or '-'}" if warm["failed"] else "") + f" (recorded {warm['recorded_at']})"]
+
+
 def _broker_lines(brokers: dict[str, Any]) -> list[str]:
     if not brokers:
         return ["input broker: not recorded yet (no daemon of this version has run on this state file)"]
@@ -119,7 +136,8 @@ def _broker_lines(brokers: dict[str, Any]) -> list[str]:
 
 def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_hours: float) -> dict[str, Any]:
     """The status document (what ``--json`` prints)."""
-    from ..daemon.state.views import attention, broker_reachability, incidents, outbox_backlog, recent_events
+    from ..daemon.state.views import (attention, broker_reachability, incidents, outbox_backlog, recent_events,
+                                      warm_up_plan)
 
     now = datetime.now(timezone.utc)
     pending, oldest, error = outbox_backlog(conn, now)
@@ -135,6 +153,7 @@ def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_
                             if i["kind"] != "offset_jump" and isinstance(i["detail"], dict)
                             and i["detail"].get("superevent_id")],
         "brokers": broker_reachability(conn),
+        "warm_up_plan": warm_up_plan(conn),  # the throw-away plan of the warm-up (ops/warm_record.py)
         "attention": attention(conn, now, outbox_minutes * 60.0, window_hours * 3600.0),
     }
 
@@ -168,6 +187,7 @@ def render(doc: dict[str, Any]) -> str:
     out.append(f"outbox: {ob['pending']} pending" + (f", the oldest {ob['oldest_age_s']:.0f} s old"
                                                      if ob["oldest_age_s"] is not None else ""))
     out.extend(_broker_lines(doc.get("brokers") or {}))
+    out.extend(_warm_line(doc.get("warm_up_plan")))
     out.append("")
     if not doc["events"]:
         out.append("no superevent heard of yet")
@@ -223,7 +243,8 @@ def run(args: argparse.Namespace) -> int:
                 print(f"mushrooms status: error: {path}: {problem}", file=sys.stderr)
                 return EXIT_INPUT
             doc = collect(conn, args.limit, args.outbox_minutes, args.window_hours)
-            doc["attention"] += _broker_attention(doc["brokers"]) + _submission_attention(conn, max_pending_s)
+            doc["attention"] += (_broker_attention(doc["brokers"]) + _warm_attention(doc["warm_up_plan"])
+                                 + _submission_attention(conn, max_pending_s))
         finally:
             conn.close()
     except sqlite3.OperationalError as exc:

@@ -67,12 +67,16 @@ def run(args: argparse.Namespace) -> int:
             raise InputError("--closed-until re-plans a planned event; it does not combine with --force")
         kind, payload = "closure", closure_payload(payload.decode(), iso_utc(parse_time(closed_until,
                                                                                           "--closed-until")))
-    config = effective_config(args)
+    config = effective_config(args, runnable=False)  # a running daemon uses its own sink
     paths = resolve_paths(config.daemon)
+    from ..daemon.intake.trigger import daemon_pid
     from ..inputs import state_file_problem
+    from .overrides import require_sink_broker
 
     if (problem := state_file_problem(paths.state)) is not None:  # before anything is created beside it
         raise InputError(problem)
+    if daemon_pid(paths.pid_file) is None:  # planned here, published by this process's own sink
+        require_sink_broker(config)
     from .state_plans import documents_since, last_seq, read_state
 
     before = read_state(paths.state, last_seq, 0)

@@ -35,7 +35,10 @@ request is applied to nothing and answered only after :attr:`release` is set
 or ``hang_s`` passed; ``"drip"``: applied to nothing, answered 200 with a
 body of one byte every 0.1 s for ``hang_s``; ``"late"``: held unanswered until :attr:`land`
 is set, *then applied* (a slow mountain link: Kowalski applies a PUT after the client's
-deadline; :attr:`late_held` is set while one is held, :attr:`landed` once applied); ``None``:
+deadline; :attr:`late_held` is set while one is held, :attr:`landed` once applied);
+``"mountain-timeout"``: answered at once with Kowalski's own 400 ``TimeoutError: `` (its 10 s to the
+mountain ran out: ``error_middleware``'s text for the handler's exception), and applied by the mountain
+only once :attr:`land` is set (:attr:`late_held`, :attr:`landed` as for ``"late"``); ``None``:
 no fault).  :attr:`faults_by_name` maps ``(method, queue name)`` to such a list for the requests
 of that method naming that queue (taken before the method's faults).  :attr:`KowalskiContract.block_after` holds a method
 *after* applying it, until :attr:`release` (a request that reached the
@@ -134,6 +137,22 @@ class _Contract:
         self.landed.set()
         return response
 
+    def _mountain_timeout(self, request: Request, body: Any) -> Response:
+        """Kowalski's 400 ``TimeoutError: `` now; the mountain applies the request once :attr:`land` is set."""
+        method = request.method
+
+        def apply_later() -> None:
+            self.land.wait(self.hang_s)
+            done = self._apply(type("Late", (), {"method": method})(), body)  # type: ignore[arg-type]
+            self._record(request, done.status_code, body, late=True)
+            self.landed.set()
+
+        self.late_held.set()
+        threading.Thread(target=apply_later, daemon=True).start()
+        response = _error("TimeoutError: ")
+        self._record(request, response.status_code, body)
+        return response
+
     def _fault(self, fault: Any) -> Response | None:
         if fault is None:
             return None
@@ -168,6 +187,8 @@ class _Contract:
             fault = self._next_fault(request.method, body)
             if fault == "late":
                 return self._late(request, body)
+            if fault == "mountain-timeout":
+                return self._mountain_timeout(request, body)
             response = self._fault(fault) or self._apply(request, body)
         self._record(request, response.status_code, body)
         if request.method in self.block_after and response.status_code == 200:

@@ -10,8 +10,10 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -326,6 +328,24 @@ class Daemon:
                 raise AssertionError(f"daemon did not stop on {sig}:\n{self.text()[-4000:]}")
         self._fh.close()
         return self.proc.returncode
+
+
+def notify_listener(path: Path) -> tuple[socket.socket, list[bytes]]:
+    """A datagram socket at ``path`` standing in for systemd's notify socket, and what it was sent (filled by a
+    thread until the socket is closed)."""
+    notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    notify.bind(str(path))
+    seen: list[bytes] = []
+
+    def listen() -> None:
+        while True:
+            try:
+                seen.append(notify.recv(4096))
+            except OSError:
+                return
+
+    threading.Thread(target=listen, daemon=True).start()
+    return notify, seen
 
 
 @pytest.fixture

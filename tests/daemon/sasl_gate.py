@@ -1,20 +1,35 @@
-"""A SASL/OAUTHBEARER front door for librdkafka's mock cluster, on loopback (tests only).
+"""GCN's login on loopback, for librdkafka's mock cluster (tests only): an OIDC token endpoint and a SASL/OAUTHBEARER
+front door.
 
-The mock cluster answers no SASL request (its handler table has no SaslHandshake or
-SaslAuthenticate), so a client configured for GCN's OAUTHBEARER cannot talk to it directly.
-:class:`SaslGate` sits in front of it and does what a Kafka broker with OAUTHBEARER and KIP-368
+librdkafka's mock cluster answers no SASL request: its request handlers
+(``src/rdkafka_mock_handlers.c``, the table ``rd_kafka_mock_api_handlers``,
+librdkafka 4c3b017c3) have no SaslHandshake (17) nor SaslAuthenticate (36),
+and a client with ``security.protocol = sasl_plaintext`` stops at "SASL
+Handshake not supported by broker".  GCN checks credentials in two places:
+its OIDC token endpoint (``https://auth.<domain>/oauth2/token``,
+client-credentials grant with the client id and secret as HTTP basic auth)
+issues a token only for good ones, and its brokers take only a valid token
+(SASL/OAUTHBEARER, re-authenticated before the token expires).
+
+:class:`TokenEndpoint` is that endpoint (pytest-httpserver): a JWT of a given
+lifetime for one client id and secret.  :class:`SaslGate` sits in front of the
+mock broker and does what a Kafka broker with OAUTHBEARER and KIP-368
 re-authentication does, no more:
 
 - it offers SaslHandshake (v0-1) and SaslAuthenticate (v0-1) in its ApiVersions answer;
 - it reads the client's ``auth=Bearer <JWT>`` and refuses a token that is malformed, has no
-  ``sub`` or has expired with ``{"status":"invalid_token"}`` (error 58, as GCN's brokers say);
+  ``sub``, has expired, or (given a :class:`TokenEndpoint`) was not issued by it, with
+  ``{"status":"invalid_token"}`` (error 58, as GCN's brokers say);
 - it grants a session as long as the token's remaining lifetime (``session_lifetime_ms``) and
   closes a connection whose session has run out without re-authentication at its next request;
 - every other request is relayed to the mock broker, with the broker address in Metadata and
   FindCoordinator answers replaced by its own (so that the client never goes round it).
 
 Counters (``authentications``, ``reauthentications``, ``refused``, ``expired``) say what happened.
-The protocol is written here from the Kafka protocol guide; one mock broker only.
+The client under test is librdkafka itself, configured by gcn-kafka as for GCN
+(``sasl.oauthbearer.method = oidc``), with only the token endpoint's URL, the bootstrap address
+and ``sasl_plaintext`` laid over.  The protocol is written here from the Kafka protocol guide;
+one mock broker only.
 """
 
 from __future__ import annotations
@@ -28,7 +43,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["SaslGate", "unsecured_jwt"]
+__all__ = ["SaslGate", "TokenEndpoint", "unsecured_jwt"]
 
 API_METADATA, API_FIND_COORDINATOR, API_SASL_HANDSHAKE, API_API_VERSIONS, API_SASL_AUTHENTICATE = 3, 10, 17, 18, 36
 SASL_AUTHENTICATION_FAILED = 58
@@ -44,16 +59,59 @@ def unsecured_jwt(subject: str, lifetime_s: float, now: float | None = None) -> 
     return f"{b64({'alg': 'none', 'typ': 'JWT'})}.{b64({'sub': subject, 'exp': int(now + lifetime_s)})}.c2ln"
 
 
-def _token_expiry(auth: bytes) -> tuple[float | None, str]:
-    """(exp, subject) of the client-first message ``n,,\\x01auth=Bearer T\\x01\\x01``; exp None if unreadable."""
+def _token_expiry(auth: bytes) -> tuple[float | None, str, str]:
+    """(exp, subject, token) of the client-first message ``n,,\\x01auth=Bearer T\\x01\\x01``; exp None if unreadable."""
+    token = ""
     try:
         fields = dict(kv.split("=", 1) for kv in auth.decode().split("\x01")[1:] if "=" in kv)
-        token = fields["auth"].split(" ", 1)[1]
+        token = fields["auth"].split(" ", 1)[1].strip()
         payload = token.split(".")[1]
         claims = json.loads(base64.urlsafe_b64decode(payload + "=" * (-len(payload) % 4)))
-        return float(claims["exp"]), str(claims["sub"])
+        return float(claims["exp"]), str(claims["sub"]), token
     except (KeyError, IndexError, ValueError, TypeError):
-        return None, ""
+        return None, "", token
+
+
+class TokenEndpoint:
+    """An OIDC client-credentials token endpoint on a pytest-httpserver: a JWT for one client id and secret.
+
+    Parameters
+    ----------
+    server : pytest_httpserver.HTTPServer
+        Serves ``POST /oauth2/token`` (:attr:`url`).
+    client_id, client_secret : str
+        The one pair it takes (HTTP basic auth, ``grant_type=client_credentials``); anything else is
+        refused with 400 ``{"error":"invalid_client"}``.
+    lifetime_s : float
+        Lifetime (s) of the tokens it issues (:func:`unsecured_jwt`).
+
+    Attributes
+    ----------
+    issued : set of str
+        The tokens it issued (a :class:`SaslGate` given this endpoint takes only these).
+    asked, refused : int
+        Requests, and requests refused.
+    """
+
+    def __init__(self, server: Any, client_id: str, client_secret: str, lifetime_s: float = 3600.0) -> None:
+        self.client_id, self.client_secret, self.lifetime_s = client_id, client_secret, float(lifetime_s)
+        self.issued: set[str] = set()
+        self.asked = self.refused = 0
+        server.expect_request("/oauth2/token", method="POST").respond_with_handler(self._token)
+        self.url = server.url_for("/oauth2/token")
+
+    def _token(self, request: Any) -> Any:
+        from werkzeug.wrappers import Response
+
+        self.asked += 1
+        good = "Basic " + base64.b64encode(f"{self.client_id}:{self.client_secret}".encode()).decode()
+        if request.headers.get("Authorization") != good or request.form.get("grant_type") != "client_credentials":
+            self.refused += 1
+            return Response('{"error":"invalid_client"}', status=400, content_type="application/json")
+        token = unsecured_jwt(self.client_id, self.lifetime_s)
+        self.issued.add(token)
+        body = {"access_token": token, "token_type": "Bearer", "expires_in": int(self.lifetime_s)}
+        return Response(json.dumps(body), status=200, content_type="application/json")
 
 
 # ---------------------------------------------------------------- wire helpers
@@ -213,11 +271,15 @@ class SaslGate:
     ----------
     upstream : str
         ``HOST:PORT`` of the mock broker.
+    tokens : TokenEndpoint, optional
+        Take only the tokens it issued (GCN's brokers take only tokens of GCN's endpoint); without
+        it, any well-formed unexpired JWT with a ``sub``.
     """
 
-    def __init__(self, upstream: str) -> None:
+    def __init__(self, upstream: str, tokens: TokenEndpoint | None = None) -> None:
         host, port = upstream.rsplit(":", 1)
         self.upstream = (host, int(port))
+        self.tokens = tokens
         self._server = socket.create_server(("127.0.0.1", 0))
         self.port = self._server.getsockname()[1]
         self.bootstrap = f"127.0.0.1:{self.port}"
@@ -279,9 +341,10 @@ class SaslGate:
 
     def _authenticate(self, auth: bytes, version: int, corr: int, client: socket.socket, session: _Session,
                       wlock: threading.Lock) -> bool:
-        exp, subject = _token_expiry(auth)
+        exp, subject, token = _token_expiry(auth)
         now = time.time()
-        if exp is None or not subject or exp <= now:
+        unknown = self.tokens is not None and token not in self.tokens.issued
+        if exp is None or not subject or exp <= now or unknown:
             with self.lock:
                 self.refused += 1
             body = struct.pack(">h", SASL_AUTHENTICATION_FAILED) + string(INVALID_TOKEN, False) + struct.pack(">i", 0)

@@ -1,7 +1,7 @@
 """``mushrooms preflight``: the real installation checked end to end before an event (issue 52, finding 10).
 
 Against librdkafka's mock cluster on loopback (behind a SASL/OAUTHBEARER login
-and an OIDC token endpoint for the credentials: ``sasl_front.py`` says why),
+and an OIDC token endpoint for the credentials: ``sasl_gate.py`` says why),
 a Kowalski and a SkyPortal stand-in (pytest-httpserver) with good and bad
 tokens, a webhook stand-in, and real files.  One line per check, exit 0 / 1 / 2.
 """
@@ -18,7 +18,7 @@ import pytest
 from werkzeug import Request, Response
 
 from daemon_helpers import REPO
-from sasl_front import SaslFront, TokenEndpoint
+from sasl_gate import SaslGate, TokenEndpoint
 
 from mushrooms.cli import main
 from mushrooms.daemon.credentials import Credentials
@@ -134,8 +134,8 @@ def test_a_missing_topic_and_an_unreachable_broker_fail(broker, loopback, tmp_pa
 
 def test_gcn_credentials_good_and_bad_through_the_oidc_token_and_the_sasl_login(broker, topic, loopback) -> None:
     tokens = TokenEndpoint(loopback, "gcn-client-id", "gcn-S3cret-value")
-    front = SaslFront(broker.bootstrap, tokens)
-    over = {"bootstrap.servers": front.bootstrap, "security.protocol": "sasl_plaintext",
+    gate = SaslGate(broker.bootstrap, tokens)  # takes only the tokens that endpoint issued
+    over = {"bootstrap.servers": gate.bootstrap, "security.protocol": "sasl_plaintext",
             "sasl.oauthbearer.token.endpoint.url": tokens.url}  # only where: gcn-kafka sets the rest, as for GCN
     kafka = KafkaConfig(topics=(topic,))
     from mushrooms.tool.preflight import kafka_check  # (imported here: the module is new in issue 52)
@@ -144,20 +144,20 @@ def test_gcn_credentials_good_and_bad_through_the_oidc_token_and_the_sasl_login(
         status, _, reason = kafka_check(kafka, 15, Credentials("gcn-client-id", "gcn-S3cret-value", "test"), over)
         assert status == "ok", reason
         assert "OIDC token and SASL login accepted" in reason and f"{topic}: 4 partition(s)" in reason
-        assert front.logins and all(front.logins)
+        assert gate.authentications >= 1 and gate.refused == 0 and gate.subjects == {"gcn-client-id"}
         status, _, reason = kafka_check(kafka, 15, Credentials("gcn-client-id", "wrong-secret-77", "test"), over)
         assert status == "FAIL" and "credentials refused by the OIDC token endpoint" in reason, reason
         assert "invalid_client" in reason and "wrong-secret-77" not in reason
         # a token the endpoint never issued (an unsigned one): the broker side refuses the login
-        logins = len(front.logins)
+        refused = gate.refused
         unsigned = {**over, "sasl.oauthbearer.method": "default", "enable.sasl.oauthbearer.unsecure.jwt": True,
                     "sasl.oauthbearer.config": "principal=gcn-client-id"}
         status, _, reason = kafka_check(kafka, 15, Credentials("gcn-client-id", "gcn-S3cret-value", "test"),
                                         unsigned)
         assert status == "FAIL" and "credentials refused by the broker (SASL)" in reason, reason
-        assert len(front.logins) > logins and not any(front.logins[logins:])
+        assert gate.refused > refused
     finally:
-        front.close()
+        gate.close()
 
 
 def test_the_state_file_must_be_a_private_sqlite_file(tmp_path, capsys) -> None:
@@ -212,7 +212,7 @@ def test_the_webhook_gets_a_test_message_only_when_asked(broker, topic, loopback
     assert HOOK_SECRET not in text
     monkeypatch.setenv("MUSHROOMS_NOTIFY_URL", f"hooks.slack.com/services/{HOOK_SECRET}")  # pasted without https://
     code, lines, text = _preflight(capsys, "--config", str(cfg), "--notify-test")
-    assert code == 1 and "not an http(s) URL with a host" in lines["webhook"][1] and HOOK_SECRET not in text
+    assert code == 1 and "it does not start with https:// or http://" in lines["webhook"][1] and HOOK_SECRET not in text
 
 
 def test_skyportal_token_and_its_permission(broker, topic, loopback, tmp_path, monkeypatch, capsys) -> None:
@@ -262,3 +262,55 @@ def test_preflight_runs_as_a_command(broker, topic, tmp_path) -> None:
     assert out.returncode == 0, out.stdout + out.stderr
     assert "%3|" not in out.stderr and "Traceback" not in out.stderr  # librdkafka's own lines stay out
     assert out.stdout.rstrip().splitlines()[-1] == "preflight: all 8 checks ok or skipped"
+
+
+def _old_kafka_clients(monkeypatch) -> None:
+    """gcn-kafka 0.3.3 on confluent-kafka 2.10.1 (what loses GCN's token after an hour), through the real check."""
+    from mushrooms.daemon.kafka import versions
+
+    real = versions.kafka_client_problem
+    installed = {"gcn-kafka": "0.3.3", "confluent-kafka": "2.10.1"}
+    monkeypatch.setattr(versions, "kafka_client_problem",
+                        lambda: real(version=installed.__getitem__, librdkafka=lambda: "2.10.1"))
+
+
+def test_kafka_clients_too_old_for_gcn_fail_before_any_connection(broker, topic, loopback, monkeypatch, capsys,
+                                                                    tmp_path) -> None:
+    """The service refuses to start on GCN with clients that lose the token; preflight must say so too."""
+    _old_kafka_clients(monkeypatch)
+    tokens = TokenEndpoint(loopback, "gcn-client-id", "gcn-S3cret-value")
+    from mushrooms.tool.preflight import kafka_check
+
+    over = {"bootstrap.servers": broker.bootstrap, "security.protocol": "sasl_plaintext",
+            "sasl.oauthbearer.token.endpoint.url": tokens.url}
+    status, _, reason = kafka_check(KafkaConfig(topics=(topic,)), 3,
+                                    Credentials("gcn-client-id", "gcn-S3cret-value", "test"), over)
+    assert status == "FAIL", reason
+    assert "gcn-kafka 0.3.3 (needs >= 0.3.4)" in reason and "confluent-kafka 2.10.1 (needs >= 2.11.0)" in reason
+    assert "lose the GCN token" in reason and tokens.asked == 0  # said before anything was tried
+    # a local broker needs no token: as the service, a warning, not a failure
+    cfg = _config(tmp_path, broker.bootstrap, topic)
+    code, lines, text = _preflight(capsys, "--config", str(cfg), "--timeout", "10")
+    assert code == 0 and lines["kafka"][0] == "ok", text
+    assert "gcn-kafka 0.3.3 (needs >= 0.3.4)" in lines["kafka"][1], text
+
+
+@pytest.mark.parametrize("url, why", [
+    (f"https://ops:pw@hooks.example/services/{HOOK_SECRET}", "it must not carry user:password@"),
+    (f"https://hooks.example:0/services/{HOOK_SECRET}", "its port is not a number from 1 to 65535"),
+    (f"https://hooks.example/services/T000 /{HOOK_SECRET}", "it contains spaces"),  # a space inside: not stripped
+    (f"https://[fe80::1/services/{HOOK_SECRET}", "its host is not a valid IPv6 literal in brackets"),
+])
+def test_the_webhook_url_is_checked_as_the_service_checks_it_before_any_test_message(
+        broker, topic, loopback, tmp_path, monkeypatch, capsys, url, why) -> None:
+    """The service refuses these URLs at start (``ops/webhook_url.py``); preflight passed them or said less."""
+    loopback.expect_request(f"/services/{HOOK_SECRET}", method="POST").respond_with_data("ok")
+    monkeypatch.setenv("MUSHROOMS_NOTIFY_URL", url)
+    cfg = _config(tmp_path, broker.bootstrap, topic, '[notify]\ntarget = "slack"\n')
+    for asked in ((), ("--notify-test",)):  # the URL is checked whether or not a test message is asked for
+        code, lines, text = _preflight(capsys, "--config", str(cfg), *asked, "--timeout", "5")
+        assert code == 1 and lines["webhook"][0] == "FAIL", text
+        assert f"cannot be used: {why}" in lines["webhook"][1], text
+        assert lines["webhook"][1].startswith("the webhook URL from env:MUSHROOMS_NOTIFY_URL"), text
+        assert HOOK_SECRET not in text and "ops:pw" not in text
+    assert not [r for r, _ in loopback.log if r.path.startswith("/services/")]  # no test message was sent

@@ -5,14 +5,12 @@ from __future__ import annotations
 
 import json
 import signal
-import socket
-import threading
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-from daemon_helpers import REPO, Daemon, notice_path, write_config
+from daemon_helpers import REPO, Daemon, notice_path, notify_listener, write_config
 
 FITS = REPO / "mushrooms" / "scheduler_core" / "data" / "MS181101ab_bayestar.multiorder.fits"
 
@@ -73,23 +71,11 @@ def test_trigger_hands_work_to_the_running_daemon_and_signals(broker, daemons, t
     broker.ensure_topic(topic)
     cfg = write_config(tmp_path / "config.toml", topic, "unused", f"g-{time.time_ns()}")
     state, outbox = tmp_path / "state.sqlite", tmp_path / "outbox"
-    notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)  # stands in for systemd
-    notify.bind(str(tmp_path / "notify.sock"))
-    notify.settimeout(60)
+    notify, seen = notify_listener(tmp_path / "notify.sock")  # stands in for systemd
     d = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", broker.bootstrap, "--state", str(state),
                           "--outbox", str(outbox)],
                env={"NOTIFY_SOCKET": str(tmp_path / "notify.sock"), "WATCHDOG_USEC": "2000000"})
     daemons.append(d)
-    seen: list[bytes] = []
-
-    def listen() -> None:
-        while True:
-            try:
-                seen.append(notify.recv(4096))
-            except OSError:
-                return
-
-    threading.Thread(target=listen, daemon=True).start()
     d.wait_log("event=service_ready", 60)
     end = time.monotonic() + 30
     while b"WATCHDOG=1" not in seen and time.monotonic() < end:

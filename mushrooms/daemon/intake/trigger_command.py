@@ -128,9 +128,9 @@ def _plan_here(target: str, kind: str, payload: bytes, config: ServiceConfig, pa
     from ..wiring import open_pipeline
 
     outbox = config.outbound.directory if config.outbound.sink == "directory" else f"kafka:{config.outbound.topic}"
+    pipeline, close = open_pipeline(config, paths)  # a state file the store refuses: one line, before the note
     console.note(f"no daemon running: planning here; state {paths.state}, outbox "
                  f"{Path(outbox).resolve() if config.outbound.sink == 'directory' else outbox}")
-    pipeline, close = open_pipeline(config, paths)
     try:
         _warn_if_retracted(pipeline, kind, payload, force, console)
         decision = dispatch(pipeline, kind, payload, origin=f"trigger:{kind}:{target}")

@@ -94,8 +94,11 @@ class KafkaSink:
         delivery_timeout_s: float = 30.0,
         extra: Mapping[str, Any] | None = None,
     ) -> None:
-        if not bootstrap:
-            raise ValueError("Kafka sink needs a bootstrap server ([outbound] bootstrap or --bootstrap)")
+        if not bootstrap:  # refused at load already (tool.overrides.require_sink_broker); bad input, one line
+            from ...scheduler_core.errors import InputError
+
+            raise InputError('[outbound] sink = "kafka" needs [outbound] bootstrap (HOST:PORT of the broker the '
+                             'plans go to)')
         self.topic = topic
         self.delivery_timeout_s = float(delivery_timeout_s)
         conf: dict[str, Any] = {
@@ -136,16 +139,19 @@ class KafkaSink:
                 result["where"] = (msg.partition(), msg.offset())
             done.set()
 
+        producer = self._producer
+        if producer is None:
+            raise PublishError(f"the sink of {self.topic} is closed")
         try:
             with self._lock:
-                self._producer.produce(self.topic, value=value, key=key, on_delivery=on_delivery)
+                producer.produce(self.topic, value=value, key=key, on_delivery=on_delivery)
         except (BufferError, confluent_kafka.KafkaException) as exc:
             raise PublishError(f"cannot queue message for {self.topic}: {exc}") from None
         deadline = time.monotonic() + self.delivery_timeout_s + 5.0
         while not done.is_set():
             if time.monotonic() > deadline:
                 raise PublishError(f"no acknowledgement from {self.topic} within {self.delivery_timeout_s:.0f} s")
-            self._producer.poll(0.1)
+            producer.poll(0.1)
         if result.get("error") is not None:
             raise PublishError(f"publish to {self.topic} failed: {result['error']}")
         log.debug("event=kafka_published topic=%s key=%s partition_offset=%s bytes=%d",
@@ -153,11 +159,24 @@ class KafkaSink:
 
     def serve_callbacks(self) -> None:
         """Serve librdkafka's statistics and error callbacks (:attr:`health`) between publishes."""
-        self._producer.poll(0)
+        producer = self._producer
+        if producer is not None:
+            producer.poll(0)
 
     def close(self, timeout_s: float = 10.0) -> None:
-        """Flush what is still queued (s of patience)."""
-        self._producer.flush(timeout_s)
+        """Flush what is still queued (s of patience), then close the producer: its threads and sockets end.
+
+        A second call does nothing; :meth:`publish` then raises.
+        """
+        with self._lock:
+            producer, self._producer = self._producer, None
+        if producer is None:
+            return
+        producer.flush(timeout_s)
+        close = getattr(producer, "close", None)  # confluent-kafka's Producer.close (newer releases)
+        if close is not None:
+            close()
+        # else: the last reference goes here, and its destructor (rd_kafka_destroy) ends threads and sockets
 
 
 def _key(message: Mapping[str, Any]) -> bytes | None:

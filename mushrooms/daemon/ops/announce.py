@@ -137,6 +137,26 @@ def webhook_of(sink: Any) -> Webhook | None:
     return None
 
 
+def close_outbound(sink: Any) -> None:
+    """Close a sink the service no longer publishes to, but not the webhook it tells (a reload keeps that one).
+
+    Goes through the service's wrappers (``inner``: the metrics' ``ObservedSink``; a :class:`NotifyingSink`'s
+    ``sink``), whose ``close`` would reach the webhook, to the sink itself (a Kafka sink: its producer is
+    flushed and closed; a directory sink: its page-drawing thread ends).
+    """
+    for _ in range(8):
+        if isinstance(sink, NotifyingSink):
+            sink = sink.sink
+            break
+        inner = vars(sink).get("inner") if hasattr(sink, "__dict__") else None
+        if inner is None:
+            break
+        sink = inner
+    close = getattr(sink, "close", None)
+    if close is not None:
+        close()
+
+
 def job_failed(sink: Any, superevent_id: str | None, reason: str) -> None:
     """Hook: a planning job failed (nothing was published for it)."""
     hook = webhook_of(sink)
@@ -146,10 +166,11 @@ def job_failed(sink: Any, superevent_id: str | None, reason: str) -> None:
 
 
 def submission_trouble(sink: Any, superevent_id: str | None, queue_name: str | None, attempts: int,
-                       error: str) -> None:
-    """Hook: a submission's first attempt failed (it is retried; the failure is said once)."""
+                       error: str, action: str = "submitted") -> None:
+    """Hook: a submission's first failure to be ``submitted`` (a PUT) or ``removed`` (a DELETE): retried, said once."""
     hook = webhook_of(sink)
     if hook is not None:
+        why = f"attempt {attempts}: {error}" if action == "submitted" else error
         hook.post("submission_failing", f"{superevent_id or '-'}: queue {queue_name or '-'} could not be "
-                  f"submitted (attempt {attempts}: {error}); retrying", {"superevent_id": superevent_id,
-                                                                       "queue_name": queue_name})
+                  f"{action} ({why}); retrying", {"superevent_id": superevent_id, "queue_name": queue_name,
+                                                  "action": action})

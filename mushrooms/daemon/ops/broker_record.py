@@ -14,34 +14,21 @@ per change of state (and one at each start, once the state is known), and
 
 from __future__ import annotations
 
-import logging
-import time
 from typing import Any, Mapping
 
 from ...handlers.text import storable
+from .incident_record import ERROR_CHARS, IncidentRecord, iso_utc
 
 __all__ = ["BrokerRecord", "KIND"]
 
-log = logging.getLogger("mushrooms.daemon")
-
 #: The incident kind of a broker's change of state.
 KIND = "broker"
-#: Characters of the client's last error kept.
-ERROR_CHARS = 300
 
 
-class BrokerRecord:
-    """Writes each client's broker state to the store when it changes.
+class BrokerRecord(IncidentRecord):
+    """Writes each client's broker state to the store (``BrokerRecord(store)``) when it changes."""
 
-    Parameters
-    ----------
-    store : Store
-        The state store (:meth:`~mushrooms.daemon.state.store.Store.record_incident`).
-    """
-
-    def __init__(self, store: Any) -> None:
-        self.store = store
-        self._written: dict[str, bool] = {}
+    kind = KIND
 
     def update(self, healths: Mapping[str, Any]) -> None:
         """Write the clients whose state (up or down; unknown is skipped) changed since the last write.
@@ -53,14 +40,8 @@ class BrokerRecord:
         """
         for client, health in healths.items():
             up = getattr(health, "up", None)
-            if up is None or self._written.get(client) is up:
+            if up is None:
                 continue
             error = None if up else storable(health.last_error or "-", ERROR_CHARS)
-            detail = {"client": client, "up": bool(up), "error": error,
-                      "since": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(health.since))}
-            try:
-                self.store.record_incident(KIND, detail)
-            except Exception as exc:  # a full disk must not stop the heartbeat; said, tried again next time
-                log.error("event=incident_not_stored kind=broker error=%r", f"{type(exc).__name__}: {exc}")
-                continue
-            self._written[client] = bool(up)
+            self.write(client, bool(up), {"client": client, "up": bool(up), "error": error,
+                                          "since": iso_utc(health.since)})

@@ -67,13 +67,11 @@ def run_replan(planner: Any, job: "Job", stage: Callable[[str], None],
         ``replan`` with the new revision, or with no plan when nothing is left.
     """
     from ...scheduler_core import make_plan_id
-    from ...scheduler_core.clock import on_merger_clock
     from astropy.time import Time
 
     from ...scheduler_core.plan.document import parse_time
     store, sched = planner.store, planner.planning
-    skymap, event = planner.read_skymap(job, stage)
-    skymap, event = on_merger_clock(skymap, event)
+    skymap, event = planner.read_skymap(job, stage)  # on the merger clock
     start = parse_time(job.start)
     old = current_plan(store, job.superevent_id)
     if old is None:

@@ -43,6 +43,29 @@ class _Cancelled(Exception):
     """The job was superseded or retracted; the message names the stage it stopped before."""
 
 
+class _UnreadableNotice(Exception):
+    """The job's notice or its sky map cannot be read: the notice's fault (``rejected``); the message says why."""
+
+
+def _config_problem(exc: Exception, planning: Any, superevent_id: str | None) -> str:
+    """Why a job whose notice and sky map were read failed on bad input: the configuration's fault, in words.
+
+    After the map is read, what feeds the plan is the configuration and the
+    files it names (a ``detection_lightcurve`` edited or removed after the
+    service loaded it, a filter sequence a scheduler does not plan).  The job
+    is recorded ``failed`` (not ``rejected``): the event forgets the map's
+    hash, so the same notice, or ``mushrooms trigger``, plans it again once
+    the configuration is fixed.
+    """
+    from ...scheduler_core.source.lightcurves import LightCurveError
+
+    key = (f"[scheduler] detection_lightcurve = {str(planning.detection_lightcurve)!r}: "
+           if isinstance(exc, LightCurveError) else "")
+    again = f"mushrooms trigger {superevent_id}" if superevent_id else "mushrooms trigger"
+    return (f"configuration: {key}{exc} (not the notice's fault: fix the configuration or the file it names, "
+            f"reload the service (SIGHUP), then re-plan with {again})")
+
+
 @dataclass
 class _Work:
     """A job between its first plan and its optimisation (kept in memory only)."""
@@ -146,8 +169,10 @@ class JobPlanner:
             work = self._first_stage(started, should_stop)
         except _Cancelled as exc:
             return self.drop(started, f"stopped before {exc}")
-        except (NoticeError, InputError) as exc:  # SkyMapError is an InputError
+        except _UnreadableNotice as exc:  # the notice or its map (SkyMapError, NoticeError): the notice's fault
             return self._job_failed(started, "rejected", str(exc))
+        except InputError as exc:  # read fine, then bad input: the configuration's (or a file it names)
+            return self._job_failed(started, "failed", _config_problem(exc, self.planning, job.superevent_id))
         except PlanCheckError as exc:
             return self._job_failed(started, "failed", str(exc))
         except Exception as exc:
@@ -176,7 +201,6 @@ class JobPlanner:
     def _first_stage(self, job: Job, should_stop: StopCheck | None) -> "_Work | Outcome":
         from ...scheduler_core import not_observable
         from ...scheduler_core.anytime import FIRST_SOLVER, first_plan
-        from ...scheduler_core.clock import on_merger_clock
         from ...scheduler_core.plan.document import parse_time
 
         def stage(name: str) -> None:
@@ -190,8 +214,7 @@ class JobPlanner:
             took[name] = time.perf_counter() - t0 - sum(took.values())
 
         sched = self.planning
-        skymap, event = self.read_skymap(job, stage)
-        skymap, event = on_merger_clock(skymap, event)  # the kilonova's clock: the notice's merger time
+        skymap, event = self.read_skymap(job, stage)  # on the kilonova's clock: the notice's merger time
         lap("read")
         stage("preparing the problem")
         start = parse_time(job.start)
@@ -252,7 +275,23 @@ class JobPlanner:
         return run
 
     def read_skymap(self, job: Job, stage: Callable[[str], None]) -> tuple[Any, Any]:
-        """The job's sky map, decoded (the notice's GW map when its joint map does not decode)."""
+        """The job's sky map, decoded (the notice's GW map when its joint map does not decode), and its event,
+        both on the merger clock (:func:`~mushrooms.scheduler_core.clock.on_merger_clock`).
+
+        Raises
+        ------
+        _UnreadableNotice
+            The notice, its map or its times cannot be read (what blames the
+            notice: every other bad input of a job is the configuration's).
+        """
+        from ...scheduler_core.clock import on_merger_clock
+
+        try:
+            return on_merger_clock(*self._read_skymap(job, stage))  # the kilonova's clock: the notice's merger time
+        except (NoticeError, InputError) as exc:  # SkyMapError is an InputError
+            raise _UnreadableNotice(str(exc)) from exc
+
+    def _read_skymap(self, job: Job, stage: Callable[[str], None]) -> tuple[Any, Any]:
         from ...scheduler_core import read_skymap
 
         skymap_bytes, event = self._skymap_bytes(job)

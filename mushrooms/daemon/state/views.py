@@ -20,7 +20,7 @@ from typing import Any
 from urllib.parse import quote
 
 __all__ = ["connect_readonly", "outbox_backlog", "oldest_pending_submission", "recent_events", "attention", "incidents", "has_table",
-           "parse_iso", "broker_reachability"]
+           "parse_iso", "broker_reachability", "warm_up_plan"]
 
 
 def connect_readonly(path: str | Path, timeout_s: float = 5.0) -> sqlite3.Connection:
@@ -93,6 +93,18 @@ def broker_reachability(conn: sqlite3.Connection) -> dict[str, dict[str, Any]]:
             out[client] = {"up": bool(d.get("up")), "since": d.get("since"), "error": d.get("error"),
                            "recorded_at": inc["created_at"]}
     return out
+
+
+def warm_up_plan(conn: sqlite3.Connection) -> dict[str, Any] | None:
+    """What the daemon last recorded of its warm-up plan: ``{failed, error, since, recorded_at}``, None when nothing.
+
+    The newest incident of kind ``warm_up_plan`` (:mod:`mushrooms.daemon.ops.warm_record`).
+    """
+    for inc in incidents(conn, "warm_up_plan", limit=1):
+        d = inc["detail"] if isinstance(inc["detail"], dict) else {}
+        return {"failed": bool(d.get("failed")), "error": d.get("error"), "since": d.get("since"),
+                "recorded_at": inc["created_at"]}
+    return None
 
 
 def _loads(text: str | None) -> Any:

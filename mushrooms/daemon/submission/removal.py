@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 from .remote import Answer, SkyPortalPlans, Unreachable
 from .rows import OPEN, Submission
 from .rows import SubmissionState as State
-from .rules import name_of, set_of, window_end
+from .rules import kowalski_timed_out, name_of, set_of, window_end
 
 if TYPE_CHECKING:
     from ...scheduler_core.plan.exports import ExportConfig
@@ -61,8 +61,12 @@ class Removal:
               remote_id: str | None = None, reason: str | None = None) -> Submission:
         raise NotImplementedError
 
-    def _retry(self, sub: Submission, status: int | None, error: str) -> None:
+    def _retry(self, sub: Submission, status: int | None, error: str, action: str = "submitted") -> None:
         raise NotImplementedError
+
+    def _retry_removal(self, sub: Submission, status: int | None, error: str) -> None:
+        """A DELETE (or the list read that settles it) failed: retried later; the trouble is told once per row."""
+        self._retry(sub, status, error, "removed")
 
     def _finish(self, sub: Submission, state: str, answer: Answer | None = None, reason: str | None = None,
                 remote_id: str | None = None) -> Submission | None:
@@ -108,19 +112,19 @@ class Removal:
             try:
                 answer = self.client.delete(name, self.export.user)  # type: ignore[union-attr]
             except Unreachable as exc:
-                self._retry(sub, None, str(exc))
+                self._retry_removal(sub, None, str(exc))
                 return RETRY
             if answer.ok and answer.problem is None:
                 sub = self._note(sub, "gone", name, answer)
                 continue
             if answer.ok:  # a 200 that is not Kowalski's JSON: not known to be removed
-                self._retry(sub, answer.status, f"DELETE {name}: {answer.status}, but {answer.problem}")
+                self._retry_removal(sub, answer.status, f"DELETE {name}: {answer.status}, but {answer.problem}")
                 return RETRY
             if answer.redirected:
                 self._finish(sub, State.FAILED, answer, reason=f"DELETE {name}: {answer.status}: {answer.problem}")
                 return DONE
-            if not answer.refused:
-                self._retry(sub, answer.status, answer.message())
+            if not answer.refused or kowalski_timed_out(answer):  # 5xx, or no answer from the mountain (Y0)
+                self._retry_removal(sub, answer.status, f"DELETE {name}: {answer.status} {answer.message()}")
                 return RETRY
             listed = self._listed(sub, f"DELETE {name} refused ({answer.status})")
             if listed is None:
@@ -130,7 +134,7 @@ class Removal:
                 self._finish(sub, State.FAILED, answer, reason=f"DELETE {name} refused: {answer.message()}")
                 return DONE
             if name in listed:  # it landed between the DELETE and the list: DELETE it again
-                self._retry(sub, answer.status, f"DELETE {name} refused, and it is listed now")
+                self._retry_removal(sub, answer.status, f"DELETE {name} refused, and it is listed now")
                 return RETRY
             if accepted:
                 sub = self._note(sub, "gone", name, answer, absent=True)
@@ -168,10 +172,10 @@ class Removal:
             try:
                 answer = self.client.delete(name, self.export.user)  # type: ignore[union-attr]
             except Unreachable as exc:
-                self._retry(sub, None, str(exc))
+                self._retry_removal(sub, None, str(exc))
                 return RETRY
             if not (answer.ok and answer.problem is None):
-                self._retry(sub, answer.status, f"DELETE {name} (landed late): {answer.message()}")
+                self._retry_removal(sub, answer.status, f"DELETE {name} (landed late): {answer.message()}")
                 return RETRY
             sub = self._note(sub, "gone", name, answer)
         return WATCH if sub.to_settle() else DONE
@@ -181,7 +185,7 @@ class Removal:
         try:
             return {str(q.get("queue_name")) for q in self.client.queues()}  # type: ignore[union-attr]
         except (Unreachable, RuntimeError) as exc:
-            self._retry(sub, None, f"{why}, and the queue list could not be read: {exc}")
+            self._retry_removal(sub, None, f"{why}, and the queue list could not be read: {exc}")
             return None
 
     def _queue_end(self, sub: Submission, name: str) -> float | None:
@@ -209,11 +213,11 @@ class Removal:
                     self._finish(sub, State.FAILED, answer, reason=f"DELETE {name}: {answer.status}: {answer.problem}")
                     return DONE
                 if answer is not None and not answer.refused:  # 5xx, or a 200 that is not SkyPortal's JSON
-                    self._retry(sub, answer.status, answer.problem if answer.ok else answer.message())
+                    self._retry_removal(sub, answer.status, answer.problem if answer.ok else answer.message())
                     return RETRY
                 listed = self.client.exists(name)
             except (Unreachable, RuntimeError) as exc:
-                self._retry(sub, None, str(exc))
+                self._retry_removal(sub, None, str(exc))
                 return RETRY
             if not listed:
                 sub = self._note(sub, "gone", name, answer, absent=True)

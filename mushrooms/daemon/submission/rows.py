@@ -74,8 +74,9 @@ class Submission:
     finished_at: str | None
     #: ``{"tried": [names sent at least once], "put": [names accepted], "gone": [names removed],
     #: "rejected": reason, "refused": [the name refused], "watch": [names sent without an answer, not
-    #: listed when the revision was settled], "expired": [watched names whose window ended unseen]}``;
-    #: SkyPortal also ``"ids": {plan name: request id}``
+    #: listed when the revision was settled], "expired": [watched names whose window ended unseen],
+    #: "told": [the troubles already notified: "submitted", "removed"]}``; SkyPortal also
+    #: ``"ids": {plan name: request id}``
     progress: dict[str, Any] = field(default_factory=dict)
 
     def queue_names(self) -> list[str]:

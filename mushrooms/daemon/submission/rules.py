@@ -10,6 +10,7 @@ by the daemon's :class:`~mushrooms.daemon.submission.submitter.Submitter` and ``
 from __future__ import annotations
 
 import json
+import re
 import time
 from dataclasses import dataclass
 from datetime import datetime
@@ -22,7 +23,7 @@ if TYPE_CHECKING:
     from .settings import SubmitConfig
 
 __all__ = ["Verdict", "queue_name", "gate", "build_body", "same_content", "listed_as_ours", "send_queue", "set_of",
-           "name_of", "unix", "window_end", "total_coverage"]
+           "name_of", "unix", "window_end", "total_coverage", "kowalski_timed_out"]
 
 #: The Unix time of MJD 0 is -40587 days (1858-11-17 is 40587 days before 1970-01-01).
 _MJD_UNIX_DAYS = 40587.0
@@ -178,6 +179,23 @@ def listed_as_ours(body: dict[str, Any], listed: dict[str, Any]) -> tuple[bool, 
     return True, len(left)
 
 
+#: Kowalski's ``error_middleware`` text for a timeout of its own request to the mountain (Y0): ``TimeoutError: ``
+#: (aiohttp's total timeout), or a subclass's name (``ServerTimeoutError: ...``, ``SocketTimeoutError: ...``).
+_KOWALSKI_TIMEOUT = re.compile(r"\w*Timeout\w*: ")
+
+
+def kowalski_timed_out(answer: Answer) -> bool:
+    """Whether a 400 is Kowalski's own timeout towards the mountain, not a refusal: the request may still be applied.
+
+    Kowalski forwards a PUT or DELETE to the mountain with a 10 s timeout
+    (``kowalski/api/handlers/ztf.py``); when it runs out, ``error_middleware``
+    answers 400 ``"<ExceptionName>: <text>"`` while the mountain may apply
+    the request later (docs/design/submission.md Y0).  Such an answer is a
+    request without an answer (retried; a PUT's queue is maybe live, Y2).
+    """
+    return answer.status == 400 and _KOWALSKI_TIMEOUT.match(answer.message()) is not None
+
+
 @dataclass(frozen=True)
 class Verdict:
     """What one PUT/POST of a queue came to: ``submitted``, ``rejected`` or ``retry`` (5xx, timeout, unreachable)."""
@@ -196,8 +214,9 @@ def send_queue(client: KowalskiQueue | SkyPortalPlans, body: dict[str, Any], nam
     the cap, is retried: a captive portal or a proxy said it, not the
     server; a repeat finds Kowalski's queue by its 409).  Kowalski's 409 (a
     queue of that name exists): see :func:`_conflict`.  A 3xx: rejected with
-    its target (redirects are never followed).  Other 4xx: rejected (the
-    server's text kept).  5xx, the deadline, no connection, a cut or
+    its target (redirects are never followed).  Kowalski's own timeout to
+    the mountain (a 400 ``TimeoutError: ``, :func:`kowalski_timed_out`): retry,
+    the queue maybe live.  Other 4xx: rejected (the server's text kept).  5xx, the deadline, no connection, a cut or
     non-HTTP answer: retry.
 
     Parameters
@@ -221,6 +240,9 @@ def send_queue(client: KowalskiQueue | SkyPortalPlans, body: dict[str, Any], nam
         return Verdict("rejected", answer, f"{answer.status}: {answer.problem}")
     if answer.status == 409 and isinstance(client, KowalskiQueue):
         return _conflict(client, body, name, answer, sent_before)
+    if isinstance(client, KowalskiQueue) and kowalski_timed_out(answer):  # Y0: not a refusal; maybe live (Y2)
+        return Verdict("retry", answer, f"{answer.status} {answer.message()[:200].strip()} (Kowalski's own timeout to the "
+                       "mountain: the queue may still be applied; retried)")
     if answer.refused:
         return Verdict("rejected", answer)
     return Verdict("retry", answer, answer.message())

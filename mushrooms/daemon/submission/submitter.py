@@ -97,8 +97,10 @@ class Submitter(Removal):
         ``on_result(state, target)`` after every transition (metrics: counts by result).
     """
 
-    #: ``on_trouble(submission, error)`` after a first attempt fails (the service's [notify] hook); None: nothing
-    on_trouble: Callable[[Submission, str], None] | None = None
+    #: ``on_trouble(submission, error, action)`` the first time a row's submission (``action`` ``submitted``) or
+    #: its removal (``removed``) fails: once per row and action, kept in its ``progress`` (the service's [notify]
+    #: hook); None: nothing
+    on_trouble: Callable[[Submission, str, str], None] | None = None
 
     def __init__(self, store: Store, submit: SubmitConfig, export: ExportConfig,
                  client: KowalskiQueue | SkyPortalPlans | None,
@@ -383,15 +385,22 @@ class Submitter(Removal):
                       (_now_iso(), json.dumps(progress), sub.plan_id))
             return _row(c, sub.plan_id)
 
-    def _retry(self, sub: Submission, status: int | None, error: str) -> None:
+    def _retry(self, sub: Submission, status: int | None, error: str, action: str = "submitted") -> None:
+        """Keep the answer; the row is retried after the back-off.  The first failure of each ``action``
+        (``submitted``: a PUT/POST; ``removed``: a DELETE) of a row goes to :attr:`on_trouble`, once
+        (``progress.told``, in the state file: not again at every pass, nor after a restart)."""
         with self.store.transaction() as c:
-            c.execute("UPDATE submissions SET http_status=?, answer=? WHERE plan_id=?",
-                      (status, error[:2000], sub.plan_id))
+            progress = dict(_row(c, sub.plan_id).progress)
+            first = action not in progress.get("told", ())
+            if first:
+                progress["told"] = sorted({*progress.get("told", ()), action})
+            c.execute("UPDATE submissions SET http_status=?, answer=?, progress=? WHERE plan_id=?",
+                      (status, error[:2000], json.dumps(progress), sub.plan_id))
         log.warning("event=submission_retry superevent_id=%s plan_id=%s queue_name=%s state=%s attempts=%d "
                     "http_status=%s error=%r", sub.superevent_id, sub.plan_id, sub.queue_name, sub.state,
                     sub.attempts, status if status is not None else "-", error)
-        if self.on_trouble is not None and sub.attempts <= 1:  # [notify]: the first failure, said once
-            self.on_trouble(sub, error)
+        if self.on_trouble is not None and first:  # [notify]: each trouble said once
+            self.on_trouble(sub, error, action)
         return None
 
     def _finish(self, sub: Submission, state: str, answer: Answer | None = None, reason: str | None = None,
