@@ -2,7 +2,7 @@
 
 Every default here is the documented default of the ``[scheduler]`` section
 of ``config.toml``; a test keeps the two in step.  Imports only the standard
-library and leaves (:mod:`.tables`, :mod:`.ranges`, :mod:`.source.named`), so
+library and leaves (:mod:`.tables`, :mod:`.ranges`, :mod:`.lightcurve_names`), so
 reading the configuration loads no numpy or astropy.
 """
 
@@ -15,7 +15,7 @@ from typing import Any, Mapping
 
 from .ranges import require_finite, setting
 from .solvers_registry import SOLVER_NAMES  # scheduler names (``milp`` = ``blocks``): the registry's
-from .source.named import PAPER_LIGHTCURVES
+from .lightcurve_names import PAPER_LIGHTCURVES
 from .tables import dataclass_from_table
 
 __all__ = ["PlanningConfig", "SlewModel", "ZTF_FILTERS", "SOLVER_NAMES", "RECORDED_WHEN_SET", "MAX_SEQUENCE",

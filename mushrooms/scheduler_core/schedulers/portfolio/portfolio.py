@@ -1,17 +1,17 @@
 """Schedulers made of schedulers: the slot scheduler seeded by greedy, the hybrid portfolio, the bound.
 
-A scheduler (:data:`~..problem.Scheduler`) is ``scheduler(problem,
+A scheduler (:data:`~...problem.Scheduler`) is ``scheduler(problem,
 should_stop) -> ScheduleResult``.  A :class:`Stage` is one step of a
 composition: it also sees the results of the stages before it and the
 budget (s) left of ``config.time_limit_s``.  :func:`best_of` runs stages in
 turn and keeps the plan that, as it will be published (after the
 least-gain rule), covers the most probability, the earliest stage winning
 a tie; :func:`with_upper_bound` attaches the certified coverage bound
-(:mod:`.certified_bound`: the least of U4 and the interval bound V) to a
+(:mod:`..bounds.certified_bound`: the least of U4 and the interval bound V) to a
 scheduler's result.  A portfolio given a ``bound`` computes it after its
 first stage and skips the stages left once a plan reaches it (within
 :data:`BOUND_RTOL`): that plan is then optimal, no stage can beat it.  The named schedulers of
-:mod:`..solvers_registry` are built from these, and this module registers them there
+:mod:`...solvers_registry` are built from these, and this module registers them there
 (``greedy``, ``slots``, ``blocks`` / ``milp``, ``hybrid``; the hybrid's ``lns`` stage is
 :mod:`.lns`, equations H1-H5).
 
@@ -27,11 +27,11 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Mapping
 
-from ..config import PlanningConfig
-from ..problem import PlanningProblem, PortfolioEntry, ScheduleResult, Scheduler, StopCheck, UpperBound
-from ..solvers_registry import register
-from .gain import published_coverage
-from .greedy import greedy_schedule
+from ...config import PlanningConfig
+from ...problem import PlanningProblem, PortfolioEntry, ScheduleResult, Scheduler, StopCheck, UpperBound
+from ...solvers_registry import register
+from ..gain import published_coverage
+from ..greedy.schedule import greedy_schedule
 
 __all__ = ["Stage", "StageRun", "Portfolio", "best_of", "with_upper_bound", "greedy_stage", "slots_stage",
            "paced_slots_stage", "paced_cadence", "PACED_SLOTS_LIMIT_S",
@@ -115,7 +115,7 @@ def greedy_stage(problem: PlanningProblem, should_stop: StopCheck | None,
 def slots_stage(problem: PlanningProblem, should_stop: StopCheck | None,
                 earlier: Mapping[str, ScheduleResult], left_s: float) -> ScheduleResult:
     """The slot portfolio with what is left, started from greedy's plan."""
-    from .slot_schedule import slot_schedule
+    from ..slots.schedule import slot_schedule
 
     return slot_schedule(problem, should_stop, start=earlier.get("greedy"), time_limit_s=max(left_s, 0.0))
 
@@ -125,7 +125,7 @@ def paced_slots_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     """The slot portfolio planned at the cadence ZTF's scheduler keeps (Q19), at most :data:`PACED_SLOTS_LIMIT_S`.
 
     The executor opens a filter pass the cadence plus
-    :data:`~..telescope.queue_windows.CADENCE_MARGIN_S` after the executed
+    :data:`~...telescope.queue_windows.CADENCE_MARGIN_S` after the executed
     first visits of its fields (Q11): a plan whose pairs are packed at the
     cadence loses its last pairs as executed.  This stage plans greedy and
     the slot grids on the problem with ``cadence_s`` widened by that margin
@@ -134,7 +134,7 @@ def paced_slots_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     further apart, so it is a plan of the real problem too, and the
     hybrid's choice (Q15) weighs it by what is executed.
     """
-    from .slot_schedule import slot_schedule
+    from ..slots.schedule import slot_schedule
 
     paced = dataclasses.replace(problem, config=dataclasses.replace(
         problem.config, cadence_s=paced_cadence(problem.config)))
@@ -152,7 +152,7 @@ def paced_cadence(config: PlanningConfig) -> float:
     A ``pair_max_s`` (the longest a pair may span) caps it: the paced pairs
     must still be pairs of the problem.
     """
-    from ..telescope.queue_windows import CADENCE_MARGIN_S
+    from ...telescope.queue_windows import CADENCE_MARGIN_S
 
     paced = config.cadence_s + CADENCE_MARGIN_S
     return min(paced, config.pair_max_s) if config.pair_max_s else paced
@@ -200,7 +200,7 @@ def blocks_stage(problem: PlanningProblem, should_stop: StopCheck | None,
     (a detection config would refuse a budget shorter than its detection
     stage's share).
     """
-    from .block_schedule import milp_schedule
+    from ..blocks.schedule import milp_schedule
 
     limit = min(left_s, BLOCKS_LIMIT_S)
     timed = dataclasses.replace(problem, config=dataclasses.replace(
@@ -223,7 +223,7 @@ def reaches_bound(coverage: float, bound: UpperBound, min_gain: float = 0.0) -> 
 class Portfolio:
     """Run stages in turn; keep the plan covering the most as published (a tie: the earlier stage).
 
-    Calling it is a :data:`~..problem.Scheduler`.  The result is the
+    Calling it is a :data:`~...problem.Scheduler`.  The result is the
     winner's, with ``solver`` ``<label>(<winner's solver>)``, the whole
     wall time, ``portfolio`` (each candidate's solver, status, gap and
     published coverage) and ``portfolio_choice`` (the winning stage).
@@ -288,7 +288,7 @@ class Portfolio:
                 times["bound"] = round(bound_s, 3)
                 if ran[stage.name].upper_bound is None:  # the stages after see it (an LNS stops at it)
                     ran[stage.name] = dataclasses.replace(ran[stage.name], upper_bound=upper)
-        from ..telescope.coverage import AS_EXECUTED_MEMO
+        from ..as_executed import AS_EXECUTED_MEMO
 
         name, executed, memo = choose_as_executed(problem, ran, covs)
         best = ran[name]
@@ -316,10 +316,10 @@ def choose_as_executed(problem: PlanningProblem, ran: dict[str, ScheduleResult],
     -------
     (str, dict of str to float, dict of tuple to float)
         The chosen stage, the executed coverage of each candidate tried, and
-        the same by :func:`~..telescope.coverage.execution_key` (the memo that
+        the same by :func:`~..as_executed.execution_key` (the memo that
         spares the published plan a second run of the executor).
     """
-    from ..telescope.coverage import AS_EXECUTED_MEMO, keyed_coverage_as_executed
+    from ..as_executed import AS_EXECUTED_MEMO, keyed_coverage_as_executed
 
     names = list(ran)
     order = sorted(names, key=lambda n: (-covs[n], names.index(n)))
@@ -369,20 +369,20 @@ def slots_from_greedy(problem: PlanningProblem, should_stop: StopCheck | None = 
 
 def blocks(problem: PlanningProblem, should_stop: StopCheck | None = None) -> ScheduleResult:
     """The block MILP with the whole budget."""
-    from .block_schedule import milp_schedule
+    from ..blocks.schedule import milp_schedule
 
     return milp_schedule(problem, should_stop)
 
 
 def published_bound(problem: PlanningProblem) -> UpperBound | None:
-    """The certified bound plans publish: ``min(U4, V)`` within ``config.bound_time_limit_s`` (:mod:`.certified_bound`).
+    """The certified bound plans publish: ``min(U4, V)`` within ``config.bound_time_limit_s`` (:mod:`..bounds.certified_bound`).
 
     (F5) A sequence of ``k >= 2`` filters keeps the pair's bound: its first
     two visits are a plan of the pair (the later ones only take time), so
     the pair's relaxations hold.  A one-filter sequence has none (None): a
     field there costs one exposure, which U4 and V do not model.
     """
-    from .certified_bound import certified_upper_bound
+    from ..bounds.certified_bound import certified_upper_bound
 
     if len(problem.config.filters) < 2:
         return None

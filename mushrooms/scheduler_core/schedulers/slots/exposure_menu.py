@@ -4,7 +4,7 @@ A longer exposure reaches deeper (at most +1.25 log10(t2/t1) mag: D1, less in
 the difference image, D2) but holds the
 telescope longer, so it covers less area: which is better depends on the
 distance the kilonova must be seen to (X1).  The detection stage
-(:mod:`.detection_slots`) lets the solver choose, on a *menu grid*:
+(:mod:`..detection.stage`) lets the solver choose, on a *menu grid*:
 
 - the grid's pitch is the shortest menu exposure plus the slew estimate,
   ``s0 = e_1 + t_slew``, and its blocks have ``n' = n ceil((t_exp + t_slew) / s0)``
@@ -17,7 +17,7 @@ distance the kilonova must be seen to (X1).  The detection stage
 - both visits of a pair have the same exposure and the second starts
   ``D_n'`` after the first, as on every grid, so the cadence rule and the
   filter change hold unchanged; the real timing then packs the exposures
-  with the true overheads (:func:`.slot_schedule.time_slot_plan`).
+  with the true overheads (:func:`.schedule.time_slot_plan`).
 
 A pair ``(f, q, m)`` is only offered when its exposure reaches a higher
 distance level than every shorter exposure of the same field starting in
@@ -33,10 +33,10 @@ import math
 import numpy as np
 import scipy.sparse as sp
 
-from ..config import PlanningConfig
-from ..problem import PlanningProblem
-from ..sky.cells import Cells
-from .slots import SlotGrid, SlotInstance, eligible_pairs, make_slot_grid, observable_segments
+from ...config import PlanningConfig
+from ...problem import PlanningProblem
+from ...sky.cells import Cells
+from .model import SlotGrid, SlotInstance, eligible_pairs, make_slot_grid, observable_segments
 
 __all__ = ["menu_pitch_s", "menu_spans", "menu_positions", "menu_portfolio", "menu_instance", "dominated_pairs",
            "map_start_menu", "greedy_menu_pairs", "menu_start_pairs"]

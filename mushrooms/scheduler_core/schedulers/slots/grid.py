@@ -5,7 +5,7 @@ block ``j`` has its visit in pass ``p`` at ``t_p = T_j + (p - 1) D_n + q s``
 with ``D_n = max(n s + t_filt, cadence)`` and ``s = t_exp + t_slew``; a
 block lasts ``L_n = (k - 1) D_n + n s + δ t_filt + margin`` (``δ = 0`` when a
 sequence of more than two ends in its first filter).  The model on top of
-the grid is :mod:`.slots`.
+the grid is :mod:`.model`.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import PlanningConfig
-from ..problem import PlanningProblem
-from ..sky.windows import union_intervals
+from ...config import PlanningConfig
+from ...problem import PlanningProblem
+from ...sky.windows import union_intervals
 
 __all__ = ["SlotGrid", "PHASES", "block_length_s", "second_pass_delay_s", "n_passes", "observable_segments",
            "make_slot_grid"]

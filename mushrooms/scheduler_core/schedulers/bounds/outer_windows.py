@@ -32,11 +32,11 @@ import dataclasses
 import numpy as np
 from astropy.time import TimeDelta
 
-from ..plan.checker import TOL_AIRMASS, TOL_HA_H, TOL_MOON_DEG, TOL_SUN_DEG
-from ..problem import PlanningProblem
-from ..sky.constraints import mount_limits_ok, observing_geometry
-from ..sky.visibility import site
-from ..sky.windows import Windows
+from ...plan.checker import TOL_AIRMASS, TOL_HA_H, TOL_MOON_DEG, TOL_SUN_DEG
+from ...problem import PlanningProblem
+from ...sky.constraints import mount_limits_ok, observing_geometry
+from ...sky.visibility import site
+from ...sky.windows import Windows
 
 __all__ = ["refined_windows", "refined_problem", "N_SUB", "LOOSEN"]
 

@@ -27,7 +27,7 @@ limit).
 
 The windows used are the problem's, widened by one time step at each end:
 visibility windows are found on a time grid and are conservative by less
-than one step (see :mod:`.visibility`), so the true windows lie inside the
+than one step (see :mod:`..visibility`), so the true windows lie inside the
 widened ones.  Not covered: fields the problem dropped for having no
 window of one exposure on the grid (their true windows are shorter than
 ``t_exp + 2 step``).
@@ -41,10 +41,10 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from ..sky.cells import merge_cells
-from ..problem import PlanningProblem, UpperBound  # UpperBound is defined beside ScheduleResult, which holds one
-from ..sky.windows import union_intervals
-from .solvers import MilpModel, solve_milp
+from ...sky.cells import merge_cells
+from ...problem import PlanningProblem, UpperBound  # UpperBound is defined beside ScheduleResult, which holds one
+from ...sky.windows import union_intervals
+from ..milp.solvers import MilpModel, solve_milp
 
 __all__ = ["UpperBound", "pairable_rows", "max_fields", "coverage_upper_bound", "solver_margin", "BOUND_MIP_GAP",
            "HIGHS_PRIMAL_TOL", "ROUNDING_MARGIN"]
@@ -115,7 +115,7 @@ N_CHECKPOINTS = 12
 
 def _online_bound(footprints, prob: np.ndarray, K: int) -> float:
     """(U4) min over greedy prefixes S_i of f(S_i) + the K largest marginal gains given S_i."""
-    from .prune import greedy_max_coverage
+    from ..blocks.prune import greedy_max_coverage
 
     picked = greedy_max_coverage(footprints, prob, K)
     indptr, indices = footprints.indptr, footprints.indices
@@ -154,7 +154,7 @@ def coverage_upper_bound(problem: PlanningProblem, method: str = "online", time_
     -------
     UpperBound
     """
-    from .block_schedule import shortlist_footprints
+    from ..blocks.schedule import shortlist_footprints
 
     t0 = time.perf_counter()
     rows = pairable_rows(problem)

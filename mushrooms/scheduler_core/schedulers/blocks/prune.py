@@ -14,10 +14,10 @@ import math
 
 import numpy as np
 
-from ..config import PlanningConfig
-from ..sky.footprints import Footprints
-from ..problem import PlanningProblem
-from ..sky.windows import Windows
+from ...config import PlanningConfig
+from ...sky.footprints import Footprints
+from ...problem import PlanningProblem
+from ...sky.windows import Windows
 
 __all__ = ["greedy_max_coverage", "default_shortlist_size", "shortlist_fields", "observable_time_s", "schedulable_rows",
            "SHORTLIST_MIN", "SHORTLIST_MAX", "SHORTLIST_SLACK"]

@@ -1,6 +1,6 @@
 """A tighter certified bound: the coverage relaxation that counts the competition for time (V1-V4).
 
-The certified bound of :mod:`.bound` caps the number of fields of a plan
+The certified bound of :mod:`.coverage_bound` caps the number of fields of a plan
 by the whole observable time (U2), so fields visible at the same hours do
 not compete there.  This bound adds one capacity row per time interval
 (``docs/design/milp.md``, section "Interval bound", equations V1-V4):
@@ -32,9 +32,9 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from ..problem import PlanningProblem, UpperBound
-from .bound import BOUND_MIP_GAP, widened_windows, coverage_upper_bound, max_fields, pairable_rows, solver_margin
-from .solvers import MilpModel, solve_milp
+from ...problem import PlanningProblem, UpperBound
+from .coverage_bound import BOUND_MIP_GAP, widened_windows, coverage_upper_bound, max_fields, pairable_rows, solver_margin
+from ..milp.solvers import MilpModel, solve_milp
 
 __all__ = ["field_spans", "interval_violation", "interval_upper_bound"]
 
@@ -147,8 +147,8 @@ def interval_upper_bound(problem: PlanningProblem, time_limit_s: float = 2.0) ->
         or rounds ran out: the least proven bound), both with ``method``
         ``interval``; or U4 itself (``method`` ``online``) when it is not above V.
     """
-    from ..sky.cells import merge_cells
-    from .block_schedule import shortlist_footprints
+    from ...sky.cells import merge_cells
+    from ..blocks.schedule import shortlist_footprints
 
     t0 = time.perf_counter()
     u4 = coverage_upper_bound(problem)

@@ -1,7 +1,7 @@
 """The MUSHROOMS scheduler: prune, block-division MILP, TSP order, real times.
 
 ``milp_schedule`` runs the paper's three steps on a
-:class:`~.problem.PlanningProblem`:
+:class:`~..problem.PlanningProblem`:
 
 1. prune the observable grid to a shortlist (max weighted coverage);
 2. merge pixels into weighted cells and solve the block-division MILP;
@@ -24,18 +24,18 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .blocks import (BlockModel, BlockParams, Candidates, DecodedBlock, build_block_model, decode_blocks,
+from .model import (BlockModel, BlockParams, Candidates, DecodedBlock, build_block_model, decode_blocks,
                      heuristic_start)
-from ..sequences import require_pair
-from ..sky.cells import Cells, merge_cells
-from ..config import PlanningConfig
+from ...sequences import require_pair
+from ...sky.cells import Cells, merge_cells
+from ...config import PlanningConfig
 from .ordering import order_fields
-from ..plan.document import Observation
-from ..sky.footprints import Footprints
-from ..problem import PlanningProblem, ScheduleResult, StopCheck
+from ...plan.document import Observation
+from ...sky.footprints import Footprints
+from ...problem import PlanningProblem, ScheduleResult, StopCheck
 from .prune import schedulable_rows, shortlist_fields
-from .slew import overhead_time
-from .solvers import SolveResult, solve_milp
+from ...telescope.slew import overhead_time
+from ..milp.solvers import SolveResult, solve_milp
 
 __all__ = ["milp_schedule", "shortlist_footprints", "make_candidates", "time_blocks", "TimedBlocks"]
 
@@ -114,7 +114,7 @@ def time_blocks(problem: PlanningProblem, blocks: list[DecodedBlock], rows: np.n
 
     A block starts no earlier than its planned start (its fields' windows
     open by then); within it, each exposure follows the previous one after
-    the true overhead (:func:`~.slew.overhead_time`); a second-filter
+    the true overhead (:func:`~...telescope.slew.overhead_time`); a second-filter
     exposure also waits until the cadence since its first-filter exposure
     has passed.
 
@@ -207,7 +207,7 @@ def _drop_offenders(problem: PlanningProblem, blocks: list[DecodedBlock], rows: 
 
 def _fallback(problem: PlanningProblem, should_stop: StopCheck | None, res: SolveResult,
               details: dict, t_wall: float) -> ScheduleResult:
-    from .greedy import greedy_schedule
+    from ..greedy.schedule import greedy_schedule
 
     log.warning("MILP (%s) found no incumbent (%s); using the greedy plan", res.backend, res.status)
     greedy = greedy_schedule(problem, should_stop)

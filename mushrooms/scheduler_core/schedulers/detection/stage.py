@@ -4,19 +4,19 @@ Coverage counts a cell once any field holding it is observed, however
 shallow or late the exposure.  The detection objective counts what the
 evaluation counts: the probability that the source, at the cell's distance
 posterior, is brighter than the limit of the best exposure covering it
-(:mod:`.detection`, equation X1).  The model (reaches X2, distance
-levels, X3-X6 on the slot grid) is :mod:`.detection_model`; this module
+(:mod:`.`, equation X1).  The model (reaches X2, distance
+levels, X3-X6 on the slot grid) is :mod:`.model`; this module
 is the stage that solves it.
 
 The stage starts from a coverage plan (mapped onto each grid, the solver's
 first incumbent), solves the portfolio's grids within its own budget,
-times every solution with the real overheads (:func:`.slot_schedule.time_slot_plan`)
+times every solution with the real overheads (:func:`..slots.schedule.time_slot_plan`)
 and scores the executable plans exactly with (X1).  It returns the coverage
 plan itself unless a detection plan, as it will be published (after the
 real timing and the least-gain rule), has more expected detections *and*
 still respects the floor (X6), or, when the expected detections tie
 (closer than ``config.min_gain``, e.g. both ~0 for a source too far for the
-light curve), covers more by ``min_gain`` (:mod:`..preference`, R1-R3): it
+light curve), covers more by ``min_gain`` (:mod:`...preference`, R1-R3): it
 never publishes fewer detections than the plan it started from (beyond the
 margin), nor loses more than ``ε`` of its coverage, nor keeps a plan over
 one with as many expected detections and more coverage.
@@ -31,23 +31,23 @@ import time
 import numpy as np
 from astropy.time import TimeDelta
 
-from ..sequences import require_pair
-from ..sky.cells import merge_cells
-from ..source.depth import ZTF_DEPTH, DepthModel
-from .detection_ceiling import detection_ceiling
-from .detection_model import (build_detection_model, detection_start_vector, distance_levels, level_weights,
+from ...sequences import require_pair
+from ...sky.cells import merge_cells
+from ...source.depth import ZTF_DEPTH, DepthModel
+from .ceiling import detection_ceiling
+from .model import (build_detection_model, detection_start_vector, distance_levels, level_weights,
                               pair_levels, pair_reach)
-from .gain import drop_low_gain
-from ..preference import is_preferred
-from ..source.kilonova import Kilonova, load_kilonova
-from ..plan.document import Observation, Plan, PlanMetrics
-from ..problem import DetectionReport, PlanningProblem, ScheduleResult, StopCheck
-from ..sky.skymap import SkyMap
-from .exposure_menu import (dominated_pairs, map_start_menu, menu_instance, menu_portfolio, menu_positions,
+from ..gain import drop_low_gain
+from ...preference import is_preferred
+from ...source.kilonova import Kilonova, load_kilonova
+from ...plan.document import Observation, Plan, PlanMetrics
+from ...problem import DetectionReport, PlanningProblem, ScheduleResult, StopCheck
+from ...sky.skymap import SkyMap
+from ..slots.exposure_menu import (dominated_pairs, map_start_menu, menu_instance, menu_portfolio, menu_positions,
                             menu_start_pairs)
-from .slots import SlotInstance, slot_instance
-from .solvers import resolve_backend, solve_milp
-from ..telescope.coverage import AS_EXECUTED_MEMO
+from ..slots.model import SlotInstance, slot_instance
+from ..milp.solvers import resolve_backend, solve_milp
+from ..as_executed import AS_EXECUTED_MEMO
 
 __all__ = ["plan_expected_detections", "detection_stage", "coverage_floor"]
 
@@ -96,7 +96,7 @@ def coverage_floor(coverage: float, max_loss: float, baseline: float | None = No
 def plan_expected_detections(problem: PlanningProblem, skymap: SkyMap, observations: tuple[Observation, ...] | list,
                              kilonova: Kilonova, depth: DepthModel = ZTF_DEPTH) -> float:
     """Exact expected detections (X1) of scheduled exposures."""
-    from ..source.detection import expected_detections
+    from ...source.detection import expected_detections
 
     plan = Plan("candidate", problem.start, problem.start + TimeDelta(problem.horizon_s, format="sec"),
                 tuple(observations), PlanMetrics(0.0, "", "", None, 0.0, 0, len(observations)))
@@ -155,7 +155,7 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
         plan's executed coverage, ``Cx_g`` ``baseline_executed``); else
         ``coverage`` itself.  ``expected_detections`` (and
         ``expected_detections_lightcurve``) hold the returned plan's score,
-        ``detection`` (:class:`~..problem.DetectionReport`) the choice, the
+        ``detection`` (:class:`~...problem.DetectionReport`) the choice, the
         coverage plan's score, the floor and the per-grid runs.
     """
     require_pair(problem.config.filters, "detection stage")
@@ -229,7 +229,7 @@ class _Stage:
 
     def executed(self, result: ScheduleResult) -> float:
         """A result's coverage as ZTF's scheduler executes its published plan's queues (Q14), remembered."""
-        from ..telescope.coverage import keyed_coverage_as_executed
+        from ..as_executed import keyed_coverage_as_executed
 
         key, value = keyed_coverage_as_executed(self.problem, result, self.memo)
         if key is not None:
@@ -254,8 +254,8 @@ class _Stage:
         ``floor`` is the model's (X6, on the grid's coverage), ``accept_floor`` the least published coverage of
         a plan the stage may return (``coverage_floor``: at least ``floor``).
         """
-        from .block_schedule import shortlist_footprints
-        from .slot_schedule import slot_portfolio, slot_rows
+        from ..blocks.schedule import shortlist_footprints
+        from ..slots.schedule import slot_portfolio, slot_rows
 
         problem = self.problem
         start_first: dict[int, float] = {}
@@ -321,7 +321,7 @@ class _Stage:
     def _solve_grid(self, grid, i: int, n_grids: int, on_menu: bool = False
                     ) -> tuple[dict | None, tuple | None, bool]:
         """Solve one grid: (its run record or None, its (e, obs, res, c) when above the floor, stop after it)."""
-        from .slot_schedule import map_start, time_slot_plan
+        from ..slots.schedule import map_start, time_slot_plan
 
         problem, cfg = self.problem, self.problem.config
         if on_menu:

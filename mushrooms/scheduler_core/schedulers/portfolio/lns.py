@@ -1,6 +1,6 @@
 """Large-neighbourhood search: re-solve time slices of an incumbent plan exactly.
 
-The slot grids (:mod:`.slot_schedule`) are one restricted family of plans:
+The slot grids (:mod:`..slots.schedule`) are one restricted family of plans:
 a pair placed at the very edge of a short window, or blocks that do not
 line up with when fields rise and set, cannot be expressed.  This stage
 takes the best plan so far and repeatedly
@@ -29,7 +29,7 @@ within ``min_gain`` of the certified bound (``enough``), or a whole round
 of slices or :data:`MAX_IDLE_S` seconds bring nothing (a slice's solve
 never runs past that idle stop, and stops as soon as its bound proves it
 cannot add ``min_gain``).  A slice's plan replaces the incumbent only when
-ZTF's scheduler executes it no worse (H5, :mod:`..telescope.coverage`):
+ZTF's scheduler executes it no worse (H5, :mod:`..as_executed`):
 a plan packed to the cadence and the night's end loses what the executor's
 later start of each pass pushes out of the night.
 """
@@ -45,15 +45,15 @@ from typing import Sequence
 
 import numpy as np
 
-from ..sequences import require_pair
-from ..plan.document import Observation
-from ..problem import PlanningProblem, ScheduleResult, StopCheck
-from ..sky.windows import Windows
-from .block_schedule import shortlist_footprints
+from ...sequences import require_pair
+from ...plan.document import Observation
+from ...problem import PlanningProblem, ScheduleResult, StopCheck
+from ...sky.windows import Windows
+from ..blocks.schedule import shortlist_footprints
 from .continuous import build_exact_model, exact_data, solution_parts, start_from_plan
-from .gain import published_coverage
-from .slew import overhead_time
-from .solvers import solve_milp
+from ..gain import published_coverage
+from ...telescope.slew import overhead_time
+from ..milp.solvers import solve_milp
 
 __all__ = ["lns_improve", "plan_rule_problems", "SLICE_S", "MAX_FREE_FIELDS", "SLICE_LIMIT_S", "MIN_SLICE_S",
            "MAX_IDLE_S"]
@@ -138,8 +138,8 @@ class _State:
 
 
 def _state(problem: PlanningProblem, observations: Sequence[Observation], memo: dict[tuple, float]) -> _State:
-    """The state of a plan; ``memo`` (:func:`~..telescope.coverage.execution_key` -> executed coverage) is filled."""
-    from ..telescope.coverage import keyed_coverage_as_executed
+    """The state of a plan; ``memo`` (:func:`~..as_executed.execution_key` -> executed coverage) is filled."""
+    from ..as_executed import keyed_coverage_as_executed
 
     obs = sorted(observations, key=lambda o: o.start)
     res = ScheduleResult(tuple(obs), "lns", "", None, 0.0)
@@ -427,7 +427,7 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
         return result(seed.observations, "no_improvement", seed_cov)
     lo = max(0.0, float(w.start.min()))
     hi = min(problem.horizon_s, float(w.end.max()))
-    from ..telescope.coverage import AS_EXECUTED_MEMO
+    from ..as_executed import AS_EXECUTED_MEMO
 
     memo: dict[tuple, float] = dict((seed.details or {}).get(AS_EXECUTED_MEMO, {}))
     details[AS_EXECUTED_MEMO] = memo  # the executed coverage of the seed and every plan scored: the hybrid reuses it

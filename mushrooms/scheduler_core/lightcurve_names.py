@@ -1,6 +1,6 @@
 """The light curves shipped with the package, by name: a leaf (no numpy), read by ``[scheduler]``'s check.
 
-:mod:`.lightcurves` reads the files; :class:`~mushrooms.scheduler_core.config.PlanningConfig`
+:mod:`.source.lightcurves` reads the files; :class:`~mushrooms.scheduler_core.config.PlanningConfig`
 only needs the names (``detection_lightcurve``), so loading the configuration imports no numpy.
 """
 

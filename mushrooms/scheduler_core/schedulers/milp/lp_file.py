@@ -33,7 +33,7 @@ def write_lp(model: MilpModel, path) -> None:
     One cell seen by two fields, at most one field (``max y``, ``y <= x_0 + x_1``, ``x_0 + x_1 <= 1``):
 
     >>> import numpy as np, tempfile, pathlib
-    >>> from mushrooms.scheduler_core.schedulers.rows import Columns, RowBuilder
+    >>> from mushrooms.scheduler_core.schedulers.milp.rows import Columns, RowBuilder
     >>> cols = Columns()
     >>> x, y = cols.family("x", 2), cols.family("y", 1)
     >>> rows = RowBuilder()

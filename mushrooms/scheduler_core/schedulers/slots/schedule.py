@@ -2,7 +2,7 @@
 
 ``slot_schedule`` shortlists the fields (the block MILP's pruning, plus the
 fields of a given start plan), solves the slot-assignment MILP
-(:mod:`.slots`) on a small portfolio of grids (``slot_positions`` × the
+(:mod:`.model`) on a small portfolio of grids (``slot_positions`` × the
 two phases) within one time budget, and turns the best solutions into
 executable exposures with the real overheads:
 
@@ -33,18 +33,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..sequences import require_pair
-from ..sky.cells import merge_cells
-from ..config import PlanningConfig
-from .ordering import order_fields
-from ..plan.document import Observation
-from ..problem import PlanningProblem, ScheduleResult, StopCheck
-from .blocks import cadence_block_size
-from .prune import shortlist_fields
-from .slew import overhead_time
-from .slots import (SlotGrid, SlotInstance, SlotModel, build_slot_model, decode_slots, make_slot_grid,
+from ...sequences import require_pair
+from ...sky.cells import merge_cells
+from ...config import PlanningConfig
+from ..blocks.ordering import order_fields
+from ...plan.document import Observation
+from ...problem import PlanningProblem, ScheduleResult, StopCheck
+from ..blocks.model import cadence_block_size
+from ..blocks.prune import shortlist_fields
+from ...telescope.slew import overhead_time
+from .model import (SlotGrid, SlotInstance, SlotModel, build_slot_model, decode_slots, make_slot_grid,
                     observable_segments, slot_instance, start_vector)
-from .solvers import SolveResult, resolve_backend, solve_milp
+from ..milp.solvers import SolveResult, resolve_backend, solve_milp
 
 __all__ = ["slot_schedule", "slot_rows", "slot_portfolio", "grid_positions", "map_start", "time_slot_plan", "GridSolution"]
 
@@ -73,7 +73,7 @@ def slot_rows(problem: PlanningProblem, start_fields: np.ndarray | None = None) 
 def grid_positions(config: PlanningConfig) -> list[int]:
     """Positions per block of the portfolio's grids: n* first, then ``slot_positions``.
 
-    n* = ``ceil((c - t_filt) / s)`` (:func:`.blocks.cadence_block_size`) is
+    n* = ``ceil((c - t_filt) / s)`` (:func:`..blocks.model.cadence_block_size`) is
     the fewest positions whose pass and filter change fill the cadence:
     with fewer, a block idles ``c - n s - t_filt`` between its passes (G1).
     It is added only when ``slot_positions`` lacks it (the default list
@@ -293,7 +293,7 @@ def slot_schedule(
     details: dict = {"shortlist": int(rows.size)}
     if rows.size == 0:
         return ScheduleResult((), "slots:none", "no_candidates", None, time.perf_counter() - t_wall, details)
-    from .block_schedule import shortlist_footprints
+    from ..blocks.schedule import shortlist_footprints
 
     weight = problem.prob if pixel_weight is None else np.asarray(pixel_weight, float)
     cells = merge_cells(shortlist_footprints(problem.footprints, rows), weight)

@@ -1,4 +1,4 @@
-"""The fixed-grid slot-assignment MILP: eligibility, model, decoding (the grid: :mod:`.slot_grid`).
+"""The fixed-grid slot-assignment MILP: eligibility, model, decoding (the grid: :mod:`.grid`).
 
 The observable time is cut once into back-to-back *blocks* of ``n``
 positions (``docs/design/milp.md``, section "Slot-assignment MILP").  A
@@ -42,11 +42,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..sky.cells import Cells, merge_cells
-from ..problem import PlanningProblem
-from .rows import Columns, Family, RowBuilder
-from .slot_grid import SlotGrid, block_length_s, make_slot_grid, n_passes, observable_segments, second_pass_delay_s
-from .solvers import MilpModel
+from ...sky.cells import Cells, merge_cells
+from ...problem import PlanningProblem
+from ..milp.rows import Columns, Family, RowBuilder
+from .grid import SlotGrid, block_length_s, make_slot_grid, n_passes, observable_segments, second_pass_delay_s
+from ..milp.solvers import MilpModel
 
 __all__ = ["SlotGrid", "SlotInstance", "SlotModel", "block_length_s", "second_pass_delay_s", "n_passes",
            "observable_segments", "make_slot_grid", "eligible_pairs", "eligible_visits", "slot_instance", "build_slot_model",
@@ -207,7 +207,7 @@ def slot_instance(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid,
     -------
     SlotInstance
     """
-    from .block_schedule import shortlist_footprints
+    from ..blocks.schedule import shortlist_footprints
 
     rows = np.asarray(rows, np.int64)
     if cells is None:

@@ -1,6 +1,6 @@
 """The detection objective's model on the slot grid: reaches, distance levels, level weights, X2-X6.
 
-On the slot grid (:mod:`.slots`) every eligible pair ``k = (field f, slot s)`` has a known time, filter pair and
+On the slot grid (:mod:`..slots.model`) every eligible pair ``k = (field f, slot s)`` has a known time, filter pair and
 sky, hence a *reach* ``r_k`` (Mpc, equation X2: the larger of its two
 exposures').  The reaches are rounded down to ``L`` distance levels
 ``0 < r_1 < ... < r_L`` and the model gains, per level ``l``
@@ -24,7 +24,7 @@ to the best reached one, so ``Σ_l W_cl v_cl`` is the cell's detection
 probability at its best covering slot (rounded down to a level).
 
 The stage that solves it, times and scores its plans is
-:mod:`.detection_slots`.
+:mod:`.stage`.
 """
 
 from __future__ import annotations
@@ -34,16 +34,16 @@ from dataclasses import dataclass
 import numpy as np
 from astropy.time import Time, TimeDelta
 
-from ..problem import PlanningProblem
-from ..sky.cells import Cells
-from ..sky.footprints import Footprints
-from ..sky.skymap import SkyMap
-from ..source.depth import ZTF_DEPTH, DepthModel, limiting_magnitude, sky_conditions
-from ..source.detection import distance_cdf, reach_mpc
-from ..source.kilonova import Kilonova
-from .rows import Columns, RowBuilder
-from .slots import SlotInstance, SlotModel, build_slot_model, slot_model_rows, start_vector
-from .solvers import MilpModel
+from ...problem import PlanningProblem
+from ...sky.cells import Cells
+from ...sky.footprints import Footprints
+from ...sky.skymap import SkyMap
+from ...source.depth import ZTF_DEPTH, DepthModel, limiting_magnitude, sky_conditions
+from ...source.detection import distance_cdf, reach_mpc
+from ...source.kilonova import Kilonova
+from ..milp.rows import Columns, RowBuilder
+from ..slots.model import SlotInstance, SlotModel, build_slot_model, slot_model_rows, start_vector
+from ..milp.solvers import MilpModel
 
 __all__ = ["pair_reach", "distance_levels", "pair_levels", "cell_of_pixels", "level_weights", "DetectionModel",
            "build_detection_model", "detection_start_vector"]

@@ -7,14 +7,14 @@ small MILP by separation within ``config.bound_time_limit_s`` (a time limit
 only loosens it).  ``bound_time_limit_s = 0`` publishes U4 alone.
 
 The dependency is one way: this module uses :mod:`.interval_bound`, which
-uses :mod:`.bound`; neither of those imports this one, and the schedulers
-(:mod:`.portfolio`) import only this one.
+uses :mod:`.coverage_bound`; neither of those imports this one, and the schedulers
+(:mod:`..portfolio.portfolio`) import only this one.
 """
 
 from __future__ import annotations
 
-from ..problem import PlanningProblem, UpperBound
-from .bound import coverage_upper_bound
+from ...problem import PlanningProblem, UpperBound
+from .coverage_bound import coverage_upper_bound
 from .interval_bound import interval_upper_bound
 
 __all__ = ["certified_upper_bound"]

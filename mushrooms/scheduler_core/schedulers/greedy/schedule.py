@@ -21,10 +21,10 @@ import time
 
 import numpy as np
 
-from ..config import PlanningConfig
-from ..plan.document import Observation
-from ..problem import PlanningProblem, ScheduleResult, StopCheck
-from .slew import overhead_time
+from ...config import PlanningConfig
+from ...plan.document import Observation
+from ...problem import PlanningProblem, ScheduleResult, StopCheck
+from ...telescope.slew import overhead_time
 
 __all__ = ["greedy_schedule", "time_passes"]
 

@@ -25,7 +25,7 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
-from ..problem import StopCheck
+from ...problem import StopCheck
 from .rows import Family, RowBlock
 
 __all__ = ["MilpModel", "SolveResult", "solve_milp", "highs_lp", "gurobi_fully_licensed", "resolve_backend", "relative_gap"]

@@ -45,10 +45,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..sky.cells import Cells
-from ..config import PlanningConfig
-from .rows import Columns, RowBuilder
-from .solvers import MilpModel
+from ...sky.cells import Cells
+from ...config import PlanningConfig
+from ..milp.rows import Columns, RowBuilder
+from ..milp.solvers import MilpModel
 
 __all__ = ["BlockParams", "Candidates", "BlockModel", "block_size", "build_block_model", "decode_blocks",
            "DecodedBlock", "heuristic_start", "earliest_block_starts"]

@@ -20,11 +20,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..problem import PlanningProblem
-from ..sky.skymap import SkyMap
-from ..source.depth import ZTF_DEPTH, DepthModel, dark_zenith, limiting_magnitude
-from ..source.detection import distance_cdf, reach_mpc
-from ..source.kilonova import Kilonova
+from ...problem import PlanningProblem
+from ...sky.skymap import SkyMap
+from ...source.depth import ZTF_DEPTH, DepthModel, dark_zenith, limiting_magnitude
+from ...source.detection import distance_cdf, reach_mpc
+from ...source.kilonova import Kilonova
 
 __all__ = ["detection_ceiling", "max_reach_mpc"]
 

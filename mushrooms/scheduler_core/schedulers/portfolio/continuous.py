@@ -25,14 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..sequences import require_pair
-from ..plan.document import Observation
-from ..problem import PlanningProblem
-from ..sky.cells import Cells, merge_cells
-from .block_schedule import shortlist_footprints
-from .slew import slew_time
-from .rows import Columns, Family, RowBuilder, at_least_when
-from .solvers import MilpModel
+from ...sequences import require_pair
+from ...plan.document import Observation
+from ...problem import PlanningProblem
+from ...sky.cells import Cells, merge_cells
+from ..blocks.schedule import shortlist_footprints
+from ...telescope.slew import slew_time
+from ..milp.rows import Columns, Family, RowBuilder, at_least_when
+from ..milp.solvers import MilpModel
 
 __all__ = ["ExactData", "ExactModel", "exact_data", "build_exact_model", "start_from_plan", "decode_exact",
            "INTEGRAL_TOL"]

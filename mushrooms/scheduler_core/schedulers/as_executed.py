@@ -8,8 +8,8 @@ import numpy as np
 
 from ..executed import MIN_PROCESSED_FRACTION, ExecutedExposure, is_done
 from ..sequences import covered_fields
-from .executor import execute_queues, executed_exposures, queue_set_from_payloads
-from .timing import TelescopeTiming
+from ..telescope.executor import execute_queues, executed_exposures, queue_set_from_payloads
+from ..telescope.timing import TelescopeTiming
 
 if TYPE_CHECKING:
     from ..plan.document import Plan
@@ -126,7 +126,7 @@ def keyed_coverage_as_executed(problem: Any, result: Any, memo: dict[tuple, floa
     from astropy.time import TimeDelta
 
     from ..plan.document import EventInfo, Plan, PlanMetrics, sorted_observations
-    from ..schedulers.gain import drop_low_gain
+    from .gain import drop_low_gain
 
     config = problem.config
     kept = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain)

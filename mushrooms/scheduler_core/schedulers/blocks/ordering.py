@@ -5,7 +5,7 @@ them again in the same order.  The return from the last field to the first
 one runs during the filter change, and so does the move to the next block,
 so what matters is the open path through the block's fields: a travelling
 salesperson *path* with free ends over the true exposure-to-exposure
-overheads (:func:`~.slew.slew_matrix`: per-axis trapezoid, settle, readout).
+overheads (:func:`~...telescope.slew.slew_matrix`: per-axis trapezoid, settle, readout).
 
 Small blocks are solved exactly (Held–Karp dynamic programming over subsets,
 vectorised over the last field); larger ones with networkx's simulated
@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..config import SlewModel
-from .slew import slew_matrix
+from ...config import SlewModel
+from ...telescope.slew import slew_matrix
 
 __all__ = ["path_cost", "exact_path", "approx_path", "order_fields", "EXACT_MAX"]
 
@@ -147,7 +147,7 @@ def order_fields(ra_deg: np.ndarray, dec_deg: np.ndarray, model: SlewModel = Sle
     ra_deg, dec_deg : numpy.ndarray
         Field centres (deg).
     model : SlewModel
-        Slew model (true overheads from :func:`~.slew.slew_matrix`).
+        Slew model (true overheads from :func:`~...telescope.slew.slew_matrix`).
     exact_max : int
         Blocks up to this size are solved exactly.
 
