@@ -1,5 +1,5 @@
 """Command line: ``mushrooms demo | plan | check | replay | run | rehearse | trigger | status | bench | study | submit
-| queue | preflight``.
+| queue | preflight | telescopes``.
 
 A thin dispatcher: each subcommand is a module of :mod:`mushrooms.tool`
 with its parser beside its implementation; :data:`TOOLS` is the registry.
@@ -17,6 +17,7 @@ from typing import Sequence
 from . import __version__
 from .tool import bench, check, demo, plan, queue, rehearse, replay, run, status, study, submit, trigger
 from .tool import preflight
+from .tool import telescopes
 from .tool.common import EXIT_INPUT, SOLVER_CHOICES, execute
 
 __all__ = ["main", "build_parser", "TOOLS", "SOLVER_CHOICES"]
@@ -27,6 +28,7 @@ TOOLS: dict[str, ModuleType] = {
     "status": status,
     "bench": bench, "study": study, "submit": submit, "queue": queue,
     "preflight": preflight,
+    "telescopes": telescopes,
 }
 
 

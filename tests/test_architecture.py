@@ -325,8 +325,8 @@ def test_room_scan_names_a_loop_between_two_rooms():
 LIBRARY = "mushrooms.scheduler_core"
 #: The library's top-level modules, grouped as rooms (its subpackages are rooms of their own).
 LIBRARY_GROUPS = {
-    # leaves: errors, the parsers of tables, ranges and times, the cache folder, lazy names
-    **dict.fromkeys(("errors", "tables", "ranges", "times", "cachedir", "lazy"), "base"),
+    # leaves: errors, the parsers of tables, ranges and times, the cache folder, lazy names, the work clock
+    **dict.fromkeys(("errors", "tables", "ranges", "times", "cachedir", "lazy", "budget"), "base"),
     # [scheduler] and the names it checks against (scheduler names, light-curve names)
     **dict.fromkeys(("config", "solvers_registry", "lightcurve_names"), "settings"),
     # what the telescope did: executed exposures and the filter-sequence rules read from them
@@ -349,11 +349,11 @@ def test_every_top_level_module_of_the_library_has_a_room(graph):
 
 
 def test_the_librarys_rooms_form_a_stack(graph):
-    # base < settings < sky < records < telescope < plan < source < problem < schedulers < planning:
+    # base < settings, instruments < sky < records < telescope < plan < source < problem < schedulers < planning:
     # a room may use the rooms below it, never one that uses it back
     rooms = room_graph(graph, LIBRARY, LIBRARY_GROUPS)
-    assert {"base", "settings", "sky", "records", "telescope", "plan", "source", "problem", "schedulers",
-            "planning"} == set(rooms)
+    assert {"base", "settings", "instruments", "sky", "records", "telescope", "plan", "source", "problem",
+            "schedulers", "planning"} == set(rooms)
     assert import_cycles(rooms) == []
     # the two that ran back up before the rooms: the telescope model under the schedulers, the sky under the plan
     assert "schedulers" not in rooms["telescope"] and "plan" not in rooms["sky"] | rooms["settings"]

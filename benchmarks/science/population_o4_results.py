@@ -8,7 +8,8 @@ cache and ``study/results.jsonl``, ``realizations.jsonl``, ``localisations.jsonl
 * ``results.csv``: one row per (event, solver), :data:`POPULATION_COLUMNS` (``coverage_executed``: the plan's
   coverage as ZTF would execute its queues);
 * ``tables.md`` and ``figures/``: every table and figure, rebuilt from ``results.csv`` alone (``--tables-only``
-  does just that);
+  does just that); ``release_tables.md``: the release's tables (issue 55: medians and bootstrap intervals beside
+  means, paired differences against the service, zero-execution events; ``benchmarks/science/release_tables.py``);
 * ``provenance.md`` and ``population/``: the recipe, commands, seeds, PSDs, counts per class, the CPU cost
   per event and stage; the small files (``population.json``, ``psds.xml``, ``intrinsic_samples.ecsv``,
   ``injections.xml.gz``, every realised chunk's ``events-KKKK.xml.gz``), enough for ``population_o4.sh`` to
@@ -32,6 +33,7 @@ from mushrooms.evaluation.study.population_rows import (population_events, popul
 from mushrooms.evaluation.study.population_figures import population_figures
 from mushrooms.evaluation.study.population_tables import population_tables
 from mushrooms.evaluation.study.recipes import O4_DEVIATIONS, O4_RANGES_MPC, RECIPES, recipe_population
+from mushrooms.evaluation.study.release_tables import release_tables
 from mushrooms.evaluation.study.store import ResultStore
 
 HERE = Path(__file__).resolve().parent
@@ -216,6 +218,7 @@ def main() -> int:
             provenance(pop_dir, files, events, rows, costs, args.injections, args.seed))
     rows = read_population_csv(args.out / "results.csv")
     (args.out / "tables.md").write_text(population_tables(rows) + "\n")
+    (args.out / "release_tables.md").write_text(release_tables(rows))
     figures = population_figures(rows, args.out / "figures")
     print(f"{len(rows)} rows -> {args.out}; figures: {', '.join(str(f) for f in figures)}")
     return 0

@@ -5,16 +5,19 @@ astropy and ligo.skymap than ours, so it lives in a separate environment and
 runs in a subprocess: the interpreter comes from ``$MUSHROOMS_GWEMOPT_PYTHON``
 (or the caller).  Without it the baseline reports status ``unavailable``.
 
-What is run (gwemopt 0.4.2's own command line, ``gwemopt.run.run``; options
-read from its ``args.py``): telescope ``ZTF`` (its bundled ``ZTF.config``,
-tessellation ``ZTF.tess`` = the 1778 ZTF grid fields), MOC tiles with the
-CCD chip-gap footprint (``--doTiles --doChipGaps``), ``--doSchedule
---scheduleType greedy`` (power-law time allocation), the two filters and
-exposure time of our configuration (``--filters g,r --exposuretimes
-300,300 --doSingleExposure --doAlternatingFilters``), the horizon
-``--gpstime <start> --Tobs 0,<horizon days>``, ``--nside`` and
-``--airmass`` of our configuration.  Astropy's IERS auto-download is turned
-off before gwemopt is imported, so nothing touches the network.
+What is run: gwemopt 0.4.2's own command line (``gwemopt.run.run``), telescope
+``ZTF`` (its bundled ``ZTF.config``, tessellation ``ZTF.tess`` = the 1778 ZTF
+grid fields), MOC tiles, ``--doSchedule --scheduleType greedy`` (power-law
+time allocation), the horizon ``--gpstime <start> --Tobs 0,<horizon days>``,
+and the options of the row's named configuration
+(:mod:`~mushrooms.evaluation.gwemopt_options`: ``gwemopt`` as the first
+release ran it, ``gwemopt-o4`` as skyportal#4206's command line,
+``gwemopt-skyportal`` as SkyPortal's plan form sends it; that module says
+what every option does, with gwemopt's and SkyPortal's file:line).
+Astropy's IERS auto-download is turned off before gwemopt is imported, so
+nothing touches the network; our launcher also takes the fields gwemopt may
+tile (``--mushrooms-fields``, SkyPortal's field selection), keeping only
+those in the tiles gwemopt builds.
 
 Its output ``schedule_ZTF.dat`` (``field ra dec tobs[MJD, exposure start]
 limmag texp[s] prob airmass filter``) becomes our :class:`~mushrooms.scheduler_core.plan.document.Plan`;
@@ -26,8 +29,8 @@ Cache of raw schedules (``cache_dir``): gwemopt takes ~90 s per map, so its
 raw output can be kept on disk and reused by later benchmarks.  One entry is
 two files named by :func:`cache_key` (sha256 of the sky map file's bytes and
 of the gwemopt options other than the input and output paths, i.e. horizon
-start, horizon length, filters, exposure, nside, airmass and the fixed
-options above): ``<key>.dat`` is gwemopt's ``schedule_ZTF.dat`` verbatim and
+start, horizon length and every option of the named configuration, the
+field list included; the first release's row keeps its keys): ``<key>.dat`` is gwemopt's ``schedule_ZTF.dat`` verbatim and
 ``<key>.json`` holds ``{"skymap", "skymap_sha256", "args", "runtime_s",
 "status", "message", "created"}``.  Only successful runs are cached; an
 entry is written atomically (temporary name, then rename), so concurrent
@@ -62,6 +65,7 @@ from astropy.time import Time, TimeDelta
 
 from ..scheduler_core.config import PlanningConfig
 from ..scheduler_core.plan.document import Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
+from .gwemopt_options import FIELDS_OPTION, GWEMOPT_CONFIGS, LEGACY, GwemoptConfig, gwemopt_args, portable_args
 
 __all__ = ["GwemoptRun", "gwemopt_python", "run_gwemopt", "parse_schedule", "gwemopt_plan", "cache_key", "Repair",
            "repair_observations", "gwemopt_env", "THREAD_CAPS",
@@ -88,14 +92,26 @@ def gwemopt_env(base: dict[str, str] | None = None) -> dict[str, str]:
     return env
 
 
-#: Runs gwemopt's CLI offline (our own three lines, executed by gwemopt's interpreter).
+#: Runs gwemopt's CLI offline (our own lines, executed by gwemopt's interpreter). With ``--mushrooms-fields
+#: 1,2,...`` (taken out of the line) only those fields keep their tiles, as SkyPortal's field selection does
+#: (``gwemopt.run`` calls ``gwemopt.moc.create_moc`` through the module, so the wrapper is what it calls).
 _LAUNCHER = (
     "import sys\n"
     "from astropy.utils import iers\n"
     "iers.conf.auto_download = False\n"
     "iers.conf.auto_max_age = None\n"
+    "argv = sys.argv[1:]\n"
+    f"if {FIELDS_OPTION!r} in argv:\n"
+    f"    k = argv.index({FIELDS_OPTION!r})\n"
+    "    keep = {int(f) for f in argv[k + 1].split(',') if f}\n"
+    "    del argv[k:k + 2]\n"
+    "    import gwemopt.moc\n"
+    "    made = gwemopt.moc.create_moc\n"
+    "    def create_moc(params, *a, **kw):\n"
+    "        return {t: {i: m for i, m in s.items() if int(i) in keep} for t, s in made(params, *a, **kw).items()}\n"
+    "    gwemopt.moc.create_moc = create_moc\n"
     "from gwemopt.run import run\n"
-    "run(sys.argv[1:])\n"
+    "run(argv)\n"
 )
 
 
@@ -136,45 +152,13 @@ def gwemopt_python(explicit: str | None = None) -> str | None:
     return sys.executable if found else None
 
 
-def gwemopt_args(skymap_path: str | Path, start: Time, config: PlanningConfig, outdir: str | Path) -> list[str]:
-    """gwemopt 0.4.2 command-line options for one sky map and horizon."""
-    filters = ",".join(config.filters)
-    exps = ",".join(f"{config.exposure_s:g}" for _ in config.filters)
-    return [
-        "--telescopes", "ZTF",
-        "-e", str(skymap_path),
-        "-o", str(outdir),
-        "--gpstime", f"{Time(start, scale='utc').gps:.3f}",
-        "--Tobs", f"0,{config.horizon_h / 24.0:.6f}",
-        "--doTiles", "--tilesType", "moc",
-        "--doSchedule", "--scheduleType", "greedy", "--timeallocationType", "powerlaw",
-        "--doChipGaps",
-        "--filters", filters, "--exposuretimes", exps,
-        "--doSingleExposure", "--doAlternatingFilters",
-        "--nside", str(config.nside),
-        "--airmass", f"{config.airmass_max:g}",
-    ]
-
-
-def _portable_args(args: list[str]) -> list[str]:
-    """The options without the input sky map and output directory (they name local paths)."""
-    out, skip = [], False
-    for a in args:
-        if skip:
-            skip = False
-            continue
-        if a in ("-e", "-o"):
-            skip = True
-            continue
-        out.append(a)
-    return out
-
-
-def cache_key(skymap_path: str | Path, start: Time, config: PlanningConfig) -> str:
-    """Cache key of one gwemopt run: sha256 of the map bytes and of its portable options (hex, 64 chars)."""
+def cache_key(skymap_path: str | Path, start: Time, config: PlanningConfig,
+              named: GwemoptConfig = GWEMOPT_CONFIGS[LEGACY], fields: list[int] | None = None) -> str:
+    """Cache key of one gwemopt run: sha256 of the map bytes and of its portable options (hex, 64 chars):
+    every option of the named configuration and the field list are in it."""
     h = hashlib.sha256()
     h.update(hashlib.sha256(Path(skymap_path).read_bytes()).hexdigest().encode())
-    h.update(json.dumps(_portable_args(gwemopt_args(skymap_path, start, config, "out"))).encode())
+    h.update(json.dumps(portable_args(gwemopt_args(skymap_path, start, config, "out", named, fields))).encode())
     return h.hexdigest()
 
 
@@ -265,6 +249,8 @@ def run_gwemopt(
     workdir: str | Path | None = None,
     cache_dir: str | Path | None = None,
     cache_only: bool = False,
+    named: GwemoptConfig = GWEMOPT_CONFIGS[LEGACY],
+    fields: list[int] | None = None,
 ) -> GwemoptRun:
     """Run gwemopt offline on one sky map.
 
@@ -275,7 +261,8 @@ def run_gwemopt(
     start : astropy.time.Time
         Horizon start (UTC).
     config : PlanningConfig
-        Filters, exposure time, horizon, nside and airmass are passed on.
+        The horizon, and the filters, exposure time, nside and airmass the
+        named configuration leaves to it.
     python : str, optional
         gwemopt's interpreter (default: :func:`gwemopt_python`).
     timeout_s : float
@@ -288,19 +275,25 @@ def run_gwemopt(
         original run), a successful run is stored.
     cache_only : bool
         With ``cache_dir``: never run gwemopt; a miss is status ``not_cached``.
+    named : GwemoptConfig
+        The row's named configuration (default: the first release's ``gwemopt``).
+    fields : list of int, optional
+        The fields gwemopt may tile (SkyPortal's field selection); None: all.
 
     Returns
     -------
     GwemoptRun
     """
+    # absolute: gwemopt runs in its own directory, and takes a name it cannot open for a GraceDB event to download
+    skymap_path = Path(skymap_path).resolve()
     key = None
     if cache_dir is not None:
         cache_dir = Path(cache_dir)
-        key = cache_key(skymap_path, start, config)
+        key = cache_key(skymap_path, start, config, named, fields)
         hit = _cache_read(cache_dir, key)
         if hit is not None:
             text, meta = hit
-            return GwemoptRun("ok", parse_schedule(text, start, config.exposure_s),
+            return GwemoptRun("ok", parse_schedule(text, start, named.exposure_of(config)),
                               float(meta.get("runtime_s", 0.0)), "cached")
         if cache_only:
             return GwemoptRun("not_cached", (), 0.0, f"not in the gwemopt cache {cache_dir}")
@@ -309,7 +302,8 @@ def run_gwemopt(
         return GwemoptRun("unavailable", (), 0.0, f"no gwemopt interpreter (pip install 'mushrooms[gwemopt]', or set ${ENV_PYTHON})")
     with tempfile.TemporaryDirectory(prefix="gwemopt-") as tmp:
         out = Path(workdir) if workdir is not None else Path(tmp) / "out"
-        cmd = [exe, "-c", _LAUNCHER, *gwemopt_args(skymap_path, start, config, out)]
+        args = gwemopt_args(skymap_path, start, config, out, named, fields)
+        cmd = [exe, "-c", _LAUNCHER, *args]
         env = gwemopt_env()
         t0 = time.perf_counter()
         try:
@@ -324,19 +318,18 @@ def run_gwemopt(
             why = tail[-1] if tail else f"exit status {proc.returncode}"
             return GwemoptRun("failed", (), runtime, f"gwemopt exit {proc.returncode}: {why}"[:300])
         text = sched.read_text()
-        obs = parse_schedule(text, start, config.exposure_s)
+        obs = parse_schedule(text, start, named.exposure_of(config))
         if cache_dir is not None and key is not None:
-            args = _portable_args(gwemopt_args(skymap_path, start, config, out))
             _cache_write(cache_dir, key, text, {
                 "skymap": Path(skymap_path).name,
                 "skymap_sha256": hashlib.sha256(Path(skymap_path).read_bytes()).hexdigest(),
-                "args": args, "runtime_s": round(runtime, 3), "status": "ok", "message": "",
+                "configuration": named.name, "args": portable_args(args), "runtime_s": round(runtime, 3), "status": "ok", "message": "",
                 "created": Time.now().isot + "Z"})
     return GwemoptRun("ok", obs, runtime, "")
 
 
 def gwemopt_plan(run: GwemoptRun, start: Time, config: PlanningConfig, skymap_sha256: str,
-                 coverage: float) -> Plan:
+                 coverage: float, name: str = LEGACY) -> Plan:
     """Wrap a gwemopt schedule as our :class:`~mushrooms.scheduler_core.plan.document.Plan` (for the checker).
 
     Parameters
@@ -351,13 +344,15 @@ def gwemopt_plan(run: GwemoptRun, start: Time, config: PlanningConfig, skymap_sh
         Sky map hash (for the plan id).
     coverage : float
         Probability covered (computed by the caller on our footprints).
+    name : str
+        The row (``metrics.solver``, and part of the plan id).
     """
     ids = {o.field_id for o in run.observations}
-    metrics = PlanMetrics(coverage=round(float(coverage), 6), solver="gwemopt", status=run.status,
+    metrics = PlanMetrics(coverage=round(float(coverage), 6), solver=name, status=run.status,
                           mip_gap=None, runtime_s=round(run.runtime_s, 3), n_fields=len(ids),
                           n_exposures=len(run.observations))
     return Plan(
-        plan_id=make_plan_id(skymap_sha256, iso_utc(start), "gwemopt", sys.version_info[:2]),
+        plan_id=make_plan_id(skymap_sha256, iso_utc(start), name, sys.version_info[:2]),
         start=Time(start, scale="utc"),
         end=Time(start, scale="utc") + TimeDelta(config.horizon_s, format="sec"),
         observations=run.observations,

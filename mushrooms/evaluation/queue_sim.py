@@ -21,7 +21,7 @@ from typing import Iterable
 import numpy as np
 from astropy.time import Time, TimeDelta
 
-from ..scheduler_core.executed import MIN_PROCESSED_FRACTION, ExecutedExposure
+from ..scheduler_core.executed import MIN_PROCESSED_FRACTION, ExecutedExposure, is_done
 from ..scheduler_core.plan.document import Plan
 from ..scheduler_core.plan.exports import to_trigger_queue, to_trigger_queues
 from ..scheduler_core.sky.footprints import Footprints
@@ -176,31 +176,46 @@ def execution_cells(plan: Plan, footprints: Footprints, prob: np.ndarray,
     time; each scored as cadence-valid coverage (the plan's filters and
     cadence, defaults g/r and 1800 s for a plan without its config).
 
+    The single list queue is what SkyPortal's ZTF API submits for one
+    observation plan today (:mod:`~mushrooms.evaluation.skyportal_queue`:
+    one ``list`` queue valid over the plan's start and end, its planned
+    observations in plan order), so for a gwemopt plan it is that plan "as
+    submitted today".
+
     Returns
     -------
     dict
         ``coverage_as_executed`` (queue set, on time), ``coverage_single_queue``
-        (the old export, on time), ``coverage_late_<min>`` (queue set, late)
-        and ``n_queues`` (queues per revision); empty cells for a plan
-        without observations.
+        (the old export, on time), ``coverage_late_<min>`` (queue set, late),
+        ``n_queues`` (queues per revision) and the shutter-open seconds of what
+        each on-time run took (``open_shutter_executed_s``,
+        ``open_shutter_single_queue_s``: exposures done, E1); empty cells for a
+        plan without observations.
     """
     from ..scheduler_core.plan.exports import timed_queue_set
 
     lates = [float(x) for x in late_starts_s]
     keys = ["coverage_as_executed", "coverage_single_queue", *[f"coverage_late_{int(x // 60)}" for x in lates]]
     if not plan.observations:
-        return {**dict.fromkeys(keys, ""), "n_queues": 0}
+        return {**dict.fromkeys(keys, ""), "n_queues": 0, "open_shutter_executed_s": "",
+                "open_shutter_single_queue_s": ""}
     config = plan.config or {}
     filters = tuple(config.get("filters", ("g", "r")))[:2]
     cadence_s = float(config.get("cadence_s", 1800.0))
     queues, _ = timed_queue_set(plan)
 
-    def kept(payloads, late_s):
+    shutter: dict[str, float] = {}
+
+    def kept(payloads, late_s, name=None):
         done = execute_plan_queues(plan, payloads, late_s)
+        if name is not None:
+            shutter[name] = round(sum(float(e.exposure_s) for e in done if is_done(e)), 1)
         return round(cadence_coverage(done, footprints, prob, filters, cadence_s), 6)  # type: ignore[arg-type]
 
-    out: dict[str, float | int | str] = {"coverage_as_executed": kept(queues, 0.0),
-                                         "coverage_single_queue": kept([to_trigger_queue(plan)], 0.0)}
+    out: dict[str, float | int | str] = {
+        "coverage_as_executed": kept(queues, 0.0, "open_shutter_executed_s"),
+        "coverage_single_queue": kept([to_trigger_queue(plan)], 0.0, "open_shutter_single_queue_s")}
     out.update({key: kept(queues, x) for key, x in zip(keys[2:], lates)})
+    out.update(shutter)
     out["n_queues"] = len(queues)
     return out

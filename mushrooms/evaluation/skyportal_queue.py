@@ -8,6 +8,21 @@ to ``Time(payload.end_date, format="iso")``, whose targets are the plan's
 planned observations in their order, each at its field's grid position.
 Used to execute a SkyPortal submission with the telescope model
 (``docs/design/submission.md``, (T1)).
+
+Checked again at skyportal 8bd346c (issue 55): a plan made by SkyPortal's
+gwemopt path reaches ZTF the same way - ``send_observation_plan``
+(``skyportal/handlers/api/observation_plan.py:200-365``; called by
+``ObservationPlanSubmitHandler.post``, 1516-1546, and by a default plan's
+auto-send) calls ``ZTFMMAAPI.send`` (``skyportal/facility_apis/ztf.py:849-917``),
+which PUTs one payload to ``api/triggers/ztf``: the targets, queue name and
+``validity_window_mjd`` of ``_build_observation_plan_payload`` (252-312: the
+request's ``start_date`` to ``end_date``, the same times gwemopt planned over,
+``skyportal/utils/observation_plan.py:385-391``) with ``queue_type`` ``list``
+(891-897).  The planned observations keep the order they were stored in
+(no ``order_by`` on the relationship, ``skyportal/models/observation_plan.py:321-325``):
+gwemopt's time order.  The bench's ``coverage_single_queue``
+(:func:`~mushrooms.scheduler_core.plan.exports.to_trigger_queue` over the
+plan's start and end) is this queue.
 """
 
 from __future__ import annotations

@@ -73,7 +73,8 @@ def status_words(facts: PlanFacts) -> str:
     """How the plan was found, in words."""
     if facts.solver == "greedy" or facts.status == "greedy":
         return "the quick greedy plan (an optimised one may follow)" if facts.final is False else "the greedy plan"
-    words = {"optimal": "solved to optimality within its model", "time_limit": "best found in the time allowed"}
+    words = {"optimal": "solved to optimality within its model", "time_limit": "best found in the time allowed",
+             "work_limit": "best found in the work allowed"}
     return f"{facts.solver}, {words.get(facts.status, facts.status)}"
 
 

@@ -97,7 +97,7 @@ class SlewModel:
 #: Keys a plan records only when set (non-empty, true): added after plan ids existed, they leave the
 #: document and the plan id of a configuration without them as they were (:meth:`PlanningConfig.record`).
 RECORDED_WHEN_SET = ("exposure_menu_s", "revisit", "bound_refine_ends", "pair_max_s", "hybrid_blocks",
-                     "hybrid_paced_slots")
+                     "hybrid_paced_slots", "deterministic")
 #: Keys a plan records only when false (switches that are on by default and were always on before they existed).
 RECORDED_WHEN_CLEARED = ("hybrid_lns",)
 #: (P10) A pair's largest separation when ``pair_max_s = 0``: one night (12 h: longer than any night at
@@ -181,7 +181,7 @@ class PlanningConfig:
     milp_backend : str
         ``auto`` (Gurobi if fully licensed, else HiGHS), ``highs`` or ``gurobi``.
     time_limit_s : float
-        Wall-clock budget (s) of the optimisation in one plan: ``slots``
+        Budget (s; work s when ``deterministic``) of one plan: ``slots``
         shares it over its grids; ``blocks`` gives it to its first solve
         (a re-solve gets a third); ``hybrid`` gives it to the slot
         portfolio, the time left to the LNS re-solves (which stop early
@@ -197,9 +197,9 @@ class PlanningConfig:
     mip_gap : float
         Relative optimality gap at which the solver may stop.
     threads : int
-        Solver threads (0 lets the solver decide).  HiGHS sizes one thread
-        pool per process at its first solve: keep this the same for every
-        solve of a process.
+        Solver threads (0 lets the solver decide; ``deterministic`` solves on
+        one).  HiGHS sizes one thread pool per process at its first solve:
+        keep this the same for every solve of a process.
     max_retries : int
         Re-solves with a larger block gap when real slews push a field out
         of its window.
@@ -296,6 +296,15 @@ class PlanningConfig:
     hybrid_lns : bool
         The hybrid runs its LNS re-solves (H1-H5, ``docs/design/milp.md``)
         after its slot stages.  Default true.
+    deterministic : bool
+        The budgets (``time_limit_s``, ``detection_time_limit_s``,
+        ``bound_time_limit_s``) count work, not wall time (:mod:`.budget`,
+        A1-A5 in ``docs/design/milp.md``): HiGHS's own progress and fixed
+        costs per Python step, one solver thread, so a plan depends only on
+        its inputs and this configuration, not on the machine's load (a
+        work second is about a second of the reference machine, quiet).
+        Default true; a caller's wall-clock stop (the daemon's
+        ``job_deadline_s``, ``mushrooms plan --deadline``) still ends it.
 
     Examples
     --------
@@ -364,6 +373,7 @@ class PlanningConfig:
     hybrid_blocks: bool = False
     hybrid_paced_slots: bool = True
     hybrid_lns: bool = True
+    deterministic: bool = True
 
     def __post_init__(self) -> None:
         require_finite(self, "scheduler")
@@ -451,7 +461,8 @@ class PlanningConfig:
         """The configuration as the plan records it (and its plan id hashes).
 
         ``exposure_menu_s`` appears only when set, ``revisit``,
-        ``bound_refine_ends``, ``hybrid_blocks`` and ``hybrid_paced_slots`` only when true,
+        ``bound_refine_ends``, ``hybrid_blocks``, ``hybrid_paced_slots`` and
+        ``deterministic`` only when true,
         ``hybrid_lns`` only when false, so a plan without them has the
         same document and the same plan id as before they existed.
         """

@@ -19,6 +19,7 @@ from .schedulers.gain import drop_low_gain
 from .schedulers.portfolio.portfolio import MIN_BLOCKS_S  # noqa: F401  (the hybrid's; re-exported)
 from .plan.localization import with_map_details
 from .plan.document import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
+from .budget import new_clock
 from .clock import on_merger_clock
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
@@ -74,6 +75,9 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
              scheduler: Callable[..., ScheduleResult] | None = None) -> ScheduleResult:
     """The whole optimisation of one plan for ``config.objective``, within ``config.time_limit_s``.
 
+    The budgets are read on a fresh clock (:mod:`.budget`): work seconds when
+    ``config.deterministic``, else wall seconds.
+
     ``coverage`` (and ``greedy``, the fast coverage heuristic, whatever the
     objective): the scheduler with the whole budget.  ``detection``: the
     scheduler with ``time_limit_s - detection_time_limit_s``, then the
@@ -102,8 +106,39 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     Returns
     -------
     ScheduleResult
+        ``details["budget"]`` (not for ``greedy``, which has no budget) is
+        ``metrics.budget``: the clock's kind and unit (:mod:`.budget`), the
+        work spent (work clock), and whether a wall-clock stop ended it.
     """
     scheduler = scheduler or run_scheduler
+    # (A1) one fresh clock for the whole optimisation; (A5) a caller's (wall-clock) stop is recorded on it
+    problem = dataclasses.replace(problem, clock=new_clock(problem.config.deterministic))
+    stop = _recorded_stop(problem.clock, should_stop)
+    start = problem.clock.mark()
+    result = _optimised(problem, skymap, solver, stop, scheduler)
+    if solver == "greedy":  # no budget
+        return result
+    budget = problem.clock.record(problem.clock.since(start))
+    return dataclasses.replace(result, details=dict(result.details, budget=budget))
+
+
+def _recorded_stop(clock, should_stop: StopCheck | None) -> StopCheck | None:
+    """``should_stop``, which also marks ``clock.interrupted`` when it says stop (A5)."""
+    if should_stop is None:
+        return None
+
+    def stop() -> bool:
+        if should_stop():
+            clock.interrupted = True
+            return True
+        return False
+
+    return stop
+
+
+def _optimised(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop: StopCheck | None,
+               scheduler: Callable[..., ScheduleResult]) -> ScheduleResult:
+    """:func:`optimise` on ``problem``'s own clock."""
     cfg = problem.config
     if cfg.objective != "detection" or solver == "greedy":
         return scheduler(problem, solver, should_stop)
@@ -117,11 +152,10 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
             result.details, detection_stage=f"skipped: a sequence of {len(cfg.filters)} filters"))
     from .schedulers.detection.stage import detection_stage
 
-    t0 = time.perf_counter()
+    start = problem.clock.mark()
     share = cfg.detection_time_limit_s
     result = scheduler(coverage_stage_problem(problem), solver, should_stop)
-    bound_s = 0.0 if result.upper_bound is None else round(result.upper_bound.runtime_s, 3)
-    spent = time.perf_counter() - t0 - bound_s  # the bound comes on top
+    spent = problem.clock.since(start)  # (A1) the bound comes on top: it is off the budget
     left = min(share, cfg.time_limit_s - spent)
     if cfg.exposure_menu_s and result.upper_bound is not None:
         result = dataclasses.replace(result, upper_bound=_menu_upper_bound(problem))
@@ -341,6 +375,7 @@ def build_plan(
         n_exposures=len(observations),
         upper_bound=None if upper is None else round(float(upper), 6),
         upper_bound_method=None if result.upper_bound is None else result.upper_bound.method,
+        budget=result.details.get("budget"),
     )
     plan_id = make_plan_id(
         skymap.sha256, iso_utc(start), config.record(), solver, event.superevent_id,

@@ -15,6 +15,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 from astropy.time import Time
 
+from .budget import Clock, new_clock
 from .config import PlanningConfig
 from .plan.document import Observation
 from .sky.footprints import Footprints
@@ -46,6 +47,11 @@ class PlanningProblem:
         Footprints of the candidate fields, same row order as ``field_ids``.
     windows : Windows
         Observability windows of the candidate fields.
+    clock : Clock
+        The budget the schedulers read (:mod:`.budget`): a work clock when
+        ``config.deterministic``, else the wall clock; a fresh one per
+        problem unless given (a problem derived with ``dataclasses.replace``
+        shares its parent's, :func:`~.planner.optimise` starts a fresh one).
     """
 
     config: PlanningConfig
@@ -56,6 +62,11 @@ class PlanningProblem:
     dec: np.ndarray
     footprints: Footprints
     windows: Windows
+    clock: Clock | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.clock is None:
+            object.__setattr__(self, "clock", new_clock(self.config.deterministic))
 
     @property
     def horizon_s(self) -> float:

@@ -65,7 +65,8 @@ def main(args: Sequence[str] | None = None) -> int:
 def bench_settings(args: argparse.Namespace, config: "Config") -> "BenchSettings":
     """The run's settings: ``[scheduler]`` and ``[bench]`` of ``config``, and ``--solvers``, ``--injections``,
     ``--start`` (``--jobs`` is checked too); :class:`~mushrooms.scheduler_core.errors.InputError` naming the
-    option when one is wrong.  ``mushrooms study`` reads the same options with it."""
+    option when one is wrong.  ``mushrooms study`` reads the same options with it.  Both plan on the
+    deterministic budget whatever ``[scheduler] deterministic`` says (an arm may set it false)."""
     from ..evaluation.bench.settings import BenchSettings, check_rows
     from ..scheduler_core.errors import InputError
 
@@ -84,8 +85,16 @@ def bench_settings(args: argparse.Namespace, config: "Config") -> "BenchSettings
 
         start_iso = parse_time(args.start, "--start", mjd=True).isot
     bench = with_arms(config.bench, getattr(args, "arm", None) or [])
+    scheduler = config.scheduler
+    if not scheduler.deterministic:  # rows a referee can make again: the work budget (an arm may still set false)
+        import dataclasses
+        import sys
+
+        print("note: [scheduler] deterministic = false: bench and study plan on the work budget all the same "
+              "(an arm may set deterministic = false)", file=sys.stderr)
+        scheduler = dataclasses.replace(scheduler, deterministic=True)
     try:
-        return BenchSettings(config=config.scheduler, bench=bench, solvers=solvers, start_iso=start_iso,
+        return BenchSettings(config=scheduler, bench=bench, solvers=solvers, start_iso=start_iso,
                              n_injections=int(args.injections),
                              supersede_min_gain=float(config.daemon.supersede_min_gain))
     except ValueError as exc:

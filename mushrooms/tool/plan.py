@@ -217,8 +217,9 @@ def _write_not_observable(args: argparse.Namespace, answer: Any, plan: Any, skym
 
 
 def _budget_s(cfg: Any, solver: str | None) -> float | None:
-    """The planning's time budget to show (s): the MILP's time limit, none for greedy."""
-    return None if (solver or cfg.solver) == "greedy" else float(cfg.time_limit_s)
+    """The planning's time budget to show (s): the MILP's time limit, none for greedy nor a work budget (its
+    seconds are work, not wall seconds: a loaded machine takes longer)."""
+    return None if (solver or cfg.solver) == "greedy" or cfg.deterministic else float(cfg.time_limit_s)
 
 
 def _write_summary(args: argparse.Namespace, doc: dict[str, Any], plan: Any, skymap: Any, answer: Any = None,

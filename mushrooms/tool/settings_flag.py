@@ -13,7 +13,6 @@ import argparse
 import tomllib
 from typing import Any, Iterable, Mapping
 
-from ..scheduler_core.tables import shown_value
 
 __all__ = ["add_set_option", "parse_set", "apply_sets"]
 
@@ -53,6 +52,8 @@ def apply_sets(table: Mapping[str, Any], sets: Iterable[str]) -> dict[str, Any]:
         for depth, part in enumerate(path[:-1]):
             child = node.get(part, {})
             if not isinstance(child, Mapping):  # `slew = 1` in the file is an error, not a table to fill
+                from ..scheduler_core.tables import shown_value  # here: --help must load no scheduler module
+
                 raise ValueError(f"--set {text}: {'.'.join(path[:depth + 1])} is not a table (it is "
                                  f"{shown_value(child)}): correct the file")
             child = dict(child)

@@ -48,7 +48,8 @@ def add_arguments(sp: argparse.ArgumentParser) -> None:
     sp.add_argument("--population", choices=RECIPE_NAMES, default=DEFAULT_RECIPE,
                     help="the recipe of --simulate (noise curves, masses, waveform, cuts) and the localisation "
                          "options of its coincidences (also with --events): o3-bns, the project's O3 BNS; o4, "
-                         "O4 HLV BNS+NSBH after Kiendrebeogo et al. 2023 (default %(default)s)")
+                         "O4 HLV BNS+NSBH after Kiendrebeogo et al. 2023; o4-real, O4 as it was (O4a without "
+                         "Virgo, real ranges and duty cycles, a FAR-like threshold) (default %(default)s)")
     sp.add_argument("--seed", type=int, default=DEFAULT_SEED, help="seed of --simulate (default %(default)s)")
     sp.add_argument("--intrinsic-samples", type=int, metavar="N",
                     help="with --simulate: N mass-spin points of the recipe's distribution given to "

@@ -13,7 +13,7 @@ from mushrooms.evaluation.study.graph import plan_and_score
 from mushrooms.evaluation.study.store import study_config
 from mushrooms.scheduler_core.config import PlanningConfig
 
-FAST = PlanningConfig(solver="hybrid", objective="coverage", nside=64, threads=1, time_limit_s=2.0)
+FAST = PlanningConfig(solver="hybrid", objective="coverage", nside=64, threads=1, time_limit_s=2.0, deterministic=True)
 SCORING = BenchConfig(legacy_scoring=False)
 
 

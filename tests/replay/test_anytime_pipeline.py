@@ -238,7 +238,7 @@ def detecting(min_gain: float, loss: float = 0.02):
     cfg = hybrid(min_gain)
     return dataclasses.replace(cfg, scheduler=dataclasses.replace(
         cfg.scheduler, objective="detection", time_limit_s=8.0, detection_time_limit_s=6.0,
-        detection_max_coverage_loss=loss))
+        detection_max_coverage_loss=loss, deterministic=True))
 
 
 @pytest.fixture(scope="module")

@@ -97,7 +97,8 @@ def test_the_coverage_floor_keeps_the_rich_field_the_detection_objective_alone_w
 
 @pytest.mark.parametrize("loss", [0.0, 0.02])
 def test_detection_stage_never_returns_fewer_expected_detections_than_its_coverage_plan(data_dir, loss) -> None:
-    cfg = PlanningConfig(nside=64, time_limit_s=5.0, detection_time_limit_s=4.0, detection_max_coverage_loss=loss)
+    cfg = PlanningConfig(nside=64, time_limit_s=5.0, detection_time_limit_s=4.0, detection_max_coverage_loss=loss,
+                         deterministic=True)
     sm = read_skymap(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=64)
     problem = prepare_problem(sm, cfg, sm.event_time)
     cov = run_scheduler(problem, "greedy")
@@ -124,7 +125,7 @@ def test_detection_stage_never_returns_fewer_expected_detections_than_its_covera
 def test_a_detection_plan_never_covers_less_than_greedy_however_much_coverage_it_may_give_up(data_dir) -> None:
     """(X6) C_f = max((1 - ε) C₀, C_g): with ε = 0.5 the floor is greedy's coverage, found in the portfolio."""
     cfg = PlanningConfig(nside=64, objective="detection", time_limit_s=6.0, detection_time_limit_s=2.5,
-                         detection_max_coverage_loss=0.5)
+                         detection_max_coverage_loss=0.5, deterministic=True)
     sm = read_skymap(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=64)
     problem = prepare_problem(sm, cfg, sm.event_time)
     det = optimise(problem, sm, "hybrid")
@@ -143,7 +144,8 @@ def test_a_detection_plan_never_covers_less_than_greedy_however_much_coverage_it
 
 def test_the_detection_objective_shares_one_budget_between_its_two_stages(data_dir) -> None:
     """objective = detection: the scheduler gets time_limit_s minus the detection share, the stage the rest."""
-    cfg = PlanningConfig(nside=64, objective="detection", time_limit_s=6.0, detection_time_limit_s=2.5)
+    cfg = PlanningConfig(nside=64, objective="detection", time_limit_s=6.0, detection_time_limit_s=2.5,
+                         deterministic=True)
     sm = read_skymap(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=64)
     problem = prepare_problem(sm, cfg, sm.event_time)
     given = []
@@ -164,7 +166,7 @@ def test_the_detection_objective_shares_one_budget_between_its_two_stages(data_d
 
 
 def test_no_plan_has_more_expected_detections_than_the_ceiling_and_a_far_source_skips_the_stage(data_dir) -> None:
-    cfg = PlanningConfig(nside=64, time_limit_s=5.0, detection_time_limit_s=4.0)
+    cfg = PlanningConfig(nside=64, time_limit_s=5.0, detection_time_limit_s=4.0, deterministic=True)
     sm = read_skymap(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=64)
     problem = prepare_problem(sm, cfg, sm.event_time)
     kilonova = load_kilonova(cfg.detection_lightcurve)
@@ -185,7 +187,7 @@ def test_no_plan_has_more_expected_detections_than_the_ceiling_and_a_far_source_
 def test_the_stage_solves_at_most_max_grids_grids_and_says_which_it_did_not_try(data_dir, monkeypatch) -> None:
     from mushrooms.scheduler_core.schedulers.detection import stage as detection_slots
 
-    cfg = PlanningConfig(nside=64, time_limit_s=5.0, detection_time_limit_s=4.0)
+    cfg = PlanningConfig(nside=64, time_limit_s=5.0, detection_time_limit_s=4.0, deterministic=True)
     sm = read_skymap(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=64)
     problem = prepare_problem(sm, cfg, sm.event_time)
     cov = run_scheduler(problem, "greedy")

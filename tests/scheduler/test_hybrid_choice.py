@@ -13,7 +13,8 @@ from mushrooms.scheduler_core.prepare import prepare_problem
 
 
 def test_the_coverage_the_hybrid_compares_is_the_published_coverage(skymap_220722v):
-    cfg = PlanningConfig(min_gain=0.003, time_limit_s=2.0, milp_backend="highs", objective="coverage")
+    cfg = PlanningConfig(min_gain=0.003, time_limit_s=2.0, milp_backend="highs", objective="coverage",
+                         deterministic=True)
     problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
     greedy = run_scheduler(problem, "greedy")
     raw = problem.footprints.coverage({o.field_id for o in greedy.observations}, problem.prob)
@@ -45,7 +46,7 @@ def test_hybrid_under_a_detection_config_gives_its_blocks_stage_what_is_left(sky
                         lambda problem, should_stop=None, start=None, time_limit_s=None:
                         real(problem, should_stop, start=start, time_limit_s=0.5))
     cfg = PlanningConfig(time_limit_s=8.0, detection_time_limit_s=7.99, milp_backend="highs", objective="detection",
-                         hybrid_blocks=True)
+                         hybrid_blocks=True, deterministic=True)
     problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
     result = run_scheduler(problem, "hybrid")
     assert "blocks" in [e.name for e in result.portfolio]  # > MIN_BLOCKS_S was left, < 7.99 s
@@ -57,7 +58,7 @@ def test_the_hybrid_runs_its_block_stage_only_when_asked_and_a_plan_records_the_
     (and its plan id hashes) is the one from before the key existed."""
     from mushrooms.scheduler_core.schedulers.portfolio import portfolio
 
-    cfg = PlanningConfig(time_limit_s=4.0, milp_backend="highs", objective="coverage")
+    cfg = PlanningConfig(time_limit_s=4.0, milp_backend="highs", objective="coverage", deterministic=True)
     assert "blocks" in [s.name for s in portfolio.hybrid.stages]
     problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
     assert [e.name for e in run_scheduler(problem, "hybrid").portfolio] == ["greedy", "slots", "slots_paced", "lns"]
@@ -71,7 +72,8 @@ def test_the_stage_times_name_every_stage_that_ran_in_order(skymap_220722v, capl
 
     from mushrooms.scheduler_core.planner import make_plan, optimise
 
-    cfg = PlanningConfig(time_limit_s=3.0, detection_time_limit_s=1.0, milp_backend="highs", objective="detection")
+    cfg = PlanningConfig(time_limit_s=3.0, detection_time_limit_s=1.0, milp_backend="highs", objective="detection",
+                         deterministic=True)
     problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
     result = optimise(problem, skymap_220722v, "hybrid")
     times = result.details["stage_times_s"]

@@ -22,7 +22,7 @@ from mushrooms.scheduler_core.sky.windows import Windows
 def small_problem(prob, members, windows, ra) -> PlanningProblem:
     cfg = PlanningConfig(nside=1, horizon_h=0.5, exposure_s=100.0, slew_estimate_s=10.0, filter_change_s=30.0,
                          cadence_s=250.0, milp_backend="highs", time_limit_s=5.0, mip_gap=0.0, min_gain=0.0,
-                         objective="coverage", threads=1)
+                         objective="coverage", threads=1, deterministic=True)
     ids = np.arange(1, len(members) + 1)
     indptr = np.concatenate([[0], np.cumsum([len(m) for m in members])])
     fp = Footprints(cfg.nside, ids, indptr, np.concatenate([np.asarray(m, np.int64) for m in members]))
@@ -159,7 +159,8 @@ def test_a_seed_of_another_shape_comes_back_unchanged():
 
 
 def test_on_a_real_map_the_lns_repairs_a_thinned_greedy_plan_and_passes_the_checker(skymap_220722v):
-    cfg = PlanningConfig(objective="coverage", threads=1, time_limit_s=8.0, milp_backend="highs", min_gain=0.0)
+    cfg = PlanningConfig(objective="coverage", threads=1, time_limit_s=8.0, milp_backend="highs", min_gain=0.0,
+                         deterministic=True)
     problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
     greedy = run_scheduler(problem, "greedy")
     fields = sorted({o.field_id for o in greedy.observations})
@@ -174,7 +175,7 @@ def test_on_a_real_map_the_lns_repairs_a_thinned_greedy_plan_and_passes_the_chec
 
 
 def test_the_hybrid_never_publishes_less_than_its_best_earlier_stage(skymap_220722v):
-    cfg = PlanningConfig(objective="coverage", threads=1, time_limit_s=6.0, milp_backend="highs")
+    cfg = PlanningConfig(objective="coverage", threads=1, time_limit_s=6.0, milp_backend="highs", deterministic=True)
     problem = prepare_problem(skymap_220722v, cfg, Time(skymap_220722v.event_time, scale="utc"))
     result = run_scheduler(problem, "hybrid")
     covs = {e.name: e.coverage for e in result.portfolio}
@@ -199,7 +200,7 @@ def test_the_lns_never_keeps_a_plan_that_ztf_executes_worse_than_its_seed():
     from mushrooms.scheduler_core.schedulers.as_executed import keyed_coverage_as_executed
 
     cfg = PlanningConfig(objective="coverage", threads=1, time_limit_s=10.0, milp_backend="highs", min_gain=0.0,
-                         min_coverage=0.0)
+                         min_coverage=0.0, deterministic=True)
     sm = read_skymap(BNS_14, nside=cfg.nside)
     problem = reduced_problem(prepare_problem(sm, cfg, Time(sm.event_time, scale="utc")), 20)
     seed = run_scheduler(problem, "slots")

@@ -22,7 +22,7 @@ def test_milp_plan_passes_the_checker_and_reports_the_solver(milp_plan, skymap_2
     assert report.ok, report.problems
     m = milp_plan.metrics
     assert m.solver in ("milp:highs", "milp:gurobi")
-    assert m.status in ("optimal", "time_limit")
+    assert m.status in ("optimal", "time_limit", "work_limit")
     assert m.mip_gap is not None and 0 <= m.mip_gap < 0.5
     assert m.n_exposures == 2 * m.n_fields > 0
     assert report.coverage == pytest.approx(m.coverage, abs=2e-3)

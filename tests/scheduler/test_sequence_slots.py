@@ -110,7 +110,7 @@ def test_one_filter_is_refused_by_the_slot_milp_and_a_sequence_by_the_block_milp
 # ----------------------------------------------------------------- a real map, the real HiGHS
 
 GRG = PlanningConfig(filters=("g", "r", "g"), exposure_s=180.0, time_limit_s=6.0, objective="coverage",
-                     bound_time_limit_s=0.0)
+                     bound_time_limit_s=0.0, deterministic=True)
 
 
 @pytest.fixture(scope="module")

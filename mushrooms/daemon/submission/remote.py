@@ -8,6 +8,8 @@
   {url}/api/observation_plan/plan_names?name=...`` with ``Authorization:
   token <token>`` (skyportal/skyportal ``skyportal/handlers/api/observation_plan.py``).
 
+What Kowalski answers to each, re-read from its source, is (Y0) of ``docs/design/submission.md``.
+
 The contracts, with the commits they were read from, are in
 ``docs/design/submission.md``.  The token is sent only in the header, never
 logged, and blanked out of any server text we keep.

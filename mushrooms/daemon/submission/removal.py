@@ -15,7 +15,7 @@ pass reads the list and DELETEs it when it appears, until its validity window
 ends (after which ZTF neither switches to it nor keeps it).  Until then the row
 keeps its open state: it never says ``replaced``/``deleted`` while one of its
 queues can still appear (issue 52, finding 1).  What is watched is in the
-row's ``progress`` (``watch``), so a restart goes on watching.
+row's ``progress`` (``watch``), so a restart goes on watching: (Y2) of ``docs/design/submission.md``.
 
 :class:`Removal` is a part of :class:`~mushrooms.daemon.submission.submitter.Submitter`.
 """

@@ -115,7 +115,7 @@ class Submission:
     def to_settle(self) -> list[str]:
         """The names a settlement of this revision must remove, in set order: accepted or maybe live, not gone.
 
-        Never a name that was not sent (nothing to DELETE) nor one refused outright.
+        Never a name that was not sent (nothing to DELETE) nor one refused outright (Y3).
         """
         wanted = set(self.progress.get("put", ())) | self.maybe_live()
         gone = set(self.progress.get("gone", ()))

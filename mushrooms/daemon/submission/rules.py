@@ -234,7 +234,7 @@ def _conflict(client: KowalskiQueue, body: dict[str, Any], name: str, answer: An
     took the others: :func:`listed_as_ours`), or when this revision sent it
     before and it is no longer listed (emptied or expired since the 409).
     A listed queue with another window or other targets is someone else's:
-    rejected.
+    rejected: (Y1) of ``docs/design/submission.md``.
     """
     try:
         listed = [q for q in client.queues() if q.get("queue_name") == name]

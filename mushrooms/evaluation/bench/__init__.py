@@ -3,7 +3,9 @@
 For each sky map the problem is prepared once, each requested row runs
 (``greedy``, ``slots``, ``blocks`` (alias ``milp``), ``hybrid`` as
 ``make_plan`` publishes them; ``<solver>-coverage`` / ``-detection`` with
-the objective forced; ``gwemopt`` and ``gwemopt-repaired``), every plan goes
+the objective forced; ``service`` and ``service-grg``; ``gwemopt``,
+``gwemopt-repaired`` and gwemopt's named configurations ``gwemopt-o4`` and
+``gwemopt-skyportal``), every plan goes
 through the independent plan checker, and the detection efficiency of each
 plan is computed with the SAME injections for three kilonova models
 (optimistic and conservative BNS, NSBH).  One row per (sky map, solver).

@@ -9,8 +9,12 @@ CSV column ``objective`` says which each row used); ``gwemopt`` runs the real
 gwemopt through :mod:`~mushrooms.evaluation.gwemopt_baseline`, and
 ``gwemopt-repaired`` is the same schedule with every rule-breaking exposure
 removed (:func:`~mushrooms.evaluation.gwemopt_baseline.repair_observations`);
+``gwemopt-o4`` and ``gwemopt-skyportal`` run gwemopt under their named
+configurations (:mod:`~mushrooms.evaluation.gwemopt_options`) and are judged
+under the configuration with their filter sequence and exposure;
 ``service`` is what the daemon publishes (:func:`service_row`: the anytime
-flow, the better-by-a-margin rule, the not-observable answer).
+flow, the better-by-a-margin rule, the not-observable answer), ``service-grg``
+the same under the keys of :data:`~.settings.KEYED_ROWS`.
 Every plan is judged by :func:`~.scoring.score_plan` with the map's one set of
 injections.
 """
@@ -26,9 +30,10 @@ from typing import Any
 
 import numpy as np
 
+from ..commit import code_commit
 from .rows import fmt, make_row, num
 from .scoring import pair_with_reference, score_plan
-from .settings import GWEMOPT_ROWS, SERVICE_ROW, BenchSettings, arm_config, row_arm, row_solver
+from .settings import GWEMOPT_ROWS, SERVICE_ROW, BenchSettings, arm_config, keyed_row, row_arm, row_solver
 
 __all__ = ["MapScene", "bench_map", "open_map", "service_row"]
 
@@ -72,8 +77,9 @@ class MapScene:
         Why there is no problem.
     bound : float or None
         Certified coverage upper bound of the problem.
-    gwemopt_run : GwemoptRun or None
-        gwemopt's run on the map, made by the first of its rows and shared by the other.
+    gwemopt_runs : dict
+        gwemopt's runs on the map per named configuration, made by the first row that needs one and shared
+        (``gwemopt`` and ``gwemopt-repaired`` share one).
     """
 
     name: str
@@ -90,7 +96,7 @@ class MapScene:
     prepare_s: float = 0.0
     prep_error: str = ""
     bound: float | None = None
-    gwemopt_run: Any = field(default=None, repr=False)
+    gwemopt_runs: dict[str, Any] = field(default_factory=dict, repr=False)
 
     def row(self, solver: str, **values: Any) -> Row:
         """A row of this map with its common cells."""
@@ -129,7 +135,7 @@ def bench_map(path: str | Path, settings: BenchSettings, raise_errors: bool = Fa
     """
     scene = open_map(path, settings, raise_errors)
     if isinstance(scene, list):
-        return scene
+        return [{**row, "commit": code_commit()} for row in scene]
     rows: list[Row] = []
     hits: dict[str, Hits] = {}
     for solver in settings.solvers:
@@ -140,6 +146,7 @@ def bench_map(path: str | Path, settings: BenchSettings, raise_errors: bool = Fa
                 raise
             log.exception("%s on %s failed", solver, scene.name)
             row, mine = scene.failed(solver, f"error: {type(exc).__name__}: {exc}"[:300], note=scene.note), None
+        row["commit"] = code_commit()
         rows.append(row)
         if mine is not None:
             hits[solver] = mine
@@ -153,7 +160,7 @@ def _solver_row(scene: MapScene, solver: str, settings: BenchSettings) -> tuple[
         return _gwemopt_row(scene, solver, settings)
     if scene.problem is None:
         return scene.failed(solver, scene.prep_error or "prepare_error", note=scene.note), None
-    if row_arm(solver)[0] == SERVICE_ROW:
+    if keyed_row(solver)[0] == SERVICE_ROW:
         return service_row(scene, solver, settings)
     return _our_row(scene, solver, settings)
 
@@ -249,9 +256,13 @@ def row_config(config: Any, solver: str, settings: BenchSettings) -> tuple[str, 
     configuration's; ``-detection`` rows get ``[bench] detection_extra_s``
     on top of ``time_limit_s``.  ``greedy`` rows are coverage rows whatever
     the objective.  A row ``<row>@<arm>`` is planned under the configuration
-    with ``[bench.arms.<arm>]``'s keys replaced (before the forced objective).
+    with ``[bench.arms.<arm>]``'s keys replaced (before the forced objective);
+    a keyed row (``service-grg``) under its own keys first.
     """
     base, forced = row_solver(solver)
+    keyed, keys = keyed_row(solver)
+    if keys is not None:
+        base, config = keyed, arm_config(config, row_arm(solver)[0], keys)
     arm = row_arm(solver)[1]
     if arm is not None:
         config = arm_config(config, arm, settings.bench.arms[arm])
@@ -368,14 +379,20 @@ def detection_stage_text(result: Any) -> str:
 
 
 def _gwemopt_row(scene: MapScene, solver: str, settings: BenchSettings) -> tuple[Row, Hits | None]:
-    """gwemopt's schedule of the map (run once for both of its rows), repaired for ``gwemopt-repaired``, scored."""
-    from ..gwemopt_baseline import gwemopt_plan
+    """gwemopt's schedule of the map under the row's named configuration (run once per configuration), repaired
+    for ``gwemopt-repaired``, judged under the configuration with the row's filters and exposure, scored."""
+    import dataclasses as dc
 
-    run = _gwemopt_run(scene, settings)
+    from ..gwemopt_baseline import gwemopt_plan
+    from ..gwemopt_options import GWEMOPT_CONFIGS, LEGACY, row_planning_config
+
+    named = GWEMOPT_CONFIGS[LEGACY if solver == "gwemopt-repaired" else solver]
+    run = _gwemopt_run(scene, settings, named)
     if run.status != "ok":
         return scene.failed(solver, run.status, runtime_s=fmt(run.runtime_s, 3),
                             note="; ".join(filter(None, [scene.note, run.message]))), None
-    detail = "gwemopt greedy --doChipGaps" + (" (cached)" if run.message == "cached" else "")
+    rcfg = row_planning_config(settings.config, named)
+    detail = f"gwemopt 0.4.2 {named.name}" + (" (cached)" if run.message == "cached" else "")
     extra_note = ""
     if solver == "gwemopt-repaired":
         if scene.problem is None:
@@ -385,27 +402,31 @@ def _gwemopt_row(scene: MapScene, solver: str, settings: BenchSettings) -> tuple
         extra_note = "repair: " + ", ".join(f"{k} {v}" for k, v in counts.items() if v)
     ids = {o.field_id for o in run.observations}
     cov = scene.footprints.coverage(ids, scene.skymap.prob) if ids else 0.0
-    plan = gwemopt_plan(run, scene.start, settings.config, scene.skymap.sha256, cov)
+    plan = gwemopt_plan(run, scene.start, rcfg, scene.skymap.sha256, cov, name=named.name)
     if solver == "gwemopt-repaired":
-        plan = dataclasses.replace(plan, metrics=dataclasses.replace(plan.metrics, solver=solver))
-    scores, hits = score_plan(plan, scene.skymap, settings, scene.footprints, scene.injections, scene.lightcurves,
-                              scene.merger)
+        plan = dc.replace(plan, metrics=dc.replace(plan.metrics, solver=solver))
+    scores, hits = score_plan(plan, scene.skymap, dc.replace(settings, config=rcfg), scene.footprints,
+                              scene.injections, scene.lightcurves, scene.merger)
     row = scene.row(solver, status=run.status, runtime_s=fmt(run.runtime_s, 3), solve_s=fmt(run.runtime_s, 3),
                     solver_detail=detail, objective="coverage",
                     note="; ".join(filter(None, [scene.note, extra_note])), **scene.with_bound(scores))
     return row, hits
 
 
-def _gwemopt_run(scene: MapScene, settings: BenchSettings) -> Any:
-    """gwemopt's run on the map (its cache, or the real gwemopt), made once per map."""
+def _gwemopt_run(scene: MapScene, settings: BenchSettings, named: Any) -> Any:
+    """gwemopt's run on the map under one named configuration (its cache, or the real gwemopt), made once per
+    map; a configuration with ``credible_fields`` tiles only the fields SkyPortal would hand it."""
     from ..gwemopt_baseline import run_gwemopt
+    from ..gwemopt_options import credible_fields
 
-    if scene.gwemopt_run is None:
+    if named.name not in scene.gwemopt_runs:
         b = settings.bench
-        scene.gwemopt_run = run_gwemopt(scene.path, scene.start, settings.config, python=b.gwemopt_python,
-                                        timeout_s=b.gwemopt_timeout_s, cache_dir=b.gwemopt_cache_dir,
-                                        cache_only=b.gwemopt_cache_only)
-    return scene.gwemopt_run
+        fields = (credible_fields(scene.footprints, scene.skymap.prob, named.credible_fields)
+                  if named.credible_fields is not None else None)
+        scene.gwemopt_runs[named.name] = run_gwemopt(
+            scene.path, scene.start, settings.config, python=b.gwemopt_python, timeout_s=b.gwemopt_timeout_s,
+            cache_dir=b.gwemopt_cache_dir, cache_only=b.gwemopt_cache_only, named=named, fields=fields)
+    return scene.gwemopt_runs[named.name]
 
 
 def _repaired(run: Any, problem: Any) -> tuple[Any, dict[str, int]]:

@@ -31,11 +31,12 @@ COLUMNS = (
     "coverage_diff", "exposure_mix", "exposure_mean_s", "arm",
     "coverage_as_executed", "coverage_single_queue", "coverage_late_15", "coverage_late_30", "coverage_late_60",
     "n_queues",
+    "coverage_pairs", "open_shutter_s", "open_shutter_executed_s", "open_shutter_single_queue_s", "commit",
 )
 
 #: Columns :func:`read_csv` keeps as text.
 TEXT_COLUMNS = frozenset({"skymap", "solver", "status", "solver_detail", "first_problem", "start", "note",
-                          "distance_source", "objective", "detection_stage", "exposure_mix", "arm"})
+                          "distance_source", "objective", "detection_stage", "exposure_mix", "arm", "commit"})
 
 #: Prefixes of further columns kept by :func:`make_row` and written after the nine required ones: each light
 #: curve's efficiency (and its paired differences) and exact expected detections (``expected_<lc>``).

@@ -22,7 +22,15 @@ ZTF's scheduler would execute its queues: the
 plan's queue set executed by the telescope model (the configuration's filters and
 cadence for a plan that names none: gwemopt's), with ``coverage_late_<min>``,
 ``coverage_single_queue`` (the old one-list-queue export) and ``n_queues``
-beside it (:func:`~mushrooms.evaluation.queue_sim.execution_cells`).
+beside it (:func:`~mushrooms.evaluation.queue_sim.execution_cells`), with the
+shutter-open seconds each run took.  ``coverage_pairs`` is the planned coverage
+counted by the pair rule the executed coverage uses (fields with the first two
+filters' exposures the cadence apart, each inside its window:
+:mod:`~mushrooms.evaluation.pair_coverage`), the same rule for every row, and
+``open_shutter_s`` the plan's summed exposure time.
+``efficiency_two_detections`` and its siblings are the scoring the planner
+does not see (:mod:`.independent`: ZTF's two-detection rule on the executed
+record, a kilonova grid, dust, ztf_sim's depth, perturbed execution).
 """
 
 from __future__ import annotations
@@ -79,7 +87,26 @@ def score_plan(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any,
         out[f"expected_{key}"] = _expected(plan, skymap, footprints, lc, merger_time)
     out.update(_exposure_cells(plan, footprints, skymap.prob))
     out.update(execution_cells_under(plan, settings.config, footprints, skymap.prob))
+    out.update(pair_cells(plan, settings.config, footprints, skymap.prob))
+    out.update(_independent(plan, skymap, settings, footprints, merger_time))
     return out, hits
+
+
+def pair_cells(plan: Any, config: Any, footprints: Any, prob: np.ndarray) -> dict[str, Any]:
+    """``coverage_pairs`` (planned coverage by the pair rule, under ``config``'s filters, cadence and windows)
+    and ``open_shutter_s`` (the plan's summed exposure time, s)."""
+    from ..pair_coverage import open_shutter_s, planned_pair_coverage
+
+    return dict(coverage_pairs=fmt(planned_pair_coverage(plan, footprints, prob, config)),
+                open_shutter_s=fmt(open_shutter_s(plan), 1))
+
+
+def _independent(plan: Any, skymap: Any, settings: BenchSettings, footprints: Any, merger_time: Any) -> dict:
+    """The scoring the planner does not see (:mod:`.independent`), on the plan's executed queue set."""
+    from .independent import independent_cells
+
+    return independent_cells(_under_config(plan, settings.config), skymap, footprints, merger_time,
+                             getattr(settings, "truth", None))
 
 
 def _under_config(plan: Any, config: Any) -> Any:
@@ -95,13 +122,15 @@ def execution_cells_under(plan: Any, config: Any, footprints: Any, prob: np.ndar
     A plan that names no filters or cadence (a baseline's) is run under ``config``'s.
 
     A plan without exposures (a not-observable answer) executes nothing: its
-    ``coverage_as_executed`` is 0, its late and single-queue cells empty.
+    ``coverage_as_executed`` and ``coverage_single_queue`` are 0 (nothing is
+    submitted either way), its late cells empty.
     """
     from ..queue_sim import execution_cells
 
     cells = execution_cells(_under_config(plan, config), footprints, prob)
     if not plan.observations:
-        cells["coverage_as_executed"] = 0.0
+        cells.update(coverage_as_executed=0.0, coverage_single_queue=0.0, open_shutter_executed_s=0.0,
+                     open_shutter_single_queue_s=0.0)
     return cells
 
 

@@ -25,19 +25,24 @@ from ...scheduler_core.ranges import Range, setting
 from ...scheduler_core.solvers_registry import SOLVER_NAMES
 from ...scheduler_core.tables import TableError, check_value, dataclass_from_table, shown_value, toml_type
 
-__all__ = ["OURS", "SOLVERS", "GWEMOPT_ROWS", "SERVICE_ROW", "OBJECTIVE_SUFFIXES", "ARM_SEPARATOR", "row_arm",
+__all__ = ["OURS", "SOLVERS", "GWEMOPT_ROWS", "SERVICE_ROW", "KEYED_ROWS", "OBJECTIVE_SUFFIXES", "ARM_SEPARATOR",
+           "row_arm", "keyed_row",
            "ROW_NAMES_VERSION", "MAGLIM_RANGE",
            "BenchConfig", "BenchSettings", "row_solver", "is_row_name", "check_rows"]
 
 #: Our schedulers (the registry's, :mod:`~mushrooms.scheduler_core.solvers_registry`); the others are gwemopt's rows.
 OURS = SOLVER_NAMES
-#: Rows made by the real gwemopt (``gwemopt-repaired``: its schedule with every rule-breaking exposure removed).
-GWEMOPT_ROWS = ("gwemopt", "gwemopt-repaired")
+#: Rows made by the real gwemopt (``gwemopt-repaired``: its schedule with every rule-breaking exposure removed;
+#: ``gwemopt-o4`` and ``gwemopt-skyportal``: the named configurations of :mod:`~mushrooms.evaluation.gwemopt_options`).
+GWEMOPT_ROWS = ("gwemopt", "gwemopt-repaired", "gwemopt-o4", "gwemopt-skyportal")
 #: The row of what the service publishes for the map: the daemon's anytime flow under the configuration (the fast
 #: plan, then ``config.solver``'s plan if it is better by ``supersede_min_gain``; a ``not_observable`` answer below
 #: ``min_coverage``), :func:`~.per_map.service_row`.
 SERVICE_ROW = "service"
-SOLVERS = OURS + (SERVICE_ROW,) + GWEMOPT_ROWS
+#: Rows that are another row under fixed ``[scheduler]`` keys (an arm with a name of its own): ``service-grg`` is what
+#: the service publishes under ZTF's O4 GW sequence g-r-g at 180 s, beside gwemopt-o4's (issue 55).
+KEYED_ROWS = {"service-grg": (SERVICE_ROW, {"filters": ["g", "r", "g"], "exposure_s": 180.0})}
+SOLVERS = OURS + (SERVICE_ROW, *KEYED_ROWS) + GWEMOPT_ROWS
 #: Row names of our schedulers: a plain ``<solver>`` row is what ``make_plan`` publishes under the
 #: configuration given (:func:`~mushrooms.scheduler_core.planner.optimise`, ``config.objective``
 #: included: under the default ``objective = "detection"`` the scheduler, then the detection stage);
@@ -48,8 +53,9 @@ OBJECTIVE_SUFFIXES = {"-coverage": "coverage", "-detection": "detection"}
 ARM_SEPARATOR = "@"
 #: What the rows mean; part of the study's result keys, so rows made under older names are not reused
 #: (1: plain rows were the coverage scheduler whatever the objective; 2: a row named after a solver is what the service
-#: publishes under the config, objective included; 3: every row has ``coverage_as_executed``, and the ``service`` row).
-ROW_NAMES_VERSION = 3
+#: publishes under the config, objective included; 3: every row has ``coverage_as_executed``, and the ``service`` row;
+#: 4: every row has ``coverage_pairs``, ``open_shutter_s`` and ``commit``, gwemopt's named rows, ``service-grg``).
+ROW_NAMES_VERSION = 4
 
 #: ``[bench] maglim`` values: AB magnitudes a 300 s ZTF exposure may reach (21.7 in g and r).
 MAGLIM_RANGE = Range(10, 30, "mag")
@@ -167,6 +173,9 @@ class BenchSettings:
     supersede_min_gain : float
         The ``service`` row's rule: the optimised plan replaces the fast one
         when better by this much (``[daemon] supersede_min_gain``, 0 to 1).
+    truth : tuple of float or None
+        ``(ra_deg, dec_deg, distance_mpc)`` of a simulated event's injection: the independent scoring
+        (:mod:`~mushrooms.evaluation.independent_scoring`) puts its kilonovae there (None: drawn from the map).
     """
 
     config: Any
@@ -175,6 +184,7 @@ class BenchSettings:
     start_iso: str | None = None
     n_injections: int = 10_000
     supersede_min_gain: float = 0.005
+    truth: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         check_rows(self.solvers)
@@ -201,6 +211,13 @@ class BenchSettings:
     def reference(self) -> str:
         """The row the paired efficiency differences are against."""
         return self.bench.reference_solver or self.solvers[0]
+
+
+def keyed_row(name: str) -> tuple[str, Mapping[str, Any] | None]:
+    """``(row, keys)`` of a keyed row (:data:`KEYED_ROWS`, an arm ignored): ``service-grg`` -> ``("service",
+    {"filters": [...], "exposure_s": 180.0})``; any other name -> ``(name, None)``."""
+    row = row_arm(name)[0]
+    return KEYED_ROWS[row] if row in KEYED_ROWS else (row, None)
 
 
 def row_arm(name: str) -> tuple[str, str | None]:

@@ -13,5 +13,5 @@ DEFAULT_SEED = 2
 #: Injections per ``bayestar-realize-coincs`` task of ``--simulate``.
 DEFAULT_CHUNK = 50
 #: Named population recipes of ``--population`` (defined in :mod:`.recipes`), and the default.
-RECIPE_NAMES: tuple[str, ...] = ("o3-bns", "o4")
+RECIPE_NAMES: tuple[str, ...] = ("o3-bns", "o4", "o4-real")
 DEFAULT_RECIPE = "o3-bns"

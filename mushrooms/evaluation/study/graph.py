@@ -31,6 +31,7 @@ from ..bench.per_map import bench_map
 from ..bench.rows import make_row, num
 from ..bench.run import worker_init
 from ..bench.settings import BenchSettings
+from ..commit import code_commit
 from .localisation import Localisation, MapTask, localise
 from .provenance import digest, future_traceback, software_versions, traceback_summary
 from .store import ResultStore, result_key, study_config
@@ -64,7 +65,9 @@ def plan_and_score(skymap: str | Mapping[str, Any], solver: str, settings: Bench
         ``traceback`` (a failure: a raised exception, or a row the bench
         could not score), ``versions``, ``task_s`` (wall time, s) and
         ``cpu_s`` (CPU time of this process and of the tools it waited for,
-        gwemopt's interpreter included, s).
+        gwemopt's interpreter included, s) and ``commit`` (the code that
+        planned the row, :func:`~mushrooms.evaluation.commit.code_commit`; also
+        in the row).
     """
     worker_init()
     path = skymap["path"] if isinstance(skymap, Mapping) else str(skymap)
@@ -72,14 +75,15 @@ def plan_and_score(skymap: str | Mapping[str, Any], solver: str, settings: Bench
     try:
         row = bench_map(path, dataclasses.replace(settings, solvers=(solver,)), raise_errors=True)[0]
     except Exception as exc:  # recorded; the study goes on
-        row = make_row(path, solver, status=f"error: {type(exc).__name__}: {exc}"[:300], valid=False)
+        row = make_row(path, solver, status=f"error: {type(exc).__name__}: {exc}"[:300], valid=False,
+                       commit=code_commit())
         return dict(row=row, ok=False, error=f"{type(exc).__name__}: {exc}"[:500],
                     traceback=traceback_summary(exc), versions=software_versions(),
-                    task_s=round(time.perf_counter() - t0, 3), cpu_s=round(_cpu_s() - c0, 3))
+                    task_s=round(time.perf_counter() - t0, 3), cpu_s=round(_cpu_s() - c0, 3), commit=code_commit())
     ok = scored(row)
     return dict(row=row, ok=ok, error=None if ok else str(row.get("status")), traceback=None,
                 versions=software_versions(), task_s=round(time.perf_counter() - t0, 3),
-                cpu_s=round(_cpu_s() - c0, 3))
+                cpu_s=round(_cpu_s() - c0, 3), commit=code_commit())
 
 
 def _cpu_s() -> float:
@@ -88,6 +92,23 @@ def _cpu_s() -> float:
 
     own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
     return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def _with_truth(settings: BenchSettings, m: MapTask) -> BenchSettings:
+    """``settings`` with the injected truth of a simulated coincidence (the independent scoring puts its
+    kilonovae there); unchanged for an existing map, or an events file that is unreadable (its localisation
+    task reports that) or holds no injections."""
+    if m.events is None or m.coinc_id is None:
+        return settings
+    from .population_rows import coinc_injections
+
+    try:
+        inj = coinc_injections(m.events).get(int(m.coinc_id))
+    except Exception:  # noqa: BLE001 - a missing or broken events file fails in its own localisation task
+        return settings
+    if inj is None:
+        return settings
+    return dataclasses.replace(settings, truth=(inj["ra_deg"], inj["dec_deg"], inj["distance_mpc"]))
 
 
 def open_client(workers: int = 2, scheduler: str | None = None, dashboard: bool = False) -> Any:
@@ -158,12 +179,13 @@ class _Graph:
                                        key=f"localise-{digest([m.key], 12)}", pure=False)
                 self.futures[source] = ("localise", m)
             submitted: dict[str, Any] = {}
+            mine = _with_truth(settings, m)
             for s in todo:
                 k = result_key(m.key, s, self.config_hash)
                 # gwemopt runs once per map: its repaired row waits for the raw row's run (cached) instead of
                 # running gwemopt a second time beside it
                 after = [submitted["gwemopt"]] if s == "gwemopt-repaired" and "gwemopt" in submitted else []
-                fut = client.submit(plan_and_score, source, s, settings, *after, key=f"plan-{digest([k], 16)}",
+                fut = client.submit(plan_and_score, source, s, mine, *after, key=f"plan-{digest([k], 16)}",
                                     pure=False)
                 submitted[s] = fut
                 self.futures[fut] = ("plan", (m, s, k))

@@ -7,12 +7,20 @@ distance, and per solver the numbers the papers compare
 (:data:`POPULATION_COLUMNS`).  ``coverage_executed`` is the coverage of the
 plan as ZTF would execute its queues (the bench row's ``coverage_as_executed``:
 the telescope model's cadence-valid coverage, Q14); empty for a result made
-before the rows carried it.
+before the rows carried it.  ``coverage_executed_single_queue`` is the same
+through the one list queue SkyPortal's ZTF API submits for a plan ("as
+submitted today", the bench's ``coverage_single_queue``); ``coverage_pairs``
+the planned coverage counted by the pair rule (every row alike);
+``open_shutter_s`` the plan's summed exposure time (``open_shutter_executed_s``
+what the queue set's run kept open); ``efficiency_two_detections`` the
+two-detection rule's efficiency where the scoring provides it; ``commit`` the
+code that planned the row.
 """
 
 from __future__ import annotations
 
 import csv
+import math
 import os
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
@@ -22,7 +30,7 @@ from .mass_models import binary_class
 from .provenance import sha256_file
 
 __all__ = ["POPULATION_COLUMNS", "coinc_injections", "source_frame_masses", "population_events",
-           "population_rows", "write_population_csv", "read_population_csv"]
+           "population_row", "population_rows", "write_population_csv", "read_population_csv"]
 
 Record = dict[str, Any]
 
@@ -31,12 +39,15 @@ POPULATION_COLUMNS = (
     "event", "solver", "coverage", "coverage_executed", "upper_bound", "efficiency_optimistic",
     "efficiency_conservative", "efficiency_nsbh", "valid", "runtime_s",
     "event_class", "distance_mpc", "distmean_mpc", "area90_deg2", "n_exposures", "objective", "status",
+    "coverage_pairs", "coverage_executed_single_queue", "efficiency_two_detections", "open_shutter_s",
+    "open_shutter_executed_s", "n_problems", "commit",
 )
 
 
 def coinc_injections(events: str | Path) -> dict[int, Record]:
     """The injection behind each coincidence of an events file: ``{coinc_id: {mass1, mass2, spin1z, spin2z,
-    distance_mpc}}`` (detector-frame masses, Msun), from its ``sim_inspiral <--> coinc_event`` map."""
+    distance_mpc, ra_deg, dec_deg}}`` (detector-frame masses, Msun; the true sky position, deg), from its
+    ``sim_inspiral <--> coinc_event`` map."""
     from igwn_ligolw import lsctables
     from igwn_ligolw import utils as ligolw_utils
     from ligo.skymap.io.events.ligolw import ContentHandler
@@ -56,7 +67,8 @@ def coinc_injections(events: str | Path) -> dict[int, Record]:
     for link, coinc in coinc_of.items():
         s = sims[sim_of[link]]
         out[coinc] = dict(mass1=float(s.mass1), mass2=float(s.mass2), spin1z=float(s.spin1z),
-                          spin2z=float(s.spin2z), distance_mpc=float(s.distance))
+                          spin2z=float(s.spin2z), distance_mpc=float(s.distance),
+                          ra_deg=math.degrees(float(s.longitude)), dec_deg=math.degrees(float(s.latitude)))
     return out
 
 
@@ -118,18 +130,38 @@ def population_rows(records: Iterable[Mapping[str, Any]],
         ev = events.get((sha, int(cid)))
         if ev is None:
             continue
-        row = rec["row"]
-        out.append(dict(event=ev["event"], solver=rec["solver"], coverage=row.get("coverage"),
-                        coverage_executed=row.get("coverage_as_executed", ""), upper_bound=row.get("bound"),
-                        efficiency_optimistic=row.get("efficiency_optimistic"),
-                        efficiency_conservative=row.get("efficiency_conservative"),
-                        efficiency_nsbh=row.get("efficiency_nsbh"), valid=row.get("valid"),
-                        runtime_s=row.get("runtime_s"), event_class=ev["event_class"],
-                        distance_mpc=ev["distance_mpc"], distmean_mpc=row.get("distmean_mpc"),
-                        area90_deg2=row.get("area90_deg2"), n_exposures=row.get("n_exposures"),
-                        objective=row.get("objective"), status=row.get("status")))
+        out.append(population_row({**rec["row"], "solver": rec["solver"]}, ev, commit=rec.get("commit")))
     order = {e["event"]: (e["chunk"], e["coinc_id"]) for e in events.values()}
     return sorted(out, key=lambda r: order[r["event"]])
+
+
+def population_row(row: Mapping[str, Any], event: Mapping[str, Any], commit: str | None = None) -> Record:
+    """One :data:`POPULATION_COLUMNS` row from a bench row (:data:`~..bench.rows.COLUMNS`) of an event.
+
+    Parameters
+    ----------
+    row : mapping
+        The bench's row of one solver on the event's map.
+    event : mapping
+        ``event``, ``event_class``, ``distance_mpc`` (the injected truth).
+    commit : str, optional
+        The code that planned the row when the row itself does not say.
+    """
+    return dict(event=event["event"], solver=row["solver"], coverage=row.get("coverage"),
+                coverage_executed=row.get("coverage_as_executed", ""), upper_bound=row.get("bound"),
+                efficiency_optimistic=row.get("efficiency_optimistic"),
+                efficiency_conservative=row.get("efficiency_conservative"),
+                efficiency_nsbh=row.get("efficiency_nsbh"), valid=row.get("valid"),
+                runtime_s=row.get("runtime_s"), event_class=event["event_class"],
+                distance_mpc=event["distance_mpc"], distmean_mpc=row.get("distmean_mpc"),
+                area90_deg2=row.get("area90_deg2"), n_exposures=row.get("n_exposures"),
+                objective=row.get("objective"), status=row.get("status"),
+                coverage_pairs=row.get("coverage_pairs", ""),
+                coverage_executed_single_queue=row.get("coverage_single_queue", ""),
+                efficiency_two_detections=row.get("efficiency_two_detections", ""),
+                open_shutter_s=row.get("open_shutter_s", ""),
+                open_shutter_executed_s=row.get("open_shutter_executed_s", ""),
+                n_problems=row.get("n_problems", ""), commit=row.get("commit") or commit or "")
 
 
 def write_population_csv(rows: Iterable[Mapping[str, Any]], path: str | Path) -> None:
@@ -147,7 +179,7 @@ def write_population_csv(rows: Iterable[Mapping[str, Any]], path: str | Path) ->
 
 def read_population_csv(path: str | Path) -> list[Record]:
     """Rows of a population ``results.csv``; numeric cells as floats (empty: None), ``valid`` as bool."""
-    text = {"event", "solver", "event_class", "objective", "status"}
+    text = {"event", "solver", "event_class", "objective", "status", "commit"}
     out = []
     with open(path, newline="") as fh:
         for r in csv.DictReader(fh):

@@ -24,6 +24,14 @@ coincidences are localised with.
     realisations are wasted; the detection cuts (network SNR 8, 70 % duty
     cycle, Gaussian measurement error) and the localisation options
     (``--f-low 11 --cosmology``) are theirs.
+``o4-real``
+    O4 as it was (issue 55): the ``o4`` recipe's masses, waveform and
+    localisation with the BNS ranges the detectors really had (H1 155, L1
+    160, V1 55 Mpc: :data:`O4_REAL_RANGES_MPC`), each coincidence placed in
+    O4a (H1 and L1 only), O4b or O4c (H1, L1 and V1) by the epochs' lengths,
+    each detector on with its own duty cycle, and a false-alarm-rate-like
+    threshold (one per month) in place of the SNR cut (:mod:`.o4_real`;
+    numbers and their sources: :data:`O4_REAL_SOURCES`).
 """
 
 from __future__ import annotations
@@ -36,8 +44,8 @@ from .localisation import Localisation
 from .mass_models import PDB_DISTRIBUTION
 from .population import Population
 
-__all__ = ["Recipe", "RECIPES", "O4_DEVIATIONS", "O4_RANGES_MPC", "DEFAULT_RECIPE", "recipe_population",
-           "bns_range_mpc"]
+__all__ = ["Recipe", "RECIPES", "O4_DEVIATIONS", "O4_RANGES_MPC", "O4_REAL_RANGES_MPC", "O4_REAL_SOURCES",
+           "DEFAULT_RECIPE", "recipe_population", "bns_range_mpc"]
 
 
 @dataclass(frozen=True)
@@ -87,12 +95,46 @@ O4_DEVIATIONS = (
 _O4_PSDS = (("H1", "aLIGO175MpcT1800545", 0.8863), ("L1", "aLIGO175MpcT1800545", 0.8863),
             ("V1", "AdVO4IntermediateT1800545", 0.7577))
 
+#: BNS ranges (Mpc) of the ``o4-real`` recipe: what O4 had, not what it was planned to have.
+O4_REAL_RANGES_MPC = {"H1": 155.0, "L1": 160.0, "V1": 55.0}
+#: The analytic models of ``o4`` rescaled to those ranges (a range scales with ``--X1-scale``).
+_O4_REAL_PSDS = (("H1", "aLIGO175MpcT1800545", round(0.8863 * 155.0 / 160.0, 4)),
+                 ("L1", "aLIGO175MpcT1800545", 0.8863),
+                 ("V1", "AdVO4IntermediateT1800545", round(0.7577 * 55.0 / 78.0, 4)))
+
+#: Where each number of ``o4-real`` comes from (written into the provenance); "estimate" where no source was found.
+O4_REAL_SOURCES = (
+    "O4a 2023-05-24 to 2024-01-16 (237 days), H1 and L1 only: GWOSC O4a data release page; Virgo did not join O4a "
+    "(LIGO news release 2024-04-03)",
+    "O4a duty cycles H1 67.5 %, L1 69.0 % (GWTC-4.0, as summarised for the O4a data release); the observing-plans "
+    "page in late 2023: LHO 70 %, LLO 75 % over the past month, BNS ranges 155-170 Mpc",
+    "O4b 2024-04-10 to 2025-01-28 (293 days) with Virgo: LIGO news release 2024-04-03 (start); the end date is the "
+    "start of O4c, announced as 'starting' on 2025-02-03 (EGO news 2025-02-03): 2025-01-28 is an estimate",
+    "O4c 2025-01-28 to 2025-11-18 less the 2025-04-01 to 2025-06-04 break (230 days): EGO news 2025-02-03 (break); "
+    "O4 ended on 2025-11-18 (LVK user guide, observing capabilities)",
+    "LIGO ranges H1 155, L1 160 Mpc: observing-plans page (155-170 Mpc in late 2023), EGO news 2025-02-03 (160-170 "
+    "Mpc in early 2025); the split H1 < L1 is an estimate",
+    "Virgo range 55 Mpc in O4b/c: an estimate (issue 55: 50-60 Mpc; the observing-plans page gave 35 Mpc in late 2023 "
+    "with a goal of 40-45 Mpc before joining); no stored source gives the O4b/c value",
+    "O4b/c duty cycles: the O4a LIGO values reused (estimate); Virgo 70 % (estimate)",
+    "KAGRA left out (about 10 Mpc when it observed: localises nothing a 55 Mpc Virgo does not)",
+    "FAR-like threshold one per month (the significant-alert threshold, config.toml [policy] max_far_hz) with the "
+    "offline FAR of o4_real.far_like_hz: network SNR 8.50 for a coincidence, 10.0 for a single detector (estimates)",
+    "realised with every detector on (duty cycle 1) and network SNR >= 8, then the epochs, duty cycles and threshold "
+    "applied per chunk (o4_real.apply_o4_real, seed SEED+1+k)",
+)
+
 RECIPES: dict[str, Recipe] = {
     "o3-bns": Recipe(Population(), Localisation(), None,
                      "O3 BNS (bns_astro, O3 noise curves; data/populations/SOURCES.md)"),
     "o4": Recipe(Population(distribution=PDB_DISTRIBUTION, waveform="IMRPhenomD", psd_scales=_O4_PSDS),
                  Localisation(f_low=11.0, waveform="IMRPhenomD", extra=("--cosmology",)), 1000,
                  "O4 HLV BNS+NSBH after Kiendrebeogo et al. 2023 (PDB masses, LIGO 160 / Virgo 78 Mpc)"),
+    "o4-real": Recipe(Population(distribution=PDB_DISTRIBUTION, waveform="IMRPhenomD", psd_scales=_O4_REAL_PSDS,
+                                 duty_cycle=1.0, net_snr_threshold=8.0, post="o4-real"),
+                      Localisation(f_low=11.0, waveform="IMRPhenomD", extra=("--cosmology",)), 1000,
+                      "O4 as it was: O4a HL / O4b-c HLV by epoch length, H1 155 / L1 160 / V1 55 Mpc, per-detector "
+                      "duty cycles, FAR <= 1/month (FAR-like, offline)"),
 }
 
 

@@ -23,8 +23,8 @@ from .document import Plan
 from .sequence_check import check_sequences, covered_by_record
 from ..sky.skymap import SkyMap
 
-__all__ = ["CheckReport", "check_plan", "polygon_coverage", "mount_reachable", "slew_seconds",
-           "P48_SITE"]
+__all__ = ["CheckReport", "check_plan", "exposures_in_windows", "polygon_coverage", "mount_reachable",
+           "slew_seconds", "P48_SITE"]
 
 #: Slack allowed against each constraint (numerical noise only).
 TOL_TIME_S = 1e-3
@@ -259,25 +259,69 @@ def _check_sequence(p: _Problems, x: _Exposures, horizon: float, config: Plannin
         p.add("horizon", f"field {ids[i]} {flt[i]} at {start[i]:.0f}-{end[i]:.0f} s is outside the horizon 0-{horizon:.0f} s")
 
 
-def _check_conditions(p: _Problems, x: _Exposures, t0: Time, config: PlanningConfig) -> None:
-    """Observing conditions at start, middle and end of each exposure ((3, n) arrays)."""
-    ids, ra, dec, flt, start, exp = x.ids, x.ra, x.dec, x.flt, x.start, x.exp
-    n = len(ids)
+@dataclass(frozen=True)
+class _Windows:
+    """Observing conditions at start, middle and end of each exposure ((3, n) arrays) and which rule each breaks."""
+
+    sun_alt: np.ndarray
+    airmass: np.ndarray
+    ha: np.ndarray
+    moon_sep: np.ndarray
+    sun_bad: np.ndarray
+    airmass_bad: np.ndarray
+    mount_bad: np.ndarray
+    moon_bad: np.ndarray
+
+    @property
+    def ok(self) -> np.ndarray:
+        """(n,) True where the whole exposure is inside its field's window."""
+        return ~(self.sun_bad | self.airmass_bad | self.mount_bad | self.moon_bad)
+
+
+def _windows(x: _Exposures, t0: Time, config: PlanningConfig) -> _Windows:
+    """The window rules (Sun, airmass, mount, Moon) at start, middle and end of every exposure."""
+    ra, dec, start, exp = x.ra, x.dec, x.start, x.exp
+    n = len(ra)
     c = conditions(t0, np.concatenate([start, start + exp / 2, x.end]), np.tile(ra, 3), np.tile(dec, 3))
     sun_alt, airmass, ha, moon_sep = (a.reshape(3, n) for a in (c.sun_alt, c.airmass, c.ha, c.moon_sep))
     slack = TOL_HA_H * 15.0  # each HA limit may be missed by this much (deg)
     mount_ok = (mount_reachable(ha, dec[None, :], config.ha_max_h) | mount_reachable(ha - slack, dec[None, :], config.ha_max_h)
                 | mount_reachable(ha + slack, dec[None, :], config.ha_max_h))
-    for i in np.flatnonzero((sun_alt > config.sun_alt_max_deg + TOL_SUN_DEG).any(axis=0)):
-        p.add("window", f"field {ids[i]} {flt[i]} at {start[i]:.0f} s: Sun at {sun_alt[:, i].max():.1f} deg")
-    for i in np.flatnonzero((airmass > config.airmass_max + TOL_AIRMASS).any(axis=0)):
-        p.add("window", f"field {ids[i]} {flt[i]} at {start[i]:.0f} s: airmass {airmass[:, i].max():.2f}")
-    for i in np.flatnonzero((~mount_ok).any(axis=0)):
-        worst = ha[np.argmax(np.abs(ha[:, i])), i]
+    return _Windows(sun_alt, airmass, ha, moon_sep,
+                    sun_bad=(sun_alt > config.sun_alt_max_deg + TOL_SUN_DEG).any(axis=0),
+                    airmass_bad=(airmass > config.airmass_max + TOL_AIRMASS).any(axis=0),
+                    mount_bad=(~mount_ok).any(axis=0),
+                    moon_bad=(moon_sep < config.moon_sep_min_deg - TOL_MOON_DEG).any(axis=0))
+
+
+def exposures_in_windows(plan: Plan, config: PlanningConfig = PlanningConfig()) -> np.ndarray:
+    """Which of a plan's exposures lie wholly inside their field's window (the checker's own Sun, airmass,
+    hour-angle and mount, Moon rules at start, middle and end; its tolerances).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) bool, in plan order (empty for a plan without exposures).
+    """
+    if not plan.observations:
+        return np.zeros(0, dtype=bool)
+    return _windows(_Exposures.of(plan.observations), plan.start, config).ok
+
+
+def _check_conditions(p: _Problems, x: _Exposures, t0: Time, config: PlanningConfig) -> None:
+    """Observing conditions at start, middle and end of each exposure ((3, n) arrays)."""
+    ids, dec, flt, start = x.ids, x.dec, x.flt, x.start
+    w = _windows(x, t0, config)
+    for i in np.flatnonzero(w.sun_bad):
+        p.add("window", f"field {ids[i]} {flt[i]} at {start[i]:.0f} s: Sun at {w.sun_alt[:, i].max():.1f} deg")
+    for i in np.flatnonzero(w.airmass_bad):
+        p.add("window", f"field {ids[i]} {flt[i]} at {start[i]:.0f} s: airmass {w.airmass[:, i].max():.2f}")
+    for i in np.flatnonzero(w.mount_bad):
+        worst = w.ha[np.argmax(np.abs(w.ha[:, i])), i]
         p.add("window", f"field {ids[i]} {flt[i]} at {start[i]:.0f} s: hour angle {worst / 15:.2f} h "
                         f"(Dec {dec[i]:.1f}) beyond the mount limits")
-    for i in np.flatnonzero((moon_sep < config.moon_sep_min_deg - TOL_MOON_DEG).any(axis=0)):
-        p.add("window", f"field {ids[i]} {flt[i]} at {start[i]:.0f} s: Moon {moon_sep[:, i].min():.1f} deg away")
+    for i in np.flatnonzero(w.moon_bad):
+        p.add("window", f"field {ids[i]} {flt[i]} at {start[i]:.0f} s: Moon {w.moon_sep[:, i].min():.1f} deg away")
 
 
 def _covered(executed: Sequence[ExecutedExposure], done: dict[int, dict[str, np.ndarray]],

@@ -28,6 +28,8 @@ __all__ = [
     "PLAN_KEYS",
     "OBSERVATION_KEYS",
     "METRIC_KEYS",
+    "TIMING_FIELDS",
+    "without_timing",
 ]
 
 PLAN_KEYS = (
@@ -41,9 +43,24 @@ EVENT_KEYS = ("superevent_id", "alert_type", "time_created", "skymap_sha256", "l
 METRIC_KEYS = (
     "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
     "n_fields", "n_exposures", "latency_s", "upper_bound", "upper_bound_method",
-    "expected_detections", "coverage_executed", "coverage_as_executed",
+    "expected_detections", "coverage_executed", "coverage_as_executed", "budget",
 )
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
+#: The fields of a plan document that say when and how fast it was made (docs/design/plan-format.md): under the
+#: work budget (``[scheduler] deterministic``) two runs of one input differ in these only.
+TIMING_FIELDS = ("created", "metrics.runtime_s", "metrics.latency_s")
+
+
+def without_timing(document: dict[str, Any]) -> dict[str, Any]:
+    """A copy of a plan (or not_observable) document without its :data:`TIMING_FIELDS`."""
+    out = json.loads(json.dumps(document))
+    for name in TIMING_FIELDS:
+        *path, key = name.split(".")
+        where = out
+        for part in path:
+            where = where.get(part) or {}
+        where.pop(key, None)
+    return out
 
 
 def parse_time(value: str | Time, what: str = "time") -> Time:
@@ -222,6 +239,12 @@ class PlanMetrics:
         (:func:`.exports.to_trigger_queues`) on a clear night from the
         plan's first observation: what of ``coverage`` survives execution.
         None when not computed (a plan read from an older document).
+    budget : dict or None
+        The budget the optimisation ran under (:mod:`..budget`): ``kind``
+        ``work`` (``unit`` ``work_s``, the ``spent`` work: a function of the
+        inputs) or ``wall`` (``unit`` ``s``), and ``interrupted`` (a
+        wall-clock stop ended it: the plan then depends on the machine's
+        load).  None for greedy (no budget) and older documents.
     """
 
     coverage: float
@@ -238,6 +261,7 @@ class PlanMetrics:
     expected_detections: float | None = None
     coverage_executed: float | None = None
     coverage_as_executed: float | None = None
+    budget: dict | None = None
 
 
 def make_plan_id(*parts: Any) -> str:

@@ -137,6 +137,9 @@ def keyed_coverage_as_executed(problem: Any, result: Any, memo: dict[tuple, floa
     known = {**(result.details or {}).get(AS_EXECUTED_MEMO, {}), **(memo or {})}.get(key)
     if known is not None:
         return key, float(known)
+    clock = getattr(problem, "clock", None)
+    if clock is not None:
+        clock.step("execute", len(observations))  # (A3) the executor's run, on the budget of the stage asking
     plan = Plan(plan_id="candidate", start=problem.start,
                 end=problem.start + TimeDelta(config.horizon_s, format="sec"), observations=observations,
                 metrics=PlanMetrics(coverage=0.0, solver="", status="", mip_gap=None, runtime_s=0.0, n_fields=0,

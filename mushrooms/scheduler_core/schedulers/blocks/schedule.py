@@ -291,7 +291,7 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
     should_stop : callable, optional
         Polled by the solver; True interrupts it (the incumbent is used).
     total_s : float, optional
-        Wall-clock budget (s) of the whole call, re-solves included (a
+        Budget (s, on ``problem.clock``) of the whole call, re-solves included (a
         portfolio's stage): each solve gets at most what is left of it, and
         no re-solve starts with less than :data:`MIN_RESOLVE_S` left.  None:
         the first solve gets ``time_limit_s``, each re-solve its own share.
@@ -313,7 +313,7 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
         incumbent and to 1 % gap, the attempts and retries.
     """
     require_pair(problem.config.filters, "block MILP")
-    t_wall = time.perf_counter()
+    t_wall, t_budget = time.perf_counter(), problem.clock.mark()
     cfg: PlanningConfig = problem.config
     params = BlockParams.from_config(cfg)
     rows, cells, candidates = _prepare(problem, params)
@@ -336,12 +336,12 @@ def milp_schedule(problem: PlanningProblem, should_stop: StopCheck | None = None
         # a re-solve only moves blocks a little: it gets a third of the limit (at least 5 s)
         limit = cfg.time_limit_s if attempt == 0 else max(min(5.0, cfg.time_limit_s), cfg.time_limit_s / 3)
         if total_s is not None:
-            left = total_s - (time.perf_counter() - t_wall)
+            left = total_s - problem.clock.since(t_budget)  # (A1)
             if attempt > 0 and left < MIN_RESOLVE_S:
                 break  # the stage's budget is spent: the best plan so far
             limit = min(limit, max(left, 0.01))
         res = solve_milp(model.milp, cfg.milp_backend, limit, cfg.mip_gap, cfg.threads, should_stop,
-                         start=start, cutoff=cutoff)
+                         start=start, cutoff=cutoff, clock=problem.clock)
         attempts.append(_attempt_record(model, start, res))
         if res.status == "cutoff":  # (V6) its own relaxation: no block plan beats the cutoff
             details.update(attempts=attempts, cutoff=cutoff)

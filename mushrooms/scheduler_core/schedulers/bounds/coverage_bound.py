@@ -185,8 +185,9 @@ def coverage_upper_bound(problem: PlanningProblem, method: str = "online", time_
     integer = np.concatenate([np.ones(F, bool), np.zeros(C, bool)])
     model = MilpModel(c, A, np.full(C + 1, -np.inf), np.concatenate([np.zeros(C), [float(K)]]),
                       np.zeros(F + C), np.ones(F + C), integer)
-    res = solve_milp(model, backend, time_limit_s, mip_gap=BOUND_MIP_GAP)
-    if res.status in ("optimal", "time_limit", "interrupted") and res.bound is not None and math.isfinite(res.bound):
+    res = solve_milp(model, backend, time_limit_s, mip_gap=BOUND_MIP_GAP, clock=problem.clock)
+    if res.status in ("optimal", "time_limit", "work_limit", "interrupted") and res.bound is not None \
+            and math.isfinite(res.bound):
         value, status = float(res.bound), "optimal" if res.status == "optimal" else "dual_bound"
     else:
         value, status = everything, "all_fields"

@@ -39,7 +39,7 @@ from ..milp.solvers import MilpModel, solve_milp
 __all__ = ["field_spans", "interval_violation", "interval_upper_bound"]
 
 #: Solver statuses whose dual bound is proven (an ``error: ...`` status carries none).
-PROVEN = ("optimal", "time_limit", "interrupted")
+PROVEN = ("optimal", "time_limit", "work_limit", "interrupted")
 
 #: Rows added per separation round, and most rounds.
 ROWS_PER_ROUND = 40
@@ -136,8 +136,9 @@ def interval_upper_bound(problem: PlanningProblem, time_limit_s: float = 2.0) ->
     ----------
     problem : PlanningProblem
     time_limit_s : float
-        Wall-time budget (s) of all the solves; when it runs out the least
-        proven bound so far is returned (still an upper bound).
+        Budget (s, on ``problem.clock``: wall or work seconds) of all the
+        solves; when it runs out the least proven bound so far is returned
+        (still an upper bound).
 
     Returns
     -------
@@ -150,7 +151,7 @@ def interval_upper_bound(problem: PlanningProblem, time_limit_s: float = 2.0) ->
     from ...sky.cells import merge_cells
     from ..blocks.schedule import shortlist_footprints
 
-    t0 = time.perf_counter()
+    t0, start = time.perf_counter(), problem.clock.mark()
     u4 = coverage_upper_bound(problem)
     windows = bound_windows(problem)  # (V7) the outer windows, or None: the one-step widening
     rows = pairable_rows(problem, windows)
@@ -174,16 +175,18 @@ def interval_upper_bound(problem: PlanningProblem, time_limit_s: float = 2.0) ->
     cuts: list[tuple[np.ndarray, float]] = []
     best, status = math.inf, "interval_dual_bound"
     for _ in range(MAX_ROUNDS):
-        left = time_limit_s - (time.perf_counter() - t0)
+        left = time_limit_s - problem.clock.since(start)  # (A1)
         if left <= 0.05:
             break
+        problem.clock.step("bound_round")  # (A3)
         # (V2) the interval rows found so far
         A = sp.vstack([base] + [sp.csr_matrix(np.concatenate([k, np.zeros(C)])[None, :]) for k, _ in cuts]).tocsr()
         hi = np.concatenate([base_hi, [b for _, b in cuts]])
         model = MilpModel(c, A, np.full(hi.size, -np.inf), hi, np.zeros(F + C), np.ones(F + C), integer)
         # the process's thread setting: HiGHS sizes one thread pool per process (solve_milp resets it
         # when the count changes); a failed solve's dual bound is no bound at all
-        res = solve_milp(model, "highs", left, mip_gap=BOUND_MIP_GAP, threads=problem.config.threads)
+        res = solve_milp(model, "highs", left, mip_gap=BOUND_MIP_GAP, threads=problem.config.threads,
+                         clock=problem.clock)
         if res.status in PROVEN and res.bound is not None and math.isfinite(res.bound):
             best = min(best, float(res.bound))  # (V4) every solve's proven bound is a bound
         if res.x is None or res.status not in PROVEN:

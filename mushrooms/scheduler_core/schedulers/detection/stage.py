@@ -98,6 +98,7 @@ def plan_expected_detections(problem: PlanningProblem, skymap: SkyMap, observati
     """Exact expected detections (X1) of scheduled exposures."""
     from ...source.detection import expected_detections
 
+    problem.clock.step("score", len(observations))  # (A3)
     plan = Plan("candidate", problem.start, problem.start + TimeDelta(problem.horizon_s, format="sec"),
                 tuple(observations), PlanMetrics(0.0, "", "", None, 0.0, 0, len(observations)))
     e = expected_detections(plan, skymap, problem.footprints, kilonova, skymap.event_time, depth)
@@ -127,8 +128,8 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
     depth : DepthModel
         Limiting-magnitude model.
     time_limit_s : float, optional
-        Wall-clock budget (s) of the whole stage (scoring, models, solves,
-        timing); default ``config.detection_time_limit_s``.  A grid is only
+        Budget (s, on ``problem.clock``: wall or work seconds) of the whole
+        stage (scoring, models, solves, timing); default ``config.detection_time_limit_s``.  A grid is only
         started when at least :data:`MIN_SOLVE_S` of solve time is left
         after the time its solution will take to time and score.
     baseline_coverage : float, optional
@@ -166,10 +167,10 @@ def detection_stage(problem: PlanningProblem, skymap: SkyMap, coverage: Schedule
     kilonova = kilonova or load_kilonova(cfg.detection_lightcurve)
     if not skymap.has_distance or skymap.event_time is None:
         return _kept_coverage(coverage, t_wall, "coverage (no distance layers)", budget, None, ())
-    stage = _Stage(problem, skymap, kilonova, depth, should_stop, budget, t_wall)
-    t_score = time.perf_counter()
+    stage = _Stage(problem, skymap, kilonova, depth, should_stop, budget, problem.clock.mark())
+    t_score = problem.clock.mark()
     c_cov, e_cov = stage.published(coverage)
-    stage.post_s = time.perf_counter() - t_score + 0.1  # time to time and score one solution (updated as measured)
+    stage.post_s = problem.clock.since(t_score) + 0.1  # time to time and score one solution (updated as measured)
     floor = coverage_floor(c_cov, cfg.detection_max_coverage_loss, baseline_coverage)
     lightcurve = cfg.detection_lightcurve if own_kilonova else None
     ceiling = detection_ceiling(problem, skymap, kilonova, depth)
@@ -218,9 +219,9 @@ class _Stage:
     """The detection stage's solves on the slot grids of one problem, within one budget."""
 
     def __init__(self, problem: PlanningProblem, skymap: SkyMap, kilonova: Kilonova, depth: DepthModel,
-                 should_stop: StopCheck | None, budget: float, t_wall: float) -> None:
+                 should_stop: StopCheck | None, budget: float, started: tuple) -> None:
         self.problem, self.skymap, self.kilonova, self.depth = problem, skymap, kilonova, depth
-        self.should_stop, self.budget, self.t_wall = should_stop, budget, t_wall
+        self.should_stop, self.budget, self.started = should_stop, budget, started  # started: the clock's mark
         self.post_s = 0.1
         self.levels: np.ndarray | None = None
         self.W: np.ndarray | None = None
@@ -245,7 +246,7 @@ class _Stage:
 
     def left_s(self) -> float:
         """Solve time left: the budget, less the time spent and the time to time and score a solution."""
-        return self.budget - (time.perf_counter() - self.t_wall) - self.post_s
+        return self.budget - self.problem.clock.since(self.started) - self.post_s  # (A1)
 
     def solve_grids(self, coverage: ScheduleResult, floor: float, accept_floor: float, best: tuple
                     ) -> tuple[tuple, list[dict]]:
@@ -330,6 +331,7 @@ class _Stage:
             inst = slot_instance(problem, self.rows, grid, cells=self.cells)
         if inst.n_pairs == 0:
             return None, None, False
+        problem.clock.step("reach", inst.n_pairs)  # (A3)
         reach = pair_reach(problem, inst, self.kilonova, self.skymap.event_time, self.depth)
         if self.levels is None:  # placed once, on the first grid's reaches, for every grid
             r_max = float(reach.max(initial=0.0))
@@ -367,13 +369,13 @@ class _Stage:
         limit = max(limit, min(left, MIN_SOLVE_S))
         # (V6) stop once the bound proves no solution beats the incumbent by min_gain
         res = solve_milp(model.milp, self.backend, limit, cfg.mip_gap, cfg.threads, self.should_stop, start=x0,
-                         abs_gap=cfg.min_gain)
+                         abs_gap=cfg.min_gain, clock=problem.clock)
         if not res.has_solution:
             return {"grid": grid.name, "status": res.status}, None, False
-        t_post = time.perf_counter()
+        t_post = problem.clock.mark()
         obs, dropped, _ = time_slot_plan(problem, model, res.x)
         c, e = self.published(ScheduleResult(tuple(obs), "detection", res.status))
-        self.post_s = max(self.post_s, time.perf_counter() - t_post)
+        self.post_s = max(self.post_s, problem.clock.since(t_post))
         ok = c >= self.accept_floor - 1e-9
         run = {"grid": grid.name, "status": res.status, "levels": int(self.levels.size), "pairs": inst.n_pairs,
                "objective": res.objective, "bound": res.bound, "expected_detections": e, "coverage": c,

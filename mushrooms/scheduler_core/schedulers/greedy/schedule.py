@@ -158,6 +158,7 @@ def greedy_schedule(problem: PlanningProblem, should_stop: StopCheck | None = No
         state.commit(batch, starts)
 
     observations = sorted(state.observations, key=lambda o: o.start)
+    problem.clock.step("greedy", len(problem.field_ids))  # (A3) the budget of the stages after it
     return ScheduleResult(
         observations=tuple(observations),
         solver="greedy",

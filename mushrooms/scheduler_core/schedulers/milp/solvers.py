@@ -25,6 +25,7 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
+from ...budget import Clock, solve_work, wall_stop
 from ...problem import StopCheck
 from .rows import Family, RowBlock
 
@@ -107,8 +108,8 @@ class SolveResult:
     backend : str
         ``highs`` or ``gurobi`` (the one that really ran).
     status : str
-        ``optimal``, ``time_limit``, ``interrupted``, ``infeasible`` or
-        ``error: ...``.
+        ``optimal``, ``time_limit``, ``work_limit`` (the work clock's, A2),
+        ``interrupted``, ``infeasible`` or ``error: ...``.
     x : numpy.ndarray or None
         Best solution found (None without an incumbent).
     objective : float or None
@@ -202,6 +203,7 @@ def solve_milp(
     start: np.ndarray | None = None,
     abs_gap: float = 0.0,
     cutoff: float | None = None,
+    clock: Clock | None = None,
 ) -> SolveResult:
     """Solve a :class:`MilpModel` with HiGHS or Gurobi.
 
@@ -212,7 +214,7 @@ def solve_milp(
     backend : str
         ``highs``, ``gurobi`` or ``auto`` (Gurobi when fully licensed).
     time_limit_s : float
-        Wall-clock limit (s).
+        Limit (s): wall time, or work seconds on a work ``clock``.
     mip_gap : float
         Relative gap at which to stop.
     threads : int
@@ -232,6 +234,9 @@ def solve_milp(
         solution reaches this objective: a stage that only matters when it
         beats a plan already found stops once its own relaxation shows it
         cannot.  The incumbent, if any, is returned.
+    clock : Clock, optional
+        On a work clock (:mod:`..budget`, A2, A4) the limit is work seconds,
+        one thread, and the clock is charged the solve's work.
 
     Returns
     -------
@@ -241,15 +246,16 @@ def solve_milp(
         raise ValueError(f"unknown MILP backend {backend!r}")
     backend = resolve_backend(backend)
     result = None
+    args = (model, time_limit_s, mip_gap, threads, should_stop, start, abs_gap, cutoff, clock)
     if backend == "gurobi":
         try:
-            result = _solve_gurobi(model, time_limit_s, mip_gap, threads, should_stop, start, abs_gap, cutoff)
+            result = _solve_gurobi(*args)
         except _GurobiUnavailable as exc:
             log.warning("Gurobi unavailable (%s); solving with HiGHS", exc)
-            result = _solve_highs(model, time_limit_s, mip_gap, threads, should_stop, start, abs_gap, cutoff)
+            result = _solve_highs(*args)
             result.note = f"gurobi fallback: {exc}"
     if result is None:
-        result = _solve_highs(model, time_limit_s, mip_gap, threads, should_stop, start, abs_gap, cutoff)
+        result = _solve_highs(*args)
     if cutoff is not None and result.bound is not None and result.bound < cutoff:
         result.status = "cutoff"  # proven before any callback (presolve, the root): the same answer
     return result
@@ -259,10 +265,13 @@ def solve_milp(
 
 def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads: int,
                  should_stop: StopCheck | None, start: np.ndarray | None, abs_gap: float = 0.0,
-                 cutoff: float | None = None) -> SolveResult:
+                 cutoff: float | None = None, clock: Clock | None = None) -> SolveResult:
     import highspy
 
     t0 = time.perf_counter()
+    work = solve_work(clock, model.A.nnz, time_limit_s)
+    if work is not None:  # (A4) one thread: HiGHS's search, and where it checks its limits, depend on the count
+        threads, time_limit_s = 1, work.wall_guard_s
     with _highs_pool_lock:
         if _highs_pool["threads"] not in (None, int(threads)):
             # a sequential change of the thread count (tests, benchmarks): the one config of a service
@@ -298,7 +307,7 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
     def on_interrupt(event) -> None:
         out = event.data_out
         progress.update(out.mip_primal_bound, out.mip_dual_bound)
-        if stop_now():
+        if (work is not None and work.reached()) or stop_now():  # (A2) the work limit, at a check HiGHS makes
             interrupted[0] = True
             event.interrupt()
 
@@ -306,6 +315,8 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
     h.cbMipInterrupt += on_interrupt
     h.run()
     runtime = time.perf_counter() - t0
+    if work is not None:
+        work.charge()
 
     ms = h.getModelStatus()
     info = h.getInfo()
@@ -315,20 +326,9 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
     x = np.asarray(sol.col_value, float) if has_x else None
     objective = float(info.objective_function_value) if has_x else None
     bound = float(info.mip_dual_bound) if math.isfinite(info.mip_dual_bound) else None
-    if cut[0]:
-        status = "cutoff"
-    elif ms == MS.kOptimal:
-        status = "optimal"
-        if bound is None and objective is not None:
-            bound = objective
-    elif ms == MS.kTimeLimit:
-        status = "time_limit"
-    elif ms == MS.kInterrupt or interrupted[0]:
-        status = "interrupted"
-    elif ms in (MS.kInfeasible, MS.kUnboundedOrInfeasible):
-        status = "infeasible"
-    else:
-        status = f"error: {h.modelStatusToString(ms)}"
+    status = _highs_status(h, ms, MS, cut[0], work is not None and work.stopped, interrupted[0], clock)
+    if status == "optimal" and bound is None and objective is not None:
+        bound = objective
     if objective is not None:
         progress.update(objective, bound if bound is not None else math.inf)
     return SolveResult(
@@ -337,6 +337,24 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
         time_to_first_s=progress.first if x is not None else None,
         time_to_gap_s=progress.at_gap, progress=progress.trace,
     )
+
+
+def _highs_status(h: Any, ms: Any, MS: Any, cut: bool, work_stopped: bool, interrupted: bool,
+                  clock: Clock | None) -> str:
+    """The :class:`SolveResult` status of a HiGHS run ending in model status ``ms``."""
+    if cut:
+        return "cutoff"
+    if ms == MS.kOptimal:
+        return "optimal"
+    if ms == MS.kTimeLimit:
+        return wall_stop(clock)
+    if work_stopped:
+        return "work_limit"
+    if ms == MS.kInterrupt or interrupted:
+        return "interrupted"
+    if ms in (MS.kInfeasible, MS.kUnboundedOrInfeasible):
+        return "infeasible"
+    return f"error: {h.modelStatusToString(ms)}"
 
 
 def highs_lp(model: MilpModel, highspy: Any) -> Any:
@@ -431,10 +449,11 @@ def gurobi_fully_licensed() -> bool:
 
 def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads: int,
                   should_stop: StopCheck | None, start: np.ndarray | None, abs_gap: float = 0.0,
-                  cutoff: float | None = None) -> SolveResult:
+                  cutoff: float | None = None, clock: Clock | None = None) -> SolveResult:
     gp, env = _gurobi_env()
     GRB = gp.GRB
     t0 = time.perf_counter()
+    work = solve_work(clock, model.A.nnz, time_limit_s)
     progress = _Progress(t0)
     interrupted = [False]
     stop_now, cut = _stop_check(progress, should_stop, cutoff)
@@ -447,6 +466,8 @@ def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads
         m.Params.Seed = 0
         if threads > 0:
             m.Params.Threads = int(threads)
+        if work is not None:  # (A2) Gurobi's own deterministic work units, one thread (A4), the wall guard (A5)
+            m.Params.WorkLimit, m.Params.Threads, m.Params.TimeLimit = max(time_limit_s, 0.0), 1, work.wall_guard_s
         vtype = np.where(model.integer, GRB.INTEGER, GRB.CONTINUOUS)
         lb = np.where(np.isfinite(model.col_lo), model.col_lo, -GRB.INFINITY)
         ub = np.where(np.isfinite(model.col_hi), model.col_hi, GRB.INFINITY)
@@ -485,23 +506,14 @@ def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads
                     f" (error {exc.errno})") from exc
             raise
         runtime = time.perf_counter() - t0
+        if work is not None:
+            work.charge(gurobi_work=m.Work)
         st = m.Status
         has_x = m.SolCount > 0
         xv = np.asarray(x.X, float) if has_x else None
         objective = float(m.ObjVal) if has_x else None
         bound = float(m.ObjBound) if has_x or st == GRB.OPTIMAL else None
-        if cut[0]:
-            status = "cutoff"
-        elif st == GRB.OPTIMAL:
-            status = "optimal"
-        elif st == GRB.TIME_LIMIT:
-            status = "time_limit"
-        elif st == GRB.INTERRUPTED or interrupted[0]:
-            status = "interrupted"
-        elif st in (GRB.INFEASIBLE, GRB.INF_OR_UNBD):
-            status = "infeasible"
-        else:
-            status = f"error: gurobi status {st}"
+        status = _gurobi_status(GRB, st, cut[0], interrupted[0], clock)
         if objective is not None:
             progress.update(objective, bound if bound is not None else math.inf)
         m.dispose()
@@ -513,3 +525,20 @@ def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads
         time_to_first_s=progress.first if xv is not None else None,
         time_to_gap_s=progress.at_gap, progress=progress.trace,
     )
+
+
+def _gurobi_status(GRB: Any, st: int, cut: bool, interrupted: bool, clock: Clock | None) -> str:
+    """The :class:`SolveResult` status of a Gurobi run ending in status ``st``."""
+    if cut:
+        return "cutoff"
+    if st == GRB.OPTIMAL:
+        return "optimal"
+    if st == GRB.TIME_LIMIT:
+        return wall_stop(clock)
+    if st == GRB.WORK_LIMIT:
+        return "work_limit"
+    if st == GRB.INTERRUPTED or interrupted:
+        return "interrupted"
+    if st in (GRB.INFEASIBLE, GRB.INF_OR_UNBD):
+        return "infeasible"
+    return f"error: gurobi status {st}"

@@ -323,6 +323,7 @@ def _resolve_slice(problem: PlanningProblem, state: _State, pairs: dict[int, lis
         return None  # the pairwise model is exact only when an exposure outlasts every overhead
     model = build_exact_model(sub, data)
     milp = model.milp
+    problem.clock.step("slice", milp.A.nnz)  # (A3) the slice's model, its times and its rule check
     col_lo, col_hi = milp.col_lo.copy(), milp.col_hi.copy()
     sub_obs = [o for f in near_ids + free_ids for o in pairs[f]]
     x0 = start_from_plan(model, sub, sub_obs)
@@ -338,7 +339,8 @@ def _resolve_slice(problem: PlanningProblem, state: _State, pairs: dict[int, lis
     milp = dataclasses.replace(milp, col_lo=col_lo, col_hi=col_hi)
     start_obj = float(milp.c @ x0)
     # (V6) a slice that cannot add min_gain to the coverage stops once its bound proves it
-    res = solve_milp(milp, "highs", time_limit_s, SLICE_GAP, cfg.threads, should_stop, start=x0, abs_gap=cfg.min_gain)
+    res = solve_milp(milp, "highs", time_limit_s, SLICE_GAP, cfg.threads, should_stop, start=x0, abs_gap=cfg.min_gain,
+                     clock=problem.clock)
     if res.x is None or res.objective is None or res.objective <= start_obj + MIN_IMPROVEMENT:
         return None
     fixed_mask = np.zeros(data.n_fields, bool)
@@ -379,7 +381,7 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
     should_stop : callable, optional
         Polled between slices and by the solver.
     time_limit_s : float, optional
-        Wall-clock budget (s); default ``config.time_limit_s``.
+        Budget (s, on ``problem.clock``: wall or work seconds); default ``config.time_limit_s``.
     pool : numpy.ndarray, optional
         Rows of ``problem.field_ids`` the new fields come from (default all).
     slice_s : float
@@ -387,7 +389,7 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
     max_free : int
         Most free fields per slice.
     max_idle_s : float
-        The search stops after this long (s) without a gain.
+        The search stops after this long (s, on the clock) without a gain.
     enough : float, optional
         The search stops once the plan covers this much (the certified
         bound less ``min_gain``: no slice can then add more than that).
@@ -402,7 +404,8 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
         and coverage (``coverage_at``).
     """
     require_pair(problem.config.filters, "LNS")
-    t0 = time.perf_counter()
+    t0, clock = time.perf_counter(), problem.clock
+    start = clock.mark()
     cfg = problem.config
     budget = cfg.time_limit_s if time_limit_s is None else float(time_limit_s)
     fp = problem.footprints
@@ -436,13 +439,13 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
     field_prob = fp.field_probability(problem.prob)
     slices = _slices(problem, state, lo, hi, slice_s, field_prob)
     i = since_gain = 0
-    last_gain = time.perf_counter()
+    last_gain = clock.mark()
     while since_gain < len(slices):  # a whole round without a gain ends it
-        left = budget - (time.perf_counter() - t0)
+        left = budget - clock.since(start)  # (A1)
         if should_stop is not None and should_stop():
             interrupted = True
             break
-        idle_left = max_idle_s - (time.perf_counter() - last_gain)  # a slice never outlasts the idle stop
+        idle_left = max_idle_s - clock.since(last_gain)  # a slice never outlasts the idle stop
         if min(left, idle_left) < MIN_SLICE_S:
             break
         if enough is not None and state.published >= enough:
@@ -466,7 +469,7 @@ def lns_improve(problem: PlanningProblem, seed: ScheduleResult, should_stop: Sto
             details["elapsed_at"].append(round(time.perf_counter() - t0, 2))
             details["coverage_at"].append(round(state.coverage, 6))
             since_gain = 0
-            last_gain = time.perf_counter()
+            last_gain = clock.mark()
         else:
             if new is not None and new.executed < state.executed - MIN_IMPROVEMENT:
                 log.info("lns: slice %s s: coverage %.5f -> %.5f refused: executed %.5f -> %.5f (Q14)",

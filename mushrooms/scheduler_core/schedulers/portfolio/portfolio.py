@@ -3,7 +3,8 @@
 A scheduler (:data:`~...problem.Scheduler`) is ``scheduler(problem,
 should_stop) -> ScheduleResult``.  A :class:`Stage` is one step of a
 composition: it also sees the results of the stages before it and the
-budget (s) left of ``config.time_limit_s``.  :func:`best_of` runs stages in
+budget (s) left of ``config.time_limit_s``, on ``problem.clock`` (wall or
+work seconds, :mod:`..budget`).  :func:`best_of` runs stages in
 turn and keeps the plan that, as it will be published (after the
 least-gain rule), covers the most probability, the earliest stage winning
 a tie; :func:`with_upper_bound` attaches the certified coverage bound
@@ -228,8 +229,8 @@ class Portfolio:
     wall time, ``portfolio`` (each candidate's solver, status, gap and
     published coverage) and ``portfolio_choice`` (the winning stage).
 
-    With a ``bound``, it is computed once after the first stage (its wall
-    time is not taken from the stages' budget: the bound comes on top of
+    With a ``bound``, it is computed once after the first stage (its cost
+    is not taken from the stages' budget: the bound comes on top of
     ``time_limit_s``, as it did after the scheduler) and is the result's
     ``upper_bound``; when the best plan so far reaches it
     (:func:`reaches_bound`) the stages left are skipped, logged and listed
@@ -247,12 +248,11 @@ class Portfolio:
     bound: BoundRun | None = None
 
     def __call__(self, problem: PlanningProblem, should_stop: StopCheck | None = None) -> ScheduleResult:
-        t0 = time.perf_counter()
+        t0, start = time.perf_counter(), problem.clock.mark()  # (A1) the wall for the record, the clock to decide
         budget = problem.config.time_limit_s
         ran: dict[str, ScheduleResult] = {}
         covs: dict[str, float] = {}
         upper: UpperBound | None = None
-        bound_s = 0.0  # the bound's wall time, not charged to the stages
         skipped: list[str] = []
         times: dict[str, float] = {}  # wall time (s) of each stage run, and of the bound
         enabled = [s for s in self.stages if s.enabled is None or s.enabled(problem.config)]
@@ -272,7 +272,7 @@ class Portfolio:
                          "skipping %s", self.label, max(covs, key=covs.get), max(covs.values()), upper.value,
                          upper.method, within, ", ".join(skipped))
                 break
-            left = budget - (time.perf_counter() - t0 - bound_s)
+            left = budget - problem.clock.since(start)  # the bound is off the budget (published_bound)
             if stage.min_left_s is not None:
                 stopped = should_stop is not None and should_stop()
                 if left < stage.min_left_s or stopped:
@@ -284,8 +284,7 @@ class Portfolio:
             if self.bound is not None and upper is None:
                 t_bound = time.perf_counter()
                 upper = self.bound(problem)
-                bound_s = time.perf_counter() - t_bound
-                times["bound"] = round(bound_s, 3)
+                times["bound"] = round(time.perf_counter() - t_bound, 3)
                 if ran[stage.name].upper_bound is None:  # the stages after see it (an LNS stops at it)
                     ran[stage.name] = dataclasses.replace(ran[stage.name], upper_bound=upper)
         from ..as_executed import AS_EXECUTED_MEMO
@@ -356,9 +355,9 @@ def slots_from_greedy(problem: PlanningProblem, should_stop: StopCheck | None = 
     greedy plan is returned under the slot scheduler's name, status
     ``<status>_greedy_fallback``.
     """
-    t0 = time.perf_counter()
+    t0, start = time.perf_counter(), problem.clock.mark()
     greedy = greedy_stage(problem, should_stop, {}, problem.config.time_limit_s)
-    left = problem.config.time_limit_s - (time.perf_counter() - t0)
+    left = problem.config.time_limit_s - problem.clock.since(start)
     slots = slots_stage(problem, should_stop, {"greedy": greedy}, left)
     if not slots.observations and greedy.observations:
         slots = dataclasses.replace(slots, status=f"{slots.status}_greedy_fallback",
@@ -386,8 +385,8 @@ def published_bound(problem: PlanningProblem) -> UpperBound | None:
 
     if len(problem.config.filters) < 2:
         return None
-
-    return certified_upper_bound(problem)
+    with problem.clock.off_budget():  # (A1) on top of time_limit_s: no stage's budget pays for it
+        return certified_upper_bound(problem)
 
 
 def with_upper_bound(scheduler: Scheduler) -> Scheduler:

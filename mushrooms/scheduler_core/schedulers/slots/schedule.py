@@ -218,6 +218,7 @@ def time_slot_plan(problem: PlanningProblem, model: SlotModel, x: np.ndarray
     """
     cfg = problem.config
     inst = model.instance
+    problem.clock.step("timing", len(cfg.filters) * int(np.count_nonzero(x[:inst.n_pairs] > 0.5)))  # (A3) per exposure
     pair_exp = inst.exposures(cfg.exposure_s)  # each pair's own exposure (the menu's, or exposure_s)
     obs: list[Observation] = []
     dropped: list[int] = []
@@ -261,8 +262,8 @@ def slot_schedule(
         A plan (e.g. greedy's) given to every grid as the starting incumbent
         where it fits.
     time_limit_s : float, optional
-        Wall-clock budget (s) for the whole portfolio (default
-        ``config.time_limit_s``); each grid gets the time left divided by
+        Budget (s, on ``problem.clock``: wall or work seconds) for the whole
+        portfolio (default ``config.time_limit_s``); each grid gets the time left divided by
         the grids left, at most :data:`PORTFOLIO_SPLIT` (later grids are
         skipped when less than :data:`MIN_SOLVE_S` is left).
     pixel_weight : numpy.ndarray, optional
@@ -281,7 +282,7 @@ def slot_schedule(
         objectives, bounds and times and the mapped start's objective.
     """
     require_pair(problem.config.filters, "slot MILP", longer=True)
-    t_wall = time.perf_counter()
+    t_wall, t_budget = time.perf_counter(), problem.clock.mark()
     cfg: PlanningConfig = problem.config
     budget = cfg.time_limit_s if time_limit_s is None else float(time_limit_s)
     backend = resolve_backend(cfg.milp_backend)  # once: the licence probe costs time
@@ -301,7 +302,7 @@ def slot_schedule(
     field_of_row = {int(problem.field_ids[r]): f for f, r in enumerate(rows)}
     start_f = {field_of_row[fid]: t for fid, t in start_first.items() if fid in field_of_row}
     details.update(n_cells=cells.n_cells, n_pixels=cells.n_pixels, grids=[])
-    solutions, interrupted = _solve_grids(problem, rows, cells, grids, start_f, budget, t_wall, backend,
+    solutions, interrupted = _solve_grids(problem, rows, cells, grids, start_f, budget, t_budget, backend,
                                           should_stop, pair_weight, details["grids"])
     if not solutions:
         return ScheduleResult((), "slots:none", "interrupted" if interrupted else "no_solution", None,
@@ -322,20 +323,22 @@ def slot_schedule(
 
 
 def _solve_grids(problem: PlanningProblem, rows: np.ndarray, cells, grids: list[SlotGrid],
-                 start_f: dict[int, float], budget: float, t_wall: float, backend: str,
+                 start_f: dict[int, float], budget: float, t_budget: tuple, backend: str,
                  should_stop: StopCheck | None, pair_weight, runs: list[dict]) -> tuple[list[GridSolution], bool]:
-    """Solve the grids in turn within the budget; (the solutions found, interrupted), one run record each."""
+    """Solve the grids in turn within the budget (from the clock's mark ``t_budget``); (the solutions found,
+    interrupted), one run record each."""
     cfg = problem.config
     solutions: list[GridSolution] = []
     interrupted = False
     for i, grid in enumerate(grids):
-        left = budget - (time.perf_counter() - t_wall)
+        left = budget - problem.clock.since(t_budget)
         if left < MIN_SOLVE_S or (should_stop is not None and should_stop()):
             interrupted = interrupted or (should_stop is not None and should_stop())
             break
         inst = slot_instance(problem, rows, grid, cells=cells)
         if inst.n_pairs == 0:
             continue
+        problem.clock.step("grid", inst.n_pairs)  # (A3)
         pw = None if pair_weight is None else pair_weight(problem, inst)
         model = build_slot_model(inst, cfg.penalty, pw)
         x0 = None
@@ -349,7 +352,7 @@ def _solve_grids(problem: PlanningProblem, rows: np.ndarray, cells, grids: list[
         # leave time for the rest; on a busy one the first grids still get a real chance
         share = left / min(len(grids) - i, PORTFOLIO_SPLIT)
         res = solve_milp(model.milp, backend, share, cfg.mip_gap, cfg.threads,
-                         should_stop, start=x0)
+                         should_stop, start=x0, clock=problem.clock)
         runs.append({"grid": grid.name, "pairs": inst.n_pairs, "slots": grid.n_slots,
                      "status": res.status, "objective": res.objective, "bound": res.bound,
                      "start_objective": start_obj, "runtime_s": round(res.runtime_s, 3)})

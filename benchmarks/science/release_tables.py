@@ -1,0 +1,44 @@
+#!/usr/bin/env python3
+"""Rebuild the release's tables (issue 55) from a population ``results.csv`` alone.
+
+Reads one row per (event, row) in the population layout
+(``mushrooms.evaluation.study.population_rows.POPULATION_COLUMNS``: the rows ``service``, ``service-grg``,
+``greedy``, ``gwemopt-o4``, ``gwemopt-skyportal``, ``gwemopt-repaired``) and writes the Markdown of
+``mushrooms.evaluation.study.release_tables.release_tables``: per row the mean and median of planned coverage
+(pair rule), executed coverage through the queue set and as submitted today, detection efficiencies and open-shutter
+hours, each with a bootstrap 95 % interval; per-event paired differences against the service; the events each row
+executes nothing on; the same by class, distance and area.
+
+    .venv/bin/python benchmarks/science/release_tables.py CSV [-o TABLES.md] [--draws 2000] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from mushrooms.evaluation.study.population_rows import read_population_csv
+from mushrooms.evaluation.study.release_tables import release_tables
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("csv", type=Path)
+    ap.add_argument("-o", "--out", type=Path, help="write here (default: stdout)")
+    ap.add_argument("--draws", type=int, default=2000)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    if not args.csv.is_file():
+        print(f"{args.csv}: no such file", file=sys.stderr)
+        return 2
+    text = release_tables(read_population_csv(args.csv), draws=args.draws, seed=args.seed)
+    if args.out:
+        args.out.write_text(text)
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

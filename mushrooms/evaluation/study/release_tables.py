@@ -1,0 +1,274 @@
+"""The release's tables (issue 55) from a population ``results.csv``: every number with its spread, paired per event.
+
+Input: :data:`~.population_rows.POPULATION_COLUMNS` rows, one per (event,
+row), the rows named :data:`RELEASE_ROWS`.  Only the events with a row of
+every row name present are tabulated (a partial run's comparable set).
+Output (Markdown):
+
+* the headline table: per row and metric (:data:`METRICS`: planned
+  coverage by the pair rule, executed through the queue set, executed as
+  submitted today, detection by the two-detection rule and by one
+  detection, open-shutter hours), the mean with its bootstrap 95 %
+  interval and the median with its own;
+* per-event paired differences against the service (row minus service over
+  the events both have): mean and median with bootstrap 95 % intervals,
+  events better / worse / tied;
+* events where each row executes nothing (through the queue set and as
+  submitted today) or pairs nothing as planned, and the plans the checker
+  passed;
+* the same medians by event class, distance quartile and 90 % area quartile.
+
+The bootstrap resamples events with replacement (``draws`` times, one
+seeded generator per statistic, so a table is the same on every run) and
+takes the 2.5th and 97.5th percentiles of the statistic.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..bench.rows import num
+
+__all__ = ["RELEASE_ROWS", "REFERENCE", "METRICS", "TIE", "bootstrap_interval", "summary", "release_events",
+           "metric_values", "paired_differences", "zero_counts", "metric_table", "paired_table", "zero_table",
+           "breakdown_table", "release_tables"]
+
+Record = Mapping[str, Any]
+
+#: The rows of the release, in table order (others present follow).
+RELEASE_ROWS = ("service", "service-grg", "greedy", "gwemopt-o4", "gwemopt-skyportal", "gwemopt-repaired")
+#: Paired differences are against this row.
+REFERENCE = "service"
+#: (column, label, scale) of the metrics tabulated; values are multiplied by ``scale`` (seconds to hours).
+METRICS = (
+    ("coverage_pairs", "planned (pair rule)", 1.0),
+    ("coverage_executed", "executed via queue set", 1.0),
+    ("coverage_executed_single_queue", "executed as submitted today", 1.0),
+    ("efficiency_two_detections", "detection (two detections ≥ 15 min)", 1.0),
+    ("efficiency_optimistic", "detection (one detection, optimistic)", 1.0),
+    ("open_shutter_s", "open shutter (h)", 1.0 / 3600.0),
+)
+#: Per-event differences within this are ties (coverage and efficiency alike).
+TIE = 1e-4
+#: A coverage at or below this is "nothing executed".
+ZERO = 1e-9
+
+
+def bootstrap_interval(values: Sequence[float], statistic: Callable[..., Any] = np.mean, draws: int = 2000,
+                       seed: int = 0, level: float = 0.95) -> tuple[float, float] | None:
+    """Percentile bootstrap interval of ``statistic`` over ``values`` resampled with replacement.
+
+    Parameters
+    ----------
+    values : sequence of float
+        One value per event.
+    statistic : callable
+        ``statistic(array, axis=1)`` of a (draws, n) array (``np.mean``, ``np.median``).
+    draws : int
+        Resamples.
+    seed : int
+        Seed of the generator (same seed, same interval).
+    level : float
+        Central probability of the interval.
+
+    Returns
+    -------
+    (float, float) or None
+        The interval; None with fewer than two values.
+    """
+    x = np.asarray(values, dtype=float)
+    if x.size < 2:
+        return None
+    pick = np.random.default_rng(seed).integers(0, x.size, size=(draws, x.size))
+    stats = statistic(x[pick], axis=1)
+    lo, hi = np.percentile(stats, [50.0 * (1.0 - level), 100.0 - 50.0 * (1.0 - level)])
+    return float(lo), float(hi)
+
+
+def summary(values: Sequence[float], draws: int = 2000, seed: int = 0) -> dict[str, Any]:
+    """``n``, ``mean``, ``median`` and their bootstrap 95 % intervals (``mean_ci``, ``median_ci``; None below two)."""
+    x = np.asarray(values, dtype=float)
+    if not x.size:
+        return dict(n=0, mean=None, median=None, mean_ci=None, median_ci=None)
+    return dict(n=int(x.size), mean=float(x.mean()), median=float(np.median(x)),
+                mean_ci=bootstrap_interval(x, np.mean, draws, seed), median_ci=bootstrap_interval(x, np.median, draws, seed))
+
+
+def _by_event(rows: Sequence[Record]) -> dict[str, dict[str, Record]]:
+    out: dict[str, dict[str, Record]] = {}
+    for r in rows:
+        out.setdefault(str(r["event"]), {})[str(r["solver"])] = r
+    return out
+
+
+def _solvers(rows: Sequence[Record]) -> list[str]:
+    present = list(dict.fromkeys(str(r["solver"]) for r in rows))
+    return [s for s in RELEASE_ROWS if s in present] + [s for s in present if s not in RELEASE_ROWS]
+
+
+def release_events(rows: Sequence[Record]) -> list[Record]:
+    """The rows of the events that have a row of every row name present."""
+    solvers = set(_solvers(rows))
+    return [r for sol in _by_event(rows).values() if set(sol) == solvers for r in sol.values()]
+
+
+def metric_values(rows: Sequence[Record], solver: str, column: str, scale: float = 1.0) -> dict[str, float]:
+    """Event -> ``column`` of ``solver`` (times ``scale``), for the events where it has a number."""
+    out = {}
+    for r in rows:
+        if str(r["solver"]) == solver and (v := num(r.get(column))) is not None:
+            out[str(r["event"])] = v * scale
+    return out
+
+
+def paired_differences(rows: Sequence[Record], solver: str, column: str, reference: str = REFERENCE,
+                       scale: float = 1.0) -> dict[str, float]:
+    """Event -> ``solver`` minus ``reference`` in ``column`` over the events both have a number for."""
+    a = metric_values(rows, solver, column, scale)
+    b = metric_values(rows, reference, column, scale)
+    return {e: a[e] - b[e] for e in a if e in b}
+
+
+def zero_counts(rows: Sequence[Record], solver: str) -> dict[str, int]:
+    """Of ``solver``'s events: ``events``, and how many pair nothing as planned (``planned``), execute nothing
+    through the queue set (``queue_set``) or as submitted today (``single_queue``); ``valid`` plans."""
+    mine = [r for r in rows if str(r["solver"]) == solver]
+
+    def zeros(column: str) -> int:
+        return sum(1 for r in mine if (v := num(r.get(column))) is not None and v <= ZERO)
+
+    return dict(events=len(mine), planned=zeros("coverage_pairs"), queue_set=zeros("coverage_executed"),
+                single_queue=zeros("coverage_executed_single_queue"),
+                valid=sum(1 for r in mine if r.get("valid") is True))
+
+
+def _fmt(x: float | None, digits: int = 3) -> str:
+    return "-" if x is None else f"{x:.{digits}f}"
+
+
+def _ci(ci: tuple[float, float] | None, digits: int = 3, sign: bool = False) -> str:
+    if ci is None:
+        return ""
+    f = "+.{}f".format(digits) if sign else ".{}f".format(digits)
+    return f" [{format(ci[0], f)}, {format(ci[1], f)}]"
+
+
+def _cell(s: dict[str, Any], digits: int = 3, sign: bool = False) -> str:
+    if not s["n"]:
+        return "-"
+    f = "+.{}f".format(digits) if sign else ".{}f".format(digits)
+    return (f"{format(s['mean'], f)}{_ci(s['mean_ci'], digits, sign)} / "
+            f"{format(s['median'], f)}{_ci(s['median_ci'], digits, sign)}")
+
+
+def metric_table(rows: Sequence[Record], draws: int = 2000, seed: int = 0) -> list[str]:
+    """Markdown: per row, each metric's mean [95 %] / median [95 %] over the events (n per row)."""
+    solvers = _solvers(rows)
+    lines = ["| row | events | " + " | ".join(label for _, label, _ in METRICS) + " |",
+             "|" + "---|" * (2 + len(METRICS))]
+    for s in solvers:
+        n = len({str(r["event"]) for r in rows if str(r["solver"]) == s})
+        cells = [_cell(summary(list(metric_values(rows, s, c, k).values()), draws, seed), 2 if k != 1.0 else 3)
+                 for c, _, k in METRICS]
+        lines.append(f"| {s} | {n} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def paired_table(rows: Sequence[Record], reference: str = REFERENCE, draws: int = 2000, seed: int = 0) -> list[str]:
+    """Markdown: per row and metric, the per-event difference from ``reference``: mean [95 %] / median [95 %]
+    (events better/worse/tied beyond :data:`TIE`)."""
+    solvers = [s for s in _solvers(rows) if s != reference]
+    lines = ["| row − " + reference + " | " + " | ".join(label for _, label, _ in METRICS) + " |",
+             "|" + "---|" * (1 + len(METRICS))]
+    for s in solvers:
+        cells = []
+        for c, _, k in METRICS:
+            d = list(paired_differences(rows, s, c, reference, k).values())
+            summ = summary(d, draws, seed)
+            tally = (f" ({sum(x > TIE for x in d)}/{sum(x < -TIE for x in d)}/{sum(abs(x) <= TIE for x in d)}"
+                     f" of {len(d)})") if d else ""
+            cells.append(_cell(summ, 2 if k != 1.0 else 3, sign=True) + tally)
+        lines.append(f"| {s} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def zero_table(rows: Sequence[Record]) -> list[str]:
+    """Markdown: per row, events planning no pair, executing nothing (queue set, as submitted today), valid plans."""
+    lines = ["| row | events | no pair planned | nothing executed via queue set | nothing executed as submitted "
+             "today | plans the checker passed |", "|---|---|---|---|---|---|"]
+    for s in _solvers(rows):
+        z = zero_counts(rows, s)
+        lines.append(f"| {s} | {z['events']} | {z['planned']} | {z['queue_set']} | {z['single_queue']} | "
+                     f"{z['valid']} |")
+    return lines
+
+
+def _groups(rows: Sequence[Record], column: str, quartiles: bool) -> tuple[dict[str, str], list[str]]:
+    """Event -> group label (the column's value, or its quartile over the events), and the labels in order."""
+    values = {str(r["event"]): r.get(column) for r in rows}
+    if not quartiles:
+        labels = {e: str(v) for e, v in values.items() if v not in (None, "")}
+        return labels, sorted(set(labels.values()))
+    xs = {e: v for e, v in ((e, num(v)) for e, v in values.items()) if v is not None}
+    if not xs:
+        return {}, []
+    edges = np.quantile(np.array(sorted(xs.values())), [0.25, 0.5, 0.75])
+    names = [f"Q1 (≤ {edges[0]:.0f})", f"Q2 (≤ {edges[1]:.0f})", f"Q3 (≤ {edges[2]:.0f})", f"Q4 (> {edges[2]:.0f})"]
+    labels = {e: names[int(np.searchsorted(edges, v, side="left"))] for e, v in xs.items()}
+    return labels, [n for n in names if n in set(labels.values())]
+
+
+def breakdown_table(rows: Sequence[Record], column: str, quartiles: bool) -> list[str]:
+    """Markdown: per group of ``column``, each row's median executed coverage via the queue set and as submitted
+    today, and its events executing nothing (queue set)."""
+    labels, order = _groups(rows, column, quartiles)
+    if not order:
+        return [f"(no {column})"]
+    solvers = _solvers(rows)
+    lines = ["| " + column + " | events | " + " | ".join(f"{s}: median queue set / today (zero)" for s in solvers)
+             + " |", "|" + "---|" * (2 + len(solvers))]
+    for g in order:
+        sub = [r for r in rows if labels.get(str(r["event"])) == g]
+        cells = []
+        for s in solvers:
+            q = list(metric_values(sub, s, "coverage_executed").values())
+            t = list(metric_values(sub, s, "coverage_executed_single_queue").values())
+            z = zero_counts(sub, s)["queue_set"]
+            cells.append(f"{_fmt(float(np.median(q)) if q else None)} / {_fmt(float(np.median(t)) if t else None)}"
+                         f" ({z})")
+        lines.append(f"| {g} | {len({str(r['event']) for r in sub})} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _provenance(rows: Sequence[Record], n_all: int) -> list[str]:
+    """The header: events tabulated of all, the commits that planned the rows."""
+    commits: dict[str, int] = {}
+    for r in rows:
+        c = str(r.get("commit") or "") or "(not recorded)"
+        commits[c] = commits.get(c, 0) + 1
+    n = len({str(r["event"]) for r in rows})
+    return [f"{n} events with a row of every row name (of {n_all}); {len(rows)} (event, row) rows; planned by "
+            + ", ".join(f"`{c}` ({k} rows)" for c, k in sorted(commits.items())) + "."]
+
+
+def release_tables(rows: Sequence[Record], draws: int = 2000, seed: int = 0) -> str:
+    """Every table of the release (Markdown) from population rows (module notes)."""
+    n_all = len({str(r["event"]) for r in rows})
+    rows = release_events(rows)
+    out = _provenance(rows, n_all) + [
+        "", f"Intervals: bootstrap over events, {draws} resamples, seed {seed}, 2.5th-97.5th percentiles. "
+        "\"As submitted today\": the plan as one list queue valid over its horizon, its exposures in plan order "
+        "(what SkyPortal's ZTF API sends for an observation plan).", "",
+        "## Each row: mean [95 %] / median [95 %]", ""]
+    out += metric_table(rows, draws, seed)
+    out += ["", f"## Per-event paired differences against {REFERENCE}: mean [95 %] / median [95 %] "
+                f"(better/worse/tied beyond {TIE:g} of n events)", ""]
+    out += paired_table(rows, REFERENCE, draws, seed)
+    out += ["", "## Events where a row executes nothing", ""]
+    out += zero_table(rows)
+    for column, quartiles in (("event_class", False), ("distance_mpc", True), ("area90_deg2", True)):
+        out += ["", f"## By {column}" + (" (quartiles over the events)" if quartiles else ""), ""]
+        out += breakdown_table(rows, column, quartiles)
+    return "\n".join(out) + "\n"
