@@ -328,7 +328,7 @@ LIBRARY_GROUPS = {
     # leaves: errors, the parsers of tables, ranges and times, the cache folder, lazy names, the work clock
     **dict.fromkeys(("errors", "tables", "ranges", "times", "cachedir", "lazy", "budget"), "base"),
     # [scheduler] and the names it checks against (scheduler names, light-curve names)
-    **dict.fromkeys(("config", "solvers_registry", "lightcurve_names"), "settings"),
+    **dict.fromkeys(("config", "config_checks", "solvers_registry", "lightcurve_names"), "settings"),
     # what the telescope did: executed exposures and the filter-sequence rules read from them
     **dict.fromkeys(("executed", "sequences"), "records"),
     # the planning problem, a scheduler's result, and which of two results is preferred
