@@ -39,7 +39,7 @@ WRAPPED = {
     "timing": ("mushrooms.scheduler_core.schedulers.slots.schedule", "time_slot_plan", lambda a, r: len(r[0])),
     "grid": ("mushrooms.scheduler_core.schedulers.slots.model", "build_slot_model", lambda a, r: r.instance.n_pairs),
     "reach": ("mushrooms.scheduler_core.schedulers.detection.model", "pair_reach", lambda a, r: len(r)),
-    "slice": ("mushrooms.scheduler_core.schedulers.portfolio.lns", "_resolve_slice", None),
+    "slice": ("mushrooms.scheduler_core.schedulers.portfolio.lns", "resolve_slice", None),
     "solve": ("mushrooms.scheduler_core.schedulers.milp.solvers", "solve_milp", None),
 }
 

@@ -8,7 +8,8 @@
 * :mod:`.continuous`: the continuous-time model of the full rules, C0-C6
   (section 5 of ``docs/design/milp.md``);
 * :mod:`.lns`: the hybrid's ``lns`` stage, time slices of the incumbent
-  re-solved exactly with that model, H1-H5 (section 6).
+  re-solved exactly with that model, H1-H5 (section 6); one slice's
+  fields, model, re-solve and rule check in :mod:`.lns_slice`.
 
 The names below are imported on first use (PEP 562): importing one module
 of the package loads only what that module needs.
