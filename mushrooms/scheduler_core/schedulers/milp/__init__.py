@@ -3,8 +3,8 @@
 * :mod:`.rows`: constraint rows built by family, each named after its
   equation of ``docs/design/`` (``S1``, ``B4``, ``U2``...): where the
   models' index arithmetic lives;
-* :mod:`.solvers`: the model (:class:`MilpModel`) and its solve with HiGHS
-  or Gurobi (:func:`solve_milp`);
+* :mod:`.model`: the model (:class:`MilpModel`) and a solve's result;
+* :mod:`.solvers`: its solve with HiGHS or Gurobi (:func:`solve_milp`);
 * :mod:`.lp_file`: a model written out as an LP file with those names.
 
 The names below are imported on first use (PEP 562): importing one module
@@ -18,14 +18,15 @@ from typing import TYPE_CHECKING
 from ...lazy import lazy_exports
 
 if TYPE_CHECKING:
-    from .solvers import MilpModel, SolveResult, solve_milp, resolve_backend
+    from .model import MilpModel, SolveResult
+    from .solvers import solve_milp, resolve_backend
     from .rows import RowBuilder, Columns, Family, RowBlock
     from .lp_file import write_lp
 
 #: public name -> the submodule (relative) that defines it
 _EXPORTS = {
-    "MilpModel": ".solvers", "SolveResult": ".solvers", "solve_milp": ".solvers", "resolve_backend":
-    ".solvers",
+    "MilpModel": ".model", "SolveResult": ".model",
+    "solve_milp": ".solvers", "resolve_backend": ".solvers",
     "RowBuilder": ".rows", "Columns": ".rows", "Family": ".rows", "RowBlock": ".rows",
     "write_lp": ".lp_file",
 }

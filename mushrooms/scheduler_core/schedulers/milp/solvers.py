@@ -11,6 +11,9 @@ Gurobi is used when asked for (``backend="gurobi"``) or, with
 ``backend="auto"``, when a full licence is present.  The pip wheel's
 size-limited licence refuses models over 2000 variables or constraints; the
 run then falls back to HiGHS with one log line instead of failing.
+
+The model and a solve's result are :mod:`.model`'s; here, the two backends
+and the choice between them.
 """
 
 from __future__ import annotations
@@ -19,7 +22,6 @@ import logging
 import math
 import threading
 import time
-from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
@@ -27,7 +29,7 @@ import scipy.sparse as sp
 
 from ...budget import Clock, solve_work, wall_stop
 from ...problem import StopCheck
-from .rows import Family, RowBlock
+from .model import MilpModel, SolveResult, relative_gap
 
 __all__ = ["MilpModel", "SolveResult", "solve_milp", "highs_lp", "gurobi_fully_licensed", "resolve_backend", "relative_gap"]
 
@@ -43,114 +45,6 @@ GUROBI_PIP_LIMIT = 2000
 #: for, and the lock around resizing it: a solve asking for another count resets the pool first.
 _highs_pool = {"threads": None}
 _highs_pool_lock = threading.Lock()
-
-
-@dataclass(frozen=True)
-class MilpModel:
-    """A maximisation MILP ``max c·x`` s.t. ``row_lo <= A x <= row_hi``, ``col_lo <= x <= col_hi``.
-
-    Attributes
-    ----------
-    c : numpy.ndarray
-        (n,) objective coefficients (maximised).
-    A : scipy.sparse.csr_matrix
-        (m, n) constraint matrix.
-    row_lo, row_hi : numpy.ndarray
-        (m,) row bounds (``-inf`` / ``inf`` allowed).
-    col_lo, col_hi : numpy.ndarray
-        (n,) variable bounds.
-    integer : numpy.ndarray
-        (n,) True for integer variables.
-    row_blocks : tuple of RowBlock
-        The rows' equations (:mod:`.rows`), in row order; empty for a model
-        built without names.  Only :func:`~.lp_file.write_lp` reads them.
-    col_families : tuple of Family
-        The columns' variable families, in column order (may be empty).
-    """
-
-    c: np.ndarray
-    A: sp.csr_matrix
-    row_lo: np.ndarray
-    row_hi: np.ndarray
-    col_lo: np.ndarray
-    col_hi: np.ndarray
-    integer: np.ndarray
-    row_blocks: tuple[RowBlock, ...] = ()
-    col_families: tuple[Family, ...] = ()
-
-    @property
-    def n_vars(self) -> int:
-        """Number of variables."""
-        return int(self.c.size)
-
-    @property
-    def n_rows(self) -> int:
-        """Number of constraints."""
-        return int(self.A.shape[0])
-
-    @property
-    def n_integer(self) -> int:
-        """Number of integer variables."""
-        return int(np.count_nonzero(self.integer))
-
-    def size(self) -> dict[str, int]:
-        """Model size: variables, integer variables, constraints, nonzeros."""
-        return {"vars": self.n_vars, "int_vars": self.n_integer,
-                "rows": self.n_rows, "nonzeros": int(self.A.nnz)}
-
-
-@dataclass
-class SolveResult:
-    """What a solve returned, in one shape for every backend.
-
-    Attributes
-    ----------
-    backend : str
-        ``highs`` or ``gurobi`` (the one that really ran).
-    status : str
-        ``optimal``, ``time_limit``, ``work_limit`` (the work clock's, A2),
-        ``interrupted``, ``infeasible`` or ``error: ...``.
-    x : numpy.ndarray or None
-        Best solution found (None without an incumbent).
-    objective : float or None
-        Objective of ``x``.
-    bound : float or None
-        Best (upper) bound on the optimum.
-    gap : float or None
-        Relative gap ``(bound - objective) / max(|objective|, 1e-10)``.
-    runtime_s : float
-        Wall time (s) of the solve.
-    time_to_first_s : float or None
-        Wall time (s) to the first incumbent.
-    time_to_gap_s : float or None
-        Wall time (s) until the gap first fell to 1 % or less.
-    note : str
-        Why a fallback happened, if it did.
-    """
-
-    backend: str
-    status: str
-    x: np.ndarray | None = None
-    objective: float | None = None
-    bound: float | None = None
-    gap: float | None = None
-    runtime_s: float = 0.0
-    time_to_first_s: float | None = None
-    time_to_gap_s: float | None = None
-    note: str = ""
-    progress: list[tuple[float, float, float]] = field(default_factory=list)
-
-    @property
-    def has_solution(self) -> bool:
-        """True when an incumbent exists."""
-        return self.x is not None
-
-
-def relative_gap(objective: float | None, bound: float | None) -> float | None:
-    """Relative MIP gap of a maximisation, ``(bound - obj) / max(|obj|, 1e-10)``, >= 0."""
-    if objective is None or bound is None or not math.isfinite(objective) or not math.isfinite(bound):
-        return None
-    return max(0.0, bound - objective) / max(abs(objective), 1e-10)
 
 
 class _Progress:
