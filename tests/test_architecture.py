@@ -277,11 +277,22 @@ def test_data_flows_one_way(graph):
 DAEMON = "mushrooms.daemon"
 
 
-def room_graph(graph: dict[str, set[str]], package: str = DAEMON) -> dict[str, set[str]]:
-    """The imports between the daemon's rooms (its subpackages); the top-level modules are left out."""
+def room_graph(graph: dict[str, set[str]], package: str = DAEMON,
+               groups: dict[str, str] | None = None) -> dict[str, set[str]]:
+    """The imports between a package's rooms: its subpackages, and its top-level modules as ``groups`` name them.
+
+    ``groups`` maps a top-level module's name (``"planner"``) to its room
+    (``"planning"``); without it the top-level modules are left out (the
+    daemon's).  Imports inside a room and of the package's ``__init__`` are
+    not edges.
+    """
+    groups = groups or {}
+
     def room(module: str) -> str | None:
         parts = module[len(package) + 1:].split(".") if _within(module, package) and module != package else []
-        return parts[0] if len(parts) > 1 else None  # a module inside a subpackage
+        if len(parts) > 1:  # a module inside a subpackage
+            return parts[0]
+        return groups.get(parts[0]) if parts else None
     rooms: dict[str, set[str]] = {}
     for a, targets in graph.items():
         ra = room(a)
@@ -289,6 +300,13 @@ def room_graph(graph: dict[str, set[str]], package: str = DAEMON) -> dict[str, s
             continue
         rooms.setdefault(ra, set()).update(rb for b in targets if (rb := room(b)) not in (None, ra))
     return rooms
+
+
+def top_level_modules(graph: dict[str, set[str]], package: str) -> set[str]:
+    """The names of a package's own modules that sit directly in it (not in a subpackage, not a subpackage)."""
+    packages = {m.rsplit(".", 1)[0] for m in graph if _within(m, package) and m != package}
+    return {m[len(package) + 1:] for m in graph if _within(m, package) and m != package
+            and "." not in m[len(package) + 1:] and m not in packages}
 
 
 def test_the_daemons_rooms_form_a_stack(graph):
@@ -302,6 +320,61 @@ def test_room_scan_names_a_loop_between_two_rooms():
     looped = {"mushrooms.daemon.a.x": {"mushrooms.daemon.b.y"}, "mushrooms.daemon.b.y": set(),
               "mushrooms.daemon.b.z": {"mushrooms.daemon.a.w", "mushrooms.daemon.top"}}
     assert import_cycles(room_graph(looped)) == [["a", "b"]]
+
+
+LIBRARY = "mushrooms.scheduler_core"
+#: The library's top-level modules, grouped as rooms (its subpackages are rooms of their own).
+LIBRARY_GROUPS = {
+    # leaves: errors, the parsers of tables, ranges and times, the cache folder, lazy names, the work clock
+    **dict.fromkeys(("errors", "tables", "ranges", "times", "cachedir", "lazy", "budget"), "base"),
+    # [scheduler] and the names it checks against (scheduler names, light-curve names)
+    **dict.fromkeys(("config", "config_checks", "solvers_registry", "lightcurve_names"), "settings"),
+    # what the telescope did: executed exposures and the filter-sequence rules read from them
+    **dict.fromkeys(("executed", "sequences"), "records"),
+    # the planning problem, a scheduler's result, and which of two results is preferred
+    **dict.fromkeys(("problem", "preference"), "problem"),
+    # sky map in, checked plan out: prepare, run the schedulers, re-plan, the nights, the anytime revisions
+    **dict.fromkeys(("planner", "prepare", "replan", "nights", "anytime", "clock"), "planning"),
+}
+SCHEDULERS = "mushrooms.scheduler_core.schedulers"
+#: The top-level modules of ``schedulers``: what every method or the planner shares.
+SCHEDULER_GROUPS = dict.fromkeys(("gain", "as_executed", "completions"), "shared")
+
+
+def test_every_top_level_module_of_the_library_has_a_room(graph):
+    # a new module joins a room (and so the stack below) instead of slipping past the room test
+    assert sorted(top_level_modules(graph, LIBRARY) - set(LIBRARY_GROUPS)) == []
+    assert sorted(top_level_modules(graph, SCHEDULERS) - set(SCHEDULER_GROUPS)) == []
+    assert sorted(set(LIBRARY_GROUPS) - top_level_modules(graph, LIBRARY)) == []  # no stale name either
+
+
+def test_the_librarys_rooms_form_a_stack(graph):
+    # base < settings, instruments < sky < records < telescope < plan < source < problem < schedulers < planning:
+    # a room may use the rooms below it, never one that uses it back
+    rooms = room_graph(graph, LIBRARY, LIBRARY_GROUPS)
+    assert {"base", "settings", "instruments", "sky", "records", "telescope", "plan", "source", "problem",
+            "schedulers", "planning"} == set(rooms)
+    assert import_cycles(rooms) == []
+    # the two that ran back up before the rooms: the telescope model under the schedulers, the sky under the plan
+    assert "schedulers" not in rooms["telescope"] and "plan" not in rooms["sky"] | rooms["settings"]
+
+
+def test_the_schedulers_methods_form_a_stack(graph):
+    # one room per method of docs/design/milp.md, the MILP adapter at the bottom, the portfolio on top
+    rooms = room_graph(graph, SCHEDULERS, SCHEDULER_GROUPS)
+    assert {"milp", "greedy", "blocks", "slots", "bounds", "detection", "portfolio", "shared"} == set(rooms)
+    assert import_cycles(rooms) == []
+    assert rooms["milp"] == set()  # the adapter knows no method
+
+
+def test_room_scan_groups_top_level_modules_into_rooms():
+    lib = {"pkg.sub.x": {"pkg.top"}, "pkg.top": {"pkg.low"}, "pkg.low": {"pkg.sub.y"}, "pkg.sub.y": set()}
+    assert room_graph(lib, "pkg") == {"sub": set()}  # without groups the top-level modules are not rooms
+    rooms = room_graph(lib, "pkg", {"top": "up", "low": "down"})
+    assert rooms == {"sub": {"up"}, "up": {"down"}, "down": {"sub"}}
+    assert import_cycles(rooms) == [["down", "sub", "up"]]
+    assert import_cycles(room_graph(lib, "pkg", {"top": "up", "low": "up"})) == [["sub", "up"]]
+    assert top_level_modules({"pkg.a": set(), "pkg.sub": set(), "pkg.sub.b": set()}, "pkg") == {"a"}
 
 
 def test_scheduler_core_is_a_library_on_its_own(graph):

@@ -100,6 +100,6 @@ def test_python_version_matches_the_standard_library_used():
 
 def test_the_scan_sees_lazy_and_namespace_imports():
     found = third_party_imports(PACKAGE_DIR)
-    assert "highspy" in found  # imported inside a function in schedulers/solvers.py
+    assert "highspy" in found  # imported inside a function in schedulers/milp/solvers.py
     assert distribution_of("ligo.skymap.io") == "ligo-skymap"
     assert distribution_of("numpy") == "numpy"

@@ -29,9 +29,9 @@ def main() -> None:
 
     from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
     from mushrooms.scheduler_core.planner import run_scheduler
-    from mushrooms.scheduler_core.schedulers.detection_slots import detection_stage
-    from mushrooms.scheduler_core.schedulers.portfolio import paced_slots_stage
-    from mushrooms.scheduler_core.telescope.coverage import keyed_coverage_as_executed
+    from mushrooms.scheduler_core.schedulers.detection.stage import detection_stage
+    from mushrooms.scheduler_core.schedulers.portfolio.portfolio import paced_slots_stage
+    from mushrooms.scheduler_core.schedulers.as_executed import keyed_coverage_as_executed
 
     det = args.deterministic == "true"
     sm = read_skymap(ROOT / "tests" / "data" / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=256)

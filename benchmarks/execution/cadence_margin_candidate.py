@@ -36,10 +36,10 @@ def run_map(path: Path, margins: list[float]) -> dict:
     from mushrooms.scheduler_core.planner import coverage_stage_problem, run_scheduler
     from mushrooms.scheduler_core.prepare import prepare_problem
     from mushrooms.scheduler_core.schedulers.gain import published_coverage
-    from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
-    from mushrooms.scheduler_core.schedulers.slot_schedule import slot_schedule
+    from mushrooms.scheduler_core.schedulers.greedy.schedule import greedy_schedule
+    from mushrooms.scheduler_core.schedulers.slots.schedule import slot_schedule
     from mushrooms.scheduler_core.sky.skymap import read_skymap
-    from mushrooms.scheduler_core.telescope.coverage import keyed_coverage_as_executed
+    from mushrooms.scheduler_core.schedulers.as_executed import keyed_coverage_as_executed
     from mushrooms.tool.config import load_config
 
     cfg = load_config(ROOT / "config.toml").scheduler

@@ -42,7 +42,7 @@ def run_map(path: Path, config_path: Path) -> dict:
     from mushrooms.scheduler_core.sequences import covered_fields
     from mushrooms.scheduler_core.sky.fields import load_ztf_fields
     from mushrooms.scheduler_core.sky.skymap import read_skymap
-    from mushrooms.scheduler_core.telescope.coverage import execute_plan_queues
+    from mushrooms.scheduler_core.schedulers.as_executed import execute_plan_queues
     from mushrooms.tool.config import load_config
 
     cfg = load_config(config_path).scheduler

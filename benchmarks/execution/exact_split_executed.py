@@ -33,7 +33,7 @@ def measure(path: Path, k: int, exact_limit: float, plan_limit: float, margins: 
     from mushrooms.evaluation.reduced import reduced_problem
     from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
     from mushrooms.scheduler_core.planner import run_scheduler
-    from mushrooms.scheduler_core.telescope.coverage import keyed_coverage_as_executed
+    from mushrooms.scheduler_core.schedulers.as_executed import keyed_coverage_as_executed
 
     cfg = PlanningConfig(objective="coverage", threads=1, time_limit_s=plan_limit, milp_backend="highs",
                          min_gain=0.0, min_coverage=0.0)

@@ -16,7 +16,7 @@ from mushrooms.scheduler_core import Plan, PlanningConfig, read_skymap
 from mushrooms.scheduler_core.executed import ExecutedExposure, from_record, to_record
 from mushrooms.scheduler_core.sequences import covered_fields
 from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
-from mushrooms.scheduler_core.telescope.coverage import cadence_coverage, execute_plan_queues
+from mushrooms.scheduler_core.schedulers.as_executed import cadence_coverage, execute_plan_queues
 
 
 def _hm(plan: Plan, seconds: float) -> str:

@@ -34,7 +34,7 @@ def main(argv=None) -> int:
     from mushrooms.scheduler_core import PlanningConfig, make_plan, read_skymap
     from mushrooms.scheduler_core.plan.exports import ExportConfig, to_skyportal_plans
     from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
-    from mushrooms.scheduler_core.telescope.coverage import queue_coverage
+    from mushrooms.scheduler_core.schedulers.as_executed import queue_coverage
 
     configure_astropy_offline()
     config = PlanningConfig(solver="greedy", nside=args.nside)

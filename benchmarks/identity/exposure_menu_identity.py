@@ -11,13 +11,13 @@ from mushrooms.scheduler_core.config import PlanningConfig
 from mushrooms.scheduler_core.sky.skymap import read_skymap
 from mushrooms.scheduler_core.prepare import prepare_problem
 from mushrooms.scheduler_core.planner import run_scheduler, build_plan
-from mushrooms.scheduler_core.schedulers import detection_slots as ds
-from mushrooms.scheduler_core.schedulers.slot_schedule import slot_rows, slot_portfolio, time_slot_plan
-from mushrooms.scheduler_core.schedulers.slots import slot_instance
-from mushrooms.scheduler_core.schedulers.block_schedule import shortlist_footprints
+from mushrooms.scheduler_core.schedulers.detection import stage as ds
+from mushrooms.scheduler_core.schedulers.slots.schedule import slot_rows, slot_portfolio, time_slot_plan
+from mushrooms.scheduler_core.schedulers.slots.model import slot_instance
+from mushrooms.scheduler_core.schedulers.blocks.schedule import shortlist_footprints
 from mushrooms.scheduler_core.sky.cells import merge_cells
 from mushrooms.scheduler_core.source.kilonova import load_kilonova
-from mushrooms.scheduler_core.schedulers.solvers import solve_milp
+from mushrooms.scheduler_core.schedulers.milp.solvers import solve_milp
 for path in ("tests/data/skymaps/MS220722v_bayestar.multiorder.fits", "/work/shared/data/skymaps/simulated/bns_o3/1.fits"):
     sm = read_skymap(path, nside=64)
     cfg = PlanningConfig(nside=64)

@@ -25,7 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from mushrooms.scheduler_core import PlanningConfig, make_plan, prepare_problem, read_skymap
-from mushrooms.scheduler_core.schedulers import solvers
+from mushrooms.scheduler_core.schedulers.milp import solvers
 
 SEEN: list[str] = []
 #: solver/objective pairs run (``$RUNS``, e.g. ``blocks/coverage``) and their budget (``$TIME_LIMIT_S``):
@@ -82,7 +82,7 @@ def main() -> None:
             for s in SEEN:
                 print(f"    model {s}")
         from mushrooms.evaluation.reduced import reduced_problem
-        from mushrooms.scheduler_core.schedulers.continuous import build_exact_model
+        from mushrooms.scheduler_core.schedulers.portfolio.continuous import build_exact_model
         cfg = PlanningConfig(solver="greedy", nside=nside)
         small = reduced_problem(prepare_problem(skymap, cfg, skymap.event_time), 8)
         em = build_exact_model(small)

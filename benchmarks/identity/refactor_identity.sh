@@ -3,6 +3,7 @@
 # five shared maps planned with greedy and with the hybrid, and the replay of the
 # MS181101ab notice sequence (greedy and default config), every document kept.
 #   benchmarks/identity/refactor_identity.sh TREE OUT_DIR
+# SOLVERS (default "greedy hybrid") names the --solver runs on the five maps.
 # TREE is a checkout (its package is put first on sys.path); the venv is /work/main/.venv
 # unless $PY names another interpreter. Compare two OUT_DIRs with refactor_compare.py.
 set -euo pipefail
@@ -23,7 +24,7 @@ printf '[export]\nskyportal_allocation_id = 7\n' > "$out/plan.toml"
 [ -n "${ONLY_PLANS:-}" ] || run demo --out "$out/demo_default" > "$out/demo_default.log" 2>&1
 for m in "${maps[@]}"; do
   n=$(basename "$m"); n=${n%%.*}
-  for s in greedy hybrid; do
+  for s in ${SOLVERS:-greedy hybrid}; do
     run plan "$m" --solver "$s" -o "$out/plan_${n}_${s}.json" --queue "$out/queue_${n}_${s}.json" \
         --skyportal "$out/skyportal_${n}_${s}.json" --config "$out/plan.toml" > "$out/plan_${n}_${s}.log" 2>&1 || echo "exit $? $n $s" >> "$out/failures.txt"
   done

@@ -52,7 +52,7 @@ def run_map(path: Path, arms: list[str], first: int) -> dict:
     """One map: the coverage plan once, then the detection stage per arm (starting with ``arms[first]``)."""
     from mushrooms.scheduler_core.planner import coverage_stage_problem, greedy_coverage, run_scheduler
     from mushrooms.scheduler_core.prepare import prepare_problem
-    from mushrooms.scheduler_core.schedulers import detection_slots
+    from mushrooms.scheduler_core.schedulers.detection import stage as detection_slots
     from mushrooms.scheduler_core.schedulers.gain import published_coverage
     from mushrooms.scheduler_core.sky.skymap import read_skymap
     from mushrooms.tool.config import load_config

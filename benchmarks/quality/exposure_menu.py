@@ -38,7 +38,7 @@ from mushrooms.scheduler_core.config import PlanningConfig  # noqa: E402
 from mushrooms.scheduler_core.plan.checker import check_plan  # noqa: E402
 from mushrooms.scheduler_core.planner import build_plan, run_scheduler  # noqa: E402
 from mushrooms.scheduler_core.prepare import prepare_problem  # noqa: E402
-from mushrooms.scheduler_core.schedulers.detection_slots import detection_stage, plan_expected_detections  # noqa: E402
+from mushrooms.scheduler_core.schedulers.detection.stage import detection_stage, plan_expected_detections  # noqa: E402
 from mushrooms.scheduler_core.schedulers.gain import drop_low_gain, published_coverage  # noqa: E402
 from mushrooms.scheduler_core.sky.skymap import read_skymap  # noqa: E402
 from mushrooms.scheduler_core.source.kilonova import load_kilonova  # noqa: E402

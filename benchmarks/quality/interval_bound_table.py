@@ -32,8 +32,8 @@ def measure(path: Path, limits: list[float]) -> dict:
 
     from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
     from mushrooms.scheduler_core.planner import run_scheduler
-    from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound
-    from mushrooms.scheduler_core.schedulers.interval_bound import interval_upper_bound
+    from mushrooms.scheduler_core.schedulers.bounds.coverage_bound import coverage_upper_bound
+    from mushrooms.scheduler_core.schedulers.bounds.interval_bound import interval_upper_bound
 
     cfg = PlanningConfig(objective="coverage", threads=1, milp_backend="highs")
     sm = read_skymap(path, nside=cfg.nside)

@@ -8,7 +8,7 @@ Coverage objective, ``threads = 1``, the default ``min_gain``; ``MAP`` relative 
 folder or a path.  Printed per map: the winning stage, every stage's published coverage, the wall time
 (s, the bound's included), the certified bound, the rule problems of the plan (0), and, when the LNS
 wins, after how many slices (and seconds) it improved.  With ``--lns-idle S`` the LNS stops after ``S``
-seconds without a gain instead of :data:`~mushrooms.scheduler_core.schedulers.lns.MAX_IDLE_S`, and every
+seconds without a gain instead of :data:`~mushrooms.scheduler_core.schedulers.portfolio.lns.MAX_IDLE_S`, and every
 map's line shows the LNS's gains, ``(s, coverage)``, and each stage's wall time, whether it wins or not: run
 with a large ``S`` it is the trajectory from which a shorter idle stop's plan is read off
 (``benchmarks/quality/lns_idle_replay.py``).  Not a test: nothing here asserts.
@@ -40,8 +40,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
     from mushrooms.scheduler_core.planner import run_scheduler
-    from mushrooms.scheduler_core.schedulers import portfolio as pf
-    from mushrooms.scheduler_core.schedulers.lns import plan_rule_problems
+    from mushrooms.scheduler_core.schedulers.portfolio import portfolio as pf
+    from mushrooms.scheduler_core.schedulers.portfolio.lns import plan_rule_problems
 
     hybrid_stages = pf.hybrid.stages
     if args.without_lns:

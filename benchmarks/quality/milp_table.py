@@ -49,8 +49,8 @@ def sky_maps(paths: list[Path]) -> list[Path]:
 def measure(path: Path, time_limit_s: float) -> dict:
     """Greedy, MILP and hybrid on one map; returns one table row."""
     from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
-    from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
-    from mushrooms.scheduler_core.schedulers.block_schedule import milp_schedule
+    from mushrooms.scheduler_core.schedulers.greedy.schedule import greedy_schedule
+    from mushrooms.scheduler_core.schedulers.blocks.schedule import milp_schedule
 
     cfg = PlanningConfig(time_limit_s=time_limit_s)
     sm = read_skymap(path, nside=cfg.nside)

@@ -32,8 +32,8 @@ from exact_split import shared_root  # noqa: E402
 def outer_bound(path: Path, k: int, limit: float) -> tuple[float, float]:
     from astropy.time import Time
 
-    import mushrooms.scheduler_core.schedulers.bound as bound
-    import mushrooms.scheduler_core.schedulers.interval_bound as interval
+    import mushrooms.scheduler_core.schedulers.bounds.coverage_bound as bound
+    import mushrooms.scheduler_core.schedulers.bounds.interval_bound as interval
     from mushrooms.evaluation.reduced import reduced_problem
     from mushrooms.evaluation.true_windows import refined_windows
     from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap

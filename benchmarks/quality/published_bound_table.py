@@ -8,9 +8,9 @@ Usage::
 Per map (default: every map under ``shared/data/skymaps``), with the default
 configuration but the coverage objective and ``threads = 1``: greedy's
 published coverage (after the least-gain rule), the online bound U4, the
-published bound (:func:`~mushrooms.scheduler_core.schedulers.certified_bound.certified_upper_bound`,
+published bound (:func:`~mushrooms.scheduler_core.schedulers.bounds.certified_bound.certified_upper_bound`,
 ``bound_time_limit_s`` = 2 s) and which one it is, and whether greedy's plan
-reaches it (:func:`~mushrooms.scheduler_core.schedulers.portfolio.reaches_bound`:
+reaches it (:func:`~mushrooms.scheduler_core.schedulers.portfolio.portfolio.reaches_bound`:
 the hybrid then skips its MILP stages).  For the maps named by ``--hybrid``
 (a substring of the map's path) the default hybrid is run too
 (``time_limit_s = --plan-limit``): its coverage, the stages it ran and
@@ -41,10 +41,10 @@ def measure(path: Path, hybrid: bool, plan_limit: float, k: int | None = None) -
 
     from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
     from mushrooms.scheduler_core.planner import run_scheduler
-    from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound
-    from mushrooms.scheduler_core.schedulers.certified_bound import certified_upper_bound
+    from mushrooms.scheduler_core.schedulers.bounds.coverage_bound import coverage_upper_bound
+    from mushrooms.scheduler_core.schedulers.bounds.certified_bound import certified_upper_bound
     from mushrooms.scheduler_core.schedulers.gain import published_coverage
-    from mushrooms.scheduler_core.schedulers.portfolio import reaches_bound
+    from mushrooms.scheduler_core.schedulers.portfolio.portfolio import reaches_bound
 
     cfg = PlanningConfig(objective="coverage", threads=1, milp_backend="highs", time_limit_s=plan_limit)
     sm = read_skymap(path, nside=cfg.nside)

@@ -31,7 +31,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from mushrooms.offline import configure_astropy_offline
     from mushrooms.scheduler_core import PlanningConfig, check_plan, read_skymap
-    from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
+    from mushrooms.scheduler_core.schedulers.greedy.schedule import greedy_schedule
     from mushrooms.scheduler_core.planner import build_plan
     from mushrooms.scheduler_core.prepare import prepare_problem
 

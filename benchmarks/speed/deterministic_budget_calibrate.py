@@ -31,16 +31,16 @@ DEFAULT_MAPS = ["public/G476954_bayestar.fits.gz", "public/S191216ap_bayestar.mu
 
 #: step -> (function's module, name, items of its call)
 WRAPPED = {
-    "greedy": ("mushrooms.scheduler_core.schedulers.greedy", "greedy_schedule", lambda a, r: len(a[0].field_ids)),
-    "execute": ("mushrooms.scheduler_core.telescope.coverage", "keyed_coverage_as_executed",
+    "greedy": ("mushrooms.scheduler_core.schedulers.greedy.schedule", "greedy_schedule", lambda a, r: len(a[0].field_ids)),
+    "execute": ("mushrooms.scheduler_core.schedulers.as_executed", "keyed_coverage_as_executed",
                 lambda a, r: len(a[1].observations)),
-    "score": ("mushrooms.scheduler_core.schedulers.detection_slots", "plan_expected_detections",
+    "score": ("mushrooms.scheduler_core.schedulers.detection.stage", "plan_expected_detections",
               lambda a, r: len(a[2])),
-    "timing": ("mushrooms.scheduler_core.schedulers.slot_schedule", "time_slot_plan", lambda a, r: len(r[0])),
-    "grid": ("mushrooms.scheduler_core.schedulers.slots", "build_slot_model", lambda a, r: r.instance.n_pairs),
-    "reach": ("mushrooms.scheduler_core.schedulers.detection_model", "pair_reach", lambda a, r: len(r)),
-    "slice": ("mushrooms.scheduler_core.schedulers.lns", "_resolve_slice", None),
-    "solve": ("mushrooms.scheduler_core.schedulers.solvers", "solve_milp", None),
+    "timing": ("mushrooms.scheduler_core.schedulers.slots.schedule", "time_slot_plan", lambda a, r: len(r[0])),
+    "grid": ("mushrooms.scheduler_core.schedulers.slots.model", "build_slot_model", lambda a, r: r.instance.n_pairs),
+    "reach": ("mushrooms.scheduler_core.schedulers.detection.model", "pair_reach", lambda a, r: len(r)),
+    "slice": ("mushrooms.scheduler_core.schedulers.portfolio.lns", "resolve_slice", None),
+    "solve": ("mushrooms.scheduler_core.schedulers.milp.solvers", "solve_milp", None),
 }
 
 

@@ -19,7 +19,6 @@ the log format (:mod:`~mushrooms.daemon.ops.journal`).
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import os
 import threading
@@ -45,7 +44,7 @@ from .sections import ServiceConfig
 from .settings import RuntimePaths, resolve_paths
 from .signals import Signals
 from .timers import Timers
-from .wiring import open_pipeline, private_dir
+from .wiring import EXIT_STATE, StateOpened, open_state, private_dir
 
 __all__ = ["main", "Service", "setup_logging", "EXIT_STATE"]
 
@@ -54,10 +53,6 @@ log = logging.getLogger("mushrooms.daemon")
 READY_WAIT_S = 60.0  # READY=1 waits this long (s) at most for the consumer group's partitions
 TRIGGER_SCAN_S = 5.0  # triggers are also picked up without SIGUSR1, at this period (s)
 
-#: Exit status when the state file is unusable (empty, damaged, newer schema):
-#: sysexits' EX_DATAERR; the unit's RestartPreventExitStatus= lists it, since a
-#: restart cannot repair the file and would only loop.
-EXIT_STATE = 65
 
 
 # ---------------------------------------------------------------- the service
@@ -122,7 +117,7 @@ class Service:
         private_dir(self.paths.trigger_dir, self.config.daemon.group_readable)
         scheduler = self.scheduler = BackgroundScheduler(timezone="UTC")
         scheduler.start()
-        opened = _Opened()
+        opened = StateOpened()
         try:
             refused = self._open_state(opened)
             if refused is not None:
@@ -134,26 +129,16 @@ class Service:
         finally:
             self._stop_all(scheduler, lock, opened)
 
-    def _open_state(self, opened: "_Opened") -> int | None:
+    def _open_state(self, opened: StateOpened) -> int | None:
         """Open the pipeline on the state file and lock it; the exit status of a refused start, else None."""
-        from .state.store import StateInUse, StoreError, lock_state
         from .planning.warm import SkyCache
 
         self.sky_cache = SkyCache()
         self.outbox = OutboxDrain(self._flush_outbox, self.config.outbound.retry_initial_s,
                                   self.config.outbound.retry_max_s)
-        try:
-            self.pipeline, opened.close = open_pipeline(self.config, self.paths, sky_cache=self.sky_cache,
-                                                        on_outbox=self.queued)
-        except StoreError as exc:  # empty, damaged, newer: one line, and a status Restart= does not loop on
-            log.error("event=start_refused reason=%r", str(exc))
-            return EXIT_STATE
-        try:  # one daemon per state file, whatever its pid file says
-            opened.state_lock = lock_state(self.paths.state)
-        except StateInUse as exc:
-            log.error("event=start_refused reason=%r", str(exc))
-            return 1
-        return None
+        self.pipeline, refused = open_state(self.config, self.paths, opened, sky_cache=self.sky_cache,
+                                            on_outbox=self.queued)
+        return refused
 
     def _start_parts(self, submit_token: str | None) -> bool:
         """Metrics, the submitter, the warm-up, the job runner, what a crash left; False: stopped in the warm-up."""
@@ -203,7 +188,7 @@ class Service:
         self.readiness.start_waiting()
         self._track_assignment()
 
-    def _stop_all(self, scheduler: BackgroundScheduler, lock: PidLock, opened: "_Opened") -> None:
+    def _stop_all(self, scheduler: BackgroundScheduler, lock: PidLock, opened: StateOpened) -> None:
         """Stop in order: jobs (with grace), consumer, timers, submitter, outbox, state; leave as a crash if a job hangs."""
         self.phase = "stopping"
         self.notifier.stopping()
@@ -492,11 +477,3 @@ def main(load: Callable[[], ServiceConfig]) -> int:
     setup_logging(level)
     config = load()
     return Service(config, resolve_paths(config.daemon), reload=load).run()
-
-
-@dataclasses.dataclass
-class _Opened:
-    """What :meth:`Service.run` opened on the state file, for the stop to close."""
-
-    close: Callable[[], None] = lambda: None
-    state_lock: Any = None

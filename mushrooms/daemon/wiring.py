@@ -8,6 +8,7 @@ overrides included (the tool layer's ``mushrooms.tool.overrides.effective_config
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from pathlib import Path
 from typing import Any, Callable
@@ -15,9 +16,14 @@ from typing import Any, Callable
 from .sections import ServiceConfig
 from .settings import OutboundConfig, RuntimePaths
 
-__all__ = ["private_dir", "make_sink", "open_store", "open_pipeline"]
+__all__ = ["private_dir", "make_sink", "open_store", "open_pipeline", "open_state", "StateOpened", "EXIT_STATE"]
 
 log = logging.getLogger("mushrooms.daemon")
+
+#: Exit status when the state file is unusable (empty, damaged, newer schema):
+#: sysexits' EX_DATAERR; the unit's RestartPreventExitStatus= lists it, since a
+#: restart cannot repair the file and would only loop.
+EXIT_STATE = 65
 
 
 def private_dir(path: Path, group_readable: bool = False) -> Path:
@@ -83,3 +89,38 @@ def open_pipeline(config: ServiceConfig, paths: RuntimePaths, sink: Any = None, 
                     log.exception("event=close_failed what=%s", type(obj).__name__)
 
     return pipeline, close
+
+
+@dataclasses.dataclass
+class StateOpened:
+    """What the service opened on the state file (:func:`open_state`), for its stop to close."""
+
+    close: Callable[[], None] = lambda: None
+    state_lock: Any = None
+
+
+def open_state(config: ServiceConfig, paths: RuntimePaths, opened: StateOpened, **pipeline_kw: Any
+               ) -> tuple[Any, int | None]:
+    """``mushrooms run``'s start on the state file: the pipeline opened on it, and the file locked.
+
+    Returns
+    -------
+    (pipeline or None, int or None)
+        The pipeline (None when the store refused to open) and the exit
+        status of a refused start (:data:`EXIT_STATE` for an unusable file,
+        1 for a file another daemon holds), else None.  ``opened`` gets the
+        pipeline's close and the state lock.
+    """
+    from .state.store import StateInUse, StoreError, lock_state
+
+    try:
+        pipeline, opened.close = open_pipeline(config, paths, **pipeline_kw)
+    except StoreError as exc:  # empty, damaged, newer: one line, and a status Restart= does not loop on
+        log.error("event=start_refused reason=%r", str(exc))
+        return None, EXIT_STATE
+    try:  # one daemon per state file, whatever its pid file says
+        opened.state_lock = lock_state(paths.state)
+    except StateInUse as exc:
+        log.error("event=start_refused reason=%r", str(exc))
+        return pipeline, 1
+    return pipeline, None

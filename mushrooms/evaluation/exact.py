@@ -1,7 +1,7 @@
 """The exact continuous-time model of the full planning rules, for reduced instances.
 
 Not a scheduler (it lives in evaluation and never in the planning path; the
-model itself is :mod:`mushrooms.scheduler_core.schedulers.continuous`, which the
+model itself is :mod:`mushrooms.scheduler_core.schedulers.portfolio.continuous`, which the
 hybrid's large-neighbourhood stage also solves on slices of the night):
 it answers "what is the best plan any scheduler could find on this
 problem?" on a few tens of fields, so that the distance from a plan to the
@@ -22,9 +22,9 @@ import time
 from dataclasses import dataclass, field
 
 from ..scheduler_core.problem import PlanningProblem, ScheduleResult
-from ..scheduler_core.schedulers.continuous import (INTEGRAL_TOL, ExactData, ExactModel, build_exact_model,
+from ..scheduler_core.schedulers.portfolio.continuous import (INTEGRAL_TOL, ExactData, ExactModel, build_exact_model,
                                                     decode_exact, exact_data, start_from_plan)
-from ..scheduler_core.schedulers.solvers import SolveResult, solve_milp
+from ..scheduler_core.schedulers.milp.solvers import SolveResult, solve_milp
 
 __all__ = ["ExactData", "ExactModel", "ExactResult", "exact_data", "build_exact_model", "start_from_plan",
            "decode_exact", "solve_exact", "INTEGRAL_TOL"]

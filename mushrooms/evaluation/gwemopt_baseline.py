@@ -412,7 +412,7 @@ def repair_observations(observations, problem) -> Repair:
     -------
     Repair
     """
-    from ..scheduler_core.schedulers.slew import overhead_time
+    from ..scheduler_core.telescope.slew import overhead_time
 
     cfg = problem.config
     counts = {k: 0 for k in ("filter", "field", "horizon", "window", "overlap", "unpaired", "delayed")}

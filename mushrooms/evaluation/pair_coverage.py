@@ -9,7 +9,7 @@ each wholly inside its field's window (the checker's own Sun, airmass,
 hour-angle and mount, Moon rules:
 :func:`~mushrooms.scheduler_core.plan.checker.exposures_in_windows`) -
 the rule the executed coverage applies to the telescope's records
-(:func:`~mushrooms.scheduler_core.telescope.coverage.cadence_coverage`), with
+(:func:`~mushrooms.scheduler_core.schedulers.as_executed.cadence_coverage`), with
 every planned exposure taken as done.  Slews and overlaps are the
 checker's verdict and the executed coverage's business, not this count's.
 """
@@ -23,7 +23,7 @@ from astropy.time import TimeDelta
 
 from ..scheduler_core.executed import ExecutedExposure
 from ..scheduler_core.plan.checker import exposures_in_windows
-from ..scheduler_core.telescope.coverage import cadence_coverage
+from ..scheduler_core.schedulers.as_executed import cadence_coverage
 
 __all__ = ["planned_pair_coverage", "planned_records", "open_shutter_s"]
 

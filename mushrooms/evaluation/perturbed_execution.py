@@ -133,7 +133,7 @@ def execute_perturbed(plan: Plan, p: Perturbation | None = None,
 
     ``queues``: the plan's :func:`submitted_queues`, when already made (default: made here).
     """
-    from ..scheduler_core.telescope.coverage import execute_plan_queues
+    from ..scheduler_core.schedulers.as_executed import execute_plan_queues
 
     if p is None:
         return execute_plan_queues(plan, queues)

@@ -26,7 +26,7 @@ from ..scheduler_core.plan.document import Plan
 from ..scheduler_core.plan.exports import to_trigger_queue, to_trigger_queues
 from ..scheduler_core.sky.footprints import Footprints
 from ..scheduler_core.sky.skymap import SkyMap
-from ..scheduler_core.telescope.coverage import cadence_coverage, execute_plan_queues
+from ..scheduler_core.schedulers.as_executed import cadence_coverage, execute_plan_queues
 from ..scheduler_core.telescope.timing import TelescopeTiming
 
 __all__ = ["Closure", "random_closure", "execute_plan", "achieved_coverage", "execution_cells", "EXPORTS", "LATE_STARTS_S"]

@@ -2,7 +2,7 @@
 
 The exact model (:mod:`.exact`) proves optimality only on a few tens of
 fields, so the benchmark asks every scheduler the same smaller question:
-the ``k`` pairable fields (:func:`~mushrooms.scheduler_core.schedulers.bound.pairable_rows`)
+the ``k`` pairable fields (:func:`~mushrooms.scheduler_core.schedulers.bounds.coverage_bound.pairable_rows`)
 that the greedy maximum-coverage order picks first, with their footprints
 and all their windows, the same sky map, night and configuration.
 """
@@ -14,9 +14,9 @@ import dataclasses
 import numpy as np
 
 from ..scheduler_core.problem import PlanningProblem
-from ..scheduler_core.schedulers.block_schedule import shortlist_footprints
-from ..scheduler_core.schedulers.bound import pairable_rows
-from ..scheduler_core.schedulers.prune import greedy_max_coverage
+from ..scheduler_core.schedulers.blocks.schedule import shortlist_footprints
+from ..scheduler_core.schedulers.bounds.coverage_bound import pairable_rows
+from ..scheduler_core.schedulers.blocks.prune import greedy_max_coverage
 from ..scheduler_core.sky.windows import Windows
 
 __all__ = ["top_fields", "restrict_problem", "reduced_problem"]

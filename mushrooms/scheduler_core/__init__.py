@@ -37,7 +37,7 @@ if TYPE_CHECKING:  # the same names, for type checkers and editors
     from .planner import make_plan, run_scheduler
     from .prepare import prepare_problem
     from .problem import PlanningProblem, ScheduleResult
-    from .schedulers.greedy import greedy_schedule
+    from .schedulers.greedy.schedule import greedy_schedule
     from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
     from .sky.footprints import Footprints
     from .sky.skymap import SkyMap, read_skymap
@@ -50,7 +50,7 @@ _EXPORTS = {
     "PlanningConfig": ".config", "SlewModel": ".config",
     "InputError": ".errors", "PlanCheckError": ".errors", "SkyMapError": ".errors",
     "FieldGrid": ".sky.fields", "field_footprints": ".sky.fields", "load_ztf_fields": ".sky.fields",
-    "greedy_schedule": ".schedulers.greedy",
+    "greedy_schedule": ".schedulers.greedy.schedule",
     "ExportConfig": ".plan.exports", "to_skyportal": ".plan.exports", "to_trigger_queue": ".plan.exports",
     "to_trigger_queues": ".plan.exports",
     "NotObservable": ".plan.observability", "not_observable": ".plan.observability",

@@ -2,7 +2,7 @@
 
 Every default here is the documented default of the ``[scheduler]`` section
 of ``config.toml``; a test keeps the two in step.  Imports only the standard
-library and leaves (:mod:`.tables`, :mod:`.ranges`, :mod:`.source.named`), so
+library and leaves (:mod:`.tables`, :mod:`.ranges`, the checks :mod:`.config_checks`), so
 reading the configuration loads no numpy or astropy.
 """
 
@@ -10,47 +10,17 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Mapping
 
+from .config_checks import MAX_TIME_STEPS  # noqa: F401  (the checks' limit, still config's name)
+from .config_checks import (MAX_SEQUENCE, ZTF_FILTERS, filter_sequence_problems, grid_problems, scheduler_problems,
+                            stage_problems)
 from .ranges import require_finite, setting
 from .solvers_registry import SOLVER_NAMES  # scheduler names (``milp`` = ``blocks``): the registry's
-from .source.named import PAPER_LIGHTCURVES
 from .tables import dataclass_from_table
 
 __all__ = ["PlanningConfig", "SlewModel", "ZTF_FILTERS", "SOLVER_NAMES", "RECORDED_WHEN_SET", "MAX_SEQUENCE",
            "filter_sequence_problems"]
-
-#: The filters of the ZTF camera (its filter exchanger holds g, r and i).
-ZTF_FILTERS = ("g", "r", "i")
-
-#: Most steps of the observability time grid (``horizon_h`` / ``time_step_s``): 24 h at 10 s.  Measured
-#: with ``mushrooms plan`` (greedy, MS220722v, load 1.3): 120 s steps 7.6 s, 10 s steps 13.6 s; 0.01 s
-#: steps ran for minutes.
-MAX_TIME_STEPS = 8640
-
-#: The longest filter sequence (``filters``): eight visits of a field in one night, a 300 s exposure every
-#: half hour (ZTF's GW programme ran three, g-r-g, in O4).
-MAX_SEQUENCE = 8
-
-
-
-def filter_sequence_problems(filters: object) -> list[str]:
-    """(F0) What is wrong with a ``filters`` setting (empty: nothing), one line each."""
-    if isinstance(filters, str) or not isinstance(filters, (tuple, list)):
-        return [f"filters must be a list of ZTF filters such as [\"g\", \"r\", \"g\"], got {filters!r}"]
-    seq = tuple(filters)
-    problems = []
-    if not 1 <= len(seq) <= MAX_SEQUENCE:
-        problems.append(f"filters must hold 1 to {MAX_SEQUENCE} visits, got {len(seq)}")
-    if any(f not in ZTF_FILTERS for f in seq):
-        problems.append(f"filters must be ZTF filters ({', '.join(ZTF_FILTERS)}), got {list(seq)!r}")
-    repeats = [i + 1 for i in range(1, len(seq)) if seq[i] == seq[i - 1]]
-    if repeats:
-        problems.append(f"filters must change filter at every visit (visit {repeats[0]} repeats the one "
-                        f"before it), got {list(seq)!r}")
-    return problems
-
 
 @dataclass(frozen=True)
 class SlewModel:
@@ -380,80 +350,7 @@ class PlanningConfig:
         problems = []
         if not isinstance(self.slew, SlewModel):  # a hand-built config; a file's is refused as "expected a table"
             problems.append(f"slew must be a SlewModel (the [scheduler.slew] table), got {self.slew!r}")
-        if self.pair_max_s and self.pair_max_s < self.cadence_s:
-            problems.append(f"pair_max_s ({self.pair_max_s:g} s) must be 0 or at least cadence_s "
-                            f"({self.cadence_s:g} s)")
-        elif self.pair_max_s and self.pair_max_s < (len(self.filters) - 1) * self.cadence_s:  # (F6) k visits
-            problems.append(f"pair_max_s ({self.pair_max_s:g} s) must be 0 or hold the sequence "
-                            f"{'-'.join(self.filters)}: at least {len(self.filters) - 1} x cadence_s "
-                            f"({(len(self.filters) - 1) * self.cadence_s:g} s)")
-        if self.dec_min_deg >= self.dec_max_deg:
-            problems.append(f"dec_min_deg ({self.dec_min_deg:g}) must be less than dec_max_deg ({self.dec_max_deg:g})")
-        if self.time_step_s > 0 and self.horizon_s / self.time_step_s > MAX_TIME_STEPS:
-            problems.append(f"horizon_h / time_step_s = {self.horizon_s / self.time_step_s:.0f} time steps, more than "
-                            f"{MAX_TIME_STEPS} (24 h at 10 s): raise time_step_s or shorten horizon_h")
-        if self.nside < 1 or self.nside & (self.nside - 1):
-            problems.append(f"nside must be a power of 2, got {self.nside}")
-        if not 0 < self.horizon_h <= 24 * 7:
-            problems.append(f"horizon_h must be in (0, 168] h, got {self.horizon_h}")
-        for name in ("time_step_s", "exposure_s", "cadence_s", "time_limit_s"):
-            if getattr(self, name) <= 0:
-                problems.append(f"{name} must be > 0, got {getattr(self, name)}")
-        if self.airmass_max < 1:
-            problems.append(f"airmass_max must be >= 1, got {self.airmass_max}")
-        problems += filter_sequence_problems(self.filters)
-        if (isinstance(self.filters, (tuple, list)) and len(self.filters) > 2
-                and (len(self.filters) - 1) * self.cadence_s > self.pair_separation_s):
-            problems.append(f"filters {list(self.filters)!r} need {len(self.filters) - 1} cadences of "
-                            f"{self.cadence_s:g} s within pair_max_s = {self.pair_separation_s:g} s: no field "
-                            f"could be planned (F6)")
-        if self.exposure_menu_s and isinstance(self.filters, (tuple, list)) and len(self.filters) != 2:
-            problems.append(f"exposure_menu_s needs a pair of filters (the detection stage plans pairs), got the "
-                            f"sequence {list(self.filters)!r}")
-        if self.solver not in SOLVER_NAMES:
-            problems.append(f"solver must be one of {', '.join(SOLVER_NAMES)}, got {self.solver!r}")
-        if not self.slot_positions or any(int(n) < 1 for n in self.slot_positions):
-            problems.append(f"slot_positions must be positive integers, got {self.slot_positions!r}")
-        if self.slot_margin_s < 0:
-            problems.append(f"slot_margin_s must be >= 0, got {self.slot_margin_s}")
-        if self.milp_backend not in ("auto", "highs", "gurobi"):
-            problems.append(f"milp_backend must be auto, highs or gurobi, got {self.milp_backend!r}")
-        if self.n_fields is not None and self.n_fields < 1:
-            problems.append(f"n_fields must be >= 1, got {self.n_fields}")
-        if self.min_block_size < 0:
-            problems.append(f"min_block_size must be >= 0, got {self.min_block_size}")
-        if self.n_blocks_max < 1:
-            problems.append(f"n_blocks_max must be >= 1, got {self.n_blocks_max}")
-        for name in ("min_gain", "min_coverage"):
-            if not 0.0 <= getattr(self, name) < 1.0:
-                problems.append(f"{name} must be in [0, 1), got {getattr(self, name)}")
-        if self.detection_lightcurve not in PAPER_LIGHTCURVES and not Path(self.detection_lightcurve).is_file():
-            problems.append(f"detection_lightcurve must be {', '.join(PAPER_LIGHTCURVES)} or a light-curve file, "
-                            f"got {self.detection_lightcurve!r}")
-        if self.objective not in ("coverage", "detection"):
-            problems.append(f"objective must be coverage or detection, got {self.objective!r}")
-        if self.detection_levels < 1:
-            problems.append(f"detection_levels must be >= 1, got {self.detection_levels}")
-        if self.detection_coverage_weight < 0:
-            problems.append(f"detection_coverage_weight must be >= 0, got {self.detection_coverage_weight}")
-        if self.detection_time_limit_s <= 0:
-            problems.append(f"detection_time_limit_s must be > 0, got {self.detection_time_limit_s}")
-        elif self.objective == "detection" and self.detection_time_limit_s >= self.time_limit_s:
-            problems.append(f"detection_time_limit_s ({self.detection_time_limit_s:g} s) must be less than "
-                            f"time_limit_s ({self.time_limit_s:g} s): it is the detection stage's share of it")
-        menu = tuple(self.exposure_menu_s)
-        if any(not (1.0 <= float(e) <= 3600.0) for e in menu):
-            problems.append(f"exposure_menu_s must hold exposures in [1, 3600] s, got {list(menu)!r}")
-        elif list(menu) != sorted(set(float(e) for e in menu)):
-            problems.append(f"exposure_menu_s must be increasing without repeats, got {list(menu)!r}")
-        if menu and self.objective != "detection":
-            problems.append("exposure_menu_s needs objective = \"detection\" (exposures are chosen by expected "
-                            f"detections), got objective = {self.objective!r}")
-        if not 0.0 <= self.bound_time_limit_s <= 600.0:
-            problems.append(f"bound_time_limit_s must be in [0, 600] s (0: the online bound alone), "
-                            f"got {self.bound_time_limit_s}")
-        if not 0.0 <= self.detection_max_coverage_loss < 1.0:
-            problems.append(f"detection_max_coverage_loss must be in [0, 1), got {self.detection_max_coverage_loss}")
+        problems += grid_problems(self) + scheduler_problems(self) + stage_problems(self)  # config_checks
         if problems:
             raise ValueError("[scheduler] " + "; ".join(problems))
 

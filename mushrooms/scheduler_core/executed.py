@@ -315,7 +315,7 @@ def counted_for_night(done: Sequence[ExecutedExposure], evening: Time, revisit: 
 
 def to_record(exposure: ExecutedExposure) -> dict[str, Any]:
     """The record's JSON form (one JSON-lines line): :data:`RECORD_KEYS`, ``start`` ISO-8601 UTC to the millisecond with ``Z``."""
-    from .plan.document import iso_utc
+    from .times import iso_utc
 
     return {
         "field_id": exposure.field_id,

@@ -16,7 +16,7 @@ from .plan.checker import check_plan
 from .config import PlanningConfig
 from .errors import InputError, PlanCheckError
 from .schedulers.gain import drop_low_gain
-from .schedulers.portfolio import MIN_BLOCKS_S  # noqa: F401  (the hybrid's; re-exported)
+from .schedulers.portfolio.portfolio import MIN_BLOCKS_S  # noqa: F401  (the hybrid's; re-exported)
 from .plan.localization import with_map_details
 from .plan.document import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 from .budget import new_clock
@@ -24,7 +24,7 @@ from .clock import on_merger_clock
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .sky.skymap import SkyMap
-from .telescope.coverage import AS_EXECUTED_MEMO, execution_key, queue_coverage
+from .schedulers.as_executed import AS_EXECUTED_MEMO, execution_key, queue_coverage
 from .solvers_registry import SOLVER_NAMES, get_scheduler, unknown_solver_message
 
 __all__ = ["make_plan", "build_plan", "run_scheduler", "optimise", "coverage_stage_problem", "greedy_coverage",
@@ -55,7 +55,7 @@ def run_scheduler(problem: PlanningProblem, solver: str,
         left, at most ``BLOCKS_LIMIT_S``; the plan ZTF's scheduler executes
         best is kept (Q15; on a tie the one covering the most as planned,
         then the earlier of greedy, slots, slots_paced, lns, blocks):
-        :data:`.schedulers.portfolio.hybrid`.
+        :data:`.schedulers.portfolio.portfolio.hybrid`.
     should_stop : callable, optional
         Polled by every scheduler; True stops the run with the best plan so
         far.
@@ -64,7 +64,7 @@ def run_scheduler(problem: PlanningProblem, solver: str,
     -------
     ScheduleResult
         For the MILP schedulers ``upper_bound`` holds the certified
-        coverage bound (:mod:`.schedulers.bound`); the hybrid's ``solver``
+        coverage bound (:mod:`.schedulers.bounds.coverage_bound`); the hybrid's ``solver``
         names the plan kept (``hybrid(slots:highs)``, ...), its
         ``portfolio`` each candidate's coverage.
     """
@@ -150,7 +150,7 @@ def _optimised(problem: PlanningProblem, skymap: SkyMap, solver: str, should_sto
                  "for coverage", "-".join(cfg.filters))
         return dataclasses.replace(result, details=dict(
             result.details, detection_stage=f"skipped: a sequence of {len(cfg.filters)} filters"))
-    from .schedulers.detection_slots import detection_stage
+    from .schedulers.detection.stage import detection_stage
 
     start = problem.clock.mark()
     share = cfg.detection_time_limit_s
@@ -192,7 +192,7 @@ def _menu_upper_bound(problem: PlanningProblem):
     exposures in a segment (U2) than one of the shortest: the bound of the
     shortest bounds them all.
     """
-    from .schedulers.bound import coverage_upper_bound
+    from .schedulers.bounds.coverage_bound import coverage_upper_bound
 
     cfg = problem.config
     shortest = dataclasses.replace(cfg, exposure_s=float(min(cfg.exposure_menu_s)), exposure_menu_s=())

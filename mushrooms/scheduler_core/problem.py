@@ -83,7 +83,7 @@ class PlanningProblem:
 class UpperBound:
     """A certified coverage upper bound and how it was obtained.
 
-    The published one is :func:`~.schedulers.certified_bound.certified_upper_bound`:
+    The published one is :func:`~.schedulers.bounds.certified_bound.certified_upper_bound`:
     the least of the online bound (U4) and, within ``bound_time_limit_s``,
     the interval bound (V1-V4).
 
@@ -103,9 +103,9 @@ class UpperBound:
     runtime_s : float
         Wall time (s).
     method : str
-        Which bound ``value`` is: ``online`` (U4, :func:`~.schedulers.bound.coverage_upper_bound`;
+        Which bound ``value`` is: ``online`` (U4, :func:`~.schedulers.bounds.coverage_bound.coverage_upper_bound`;
         also its ``empty`` and ``all_fields`` cases), ``milp`` (U0 solved) or
-        ``interval`` (V1-V4, :func:`~.schedulers.interval_bound.interval_upper_bound`,
+        ``interval`` (V1-V4, :func:`~.schedulers.bounds.interval_bound.interval_upper_bound`,
         when it is below U4).
     margin : float
         What ``value`` carries above the computed bound (``milp.md`` B1, B2):
@@ -124,7 +124,7 @@ class UpperBound:
 
 @dataclass(frozen=True)
 class PortfolioEntry:
-    """One candidate a portfolio (:func:`~.schedulers.portfolio.best_of`) compared.
+    """One candidate a portfolio (:func:`~.schedulers.portfolio.portfolio.best_of`) compared.
 
     Attributes
     ----------
@@ -148,7 +148,7 @@ class PortfolioEntry:
 
 @dataclass(frozen=True)
 class DetectionReport:
-    """What the detection stage (:func:`~.schedulers.detection_slots.detection_stage`) did.
+    """What the detection stage (:func:`~.schedulers.detection.stage.detection_stage`) did.
 
     Attributes
     ----------
@@ -198,7 +198,7 @@ class ScheduleResult:
         The MILP's proven bound on its objective for the solve kept (slots,
         blocks; None for greedy and a greedy fallback): ``metrics.mip_bound``.
     upper_bound : UpperBound or None
-        The certified coverage upper bound (:mod:`.schedulers.bound`),
+        The certified coverage upper bound (:mod:`.schedulers.bounds.coverage_bound`),
         attached to every MILP scheduler's result (slots, blocks, hybrid);
         None for greedy: ``metrics.upper_bound``.
     dropped_by_slews : tuple of int

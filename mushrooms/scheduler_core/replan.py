@@ -50,7 +50,7 @@ from .schedulers.completions import (
     PendingVisit, completion_pass, drop_repeats, insert_completions, shift_in_completions, swap_in_completions,
 )
 from .schedulers.gain import worth_a_visit
-from .schedulers.slew import overhead_time
+from .telescope.slew import overhead_time
 from .sequences import done_covering, is_pair, sequence_progress
 from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
 from .sky.footprints import Footprints

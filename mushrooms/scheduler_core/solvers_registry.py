@@ -7,21 +7,21 @@ external baselines) all read it.
 
 The module is a leaf (it imports nothing of the package, so the config can
 validate against it): the schedulers register themselves
-(:mod:`.schedulers.portfolio` registers every built-in one, and
+(:mod:`.schedulers.portfolio.portfolio` registers every built-in one, and
 :mod:`.planner` imports it), only under a name of :data:`SOLVER_NAMES`.
 
 ============  ===============================================================
-``greedy``    the greedy scheduler (:func:`~.schedulers.greedy.greedy_schedule`)
+``greedy``    the greedy scheduler (:func:`~.schedulers.greedy.schedule.greedy_schedule`)
 ``slots``     greedy, then the slot-assignment MILP portfolio started from it
-              (:func:`~.schedulers.portfolio.slots_from_greedy`), with the bound
-``blocks``    the paper's block MILP (:func:`~.schedulers.portfolio.blocks`), with the bound
-``hybrid``    ``best_of(greedy, slots, lns, blocks)`` (:data:`~.schedulers.portfolio.hybrid`),
+              (:func:`~.schedulers.portfolio.portfolio.slots_from_greedy`), with the bound
+``blocks``    the paper's block MILP (:func:`~.schedulers.portfolio.portfolio.blocks`), with the bound
+``hybrid``    ``best_of(greedy, slots, lns, blocks)`` (:data:`~.schedulers.portfolio.portfolio.hybrid`),
               with the bound
 ``milp``      the old name of ``blocks`` (kept for old configs)
 ============  ===============================================================
 
 "With the bound": the result carries the certified coverage upper bound
-(:func:`~.schedulers.portfolio.with_upper_bound`).
+(:func:`~.schedulers.portfolio.portfolio.with_upper_bound`).
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ def get_scheduler(name: str) -> Callable[..., Any]:
         An unknown name (:func:`unknown_solver_message`).
     LookupError
         A name no scheduler was registered for (the built-in ones are
-        registered when :mod:`.schedulers.portfolio` is imported, as
+        registered when :mod:`.schedulers.portfolio.portfolio` is imported, as
         :mod:`.planner` does).
     """
     if name not in SOLVER_NAMES:
@@ -74,4 +74,4 @@ def get_scheduler(name: str) -> Callable[..., Any]:
         return _SCHEDULERS[name]
     except KeyError:
         raise LookupError(f"no scheduler registered for {name!r} "
-                          "(import mushrooms.scheduler_core.schedulers.portfolio)") from None
+                          "(import mushrooms.scheduler_core.schedulers.portfolio.portfolio)") from None

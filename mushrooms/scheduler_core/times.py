@@ -26,7 +26,7 @@ from astropy.time import Time
 
 from .errors import InputError
 
-__all__ = ["parse_time", "EARLIEST", "LATEST", "TIME_FORMS"]
+__all__ = ["parse_time", "iso_utc", "EARLIEST", "LATEST", "TIME_FORMS"]
 
 #: The span of accepted times (UTC), inclusive.
 EARLIEST = "1800-01-01T00:00:00"
@@ -128,3 +128,8 @@ def _leap_second(text: str, refuse: Any) -> Time:
         return Time(body.replace(" ", "T"), format="isot", scale="utc")
     except ValueError:
         raise refuse("not an ISO-8601 time") from None
+
+
+def iso_utc(t: Time) -> str:
+    """ISO-8601 UTC string with millisecond precision and a trailing ``Z``."""
+    return Time(t, scale="utc").isot[:23] + "Z"

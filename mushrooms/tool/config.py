@@ -113,7 +113,7 @@ def _check_lightcurve(spec: str) -> None:
     ValueError
         ``[scheduler] detection_lightcurve = '...': <why>``.
     """
-    from ..scheduler_core.source.named import PAPER_LIGHTCURVES
+    from ..scheduler_core.lightcurve_names import PAPER_LIGHTCURVES
 
     if spec in PAPER_LIGHTCURVES:
         return

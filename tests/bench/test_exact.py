@@ -14,8 +14,8 @@ from mushrooms.evaluation.reduced import reduced_problem
 from mushrooms.scheduler_core import PlanningConfig, check_plan, prepare_problem, read_skymap
 from mushrooms.scheduler_core.planner import build_plan, run_scheduler
 from mushrooms.scheduler_core.problem import PlanningProblem
-from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound
-from mushrooms.scheduler_core.schedulers.interval_bound import interval_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.coverage_bound import coverage_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.interval_bound import interval_upper_bound
 from mushrooms.scheduler_core.sky.footprints import Footprints
 from mushrooms.scheduler_core.sky.windows import Windows
 
@@ -47,7 +47,7 @@ def coverage(problem: PlanningProblem, observations) -> float:
 
 def rule_problems(problem: PlanningProblem, observations) -> list[str]:
     """The checker's timing rules on a hand-made problem (no sky): windows, overheads, both filters, cadence."""
-    from mushrooms.scheduler_core.schedulers.slew import overhead_time
+    from mushrooms.scheduler_core.telescope.slew import overhead_time
 
     cfg = problem.config
     obs = sorted(observations, key=lambda o: o.start)

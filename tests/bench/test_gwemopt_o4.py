@@ -192,7 +192,7 @@ def test_as_submitted_today_is_one_list_queue_over_the_plans_horizon_as_skyporta
     from mushrooms.evaluation.queue_sim import execution_cells
     from mushrooms.evaluation.skyportal_queue import skyportal_queue
     from mushrooms.scheduler_core.plan.exports import to_trigger_queue
-    from mushrooms.scheduler_core.telescope.coverage import cadence_coverage, execute_plan_queues
+    from mushrooms.scheduler_core.schedulers.as_executed import cadence_coverage, execute_plan_queues
 
     cfg, skymap, fp = scene
     rcfg, plan = _o4_plan(cfg, skymap)

@@ -190,7 +190,7 @@ def test_the_bench_execution_cells_are_the_plans_queues_run_on_time_late_and_as_
     from mushrooms.evaluation.queue_sim import execution_cells
     from mushrooms.scheduler_core.plan.exports import to_trigger_queue, to_trigger_queues
     from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
-    from mushrooms.scheduler_core.telescope.coverage import queue_coverage
+    from mushrooms.scheduler_core.schedulers.as_executed import queue_coverage
 
     cfg, skymap, _, plan = setup
     footprints = field_footprints(load_ztf_fields(), cfg.nside)

@@ -13,7 +13,7 @@ from mushrooms.evaluation.reduced import reduced_problem
 from mushrooms.evaluation.true_windows import refined_problem, refined_windows
 from mushrooms.scheduler_core import PlanningConfig, check_plan, prepare_problem, read_skymap
 from mushrooms.scheduler_core.planner import build_plan
-from mushrooms.scheduler_core.schedulers.interval_bound import interval_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.interval_bound import interval_upper_bound
 
 MAP_220722V = Path(__file__).resolve().parents[1] / "data" / "skymaps" / "MS220722v_bayestar.multiorder.fits"
 

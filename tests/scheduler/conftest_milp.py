@@ -104,7 +104,7 @@ def random_problem(seed: int, n_fields: int = 14, nside: int = 4, config: Planni
 
 def check_observations(problem: PlanningProblem, observations) -> list[str]:
     """The checker's scheduling rules on a hand-made problem (no sky needed)."""
-    from mushrooms.scheduler_core.schedulers.slew import overhead_time
+    from mushrooms.scheduler_core.telescope.slew import overhead_time
 
     cfg = problem.config
     f1, f2 = cfg.filters

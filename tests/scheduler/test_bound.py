@@ -11,8 +11,8 @@ from astropy.time import Time
 from tests_paths import MAP_FLAT_RING
 from conftest_milp import random_problem, tiny_config
 from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
-from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound, max_fields, pairable_rows
-from mushrooms.scheduler_core.schedulers.certified_bound import certified_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.coverage_bound import coverage_upper_bound, max_fields, pairable_rows
+from mushrooms.scheduler_core.schedulers.bounds.certified_bound import certified_upper_bound
 from mushrooms.scheduler_core.planner import build_plan, run_scheduler
 from mushrooms.scheduler_core.sky.windows import Windows
 

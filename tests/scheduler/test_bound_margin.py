@@ -11,7 +11,7 @@ from test_checker import CFG, control_obs, kinds, plan_of
 from mushrooms.scheduler_core import check_plan
 from mushrooms.scheduler_core.plan.checker import polygon_coverage
 from mushrooms.scheduler_core.plan.document import PlanMetrics
-from mushrooms.scheduler_core.schedulers.certified_bound import certified_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.certified_bound import certified_upper_bound
 from mushrooms.scheduler_core.sky.skymap import SkyMap
 
 #: HiGHS's relative MIP gap and its primal feasibility tolerance (the solves' settings).

@@ -10,7 +10,7 @@ from mushrooms.scheduler_core.plan.document import Observation
 from mushrooms.scheduler_core.schedulers.completions import (
     PendingVisit, completion_pass, drop_repeats, insert_completions, swap_in_completions,
 )
-from mushrooms.scheduler_core.schedulers.slew import overhead_time
+from mushrooms.scheduler_core.telescope.slew import overhead_time
 from mushrooms.scheduler_core.sky.footprints import Footprints
 from mushrooms.scheduler_core.sky.windows import Windows
 

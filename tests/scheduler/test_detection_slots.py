@@ -1,4 +1,4 @@
-"""The detection objective on the slot model (scheduler_core.schedulers.detection_slots), with real HiGHS."""
+"""The detection objective on the slot model (scheduler_core.schedulers.detection.stage), with real HiGHS."""
 
 from __future__ import annotations
 
@@ -9,17 +9,17 @@ import pytest
 
 from mushrooms.scheduler_core.sky.cells import Cells
 from mushrooms.scheduler_core.config import PlanningConfig
-from mushrooms.scheduler_core.schedulers.detection_model import build_detection_model, detection_start_vector, pair_levels
-from mushrooms.scheduler_core.schedulers.detection_slots import detection_stage
+from mushrooms.scheduler_core.schedulers.detection.model import build_detection_model, detection_start_vector, pair_levels
+from mushrooms.scheduler_core.schedulers.detection.stage import detection_stage
 from mushrooms.scheduler_core.schedulers.gain import published_coverage
 from mushrooms.scheduler_core.source.detection import expected_detections
 from mushrooms.scheduler_core.source.kilonova import load_kilonova
 from mushrooms.scheduler_core.planner import build_plan, optimise, run_scheduler
 from mushrooms.scheduler_core.prepare import prepare_problem
 from mushrooms.scheduler_core.sky.skymap import read_skymap
-from mushrooms.scheduler_core.schedulers.detection_ceiling import detection_ceiling
-from mushrooms.scheduler_core.schedulers.slots import SlotGrid, SlotInstance, build_slot_model
-from mushrooms.scheduler_core.schedulers.solvers import solve_milp
+from mushrooms.scheduler_core.schedulers.detection.ceiling import detection_ceiling
+from mushrooms.scheduler_core.schedulers.slots.model import SlotGrid, SlotInstance, build_slot_model
+from mushrooms.scheduler_core.schedulers.milp.solvers import solve_milp
 
 
 def two_slot_instance() -> SlotInstance:
@@ -185,7 +185,7 @@ def test_no_plan_has_more_expected_detections_than_the_ceiling_and_a_far_source_
 
 
 def test_the_stage_solves_at_most_max_grids_grids_and_says_which_it_did_not_try(data_dir, monkeypatch) -> None:
-    from mushrooms.scheduler_core.schedulers import detection_slots
+    from mushrooms.scheduler_core.schedulers.detection import stage as detection_slots
 
     cfg = PlanningConfig(nside=64, time_limit_s=5.0, detection_time_limit_s=4.0, deterministic=True)
     sm = read_skymap(data_dir / "skymaps" / "MS220722v_bayestar.multiorder.fits", nside=64)

@@ -15,7 +15,7 @@ from mushrooms.scheduler_core import PlanningConfig, make_plan, prepare_problem
 from mushrooms.scheduler_core.budget import TICKS_PER_S, WorkClock, highs_work
 from mushrooms.scheduler_core.plan.document import TIMING_FIELDS, without_timing
 from mushrooms.scheduler_core.planner import build_plan, optimise
-from mushrooms.scheduler_core.schedulers.solvers import MilpModel, solve_milp
+from mushrooms.scheduler_core.schedulers.milp.solvers import MilpModel, solve_milp
 
 #: A budget small enough for a test, on the test map at nside 64: every hybrid stage and the detection stage run,
 #: and the detection stage's budget ends before its last grids ("no time left").
@@ -109,7 +109,7 @@ def test_the_wall_budget_of_before_records_no_key_and_says_wall(test_map):
 
 
 def test_a_problem_derived_from_another_shares_its_clock_and_the_bound_is_off_its_budget(test_map):
-    from mushrooms.scheduler_core.schedulers.portfolio import published_bound
+    from mushrooms.scheduler_core.schedulers.portfolio.portfolio import published_bound
 
     problem = prepare_problem(test_map, PlanningConfig(**SMALL, deterministic=True), test_map.event_time)
     derived = dataclasses.replace(problem, config=dataclasses.replace(problem.config, objective="coverage"))

@@ -9,11 +9,11 @@ from astropy.time import Time, TimeDelta
 
 from mushrooms.scheduler_core import PlanningConfig, check_plan, prepare_problem
 from mushrooms.scheduler_core.planner import build_plan, run_scheduler
-from mushrooms.scheduler_core.schedulers.detection_slots import detection_stage
+from mushrooms.scheduler_core.schedulers.detection.stage import detection_stage
 from mushrooms.scheduler_core.schedulers.gain import published_coverage
-from mushrooms.scheduler_core.schedulers.lns import plan_rule_problems
-from mushrooms.scheduler_core.schedulers.portfolio import paced_cadence, paced_slots_stage
-from mushrooms.scheduler_core.telescope.coverage import keyed_coverage_as_executed, queue_coverage
+from mushrooms.scheduler_core.schedulers.portfolio.lns import plan_rule_problems
+from mushrooms.scheduler_core.schedulers.portfolio.portfolio import paced_cadence, paced_slots_stage
+from mushrooms.scheduler_core.schedulers.as_executed import keyed_coverage_as_executed, queue_coverage
 from mushrooms.scheduler_core.telescope.queue_windows import CADENCE_MARGIN_S
 
 

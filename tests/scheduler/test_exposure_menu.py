@@ -19,10 +19,10 @@ from mushrooms.scheduler_core.plan.document import make_plan_id, iso_utc
 from mushrooms.scheduler_core.plan.exports import ExportConfig, to_skyportal, to_trigger_queue
 from mushrooms.scheduler_core.planner import build_plan, run_scheduler
 from mushrooms.scheduler_core.prepare import prepare_problem
-from mushrooms.scheduler_core.schedulers.exposure_menu import (dominated_pairs, map_start_menu, menu_instance,
+from mushrooms.scheduler_core.schedulers.slots.exposure_menu import (dominated_pairs, map_start_menu, menu_instance,
                                                                menu_portfolio, menu_positions, menu_spans)
-from mushrooms.scheduler_core.schedulers.slots import SlotGrid, SlotInstance, build_slot_model
-from mushrooms.scheduler_core.schedulers.solvers import solve_milp
+from mushrooms.scheduler_core.schedulers.slots.model import SlotGrid, SlotInstance, build_slot_model
+from mushrooms.scheduler_core.schedulers.milp.solvers import solve_milp
 from mushrooms.scheduler_core.sky.cells import Cells
 from mushrooms.scheduler_core.sky.skymap import SkyMap, read_skymap
 
@@ -69,7 +69,7 @@ def test_the_menu_grid_spans_and_aligned_starts(data_dir) -> None:
     assert menu_positions(6, cfg) == 48
     problem = prepare_problem(sm, cfg, sm.event_time)
     rows = np.arange(min(40, problem.field_ids.size))
-    from mushrooms.scheduler_core.schedulers.block_schedule import shortlist_footprints
+    from mushrooms.scheduler_core.schedulers.blocks.schedule import shortlist_footprints
     from mushrooms.scheduler_core.sky.cells import merge_cells
 
     grid = menu_portfolio(problem, rows)[0]
@@ -135,10 +135,10 @@ def server():
 
 def menu_grid_plan(sm: SkyMap, time_limit_s: float = 60.0):
     """The first menu grid of the detection stage solved on its own (no fixed grid to compete), timed for real."""
-    from mushrooms.scheduler_core.schedulers.block_schedule import shortlist_footprints
-    from mushrooms.scheduler_core.schedulers.detection_model import (build_detection_model, distance_levels,
+    from mushrooms.scheduler_core.schedulers.blocks.schedule import shortlist_footprints
+    from mushrooms.scheduler_core.schedulers.detection.model import (build_detection_model, distance_levels,
                                                                      level_weights, pair_levels, pair_reach)
-    from mushrooms.scheduler_core.schedulers.slot_schedule import slot_rows, time_slot_plan
+    from mushrooms.scheduler_core.schedulers.slots.schedule import slot_rows, time_slot_plan
     from mushrooms.scheduler_core.sky.cells import merge_cells
     from mushrooms.scheduler_core.source.kilonova import load_kilonova
     from mushrooms.scheduler_core.problem import ScheduleResult
@@ -231,10 +231,10 @@ def test_make_plan_with_a_menu_plans_checks_and_bounds_the_coverage_for_the_shor
 
 def _greedy_case(sm: SkyMap):
     """A menu grid of the real map, its levels and weights, the seed (every field at 300 s) and the greedy start."""
-    from mushrooms.scheduler_core.schedulers.block_schedule import shortlist_footprints
-    from mushrooms.scheduler_core.schedulers.detection_model import (distance_levels, level_weights, pair_levels,
+    from mushrooms.scheduler_core.schedulers.blocks.schedule import shortlist_footprints
+    from mushrooms.scheduler_core.schedulers.detection.model import (distance_levels, level_weights, pair_levels,
                                                                      pair_reach)
-    from mushrooms.scheduler_core.schedulers.exposure_menu import _menu_value, menu_start_pairs
+    from mushrooms.scheduler_core.schedulers.slots.exposure_menu import _menu_value, menu_start_pairs
     from mushrooms.scheduler_core.sky.cells import merge_cells
     from mushrooms.scheduler_core.source.kilonova import load_kilonova
 

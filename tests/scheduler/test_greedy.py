@@ -21,7 +21,7 @@ def _visits(plan):
 def test_unchecked_greedy_schedule_passes_the_checker(skymap_220722v, greedy_plan, greedy_config):
     """The scheduler's own output, before make_plan's check, passes it (not true by construction)."""
     from mushrooms.scheduler_core import prepare_problem
-    from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
+    from mushrooms.scheduler_core.schedulers.greedy.schedule import greedy_schedule
     from mushrooms.scheduler_core.planner import build_plan
 
     problem = prepare_problem(skymap_220722v, greedy_config, greedy_plan.start)

@@ -34,8 +34,8 @@ def test_hybrid_under_a_detection_config_gives_its_blocks_stage_what_is_left(sky
     """run_scheduler with the default objective (detection): the blocks MILP's budget may be shorter than
     the detection stage's share (found by `mushrooms study`: 'detection_time_limit_s (4 s) must be less
     than time_limit_s (3.65 s)'); the blocks stage is a coverage scheduler and must still run."""
-    import mushrooms.scheduler_core.schedulers.lns as lns_module
-    import mushrooms.scheduler_core.schedulers.slot_schedule as slot_module
+    import mushrooms.scheduler_core.schedulers.portfolio.lns as lns_module
+    import mushrooms.scheduler_core.schedulers.slots.schedule as slot_module
 
     real = slot_module.slot_schedule
     real_lns = lns_module.lns_improve
@@ -56,7 +56,7 @@ def test_hybrid_under_a_detection_config_gives_its_blocks_stage_what_is_left(sky
 def test_the_hybrid_runs_its_block_stage_only_when_asked_and_a_plan_records_the_key_only_then(skymap_220722v):
     """hybrid_blocks (default false): the block MILP is not in the portfolio, and the config a plan records
     (and its plan id hashes) is the one from before the key existed."""
-    from mushrooms.scheduler_core.schedulers import portfolio
+    from mushrooms.scheduler_core.schedulers.portfolio import portfolio
 
     cfg = PlanningConfig(time_limit_s=4.0, milp_backend="highs", objective="coverage", deterministic=True)
     assert "blocks" in [s.name for s in portfolio.hybrid.stages]

@@ -11,8 +11,8 @@ from tests_paths import MAP_FLAT_RING
 from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
 from mushrooms.scheduler_core.planner import build_plan, run_scheduler
 from mushrooms.scheduler_core.problem import PlanningProblem
-from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound
-from mushrooms.scheduler_core.schedulers.interval_bound import interval_upper_bound, interval_violation
+from mushrooms.scheduler_core.schedulers.bounds.coverage_bound import coverage_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.interval_bound import interval_upper_bound, interval_violation
 from mushrooms.scheduler_core.sky.footprints import Footprints
 from mushrooms.scheduler_core.sky.windows import Windows
 

@@ -1,4 +1,4 @@
-"""Large-neighbourhood re-solves (schedulers/lns.py, H1-H5): exact on slices, never worse, through the checker."""
+"""Large-neighbourhood re-solves (schedulers/portfolio/lns.py, H1-H5): exact on slices, never worse, through the checker."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ from mushrooms.scheduler_core import PlanningConfig, check_plan, prepare_problem
 from mushrooms.scheduler_core.plan.document import Observation
 from mushrooms.scheduler_core.planner import build_plan, run_scheduler
 from mushrooms.scheduler_core.problem import PlanningProblem, ScheduleResult
-from mushrooms.scheduler_core.schedulers.lns import lns_improve, plan_rule_problems
-from mushrooms.scheduler_core.schedulers.slew import overhead_time
+from mushrooms.scheduler_core.schedulers.portfolio.lns import lns_improve, plan_rule_problems
+from mushrooms.scheduler_core.telescope.slew import overhead_time
 from mushrooms.scheduler_core.sky.footprints import Footprints
 from mushrooms.scheduler_core.sky.windows import Windows
 
@@ -197,7 +197,7 @@ def test_the_lns_never_keeps_a_plan_that_ztf_executes_worse_than_its_seed():
     # but the executor's later pass starts push its last pairs out of the night
     from mushrooms.evaluation.reduced import reduced_problem
     from mushrooms.scheduler_core import read_skymap
-    from mushrooms.scheduler_core.telescope.coverage import keyed_coverage_as_executed
+    from mushrooms.scheduler_core.schedulers.as_executed import keyed_coverage_as_executed
 
     cfg = PlanningConfig(objective="coverage", threads=1, time_limit_s=10.0, milp_backend="highs", min_gain=0.0,
                          min_coverage=0.0, deterministic=True)

@@ -7,12 +7,12 @@ import pytest
 import scipy.sparse as sp
 
 from conftest_milp import TINY_BLOCKS, TINY_OPTIMUM, check_observations, random_problem, tiny_config, tiny_problem
-from mushrooms.scheduler_core.schedulers.blocks import (BlockParams, block_size, build_block_model, decode_blocks,
+from mushrooms.scheduler_core.schedulers.blocks.model import (BlockParams, block_size, build_block_model, decode_blocks,
                                              heuristic_start)
 from mushrooms.scheduler_core.sky.cells import merge_cells
 from mushrooms.scheduler_core.config import PlanningConfig
-from mushrooms.scheduler_core.schedulers.block_schedule import make_candidates, shortlist_footprints
-from mushrooms.scheduler_core.schedulers.solvers import MilpModel, gurobi_fully_licensed, solve_milp
+from mushrooms.scheduler_core.schedulers.blocks.schedule import make_candidates, shortlist_footprints
+from mushrooms.scheduler_core.schedulers.milp.solvers import MilpModel, gurobi_fully_licensed, solve_milp
 
 
 def _tiny_model(config=None):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-import mushrooms.scheduler_core.schedulers.block_schedule as milp
+import mushrooms.scheduler_core.schedulers.blocks.schedule as milp
 from conftest_milp import TINY_BLOCKS, TINY_OPTIMUM, check_observations, random_problem, tiny_config, tiny_problem
 
 
@@ -120,7 +120,7 @@ def test_a_cutoff_above_the_optimum_ends_the_solve_with_no_plan_and_one_below_ch
 def test_the_hybrid_s_block_stage_stops_when_it_cannot_beat_the_best_plan_by_min_gain():
     import dataclasses
 
-    from mushrooms.scheduler_core.schedulers.portfolio import blocks_stage
+    from mushrooms.scheduler_core.schedulers.portfolio.portfolio import blocks_stage
 
     problem = tiny_problem(tiny_config(penalty=0.0, min_gain=0.001))
     alone = blocks_stage(problem, None, {}, 5.0)

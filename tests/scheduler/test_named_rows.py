@@ -17,11 +17,13 @@ from astropy.time import Time
 
 from mushrooms.evaluation.reduced import reduced_problem
 from mushrooms.scheduler_core import PlanningConfig, make_plan, prepare_problem, read_skymap
-from mushrooms.scheduler_core.schedulers import block_schedule, detection_slots, slot_schedule
-from mushrooms.scheduler_core.schedulers.continuous import build_exact_model
-from mushrooms.scheduler_core.schedulers.lp_file import write_lp
-from mushrooms.scheduler_core.schedulers.rows import lp_label, row_names
-from mushrooms.scheduler_core.schedulers.solvers import solve_milp
+from mushrooms.scheduler_core.schedulers.blocks import schedule as block_schedule
+from mushrooms.scheduler_core.schedulers.detection import stage as detection_slots
+from mushrooms.scheduler_core.schedulers.slots import schedule as slot_schedule
+from mushrooms.scheduler_core.schedulers.portfolio.continuous import build_exact_model
+from mushrooms.scheduler_core.schedulers.milp.lp_file import write_lp
+from mushrooms.scheduler_core.schedulers.milp.rows import lp_label, row_names
+from mushrooms.scheduler_core.schedulers.milp.solvers import solve_milp
 
 MAP = files("mushrooms.scheduler_core") / "data" / "MS181101ab_bayestar.multiorder.fits"
 NIGHT = Time("2019-05-01T03:00:00", scale="utc")  # the map's sky is up (at its merger time it is near the Sun)
@@ -126,7 +128,7 @@ def test_an_lp_file_written_from_a_model_carries_the_block_names_and_is_the_same
 def test_a_model_without_names_is_written_with_default_names(tmp_path):
     import scipy.sparse as sp
 
-    from mushrooms.scheduler_core.schedulers.solvers import MilpModel
+    from mushrooms.scheduler_core.schedulers.milp.solvers import MilpModel
 
     A = sp.csr_matrix(np.array([[1.0, 1.0]]))
     m = MilpModel(np.array([1.0, 2.0]), A, np.array([-np.inf]), np.array([1.0]), np.zeros(2), np.ones(2),

@@ -13,7 +13,7 @@ from mushrooms.scheduler_core.config import PlanningConfig
 from mushrooms.scheduler_core.plan.document import EventInfo
 from mushrooms.scheduler_core.planner import make_plan, run_scheduler
 from mushrooms.scheduler_core.prepare import prepare_problem
-from mushrooms.scheduler_core.schedulers.detection_slots import detection_stage
+from mushrooms.scheduler_core.schedulers.detection.stage import detection_stage
 from mushrooms.scheduler_core.sky.skymap import read_skymap
 
 MAP = "MS220722v_bayestar.multiorder.fits"

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from mushrooms.scheduler_core.config import SlewModel
-from mushrooms.scheduler_core.schedulers.ordering import approx_path, exact_path, order_fields, path_cost
-from mushrooms.scheduler_core.schedulers.slew import slew_matrix
+from mushrooms.scheduler_core.schedulers.blocks.ordering import approx_path, exact_path, order_fields, path_cost
+from mushrooms.scheduler_core.telescope.slew import slew_matrix
 
 
 def _brute_force(cost: np.ndarray) -> float:

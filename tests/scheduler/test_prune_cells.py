@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from conftest_milp import random_problem, tiny_config, tiny_problem
-from mushrooms.scheduler_core.schedulers.blocks import BlockParams, build_block_model
+from mushrooms.scheduler_core.schedulers.blocks.model import BlockParams, build_block_model
 from mushrooms.scheduler_core.sky.cells import merge_cells, pixel_cells
-from mushrooms.scheduler_core.schedulers.block_schedule import make_candidates, shortlist_footprints
+from mushrooms.scheduler_core.schedulers.blocks.schedule import make_candidates, shortlist_footprints
 from mushrooms.scheduler_core.sky.footprints import Footprints
 from mushrooms.scheduler_core.sky.windows import Windows
-from mushrooms.scheduler_core.schedulers.prune import (SHORTLIST_MAX, SHORTLIST_MIN, default_shortlist_size,
+from mushrooms.scheduler_core.schedulers.blocks.prune import (SHORTLIST_MAX, SHORTLIST_MIN, default_shortlist_size,
                                             greedy_max_coverage, observable_time_s)
-from mushrooms.scheduler_core.schedulers.solvers import solve_milp
+from mushrooms.scheduler_core.schedulers.milp.solvers import solve_milp
 
 
 def _naive_greedy(fp: Footprints, prob: np.ndarray, n: int) -> list[int]:

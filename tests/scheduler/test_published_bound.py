@@ -14,10 +14,10 @@ from tests_paths import MAP_220722V
 from mushrooms.evaluation.reduced import reduced_problem
 from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
 from mushrooms.scheduler_core.planner import build_plan, run_scheduler
-from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound
-from mushrooms.scheduler_core.schedulers.certified_bound import certified_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.coverage_bound import coverage_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.certified_bound import certified_upper_bound
 from mushrooms.scheduler_core.schedulers.gain import published_coverage
-from mushrooms.scheduler_core.schedulers.portfolio import Portfolio, hybrid, reaches_bound
+from mushrooms.scheduler_core.schedulers.portfolio.portfolio import Portfolio, hybrid, reaches_bound
 
 
 def _with(problem, **changes):
@@ -67,7 +67,7 @@ def test_hybrid_stops_when_greedy_reaches_the_bound_and_keeps_the_same_plan(gree
     bound = certified_upper_bound(problem)
     greedy = run_scheduler(problem, "greedy")
     assert reaches_bound(published_coverage(problem, greedy), bound)  # the premise: greedy is optimal here
-    with caplog.at_level(logging.INFO, logger="mushrooms.scheduler_core.schedulers.portfolio"):
+    with caplog.at_level(logging.INFO, logger="mushrooms.scheduler_core.schedulers.portfolio.portfolio"):
         stopped = run_scheduler(problem, "hybrid")
     assert stopped.details["skipped_at_bound"] == ["slots", "slots_paced", "lns"]  # blocks: off (hybrid_blocks)
     assert [e.name for e in stopped.portfolio] == ["greedy"]

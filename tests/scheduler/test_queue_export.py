@@ -14,7 +14,7 @@ from mushrooms.scheduler_core.plan.exports import ExportConfig, filter_passes, t
 from mushrooms.scheduler_core.plan.schema import validate_document
 from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
 from mushrooms.scheduler_core.telescope import TelescopeTiming
-from mushrooms.scheduler_core.telescope.coverage import execute_plan_queues, queue_coverage
+from mushrooms.scheduler_core.schedulers.as_executed import execute_plan_queues, queue_coverage
 
 MAP = Path(__file__).resolve().parents[1] / "data" / "skymaps" / "MS220722v_bayestar.multiorder.fits"
 

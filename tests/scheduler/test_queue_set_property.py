@@ -21,7 +21,7 @@ from mushrooms.scheduler_core.plan.document import EventInfo, Observation, Plan,
 from mushrooms.scheduler_core.plan.exports import to_trigger_queues
 from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
 from mushrooms.scheduler_core.sky.visibility import site
-from mushrooms.scheduler_core.telescope.coverage import execute_plan_queues, queue_coverage
+from mushrooms.scheduler_core.schedulers.as_executed import execute_plan_queues, queue_coverage
 
 configure_astropy_offline()
 EPOCH = Time("2026-03-20T06:00:00", scale="utc")

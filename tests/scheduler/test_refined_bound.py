@@ -14,9 +14,9 @@ from mushrooms.evaluation.reduced import reduced_problem
 from mushrooms.evaluation.true_windows import refined_problem
 from mushrooms.scheduler_core import PlanningConfig, check_plan, prepare_problem, read_skymap
 from mushrooms.scheduler_core.planner import build_plan, run_scheduler
-from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound
-from mushrooms.scheduler_core.schedulers.certified_bound import certified_upper_bound
-from mushrooms.scheduler_core.schedulers.interval_bound import interval_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.coverage_bound import coverage_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.certified_bound import certified_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.interval_bound import interval_upper_bound
 
 BNS_14 = Path(__file__).resolve().parents[3] / "shared" / "data" / "skymaps" / "simulated" / "bns_o3" / "14.fits"
 if not BNS_14.is_file():

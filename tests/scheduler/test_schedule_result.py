@@ -11,12 +11,12 @@ from conftest_milp import random_problem, tiny_config
 from mushrooms.scheduler_core.errors import InputError
 from mushrooms.scheduler_core.planner import run_scheduler
 from mushrooms.scheduler_core.problem import ScheduleResult
-from mushrooms.scheduler_core.schedulers.bound import coverage_upper_bound
-from mushrooms.scheduler_core.schedulers.certified_bound import certified_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.coverage_bound import coverage_upper_bound
+from mushrooms.scheduler_core.schedulers.bounds.certified_bound import certified_upper_bound
 from mushrooms.scheduler_core.schedulers.gain import published_coverage
-from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
-from mushrooms.scheduler_core.schedulers.portfolio import BLOCKS_LIMIT_S, MIN_BLOCKS_S, Stage, best_of, reaches_bound
-from mushrooms.scheduler_core.telescope.coverage import AS_EXECUTED_MEMO
+from mushrooms.scheduler_core.schedulers.greedy.schedule import greedy_schedule
+from mushrooms.scheduler_core.schedulers.portfolio.portfolio import BLOCKS_LIMIT_S, MIN_BLOCKS_S, Stage, best_of, reaches_bound
+from mushrooms.scheduler_core.schedulers.as_executed import AS_EXECUTED_MEMO
 from mushrooms.scheduler_core.solvers_registry import SOLVER_NAMES, get_scheduler, register, registered
 
 
@@ -61,8 +61,8 @@ def test_every_milp_scheduler_fills_the_certified_bound_and_its_own_mip_bound():
 
 def _old_hybrid(problem, should_stop=None):
     """The hybrid of f999d02's run_scheduler (a string branch), as reference: (winner name, its result)."""
-    from mushrooms.scheduler_core.schedulers.block_schedule import milp_schedule
-    from mushrooms.scheduler_core.schedulers.slot_schedule import slot_schedule
+    from mushrooms.scheduler_core.schedulers.blocks.schedule import milp_schedule
+    from mushrooms.scheduler_core.schedulers.slots.schedule import slot_schedule
 
     t0 = time.perf_counter()
     budget = problem.config.time_limit_s
@@ -166,7 +166,7 @@ def test_best_of_keeps_the_most_covering_plan_the_earlier_on_a_tie_and_polls_the
 
 
 def test_two_candidates_with_one_plan_cost_one_run_of_the_executor(monkeypatch):
-    import mushrooms.scheduler_core.telescope.coverage as coverage_module
+    import mushrooms.scheduler_core.schedulers.as_executed as coverage_module
 
     problem = _problem(0)
     obs = greedy_schedule(problem).observations

@@ -15,7 +15,7 @@ from mushrooms.scheduler_core.executed import ExecutedExposure
 from mushrooms.scheduler_core.plan.exports import FILTER_IDS, to_trigger_queues
 from mushrooms.scheduler_core.replan import plan_remaining
 from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
-from mushrooms.scheduler_core.telescope.coverage import cadence_coverage, execute_plan_queues, queue_coverage
+from mushrooms.scheduler_core.schedulers.as_executed import cadence_coverage, execute_plan_queues, queue_coverage
 
 GRG = PlanningConfig(solver="greedy", filters=("g", "r", "g"), exposure_s=180.0)
 

@@ -21,13 +21,13 @@ from mushrooms.scheduler_core.errors import InputError
 from mushrooms.scheduler_core.plan.exports import FILTER_IDS, to_trigger_queues
 from mushrooms.scheduler_core.planner import run_scheduler
 from mushrooms.scheduler_core.problem import PlanningProblem
-from mushrooms.scheduler_core.schedulers.block_schedule import milp_schedule
-from mushrooms.scheduler_core.schedulers.slot_schedule import slot_schedule
-from mushrooms.scheduler_core.schedulers.slots import (block_length_s, make_slot_grid, observable_segments,
+from mushrooms.scheduler_core.schedulers.blocks.schedule import milp_schedule
+from mushrooms.scheduler_core.schedulers.slots.schedule import slot_schedule
+from mushrooms.scheduler_core.schedulers.slots.model import (block_length_s, make_slot_grid, observable_segments,
                                                        slot_instance)
 from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
 from mushrooms.scheduler_core.sky.windows import Windows
-from mushrooms.scheduler_core.telescope.coverage import execute_plan_queues, queue_coverage
+from mushrooms.scheduler_core.schedulers.as_executed import execute_plan_queues, queue_coverage
 
 def grg_hand_problem(**overrides) -> PlanningProblem:
     return slot_hand_problem((760.0, 470.0, 1000.0, 1000.0, 1000.0), **{"filters": ("g", "r", "g"), **overrides})
@@ -170,8 +170,8 @@ def test_the_hybrid_grg_queues_run_in_sequence_and_the_executor_credits_f1(grg_h
 
 
 def test_the_portfolio_adds_the_grid_whose_pass_fills_the_cadence_and_keeps_the_default_at_300s():
-    from mushrooms.scheduler_core.schedulers.blocks import cadence_block_size
-    from mushrooms.scheduler_core.schedulers.slot_schedule import grid_positions
+    from mushrooms.scheduler_core.schedulers.blocks.model import cadence_block_size
+    from mushrooms.scheduler_core.schedulers.slots.schedule import grid_positions
 
     default = PlanningConfig()
     assert cadence_block_size(default) == 6 and grid_positions(default) == list(default.slot_positions)

@@ -178,7 +178,7 @@ def test_a_grg_plan_covers_less_than_the_pair_in_the_same_night(grg_plan, skymap
 
 def test_the_pair_schedulers_refuse_a_sequence_and_the_hybrid_skips_them(skymap_220722v):
     from mushrooms.scheduler_core.planner import run_scheduler
-    from mushrooms.scheduler_core.schedulers.block_schedule import milp_schedule
+    from mushrooms.scheduler_core.schedulers.blocks.schedule import milp_schedule
 
     cfg = PlanningConfig(filters=("g", "r", "g"), time_limit_s=5.0, bound_time_limit_s=0.0, objective="coverage")
     problem = prepare_problem(skymap_220722v, cfg, skymap_220722v.event_time)
@@ -202,7 +202,7 @@ def test_one_filter_plans_one_visit_per_field_and_publishes_no_bound(skymap_2207
 
 def test_a_next_visit_is_put_in_front_of_the_plan_and_what_follows_it_moves_by_one_delay():
     from mushrooms.scheduler_core.schedulers.completions import PendingVisit, shift_in_completions
-    from mushrooms.scheduler_core.schedulers.slew import overhead_time
+    from mushrooms.scheduler_core.telescope.slew import overhead_time
     from mushrooms.scheduler_core.sky.windows import Windows
 
     cfg = PlanningConfig(exposure_s=300.0)

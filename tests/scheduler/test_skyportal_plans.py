@@ -17,7 +17,7 @@ from astropy.time import Time
 from mushrooms.evaluation.skyportal_queue import skyportal_queue
 from mushrooms.scheduler_core.plan.exports import (ExportConfig, to_skyportal, to_skyportal_plans, to_trigger_queue,
                                                    to_trigger_queues)
-from mushrooms.scheduler_core.telescope.coverage import queue_coverage
+from mushrooms.scheduler_core.schedulers.as_executed import queue_coverage
 from test_queue_export import planned  # noqa: F401 (the fixture: greedy plans of MS220722v, nights 1 and 2)
 
 EXPORT = ExportConfig(skyportal_allocation_id=7)

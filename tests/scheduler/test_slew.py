@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mushrooms.scheduler_core import SlewModel
-from mushrooms.scheduler_core.schedulers.slew import axis_time, overhead_time, slew_matrix, slew_time
+from mushrooms.scheduler_core.telescope.slew import axis_time, overhead_time, slew_matrix, slew_time
 
 
 def test_axis_time_trapezoid_and_triangle():

@@ -9,13 +9,13 @@ import pytest
 from astropy.time import Time
 
 from conftest_milp import check_observations, random_problem, slot_hand_problem, tiny_config
-from mushrooms.scheduler_core.schedulers.greedy import greedy_schedule
+from mushrooms.scheduler_core.schedulers.greedy.schedule import greedy_schedule
 from mushrooms.scheduler_core.problem import PlanningProblem
 from mushrooms.scheduler_core.sky.windows import Windows
-from mushrooms.scheduler_core.schedulers.slot_schedule import map_start, slot_portfolio, slot_rows, slot_schedule, time_slot_plan
-from mushrooms.scheduler_core.schedulers.slots import (block_length_s, build_slot_model, decode_slots, make_slot_grid,
+from mushrooms.scheduler_core.schedulers.slots.schedule import map_start, slot_portfolio, slot_rows, slot_schedule, time_slot_plan
+from mushrooms.scheduler_core.schedulers.slots.model import (block_length_s, build_slot_model, decode_slots, make_slot_grid,
                                             observable_segments, slot_instance, start_vector)
-from mushrooms.scheduler_core.schedulers.solvers import solve_milp
+from mushrooms.scheduler_core.schedulers.milp.solvers import solve_milp
 
 # Hand-solved instance.  Exposure 100 s, slew estimate 10 s (s = 110 s), filter change 30 s,
 # cadence 250 s, no margin: a block of n = 2 positions has D = max(2 s + 30, 250) = 250 s and
@@ -159,7 +159,7 @@ def test_post_processing_drops_a_field_pushed_out_of_its_window():
 
 
 def test_slot_portfolio_stops_when_asked(monkeypatch):
-    import mushrooms.scheduler_core.schedulers.slot_schedule as ss
+    import mushrooms.scheduler_core.schedulers.slots.schedule as ss
 
     problem = random_problem(1, config=tiny_config(n_blocks_max=3, penalty=0.0, n_fields=None, horizon_h=2.0,
                                                    slot_positions=(1, 2, 3)))

@@ -214,7 +214,7 @@ def _import_solvers(config: Any) -> None:
     from ...scheduler_core.planner import run_scheduler  # noqa: F401
 
     if config.solver != FIRST_SOLVER:
-        from ...scheduler_core.schedulers import block_schedule  # noqa: F401
+        from ...scheduler_core.schedulers.blocks import schedule as block_schedule  # noqa: F401
 
 
 def warm_plan(cache: SkyCache, config: Any) -> str | None:

@@ -230,7 +230,7 @@ def _prepare(scene: MapScene, settings: BenchSettings, raise_errors: bool) -> No
     """Prepare the map's one problem and its coverage bound (every row needs it: ours to plan, gwemopt's
     for the repair and the bound); a failure is kept in ``prep_error`` for each row to report."""
     from ...scheduler_core.prepare import prepare_problem
-    from ...scheduler_core.schedulers.certified_bound import certified_upper_bound
+    from ...scheduler_core.schedulers.bounds.certified_bound import certified_upper_bound
 
     t0 = time.perf_counter()
     try:

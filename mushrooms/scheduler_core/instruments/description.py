@@ -218,7 +218,7 @@ class DepthTerms:
 
 @dataclass(frozen=True)
 class SlewAxis:
-    """One axis of a slew: a trapezoidal move (``schedulers/slew.py``, ``axis_time``).
+    """One axis of a slew: a trapezoidal move (``telescope/slew.py``, ``axis_time``).
 
     Attributes
     ----------

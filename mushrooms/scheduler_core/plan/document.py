@@ -16,6 +16,7 @@ import numpy as np
 from astropy.time import Time, TimeDelta
 
 from . import strict_json
+from ..times import iso_utc  # the plan's times as written (defined with the parser, below the plan)
 
 __all__ = [
     "Observation",
@@ -60,11 +61,6 @@ def without_timing(document: dict[str, Any]) -> dict[str, Any]:
             where = where.get(part) or {}
         where.pop(key, None)
     return out
-
-
-def iso_utc(t: Time) -> str:
-    """ISO-8601 UTC string with millisecond precision and a trailing ``Z``."""
-    return Time(t, scale="utc").isot[:23] + "Z"
 
 
 def parse_time(value: str | Time, what: str = "time") -> Time:
@@ -217,7 +213,7 @@ class PlanMetrics:
         Alert receipt to plan published (s), filled in by the service.
     upper_bound : float or None
         Certified upper bound on the coverage any rule-abiding plan of this
-        problem reaches (:mod:`..schedulers.certified_bound`: the least of the
+        problem reaches (:mod:`..schedulers.bounds.certified_bound`: the least of the
         online bound U4 and the interval bound V; None when not computed,
         e.g. greedy).
     upper_bound_method : str or None

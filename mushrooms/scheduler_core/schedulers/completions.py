@@ -37,7 +37,7 @@ from ..config import PlanningConfig
 from ..plan.document import Observation
 from ..sky.footprints import Footprints
 from ..sky.windows import Windows
-from .slew import overhead_time
+from ..telescope.slew import overhead_time
 
 __all__ = ["PendingVisit", "completion_pass", "insert_completions", "swap_in_completions", "shift_in_completions",
            "trim_to_rules", "drop_repeats", "gains_of"]

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .named import PAPER_LIGHTCURVES
+from ..lightcurve_names import PAPER_LIGHTCURVES
 
 __all__ = [
     "LightCurve",

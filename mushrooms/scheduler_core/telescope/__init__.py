@@ -6,6 +6,8 @@ plays a set of ToO list queues the way ZTF's scheduler does (queue switching
 by validity window, the first observable target in list order, the survey
 taking the time when nothing is observable).  Equations (Q1)-(Q10) of
 ``docs/design/executed.md``.  Pure functions, no I/O.
+:mod:`.slew` is the slew time between two fields the schedulers plan
+with (the per-axis trapezoid the checker also applies).
 """
 
 from .executor import ExecutedTarget, QueueSet, execute_queues, queue_set_from_payloads

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..config import SlewModel
-from ..schedulers.slew import axis_time
+from .slew import axis_time
 
 __all__ = ["TelescopeTiming", "exposure_overhead_s", "dome_azimuth_deg", "PALOMAR_LAT_DEG"]
 

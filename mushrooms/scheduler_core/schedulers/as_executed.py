@@ -1,0 +1,148 @@
+"""What of a plan's coverage survives ZTF's execution of its queues (the plan's ``coverage_as_executed``)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Iterable, Sequence
+
+import numpy as np
+
+from ..executed import MIN_PROCESSED_FRACTION, ExecutedExposure, is_done
+from ..sequences import covered_fields
+from ..telescope.executor import execute_queues, executed_exposures, queue_set_from_payloads
+from ..telescope.timing import TelescopeTiming
+
+if TYPE_CHECKING:
+    from ..plan.document import Plan
+    from ..sky.footprints import Footprints
+
+__all__ = ["cadence_coverage", "execute_plan_queues", "queue_coverage",
+           "keyed_coverage_as_executed", "execution_key", "AS_EXECUTED_MEMO"]
+
+#: ``ScheduleResult.details`` key of the executed coverages already computed: :func:`execution_key` -> value.
+AS_EXECUTED_MEMO = "coverage_as_executed_memo"
+
+
+def cadence_coverage(executed: Iterable[ExecutedExposure], footprints: "Footprints", prob: np.ndarray,
+                     filters: tuple[str, ...] = ("g", "r"), cadence_s: float = 0.0, require: str = "both",
+                     min_processed_fraction: float = MIN_PROCESSED_FRACTION) -> float:
+    """Probability inside the covered fields (Q14): done in both filters at least ``cadence_s`` apart (E3).
+
+    ``filters`` is the plan's sequence: a field is covered by the first two
+    (F1, whatever its later visits did), or one exposure of a one-filter
+    sequence.  ``require="any"`` counts a field once one done exposure
+    exists in any of the filters.
+    """
+    if require not in ("both", "any"):
+        raise ValueError(f"require must be 'both' or 'any', got {require!r}")
+    executed = list(executed)
+    ids = covered_fields(executed, filters, min_processed_fraction, cadence_s)
+    if require == "any":
+        ids |= {int(e.field_id) for e in executed if e.filter in filters and is_done(e, min_processed_fraction)}
+    missing = sorted(ids - {int(f) for f in footprints.field_ids})
+    if missing:
+        raise ValueError(f"field(s) {missing[:5]} not in the footprints")
+    return float(footprints.coverage(sorted(ids), prob)) if ids else 0.0
+
+
+def execute_plan_queues(plan: "Plan", queues: Sequence[dict[str, Any]] | None = None, late_s: float = 0.0,
+                        timing: TelescopeTiming = TelescopeTiming(),
+                        closures_s: Sequence[tuple[float, float]] = ()) -> tuple[ExecutedExposure, ...]:
+    """ZTF's execution of a plan's queues (default :func:`~..plan.exports.to_trigger_queues`), from its first observation.
+
+    Parameters
+    ----------
+    plan : Plan
+        The plan (its start is the epoch; the run ends at its end).
+    queues : sequence of dict, optional
+        The payloads submitted, in submission order.
+    late_s : float
+        The telescope is free this long (s) after the plan's first observation.
+    timing : TelescopeTiming
+        The telescope.
+    closures_s : sequence of (float, float)
+        Dome closures (s since the plan's start).
+    """
+    from ..plan.exports import timed_queue_set
+
+    if not plan.observations:
+        return ()
+    # on time at the modelled speed the closes are never reached (Q18): the cheaper wide ones give the same run
+    nominal = late_s == 0 and not closures_s and timing == TelescopeTiming()
+    payloads, sky = timed_queue_set(plan, robust=not nominal) if queues is None else (queues, None)
+    qs = queue_set_from_payloads(payloads, plan.start, timing)
+    start = plan.observations[0].start + late_s
+    done = execute_queues(qs, plan.start, start, float((plan.end - plan.start).to_value("s")), timing,
+                          closures_s=closures_s, sky=sky if sky is not None and sky.serves(start, timing) else None)
+    return executed_exposures(qs, done, plan.start)
+
+
+def queue_coverage(plan: "Plan", footprints: "Footprints", prob: np.ndarray,
+                   queues: Sequence[dict[str, Any]] | None = None, late_s: float = 0.0,
+                   timing: TelescopeTiming = TelescopeTiming()) -> float:
+    """Cadence-valid coverage of a plan's queues as ZTF executes them (Q14): ``metrics.coverage_as_executed``.
+
+    The plan's own filter sequence and cadence (its ``config``) decide what
+    covers a field (F1).
+    """
+    config = plan.config or {}
+    filters = tuple(config.get("filters", ("g", "r")))
+    cadence_s = float(config.get("cadence_s", 1800.0))
+    executed = execute_plan_queues(plan, queues, late_s, timing)
+    return cadence_coverage(executed, footprints, prob, filters, cadence_s)  # type: ignore[arg-type]
+
+
+def execution_key(problem: Any, observations: Sequence[Any]) -> tuple:
+    """What the executor's run of a plan depends on: start, horizon, cadence, filters and each exposure.
+
+    Two plans with one key have one ``coverage_as_executed`` (the queues are
+    made from these, :func:`~..plan.exports.timed_queue_set`).
+    """
+    config = problem.config
+    return (float(problem.start.mjd), float(config.horizon_s), float(config.cadence_s), tuple(config.filters),
+            tuple((int(o.field_id), o.filter, float(o.start), float(o.exposure_s), float(o.ra), float(o.dec))
+                  for o in observations))
+
+
+def keyed_coverage_as_executed(problem: Any, result: Any, memo: dict[tuple, float] | None = None
+                               ) -> tuple[tuple | None, float]:
+    """A scheduler result's ``coverage_as_executed`` as its published plan will have it (after the least-gain rule).
+
+    Parameters
+    ----------
+    problem : PlanningProblem
+        The problem solved (start, horizon, cadence, footprints, probabilities).
+    result : ScheduleResult
+        A candidate schedule; a value remembered in its ``details``
+        (:data:`AS_EXECUTED_MEMO`) for the same plan is returned as is.
+    memo : dict, optional
+        More remembered values (:func:`execution_key` -> coverage), e.g. of
+        other candidates with the same plan.
+
+    Returns
+    -------
+    (tuple or None, float)
+        The plan's :func:`execution_key` (None for an empty plan) and its executed coverage.
+    """
+    from astropy.time import TimeDelta
+
+    from ..plan.document import EventInfo, Plan, PlanMetrics, sorted_observations
+    from .gain import drop_low_gain
+
+    config = problem.config
+    kept = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain)
+    if not kept.observations:
+        return None, 0.0
+    observations = sorted_observations(kept.observations)
+    key = execution_key(problem, observations)
+    known = {**(result.details or {}).get(AS_EXECUTED_MEMO, {}), **(memo or {})}.get(key)
+    if known is not None:
+        return key, float(known)
+    clock = getattr(problem, "clock", None)
+    if clock is not None:
+        clock.step("execute", len(observations))  # (A3) the executor's run, on the budget of the stage asking
+    plan = Plan(plan_id="candidate", start=problem.start,
+                end=problem.start + TimeDelta(config.horizon_s, format="sec"), observations=observations,
+                metrics=PlanMetrics(coverage=0.0, solver="", status="", mip_gap=None, runtime_s=0.0, n_fields=0,
+                                    n_exposures=len(observations)),
+                event=EventInfo(), config={"cadence_s": config.cadence_s, "filters": list(config.filters)})
+    return key, queue_coverage(plan, problem.footprints, problem.prob)
