@@ -193,5 +193,5 @@ def test_two_candidates_with_one_plan_cost_one_run_of_the_executor(monkeypatch):
     class _Plan:  # what _coverage_as_executed reads of a plan
         observations = kept
 
-    assert _coverage_as_executed(_Plan(), problem, result) == pytest.approx(executed["a"], abs=1e-6)
+    assert _coverage_as_executed(_Plan(), problem, result) == pytest.approx((executed["a"],) * 2, abs=1e-6)
     assert len(runs) == 1

@@ -235,9 +235,10 @@ def _timed_passes(plan: "Plan", export: ExportConfig, name_base: str | None, sla
     planned = np.asarray([o.start for o in plan.observations], float)
     sky = SkyGrid(qs, plan.start, float(planned.min()), end_s, 60.0, TelescopeTiming())
     cadence_s = float((plan.config or {}).get("cadence_s", 1800.0))
-    weight = np.asarray([_field_weight(o) for o in plan.observations], float) if robust else None
+    weight = np.asarray([_field_weight(o) for o in plan.observations], float)
     opens, closes = time_pass_windows(qs, plan.start, planned, end_s, cadence_s,
-                                      slack_s=PASS_SLACK_S if slack_s is None else slack_s, sky=sky, weight=weight)
+                                      slack_s=PASS_SLACK_S if slack_s is None else slack_s, sky=sky, weight=weight,
+                                      robust=robust)
     out, kept = [], []
     for (a, b), draft, t_open, t_close in zip(passes, drafts, opens, closes):
         if not t_open < end_s:
