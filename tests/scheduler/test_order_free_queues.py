@@ -3,7 +3,8 @@
 ztf_sim's main loop takes the *last* valid, non-empty queue in submission order, its ToO switch
 (and this executor before) the *first*.  Submitting the same queues in reverse order turns one rule
 into the other, so a set whose execution does not depend on the rule runs the same both ways round.
-A hand-made plan on a real night at Palomar (2026-03-20 06:00 UTC, the Sun 47 deg down): two blocks;
+On time (the run ``coverage_as_executed`` reports) the very same run is asserted (late or off-speed
+runs are measured in benchmarks/execution/switch_rules.py).  A hand-made plan on a real night at Palomar (2026-03-20 06:00 UTC, the Sun 47 deg down): two blocks;
 the first block's last field has set below airmass 2.5 before its passes reach it, so its g pass is
 still open with a target left when its r pass opens -- two open queues at one switch.
 """
@@ -15,12 +16,12 @@ import pytest
 from astropy.time import Time, TimeDelta
 
 from mushrooms.offline import configure_astropy_offline
+from mushrooms.scheduler_core.executed import done_pairs
 from mushrooms.scheduler_core.plan.document import EventInfo, Observation, Plan, PlanMetrics
 from mushrooms.scheduler_core.plan.exports import to_trigger_queues
 from mushrooms.scheduler_core.sky.fields import load_ztf_fields
 from mushrooms.scheduler_core.sky.visibility import site
 from mushrooms.scheduler_core.telescope.coverage import execute_plan_queues
-from mushrooms.scheduler_core.telescope.timing import TelescopeTiming
 
 configure_astropy_offline()
 EPOCH = Time("2026-03-20T06:00:00", scale="utc")
@@ -62,17 +63,13 @@ def _run(plan, queues, **kwargs):
             for e in execute_plan_queues(plan, queues, **kwargs)]
 
 
-@pytest.mark.parametrize("late_s", [0.0, 900.0, 1800.0, 3600.0])
-def test_the_queue_set_runs_the_same_whichever_open_queue_the_scheduler_takes(plan, late_s):
-    queues = to_trigger_queues(plan)
-    submitted = _run(plan, queues, late_s=late_s)
-    other_rule = _run(plan, queues[::-1], late_s=late_s)  # first-wins <-> last-wins
-    assert submitted == other_rule
-    assert len(submitted) >= 4  # the second block in both filters at least (the set field never rises again)
+def _pairs(plan, queues, **kwargs):
+    """The fields done in g and r at least the cadence apart (E3)."""
+    return set(done_pairs(execute_plan_queues(plan, queues, **kwargs), ("g", "r"), cadence_s=1800.0).both)
 
 
-@pytest.mark.parametrize("factor", [0.8, 1.2])
-def test_a_faster_or_slower_telescope_runs_it_the_same_either_way(plan, factor):
+def test_on_time_the_queue_set_runs_the_same_whichever_open_queue_the_scheduler_takes(plan):
     queues = to_trigger_queues(plan)
-    timing = TelescopeTiming().scaled(factor)
-    assert _run(plan, queues, timing=timing) == _run(plan, queues[::-1], timing=timing)
+    submitted = _run(plan, queues)
+    assert submitted == _run(plan, queues[::-1])  # first-wins <-> last-wins: the very same exposures (Q20)
+    assert len(_pairs(plan, queues)) == 4  # the four fields that stay up, each a cadence apart

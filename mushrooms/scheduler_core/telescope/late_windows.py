@@ -18,11 +18,15 @@ nothing and pushes the passes after it.  Both are decided by the closes.
 * (Q17) the value of a set of closes in a scenario ``s`` is the weight of the
   fields the executor (Q1-Q10) takes in both filters at least the cadence
   apart, ``V_s = Σ_f w_f [pair of f valid]``, ``w_f`` the field's
-  probability share in the plan.  Scenarios: the telescope free 15, 30 and
-  60 min late, and on time with every overhead x0.8 and x1.2.
+  probability share in the plan, summed over the scenarios as ztf_sim's
+  main loop runs them (the last open queue taken, Q1), ties broken by the
+  same sum with the first open queue taken: the closes are chosen for
+  ztf_sim, and for a first-wins scheduler where that costs ztf_sim nothing.
+  Scenarios: the telescope free 15, 30 and 60 min late, and on time with
+  every overhead x0.8 and x1.2.
 * (Q18) the closes are chosen pass by pass in plan order, starting from the
   wide ones: pass k takes its tight close when that raises ``Σ_s V_s``
-  (ties keep the wide one) and leaves the on-time run at the modelled speed
+  (Q17's order; ties keep the wide one) and leaves the on-time run at the modelled speed
   exactly as it was (a tight close is never reached before the pass's last
   exposure starts; it could only drop a target the wide window would take
   later): the executed plan and ``coverage_as_executed`` are the same with
@@ -41,12 +45,14 @@ from astropy.time import Time
 from .executor import ExecutedTarget, QueueSet, SkyGrid, execute_queues
 from .timing import TelescopeTiming
 
-__all__ = ["robust_closes", "pair_value", "LATE_SCENARIOS_S", "SPEED_SCENARIOS"]
+__all__ = ["robust_closes", "pair_value", "rule_values", "better", "LATE_SCENARIOS_S", "SPEED_SCENARIOS", "RULE_ORDER"]
 
 #: Late starts (s) the closes are chosen for (Q17).
 LATE_SCENARIOS_S = (900.0, 1800.0, 3600.0)
 #: Overhead factors (slower > 1, faster < 1) of an on-time telescope the closes are chosen for (Q17).
 SPEED_SCENARIOS = (0.8, 1.2)
+#: The switch rules a set of windows is valued under, in order of weight (Q17): ztf_sim's, then first-wins.
+RULE_ORDER = ("last", "first")
 
 
 def pair_value(qs: QueueSet, done: Sequence[ExecutedTarget], weight: np.ndarray, cadence_s: float) -> float:
@@ -72,6 +78,40 @@ def pair_value(qs: QueueSet, done: Sequence[ExecutedTarget], weight: np.ndarray,
         if any(b1 != b2 and abs(t2 - t1) >= cadence_s for b1, t1 in visits for b2, t2 in visits):
             value += float(weight[qs.field_id == field].max())
     return value
+
+
+def rule_values(qs: QueueSet, epoch: Time, opens: np.ndarray, closes: np.ndarray,
+                runs: Sequence[tuple[float, TelescopeTiming]], end_s: float, weight: np.ndarray,
+                cadence_s: float, sky: SkyGrid | None = None) -> tuple[float, float]:
+    """(Q17) the pair weight kept over ``runs`` (start, timing): last-wins (ztf_sim's main loop), then first-wins (Q1).
+
+    Compared as a pair, in that order: a set of windows is better when ztf_sim keeps more, or as much and a
+    first-wins scheduler more.
+
+    Parameters
+    ----------
+    qs : QueueSet
+        The queues (their windows are ``opens``, ``closes``; ``open = inf``: not exported).
+    epoch : astropy.time.Time
+        Time zero.
+    opens, closes : numpy.ndarray
+        (K,) windows (s since ``epoch``).
+    runs : sequence of (float, TelescopeTiming)
+        When the telescope is free and how fast it is.
+    end_s, cadence_s : float
+        The plan's end and the cadence (s).
+    weight : numpy.ndarray
+        (n,) each target's field weight.
+    sky : SkyGrid, optional
+        Observability of ``qs``'s targets.
+    """
+    return tuple(sum(pair_value(qs, _play(qs, epoch, opens, closes, start, end_s, timing.with_switch(rule), sky),
+                                weight, cadence_s) for start, timing in runs) for rule in RULE_ORDER)  # type: ignore
+
+
+def better(a: tuple[float, float], b: tuple[float, float] | None, tol: float = 1e-12) -> bool:
+    """(Q17) ``a`` keeps more than ``b``: more last-wins, or as much and more first-wins (None: anything is)."""
+    return b is None or a[0] > b[0] + tol or (a[0] > b[0] - tol and a[1] > b[1] + tol)
 
 
 def robust_closes(qs: QueueSet, epoch: Time, opens: np.ndarray, closes: np.ndarray, weight: np.ndarray,
@@ -112,13 +152,18 @@ def robust_closes(qs: QueueSet, epoch: Time, opens: np.ndarray, closes: np.ndarr
         sky = SkyGrid(qs, epoch, first, end_s, 60.0, timing)
     base = _play(qs, epoch, opens, closes, first, end_s, timing, sky)
     on_time = {d.target: d.start_s for d in base if d.status == "processed"}
-    scenarios = [(first + late, timing) for late in lates_s] + [(first, timing.scaled(f)) for f in speeds]
+    scenarios = [(start, t.with_switch(rule))  # each scenario as ztf_sim's main loop runs it, then first-wins
+                 for start, t in [(first + late, timing) for late in lates_s] + [(first, timing.scaled(f))
+                                                                                 for f in speeds]
+                 for rule in RULE_ORDER]
 
     def runs(trial: np.ndarray) -> list[tuple[ExecutedTarget, ...]]:
         return [_play(qs, epoch, opens, trial, start, end_s, t, sky) for start, t in scenarios]
 
-    def score(played: list[tuple[ExecutedTarget, ...]]) -> float:
-        return sum(pair_value(qs, run, weight, cadence_s) for run in played)
+    def score(played: list[tuple[ExecutedTarget, ...]]) -> tuple[float, float]:
+        """(Σ_s V_s last-wins, Σ_s V_s first-wins), compared in that order."""
+        values = [pair_value(qs, run, weight, cadence_s) for run in played]
+        return sum(values[0::2]), sum(values[1::2])
 
     chosen = closes.copy()
     played = runs(chosen)
@@ -136,7 +181,7 @@ def robust_closes(qs: QueueSet, epoch: Time, opens: np.ndarray, closes: np.ndarr
             continue  # (Q18) the on-time run must stay the same (a target left over for later, say)
         trial_played = runs(trial)
         value = score(trial_played)
-        if value > best + 1e-12:
+        if better(value, best):
             best, chosen, played = value, trial, trial_played
     return chosen
 

@@ -12,47 +12,41 @@ could not observe on its turn, beside the next pass.  First-wins goes back
 to the earlier one at every switch (a survey exposure each time, Q3, until
 its window closes); last-wins takes the next.
 
-(Q20) the closes are made so that no switch of the modelled run has a
-choice.  At the first switch with two or more queues open and not empty
+(Q20) the closes are made so that no switch of the modelled on-time run has
+a choice.  At the first switch with two or more queues open and not empty
 (the run under ztf_sim's rules, :func:`~.executor.first_switch_conflict`),
 one of them is kept and the others are closed one second before it (a
 queue closed before it opens is not exported); the one kept is the one
-whose run keeps the most pair weight (:func:`~.late_windows.pair_value`;
-ties: the last in submission order, ztf_sim's own choice).  Repeated until
-no switch has a choice.  First on time (the run ``coverage_as_executed``
-reports); then, when the closes are chosen for a late or off-speed telescope
-(Q16-Q18), in each of those runs too, a choice there being resolved only by
-closes that leave the on-time run exactly as it was.  Closing a queue
-earlier never adds a choice to a run it leaves unchanged.
+whose run keeps the most pair weight (Q17's order,
+:func:`~.late_windows.rule_values`: ztf_sim's rule, then first-wins; ties:
+the last in submission order, ztf_sim's own choice).  Repeated until no switch has a choice: then first-wins and
+last-wins make the same choice at every switch of that run.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Sequence
-
 import numpy as np
 from astropy.time import Time
 
-from .executor import ExecutedTarget, QueueSet, SkyGrid, execute_queues, first_switch_conflict
-from .late_windows import pair_value
+from .executor import QueueSet, SkyGrid, first_switch_conflict
+from .late_windows import better, rule_values
 from .timing import TelescopeTiming
 
-__all__ = ["order_free_windows", "Scenario", "MAX_FIXES"]
+__all__ = ["order_free_windows", "MAX_FIXES"]
 
-#: A run of the queues: the telescope free at this time (s since the epoch), with this timing.
-Scenario = tuple[float, TelescopeTiming]
 #: Most switches resolved per queue set (a bound: each fix closes a queue earlier).
 MAX_FIXES = 64
 #: A queue closed at a switch closes this long (s) before it.
 BEFORE_S = 1.0
 
 
-def order_free_windows(qs: QueueSet, epoch: Time, opens: np.ndarray, closes: np.ndarray, end_s: float,
-                       weight: np.ndarray, cadence_s: float, scenarios: Sequence[Scenario], sky: SkyGrid,
-                       keep_on_time: Scenario | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(Q20) opens and closes under which no switch of the given runs has more than one queue to take.
+def order_free_windows(qs: QueueSet, epoch: Time, opens: np.ndarray, closes: np.ndarray, start_s: float,
+                       end_s: float, weight: np.ndarray, cadence_s: float,
+                       timing: TelescopeTiming = TelescopeTiming(), sky: SkyGrid | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """(Q20) opens and closes under which no switch of the run from ``start_s`` has more than one queue to take.
 
     Parameters
     ----------
@@ -62,17 +56,16 @@ def order_free_windows(qs: QueueSet, epoch: Time, opens: np.ndarray, closes: np.
         Time zero.
     opens, closes : numpy.ndarray
         (K,) the windows (s since ``epoch``; ``open = inf``: not exported).
-    end_s, cadence_s : float
-        The plan's end and the cadence (s).
+    start_s, end_s : float
+        The run: the telescope free at ``start_s``, the plan's end (s since ``epoch``).
     weight : numpy.ndarray
         (n,) each target's field weight (Q17's ``V``).
-    scenarios : sequence of (float, TelescopeTiming)
-        The runs made free of choices, in this order.
-    sky : SkyGrid
+    cadence_s : float
+        The cadence (s).
+    timing : TelescopeTiming
+        The telescope model (its ``rules.switch`` is ignored: both are played).
+    sky : SkyGrid, optional
         Observability of ``qs``'s targets.
-    keep_on_time : (float, TelescopeTiming), optional
-        A run that must stay exactly as it is (a choice no fix can resolve
-        without changing it is left).
 
     Returns
     -------
@@ -80,54 +73,36 @@ def order_free_windows(qs: QueueSet, epoch: Time, opens: np.ndarray, closes: np.
         The opens (a queue closed before it opens gets ``inf``) and closes.
     """
     opens, closes = opens.astype(float).copy(), closes.astype(float).copy()
-    base = None if keep_on_time is None else _run(qs, epoch, opens, closes, keep_on_time, end_s, sky)
-    left = list(scenarios)
     for _ in range(MAX_FIXES):
-        hit = _first_choice(qs, epoch, opens, closes, left, end_s, sky)
+        hit = first_switch_conflict(_windows(qs, opens, closes), epoch, start_s, end_s, timing, sky)
         if hit is None:
             break
-        scenario, (t, ks) = hit
-        fixed = _best_fix(qs, epoch, opens, closes, t, ks, left, end_s, weight, cadence_s, sky, base, keep_on_time)
-        if fixed is None:
-            left.remove(scenario)  # no fix keeps the protected run: this run keeps its choice
-            continue
-        opens, closes = fixed
+        t, ks = hit
+        best = None
+        for keep in reversed(ks):  # the last first: ztf_sim's own choice wins a tie
+            o, c = _keep_one(opens, closes, ks, keep, t)
+            value = rule_values(qs, epoch, o, c, [(start_s, timing)], end_s, weight, cadence_s, sky)
+            if best is None or better(value, best[0]):
+                best = (value, o, c)
+        opens, closes = best[1], best[2]
     return opens, closes
 
 
-def _first_choice(qs, epoch, opens, closes, scenarios, end_s, sky):
-    """The first scenario with a switch that has a choice, and that switch."""
-    trial = _windows(qs, opens, closes)
-    for scenario in scenarios:
-        start, timing = scenario
-        hit = first_switch_conflict(trial, epoch, start, end_s, timing, sky)
-        if hit is not None:
-            return scenario, hit
-    return None
+def _keep_one(opens: np.ndarray, closes: np.ndarray, ks: tuple[int, ...], keep: int, t: float
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Every queue of ``ks`` but ``keep`` closed just before ``t`` (not exported when that is before it opens).
 
-
-def _best_fix(qs, epoch, opens, closes, t, ks, scenarios, end_s, weight, cadence_s, sky, base, keep_on_time):
-    """Keep one of the queues ``ks`` open at ``t``, close the others just before: the fix keeping most weight."""
-    best = None
-    for keep in reversed(ks):  # the last first: ztf_sim's own choice wins a tie
-        o, c = opens.copy(), closes.copy()
-        for k in ks:
-            if k != keep:
-                c[k] = min(c[k], t - BEFORE_S)
-                if not c[k] > o[k]:
-                    o[k] = math.inf  # closed before it opened: not exported
-        if base is not None and _run(qs, epoch, o, c, keep_on_time, end_s, sky) != base:
-            continue
-        value = sum(pair_value(qs, _run(qs, epoch, o, c, s, end_s, sky), weight, cadence_s) for s in scenarios)
-        if best is None or value > best[0] + 1e-12:
-            best = (value, o, c)
-    return None if best is None else best[1:]
+    Just before ``t``, not before the kept queue opened: a late telescope still finds the closed queue open
+    where the on-time run had finished with it (closing it sooner kept less, late, on the shared maps).
+    """
+    o, c = opens.copy(), closes.copy()
+    for k in ks:
+        if k != keep:
+            c[k] = min(c[k], t - BEFORE_S)
+            if not c[k] > o[k]:
+                o[k] = math.inf
+    return o, c
 
 
 def _windows(qs: QueueSet, opens: np.ndarray, closes: np.ndarray) -> QueueSet:
     return replace(qs, window_start_s=opens.copy(), window_end_s=np.where(np.isfinite(opens), closes, -math.inf))
-
-
-def _run(qs, epoch, opens, closes, scenario: Scenario, end_s, sky) -> tuple[ExecutedTarget, ...]:
-    start, timing = scenario
-    return execute_queues(_windows(qs, opens, closes), epoch, start, end_s, timing, sky=sky)

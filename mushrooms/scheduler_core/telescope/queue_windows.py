@@ -27,8 +27,9 @@ are set pass by pass, in plan order, with the executor model itself
   take, so first-wins and last-wins (Q1) run it the same;
 * (Q16-Q18, :mod:`.late_windows`) given ``robust``, each close is then the
   wide one or a tight one, whichever keeps more pairs when the telescope
-  starts late or runs faster or slower than modelled, and Q20 is applied to
-  those runs too (leaving the on-time run as it is).
+  starts late or runs faster or slower than modelled, as ztf_sim switches
+  queues and then as a first-wins scheduler would (the on-time run is left
+  as it is).
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ import numpy as np
 from astropy.time import Time
 
 from .executor import ExecutedTarget, QueueSet, SkyGrid, execute_queues
-from .late_windows import LATE_SCENARIOS_S, SPEED_SCENARIOS, robust_closes
+from .late_windows import robust_closes
 from .order_free import order_free_windows
 from .timing import TelescopeTiming
 
@@ -82,9 +83,9 @@ def time_pass_windows(qs: QueueSet, epoch: Time, planned_s: np.ndarray, end_s: f
         and, with ``robust``, what a close keeps late or off-speed (Q17);
         default 1 each.
     robust : bool, optional
-        Choose the closes for a late or off-speed telescope (Q16-Q18, and
-        Q20 in those runs); the on-time execution is the same either way.
-        Default: when ``weight`` is given.
+        Choose the closes for a late or off-speed telescope (Q16-Q18); the
+        on-time execution is the same either way.  Default: when ``weight``
+        is given.
 
     Returns
     -------
@@ -99,7 +100,7 @@ def time_pass_windows(qs: QueueSet, epoch: Time, planned_s: np.ndarray, end_s: f
     floors = np.full(len(qs.names), -math.inf)
     for _ in range(MAX_RETIMES):
         opens, closes = _timed(qs, epoch, planned_s, end_s, cadence_s + margin_s, slack_s, timing, sky, floors)
-        opens, closes = order_free_windows(qs, epoch, opens, closes, end_s, weight, cadence_s, [(first, timing)], sky)
+        opens, closes = order_free_windows(qs, epoch, opens, closes, first, end_s, weight, cadence_s, timing, sky)
         short = _too_soon(qs, _play(qs, epoch, opens, closes, first, end_s, timing, sky), cadence_s + margin_s)
         if not short:
             break
@@ -107,9 +108,6 @@ def time_pass_windows(qs: QueueSet, epoch: Time, planned_s: np.ndarray, end_s: f
             floors[k] = max(floors[k], started) + shortfall
     if robust:
         closes = robust_closes(qs, epoch, opens, closes, weight, end_s, cadence_s, timing, sky)
-        runs = [(first + late, timing) for late in LATE_SCENARIOS_S] + [(first, timing.scaled(f)) for f in SPEED_SCENARIOS]
-        opens, closes = order_free_windows(qs, epoch, opens, closes, end_s, weight, cadence_s, runs, sky,
-                                           keep_on_time=(first, timing))
     return opens, closes
 
 

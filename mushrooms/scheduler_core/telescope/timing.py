@@ -18,7 +18,7 @@ ztf_sim's (0.5 deg s^-2, 3 deg s^-1).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -79,6 +79,10 @@ class TelescopeTiming:
         for name in ("filter_change_s", "lost_pointing_slew_s"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+
+    def with_switch(self, switch: str) -> "TelescopeTiming":
+        """The same telescope, its scheduler switching to the ``switch`` (``first`` or ``last``) valid queue (Q1)."""
+        return replace(self, rules=replace(self.rules, switch=switch))
 
     def scaled(self, factor: float) -> "TelescopeTiming":
         """The same telescope ``factor`` times slower (> 1) or faster (< 1) in every overhead."""
