@@ -155,6 +155,7 @@ class SkyGrid:
         self.dark = geo.sun_alt_deg < timing.sun_alt_max_deg
         self.offsets = offsets
         self.limits = _limits(timing)
+        self.overheads: dict[tuple, float] = {}  # (Q7) memo: runs of one set repeat the same moves
 
     def serves(self, start_s: float, timing: TelescopeTiming) -> bool:
         """True when a run starting at ``start_s`` under ``timing`` samples this very grid.
@@ -168,7 +169,7 @@ class SkyGrid:
         """The grid of the targets ``rows`` (in that order): a queue set made of some of these targets."""
         out = object.__new__(SkyGrid)
         out.__dict__.update(self.__dict__, ha=self.ha[rows], observable=self.observable[rows],
-                            refused=self.refused[rows])
+                            refused=self.refused[rows], overheads={})
         return out
 
     def index(self, t: float) -> int:
@@ -290,6 +291,7 @@ class _Night:
         self.last_filter: int | None = None
         self.pointing: tuple[int, float] | None = None  # (target row, end of its exposure)
         self.current = -1
+        self.switched = False  # the current queue was taken from the default queue at this choice
         self.out: list[ExecutedTarget] = []
         self.conflicts: list[tuple[float, tuple[int, ...]]] = []  # switches with more than one queue to take
 
@@ -317,6 +319,7 @@ class _Night:
     def _queue(self) -> int | None:
         """(Q1) the queue to play now: its index, None when the survey took the time, -1 when none will open."""
         qs, t = self.qs, self.t
+        self.switched = False
         left = np.bincount(qs.queue[self.alive], minlength=len(qs.names))
         open_now = (qs.window_start_s <= t) & (t <= qs.window_end_s)
         if self.current >= 0 and not open_now[self.current]:
@@ -338,6 +341,7 @@ class _Night:
             if ks.size > 1:
                 self.conflicts.append((t, tuple(int(k) for k in ks)))
             self.current = int(ks[-1] if self.rules.switch == "last" else ks[0])
+            self.switched = True
         return self.current
 
     def _target(self, k: int) -> bool:
@@ -348,21 +352,59 @@ class _Night:
         if self.rules.refused == "retry":
             ok = ok | sky.refused[rows, j]
         if not ok.any():  # (Q3) nothing passes now: the survey takes one exposure, the pointing is lost
+            # the same choice comes back at every survey step until a window, the sky or the Sun changes
+            n = self._idle_steps(k, rows, self.timing.survey_step_s, every_queue=True) if self.switched else 1
             self._survey()
+            self.t += self.timing.survey_step_s * (n - 1)
             return True
         i = int(rows[np.argmax(ok)])
         if not sky.observable[i, j]:
-            self._retry(i)
+            self._retry(i, rows)
         else:
             self._observe(i)
         return True
 
-    def _retry(self, i: int) -> None:
-        """(Q2) a refused slew: the filter is changed all the same, then the telescope waits and chooses again."""
+    def _retry(self, i: int, rows: np.ndarray) -> None:
+        """(Q2) a refused slew: the filter is changed all the same, then the telescope waits and chooses again.
+
+        It chooses the same target again, and waits again, until its queue's window closes or the sky or the
+        Sun changes: those waits are taken at once (the same times as one by one).
+        """
         if self.last_filter is not None and self.last_filter != int(self.qs.filter_id[i]):
             self.t += self.timing.filter_change_s
+            self.last_filter = int(self.qs.filter_id[i])
+            self.t += self.rules.retry_s
+            return
         self.last_filter = int(self.qs.filter_id[i])
-        self.t += self.rules.retry_s  # it has not moved: the pointing stays
+        self.t += self.rules.retry_s * self._idle_steps(int(self.qs.queue[i]), rows, self.rules.retry_s,
+                                                         every_queue=False)  # it has not moved: the pointing stays
+
+    def _idle_steps(self, k: int, rows: np.ndarray, step_s: float, every_queue: bool) -> int:
+        """How many choices, ``step_s`` apart from ``t``, make the very choice made at ``t`` (at least 1).
+
+        Nothing is observed meanwhile, so the choice changes only when a window opens or closes (any queue's
+        when ``every_queue``: the scheduler switches again at each step; else queue ``k``'s), when the grid
+        column of queue ``k``'s targets ``rows`` or the Sun's state changes, at a closure, or at the end.
+        """
+        qs, sky, t = self.qs, self.sky, self.t
+        if every_queue:
+            live = np.bincount(qs.queue[self.alive], minlength=len(qs.names)) > 0
+            opens, closes = qs.window_start_s[live], qs.window_end_s[live]
+        else:
+            opens, closes = qs.window_start_s[k:k + 1], qs.window_end_s[k:k + 1]
+        events = [self.end_s, *opens[opens > t], *np.nextafter(closes[closes >= t], math.inf)]
+        events += [cs for cs, _ in self.spans if cs > t]
+        event = min(events)
+        n = max(1, math.ceil((event - t) / step_s))
+        j = sky.index(t)
+        now = np.concatenate([sky.observable[rows, j], sky.refused[rows, j], [sky.dark[j]]])
+        later = np.vstack([sky.observable[rows, j + 1:], sky.refused[rows, j + 1:], sky.dark[None, j + 1:]])
+        changed = np.flatnonzero((later != now[:, None]).any(axis=0))
+        if changed.size:
+            first = j + 1 + int(changed[0])  # the first grid column that differs
+            while n > 1 and sky.index(t + (n - 1) * step_s) >= first:
+                n -= 1
+        return n
 
     def _observe(self, i: int) -> None:
         """Filter change, slew, exposure (Q7); a closure cuts it (Q10)."""
@@ -390,9 +432,15 @@ def _overhead(sky: SkyGrid, qs: QueueSet, pointing: tuple[int, float] | None, la
         return (timing.filter_change_s if change else 0.0) + max(timing.lost_pointing_slew_s,
                                                                   timing.slew.readout_s)
     p, p_end = pointing
-    ha1, ha2 = float(sky.hour_angle(p, p_end)), float(sky.hour_angle(i, t_slew))
-    return float(exposure_overhead_s(ha1, qs.dec[p], dome_azimuth_deg(ha1, qs.dec[p]), ha2, qs.dec[i],
-                                     dome_azimuth_deg(ha2, qs.dec[i]), change, timing))
+    key = (p, p_end, i, t_slew, change, timing.slew, timing.filter_change_s, timing.dome_accel_deg_s2,
+           timing.dome_vmax_deg_s)
+    known = sky.overheads.get(key)
+    if known is None:
+        ha1, ha2 = float(sky.hour_angle(p, p_end)), float(sky.hour_angle(i, t_slew))
+        known = sky.overheads[key] = float(exposure_overhead_s(
+            ha1, qs.dec[p], dome_azimuth_deg(ha1, qs.dec[p]), ha2, qs.dec[i], dome_azimuth_deg(ha2, qs.dec[i]),
+            change, timing))
+    return known
 
 
 def executed_exposures(qs: QueueSet, done: Sequence[ExecutedTarget], epoch: Time) -> tuple[ExecutedExposure, ...]:

@@ -98,9 +98,11 @@ def time_pass_windows(qs: QueueSet, epoch: Time, planned_s: np.ndarray, end_s: f
     if sky is None:
         sky = SkyGrid(qs, epoch, first, end_s, 60.0, timing)
     floors = np.full(len(qs.names), -math.inf)
+    timed = None
     for _ in range(MAX_RETIMES):
-        opens, closes = _timed(qs, epoch, planned_s, end_s, cadence_s + margin_s, slack_s, timing, sky, floors)
-        opens, closes = order_free_windows(qs, epoch, opens, closes, first, end_s, weight, cadence_s, timing, sky)
+        timed = _timed(qs, epoch, planned_s, end_s, cadence_s + margin_s, slack_s, timing, sky, floors, timed)
+        opens, closes = order_free_windows(qs, epoch, timed[0], timed[1], first, end_s, weight, cadence_s, timing,
+                                           sky)
         short = _too_soon(qs, _play(qs, epoch, opens, closes, first, end_s, timing, sky), cadence_s + margin_s)
         if not short:
             break
@@ -111,12 +113,22 @@ def time_pass_windows(qs: QueueSet, epoch: Time, planned_s: np.ndarray, end_s: f
     return opens, closes
 
 
-def _timed(qs, epoch, planned_s, end_s, separation_s, slack_s, timing, sky, floors):
-    """(Q11-Q13) each pass's open (at least its floor) and wide close, pass by pass in plan order."""
+def _timed(qs, epoch, planned_s, end_s, separation_s, slack_s, timing, sky, floors, before=None):
+    """(Q11-Q13) each pass's open (at least its floor) and wide close, pass by pass in plan order.
+
+    ``before``: the result of an earlier call with ``floors`` lower from some pass on, which depends only on
+    the passes before it: those are kept, and the passes are timed again from the first raised floor.
+    """
     k_total = len(qs.names)
     first = float(np.min(planned_s))
     opens, closes = np.full(k_total, math.inf), np.full(k_total, math.inf)
-    for k in range(k_total):
+    start = 0
+    if before is not None:
+        opens, closes, used = before[0].copy(), before[1].copy(), before[2]
+        raised = np.flatnonzero(floors != used)
+        start = int(raised[0]) if raised.size else k_total
+        opens[start:], closes[start:] = math.inf, math.inf
+    for k in range(start, k_total):
         rows = np.flatnonzero(qs.queue == k)
         s_k = float(planned_s[rows].min())
         need = _cadence_open(qs, epoch, opens, closes, rows, planned_s, s_k, end_s, separation_s, timing, sky, k)
@@ -127,7 +139,7 @@ def _timed(qs, epoch, planned_s, end_s, separation_s, slack_s, timing, sky, floo
         done = _play(qs, epoch, opens, closes, first, end_s, timing, sky)
         ends = [d.start_s + d.exposure_s for d in done if qs.queue[d.target] == k and d.status == "processed"]
         closes[k] = min(end_s, (max(ends) if ends else open_k) + slack_s)
-    return opens, closes
+    return opens, closes, floors.copy()
 
 
 def _play(qs, epoch, opens, closes, start_s, end_s, timing, sky) -> tuple[ExecutedTarget, ...]:
@@ -139,6 +151,9 @@ def _cadence_open(qs, epoch, opens, closes, rows, planned_s, s_k, end_s, separat
     """(Q11) the earliest opening of pass ``k`` that keeps each of its fields ``separation_s`` after its other filter."""
     if k == 0 or not np.isfinite(opens[:k]).any():
         return -math.inf
+    earlier = np.isin(qs.queue, np.flatnonzero(np.isfinite(opens[:k])))
+    if not np.isin(qs.field_id[earlier], qs.field_id[rows]).any():
+        return -math.inf  # no field of this pass in an exported pass before it: nothing to wait for
     done = _play(qs, epoch, opens, closes, float(np.min(planned_s)), end_s, timing, sky)
     need = -math.inf
     for d in done:
