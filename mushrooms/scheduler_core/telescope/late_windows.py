@@ -11,8 +11,9 @@ nothing and pushes the passes after it.  Both are decided by the closes.
 * (Q16) each pass k has two candidate closes: the wide one of Q12
   (``slack`` after the model's end of the pass: a late pass is shifted,
   its partner after it) and the tight one
-  ``last_k + max(0, e_k)``, ``last_k`` the model's start of the pass's
-  last exposure on time, ``e_k = min_j (t2_j - t1_j) - cadence`` the least
+  ``last_k + max(0, e_k)``, ``last_k`` the model's end of the pass's
+  last exposure on time (its start before issue 52: the choice after it,
+  where the emptied queue costs a survey exposure, must see it open), ``e_k = min_j (t2_j - t1_j) - cadence`` the least
   excess separation of the pass's pairs on time (0 for a pass without
   pairs): a pass late by more than its pairs' excess is cut.
 * (Q17) the value of a set of closes in a scenario ``s`` is the weight of the
@@ -28,7 +29,7 @@ nothing and pushes the passes after it.  Both are decided by the closes.
   wide ones: pass k takes its tight close when that raises ``Σ_s V_s``
   (Q17's order; ties keep the wide one) and leaves the on-time run at the modelled speed
   exactly as it was (a tight close is never reached before the pass's last
-  exposure starts; it could only drop a target the wide window would take
+  exposure ends; it could only drop a target the wide window would take
   later): the executed plan and ``coverage_as_executed`` are the same with
   either close.
 """
@@ -191,16 +192,22 @@ def _untouched(qs: QueueSet, k: int, run: Sequence[ExecutedTarget], tight: float
     """True when closing pass ``k`` at ``tight`` instead of ``wide`` cannot change ``run`` (started at ``start_s``).
 
     Either the wide window had closed before the run began, or every target of the pass was taken with its
-    exposure starting by ``tight`` (each choice of the pass came no later, and then the pass was empty).
+    exposure ending by ``tight``: each choice of the pass came no later, the pass was then empty, and the
+    choice after its last exposure -- where ztf_sim's scheduler finds the queue emptied inside its window
+    and lets the survey take one exposure (Q3) -- still saw it open.
     """
     if wide < start_s:
         return True
-    taken = {d.target: d.start_s for d in run if d.status == "processed"}
-    return all(int(j) in taken and taken[int(j)] <= tight for j in np.flatnonzero(qs.queue == k))
+    ended = {d.target: d.start_s + d.exposure_s for d in run if d.status == "processed"}
+    return all(int(j) in ended and ended[int(j)] <= tight for j in np.flatnonzero(qs.queue == k))
 
 
 def _tight_close(qs: QueueSet, k: int, on_time: dict[int, float], cadence_s: float) -> float | None:
-    """(Q16) ``last_k + max(0, e_k)``: the start of the pass's last exposure on time plus its pairs' least excess."""
+    """(Q16) ``last_k + max(0, e_k)``: the end of the pass's last exposure on time plus its pairs' least excess.
+
+    The end, not the start: the choice after the last exposure must still find the queue open, as the wide
+    window does, or the on-time run loses the survey exposure ztf_sim takes there (Q3) and changes.
+    """
     rows = [int(j) for j in np.flatnonzero(qs.queue == k) if j in on_time]
     if not rows:
         return None
@@ -210,7 +217,8 @@ def _tight_close(qs: QueueSet, k: int, on_time: dict[int, float], cadence_s: flo
         for p in other:
             if int(p) in on_time:
                 excess = min(excess, abs(on_time[int(p)] - on_time[j]) - cadence_s)
-    return max(on_time[j] for j in rows) + (max(0.0, excess) if math.isfinite(excess) else 0.0)
+    last_end = max(on_time[j] + float(qs.exposure_s[j]) for j in rows)
+    return last_end + (max(0.0, excess) if math.isfinite(excess) else 0.0)
 
 
 def _play(qs, epoch, opens, closes, start_s, end_s, timing, sky):
