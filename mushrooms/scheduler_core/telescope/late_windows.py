@@ -11,9 +11,10 @@ nothing and pushes the passes after it.  Both are decided by the closes.
 * (Q16) each pass k has two candidate closes: the wide one of Q12
   (``slack`` after the model's end of the pass: a late pass is shifted,
   its partner after it) and the tight one
-  ``last_k + max(0, e_k)``, ``last_k`` the model's end of the pass's
-  last exposure on time (its start before issue 52: the choice after it,
-  where the emptied queue costs a survey exposure, must see it open), ``e_k = min_j (t2_j - t1_j) - cadence`` the least
+  ``max(last_k + max(0, e_k), end_k + 1 s)``, ``last_k`` the model's start
+  of the pass's last exposure on time and ``end_k`` its end (since issue 52:
+  the choice after it, where the emptied queue costs a survey exposure,
+  must see the queue open), ``e_k = min_j (t2_j - t1_j) - cadence`` the least
   excess separation of the pass's pairs on time (0 for a pass without
   pairs): a pass late by more than its pairs' excess is cut.
 * (Q17) the value of a set of closes in a scenario ``s`` is the weight of the
@@ -52,6 +53,8 @@ __all__ = ["robust_closes", "pair_value", "rule_values", "better", "LATE_SCENARI
 LATE_SCENARIOS_S = (900.0, 1800.0, 3600.0)
 #: Overhead factors (slower > 1, faster < 1) of an on-time telescope the closes are chosen for (Q17).
 SPEED_SCENARIOS = (0.8, 1.2)
+#: A tight close is at least this long (s) after the pass's last exposure ends (the window's MJD is rounded).
+AFTER_END_S = 1.0
 #: The switch rules a set of windows is valued under, in order of weight (Q17): ztf_sim's, then first-wins.
 RULE_ORDER = ("last", "first")
 
@@ -203,10 +206,11 @@ def _untouched(qs: QueueSet, k: int, run: Sequence[ExecutedTarget], tight: float
 
 
 def _tight_close(qs: QueueSet, k: int, on_time: dict[int, float], cadence_s: float) -> float | None:
-    """(Q16) ``last_k + max(0, e_k)``: the end of the pass's last exposure on time plus its pairs' least excess.
+    """(Q16) ``last_k + max(0, e_k)``: the start of the pass's last exposure on time plus its pairs' least
+    excess, and never before that exposure ends.
 
-    The end, not the start: the choice after the last exposure must still find the queue open, as the wide
-    window does, or the on-time run loses the survey exposure ztf_sim takes there (Q3) and changes.
+    The choice after the last exposure must still find the queue open, as the wide window does, or the
+    on-time run loses the survey exposure ztf_sim takes there (Q3) and changes.
     """
     rows = [int(j) for j in np.flatnonzero(qs.queue == k) if j in on_time]
     if not rows:
@@ -217,8 +221,9 @@ def _tight_close(qs: QueueSet, k: int, on_time: dict[int, float], cadence_s: flo
         for p in other:
             if int(p) in on_time:
                 excess = min(excess, abs(on_time[int(p)] - on_time[j]) - cadence_s)
-    last_end = max(on_time[j] + float(qs.exposure_s[j]) for j in rows)
-    return last_end + (max(0.0, excess) if math.isfinite(excess) else 0.0)
+    last = max(rows, key=lambda j: on_time[j])
+    tight = on_time[last] + (max(0.0, excess) if math.isfinite(excess) else 0.0)
+    return max(tight, on_time[last] + float(qs.exposure_s[last]) + AFTER_END_S)
 
 
 def _play(qs, epoch, opens, closes, start_s, end_s, timing, sky):
