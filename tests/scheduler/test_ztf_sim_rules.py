@@ -3,8 +3,8 @@
 ztf_sim at c5ab409: ``simulate.py`` switches queues with ``check_for_timed_queue_and_switch``,
 which takes the *last* valid, non-empty queue in submission order; a target below the horizon
 passes ``_next_obs``'s airmass cut (its airmass is negative), its slew is refused and the
-telescope waits 30 s and tries it again; a queue emptied inside its window raises
-``QueueEmptyError`` and the survey takes one exposure before the next queue.  Epoch
+telescope waits 30 s and tries it again; in ``simulate.py`` a queue emptied inside its window raises
+``QueueEmptyError`` and the survey takes one exposure before the next queue (an option here, Q3).  Epoch
 2026-03-20 06:00 UTC at Palomar (the Sun 47 deg down); times found here with astropy.
 """
 
@@ -38,9 +38,9 @@ def queue(name, targets, opens_s=0.0, closes_s=NIGHT_S):
             "user": "x", "targets": targets}
 
 
-def run(queues, start_s=0.0, end_s=NIGHT_S):
+def run(queues, start_s=0.0, end_s=NIGHT_S, timing=TIMING):
     qs = queue_set_from_payloads(queues, EPOCH)
-    done = execute_queues(qs, EPOCH, start_s, end_s)
+    done = execute_queues(qs, EPOCH, start_s, end_s, timing)
     return {int(qs.field_id[d.target]): d for d in done}
 
 
@@ -56,12 +56,18 @@ def test_from_the_default_queue_the_last_open_queue_in_submission_order_is_taken
     assert 1200.0 <= done[106].start_s <= 1200.0 + TIMING.survey_step_s + TIMING.lost_pointing_slew_s + 1e-6
 
 
-def test_an_emptied_queue_costs_one_survey_exposure_before_the_next_queue():
-    done = run([queue("q_1", [UP_A]), queue("q_2", [UP_B])])
+def test_as_simulate_py_runs_it_an_emptied_queue_costs_one_survey_exposure_before_the_next_queue():
+    from mushrooms.scheduler_core.telescope.rules import SIMULATE_PY_RULES
+
+    queues = [queue("q_1", [UP_A]), queue("q_2", [UP_B])]
+    done = run(queues, timing=TelescopeTiming(rules=SIMULATE_PY_RULES))
     first, second = done[102], done[101]
     gap = second.start_s - (first.start_s + first.exposure_s)
     # QueueEmptyError from the emptied q_2, the survey's exposure, then q_1 from a lost pointing
     assert gap == pytest.approx(TIMING.survey_step_s + TIMING.lost_pointing_slew_s, abs=1e-6)
+    # the default leaves an emptied queue at once (a server that runs the ToO switch every 10 s, Q3)
+    done = run(queues)
+    assert done[101].start_s - (done[102].start_s + done[102].exposure_s) < TIMING.survey_step_s
 
 
 def _ha_limit_s(ra, ha_max_h=5.95):

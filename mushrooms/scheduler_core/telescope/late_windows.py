@@ -11,10 +11,9 @@ nothing and pushes the passes after it.  Both are decided by the closes.
 * (Q16) each pass k has two candidate closes: the wide one of Q12
   (``slack`` after the model's end of the pass: a late pass is shifted,
   its partner after it) and the tight one
-  ``max(last_k + max(0, e_k), end_k + 1 s)``, ``last_k`` the model's start
-  of the pass's last exposure on time and ``end_k`` its end (since issue 52:
-  the choice after it, where the emptied queue costs a survey exposure,
-  must see the queue open), ``e_k = min_j (t2_j - t1_j) - cadence`` the least
+  ``last_k + max(0, e_k)``, ``last_k`` the model's start of the pass's
+  last exposure on time (with ``emptied = "survey"``, Q3, at least 1 s
+  after that exposure's end: the choice after it must see the queue open), ``e_k = min_j (t2_j - t1_j) - cadence`` the least
   excess separation of the pass's pairs on time (0 for a pass without
   pairs): a pass late by more than its pairs' excess is cut.
 * (Q17) the value of a set of closes in a scenario ``s`` is the weight of the
@@ -29,9 +28,9 @@ nothing and pushes the passes after it.  Both are decided by the closes.
 * (Q18) the closes are chosen pass by pass in plan order, starting from the
   wide ones: pass k takes its tight close when that raises ``Σ_s V_s``
   (Q17's order; ties keep the wide one) and leaves the on-time run at the modelled speed
-  exactly as it was (a tight close is never reached before the pass's last
-  exposure ends; it could only drop a target the wide window would take
-  later): the executed plan and ``coverage_as_executed`` are the same with
+  exactly as it was (checked: a run that takes every target of the pass,
+  each exposure ending by the tight close, is left as it was; any other
+  is run again): the executed plan and ``coverage_as_executed`` are the same with
   either close.
 """
 
@@ -53,7 +52,8 @@ __all__ = ["robust_closes", "pair_value", "rule_values", "better", "LATE_SCENARI
 LATE_SCENARIOS_S = (900.0, 1800.0, 3600.0)
 #: Overhead factors (slower > 1, faster < 1) of an on-time telescope the closes are chosen for (Q17).
 SPEED_SCENARIOS = (0.8, 1.2)
-#: A tight close is at least this long (s) after the pass's last exposure ends (the window's MJD is rounded).
+#: With ``emptied = "survey"`` a tight close is at least this long (s) after the pass's last exposure ends
+#: (the window's MJD is rounded).
 AFTER_END_S = 1.0
 #: The switch rules a set of windows is valued under, in order of weight (Q17): ztf_sim's, then first-wins.
 RULE_ORDER = ("last", "first")
@@ -173,7 +173,7 @@ def robust_closes(qs: QueueSet, epoch: Time, opens: np.ndarray, closes: np.ndarr
     played = runs(chosen)
     best = score(played)
     for k in np.flatnonzero(exported):
-        tight = _tight_close(qs, k, on_time, cadence_s)
+        tight = _tight_close(qs, k, on_time, cadence_s, timing.rules.emptied == "survey")
         if tight is None or not tight < chosen[k]:
             continue
         if all(_untouched(qs, k, run, tight, chosen[k], start) for run, (start, _) in zip(played, scenarios)):
@@ -196,8 +196,8 @@ def _untouched(qs: QueueSet, k: int, run: Sequence[ExecutedTarget], tight: float
 
     Either the wide window had closed before the run began, or every target of the pass was taken with its
     exposure ending by ``tight``: each choice of the pass came no later, the pass was then empty, and the
-    choice after its last exposure -- where ztf_sim's scheduler finds the queue emptied inside its window
-    and lets the survey take one exposure (Q3) -- still saw it open.
+    choice after its last exposure -- where ``simulate.py``'s scheduler finds the queue emptied inside its
+    window and lets the survey take one exposure (Q3, ``emptied = "survey"``) -- still saw it open.
     """
     if wide < start_s:
         return True
@@ -205,12 +205,13 @@ def _untouched(qs: QueueSet, k: int, run: Sequence[ExecutedTarget], tight: float
     return all(int(j) in ended and ended[int(j)] <= tight for j in np.flatnonzero(qs.queue == k))
 
 
-def _tight_close(qs: QueueSet, k: int, on_time: dict[int, float], cadence_s: float) -> float | None:
+def _tight_close(qs: QueueSet, k: int, on_time: dict[int, float], cadence_s: float,
+                 survey_when_emptied: bool = False) -> float | None:
     """(Q16) ``last_k + max(0, e_k)``: the start of the pass's last exposure on time plus its pairs' least
-    excess, and never before that exposure ends.
+    excess; with ``emptied = "survey"`` never before that exposure ends.
 
-    The choice after the last exposure must still find the queue open, as the wide window does, or the
-    on-time run loses the survey exposure ztf_sim takes there (Q3) and changes.
+    There the choice after the last exposure must still find the queue open, as the wide window does, or the
+    on-time run loses the survey exposure ``simulate.py`` takes there (Q3) and changes.
     """
     rows = [int(j) for j in np.flatnonzero(qs.queue == k) if j in on_time]
     if not rows:
@@ -223,6 +224,8 @@ def _tight_close(qs: QueueSet, k: int, on_time: dict[int, float], cadence_s: flo
                 excess = min(excess, abs(on_time[int(p)] - on_time[j]) - cadence_s)
     last = max(rows, key=lambda j: on_time[j])
     tight = on_time[last] + (max(0.0, excess) if math.isfinite(excess) else 0.0)
+    if not survey_when_emptied:
+        return tight
     return max(tight, on_time[last] + float(qs.exposure_s[last]) + AFTER_END_S)
 
 

@@ -19,18 +19,21 @@ BSD-3-Clause licence; facts cited, no code taken), ``docs/design/executed.md``:
   first in list order, until it leaves the checks (``refused = "retry"``).
   ``"skip"`` passes it over like any unobservable target (the old rule).
 * (Q3) a list queue whose last target was taken stays the current queue
-  while its window is open; the next choice raises ``QueueEmptyError``
-  (``QueueManager.py`` line 1216) and ``simulate.py`` lines 135-142 fall
-  back to the default queue, whose survey takes that exposure; only then
-  does the switch of Q1 run (``emptied = "survey"``).  ``"switch"`` goes
-  straight to the next queue (the old rule).
+  while its window is open; in ``simulate.py`` the next choice raises
+  ``QueueEmptyError`` (``QueueManager.py`` line 1216) and lines 135-142
+  fall back to the default queue, whose survey takes that exposure; only
+  then does the switch of Q1 run (``emptied = "survey"``).  A server that
+  drives the P48 with ztf_sim's ``Scheduler`` (public code, read for
+  issue 52) removes a request when it is sent and runs the ToO switch every
+  10 s, so an emptied ToO queue is left for the next open one during its
+  last exposure: ``"switch"``, the default, goes straight to the next queue.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["QueueRules", "SWITCHES", "ZTF_SIM_RULES", "FIRST_WINS_RULES", "PRE_ISSUE52_RULES"]
+__all__ = ["QueueRules", "SWITCHES", "ZTF_SIM_RULES", "SIMULATE_PY_RULES", "FIRST_WINS_RULES", "PRE_ISSUE52_RULES"]
 
 #: ``QueueRules.switch`` values: the last (ztf_sim's main loop) or the first valid queue in submission order.
 SWITCHES = ("last", "first")
@@ -52,8 +55,9 @@ class QueueRules:
         holds its queue, retried every ``retry_s``; ``skip``: it is passed
         over (Q2).
     emptied : str
-        ``survey`` (ztf_sim): a queue emptied inside its window costs one
-        survey exposure before the next queue is taken; ``switch``: none (Q3).
+        ``switch`` (default): the next queue is taken at once; ``survey``
+        (``simulate.py``): a queue emptied inside its window costs one survey
+        exposure before the next queue is taken (Q3).
     retry_s : float
         Wait (s) after a refused slew (ztf_sim ``TelescopeStateMachine.wait``,
         ``EXPOSURE_TIME`` = 30 s).
@@ -61,7 +65,7 @@ class QueueRules:
 
     switch: str = "last"
     refused: str = "retry"
-    emptied: str = "survey"
+    emptied: str = "switch"
     retry_s: float = 30.0
 
     def __post_init__(self) -> None:
@@ -74,9 +78,11 @@ class QueueRules:
             raise ValueError(f"QueueRules.retry_s must be > 0, got {self.retry_s}")
 
 
-#: ztf_sim's main loop at c5ab409 (the executor's default).
+#: The executor's default: ztf_sim's queue switch and refused slews; an emptied queue left at once.
 ZTF_SIM_RULES = QueueRules()
+#: ``simulate.py`` to the letter: an emptied queue costs a survey exposure too.
+SIMULATE_PY_RULES = QueueRules(emptied="survey")
 #: The same, but the first valid queue in submission order is taken (a switch with a ``break``).
 FIRST_WINS_RULES = QueueRules(switch="first")
-#: The executor before issue 52: first-wins, refused targets skipped, no survey exposure after an emptied queue.
-PRE_ISSUE52_RULES = QueueRules(switch="first", refused="skip", emptied="switch")
+#: The executor before issue 52: first-wins, refused targets skipped.
+PRE_ISSUE52_RULES = QueueRules(switch="first", refused="skip")
