@@ -19,10 +19,12 @@ in :mod:`.rules` and ``docs/design/executed.md``):
   passed over stay queued (Q2); ``QueueEmptyError`` when none passes.  A
   target that passes but whose slew ``slew_allowed`` refuses (below 10 deg)
   holds the queue: the telescope waits 30 s and tries it again.
-* ``simulate.py``: on ``QueueEmptyError`` (none passes, or the queue is
-  empty) the scheduler falls back to the default queue, whose survey
-  observes meanwhile (one exposure, ``survey_step_s``) and the ToO pointing
-  is lost (Q3); the next choice starts again from Q1.  Nothing is observed
+* ``simulate.py``: on ``QueueEmptyError`` (none passes) the scheduler falls
+  back to the default queue, whose survey observes meanwhile (one exposure,
+  ``survey_step_s``) and the ToO pointing is lost (Q3); the next choice
+  starts again from Q1.  An emptied queue is left at once by default (a
+  survey exposure first with ``rules.emptied = "survey"``, as
+  ``simulate.py`` does).  Nothing is observed
   with the Sun above 12 deg below the horizon
   (``TelescopeStateMachine.can_observe``, Q9).
 * ``TelescopeStateMachine``: filter change, then slew (Q7,
