@@ -24,7 +24,7 @@ from .clock import on_merger_clock
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .sky.skymap import SkyMap
-from .schedulers.as_executed import AS_EXECUTED_MEMO, execution_key, queue_coverage
+from .schedulers.as_executed import AS_EXECUTED_MEMO, execution_key, queue_coverages
 from .solvers_registry import SOLVER_NAMES, get_scheduler, unknown_solver_message
 
 __all__ = ["make_plan", "build_plan", "run_scheduler", "optimise", "coverage_stage_problem", "greedy_coverage",
@@ -390,17 +390,26 @@ def build_plan(
         supersedes=supersedes,
         config=json.loads(json.dumps(config.record())),  # JSON types (tuples become lists)
     )
-    executed = round(_coverage_as_executed(plan, problem, result), 6) if observations else None
+    executed, whole = _coverage_as_executed(plan, problem, result) if observations else (None, None)
     return plan.with_(metrics=dataclasses.replace(
         metrics, expected_detections=_expected_detections(plan, problem, skymap, result),
-        coverage_as_executed=executed))
+        coverage_as_executed=None if executed is None else round(executed, 6),
+        sequence_coverage_as_executed=None if whole is None else round(whole, 6)))
 
 
-def _coverage_as_executed(plan: Plan, problem: PlanningProblem, result: ScheduleResult) -> float:
-    """``metrics.coverage_as_executed``: the portfolio's value for this very plan when it has one, else the executor's."""
-    memo = result.details.get(AS_EXECUTED_MEMO, {})
-    known = memo.get(execution_key(problem, plan.observations)) if memo else None
-    return float(known) if known is not None else queue_coverage(plan, problem.footprints, problem.prob)
+def _coverage_as_executed(plan: Plan, problem: PlanningProblem, result: ScheduleResult) -> tuple[float, float]:
+    """``metrics.coverage_as_executed`` and ``sequence_coverage_as_executed`` (Q14, Q21).
+
+    For a pair the portfolio's value for this very plan when it has one (the
+    two are equal), else one run of the executor for both.
+    """
+    if len(problem.config.filters) <= 2:
+        memo = result.details.get(AS_EXECUTED_MEMO, {})
+        known = memo.get(execution_key(problem, plan.observations)) if memo else None
+        if known is not None:
+            return float(known), float(known)
+    pair, whole = queue_coverages(plan, problem.footprints, problem.prob)
+    return pair, float(pair if whole is None else whole)
 
 
 def _with_airmass_and_probability(observations: tuple[Observation, ...],

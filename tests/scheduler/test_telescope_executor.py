@@ -19,6 +19,7 @@ from mushrooms.scheduler_core.executed import done_pairs
 from mushrooms.scheduler_core.sky.visibility import site
 from mushrooms.scheduler_core.telescope import TelescopeTiming, execute_queues, queue_set_from_payloads
 from mushrooms.scheduler_core.telescope.executor import executed_exposures
+from mushrooms.scheduler_core.telescope.rules import FIRST_WINS_RULES
 
 configure_astropy_offline()
 EPOCH = Time("2026-03-20T06:00:00", scale="utc")
@@ -91,9 +92,11 @@ def test_one_list_queue_squeezes_the_second_visit_below_the_cadence():
     assert set(done_pairs(ex, cadence_s=1800.0).both) == {101, 102}
 
 
-def test_a_window_that_opens_later_holds_its_queue_and_the_first_submitted_goes_first():
+def test_a_window_that_opens_later_holds_its_queue_and_first_wins_takes_the_first_submitted():
     later = [target(106, LST + 5.0, 20.0)]
-    qs, done = run([queue("q_1", [UP_A]), queue("q_2", later, opens_s=1200.0), queue("q_3", [UP_B])])
+    first_wins = TelescopeTiming(rules=FIRST_WINS_RULES)  # a switch with a break (ztf_sim's takes the last: Q1)
+    qs, done = run([queue("q_1", [UP_A]), queue("q_2", later, opens_s=1200.0), queue("q_3", [UP_B])],
+                   timing=first_wins)
     by_field = {int(qs.field_id[d.target]): d.start_s for d in done}
     assert by_field[101] < by_field[102] < by_field[106]  # (Q1) submission order among the open queues
     # q_2 opened at 1200 s, after the survey had the telescope (steps of one survey exposure)

@@ -43,7 +43,8 @@ EVENT_KEYS = ("superevent_id", "alert_type", "time_created", "skymap_sha256", "l
 METRIC_KEYS = (
     "coverage", "solver", "status", "mip_gap", "mip_bound", "runtime_s",
     "n_fields", "n_exposures", "latency_s", "upper_bound", "upper_bound_method",
-    "expected_detections", "coverage_executed", "coverage_as_executed", "budget",
+    "expected_detections", "coverage_executed", "coverage_as_executed", "sequence_coverage_as_executed",
+    "budget",
 )
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
 #: The fields of a plan document that say when and how fast it was made (docs/design/plan-format.md): under the
@@ -239,6 +240,13 @@ class PlanMetrics:
         (:func:`.exports.to_trigger_queues`) on a clear night from the
         plan's first observation: what of ``coverage`` survives execution.
         None when not computed (a plan read from an older document).
+    sequence_coverage_as_executed : float or None
+        The same run of the queues, counting only the fields whose every
+        visit of the filter sequence is executed, each at least the cadence
+        after the previous (F2, ``docs/design/sequences.md``; Q21 of
+        ``docs/design/executed.md``): what of a g-r-g plan is done whole.
+        Equal to ``coverage_as_executed`` for a pair or a single filter; at
+        most it.  None when not computed.
     budget : dict or None
         The budget the optimisation ran under (:mod:`..budget`): ``kind``
         ``work`` (``unit`` ``work_s``, the ``spent`` work: a function of the
@@ -261,6 +269,7 @@ class PlanMetrics:
     expected_detections: float | None = None
     coverage_executed: float | None = None
     coverage_as_executed: float | None = None
+    sequence_coverage_as_executed: float | None = None
     budget: dict | None = None
 
 

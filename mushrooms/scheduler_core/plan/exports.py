@@ -168,15 +168,18 @@ def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_
     first when both are g), in plan order, named
     ``f"{name_base}_{k}"`` (k = 1..K), each holding the pass's observations
     in plan order.  ZTF's scheduler (``docs/design/executed.md``, Q1-Q3)
-    takes, from its survey, the first queue in submission order whose window
-    is open and which has targets, and runs it as fast as it can; so each
+    takes, from its survey, the last queue in submission order whose window
+    is open and which has targets (ztf_sim's main loop; a first-wins
+    scheduler the first), and runs it as fast as it can; so each
     pass's window opens at its planned start, or later when the telescope
     model (:func:`~..telescope.queue_windows.time_pass_windows`) says one of
     its fields would otherwise come back sooner than the cadence (plus a
-    margin) after its other filter, and closes a slack after the model's end
-    of the pass, or sooner when that keeps more pairs with the telescope
-    late or off-speed (Q16-Q18, ``robust``).  A pass that could not open
-    before the plan's end is left out.
+    margin) after its previous visit, and closes a slack after the model's
+    end of the pass, or sooner when two queues would be open at one switch
+    of the on-time run (Q20: the set runs the same under either rule) or
+    when that keeps more pairs with the telescope late or off-speed
+    (Q16-Q18, ``robust``).  A pass that could not open before the plan's
+    end is left out.
 
     Parameters
     ----------
@@ -235,9 +238,10 @@ def _timed_passes(plan: "Plan", export: ExportConfig, name_base: str | None, sla
     planned = np.asarray([o.start for o in plan.observations], float)
     sky = SkyGrid(qs, plan.start, float(planned.min()), end_s, 60.0, TelescopeTiming())
     cadence_s = float((plan.config or {}).get("cadence_s", 1800.0))
-    weight = np.asarray([_field_weight(o) for o in plan.observations], float) if robust else None
+    weight = np.asarray([_field_weight(o) for o in plan.observations], float)
     opens, closes = time_pass_windows(qs, plan.start, planned, end_s, cadence_s,
-                                      slack_s=PASS_SLACK_S if slack_s is None else slack_s, sky=sky, weight=weight)
+                                      slack_s=PASS_SLACK_S if slack_s is None else slack_s, sky=sky, weight=weight,
+                                      robust=robust)
     out, kept = [], []
     for (a, b), draft, t_open, t_close in zip(passes, drafts, opens, closes):
         if not t_open < end_s:

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 import numpy as np
 
+from ..config import ONE_NIGHT_PAIR_S
 from ..executed import MIN_PROCESSED_FRACTION, ExecutedExposure, is_done
-from ..sequences import covered_fields
+from ..sequences import covered_fields, sequence_progress
 from ..telescope.executor import execute_queues, executed_exposures, queue_set_from_payloads
 from ..telescope.timing import TelescopeTiming
 
@@ -15,7 +17,7 @@ if TYPE_CHECKING:
     from ..plan.document import Plan
     from ..sky.footprints import Footprints
 
-__all__ = ["cadence_coverage", "execute_plan_queues", "queue_coverage",
+__all__ = ["cadence_coverage", "sequence_coverage", "execute_plan_queues", "queue_coverage", "queue_coverages",
            "keyed_coverage_as_executed", "execution_key", "AS_EXECUTED_MEMO"]
 
 #: ``ScheduleResult.details`` key of the executed coverages already computed: :func:`execution_key` -> value.
@@ -42,6 +44,24 @@ def cadence_coverage(executed: Iterable[ExecutedExposure], footprints: "Footprin
     if missing:
         raise ValueError(f"field(s) {missing[:5]} not in the footprints")
     return float(footprints.coverage(sorted(ids), prob)) if ids else 0.0
+
+
+def sequence_coverage(executed: Iterable[ExecutedExposure], footprints: "Footprints", prob: np.ndarray,
+                      filters: tuple[str, ...] = ("g", "r"), cadence_s: float = 0.0,
+                      max_separation_s: float = math.inf,
+                      min_processed_fraction: float = MIN_PROCESSED_FRACTION) -> float:
+    """Probability inside the fields whose whole sequence is done (F2: ``n = k``; Q21).
+
+    Each visit counted at least ``cadence_s`` after the previous counted one
+    and at most ``max_separation_s`` after the first; for a pair (or one
+    filter) the fields :func:`cadence_coverage` counts, within the separation.
+    """
+    progress = sequence_progress(executed, filters, min_processed_fraction, cadence_s, max_separation_s)
+    ids = sorted(f for f, p in progress.items() if p.done >= len(tuple(filters)))
+    missing = sorted(set(ids) - {int(f) for f in footprints.field_ids})
+    if missing:
+        raise ValueError(f"field(s) {missing[:5]} not in the footprints")
+    return float(footprints.coverage(ids, prob)) if ids else 0.0
 
 
 def execute_plan_queues(plan: "Plan", queues: Sequence[dict[str, Any]] | None = None, late_s: float = 0.0,
@@ -84,11 +104,30 @@ def queue_coverage(plan: "Plan", footprints: "Footprints", prob: np.ndarray,
     The plan's own filter sequence and cadence (its ``config``) decide what
     covers a field (F1).
     """
+    return queue_coverages(plan, footprints, prob, queues, late_s, timing, sequence=False)[0]
+
+
+def queue_coverages(plan: "Plan", footprints: "Footprints", prob: np.ndarray,
+                    queues: Sequence[dict[str, Any]] | None = None, late_s: float = 0.0,
+                    timing: TelescopeTiming = TelescopeTiming(), sequence: bool = True) -> tuple[float, float | None]:
+    """One run of a plan's queues, two scores: ``coverage_as_executed`` (Q14) and ``sequence_coverage_as_executed`` (Q21).
+
+    The second is the probability inside the fields whose every visit of the
+    plan's sequence is executed (F2, each a cadence after the previous one,
+    the last within the pair separation ``M`` of the first); for a pair or a
+    single filter it is the first.  ``sequence=False`` skips it (None).
+    """
     config = plan.config or {}
     filters = tuple(config.get("filters", ("g", "r")))
     cadence_s = float(config.get("cadence_s", 1800.0))
     executed = execute_plan_queues(plan, queues, late_s, timing)
-    return cadence_coverage(executed, footprints, prob, filters, cadence_s)  # type: ignore[arg-type]
+    pair = cadence_coverage(executed, footprints, prob, filters, cadence_s)  # type: ignore[arg-type]
+    if not sequence:
+        return pair, None
+    if len(filters) <= 2:
+        return pair, pair
+    separation = float(config.get("pair_max_s") or 0.0) or ONE_NIGHT_PAIR_S
+    return pair, sequence_coverage(executed, footprints, prob, filters, cadence_s, separation)  # type: ignore[arg-type]
 
 
 def execution_key(problem: Any, observations: Sequence[Any]) -> tuple:

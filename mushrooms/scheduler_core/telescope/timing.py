@@ -18,12 +18,13 @@ ztf_sim's (0.5 deg s^-2, 3 deg s^-1).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..config import SlewModel
+from .rules import QueueRules
 from .slew import axis_time
 
 __all__ = ["TelescopeTiming", "exposure_overhead_s", "dome_azimuth_deg", "PALOMAR_LAT_DEG"]
@@ -55,6 +56,9 @@ class TelescopeTiming:
         (ztf_sim ``TelescopeStateMachine.wait`` = ``EXPOSURE_TIME``, 30 s) plus its readout.
     lost_pointing_slew_s : float
         Slew (s) charged after the survey had the telescope (where it pointed is unknown).
+    rules : QueueRules
+        How the scheduler switches queues and treats a target it cannot
+        slew to (:mod:`.rules`; default ztf_sim's main loop).
     """
 
     slew: SlewModel = field(default_factory=SlewModel)
@@ -66,6 +70,7 @@ class TelescopeTiming:
     sun_alt_max_deg: float = -12.0
     survey_step_s: float = 38.0
     lost_pointing_slew_s: float = 20.0
+    rules: QueueRules = field(default_factory=QueueRules)
 
     def __post_init__(self) -> None:
         for name in ("dome_accel_deg_s2", "dome_vmax_deg_s", "survey_step_s"):
@@ -74,6 +79,10 @@ class TelescopeTiming:
         for name in ("filter_change_s", "lost_pointing_slew_s"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+
+    def with_switch(self, switch: str) -> "TelescopeTiming":
+        """The same telescope, its scheduler switching to the ``switch`` (``first`` or ``last``) valid queue (Q1)."""
+        return replace(self, rules=replace(self.rules, switch=switch))
 
     def scaled(self, factor: float) -> "TelescopeTiming":
         """The same telescope ``factor`` times slower (> 1) or faster (< 1) in every overhead."""
@@ -86,7 +95,7 @@ class TelescopeTiming:
                                filter_change_s=self.filter_change_s * factor, max_airmass=self.max_airmass,
                                ha_max_h=self.ha_max_h, sun_alt_max_deg=self.sun_alt_max_deg,
                                survey_step_s=self.survey_step_s,
-                               lost_pointing_slew_s=self.lost_pointing_slew_s * factor)
+                               lost_pointing_slew_s=self.lost_pointing_slew_s * factor, rules=self.rules)
 
 
 def dome_azimuth_deg(ha_deg: ArrayLike, dec_deg: ArrayLike, lat_deg: float = PALOMAR_LAT_DEG) -> np.ndarray:
