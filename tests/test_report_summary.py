@@ -38,7 +38,11 @@ def test_the_summary_tells_the_event_the_timing_and_one_row_per_exposure(doc):
     assert "Event      MS220722v (PRELIMINARY)" in text
     assert "Source     BNS 90 %, NSBH 5 %, Terrestrial 5 %; p_astro 0.95" in text
     assert "one false alarm per 3.2e+02 years" in text
-    assert "Queue      ToO_MS220722v" in text
+    assert "Queue" not in text  # no name is guessed: the caller gives the names of the one rule
+    names = ("ToO_GW_MS220722v_0123abcd_1", "ToO_GW_MS220722v_0123abcd_2", "ToO_GW_MS220722v_0123abcd_3")
+    named = summary_text(doc, queues=names, queue_note="submitted to kowalski")
+    assert ("Queue      3 queues, one per filter pass (submitted to kowalski): ToO_GW_MS220722v_0123abcd_1 … "
+            "ToO_GW_MS220722v_0123abcd_3\n") in named
     assert re.search(r"First      \d{4}-\d\d-\d\d \d\d:\d\d UTC \(\d\d:\d\d P[DS]T at Palomar\), starts in 4 h 45 min",
                      text)
     rows = [line for line in text.splitlines() if re.match(r"^\s+\d+\s+[gri]\s+\d\d-\d\d ", line)]

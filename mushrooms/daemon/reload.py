@@ -32,7 +32,7 @@ def reload_service(service: Any) -> None:
     service.notifier.reloading()
     try:
         new = service.reload_config() if service.reload_config is not None else service.config
-        sink = service.pipeline.sink if new.outbound == service.config.outbound else make_sink(new.outbound)
+        sink = service.pipeline.sink if new.outbound == service.config.outbound else make_sink(new.outbound, new, service.pipeline.store)
     except Exception as exc:  # a bad file, bad sink settings, a missing password: keep running as before
         log.error("event=reload_failed error=%r (keeping the running configuration)", str(exc))
         service.notifier.ready("reload failed; old configuration kept")

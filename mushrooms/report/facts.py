@@ -57,6 +57,7 @@ class PlanFacts:
     revision: int | None
     final: bool | None
     queues: tuple[str, ...]
+    queue_note: str
     first: dt.datetime | None
     last_end: dt.datetime | None
     n_fields: int
@@ -131,14 +132,14 @@ def depth_words(rows: Sequence[ExposureRow]) -> str | None:
 
 
 def _queues(doc: Mapping[str, Any], queues: Sequence[str] | None) -> tuple[str, ...]:
-    """The ZTF queue name(s) of the revision: given, else the document's ``queues``, else the default name."""
+    """The ZTF queue names of the revision: given, else the document's ``queues``, else none (a name is never
+    guessed: the names come from the one rule, ``exports.queue_name_base``, through the caller)."""
     if queues:
         return tuple(queues)
     listed = doc.get("queues")
     if isinstance(listed, list) and listed:
         return tuple(str(q.get("queue_name", q) if isinstance(q, Mapping) else q) for q in listed)
-    superevent = (doc.get("event") or {}).get("superevent_id")
-    return (f"ToO_{superevent}",) if superevent else ()
+    return ()
 
 
 def _timing(obs: Sequence[Mapping[str, Any]]) -> tuple[float, float, float]:
@@ -154,7 +155,7 @@ def _timing(obs: Sequence[Mapping[str, Any]]) -> tuple[float, float, float]:
     return shutter, overhead, waiting
 
 
-def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None) -> PlanFacts:
+def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None, queue_note: str = "") -> PlanFacts:
     """The facts of a plan (or not_observable) document.
 
     Parameters
@@ -162,8 +163,10 @@ def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None) -> P
     doc : mapping
         A plan document (``type`` ``plan`` or ``not_observable``).
     queues : sequence of str, optional
-        The ZTF queue name(s) the revision went to (default: the document's
-        ``queues``, else ``ToO_<superevent>``).
+        The ZTF queue names the revision went (or would go) to, in
+        submission order (default: the document's ``queues``, else none shown).
+    queue_note : str
+        What became of them (``submitted to kowalski``, ``not submitted: ...``).
     """
     event = doc.get("event") or {}
     metrics = doc.get("metrics") or {}
@@ -181,7 +184,7 @@ def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None) -> P
     reasons = tuple(r.get("sentence", str(r)) if isinstance(r, Mapping) else str(r) for r in reasons)
     return PlanFacts(
         kind=str(doc.get("type", "plan")), title=str(title), event=event, revision=doc.get("revision"),
-        final=doc.get("final"), queues=_queues(doc, queues) if obs else (),
+        final=doc.get("final"), queues=_queues(doc, queues) if obs else (), queue_note=queue_note,
         first=rows[0].start if rows else None, last_end=_utc(obs[-1]["end"]) if obs else None,
         n_fields=len({r.field_id for r in rows}), n_exposures=len(rows),
         filters=_filters(doc, rows), open_shutter_s=shutter, overhead_s=overhead,

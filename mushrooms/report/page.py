@@ -14,7 +14,7 @@ import html
 from typing import Any, Mapping, Sequence
 
 from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts
-from .summary import answer_line, bound_sentence, event_lines, starts_in, status_words
+from .summary import answer_line, bound_sentence, event_lines, queue_words, starts_in, status_words
 
 __all__ = ["summary_html"]
 
@@ -34,8 +34,9 @@ def _cell(text: Any) -> str:
 def _stats(facts: PlanFacts, now: dt.datetime) -> list[tuple[str, str]]:
     """(label, value) rows of the statistics table."""
     rows = [(line[:10].strip(), line[10:].strip()) for line in event_lines(facts.event)]
-    if facts.queues:
-        rows.append(("Queue", ", ".join(facts.queues)))
+    queue = queue_words(facts, every=True)
+    if queue:
+        rows.append(("Queue", queue))
     if facts.first is not None and facts.last_end is not None:
         rows += [("First exposure", f"{facts.first:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.first)} at Palomar), "
                                     f"{starts_in(facts.first, now)}"),
@@ -78,7 +79,7 @@ def _exposure_table(facts: PlanFacts) -> str:
 
 
 def summary_html(doc: Mapping[str, Any], picture_png: bytes | None = None, now: dt.datetime | None = None,
-                 queues: Sequence[str] | None = None) -> str:
+                 queues: Sequence[str] | None = None, queue_note: str = "") -> str:
     """A self-contained HTML page of a plan or not_observable document.
 
     Parameters
@@ -90,10 +91,12 @@ def summary_html(doc: Mapping[str, Any], picture_png: bytes | None = None, now: 
     now : datetime, optional
         The clock of "starts in" (default: now, UTC).
     queues : sequence of str, optional
-        ZTF queue name(s) (:func:`.facts.plan_facts`).
+        ZTF queue names (:func:`.facts.plan_facts`).
+    queue_note : str
+        What became of them.
     """
     now = now or dt.datetime.now(dt.timezone.utc)
-    facts = plan_facts(doc, queues)
+    facts = plan_facts(doc, queues, queue_note)
     revision = "" if facts.revision is None else f", revision {facts.revision}" + (" (final)" if facts.final else "")
     parts = [f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{_cell(facts.title)} plan"
              f"</title><style>{_STYLE}</style></head><body>",

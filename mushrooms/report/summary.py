@@ -13,7 +13,8 @@ from typing import Any, Mapping, Sequence
 
 from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts
 
-__all__ = ["summary_text", "answer_line", "event_lines", "bound_sentence", "status_words", "starts_in"]
+__all__ = ["summary_text", "answer_line", "event_lines", "bound_sentence", "status_words", "starts_in",
+           "queue_words"]
 
 
 def _far_words(far_hz: float | None) -> str | None:
@@ -77,6 +78,19 @@ def status_words(facts: PlanFacts) -> str:
     return f"{facts.solver}, {words.get(facts.status, facts.status)}"
 
 
+def queue_words(facts: PlanFacts, every: bool = False) -> str | None:
+    """The revision's ZTF queues in words: how many, what became of them, their names (the first and the last
+    unless ``every``); None without any."""
+    names = facts.queues
+    if not names:
+        return None
+    note = f" ({facts.queue_note})" if facts.queue_note else ""
+    if len(names) == 1:
+        return f"{names[0]}{note}"
+    shown = ", ".join(names) if every else f"{names[0]} … {names[-1]}"
+    return f"{len(names)} queues, one per filter pass{note}: {shown}"
+
+
 def _coverage_words(facts: PlanFacts) -> list[str]:
     lines = []
     if facts.coverage_executed is not None:
@@ -125,7 +139,7 @@ def _rows(facts: PlanFacts) -> list[str]:
 
 
 def summary_text(doc: Mapping[str, Any], now: dt.datetime | None = None, queues: Sequence[str] | None = None,
-                 rows: bool = True) -> str:
+                 rows: bool = True, queue_note: str = "") -> str:
     """The text summary of a plan or not_observable document.
 
     Parameters
@@ -135,12 +149,14 @@ def summary_text(doc: Mapping[str, Any], now: dt.datetime | None = None, queues:
     now : datetime, optional
         The clock of "starts in" (default: now, UTC).
     queues : sequence of str, optional
-        ZTF queue name(s) of the revision (:func:`.facts.plan_facts`).
+        ZTF queue names of the revision (:func:`.facts.plan_facts`).
     rows : bool
         Include the one-row-per-exposure table.
+    queue_note : str
+        What became of the queues (``submitted to kowalski``).
     """
     now = now or dt.datetime.now(dt.timezone.utc)
-    facts = plan_facts(doc, queues)
+    facts = plan_facts(doc, queues, queue_note)
     revision = "" if facts.revision is None else f" revision {facts.revision}" + (
         " (final)" if facts.final else " (may be superseded)" if facts.final is False else "")
     lines = [f"Revision   {doc.get('plan_id', '')}{revision}"] + event_lines(facts.event)
@@ -149,8 +165,9 @@ def summary_text(doc: Mapping[str, Any], now: dt.datetime | None = None, queues:
         lines += [f"           {r}" for r in facts.reasons[1:]]
         return "\n".join(lines) + "\n"
     lines.append(f"Planned    {answer_line(doc)}")
-    if facts.queues:
-        lines.append(f"Queue      {', '.join(facts.queues)}")
+    queue = queue_words(facts)
+    if queue:
+        lines.append(f"Queue      {queue}")
     lines += _timing_lines(facts, now) + _coverage_words(facts)
     lines.append(f"Found by   {status_words(facts)}")
     if rows and facts.rows:
