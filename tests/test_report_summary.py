@@ -41,7 +41,7 @@ def test_the_summary_tells_the_event_the_timing_and_one_row_per_exposure(doc):
     assert "Queue" not in text  # no name is guessed: the caller gives the names of the one rule
     names = ("ToO_GW_MS220722v_0123abcd_1", "ToO_GW_MS220722v_0123abcd_2", "ToO_GW_MS220722v_0123abcd_3")
     named = summary_text(doc, queues=names, queue_note="submitted to kowalski")
-    assert ("Queue      3 queues, one per filter pass (submitted to kowalski): ToO_GW_MS220722v_0123abcd_1 … "
+    assert ("Queue      3 queues, one per filter pass; submitted to kowalski: ToO_GW_MS220722v_0123abcd_1 … "
             "ToO_GW_MS220722v_0123abcd_3\n") in named
     assert re.search(r"First      \d{4}-\d\d-\d\d \d\d:\d\d UTC \(\d\d:\d\d P[DS]T at Palomar\), starts in 4 h 45 min",
                      text)

@@ -84,10 +84,10 @@ def queue_words(facts: PlanFacts, every: bool = False) -> str | None:
     names = facts.queues
     if not names:
         return None
-    note = f" ({facts.queue_note})" if facts.queue_note else ""
     if len(names) == 1:
-        return f"{names[0]}{note}"
+        return names[0] + (f" ({facts.queue_note})" if facts.queue_note else "")
     shown = ", ".join(names) if every else f"{names[0]} … {names[-1]}"
+    note = f"; {facts.queue_note}" if facts.queue_note else ""
     return f"{len(names)} queues, one per filter pass{note}: {shown}"
 
 

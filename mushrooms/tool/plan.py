@@ -331,7 +331,7 @@ def read_executed(spec: str, around: Any | None) -> tuple[Any, ...]:
 
 
 #: What ``mushrooms plan`` says of the queue names in its summaries.
-PLAN_QUEUE_WORDS = "not sent: the names mushrooms submit and the service give this plan"
+PLAN_QUEUE_WORDS = "not sent by mushrooms plan, named as mushrooms submit and the service send them"
 
 
 def _write_submissions(queue_path: str | None, skyportal_path: str | None, plan: Any, config: Any,

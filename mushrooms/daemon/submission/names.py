@@ -63,13 +63,13 @@ def publish_queues(submit: SubmitConfig, export: ExportConfig, why_not: str | No
         except (KeyError, TypeError, ValueError):
             return (), ""
         if why_not:
-            return names, f"not submitted: {why_not} (the names the service would give them)"
+            return names, f"not submitted ({why_not}), named as the service would"
         if submit.target == "none":
-            return names, "not submitted: [submit] target is none (the names the service would give them)"
+            return names, "not submitted ([submit] target is none), named as the service would"
         why = gate(dict(doc), submit)
         if why is None and submit.dry_run:
             why = "[submit] dry_run"
-        return names, f"not submitted: {why}" if why else f"to be submitted to {submit.target}"
+        return names, f"not submitted ({why})" if why else f"to be submitted to {submit.target}"
     return shown
 
 
