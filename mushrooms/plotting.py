@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from .plot_airmass import FILTER_COLOURS, SKY_SHADES
 from .scheduler_core.sky.fields import ccd_corners, deproject, load_ztf_fields
 from .scheduler_core.plan.document import Plan
 from .scheduler_core.sky.skymap import SkyMap
@@ -31,8 +32,6 @@ __all__ = ["plot_plan", "plan_picture_png", "FILTER_COLOURS", "plot_title", "zoo
 #: Executed fields (a re-plan), filled on the sky panels.
 EXECUTED_COLOUR = "#9a9a9a"
 
-#: Colours of ZTF's filters (path and timeline).
-FILTER_COLOURS = {"g": "#1a9e2f", "r": "#d62728", "i": "#8c564b"}
 
 
 def _outline(ra0: float, dec0: float) -> tuple[np.ndarray, np.ndarray]:
@@ -359,7 +358,7 @@ def _timeline(ax_t: Any, plan: Plan, hours: np.ndarray, sun_alt: np.ndarray) -> 
     night = sun_alt <= sun_limit
     twilight = (sun_alt < 0) & ~night
     dt = float(hours[1] - hours[0]) if hours.size > 1 else 1.0
-    for mask, colour in ((twilight, "#b8c4d6"), (night, "#56607a")):
+    for mask, colour in ((twilight, SKY_SHADES["twilight"]), (night, SKY_SHADES["night"])):
         ax_t.broken_barh([(h - dt / 2, dt) for h in hours[mask]], (0.4, len(filters_of(plan)) + 0.2),
                          color=colour, lw=0, antialiased=False)
     filters = filters_of(plan)
@@ -388,7 +387,8 @@ def _timeline_legend(ax_t: Any, plan: Plan, filters: list[str], sun_limit: float
     from matplotlib.patches import Patch
 
     obs = plan.observations
-    handles = [Patch(color="#b8c4d6", label="twilight"), Patch(color="#56607a", label=f"night (Sun < {sun_limit:g}°)")]
+    handles = [Patch(color=SKY_SHADES["twilight"], label="twilight"),
+               Patch(color=SKY_SHADES["night"], label=f"night (Sun < {sun_limit:g}°)")]
     handles += [Patch(color=FILTER_COLOURS.get(f, "k"), label=f"{f}") for f in filters if any(o.filter == f for o in obs)]
     ax_t.legend(handles=handles, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=len(handles), fontsize=8,
                 frameon=False)
