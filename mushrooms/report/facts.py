@@ -11,10 +11,19 @@ import datetime as dt
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
-__all__ = ["PlanFacts", "ExposureRow", "plan_facts", "palomar_time", "duration_words", "percent", "depth_words"]
+__all__ = ["PlanFacts", "ExposureRow", "plan_facts", "palomar_time", "duration_words", "percent", "depth_words",
+           "shown"]
 
 #: The P48's time zone (Palomar Observatory, California).
 PALOMAR_TZ = "America/Los_Angeles"
+
+
+def shown(text: Any, limit: int = 200) -> str:
+    """Text of a document as a summary shows it: one line, no control, bidi or separator character raw
+    (:func:`~mushrooms.handlers.text.storable`), at most ``limit`` characters."""
+    from ..handlers.text import storable
+
+    return storable(text, limit)
 
 
 @dataclass(frozen=True)
@@ -135,10 +144,10 @@ def _queues(doc: Mapping[str, Any], queues: Sequence[str] | None) -> tuple[str, 
     """The ZTF queue names of the revision: given, else the document's ``queues``, else none (a name is never
     guessed: the names come from the one rule, ``exports.queue_name_base``, through the caller)."""
     if queues:
-        return tuple(queues)
+        return tuple(shown(q) for q in queues)
     listed = doc.get("queues")
     if isinstance(listed, list) and listed:
-        return tuple(str(q.get("queue_name", q) if isinstance(q, Mapping) else q) for q in listed)
+        return tuple(shown(q.get("queue_name", q) if isinstance(q, Mapping) else q) for q in listed)
     return ()
 
 
@@ -173,15 +182,15 @@ def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None, queu
     obs = sorted(doc.get("observations") or [], key=lambda o: o["start"])
     done = metrics.get("coverage_executed")
     offset = float(done or 0.0)
-    rows = tuple(ExposureRow(int(o["field_id"]), str(o["filter"]), _utc(o["start"]), float(o["exposure_s"]),
+    rows = tuple(ExposureRow(int(o["field_id"]), shown(o["filter"], 8), _utc(o["start"]), float(o["exposure_s"]),
                              o.get("airmass"), o.get("probability_share"),
                              None if o.get("coverage_after") is None else offset + float(o["coverage_after"]),
                              None if o.get("limiting_mag") is None else float(o["limiting_mag"]))
                  for o in obs)
     shutter, overhead, waiting = _timing(obs)
-    title = event.get("superevent_id") or event.get("skymap_name") or "sky map"
+    title = shown(event.get("superevent_id") or event.get("skymap_name") or "sky map")
     reasons = tuple(doc.get("reasons") or ()) if doc.get("type") == "not_observable" else ()
-    reasons = tuple(r.get("sentence", str(r)) if isinstance(r, Mapping) else str(r) for r in reasons)
+    reasons = tuple(shown(r.get("sentence", str(r)) if isinstance(r, Mapping) else r, 1000) for r in reasons)
     return PlanFacts(
         kind=str(doc.get("type", "plan")), title=str(title), event=event, revision=doc.get("revision"),
         final=doc.get("final"), queues=_queues(doc, queues) if obs else (), queue_note=queue_note,

@@ -13,7 +13,7 @@ import datetime as dt
 import html
 from typing import Any, Mapping, Sequence
 
-from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts
+from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts, shown
 from .summary import answer_line, bound_sentence, event_lines, queue_words, starts_in, status_words
 
 __all__ = ["summary_html"]
@@ -114,6 +114,6 @@ def summary_html(doc: Mapping[str, Any], picture_png: bytes | None = None, now: 
                      f"src=\"data:image/png;base64,{data}\"></p>")
     if facts.rows:
         parts.append("<h2>Exposures</h2>" + _exposure_table(facts))
-    parts.append(f"<p><small>plan {_cell(doc.get('plan_id', ''))}, made {_cell(doc.get('created', ''))}"
+    parts.append(f"<p><small>plan {_cell(shown(doc.get('plan_id', '')))}, made {_cell(shown(doc.get('created', '')))}"
                  "</small></p></body></html>\n")
     return "".join(parts)

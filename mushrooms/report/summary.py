@@ -11,7 +11,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any, Mapping, Sequence
 
-from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts
+from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts, shown
 
 __all__ = ["summary_text", "answer_line", "event_lines", "bound_sentence", "status_words", "starts_in",
            "queue_words"]
@@ -29,13 +29,13 @@ def _far_words(far_hz: float | None) -> str | None:
 
 def event_lines(event: Mapping[str, Any]) -> list[str]:
     """The event in a few lines: superevent and alert type, classification, FAR, distance and areas."""
-    lines = [f"Event      {event.get('superevent_id') or event.get('skymap_name') or 'a sky map'}"
-             + (f" ({event['alert_type']})" if event.get("alert_type") else "")]
+    lines = [f"Event      {shown(event.get('superevent_id') or event.get('skymap_name') or 'a sky map')}"
+             + (f" ({shown(event['alert_type'], 40)})" if event.get("alert_type") else "")]
     cls = event.get("classification") or {}
     if cls:
         ranked = sorted(cls.items(), key=lambda kv: -kv[1])
         p_astro = 1.0 - float(cls.get("Terrestrial", 0.0))
-        lines.append("Source     " + ", ".join(f"{k} {percent(v, 0)}" for k, v in ranked if v >= 0.005)
+        lines.append("Source     " + ", ".join(f"{shown(k, 40)} {percent(v, 0)}" for k, v in ranked if v >= 0.005)
                      + f"; p_astro {p_astro:.2f}")
     far = _far_words(event.get("far_hz"))
     if far:
@@ -46,7 +46,7 @@ def event_lines(event: Mapping[str, Any]) -> list[str]:
     if event.get("area_90_deg2") is not None:
         lines.append(f"Area       {event.get('area_50_deg2', 0):.0f} deg² (50 %), {event['area_90_deg2']:.0f} deg² (90 %)")
     if event.get("event_time"):
-        lines.append(f"Merger     {event['event_time'][:19].replace('T', ' ')} UTC")
+        lines.append(f"Merger     {shown(event['event_time'], 40)[:19].replace('T', ' ')} UTC")
     return lines
 
 
@@ -159,7 +159,7 @@ def summary_text(doc: Mapping[str, Any], now: dt.datetime | None = None, queues:
     facts = plan_facts(doc, queues, queue_note)
     revision = "" if facts.revision is None else f" revision {facts.revision}" + (
         " (final)" if facts.final else " (may be superseded)" if facts.final is False else "")
-    lines = [f"Revision   {doc.get('plan_id', '')}{revision}"] + event_lines(facts.event)
+    lines = [f"Revision   {shown(doc.get('plan_id', ''))}{revision}"] + event_lines(facts.event)
     if facts.kind == "not_observable":
         lines.append("Answer     NOT OBSERVABLE by ZTF: " + (facts.reasons[0] if facts.reasons else "no field in reach"))
         lines += [f"           {r}" for r in facts.reasons[1:]]

@@ -113,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
     """
     t_imports = time.perf_counter()
     from .config import load_config
+    from ..handlers.text import storable
     from ..inputs import regular_file
     from ..offline import configure_astropy_offline
     from ..outputs import write_json_atomic
@@ -135,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
     skymap = read_skymap(source, nside=cfg.nside)
     progress.stage(f"planning ({args.solver or cfg.solver})", deadline or _budget_s(cfg, args.solver))
     t_load = time.perf_counter() - t0  # config, imports and the sky map
-    log.info("read %s: nside %d, 90%% area %.0f deg2, event time %s", source, skymap.nside,
+    log.info("read %s: nside %d, 90%% area %.0f deg2, event time %s", storable(source), skymap.nside,
              skymap.credible_area(0.9), skymap.event_time.isot if skymap.event_time else "unknown")
     if executed_spec is not None or cfg.nights > 1:
         with progress:
