@@ -44,6 +44,8 @@ class ExposureRow:
         Total coverage after this exposure (0-1; a re-plan: the executed part included).
     limiting_mag : float or None
         5-sigma depth (AB) the exposure is expected to reach (D2).
+    ra, dec : float or None
+        The field's centre (deg, ICRS).
     """
 
     field_id: int
@@ -54,6 +56,8 @@ class ExposureRow:
     share: float | None
     coverage_after: float | None
     limiting_mag: float | None = None
+    ra: float | None = None
+    dec: float | None = None
 
 
 @dataclass(frozen=True)
@@ -83,6 +87,10 @@ class PlanFacts:
     status: str
     rows: tuple[ExposureRow, ...]
     reasons: tuple[str, ...]
+    #: the first exposure's start after the merger, and after the alert was created (s; None: unknown)
+    after_merger_s: float | None = None
+    after_alert_s: float | None = None
+    nside: int | None = None
 
 
 def _filters(doc: Mapping[str, Any], rows: Sequence[ExposureRow]) -> tuple[str, ...]:
@@ -97,6 +105,19 @@ def _utc(text: str | None) -> dt.datetime | None:
     if not text:
         return None
     return dt.datetime.fromisoformat(text.replace("Z", "+00:00")).astimezone(dt.timezone.utc)
+
+
+def _since(first: dt.datetime | None, text: Any) -> float | None:
+    """Seconds from the instant ``text`` (ISO 8601) to ``first``; None when either is unknown or unreadable."""
+    try:
+        then = _utc(text) if isinstance(text, str) else None
+    except ValueError:
+        return None
+    return None if first is None or then is None else (first - then).total_seconds()
+
+
+def _number(value: Any) -> float | None:
+    return None if value is None else float(value)
 
 
 def percent(p: float | None, digits: int = 1) -> str:
@@ -185,7 +206,7 @@ def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None, queu
     rows = tuple(ExposureRow(int(o["field_id"]), shown(o["filter"], 8), _utc(o["start"]), float(o["exposure_s"]),
                              o.get("airmass"), o.get("probability_share"),
                              None if o.get("coverage_after") is None else offset + float(o["coverage_after"]),
-                             None if o.get("limiting_mag") is None else float(o["limiting_mag"]))
+                             _number(o.get("limiting_mag")), _number(o.get("ra")), _number(o.get("dec")))
                  for o in obs)
     shutter, overhead, waiting = _timing(obs)
     title = shown(event.get("superevent_id") or event.get("skymap_name") or "sky map")
@@ -199,4 +220,7 @@ def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None, queu
         filters=_filters(doc, rows), open_shutter_s=shutter, overhead_s=overhead,
         waiting_s=waiting, coverage=float(metrics.get("coverage") or 0.0), coverage_executed=done,
         upper_bound=metrics.get("upper_bound"), expected_detections=metrics.get("expected_detections"),
-        solver=str(metrics.get("solver", "")), status=str(metrics.get("status", "")), rows=rows, reasons=reasons)
+        solver=str(metrics.get("solver", "")), status=str(metrics.get("status", "")), rows=rows, reasons=reasons,
+        after_merger_s=_since(rows[0].start if rows else None, event.get("event_time")),
+        after_alert_s=_since(rows[0].start if rows else None, event.get("time_created")),
+        nside=(doc.get("config") or {}).get("nside"))

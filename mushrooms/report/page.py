@@ -14,7 +14,7 @@ import html
 from typing import Any, Mapping, Sequence
 
 from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts, shown
-from .summary import answer_line, bound_sentence, event_lines, queue_words, starts_in, status_words
+from .summary import answer_line, bound_sentence, covered, delay_words, event_lines, queue_words, starts_in, status_words
 
 __all__ = ["summary_html"]
 
@@ -33,14 +33,16 @@ def _cell(text: Any) -> str:
 
 def _stats(facts: PlanFacts, now: dt.datetime) -> list[tuple[str, str]]:
     """(label, value) rows of the statistics table."""
-    rows = [(line[:10].strip(), line[10:].strip()) for line in event_lines(facts.event)]
+    rows = [(line[:10].strip(), line[10:].strip()) for line in event_lines(facts.event, covered(facts))]
     queue = queue_words(facts, every=True)
     if queue:
         rows.append(("Queue", queue))
     if facts.first is not None and facts.last_end is not None:
         rows += [("First exposure", f"{facts.first:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.first)} at Palomar), "
-                                    f"{starts_in(facts.first, now)}"),
-                 ("Last exposure ends", f"{facts.last_end:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.last_end)})"),
+                                    f"{starts_in(facts.first, now)}")]
+        delay = delay_words(facts)
+        rows += [("Delay", delay)] if delay else []
+        rows += [("Last exposure ends", f"{facts.last_end:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.last_end)})"),
                  ("Exposures", f"{facts.n_exposures} exposures of {facts.n_fields} fields in "
                                f"{' and '.join(facts.filters)}"),
                  ("Open shutter", duration_words(facts.open_shutter_s)),
@@ -64,13 +66,19 @@ def _stats(facts: PlanFacts, now: dt.datetime) -> list[tuple[str, str]]:
 
 
 def _exposure_table(facts: PlanFacts) -> str:
-    head = ("<tr><th>#</th><th>field</th><th>filter</th><th>start (UTC)</th><th>airmass</th>"
+    from .sky import moon_distances
+
+    head = ("<tr><th>#</th><th>field</th><th>filter</th><th>start (UTC)</th><th>RA (deg)</th><th>Dec (deg)</th>"
+            "<th>exposure (s)</th><th title=\"distance from the Moon at the start (Palomar)\">Moon (deg)</th>"
+            "<th>airmass</th>"
             "<th title=\"5-sigma limiting magnitude (AB) of the difference image\">depth (mag)</th>"
             "<th>own probability</th><th>coverage after</th></tr>")
     body = []
-    for k, r in enumerate(facts.rows, 1):
+    for k, (r, moon) in enumerate(zip(facts.rows, moon_distances(facts.rows)), 1):
         body.append(
             f"<tr><td>{k}</td><td>{r.field_id}</td><td>{_cell(r.filter)}</td><td>{r.start:%Y-%m-%d %H:%M:%S}</td>"
+            f"<td>{'' if r.ra is None else f'{r.ra:.2f}'}</td><td>{'' if r.dec is None else f'{r.dec:+.2f}'}</td>"
+            f"<td>{r.exposure_s:.0f}</td><td>{'' if moon is None else f'{moon:.0f}'}</td>"
             f"<td>{'' if r.airmass is None else f'{r.airmass:.2f}'}</td>"
             f"<td>{'' if r.limiting_mag is None else f'{r.limiting_mag:.1f}'}</td>"
             f"<td>{'' if r.share is None else percent(r.share, 2)}</td>"
