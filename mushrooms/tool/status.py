@@ -126,8 +126,11 @@ def _queues(conn: sqlite3.Connection, doc: dict[str, Any], config: Any) -> tuple
     from ..daemon.state.views import has_table
     from ..daemon.submission.names import publish_queues, row_queues
 
-    row = conn.execute("SELECT target, state, body, queue_name FROM submissions WHERE plan_id = ?",
-                       (doc.get("plan_id"),)).fetchone() if has_table(conn, "submissions") else None
+    row = None
+    if has_table(conn, "submissions"):  # a file of an older release may lack the body
+        body = "body" if "body" in {r[1] for r in conn.execute("PRAGMA table_info(submissions)")} else "NULL"
+        row = conn.execute(f"SELECT target, state, {body}, queue_name FROM submissions WHERE plan_id = ?",
+                           (doc.get("plan_id"),)).fetchone()
     if row is not None and (row[2] or row[3]):
         return row_queues(*row)
     if config is None:

@@ -96,6 +96,7 @@ def test_the_outbox_summary_page_and_status_show_the_queues_kowalski_holds(tmp_p
         assert shown[0] == held[0] and shown[-1] == held[-1], (queue_lines, held)
         assert set(shown) <= set(held)
         assert f"{len(held)} queues" in queue_lines[0]
+        assert "submitted to kowalski" in queue_lines[0]  # written again when the submission document came
         pipeline.sink.close()  # the pages drawn
         page = plan_json.with_suffix(".html").read_text()
         assert _shown_names(page) == held, (_shown_names(page), held)
