@@ -3,11 +3,12 @@
 :func:`write_summaries` is what ``mushrooms plan -o P.json`` calls;
 :class:`SummarisingSink` wraps the outbox's directory sink so every published
 plan and not_observable answer gets both files beside its JSON: the text at
-once (milliseconds), the page on a thread of its own (the picture takes a
-few seconds), so publishing never waits for matplotlib.  The summaries of a
-plan are written again when a later message changes what they say: a
-``plan_final`` verdict (the revision is final) and a ``submission`` document
-(what became of its queues).
+once (milliseconds), then on a thread of its own the queue names (timing
+the queue set takes a second) and the page (the picture a few seconds), and
+the text again with the names: publishing never waits for them.  The
+summaries of a plan are written again when a later message changes what
+they say: a ``plan_final`` verdict (the revision is final) and a
+``submission`` document (what became of its queues).
 """
 
 from __future__ import annotations
@@ -133,7 +134,7 @@ class SummarisingSink:
         self.queues = queues
         self.skymap_for = skymap_for
         self._pictures: OrderedDict[str, bytes | None] = OrderedDict()
-        self._pending: queue.Queue[tuple[dict[str, Any], Path, tuple[str, ...], str] | None] = queue.Queue(max_pending)
+        self._pending: queue.Queue[tuple[dict[str, Any], Path] | None] = queue.Queue(max_pending)
         self._thread = threading.Thread(target=self._draw_pages, name="mushrooms-summary", daemon=True)
         self._thread.start()
 
@@ -145,8 +146,7 @@ class SummarisingSink:
         kind = message.get("type")
         try:
             if kind in SUMMARISED_TYPES:
-                names, words = self._names(message)
-                self._summarise(dict(message), self.sink.path_for(message), names, words)
+                self._summarise(dict(message), self.sink.path_for(message))
             elif kind in ("plan_final", "submission") and isinstance(message.get("plan_id"), str):
                 self._refresh(message["plan_id"])
         except Exception:
@@ -162,13 +162,23 @@ class SummarisingSink:
             return (), ""
         return tuple(names), words
 
-    def _summarise(self, doc: dict[str, Any], target: Path, names: tuple[str, ...], words: str) -> None:
-        """The text now, the page on the thread."""
+    def _current(self, doc: dict[str, Any], target: Path) -> dict[str, Any]:
+        """The document as it stands now: final once its ``plan_final`` verdict is out (its JSON says false)."""
+        if doc.get("type") == "plan" and self.sink.path_for({"type": "plan_final", "plan_id": doc.get("plan_id")}
+                                                            ).is_file():
+            doc = dict(doc, final=True)
+        return doc
+
+    def _summarise(self, doc: dict[str, Any], target: Path) -> None:
+        """The text at once (the queue names when a submission document gave them), then on the page thread
+        the names (:attr:`queues`: they take the queue set's timing) and the page, and the text again."""
         from ..outputs import write_bytes_atomic
 
+        doc = self._current(doc, target)
+        names, words = self._submitted(target) or ((), "")
         write_bytes_atomic(summary_paths(target)[0], summary_text(doc, queues=names, queue_note=words).encode())
         try:
-            self._pending.put_nowait((doc, target, names, words))
+            self._pending.put_nowait((doc, target))
         except queue.Full:
             log.warning("event=summary_page_skipped plan_id=%s reason=queue_full", doc.get("plan_id"))
 
@@ -180,12 +190,8 @@ class SummarisingSink:
             doc = json.loads(target.read_text())
         except (OSError, ValueError):
             return  # not a plan this directory holds (or not yet)
-        if not isinstance(doc, dict) or doc.get("type") != "plan":
-            return
-        if self.sink.path_for({"type": "plan_final", "plan_id": plan_id}).is_file():
-            doc["final"] = True
-        names, words = self._submitted(target) or self._names(doc)
-        self._summarise(doc, target, names, words)
+        if isinstance(doc, dict) and doc.get("type") == "plan":
+            self._summarise(doc, target)
 
     @staticmethod
     def _submitted(target: Path) -> tuple[tuple[str, ...], str] | None:
@@ -226,12 +232,17 @@ class SummarisingSink:
             item = self._pending.get()
             if item is None:
                 return
-            doc, target, names, words = item
+            doc, target = item
             try:
                 from ..outputs import write_bytes_atomic
 
+                # the latest word on the plan (a verdict or a submission may have come since it was queued)
+                doc = self._current(doc, target)
+                names, words = self._submitted(target) or self._names(doc)
+                txt, html_path = summary_paths(target)
+                write_bytes_atomic(txt, summary_text(doc, queues=names, queue_note=words).encode())
                 page = summary_html(doc, self._page_picture(doc), queues=names, queue_note=words)
-                write_bytes_atomic(summary_paths(target)[1], page.encode())
+                write_bytes_atomic(html_path, page.encode())
             except Exception:
                 log.exception("event=summary_page_failed plan_id=%s", doc.get("plan_id"))
 

@@ -88,6 +88,7 @@ def test_the_outbox_summary_page_and_status_show_the_queues_kowalski_holds(tmp_p
     try:
         held = list(kowalski.queues)
         assert len(held) >= 2  # a set: one queue per filter pass
+        pipeline.sink.close()  # the names and the pages: on the summary thread
         (plan_json,) = [p for p in (tmp_path / "outbox").glob("mushrooms-*.json") if p.stem.count("-") == 1]
         txt = plan_json.with_suffix(".txt").read_text()
         queue_lines = [line for line in txt.splitlines() if line.startswith("Queue")]
@@ -97,7 +98,6 @@ def test_the_outbox_summary_page_and_status_show_the_queues_kowalski_holds(tmp_p
         assert set(shown) <= set(held)
         assert f"{len(held)} queues" in queue_lines[0]
         assert "submitted to kowalski" in queue_lines[0]  # written again when the submission document came
-        pipeline.sink.close()  # the pages drawn
         page = plan_json.with_suffix(".html").read_text()
         assert _shown_names(page) == held, (_shown_names(page), held)
     finally:
