@@ -12,7 +12,6 @@ may come out raw, and no line may carry the 200 kB key whole.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 from daemon_helpers import notice_bytes
 from mushrooms.daemon.settings import resolve_paths
