@@ -6,9 +6,10 @@
 opened here without blocking (``O_NONBLOCK``: opening a FIFO returns at
 once), checked with ``fstat`` to be a regular file, and read up to a bound.
 
-:func:`read_regular_file` returns the bytes; :func:`regular_file` only
-checks and hands the path on, for readers that stream a large file
-themselves (the sky map reader).  The trigger directory also refuses
+:func:`read_regular_file` returns the bytes; :func:`open_regular_file` the
+open file, for readers that stream it line by line (executed records);
+:func:`regular_file` only checks and hands the path on, for readers that
+stream a large file themselves (the sky map reader).  The trigger directory also refuses
 symbolic links (``follow_symlinks=False``): a link planted there would put a
 protected file's bytes into the state.  A user's own input may be a link to
 a regular file.
@@ -20,10 +21,11 @@ import errno
 import os
 import stat
 from pathlib import Path
+from typing import BinaryIO
 
 from .scheduler_core.errors import InputError
 
-__all__ = ["read_regular_file", "regular_file", "MAX_INPUT_BYTES", "file_kind", "state_file_problem"]
+__all__ = ["read_regular_file", "open_regular_file", "regular_file", "MAX_INPUT_BYTES", "file_kind", "state_file_problem"]
 
 #: Default bound (bytes) of a file read whole: 64 MiB (a notice is at most 8 MiB, a plan < 1 MiB).
 MAX_INPUT_BYTES = 64 * 1024 * 1024
@@ -121,12 +123,23 @@ def read_regular_file(path: str | Path, max_bytes: int = MAX_INPUT_BYTES, what: 
     InputError
         Not a regular file, larger than ``max_bytes``, or unreadable.
     """
-    fd = _open(path, _prefix(what), follow_symlinks)
-    with os.fdopen(fd, "rb") as fh:
-        size = os.fstat(fd).st_size
-        if size > max_bytes:
-            raise InputError(f"{_prefix(what)}{path}: {size} bytes is more than the {max_bytes}-byte limit")
+    with open_regular_file(path, max_bytes, what, follow_symlinks) as fh:
         try:
             return fh.read(max_bytes + 1)[:max_bytes]
         except OSError as exc:
             raise InputError(f"{_prefix(what)}{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def open_regular_file(path: str | Path, max_bytes: int = MAX_INPUT_BYTES, what: str = "",
+                      follow_symlinks: bool = True) -> BinaryIO:
+    """A regular file opened for reading (binary), never a FIFO or device, refused when over ``max_bytes``.
+
+    Parameters and errors as :func:`read_regular_file`; the caller reads (and closes) it.
+    """
+    fd = _open(path, _prefix(what), follow_symlinks)
+    fh = os.fdopen(fd, "rb")
+    size = os.fstat(fd).st_size
+    if size > max_bytes:
+        fh.close()
+        raise InputError(f"{_prefix(what)}{path}: {size} bytes is more than the {max_bytes}-byte limit")
+    return fh

@@ -15,12 +15,19 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["night_grid", "draw_airmass", "place_field_labels", "AIRMASS_TOP"]
+__all__ = ["night_grid", "draw_airmass", "place_field_labels", "shade_night", "AIRMASS_TOP", "SKY_SHADES",
+           "FILTER_COLOURS"]
 
 #: Airmass at the top of the panel (the panel's y axis is inverted: 1 at the bottom ... this at the top).
 AIRMASS_TOP = 2.6
 
+#: Colours of ZTF's filters (exposures here, the path and the timeline of :mod:`.plotting`).
 FILTER_COLOURS = {"g": "#1a9e2f", "r": "#d62728", "i": "#8c564b"}
+
+#: The shades of the sky, one colour each in every panel of the picture (this one and the timeline below it,
+#: whose legend names them): twilight (Sun below the horizon) and night (Sun below ``sun_alt_max_deg``).
+#: Light enough for the fields' grey airmass curves to show through.
+SKY_SHADES = {"twilight": "#d5dcea", "night": "#aab6cc"}
 
 
 def night_grid(plan: Any, step_s: float = 300.0) -> dict[str, Any]:
@@ -59,7 +66,8 @@ def _airmass(alt_deg: np.ndarray) -> np.ndarray:
 def shade_night(ax: Any, hours: np.ndarray, sun_alt: np.ndarray, sun_limit: float) -> None:
     """Twilight (Sun below 0 deg) light, night (below ``sun_limit``) darker, as vertical spans."""
     dt = float(hours[1] - hours[0]) if hours.size > 1 else 1.0
-    for mask, colour in (((sun_alt < 0) & (sun_alt > sun_limit), "#dde3ee"), (sun_alt <= sun_limit, "#b9c3d6")):
+    for mask, colour in (((sun_alt < 0) & (sun_alt > sun_limit), SKY_SHADES["twilight"]),
+                         (sun_alt <= sun_limit, SKY_SHADES["night"])):
         for h in hours[mask]:
             ax.axvspan(h - dt / 2, h + dt / 2, color=colour, lw=0, zorder=0)
 

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from .plot_airmass import FILTER_COLOURS, SKY_SHADES
 from .scheduler_core.sky.fields import ccd_corners, deproject, load_ztf_fields
 from .scheduler_core.plan.document import Plan
 from .scheduler_core.sky.skymap import SkyMap
@@ -31,8 +32,6 @@ __all__ = ["plot_plan", "plan_picture_png", "FILTER_COLOURS", "plot_title", "zoo
 #: Executed fields (a re-plan), filled on the sky panels.
 EXECUTED_COLOUR = "#9a9a9a"
 
-#: Colours of ZTF's filters (path and timeline).
-FILTER_COLOURS = {"g": "#1a9e2f", "r": "#d62728", "i": "#8c564b"}
 
 
 def _outline(ra0: float, dec0: float) -> tuple[np.ndarray, np.ndarray]:
@@ -56,16 +55,23 @@ def filters_of(plan: Plan) -> list[str]:
 
 
 def plot_title(plan: Plan, skymap: SkyMap | None) -> str:
-    """Superevent id, else the map's OBJECT (when it is a real id), else the map's file name."""
+    """Superevent id, else the map's OBJECT (when it is a real id), else the map's file name (escaped: no
+    control character; drawn as plain text, never as mathtext: :data:`_PLAIN`)."""
+    from .handlers.text import storable
+
     if skymap is None:
-        return plan.event.superevent_id or plan.event.skymap_name or "sky map"
-    obj = (skymap.object_id or "").strip()
+        return storable(plan.event.superevent_id or plan.event.skymap_name or "sky map", 120)
+    obj = str(skymap.object_id or "").strip()
     if obj in ("", "0", "None", "UNKNOWN"):
         obj = ""
     name = plan.event.superevent_id or obj or plan.event.skymap_name
     if not name:
         name = "sky map" if skymap.source.startswith("<") else Path(skymap.source).name
-    return name
+    return storable(name, 120)
+
+
+#: Keywords of a figure text holding words from outside (a title, an answer's reasons): drawn as they are.
+_PLAIN = {"parse_math": False}
 
 
 def plan_picture_png(plan: Plan, skymap: SkyMap | None = None, dpi: int = 100, answer: Any = None,
@@ -172,7 +178,7 @@ def _figure(plan: Plan, skymap: SkyMap | None, answer: Any, executed: Any) -> An
         fig = plt.figure(figsize=(12, 4.8))
         draw_airmass(fig.add_axes([0.07, 0.45, 0.88, 0.42]), plan, grid_t, executed)
         _timeline(fig.add_axes([0.07, 0.14, 0.88, 0.15]), plan, grid_t["hours"], grid_t["sun_alt"])
-        fig.text(0.5, 0.95, _headline(plan, plot_title(plan, None)), ha="center", fontsize=11)
+        fig.text(0.5, 0.95, _headline(plan, plot_title(plan, None)), ha="center", fontsize=11, **_PLAIN)
         return fig
     import ligo.skymap.plot  # noqa: F401  (registers the astro projections)
 
@@ -359,7 +365,7 @@ def _timeline(ax_t: Any, plan: Plan, hours: np.ndarray, sun_alt: np.ndarray) -> 
     night = sun_alt <= sun_limit
     twilight = (sun_alt < 0) & ~night
     dt = float(hours[1] - hours[0]) if hours.size > 1 else 1.0
-    for mask, colour in ((twilight, "#b8c4d6"), (night, "#56607a")):
+    for mask, colour in ((twilight, SKY_SHADES["twilight"]), (night, SKY_SHADES["night"])):
         ax_t.broken_barh([(h - dt / 2, dt) for h in hours[mask]], (0.4, len(filters_of(plan)) + 0.2),
                          color=colour, lw=0, antialiased=False)
     filters = filters_of(plan)
@@ -388,7 +394,8 @@ def _timeline_legend(ax_t: Any, plan: Plan, filters: list[str], sun_limit: float
     from matplotlib.patches import Patch
 
     obs = plan.observations
-    handles = [Patch(color="#b8c4d6", label="twilight"), Patch(color="#56607a", label=f"night (Sun < {sun_limit:g}°)")]
+    handles = [Patch(color=SKY_SHADES["twilight"], label="twilight"),
+               Patch(color=SKY_SHADES["night"], label=f"night (Sun < {sun_limit:g}°)")]
     handles += [Patch(color=FILTER_COLOURS.get(f, "k"), label=f"{f}") for f in filters if any(o.filter == f for o in obs)]
     ax_t.legend(handles=handles, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=len(handles), fontsize=8,
                 frameon=False)
@@ -403,10 +410,10 @@ def _titles(fig: Any, plan: Plan, skymap: SkyMap, answer: Any, credible: np.ndar
     if answer is not None:
         head = f"{title}: NOT OBSERVABLE by ZTF from {plan.start.utc.isot[:16]} UTC " \
                f"(best coverage {m.coverage:.4f} < {answer.min_coverage:g})"
-        fig.text(0.5, 0.955, head, ha="center", fontsize=12, color="#a00000")
-        fig.text(0.5, 0.925, "; ".join(answer.sentences[:2]), ha="center", fontsize=8.5, wrap=True)
+        fig.text(0.5, 0.955, head, ha="center", fontsize=12, color="#a00000", **_PLAIN)
+        fig.text(0.5, 0.925, "; ".join(answer.sentences[:2]), ha="center", fontsize=8.5, wrap=True, **_PLAIN)
     else:
-        fig.text(0.5, 0.955, _headline(plan, title), ha="center", fontsize=12)
+        fig.text(0.5, 0.955, _headline(plan, title), ha="center", fontsize=12, **_PLAIN)
         area = float((credible <= 90.0).sum()) * hp.nside2pixarea(skymap.nside, degrees=True)
         fig.text(0.5, 0.925, f"90 % credible area {area:.0f} deg²; fields outlined, path in filter colours "
                              "(circle: first visit)", ha="center", fontsize=9)

@@ -60,3 +60,50 @@ def test_the_zoom_widens_to_hold_planned_fields_whole_and_names_those_too_far():
     assert abs(radius - (near + FIELD_HALF_DIAGONAL_DEG)) < 1e-9
     assert radius <= ZOOM_MAX_DEG
     assert zoom_holding_fields(120.0, -20.0, 30.0, ra[:1], dec[:1])[0] == 30.0  # never narrower than the map asks
+
+
+def _span_colour(ax, hour: float) -> str | None:
+    """The colour of the shaded span of ``ax`` (axvspan, zorder 0) over ``hour``, None when unshaded."""
+    from matplotlib.colors import to_hex
+
+    for patch in ax.patches:
+        if patch.get_zorder() != 0:
+            continue
+        x0, x1 = sorted(float(v) for v in patch.get_path().transformed(patch.get_patch_transform()).vertices[:, 0]
+                        [[0, 2]])
+        if x0 <= hour < x1:
+            return to_hex(patch.get_facecolor())
+    return None
+
+
+def test_night_and_twilight_have_one_colour_each_in_the_airmass_panel_and_the_timeline_below():
+    """The timeline's legend says which shade is night and which twilight; the airmass panel above it must
+    shade them in the same colours (it shaded night in the colour the legend gives twilight)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.colors import to_hex
+    from matplotlib import pyplot as plt
+    from pathlib import Path
+
+    from mushrooms.plot_airmass import night_grid
+    from mushrooms.plotting import _figure
+    from mushrooms.scheduler_core import PlanningConfig, make_plan, read_skymap
+
+    skymap = Path(__file__).resolve().parent / "data" / "skymaps" / "MS220722v_bayestar.multiorder.fits"
+    plan = make_plan(read_skymap(skymap, nside=64), PlanningConfig(solver="greedy", nside=64))
+    fig = _figure(plan, None, None, ())
+    try:
+        airmass = next(ax for ax in fig.axes if ax.get_ylabel() == "airmass")
+        timeline = next(ax for ax in fig.axes if ax.get_legend() and "twilight" in
+                        [t.get_text() for t in ax.get_legend().get_texts()])
+        legend = {t.get_text().split(" ")[0]: to_hex(h.get_facecolor())
+                  for t, h in zip(timeline.get_legend().get_texts(), timeline.get_legend().legend_handles)}
+        grid = night_grid(plan)
+        limit = float(plan.config.get("sun_alt_max_deg", -12.0))
+        dark = grid["hours"][int(grid["sun_alt"].argmin())]
+        dusk = grid["hours"][int(((grid["sun_alt"] < 0) & (grid["sun_alt"] > limit + 1)).argmax())]
+        assert _span_colour(airmass, dark) == legend["night"], (_span_colour(airmass, dark), legend)
+        assert _span_colour(airmass, dusk) == legend["twilight"], (_span_colour(airmass, dusk), legend)
+    finally:
+        plt.close(fig)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import copy
 import datetime as dt
 import re
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -38,7 +39,11 @@ def test_the_summary_tells_the_event_the_timing_and_one_row_per_exposure(doc):
     assert "Event      MS220722v (PRELIMINARY)" in text
     assert "Source     BNS 90 %, NSBH 5 %, Terrestrial 5 %; p_astro 0.95" in text
     assert "one false alarm per 3.2e+02 years" in text
-    assert "Queue      ToO_MS220722v" in text
+    assert "Queue" not in text  # no name is guessed: the caller gives the names of the one rule
+    names = ("ToO_GW_MS220722v_0123abcd_1", "ToO_GW_MS220722v_0123abcd_2", "ToO_GW_MS220722v_0123abcd_3")
+    named = summary_text(doc, queues=names, queue_note="submitted to kowalski")
+    assert ("Queue      3 queues, one per filter pass; submitted to kowalski: ToO_GW_MS220722v_0123abcd_1 … "
+            "ToO_GW_MS220722v_0123abcd_3\n") in named
     assert re.search(r"First      \d{4}-\d\d-\d\d \d\d:\d\d UTC \(\d\d:\d\d P[DS]T at Palomar\), starts in 4 h 45 min",
                      text)
     rows = [line for line in text.splitlines() if re.match(r"^\s+\d+\s+[gri]\s+\d\d-\d\d ", line)]
@@ -101,3 +106,54 @@ def test_hostile_text_in_the_document_is_escaped_on_the_page(doc, tmp_path):
     _, page = write_summaries(hostile, tmp_path / "H.json")
     body = page.read_text()
     assert "<script>" not in body and "&lt;script&gt;alert(1)&lt;/script&gt;" in body
+
+
+def _table(text: str) -> tuple[list[str], list[list[str]]]:
+    """The exposure table of a text summary: its header words and its rows' words."""
+    lines = text.splitlines()
+    k = next(i for i, line in enumerate(lines) if line.split()[:2] == ["field", "filter"])
+    return lines[k].split(), [line.split() for line in lines[k + 1:] if line.strip()]
+
+
+def test_the_exposure_table_gives_each_exposure_its_place_exposure_time_and_moon_distance(doc):
+    from astropy import units as u
+    from astropy.coordinates import SkyCoord, get_body
+    from astropy.time import Time
+
+    from mushrooms.scheduler_core.sky.visibility import site
+
+    head, rows = _table(summary_text(doc))
+    assert head[:8] == ["field", "filter", "start", "(UTC)", "RA", "Dec", "exp", "Moon"], head
+    obs = doc["observations"]
+    times = Time([o["start"].rstrip("Z") for o in obs], scale="utc")
+    moon = get_body("moon", times, site())
+    # in the Moon's frame (topocentric GCRS): a field's direction is the same there, the Moon's would not be in ICRS
+    want = moon.separation(SkyCoord([o["ra"] for o in obs] * u.deg, [o["dec"] for o in obs] * u.deg)).deg
+    for row, o, sep in zip(rows, obs, want):
+        assert float(row[4]) == pytest.approx(o["ra"], abs=0.01) and float(row[5]) == pytest.approx(o["dec"], abs=0.01)
+        assert row[6] == f"{o['exposure_s']:.0f}s"
+        assert float(row[7].rstrip("°")) == pytest.approx(sep, abs=1.0)  # shown to the degree
+    page = write_summaries(doc, Path(tempfile.mkdtemp()) / "P.json")[1].read_text()
+    for label in ("RA (deg)", "Dec (deg)", "exposure (s)", "Moon (deg)"):
+        assert f">{label}</th>" in page
+
+
+def test_the_facts_give_the_covered_area_and_the_delay_from_the_merger_and_the_alert(doc):
+    alerted = copy.deepcopy(doc)
+    merger = dt.datetime.fromisoformat(doc["event"]["event_time"].replace("Z", "+00:00"))
+    first = dt.datetime.fromisoformat(doc["observations"][0]["start"].replace("Z", "+00:00"))
+    alerted["event"]["time_created"] = (merger + dt.timedelta(minutes=7)).isoformat().replace("+00:00", "Z")
+    text = summary_text(alerted)
+    delay = round((first - merger).total_seconds() / 60.0)
+    words = f"{delay // 60} h {delay % 60} min" if delay >= 60 else f"{delay} min"
+    assert f"Delay      first exposure {words} after the merger, " in text, text
+    area = re.search(r"^Area       .*; the fields cover ([0-9,]+) deg²", text, re.M)
+    assert area, text
+    n_fields = len({o["field_id"] for o in doc["observations"]})
+    # a ZTF field is 47 deg² of sky (its CCDs): the union is at most that per field, and at least one field
+    assert 40.0 <= float(area[1].replace(",", "")) <= 50.0 * n_fields
+    one = copy.deepcopy(doc)
+    one["observations"] = [o for o in doc["observations"] if o["field_id"] == doc["observations"][0]["field_id"]]
+    single = float(re.search(r"the fields cover ([0-9,]+) deg²", summary_text(one))[1].replace(",", ""))
+    assert 40.0 <= single <= 50.0  # nside 64: pixels of 0.84 deg²
+    assert "after the merger" in write_summaries(alerted, Path(tempfile.mkdtemp()) / "P.json")[1].read_text()

@@ -105,6 +105,6 @@ def _new_sink(service: Any, new: Any) -> Any:
     """The sink of the new ``[outbound]``, telling the running webhook (``[notify]``) as the old one did."""
     from .ops.announce import NotifyingSink, webhook_of
 
-    sink = make_sink(new.outbound)
+    sink = make_sink(new.outbound, new, service.pipeline.store)
     hook = webhook_of(service.pipeline.sink)
     return NotifyingSink(sink, hook) if hook is not None else sink

@@ -34,8 +34,15 @@ def private_dir(path: Path, group_readable: bool = False) -> Path:
     return path
 
 
-def make_sink(out: OutboundConfig) -> Any:
-    """The outbound sink of the ``[outbound]`` section."""
+def make_sink(out: OutboundConfig, config: ServiceConfig | None = None, store: Any = None,
+              why_not_submitted: str | None = None) -> Any:
+    """The outbound sink of the ``[outbound]`` section.
+
+    A directory sink writes each plan's summaries beside it; with ``config``
+    they name the plan's ZTF queues (``[submit]``, ``[export]``; or why they
+    are not submitted: ``why_not_submitted``), with ``store`` the page draws the
+    plan on its sky map.
+    """
     if out.sink == "kafka":
         from .kafka.sink import KafkaSink, sink_security
 
@@ -45,7 +52,17 @@ def make_sink(out: OutboundConfig) -> Any:
     from ..report.files import SummarisingSink
     from .sinks import DirectorySink
 
-    return SummarisingSink(DirectorySink(Path(out.directory)))  # each plan's .txt and .html beside its JSON
+    queues = skymap_for = None
+    if config is not None:
+        from .submission.names import publish_queues
+
+        queues = publish_queues(config.submit, config.export, why_not_submitted)
+        if store is not None:
+            from .planning.skymaps import plan_skymap_reader
+
+            skymap_for = plan_skymap_reader(store, config.policy.max_skymap_bytes)
+    # each plan's .txt and .html beside its JSON
+    return SummarisingSink(DirectorySink(Path(out.directory)), queues=queues, skymap_for=skymap_for)
 
 
 def open_store(path: Path, group_readable: bool = False) -> Any:
@@ -70,7 +87,7 @@ def open_pipeline(config: ServiceConfig, paths: RuntimePaths, sink: Any = None, 
 
     store = open_store(paths.state, config.daemon.group_readable)
     own_sink = sink is None
-    sink = make_sink(config.outbound) if own_sink else sink
+    sink = make_sink(config.outbound, config, store) if own_sink else sink
     from .ops.announce import NotifyingSink, open_webhook
 
     hook = open_webhook(getattr(config, "notify", None))  # [notify]: off by default

@@ -93,6 +93,10 @@ def _num(v: Any, name: str, optional: bool = False) -> float | None:
     return x
 
 
+#: Longest key of a classification or properties object kept (characters; longer ones end with ``...``).
+KEY_CHARS = 64
+
+
 def _prob_map(v: Any, name: str) -> dict[str, float]:
     if v is None:
         return {}
@@ -102,7 +106,7 @@ def _prob_map(v: Any, name: str) -> dict[str, float]:
     for k, x in v.items():
         if not isinstance(k, str):
             raise NoticeError(f"{name} keys must be strings")
-        k = storable(k)
+        k = storable(k, KEY_CHARS)  # a key is a name (BNS, HasNS, has_SSM): a longer one is cut, not kept whole
         p = _num(x, f"{name}.{k}")
         assert p is not None
         if not 0.0 <= p <= 1.0 + 1e-9:

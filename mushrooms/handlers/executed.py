@@ -9,7 +9,10 @@ Sources (``docs/design/executed.md`` has the field mapping and its sources):
   (:func:`read_jsonl`, :func:`write_jsonl`): what tests and operators write.
 
 Each reader takes the content (``bytes`` or ``str``: the text itself) or a
-file (a :class:`pathlib.Path`); none fetches anything (the daemon does).  A
+file (a :class:`pathlib.Path`; :func:`read_jsonl` also an open binary file,
+which it streams: a file of any size costs one line of memory, and a line
+longer than :data:`MAX_LINE_BYTES` is skipped unread); none fetches
+anything (the daemon does).  A
 malformed record is skipped with one warning line on this module's logger
 naming where it is and what is wrong, and the rest is kept; content that is
 not what the source sends at all (not JSON, not a list) raises
@@ -29,12 +32,13 @@ quadrant, ``processed_fraction`` = reduced quadrants / 64, filter ids
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import math
 import os
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, BinaryIO, Iterable, Iterator, Mapping
 
 import numpy as np
 from astropy.time import Time
@@ -45,6 +49,7 @@ from ..scheduler_core.executed import (
 )
 from ..scheduler_core.times import parse_time
 from .executed_source import SOURCE_KINDS, ExecutedSource, parse_executed_source
+from .text import storable
 
 __all__ = [
     "ExecutedSource", "SOURCE_KINDS", "parse_executed_source", "read_depot", "read_skyportal",
@@ -150,8 +155,8 @@ class _Skipped:
 
     def __call__(self, where: str, problem: Any) -> None:
         self.count += 1
-        if self.count <= MAX_WARNINGS:
-            log.warning("%s %s: %s; skipped", self.what, where, problem)
+        if self.count <= MAX_WARNINGS:  # the problem quotes the record: one short line, no control character
+            log.warning("%s %s: %s; skipped", self.what, where, storable(problem, 300))
 
     def done(self) -> None:
         if self.count > MAX_WARNINGS:
@@ -336,17 +341,73 @@ def read_skyportal(source: bytes | str | os.PathLike, what: str = "SkyPortal ans
 
 
 # ------------------------------------------------------------------ JSON lines
-def read_jsonl(source: bytes | str | os.PathLike, what: str = "executed file") -> tuple[ExecutedExposure, ...]:
+#: Longest line of a JSON-lines file read (bytes): a record is about 150; a longer line is skipped unread.
+MAX_LINE_BYTES = 64 * 1024
+
+
+def _stream(fh: BinaryIO) -> Iterator[tuple[int, bytes | None]]:
+    """(number from 1, line) of a binary file, one at a time; None for a line over :data:`MAX_LINE_BYTES`."""
+    n = 0
+    while True:
+        line = fh.readline(MAX_LINE_BYTES + 1)
+        if not line:
+            return
+        n += 1
+        if len(line) > MAX_LINE_BYTES and not line.endswith(b"\n"):
+            while line and not line.endswith(b"\n"):  # the rest of it, a bounded piece at a time
+                line = fh.readline(MAX_LINE_BYTES)
+            yield n, None
+            continue
+        yield n, line[3:] if n == 1 and line.startswith(b"\xef\xbb\xbf") else line
+
+
+def _lines(source: bytes | str | os.PathLike | BinaryIO, what: str) -> Iterator[tuple[int, bytes | None]]:
+    """The lines of the content, a file or an open binary file (:func:`_stream`)."""
+    if isinstance(source, os.PathLike):
+        try:
+            fh = open(source, "rb")
+        except OSError as exc:
+            raise InputError(f"{what}: cannot read {source}: {exc.strerror or exc}") from None
+        with fh:
+            yield from _stream(fh)
+    elif isinstance(source, (bytes, bytearray)):
+        yield from _stream(io.BytesIO(source))  # shares the bytes: no copy
+    elif isinstance(source, str):
+        yield from _stream(io.BytesIO(source.encode("utf-8", "surrogatepass")))
+    elif hasattr(source, "readline"):
+        yield from _stream(source)
+    else:
+        raise InputError(f"{what}: a {type(source).__name__}, not bytes, str, a path or a binary file")
+
+
+def _record(line: bytes, n: int, what: str) -> Any:
+    """A line's JSON value; ValueError (one line) when it is not JSON."""
+    try:
+        text = line.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{what}: not UTF-8 text (line {n}, byte {exc.start})") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(exc.msg) from None
+    except RecursionError:
+        raise ValueError("nested too deeply") from None
+    # any other ValueError (an integer of more than 4300 digits) says itself what is wrong
+
+
+def read_jsonl(source: bytes | str | os.PathLike | BinaryIO,
+               what: str = "executed file") -> tuple[ExecutedExposure, ...]:
     """Exposures of a JSON-lines file: one record per line, exactly the record's keys.
 
     ``{"field_id": 600, "filter": "g", "start": "2026-05-01T04:00:00.000Z",
     "exposure_s": 300.0, "processed_fraction": 1.0, "status": "processed"}``;
-    blank lines are ignored, lines are numbered from 1.
+    blank lines are ignored, lines are numbered from 1.  Read line by line:
+    memory grows with the records kept, not with the file.
 
     Parameters
     ----------
-    source : bytes, str or path
-        The content, or the file.
+    source : bytes, str, path or binary file
+        The content, the file, or the file opened (``rb``; streamed, not closed).
     what : str
         Name of the source in messages.
 
@@ -362,16 +423,22 @@ def read_jsonl(source: bytes | str | os.PathLike, what: str = "executed file") -
         spread over lines, a binary file).
     """
     what = _named(source, what)
-    text = _text(source, what)
     out = []
-    lines = [(n, line) for n, line in enumerate(text.splitlines(), start=1) if line.strip()]
-    json_lines = 0
+    lines = json_lines = 0
     skipped = _Skipped(what)
-    for n, line in lines:
+    for n, line in _lines(source, what):
+        if line is not None and not line.strip():
+            continue
+        lines += 1
+        if line is None:
+            skipped(f"line {n}", f"longer than {MAX_LINE_BYTES} bytes")
+            continue
         try:
-            record = json.loads(line)
-        except json.JSONDecodeError as exc:
-            skipped(f"line {n}", f"not JSON ({exc.msg})")
+            record = _record(line, n, what)
+        except InputError:
+            raise
+        except ValueError as exc:
+            skipped(f"line {n}", f"not JSON ({exc})")
             continue
         json_lines += 1
         try:
@@ -379,7 +446,7 @@ def read_jsonl(source: bytes | str | os.PathLike, what: str = "executed file") -
         except InputError as exc:
             skipped(f"line {n}", exc)
     if lines and not json_lines:
-        raise InputError(f"{what}: not JSON lines (none of its {len(lines)} lines is JSON)")
+        raise InputError(f"{what}: not JSON lines (none of its {lines} lines is JSON)")
     skipped.done()
     return unique_exposures(out)
 

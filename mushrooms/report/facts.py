@@ -11,10 +11,19 @@ import datetime as dt
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
-__all__ = ["PlanFacts", "ExposureRow", "plan_facts", "palomar_time", "duration_words", "percent", "depth_words"]
+__all__ = ["PlanFacts", "ExposureRow", "plan_facts", "palomar_time", "duration_words", "percent", "depth_words",
+           "shown"]
 
 #: The P48's time zone (Palomar Observatory, California).
 PALOMAR_TZ = "America/Los_Angeles"
+
+
+def shown(text: Any, limit: int = 200) -> str:
+    """Text of a document as a summary shows it: one line, no control, bidi or separator character raw
+    (:func:`~mushrooms.handlers.text.storable`), at most ``limit`` characters."""
+    from ..handlers.text import storable
+
+    return storable(text, limit)
 
 
 @dataclass(frozen=True)
@@ -35,6 +44,8 @@ class ExposureRow:
         Total coverage after this exposure (0-1; a re-plan: the executed part included).
     limiting_mag : float or None
         5-sigma depth (AB) the exposure is expected to reach (D2).
+    ra, dec : float or None
+        The field's centre (deg, ICRS).
     """
 
     field_id: int
@@ -45,6 +56,8 @@ class ExposureRow:
     share: float | None
     coverage_after: float | None
     limiting_mag: float | None = None
+    ra: float | None = None
+    dec: float | None = None
 
 
 @dataclass(frozen=True)
@@ -57,6 +70,7 @@ class PlanFacts:
     revision: int | None
     final: bool | None
     queues: tuple[str, ...]
+    queue_note: str
     first: dt.datetime | None
     last_end: dt.datetime | None
     n_fields: int
@@ -73,6 +87,10 @@ class PlanFacts:
     status: str
     rows: tuple[ExposureRow, ...]
     reasons: tuple[str, ...]
+    #: the first exposure's start after the merger, and after the alert was created (s; None: unknown)
+    after_merger_s: float | None = None
+    after_alert_s: float | None = None
+    nside: int | None = None
 
 
 def _filters(doc: Mapping[str, Any], rows: Sequence[ExposureRow]) -> tuple[str, ...]:
@@ -87,6 +105,19 @@ def _utc(text: str | None) -> dt.datetime | None:
     if not text:
         return None
     return dt.datetime.fromisoformat(text.replace("Z", "+00:00")).astimezone(dt.timezone.utc)
+
+
+def _since(first: dt.datetime | None, text: Any) -> float | None:
+    """Seconds from the instant ``text`` (ISO 8601) to ``first``; None when either is unknown or unreadable."""
+    try:
+        then = _utc(text) if isinstance(text, str) else None
+    except ValueError:
+        return None
+    return None if first is None or then is None else (first - then).total_seconds()
+
+
+def _number(value: Any) -> float | None:
+    return None if value is None else float(value)
 
 
 def percent(p: float | None, digits: int = 1) -> str:
@@ -131,14 +162,14 @@ def depth_words(rows: Sequence[ExposureRow]) -> str | None:
 
 
 def _queues(doc: Mapping[str, Any], queues: Sequence[str] | None) -> tuple[str, ...]:
-    """The ZTF queue name(s) of the revision: given, else the document's ``queues``, else the default name."""
+    """The ZTF queue names of the revision: given, else the document's ``queues``, else none (a name is never
+    guessed: the names come from the one rule, ``exports.queue_name_base``, through the caller)."""
     if queues:
-        return tuple(queues)
+        return tuple(shown(q) for q in queues)
     listed = doc.get("queues")
     if isinstance(listed, list) and listed:
-        return tuple(str(q.get("queue_name", q) if isinstance(q, Mapping) else q) for q in listed)
-    superevent = (doc.get("event") or {}).get("superevent_id")
-    return (f"ToO_{superevent}",) if superevent else ()
+        return tuple(shown(q.get("queue_name", q) if isinstance(q, Mapping) else q) for q in listed)
+    return ()
 
 
 def _timing(obs: Sequence[Mapping[str, Any]]) -> tuple[float, float, float]:
@@ -154,7 +185,7 @@ def _timing(obs: Sequence[Mapping[str, Any]]) -> tuple[float, float, float]:
     return shutter, overhead, waiting
 
 
-def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None) -> PlanFacts:
+def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None, queue_note: str = "") -> PlanFacts:
     """The facts of a plan (or not_observable) document.
 
     Parameters
@@ -162,29 +193,34 @@ def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None) -> P
     doc : mapping
         A plan document (``type`` ``plan`` or ``not_observable``).
     queues : sequence of str, optional
-        The ZTF queue name(s) the revision went to (default: the document's
-        ``queues``, else ``ToO_<superevent>``).
+        The ZTF queue names the revision went (or would go) to, in
+        submission order (default: the document's ``queues``, else none shown).
+    queue_note : str
+        What became of them (``submitted to kowalski``, ``not submitted: ...``).
     """
     event = doc.get("event") or {}
     metrics = doc.get("metrics") or {}
     obs = sorted(doc.get("observations") or [], key=lambda o: o["start"])
     done = metrics.get("coverage_executed")
     offset = float(done or 0.0)
-    rows = tuple(ExposureRow(int(o["field_id"]), str(o["filter"]), _utc(o["start"]), float(o["exposure_s"]),
+    rows = tuple(ExposureRow(int(o["field_id"]), shown(o["filter"], 8), _utc(o["start"]), float(o["exposure_s"]),
                              o.get("airmass"), o.get("probability_share"),
                              None if o.get("coverage_after") is None else offset + float(o["coverage_after"]),
-                             None if o.get("limiting_mag") is None else float(o["limiting_mag"]))
+                             _number(o.get("limiting_mag")), _number(o.get("ra")), _number(o.get("dec")))
                  for o in obs)
     shutter, overhead, waiting = _timing(obs)
-    title = event.get("superevent_id") or event.get("skymap_name") or "sky map"
+    title = shown(event.get("superevent_id") or event.get("skymap_name") or "sky map")
     reasons = tuple(doc.get("reasons") or ()) if doc.get("type") == "not_observable" else ()
-    reasons = tuple(r.get("sentence", str(r)) if isinstance(r, Mapping) else str(r) for r in reasons)
+    reasons = tuple(shown(r.get("sentence", str(r)) if isinstance(r, Mapping) else r, 1000) for r in reasons)
     return PlanFacts(
         kind=str(doc.get("type", "plan")), title=str(title), event=event, revision=doc.get("revision"),
-        final=doc.get("final"), queues=_queues(doc, queues) if obs else (),
+        final=doc.get("final"), queues=_queues(doc, queues) if obs else (), queue_note=queue_note,
         first=rows[0].start if rows else None, last_end=_utc(obs[-1]["end"]) if obs else None,
         n_fields=len({r.field_id for r in rows}), n_exposures=len(rows),
         filters=_filters(doc, rows), open_shutter_s=shutter, overhead_s=overhead,
         waiting_s=waiting, coverage=float(metrics.get("coverage") or 0.0), coverage_executed=done,
         upper_bound=metrics.get("upper_bound"), expected_detections=metrics.get("expected_detections"),
-        solver=str(metrics.get("solver", "")), status=str(metrics.get("status", "")), rows=rows, reasons=reasons)
+        solver=str(metrics.get("solver", "")), status=str(metrics.get("status", "")), rows=rows, reasons=reasons,
+        after_merger_s=_since(rows[0].start if rows else None, event.get("event_time")),
+        after_alert_s=_since(rows[0].start if rows else None, event.get("time_created")),
+        nside=(doc.get("config") or {}).get("nside"))

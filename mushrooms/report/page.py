@@ -13,8 +13,8 @@ import datetime as dt
 import html
 from typing import Any, Mapping, Sequence
 
-from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts
-from .summary import answer_line, bound_sentence, event_lines, starts_in, status_words
+from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts, shown
+from .summary import answer_line, bound_sentence, covered, delay_words, event_lines, queue_words, starts_in, status_words
 
 __all__ = ["summary_html"]
 
@@ -33,13 +33,16 @@ def _cell(text: Any) -> str:
 
 def _stats(facts: PlanFacts, now: dt.datetime) -> list[tuple[str, str]]:
     """(label, value) rows of the statistics table."""
-    rows = [(line[:10].strip(), line[10:].strip()) for line in event_lines(facts.event)]
-    if facts.queues:
-        rows.append(("Queue", ", ".join(facts.queues)))
+    rows = [(line[:10].strip(), line[10:].strip()) for line in event_lines(facts.event, covered(facts))]
+    queue = queue_words(facts, every=True)
+    if queue:
+        rows.append(("Queue", queue))
     if facts.first is not None and facts.last_end is not None:
         rows += [("First exposure", f"{facts.first:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.first)} at Palomar), "
-                                    f"{starts_in(facts.first, now)}"),
-                 ("Last exposure ends", f"{facts.last_end:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.last_end)})"),
+                                    f"{starts_in(facts.first, now)}")]
+        delay = delay_words(facts)
+        rows += [("Delay", delay)] if delay else []
+        rows += [("Last exposure ends", f"{facts.last_end:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.last_end)})"),
                  ("Exposures", f"{facts.n_exposures} exposures of {facts.n_fields} fields in "
                                f"{' and '.join(facts.filters)}"),
                  ("Open shutter", duration_words(facts.open_shutter_s)),
@@ -63,13 +66,19 @@ def _stats(facts: PlanFacts, now: dt.datetime) -> list[tuple[str, str]]:
 
 
 def _exposure_table(facts: PlanFacts) -> str:
-    head = ("<tr><th>#</th><th>field</th><th>filter</th><th>start (UTC)</th><th>airmass</th>"
+    from .sky import moon_distances
+
+    head = ("<tr><th>#</th><th>field</th><th>filter</th><th>start (UTC)</th><th>RA (deg)</th><th>Dec (deg)</th>"
+            "<th>exposure (s)</th><th title=\"distance from the Moon at the start (Palomar)\">Moon (deg)</th>"
+            "<th>airmass</th>"
             "<th title=\"5-sigma limiting magnitude (AB) of the difference image\">depth (mag)</th>"
             "<th>own probability</th><th>coverage after</th></tr>")
     body = []
-    for k, r in enumerate(facts.rows, 1):
+    for k, (r, moon) in enumerate(zip(facts.rows, moon_distances(facts.rows)), 1):
         body.append(
             f"<tr><td>{k}</td><td>{r.field_id}</td><td>{_cell(r.filter)}</td><td>{r.start:%Y-%m-%d %H:%M:%S}</td>"
+            f"<td>{'' if r.ra is None else f'{r.ra:.2f}'}</td><td>{'' if r.dec is None else f'{r.dec:+.2f}'}</td>"
+            f"<td>{r.exposure_s:.0f}</td><td>{'' if moon is None else f'{moon:.0f}'}</td>"
             f"<td>{'' if r.airmass is None else f'{r.airmass:.2f}'}</td>"
             f"<td>{'' if r.limiting_mag is None else f'{r.limiting_mag:.1f}'}</td>"
             f"<td>{'' if r.share is None else percent(r.share, 2)}</td>"
@@ -78,7 +87,7 @@ def _exposure_table(facts: PlanFacts) -> str:
 
 
 def summary_html(doc: Mapping[str, Any], picture_png: bytes | None = None, now: dt.datetime | None = None,
-                 queues: Sequence[str] | None = None) -> str:
+                 queues: Sequence[str] | None = None, queue_note: str = "") -> str:
     """A self-contained HTML page of a plan or not_observable document.
 
     Parameters
@@ -90,10 +99,12 @@ def summary_html(doc: Mapping[str, Any], picture_png: bytes | None = None, now: 
     now : datetime, optional
         The clock of "starts in" (default: now, UTC).
     queues : sequence of str, optional
-        ZTF queue name(s) (:func:`.facts.plan_facts`).
+        ZTF queue names (:func:`.facts.plan_facts`).
+    queue_note : str
+        What became of them.
     """
     now = now or dt.datetime.now(dt.timezone.utc)
-    facts = plan_facts(doc, queues)
+    facts = plan_facts(doc, queues, queue_note)
     revision = "" if facts.revision is None else f", revision {facts.revision}" + (" (final)" if facts.final else "")
     parts = [f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{_cell(facts.title)} plan"
              f"</title><style>{_STYLE}</style></head><body>",
@@ -111,6 +122,6 @@ def summary_html(doc: Mapping[str, Any], picture_png: bytes | None = None, now: 
                      f"src=\"data:image/png;base64,{data}\"></p>")
     if facts.rows:
         parts.append("<h2>Exposures</h2>" + _exposure_table(facts))
-    parts.append(f"<p><small>plan {_cell(doc.get('plan_id', ''))}, made {_cell(doc.get('created', ''))}"
+    parts.append(f"<p><small>plan {_cell(shown(doc.get('plan_id', '')))}, made {_cell(shown(doc.get('created', '')))}"
                  "</small></p></body></html>\n")
     return "".join(parts)

@@ -11,9 +11,10 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any, Mapping, Sequence
 
-from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts
+from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts, shown
 
-__all__ = ["summary_text", "answer_line", "event_lines", "bound_sentence", "status_words", "starts_in"]
+__all__ = ["summary_text", "answer_line", "event_lines", "bound_sentence", "status_words", "starts_in",
+           "queue_words", "delay_words", "covered"]
 
 
 def _far_words(far_hz: float | None) -> str | None:
@@ -26,15 +27,16 @@ def _far_words(far_hz: float | None) -> str | None:
     return f"{far_hz:.2g} Hz, one false alarm per {1.0 / per_year:.2g} years"
 
 
-def event_lines(event: Mapping[str, Any]) -> list[str]:
-    """The event in a few lines: superevent and alert type, classification, FAR, distance and areas."""
-    lines = [f"Event      {event.get('superevent_id') or event.get('skymap_name') or 'a sky map'}"
-             + (f" ({event['alert_type']})" if event.get("alert_type") else "")]
+def event_lines(event: Mapping[str, Any], covered_deg2: float | None = None) -> list[str]:
+    """The event in a few lines: superevent and alert type, classification, FAR, distance and areas
+    (``covered_deg2``: the sky area the plan's fields cover, deg²)."""
+    lines = [f"Event      {shown(event.get('superevent_id') or event.get('skymap_name') or 'a sky map')}"
+             + (f" ({shown(event['alert_type'], 40)})" if event.get("alert_type") else "")]
     cls = event.get("classification") or {}
     if cls:
         ranked = sorted(cls.items(), key=lambda kv: -kv[1])
         p_astro = 1.0 - float(cls.get("Terrestrial", 0.0))
-        lines.append("Source     " + ", ".join(f"{k} {percent(v, 0)}" for k, v in ranked if v >= 0.005)
+        lines.append("Source     " + ", ".join(f"{shown(k, 40)} {percent(v, 0)}" for k, v in ranked if v >= 0.005)
                      + f"; p_astro {p_astro:.2f}")
     far = _far_words(event.get("far_hz"))
     if far:
@@ -42,11 +44,29 @@ def event_lines(event: Mapping[str, Any]) -> list[str]:
     if event.get("distance_mpc") is not None:
         std = event.get("distance_std_mpc")
         lines.append(f"Distance   {event['distance_mpc']:.0f}" + (f" ± {std:.0f}" if std is not None else "") + " Mpc")
-    if event.get("area_90_deg2") is not None:
-        lines.append(f"Area       {event.get('area_50_deg2', 0):.0f} deg² (50 %), {event['area_90_deg2']:.0f} deg² (90 %)")
+    areas = [f"{event.get('area_50_deg2', 0):.0f} deg² (50 %), {event['area_90_deg2']:.0f} deg² (90 %)"
+             ] if event.get("area_90_deg2") is not None else []
+    if covered_deg2 is not None:
+        areas.append(f"the fields cover {covered_deg2:,.0f} deg²")
+    if areas:
+        lines.append("Area       " + "; ".join(areas))
     if event.get("event_time"):
-        lines.append(f"Merger     {event['event_time'][:19].replace('T', ' ')} UTC")
+        lines.append(f"Merger     {shown(event['event_time'], 40)[:19].replace('T', ' ')} UTC")
     return lines
+
+
+def delay_words(facts: PlanFacts) -> str | None:
+    """``first exposure 6 h 0 min after the merger, 5 h 53 min after the alert``; None when neither is known."""
+    parts = [f"{duration_words(s)} {'after' if s >= 0 else 'before'} the {what}"
+             for s, what in ((facts.after_merger_s, "merger"), (facts.after_alert_s, "alert")) if s is not None]
+    return "first exposure " + ", ".join(parts) if parts else None
+
+
+def covered(facts: PlanFacts) -> float | None:
+    """The sky area (deg²) the plan's fields cover (:func:`.sky.covered_area_deg2`), None without fields."""
+    from .sky import covered_area_deg2
+
+    return covered_area_deg2([r.field_id for r in facts.rows], facts.nside or 0) if facts.rows else None
 
 
 def starts_in(first: dt.datetime, now: dt.datetime) -> str:
@@ -78,6 +98,19 @@ def status_words(facts: PlanFacts) -> str:
     return f"{facts.solver}, {words.get(facts.status, facts.status)}"
 
 
+def queue_words(facts: PlanFacts, every: bool = False) -> str | None:
+    """The revision's ZTF queues in words: how many, what became of them, their names (the first and the last
+    unless ``every``); None without any."""
+    names = facts.queues
+    if not names:
+        return None
+    if len(names) == 1:
+        return names[0] + (f" ({facts.queue_note})" if facts.queue_note else "")
+    shown = ", ".join(names) if every else f"{names[0]} … {names[-1]}"
+    note = f"; {facts.queue_note}" if facts.queue_note else ""
+    return f"{len(names)} queues, one per filter pass{note}: {shown}"
+
+
 def _coverage_words(facts: PlanFacts) -> list[str]:
     lines = []
     if facts.coverage_executed is not None:
@@ -102,8 +135,9 @@ def _coverage_words(facts: PlanFacts) -> list[str]:
 def _timing_lines(facts: PlanFacts, now: dt.datetime) -> list[str]:
     if facts.first is None or facts.last_end is None:
         return []
+    delay = delay_words(facts)
     lines = [f"First      {facts.first:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.first)} at Palomar), "
-             f"{starts_in(facts.first, now)}",
+             f"{starts_in(facts.first, now)}"] + ([f"Delay      {delay}"] if delay else []) + [
              f"Last ends  {facts.last_end:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.last_end)} at Palomar)",
              f"Shutter    {duration_words(facts.open_shutter_s)} open, {duration_words(facts.overhead_s)} of "
              "slews, readouts, filter changes and cadence waits"
@@ -112,21 +146,27 @@ def _timing_lines(facts: PlanFacts, now: dt.datetime) -> list[str]:
 
 
 def _rows(facts: PlanFacts) -> list[str]:
-    head = (f"{'field':>6} {'filter':>6}  {'start (UTC)':<16} {'airmass':>7} {'depth':>5} "
-            f"{'own prob':>8} {'coverage':>8}")
+    """One line per exposure: field, filter, start, place (RA, Dec, deg), exposure time, distance from the
+    Moon (deg), airmass, depth, own probability, coverage after."""
+    from .sky import moon_distances
+
+    head = (f"{'field':>6} {'filter':>6}  {'start (UTC)':<16} {'RA':>6} {'Dec':>6} {'exp':>5} {'Moon':>4}"
+            f" {'airmass':>7} {'depth':>5} {'own prob':>8} {'coverage':>8}")
     out = [head]
-    for r in facts.rows:
+    for r, moon in zip(facts.rows, moon_distances(facts.rows)):
         airmass = "" if r.airmass is None else f"{r.airmass:.2f}"
         depth = "" if r.limiting_mag is None else f"{r.limiting_mag:.1f}"
         share = "" if r.share is None else percent(r.share, 2)
         after = "" if r.coverage_after is None else percent(r.coverage_after, 1)
-        out.append(f"{r.field_id:>6} {r.filter:>6}  {r.start:%m-%d %H:%M:%S}   {airmass:>7} {depth:>5} "
-                   f"{share:>8} {after:>8}")
+        ra, dec = ("", "") if r.ra is None or r.dec is None else (f"{r.ra:.2f}", f"{r.dec:+.2f}")
+        away = "" if moon is None else f"{moon:.0f}°"
+        out.append(f"{r.field_id:>6} {r.filter:>6}  {r.start:%m-%d %H:%M:%S}   {ra:>6} {dec:>6} "
+                   f"{r.exposure_s:>4.0f}s {away:>4} {airmass:>7} {depth:>5} {share:>8} {after:>8}")
     return out
 
 
 def summary_text(doc: Mapping[str, Any], now: dt.datetime | None = None, queues: Sequence[str] | None = None,
-                 rows: bool = True) -> str:
+                 rows: bool = True, queue_note: str = "") -> str:
     """The text summary of a plan or not_observable document.
 
     Parameters
@@ -136,22 +176,26 @@ def summary_text(doc: Mapping[str, Any], now: dt.datetime | None = None, queues:
     now : datetime, optional
         The clock of "starts in" (default: now, UTC).
     queues : sequence of str, optional
-        ZTF queue name(s) of the revision (:func:`.facts.plan_facts`).
+        ZTF queue names of the revision (:func:`.facts.plan_facts`).
     rows : bool
         Include the one-row-per-exposure table.
+    queue_note : str
+        What became of the queues (``submitted to kowalski``).
     """
     now = now or dt.datetime.now(dt.timezone.utc)
-    facts = plan_facts(doc, queues)
+    facts = plan_facts(doc, queues, queue_note)
     revision = "" if facts.revision is None else f" revision {facts.revision}" + (
         " (final)" if facts.final else " (may be superseded)" if facts.final is False else "")
-    lines = [f"Revision   {doc.get('plan_id', '')}{revision}"] + event_lines(facts.event)
+    area = covered(facts) if facts.kind != "not_observable" else None
+    lines = [f"Revision   {shown(doc.get('plan_id', ''))}{revision}"] + event_lines(facts.event, area)
     if facts.kind == "not_observable":
         lines.append("Answer     NOT OBSERVABLE by ZTF: " + (facts.reasons[0] if facts.reasons else "no field in reach"))
         lines += [f"           {r}" for r in facts.reasons[1:]]
         return "\n".join(lines) + "\n"
     lines.append(f"Planned    {answer_line(doc)}")
-    if facts.queues:
-        lines.append(f"Queue      {', '.join(facts.queues)}")
+    queue = queue_words(facts)
+    if queue:
+        lines.append(f"Queue      {queue}")
     lines += _timing_lines(facts, now) + _coverage_words(facts)
     lines.append(f"Found by   {status_words(facts)}")
     if rows and facts.rows:

@@ -113,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
     """
     t_imports = time.perf_counter()
     from .config import load_config
+    from ..handlers.text import storable
     from ..inputs import regular_file
     from ..offline import configure_astropy_offline
     from ..outputs import write_json_atomic
@@ -135,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
     skymap = read_skymap(source, nside=cfg.nside)
     progress.stage(f"planning ({args.solver or cfg.solver})", deadline or _budget_s(cfg, args.solver))
     t_load = time.perf_counter() - t0  # config, imports and the sky map
-    log.info("read %s: nside %d, 90%% area %.0f deg2, event time %s", source, skymap.nside,
+    log.info("read %s: nside %d, 90%% area %.0f deg2, event time %s", storable(source), skymap.nside,
              skymap.credible_area(0.9), skymap.event_time.isot if skymap.event_time else "unknown")
     if executed_spec is not None or cfg.nights > 1:
         with progress:
@@ -157,14 +158,14 @@ def run(args: argparse.Namespace) -> int:
         _write_not_observable(args, answer, plan, skymap, cfg, outputs, t0)
         return 0
     write_json_atomic(args.output, doc)
-    _write_submissions(args.queue, getattr(args, "skyportal", None), plan, config.export)
-    picture = _write_summary(args, doc, plan, skymap)
+    queues = _write_submissions(args.queue, getattr(args, "skyportal", None), plan, config, doc)
+    picture = _write_summary(args, doc, plan, skymap, queues=queues)
     progress.done()
     if args.plot:
         from ..outputs import write_bytes_atomic
 
         write_bytes_atomic(args.plot, picture)
-    _print_answer(args, args.output, doc, time.perf_counter() - t0)
+    _print_answer(args, args.output, doc, time.perf_counter() - t0, queues=queues)
     return 0
 
 
@@ -223,7 +224,7 @@ def _budget_s(cfg: Any, solver: str | None) -> float | None:
 
 
 def _write_summary(args: argparse.Namespace, doc: dict[str, Any], plan: Any, skymap: Any, answer: Any = None,
-                   show: bool = True) -> bytes | None:
+                   show: bool = True, queues: tuple[tuple[str, ...], str] = ((), "")) -> bytes | None:
     """Write ``P.txt`` and ``P.html`` beside ``-o P.json``; the picture's PNG, or None.
 
     The page embeds the picture when one is drawn (``--plot``): a plan without it does not load matplotlib
@@ -237,7 +238,7 @@ def _write_summary(args: argparse.Namespace, doc: dict[str, Any], plan: Any, sky
 
         picture = plan_picture_png(plan, skymap, dpi=120, answer=answer,
                                    executed=getattr(args, "executed_exposures", ()))
-    write_summaries(doc, args.output, picture)
+    write_summaries(doc, args.output, picture, queues=queues[0], queue_note=queues[1])
     if answer is not None and args.plot:
         from ..outputs import write_bytes_atomic
 
@@ -246,13 +247,13 @@ def _write_summary(args: argparse.Namespace, doc: dict[str, Any], plan: Any, sky
 
 
 def _print_answer(args: argparse.Namespace, output: str, doc: dict[str, Any], seconds: float,
-                  what: str = "") -> None:
+                  what: str = "", queues: tuple[tuple[str, ...], str] = ((), "")) -> None:
     """The text summary (unless ``--brief``), then the one-line answer in words (``what``: the night, the window)."""
     from ..report.files import summary_paths
     from ..report.summary import answer_line, summary_text
 
     if not getattr(args, "brief", False):
-        print(summary_text(doc, rows=False))
+        print(summary_text(doc, rows=False, queues=queues[0], queue_note=queues[1]))
     txt, page = summary_paths(output)
     print(f"{output}: {what + ': ' if what else ''}{answer_line(doc)}; checked, {seconds:.1f} s "
           f"(summary {txt}, page {page})")
@@ -331,27 +332,37 @@ def read_executed(spec: str, around: Any | None) -> tuple[Any, ...]:
     return tuple(exposures)
 
 
-def _write_submissions(queue_path: str | None, skyportal_path: str | None, plan: Any, export: Any) -> None:
-    """``--queue`` and ``--skyportal`` files: both from one timing of the plan's queue set."""
+#: What ``mushrooms plan`` says of the queue names in its summaries.
+PLAN_QUEUE_WORDS = "not sent by mushrooms plan, named as mushrooms submit and the service send them"
+
+
+def _write_submissions(queue_path: str | None, skyportal_path: str | None, plan: Any, config: Any,
+                       doc: dict[str, Any]) -> tuple[tuple[str, ...], str]:
+    """``--queue`` and ``--skyportal`` files, both from one timing of the plan's queue set; the plan's queue
+    names (as the service would submit it to ``[submit] target``) and what becomes of them, for its summaries."""
+    from ..daemon.submission.names import queue_names
     from ..outputs import write_json_atomic
+    from ..scheduler_core.plan.exports import timed_passes
 
-    if not (queue_path or skyportal_path):
-        return
-    passes = None
-    if queue_path:
-        from ..scheduler_core.plan.exports import timed_passes
-
+    export = config.export
+    try:
         passes = timed_passes(plan, export, _submission_base(plan, export))
+    except ValueError:
+        if queue_path:
+            raise
+        return (), ""
+    if queue_path:
         write_json_atomic(queue_path, passes.queues[0] if len(passes.queues) == 1 else passes.queues)
     if skyportal_path:
         write_json_atomic(skyportal_path, submitted_skyportal(plan, export, passes))
+    return queue_names(doc, export, config.submit.target, passes), PLAN_QUEUE_WORDS
 
 
 def _submission_base(plan: Any, export: Any) -> str:
-    """The name base of revision 1's queues (``ToO_<subprogram>_<superevent>_r1``)."""
-    from ..daemon.submission.submitter import queue_name
+    """The name base of the plan's queues (:func:`~..scheduler_core.plan.exports.queue_name_base`)."""
+    from ..scheduler_core.plan.exports import queue_name_base
 
-    return queue_name(export.subprogram_name, plan.event.superevent_id or plan.plan_id, 1)
+    return queue_name_base(export.subprogram_name, plan.plan_id, plan.event.superevent_id)
 
 
 def submitted_skyportal(plan: Any, export: Any, passes: Any = None) -> Any:
@@ -389,14 +400,15 @@ def _write_night(args: argparse.Namespace, config: Any, skymap: Any, plan: Any, 
     output = night_path(args.output, n)
     doc = revision_document(plan, 1, True)
     write_json_atomic(output, doc)
-    picture = _write_summary(argparse.Namespace(**{**vars(args), "output": output}), doc, plan, skymap)
     skyportal = getattr(args, "skyportal", None)
-    _write_submissions(args.queue and night_path(args.queue, n), skyportal and night_path(skyportal, n), plan,
-                       config.export)
+    queues = _write_submissions(args.queue and night_path(args.queue, n), skyportal and night_path(skyportal, n),
+                                plan, config, doc)
+    picture = _write_summary(argparse.Namespace(**{**vars(args), "output": output}), doc, plan, skymap,
+                             queues=queues)
     if args.plot and picture is not None:
         write_bytes_atomic(night_path(args.plot, n), picture)
     _print_answer(argparse.Namespace(**{**vars(args), "output": output}), output, doc,
-                  time.perf_counter() - t0, what)
+                  time.perf_counter() - t0, what, queues=queues)
 
 
 def _replan(args: argparse.Namespace, config: Any, skymap: Any, start: Any, spec: str | None, fraction: float,

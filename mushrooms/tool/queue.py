@@ -3,8 +3,9 @@
 ``[submit] url`` (or ``--url``) is Kowalski's base URL; the token comes from
 ``$MUSHROOMS_SUBMIT_TOKEN`` or the systemd credential ``submit_token``; the
 DELETE's ``user`` is ``[export] user``.  The daemon's own queues are named
-``ToO_<subprogram>_<superevent>_r<n>_<k>`` (queue ``k`` of the set of the
-event's revision ``n``); ``list`` groups them by event and revision and
+``ToO_<subprogram>_<superevent>_<plan tag>_<k>`` (queue ``k`` of the set of
+the plan whose id starts with the tag: :func:`~mushrooms.scheduler_core.plan.exports.queue_name_base`);
+``list`` groups them by event and plan, in the order their windows open, and
 shows each queue's validity window in UTC and its number of targets; other
 queues are listed after them.  A server's error is one short line.
 """
@@ -78,8 +79,8 @@ def run(args: argparse.Namespace) -> int:
     return 1
 
 
-#: The daemon's queue names: ``ToO_<subprogram>_<superevent>_r<n>_<k>``.
-_OURS = re.compile(r"^ToO_[^_]+_(?P<event>.+)_r(?P<revision>\d+)_(?P<k>\d+)$")
+#: The daemon's queue names: ``ToO_<subprogram>_<superevent>_<plan tag>_<k>`` (a bare sky map: no superevent).
+_OURS = re.compile(r"^ToO_[^_]+_(?:(?P<event>.+)_)?(?P<tag>[0-9a-f]{8})_(?P<k>\d+)$")
 
 
 def _line(text: str, limit: int = 300) -> str:
@@ -108,19 +109,27 @@ def _describe(q: dict[str, Any]) -> str:
     return f"{_line(q.get('queue_name'), 120)}  {_utc(start)} - {_utc(end)}  {n} targets"
 
 
+def _opens(members: list[tuple[int, dict[str, Any]]]) -> float:
+    """When the first queue of a plan's set opens (MJD; unknown: last)."""
+    try:
+        return min(float(q["validity_window_mjd"][0]) for _, q in members)
+    except (KeyError, TypeError, ValueError, IndexError):
+        return float("inf")
+
+
 def render(queues: list[dict[str, Any]]) -> str:
-    """The queue list grouped by event and revision (the daemon's names), then the other queues."""
-    groups: dict[tuple[str, int], list[tuple[int, dict[str, Any]]]] = {}
+    """The queue list grouped by event and plan (the daemon's names), then the other queues."""
+    groups: dict[tuple[str, str], list[tuple[int, dict[str, Any]]]] = {}
     other = []
     for q in queues:
         m = _OURS.match(str(q.get("queue_name") or ""))
         if m:
-            groups.setdefault((m["event"], int(m["revision"])), []).append((int(m["k"]), q))
+            groups.setdefault((m["event"] or "sky map", m["tag"]), []).append((int(m["k"]), q))
         else:
             other.append(q)
     out = []
-    for (event, revision), members in sorted(groups.items()):
-        out.append(f"{event} r{revision}: {len(members)} queue(s)")
+    for (event, tag), members in sorted(groups.items(), key=lambda kv: (kv[0][0], _opens(kv[1]), kv[0][1])):
+        out.append(f"{event} plan {tag}: {len(members)} queue(s)")
         out.extend(f"  {_describe(q)}" for _, q in sorted(members, key=lambda kq: kq[0]))
     if other:
         out.append(f"other queues: {len(other)}")

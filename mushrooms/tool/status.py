@@ -134,8 +134,9 @@ def _broker_lines(brokers: dict[str, Any]) -> list[str]:
             + f" (recorded {b['recorded_at']})" for client, b in sorted(brokers.items())]
 
 
-def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_hours: float) -> dict[str, Any]:
-    """The status document (what ``--json`` prints)."""
+def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_hours: float,
+            config: Any = None) -> dict[str, Any]:
+    """The status document (what ``--json`` prints); ``config`` names the queues of a plan not yet submitted."""
     from ..daemon.state.views import (attention, broker_reachability, incidents, outbox_backlog, recent_events,
                                       warm_up_plan)
 
@@ -144,7 +145,7 @@ def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_
     jobs = {r[0]: r[1] for r in conn.execute("SELECT status, COUNT(*) FROM jobs GROUP BY status")}
     return {
         "now": now.isoformat(timespec="seconds"),
-        "events": _with_current_plans(conn, recent_events(conn, limit), now),
+        "events": _with_current_plans(conn, recent_events(conn, limit), now, config),
         "jobs": jobs,
         "outbox": {"pending": pending, "oldest_age_s": oldest, "last_error": error},
         "offset_jumps": incidents(conn, "offset_jump", limit=limit),
@@ -158,7 +159,26 @@ def collect(conn: sqlite3.Connection, limit: int, outbox_minutes: float, window_
     }
 
 
-def _with_current_plans(conn: sqlite3.Connection, events: list[dict[str, Any]], now: datetime) -> list[dict[str, Any]]:
+def _queues(conn: sqlite3.Connection, doc: dict[str, Any], config: Any) -> tuple[tuple[str, ...], str]:
+    """The plan's ZTF queue names and what became of them: its submission row's, else (with ``config``) the
+    names it would be submitted as."""
+    from ..daemon.state.views import has_table
+    from ..daemon.submission.names import publish_queues, row_queues
+
+    row = None
+    if has_table(conn, "submissions"):  # a file of an older release may lack the body
+        body = "body" if "body" in {r[1] for r in conn.execute("PRAGMA table_info(submissions)")} else "NULL"
+        row = conn.execute(f"SELECT target, state, {body}, queue_name FROM submissions WHERE plan_id = ?",
+                           (doc.get("plan_id"),)).fetchone()
+    if row is not None and (row[2] or row[3]):
+        return row_queues(*row)
+    if config is None:
+        return (), ""
+    return publish_queues(config.submit, config.export)(doc)
+
+
+def _with_current_plans(conn: sqlite3.Connection, events: list[dict[str, Any]], now: datetime,
+                        config: Any = None) -> list[dict[str, Any]]:
     """Each event with ``current``: its revision in force in words (``plan_id``, ``answer``), and the newest
     event's with its text ``summary`` too (the one-row-per-exposure table is in the outbox's ``.txt``)."""
     from ..report.summary import answer_line, summary_text
@@ -170,7 +190,8 @@ def _with_current_plans(conn: sqlite3.Connection, events: list[dict[str, Any]], 
             continue
         ev["current"] = {"plan_id": doc.get("plan_id"), "answer": answer_line(doc)}
         if k == 0:
-            ev["current"]["summary"] = summary_text(doc, now=now, rows=False)
+            names, words = _queues(conn, doc, config)
+            ev["current"]["summary"] = summary_text(doc, now=now, rows=False, queues=names, queue_note=words)
     return events
 
 
@@ -234,7 +255,8 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_INPUT
     from ..daemon.state.views import connect_readonly
 
-    max_pending_s = _config(args).submit.max_pending_s
+    config = _config(args)
+    max_pending_s = config.submit.max_pending_s
     try:
         conn = connect_readonly(path, timeout_s=max(0.0, args.busy_timeout))
         try:
@@ -242,7 +264,7 @@ def run(args: argparse.Namespace) -> int:
             if problem:
                 print(f"mushrooms status: error: {path}: {problem}", file=sys.stderr)
                 return EXIT_INPUT
-            doc = collect(conn, args.limit, args.outbox_minutes, args.window_hours)
+            doc = collect(conn, args.limit, args.outbox_minutes, args.window_hours, config)
             doc["attention"] += (_broker_attention(doc["brokers"]) + _warm_attention(doc["warm_up_plan"])
                                  + _submission_attention(conn, max_pending_s))
         finally:

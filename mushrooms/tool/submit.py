@@ -30,7 +30,8 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--target", choices=("kowalski", "skyportal"), help="default [submit] target")
     p.add_argument("--url", help="base URL of the target (default [submit] url)")
     p.add_argument("--queue-name", metavar="NAME",
-                   help="default ToO_<subprogram>_<superevent>_m<8 hex of the plan id> (the daemon's names end _r<n>)")
+                   help="name base of the queues (default the one rule of the service and `plan --queue`: "
+                        "ToO_<subprogram>_<superevent>_<8 hex of the plan id>; the queues end _1, _2, ...)")
     p.add_argument("--dry-run", action="store_true", help="print the request (token redacted) and send nothing")
     p.add_argument("--force", action="store_true", help="submit even when a [submit] gate would not")
     add_common_options(p)
@@ -83,8 +84,10 @@ def run(args: argparse.Namespace) -> int:
     if why and not args.force:
         print(f"mushrooms submit: not submitted: {why} (--force submits anyway)", file=sys.stderr)
         return 1
-    sid = (doc.get("event") or {}).get("superevent_id") or doc["plan_id"]
-    name = args.queue_name or f"ToO_{config.export.subprogram_name}_{sid}_m{doc['plan_id'][-16:][:8]}"
+    from ..scheduler_core.plan.exports import queue_name_base
+
+    name = args.queue_name or queue_name_base(config.export.subprogram_name, str(doc["plan_id"]),
+                                              (doc.get("event") or {}).get("superevent_id"))
     try:
         body = build_body(doc, config.submit, config.export, name)
     except ValueError as exc:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Sequence
+from typing import Any, Sequence
 
 from .common import add_common_options, execute, tool_parser
 
@@ -82,17 +82,23 @@ def run(args: argparse.Namespace) -> int:
     before = read_state(paths.state, last_seq, 0)
     status = run_trigger(args.target, kind, payload, config, paths, force=bool(getattr(args, "force", False)),
                          console=PrintConsole())
-    print_summaries(read_state(paths.state, lambda conn: documents_since(conn, before), []))
+    print_summaries(read_state(paths.state, lambda conn: documents_since(conn, before), []), config)
     return status
 
 
-def print_summaries(docs: Sequence[dict]) -> None:
-    """The text summary of the newest revision the trigger produced (its rows in the outbox's ``.txt``)."""
+def print_summaries(docs: Sequence[dict], config: Any = None) -> None:
+    """The text summary of the newest revision the trigger produced (its rows in the outbox's ``.txt``), with
+    the queue names the service gives it (``config``'s ``[submit]`` and ``[export]``)."""
     from ..report.summary import summary_text
 
     if docs:
+        names, words = ((), "")
+        if config is not None:
+            from ..daemon.submission.names import publish_queues
+
+            names, words = publish_queues(config.submit, config.export)(docs[-1])
         print()
-        print(summary_text(docs[-1], rows=False), end="", flush=True)
+        print(summary_text(docs[-1], rows=False, queues=names, queue_note=words), end="", flush=True)
 
 
 class PrintConsole:

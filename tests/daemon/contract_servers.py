@@ -223,6 +223,8 @@ class KowalskiContract(_Contract):
     def __init__(self, server: HTTPServer, token: str) -> None:
         super().__init__(server, token)
         self.queues: dict[str, dict[str, Any]] = {}
+        #: name prefixes whose first queue exists already with other content (its first PUT gets 409)
+        self.taken: set[str] = set()
         for method in ("PUT", "DELETE", "GET"):
             server.expect_request(KOWALSKI_PATH, method=method).respond_with_handler(self._handle)
 
@@ -246,6 +248,10 @@ class KowalskiContract(_Contract):
         if problem:
             return _error(f"ValidationError: {problem}")
         with self._lock:
+            name = body["queue_name"]
+            for prefix in [p for p in self.taken if name.startswith(p) and name.endswith("_1")]:
+                self.taken.discard(prefix)
+                self.queues[name] = {"queue_name": name, "validity_window_mjd": [1.0, 2.0], "targets": []}
             if body["queue_name"] in self.queues:
                 return _error(f"Submitted queue {body['queue_name']} already exists", 409)
             self.queues[body["queue_name"]] = body

@@ -3,7 +3,7 @@
 The notice is planned from now (wall clock: a queue's validity window must not
 have ended), the plan's first 10 exposures are executed, the telescope closes
 for 2 h, and the re-plan (the event's revision 2) is submitted to the Kowalski
-contract server on loopback as ``..._r2``, the first queue deleted only after.
+contract server on loopback under the re-plan's own names, the first queue deleted only after.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from astropy.time import Time, TimeDelta
 
 from mushrooms.daemon.loop_settings import LoopConfig
 from mushrooms.daemon.intake.pipeline import NoticePipeline
-from mushrooms.daemon.submission.submitter import queue_name, submissions
+from mushrooms.daemon.submission.submitter import queue_name_base, submissions
 from mushrooms.handlers.executed import write_jsonl
 from mushrooms.scheduler_core.executed import ExecutedExposure
 
@@ -45,7 +45,7 @@ def test_a_closure_re_plan_replaces_the_events_queue(tmp_path):
             out = world.pipeline.run_job(acc.job)
             assert out.decision == "replan" and out.revision == 2, out
             assert world.submitter.step() == 0
-            r1, r2 = queue_name("GW", SID, 1), queue_name("GW", SID, 2)
+            r1, r2 = queue_name_base("GW", first["plan_id"], SID), queue_name_base("GW", out.plan_id, SID)
             held = list(kowalski.queues)
             assert held and all(n.startswith(r2 + "_") for n in held)  # the re-plan's whole set, nothing of r1
             requests = [line.split()[:3] for line in kowalski.lines()]

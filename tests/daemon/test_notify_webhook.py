@@ -149,7 +149,8 @@ def test_the_daemon_tells_the_webhook_of_a_plan_and_of_kowalski_down(broker, dae
     assert plan["superevent_id"] == "MS181101ab" and plan["revision"] == 1
     assert plan["text"].startswith("MS181101ab: new ZTF plan, revision 1: ") and "exposures from" in plan["text"]
     failing = said["submission_failing"]["text"]
-    assert failing.startswith("MS181101ab: queue ToO_GW_MS181101ab_r1 could not be submitted (attempt 1:")
+    base = f"ToO_GW_MS181101ab_{plan['plan_id'].removeprefix('mushrooms-')[:8]}"  # the one naming rule
+    assert failing.startswith(f"MS181101ab: queue {base} could not be submitted (attempt 1:"), failing
     assert failing.endswith("retrying")
     assert [e for e in events() if e == "submission_failing"] == ["submission_failing"]  # said once, not per retry
     assert SECRET_PATH not in d.text() and "s3cr3t" not in d.text()

@@ -87,13 +87,14 @@ def test_status_exits_1_on_a_submission_pending_longer_than_the_configured_age(t
     from mushrooms.cli import main
 
     w = _pending_world(tmp_path, 3600.0)
+    (name,) = [r[0] for r in w.store.connection().execute("SELECT queue_name FROM submissions")]
     w.store.close()
     cfg = tmp_path / "c.toml"
     cfg.write_text("[submit]\nmax_pending_s = 600\n")
     capsys.readouterr()
     assert main(["status", "--config", str(cfg), "--state", str(tmp_path / "state.sqlite")]) == 1
     out = capsys.readouterr().out
-    assert "NEEDS ATTENTION" in out and f"ToO_GW_{SID}_r1" in out and "pending" in out
+    assert "NEEDS ATTENTION" in out and name.startswith(f"ToO_GW_{SID}_") and name in out and "pending" in out
     cfg.write_text("[submit]\nmax_pending_s = 7200\n")
     main(["status", "--config", str(cfg), "--state", str(tmp_path / "state.sqlite")])
     assert "pending" not in capsys.readouterr().out.split("nothing needs attention")[-1]
@@ -121,9 +122,10 @@ def test_readiness_fails_while_submissions_fail_or_wait_too_long(tmp_path) -> No
         return 0
 
     drain = OutboxDrain(flush, initial_s=60.0, max_s=60.0, name="submit")
+    (name,) = [r[0] for r in w.store.connection().execute("SELECT queue_name FROM submissions")]
     try:
         ok, detail = submission_check(w.path, drain, max_pending_s=600.0)()
-        assert not ok and f"ToO_GW_{SID}_r1" in detail and "pending" in detail
+        assert not ok and name.startswith(f"ToO_GW_{SID}_") and name in detail and "pending" in detail
         ok, detail = submission_check(w.path, drain, max_pending_s=7200.0)()
         assert ok, detail
         fail.set()
@@ -234,4 +236,4 @@ def test_the_operations_doc_names_every_submission_series_and_alerts_on_a_stuck_
 def test_a_bare_sky_maps_queue_name_is_what_the_plan_format_says() -> None:
     plan_format = (OPS.parent / "design" / "plan-format.md").read_text()
     assert "`ToO_<superevent>`)" not in plan_format
-    assert "ToO_<superevent, or the plan id of a bare sky map>" in plan_format
+    assert "`ToO_<subprogram>_<plan tag>_<k>` for a\n  bare sky map" in plan_format

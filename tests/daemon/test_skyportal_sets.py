@@ -15,7 +15,7 @@ import json
 import pytest
 
 from contract_servers import SkyPortalContract
-from mushrooms.daemon.submission.submitter import submissions
+from mushrooms.daemon.submission.submitter import queue_name_base, submissions
 from test_submissions import (SID, TOKEN, Killed, World, _config, _die_after, killed_during_the_deletes,  # noqa: F401
                               server)
 
@@ -35,10 +35,11 @@ def world(tmp_path, skyportal):
 
 
 def names(world: World, revision: int) -> list[str]:
-    """The plan names of an event's ``revision``-th set, as stored (``GW_<superevent>_r<n>_<k>``)."""
+    """The plan names of an event's ``revision``-th set, as stored (``GW_<superevent>_<plan tag>_<k>``)."""
     (row,) = [s for s in submissions(world.store) if s.revision == revision]
     got = row.queue_names()
-    assert got == [f"GW_{SID}_r{revision}_{k}" for k in range(1, len(got) + 1)]
+    base = queue_name_base("GW", row.plan_id, SID).removeprefix("ToO_")
+    assert got == [f"{base}_{k}" for k in range(1, len(got) + 1)]
     return got
 
 
@@ -144,12 +145,14 @@ def test_a_row_written_before_sets_is_looked_up_by_its_plan_name_and_removed_by_
             w.submitter.step()
         w.restart()
         assert w.submitter.step() == 0
-        assert [p["plan_name"] for p in skyportal.plans.values()] == [f"GW_{SID}_r1"]  # not imported twice
+        (row,) = submissions(w.store)
+        one = queue_name_base("GW", row.plan_id, SID).removeprefix("ToO_")
+        assert [p["plan_name"] for p in skyportal.plans.values()] == [one]  # not imported twice
         w.notice("MS181101ab-retraction.json", time_created="2023-04-26T00:00:00Z")
         assert w.submitter.step() == 0
         (row,) = submissions(w.store)
-        assert row.state == "failed" and row.reason.endswith(f"remove plan(s) GW_{SID}_r1 by hand")
-        assert [p["plan_name"] for p in skyportal.plans.values()] == [f"GW_{SID}_r1"]  # said, not claimed removed
+        assert row.state == "failed" and row.reason.endswith(f"remove plan(s) {one} by hand")
+        assert [p["plan_name"] for p in skyportal.plans.values()] == [one]  # said, not claimed removed
     finally:
         w.store.close()
 

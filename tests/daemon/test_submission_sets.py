@@ -38,20 +38,22 @@ def sets(monkeypatch):
     monkeypatch.setattr(exports, "to_trigger_queues", three_queues)
 
 
-def names(revision: int, sid: str = SID) -> list[str]:
-    return [f"ToO_GW_{sid}_r{revision}_{k}" for k in range(1, K + 1)]
+def names(world: World, revision: int) -> list[str]:
+    """The K queues of the event's ``revision``-th submitted set (named by the one rule from the plan's id)."""
+    (row,) = [s for s in submissions(world.store) if s.revision == revision]
+    return [f"{row.queue_name}_{k}" for k in range(1, K + 1)]
 
 
 def test_a_revision_puts_its_whole_set_before_deleting_the_old_set_and_a_retraction_deletes_all(
         sets, world, kowalski) -> None:
     world.notice("MS181101ab-preliminary.json")
     assert world.submitter.step() == 0
-    assert sorted(kowalski.queues) == names(1)
+    assert sorted(kowalski.queues) == names(world, 1)
     world.notice("MS230425l-preliminary.json", SID)
     assert world.submitter.step() == 0
-    assert kowalski.lines()[K:] == ([f"PUT /api/triggers/ztf {n} -> 200" for n in names(2)]
-                                    + [f"DELETE /api/triggers/ztf {n} -> 200" for n in names(1)])
-    assert sorted(kowalski.queues) == names(2)
+    assert kowalski.lines()[K:] == ([f"PUT /api/triggers/ztf {n} -> 200" for n in names(world, 2)]
+                                    + [f"DELETE /api/triggers/ztf {n} -> 200" for n in names(world, 1)])
+    assert sorted(kowalski.queues) == names(world, 2)
     world.notice("MS181101ab-retraction.json", time_created="2023-04-26T00:00:00Z")
     assert world.submitter.step() == 0
     assert kowalski.queues == {}
@@ -75,9 +77,9 @@ def test_a_kill_between_two_puts_of_a_set_leaves_no_queue_twice_and_none_orphane
         world.submitter.step()
     world.restart()
     assert world.submitter.step() == 0
-    assert sorted(kowalski.queues) == names(1)
+    assert sorted(kowalski.queues) == names(world, 1)
     puts = [e["queue_name"] for e in kowalski.log if e["method"] == "PUT" and e["status"] == 200]
-    assert sorted(puts) == names(1)  # each accepted once; the repeat was a 409 with the same content
+    assert sorted(puts) == names(world, 1)  # each accepted once; the repeat was a 409 with the same content
     (row,) = submissions(world.store)
     assert row.state == "submitted"
 
@@ -203,8 +205,9 @@ def test_queue_list_groups_the_queues_by_event_and_revision_with_utc_windows(set
     capsys.readouterr()
     assert main(["queue", "list", "--url", kowalski.url]) == 0
     out = capsys.readouterr().out
-    assert f"{SID} r1: {K} queue(s)" in out
+    (row,) = submissions(world.store)
+    assert f"{SID} plan {row.plan_id.removeprefix('mushrooms-')[:8]}: {K} queue(s)" in out
     assert "2023-02-25T02:57" in out and "60000.123456789012" not in out
-    for n in names(1):
+    for n in names(world, 1):
         assert n in out
     assert "ToO_manual" in out and "targets" in out

@@ -23,7 +23,7 @@ from mushrooms.daemon.intake.pipeline import NoticePipeline
 from mushrooms.daemon.submission.remote import make_client
 from mushrooms.daemon.sinks import MemorySink
 from mushrooms.daemon.state.store import Store
-from mushrooms.daemon.submission.submitter import Submitter, queue_name, submissions
+from mushrooms.daemon.submission.submitter import Submitter, queue_name_base, submissions
 from mushrooms.daemon.submission.settings import SubmitConfig
 from mushrooms.handlers.policy import PolicyConfig
 from mushrooms.scheduler_core import PlanningConfig
@@ -43,9 +43,17 @@ def one_queue_per_revision(monkeypatch):
                         [exports.to_trigger_queue(plan, export, queue_name=f"{name_base}_1")])
 
 
-def qn(revision: int) -> str:
-    """The one queue of revision ``revision``'s set (the placeholder set has K = 1)."""
-    return queue_name("GW", SID, revision) + "_1"
+def planned(world: "World", n: int, sid: str | None = None) -> str:
+    """The name base of the event's ``n``-th stored plan (the one rule: its plan id names it)."""
+    plan_id = world.store.connection().execute("SELECT plan_id FROM plans WHERE superevent_id = ? ORDER BY seq"
+                                               " LIMIT 1 OFFSET ?", (sid or SID, n - 1)).fetchone()[0]
+    return queue_name_base("GW", plan_id, sid or SID)
+
+
+def qn(world: "World", revision: int) -> str:
+    """The one queue of the event's ``revision``-th submitted set (the placeholder set has K = 1)."""
+    (row,) = [s for s in submissions(world.store) if s.revision == revision]
+    return row.queue_name + "_1"
 SID = "MS181101ab"
 
 
@@ -114,7 +122,7 @@ def world(tmp_path, kowalski):
 def test_notice_update_and_retraction_put_replace_then_delete(world, kowalski) -> None:
     world.notice("MS181101ab-preliminary.json")
     assert world.submitter.step() == 0
-    r1 = qn(1)
+    r1 = qn(world, 1)
     assert list(kowalski.queues) == [r1]
     body = kowalski.queues[r1]
     assert body["queue_type"] == "list" and body["user"] == "mushrooms" and body["targets"]
@@ -122,7 +130,7 @@ def test_notice_update_and_retraction_put_replace_then_delete(world, kowalski) -
 
     world.notice("MS230425l-preliminary.json", SID)  # an updated sky map: a new plan supersedes
     assert world.submitter.step() == 0
-    r2 = qn(2)
+    r2 = qn(world, 2)
     assert list(kowalski.queues) == [r2]
     assert kowalski.lines()[1:] == [f"PUT /api/triggers/ztf {r2} -> 200", f"DELETE /api/triggers/ztf {r1} -> 200"]
     assert world.states() == [(r1, "replaced"), (r2, "submitted")]
@@ -147,10 +155,10 @@ def test_a_newer_plan_not_yet_accepted_keeps_the_old_queue(world, kowalski) -> N
     world.notice("MS230425l-preliminary.json", SID)
     kowalski.faults["PUT"] = [500, 503]
     assert world.submitter.step() == 1  # r2 waits for a retry; r1 stays queued
-    assert list(kowalski.queues) == [qn(1)]
+    assert list(kowalski.queues) == [qn(world, 1)]
     assert world.submitter.step() == 1
     assert world.submitter.step() == 0
-    assert list(kowalski.queues) == [qn(2)]
+    assert list(kowalski.queues) == [qn(world, 2)]
     assert [e["method"] for e in kowalski.log] == ["PUT", "PUT", "PUT", "PUT", "DELETE"]
 
 
@@ -181,7 +189,7 @@ def test_crash_after_the_put_before_the_commit_counts_the_409_with_the_same_cont
     assert row.state == "pending" and row.attempts == 1  # the attempt was committed before the PUT
     world.restart()
     assert world.submitter.step() == 0
-    r1 = qn(1)
+    r1 = qn(world, 1)
     assert kowalski.lines() == [f"PUT /api/triggers/ztf {r1} -> 200", f"PUT /api/triggers/ztf {r1} -> 409",
                                 "GET /api/triggers/ztf  -> 200"]
     (row,) = submissions(world.store)
@@ -200,7 +208,7 @@ def killed_during_the_deletes(world: World) -> None:
 
 def test_crash_during_the_delete_is_finished_by_the_restart(world, kowalski) -> None:
     killed_during_the_deletes(world)
-    r1, r2 = qn(1), qn(2)
+    r1, r2 = qn(world, 1), qn(world, 2)
     assert list(kowalski.queues) == [r2]
     world.restart()
     assert world.states() == [(r1, "submitted"), (r2, "submitted")]
@@ -211,9 +219,9 @@ def test_crash_during_the_delete_is_finished_by_the_restart(world, kowalski) -> 
 
 
 def test_a_409_with_other_content_is_a_rejection(world, kowalski) -> None:
-    r1 = qn(1)
-    kowalski.queues[r1] = {"queue_name": r1, "validity_window_mjd": [1.0, 2.0], "targets": []}
     world.notice("MS181101ab-preliminary.json")
+    r1 = planned(world, 1) + "_1"  # the name the plan will be sent as, taken by another queue before it is sent
+    kowalski.queues[r1] = {"queue_name": r1, "validity_window_mjd": [1.0, 2.0], "targets": []}
     world.submitter.step()
     (row,) = submissions(world.store)
     assert row.state == "rejected" and row.http_status == 409 and "other content" in row.reason
@@ -262,7 +270,7 @@ def test_server_errors_and_timeouts_are_retried_until_accepted(tmp_path, kowalsk
         (row,) = submissions(w.store)
         assert row.state == "submitted" and row.attempts == 2
         # after a timeout the server may have taken the first PUT: it did not here, once is once
-        assert list(kowalski.queues) == [qn(1)]
+        assert list(kowalski.queues) == [qn(w, 1)]
     finally:
         kowalski.release.set()
         w.store.close()
@@ -308,7 +316,7 @@ def test_the_dry_run_sends_nothing_and_logs_the_request_redacted(tmp_path, kowal
         request = json.loads(line.split("request=", 1)[1])
         assert request["method"] == "PUT" and request["url"] == kowalski.url + "/api/triggers/ztf"
         assert request["headers"]["Authorization"] == "Bearer ***"
-        assert request["body"]["queue_name"] == qn(1)
+        assert request["body"]["queue_name"] == planned(w, 1) + "_1"
         assert TOKEN not in caplog.text
     finally:
         w.store.close()
@@ -343,8 +351,8 @@ def test_queue_names_are_stable_across_restarts(world, kowalski) -> None:
     world.restart()
     world.submitter.step()
     after = [(s.plan_id, s.queue_name) for s in submissions(world.store)]
-    assert after[0] == before[0] and after[1][1] == queue_name("GW", SID, 2)
-    assert list(kowalski.queues) == [qn(2)]
+    assert after[0] == before[0] and after[1][1] == queue_name_base("GW", after[1][0], SID)
+    assert list(kowalski.queues) == [qn(world, 2)]
 
 
 def test_plans_superseded_before_they_were_sent_are_never_sent(world, kowalski) -> None:
@@ -353,7 +361,7 @@ def test_plans_superseded_before_they_were_sent_are_never_sent(world, kowalski) 
     world.submitter.step()
     assert [s.state for s in submissions(world.store)] == ["skipped", "submitted"]
     assert [e["method"] for e in kowalski.log] == ["PUT"]
-    assert list(kowalski.queues) == [qn(1)]  # the first revision the submitter saw
+    assert list(kowalski.queues) == [qn(world, 1)]  # the first revision the submitter saw
 
 
 def _single_plan(url: str) -> Config:
@@ -371,7 +379,8 @@ def test_skyportal_import_and_removal(tmp_path, skyportal) -> None:
         (row,) = submissions(w.store)
         assert row.state == "submitted" and row.remote_id == "1"
         plan = skyportal.plans[1]
-        assert plan["plan_name"] == f"GW_{SID}_r1" and plan["payload"]["queue_name"] == f"GW_{SID}_r1"
+        base = queue_name_base("GW", row.plan_id, SID).removeprefix("ToO_")
+        assert plan["plan_name"] == base and plan["payload"]["queue_name"] == base
         assert skyportal.log[0]["authorization"] == f"token {TOKEN}"
         w.notice("MS181101ab-retraction.json")
         w.submitter.step()
@@ -436,7 +445,8 @@ def test_submit_tool_dry_run_prints_the_request_redacted_and_sends_nothing(world
     out = capsys.readouterr().out
     (request,) = json.loads(out)
     assert request["method"] == "PUT" and request["headers"]["Authorization"] == "Bearer ***"
-    assert request["body"]["queue_name"].startswith(f"ToO_GW_{SID}_m") and TOKEN not in out
+    doc = json.loads(plan.read_text())
+    assert request["body"]["queue_name"] == queue_name_base("GW", doc["plan_id"], SID) + "_1" and TOKEN not in out
     assert kowalski.log == []
 
 
@@ -472,7 +482,7 @@ def test_a_dry_run_after_a_real_run_sends_nothing_either(tmp_path, kowalski) -> 
         w.notice("MS181101ab-retraction.json")
         assert w.submitter.step() == 0
         assert [e["method"] for e in kowalski.log] == ["PUT"]  # no DELETE sent
-        assert list(kowalski.queues) == [qn(1)]
+        assert list(kowalski.queues) == [qn(w, 1)]
     finally:
         w.store.close()
 
@@ -483,7 +493,7 @@ def test_a_revision_of_the_real_export_puts_every_queue_of_its_set(world, kowals
     assert world.submitter.step() == 0
     (row,) = submissions(world.store)
     names = row.queue_names()
-    assert len(names) > 1 and names == [f"{queue_name('GW', SID, 1)}_{k}" for k in range(1, len(names) + 1)]
+    assert len(names) > 1 and names == [f"{queue_name_base('GW', row.plan_id, SID)}_{k}" for k in range(1, len(names) + 1)]
     assert list(kowalski.queues) == names
     assert [line.split()[:3] for line in kowalski.lines()] == [["PUT", "/api/triggers/ztf", n] for n in names]
     windows = [kowalski.queues[n]["validity_window_mjd"] for n in names]

@@ -34,24 +34,15 @@ def _uniq(name: str) -> str:
     return f"{name}-{time.time_ns()}"
 
 
-def _name(sid: str, n: int) -> str:
-    return f"ToO_GW_{sid}_r{n}_1"  # queue 1 of the revision's set
-
-
-def _revisions(kowalski, sid: str) -> list[int]:
-    """The revisions of ``sid`` whose queues ZTF holds (each revision a set ``..._r<n>_1`` ... ``_r<n>_K``)."""
-    base = f"ToO_GW_{sid}_r"
-    return sorted({int(n[len(base):].split("_")[0]) for n in kowalski.queues if n.startswith(base)})
-
-
-def _requests_by_revision(kowalski, sid: str) -> list[tuple[str, int]]:
-    """(method, revision) of the PUTs and DELETEs in order, one entry per run of requests on one set."""
-    base = f"ToO_GW_{sid}_r"
+def _requests_by_revision(kowalski, names: dict[str, int]) -> list[tuple[str, int]]:
+    """(method, revision) of the PUTs and DELETEs in order, one entry per run of requests on one set
+    (``names``: name base -> revision, :meth:`Setup.bases`)."""
     out: list[tuple[str, int]] = []
     for line in kowalski.lines():
         method, _, name = line.split()[:3]
-        if method in ("PUT", "DELETE") and name.startswith(base):
-            step = (method, int(name[len(base):].split("_")[0]))
+        revision = names.get(name.rsplit("_", 1)[0])
+        if method in ("PUT", "DELETE") and revision is not None:
+            step = (method, revision)
             if not out or out[-1] != step:
                 out.append(step)
     return out
@@ -100,6 +91,23 @@ class Setup:
         return self.rows(f"SELECT queue_name || '_1', state FROM submissions WHERE superevent_id='{sid}' AND"
                          " queue_name IS NOT NULL ORDER BY revision")
 
+    def bases(self, sid: str = SID) -> dict[str, int]:
+        """The name base of each submitted set of ``sid`` (the one rule names it from its plan) -> its revision."""
+        if not self.state.exists():
+            return {}
+        return dict(self.rows(f"SELECT queue_name, revision FROM submissions WHERE superevent_id='{sid}' AND"
+                              " queue_name IS NOT NULL"))
+
+    def name(self, sid: str, n: int) -> str:
+        """Queue 1 of the ``n``-th submitted set of ``sid``."""
+        (base,) = [b for b, r in self.bases(sid).items() if r == n]
+        return f"{base}_1"
+
+    def revisions(self, kowalski, sid: str = SID) -> list[int]:
+        """The revisions of ``sid`` whose queues ZTF holds (each a set ``<base>_1`` ... ``<base>_K``)."""
+        bases = self.bases(sid)
+        return sorted({bases[n.rsplit("_", 1)[0]] for n in list(kowalski.queues) if n.rsplit("_", 1)[0] in bases})
+
 
 def _wait(predicate, timeout_s: float, d: Daemon, what: str) -> None:
     end = time.monotonic() + timeout_s
@@ -125,18 +133,18 @@ def test_notice_update_and_retraction_through_the_daemon(broker, daemons, tmp_pa
     s = Setup(broker, tmp_path, kowalski.url)
     d = s.daemon(daemons)
     d.wait_log("event=service_ready", 120)
-    r1, r2 = _name(SID, 1), _name(SID, 2)
     s.send("MS181101ab-preliminary.json", SID)
-    _wait(lambda: _revisions(kowalski, SID) == [1], 180, d, "the first queue set")
+    _wait(lambda: s.revisions(kowalski) == [1], 180, d, "the first queue set")
     s.send("MS230425l-preliminary.json", SID)  # an updated sky map
-    _wait(lambda: _revisions(kowalski, SID) == [2], 180, d, "the second set to replace the first")
+    _wait(lambda: s.revisions(kowalski) == [2], 180, d, "the second set to replace the first")
+    r1, r2 = s.name(SID, 1), s.name(SID, 2)
     s.send("MS181101ab-retraction.json", SID, "2023-04-26T00:00:00Z")  # after the 2023 map it retracts
     _wait(lambda: not kowalski.queues and any(e["method"] == "DELETE" and str(e.get("queue_name")).startswith(r2[:-1])
                                               for e in kowalski.log), 120, d, "the retraction's DELETE")
     _wait(lambda: s.states() == [(r1, "replaced"), (r2, "deleted")], 30, d, "the states")
     assert d.stop() == 0
     print("\n".join(kowalski.lines()))
-    assert _requests_by_revision(kowalski, SID) == [("PUT", 1), ("PUT", 2), ("DELETE", 1), ("DELETE", 2)]
+    assert _requests_by_revision(kowalski, s.bases()) == [("PUT", 1), ("PUT", 2), ("DELETE", 1), ("DELETE", 2)]
     assert all(line.endswith("-> 200") for line in kowalski.lines())
     assert all(e["authorization"] == f"Bearer {TOKEN}" for e in kowalski.log)
     text = d.text()
@@ -160,7 +168,7 @@ def test_kill9_around_the_put_then_restart(broker, daemons, tmp_path, kowalski, 
     s.send("MS181101ab-preliminary.json", SID)
     d1.proc.wait(300)
     assert d1.proc.returncode == -9, d1.text()[-3000:]
-    r1 = _name(SID, 1)
+    r1 = s.name(SID, 1)
     assert s.states() == [(r1, "pending")] and s.rows("SELECT attempts FROM submissions") == [(1,)]
     assert list(kowalski.queues) == ([] if point == "before_put" else [r1])
     d2 = s.daemon(daemons)
@@ -181,13 +189,13 @@ def test_kill9_during_the_delete_then_restart(broker, daemons, tmp_path, kowalsk
     s = Setup(broker, tmp_path, kowalski.url)
     d1 = s.daemon(daemons)
     d1.wait_log("event=service_ready", 120)
-    r1, r2 = _name(SID, 1), _name(SID, 2)
     s.send("MS181101ab-preliminary.json", SID)
-    _wait(lambda: s.states() == [(r1, "submitted")], 180, d1, "the first queue")
+    _wait(lambda: [st for _, st in s.states()] == ["submitted"], 180, d1, "the first queue")
     kowalski.block_after.add("DELETE")  # the server applies the DELETE, then holds its answer
     s.send("MS230425l-preliminary.json", SID)
     assert kowalski.blocked.wait(180), d1.text()[-3000:]
     d1.kill9()
+    r1, r2 = s.name(SID, 1), s.name(SID, 2)
     kowalski.block_after.clear()
     kowalski.release.set()
     old, new = _set_names(s, SID, 1), _set_names(s, SID, 2)
@@ -288,13 +296,13 @@ def test_refusals_server_errors_and_a_hanging_server(broker, daemons, tmp_path, 
     a third event is planned while the server hangs."""
     s = Setup(broker, tmp_path, kowalski.url)
     a, b, c = SID, "MS230425l", "MS260605l"
-    kowalski.queues[_name(c, 1)] = {"queue_name": _name(c, 1), "validity_window_mjd": [1.0, 2.0], "targets": []}
+    kowalski.taken.add(f"ToO_GW_{c}_")  # c's first queue exists already, with other content (a 409 for it)
     kowalski.hang_s = 30.0
     d = s.daemon(daemons)
     d.wait_log("event=service_ready", 120)
     kowalski.faults["PUT"] = [400]
     s.send("MS181101ab-preliminary.json", a)
-    _wait(lambda: s.states(a) == [(_name(a, 1), "rejected")], 180, d, "the 400")
+    _wait(lambda: [st for _, st in s.states(a)] == ["rejected"], 180, d, "the 400")
     kowalski.faults["PUT"] = ["hang", "hang", 500]
     s.send("MS230425l-preliminary.json", b)
     _wait(lambda: kowalski.hanging > 0, 180, d, "b's first PUT to hang")
@@ -304,7 +312,7 @@ def test_refusals_server_errors_and_a_hanging_server(broker, daemons, tmp_path, 
     assert hanging > 0  # c's plan was made while requests were held unanswered
     latency_c = _latency(d.text(), c)
     kowalski.release.set()
-    _wait(lambda: s.states(b) == [(_name(b, 1), "submitted")] and s.states(c) == [(_name(c, 1), "rejected")],
+    _wait(lambda: [st for _, st in s.states(b)] == ["submitted"] and [st for _, st in s.states(c)] == ["rejected"],
           240, d, "b accepted after the retries, c refused with 409")
     assert d.stop() == 0
     text = d.text()
@@ -315,8 +323,8 @@ def test_refusals_server_errors_and_a_hanging_server(broker, daemons, tmp_path, 
     assert "409: a queue of that name exists with other content" in \
         s.rows(f"SELECT reason FROM submissions WHERE superevent_id='{c}'")[0][0]
     # the faults go to whichever PUT comes next (b's retries or c's first): together they took them all
-    puts = [e["status"] for e in kowalski.log if e["method"] == "PUT" and e.get("queue_name") in (_name(b, 1),
-                                                                                                 _name(c, 1))]
+    puts = [e["status"] for e in kowalski.log if e["method"] == "PUT" and e.get("queue_name") in (s.name(b, 1),
+                                                                                                 s.name(c, 1))]
     assert sorted(puts) == [200, 409, 500, 504, 504], kowalski.lines()
     docs = [json.loads(r[0]) for r in s.rows("SELECT body FROM outbox WHERE kind='submission' ORDER BY outbox_id")]
     assert {(x["superevent_id"], x["state"], x["http_status"]) for x in docs} == {

@@ -219,7 +219,12 @@ def replay_notices(notices: Sequence[str | Path], out_dir: str | Path, config: S
         for suffix in ("", "-wal", "-shm"):  # a fresh state for every replay
             Path(str(state) + suffix).unlink(missing_ok=True)
     store = Store(state)
-    sink = SummarisingSink(DirectorySink(out_dir))  # each plan's .txt and .html beside its JSON
+    from ..planning.skymaps import plan_skymap_reader
+    from ..submission.names import publish_queues
+
+    # each plan's .txt and .html beside its JSON, naming the queues the service would submit
+    sink = SummarisingSink(DirectorySink(out_dir), skymap_for=plan_skymap_reader(store, config.policy.max_skymap_bytes),
+                           queues=publish_queues(config.submit, config.export, "a replay submits nothing"))
     try:
         pipeline = NoticePipeline(config.policy, config.scheduler, store, sink, daemon=config.daemon)
         results = replay(pipeline, notices, on_outcome)

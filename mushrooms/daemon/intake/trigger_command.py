@@ -15,6 +15,7 @@ import signal
 from pathlib import Path
 from typing import Any, Protocol
 
+from ...handlers.text import storable
 from ...scheduler_core.errors import InputError
 from ..sections import ServiceConfig
 from ..settings import RuntimePaths
@@ -83,6 +84,7 @@ def run_trigger(target: str, kind: str, payload: bytes, config: ServiceConfig, p
         0 done or handed over, 1 a job failed, 2 refused.
     """
     console = console or LogConsole()
+    target = storable(target)  # shown and logged only: a file name's terminal escapes are shown escaped
     pid = daemon_pid(paths.pid_file)
     if pid is not None and force:
         raise InputError(f"--force plans here, but a daemon runs (pid {pid}); stop it, or trigger without --force")

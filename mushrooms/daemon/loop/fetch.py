@@ -158,7 +158,11 @@ class ExecutedReader:
             if not path.exists() and not path.is_symlink():
                 log.info("event=executed_not_yet source=%s reason='no such file yet'", self.describe())
                 return ()
-            return readers.read_jsonl(self._file(path, "executed file"), what=f"executed file {path.name}")
+            from ...inputs import open_regular_file
+
+            # streamed line by line: a large file of bad records costs a line of memory, not the file
+            with open_regular_file(path, self.max_bytes, "executed file") as fh:
+                return readers.read_jsonl(fh, what=f"executed file {path.name}")
         if kind == "depot":
             found: list[Any] = []
             from astropy.time import TimeDelta

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from ...handlers.instants import now_iso_z
+from .names import row_queues
 from .rules import name_of, set_of
 
 if TYPE_CHECKING:
@@ -157,6 +158,7 @@ def status_document(sub: Submission) -> dict[str, Any]:
         "superevent_id": sub.superevent_id,
         "target": sub.target,
         "queue_name": sub.queue_name,
+        "queue_names": list(row_queues(sub.target, sub.state, sub.body, sub.queue_name)[0]),
         "state": sub.state,
         "http_status": sub.http_status,
         "answer": None if answer is None else answer[:2000],

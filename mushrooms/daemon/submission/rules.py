@@ -1,6 +1,7 @@
 """What a plan becomes on the telescope's side, and what an answer means (the submitter's pure rules).
 
-:func:`queue_name` (the name base of an event's revision), :func:`gate`
+:func:`queue_name_base` (the name base of a plan's queues: the one rule,
+:func:`mushrooms.scheduler_core.plan.exports.queue_name_base`), :func:`gate`
 (whether a plan document is submitted), :func:`build_body` (the queue set
 or the SkyPortal plan of a revision), :func:`same_content` and
 :func:`send_queue` (one ``PUT``/``POST`` and its :class:`Verdict`).  Shared
@@ -16,13 +17,14 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import TYPE_CHECKING, Any
 
+from ...scheduler_core.plan.exports import queue_name_base
 from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
 
 if TYPE_CHECKING:
     from ...scheduler_core.plan.exports import ExportConfig
     from .settings import SubmitConfig
 
-__all__ = ["Verdict", "queue_name", "gate", "build_body", "same_content", "listed_as_ours", "send_queue", "set_of",
+__all__ = ["Verdict", "queue_name_base", "gate", "build_body", "same_content", "listed_as_ours", "send_queue", "set_of",
            "name_of", "unix", "window_end", "total_coverage", "kowalski_timed_out"]
 
 #: The Unix time of MJD 0 is -40587 days (1858-11-17 is 40587 days before 1970-01-01).
@@ -32,14 +34,6 @@ _MJD_UNIX_DAYS = 40587.0
 def unix(iso: str) -> float:
     """An ISO-8601 instant of a plan document as Unix seconds."""
     return datetime.fromisoformat(iso.replace("Z", "+00:00")).timestamp()
-
-
-def queue_name(subprogram_name: str, superevent_id: str, revision: int) -> str:
-    """``ToO_<subprogram_name>_<superevent>_r<revision>``: the name base of an event's ``revision``-th submission.
-
-    Its queues are ``<name base>_<k>``, k = 1..K (:func:`build_body`).
-    """
-    return f"ToO_{subprogram_name}_{superevent_id}_r{int(revision)}"
 
 
 def total_coverage(metrics: dict[str, Any]) -> float:

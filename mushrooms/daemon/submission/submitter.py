@@ -41,10 +41,10 @@ of observation plans of :func:`~mushrooms.scheduler_core.plan.exports.to_skyport
 is not keyed by name, so each plan is marked ``tried`` before its POST and a
 tried plan is looked up by name (``plan_names?name=``) before it is sent again.
 
-Queue names: ``ToO_<subprogram_name>_<superevent>_r<n>_<k>``, ``n`` counting
-the event's submitted revisions from 1 (the row's ``queue_name`` is the name
-base ``..._r<n>``, stored with the row: stable across restarts), ``k`` the
-queue of the set.  A request has a wall-clock deadline (``[submit]
+Queue names: ``<base>_<k>``, ``k`` the queue of the set, the base
+:func:`~mushrooms.scheduler_core.plan.exports.queue_name_base` of the plan (the row's
+``queue_name``, stored with the row: stable across restarts); ``revision``
+counts the event's submitted revisions from 1.  A request has a wall-clock deadline (``[submit]
 timeout_s``), so one stuck event costs the others at most that per pass.
 A submitted set whose window ended is closed (``finished_at``).  Planning
 workers only kick this thread.  Pure rules: :mod:`~mushrooms.daemon.submission.rules`.
@@ -64,14 +64,14 @@ from .removal import DONE, RETRY, WATCH, Removal
 from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
 from .rows import OPEN, PUBLISHED, STATES, Submission, status_document, submission_from_row, submissions
 from .rows import SubmissionState as State
-from .rules import Verdict, build_body, gate, name_of, queue_name, same_content, send_queue, set_of
+from .rules import Verdict, build_body, gate, name_of, queue_name_base, same_content, send_queue, set_of
 from .rules import unix as _unix
 
 if TYPE_CHECKING:
     from ...scheduler_core.plan.exports import ExportConfig
     from .settings import SubmitConfig
 
-__all__ = ["Submission", "Submitter", "Verdict", "send_queue", "queue_name", "gate", "build_body", "same_content",
+__all__ = ["Submission", "Submitter", "Verdict", "send_queue", "queue_name_base", "gate", "build_body", "same_content",
            "status_document", "submissions", "STATES", "OPEN"]
 
 log = logging.getLogger("mushrooms.daemon.submit")
@@ -169,7 +169,7 @@ class Submitter(Removal):
                 if reason is None:
                     revision = c.execute("SELECT COALESCE(MAX(revision), 0) + 1 FROM submissions WHERE"
                                          " superevent_id=?", (sid,)).fetchone()[0]
-                    name = queue_name(self.export.subprogram_name, sid, revision)
+                    name = queue_name_base(self.export.subprogram_name, plan_id, (doc.get("event") or {}).get("superevent_id"))
                     try:
                         body = build_body(doc, self.submit, self.export, name)
                     except (KeyError, TypeError, ValueError) as exc:

@@ -26,6 +26,8 @@ endpoint -- receives; ``skyportal/handlers/api/observation_plan.py``,
 
 from __future__ import annotations
 
+import hashlib
+import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Mapping
 
@@ -35,7 +37,7 @@ from ..tables import dataclass_from_table
 if TYPE_CHECKING:  # an annotation only: reading [export] imports no numpy/astropy (the document does)
     from .document import Plan
 
-__all__ = ["ExportConfig", "to_trigger_queue", "to_trigger_queues", "timed_queue_set", "timed_passes", "TimedPasses", "filter_passes", "to_skyportal", "to_skyportal_plans", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
+__all__ = ["ExportConfig", "queue_name_base", "plan_tag", "to_trigger_queue", "to_trigger_queues", "timed_queue_set", "timed_passes", "TimedPasses", "filter_passes", "to_skyportal", "to_skyportal_plans", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
 
 #: ZTF queue filter ids.
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
@@ -96,8 +98,44 @@ class ExportConfig:
         return dataclass_from_table(cls, table, "export")
 
 
-def _tag(plan: Plan) -> str:
-    return plan.event.superevent_id or plan.plan_id
+#: A plan id of :func:`~.document.make_plan_id`: ``mushrooms-`` and 16 hex digits.
+_PLAN_ID = re.compile(r"mushrooms-([0-9a-f]{16})")
+
+
+def plan_tag(plan_id: str) -> str:
+    """Eight hex digits naming a plan: the first 8 of its id's hash (any other id: of the id's SHA-256)."""
+    found = _PLAN_ID.fullmatch(plan_id)
+    return found.group(1)[:8] if found else hashlib.sha256(plan_id.encode()).hexdigest()[:8]
+
+
+def queue_name_base(subprogram_name: str, plan_id: str, superevent_id: str | None = None) -> str:
+    """The name base of a plan's ZTF queues: the one naming rule of every queue mushrooms sends or shows.
+
+    ``ToO_<subprogram_name>_<superevent>_<plan tag>`` (``ToO_<subprogram_name>_<plan
+    tag>`` for a sky map without a superevent), the plan tag being
+    :func:`plan_tag` of the plan id; the set's queues are ``<base>_<k>``, k =
+    1..K in submission order (:func:`to_trigger_queues`), SkyPortal's plans
+    the same names without ``ToO_`` (:func:`to_skyportal_plans`).  The name
+    depends on the plan document alone, so the daemon, ``mushrooms plan
+    --queue``, ``mushrooms submit`` and every summary (``.txt``, ``.html``,
+    ``mushrooms status``) give one plan the same names, known before it is
+    sent, and a plan sent twice (a restart, by hand) is the same queue.
+
+    Parameters
+    ----------
+    subprogram_name : str
+        ``[export] subprogram_name``.
+    plan_id : str
+        The plan's id (distinct plans of an event: distinct names).
+    superevent_id : str, optional
+        The event (absent, or the plan id itself: left out).
+    """
+    event = f"_{superevent_id}" if superevent_id and superevent_id != plan_id else ""
+    return f"ToO_{subprogram_name}{event}_{plan_tag(plan_id)}"
+
+
+def _base(plan: Plan, export: ExportConfig) -> str:
+    return queue_name_base(export.subprogram_name, plan.plan_id, plan.event.superevent_id)
 
 
 def _iso_space(t: Any) -> str:
@@ -116,7 +154,7 @@ def to_trigger_queue(plan: Plan, export: ExportConfig = ExportConfig(), queue_na
     export : ExportConfig
         Program fields.
     queue_name : str, optional
-        Defaults to ``ToO_<superevent or plan id>``.
+        Defaults to :func:`queue_name_base` of the plan.
 
     Raises
     ------
@@ -144,7 +182,7 @@ def to_trigger_queue(plan: Plan, export: ExportConfig = ExportConfig(), queue_na
         for i, o in enumerate(plan.observations)
     ]
     return {
-        "queue_name": queue_name or f"ToO_{_tag(plan)}",
+        "queue_name": queue_name or _base(plan, export),
         "queue_type": "list",
         "validity_window_mjd": [float(plan.start.mjd), float(plan.end.mjd)],
         "user": export.user,
@@ -188,7 +226,7 @@ def to_trigger_queues(plan: "Plan", export: ExportConfig = ExportConfig(), name_
     export : ExportConfig
         Program fields.
     name_base : str, optional
-        Defaults to ``ToO_<superevent or plan id>``.
+        Defaults to :func:`queue_name_base` of the plan.
     slack_s : float, optional
         How long (s) a pass stays open after the model's end of it (default
         :data:`~..telescope.queue_windows.PASS_SLACK_S`).
@@ -229,7 +267,7 @@ def _timed_passes(plan: "Plan", export: ExportConfig, name_base: str | None, sla
     from ..telescope.queue_windows import PASS_SLACK_S, time_pass_windows
     from ..telescope.timing import TelescopeTiming
 
-    base = name_base or f"ToO_{_tag(plan)}"
+    base = name_base or _base(plan, export)
     single = to_trigger_queue(plan, export, queue_name=base)  # refuses a plan without observations
     passes = filter_passes(plan)
     end_s = float((plan.end - plan.start).to_value("s"))
@@ -325,7 +363,7 @@ def to_skyportal(plan: Plan, export: ExportConfig = ExportConfig(), localization
             "overhead_per_exposure": int(round(overhead)),
             **({} if o.limiting_mag is None else {"limiting_mag": round(float(o.limiting_mag), 2)}),
         })
-    name = f"{plan.event.superevent_id}-{plan.plan_id}" if plan.event.superevent_id else plan.plan_id
+    name = _base(plan, export).removeprefix("ToO_")
     return {
         "dateobs": plan.event.event_time.rstrip("Z"),
         "localization_name": localization_name or plan.event.skymap_name or "healpix",

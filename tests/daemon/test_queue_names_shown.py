@@ -1,0 +1,127 @@
+"""The queue names an observer is shown are the names ZTF's queue holds (issue 52, finding 9).
+
+The daemon's own wiring (``open_pipeline``: the store, the outbox directory
+with its ``.txt``/``.html`` summaries) plans a real notice with the greedy
+scheduler; its submitter PUTs the revision's queue set to the Kowalski
+contract server on loopback; the names in the outbox summary, on the page
+and in ``mushrooms status`` must be exactly the names the server holds.
+The command-line side (``plan --queue``, ``submit --dry-run``) is in
+``tests/test_cli_queue_names.py``.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from contract_servers import KowalskiContract
+from daemon_helpers import notice_bytes
+from mushrooms.daemon.settings import resolve_paths
+from mushrooms.daemon.submission.remote import make_client
+from mushrooms.daemon.submission.submitter import Submitter
+from mushrooms.daemon.wiring import open_pipeline
+from mushrooms.tool import status
+from mushrooms.tool.config import load_config
+
+TOKEN = "queue-names-t0ken-4e5f6a7b8c9d"
+SID = "MS181101ab"
+
+
+def _config(tmp_path: Path, url: str, target: str = "kowalski") -> Path:
+    path = tmp_path / "config.toml"
+    path.write_text(f"""
+[scheduler]
+solver = "greedy"
+nside = 64
+time_step_s = 600.0
+min_gain = 0.0
+min_coverage = 0.0
+
+[policy]
+allow_mock = true
+max_notice_age_s = 0
+max_event_age_s = 0
+
+[daemon]
+state_path = "{tmp_path / 'state.sqlite'}"
+
+[outbound]
+sink = "directory"
+directory = "{tmp_path / 'outbox'}"
+
+[submit]
+target = "{target}"
+url = "{url}"
+timeout_s = 3.0
+""")
+    return path
+
+
+def _shown_names(text: str) -> list[str]:
+    """Every queue name a text shows (``ToO_...``)."""
+    return re.findall(r"\bToO_[A-Za-z0-9_.-]+", text)
+
+
+@pytest.fixture
+def kowalski(loopback):
+    return KowalskiContract(loopback, TOKEN)
+
+
+def _run(cfg_path: Path, kowalski_url: str, target: str = "kowalski"):
+    config = load_config(str(cfg_path))
+    pipeline, close = open_pipeline(config, resolve_paths(config.daemon))
+    out = pipeline.handle(notice_bytes(f"{SID}-preliminary.json"), "test:queue-names")
+    assert out.decision == "plan", out
+    if target != "none":  # the daemon runs no submitter without a target
+        client = make_client(target, kowalski_url, TOKEN, 3.0)
+        Submitter(pipeline.store, config.submit, config.export, client).step()
+        pipeline.flush_outbox()  # the submission documents too
+    return config, pipeline, close
+
+
+def test_the_outbox_summary_page_and_status_show_the_queues_kowalski_holds(tmp_path, kowalski, capsys) -> None:
+    cfg = _config(tmp_path, kowalski.url)
+    config, pipeline, close = _run(cfg, kowalski.url)
+    try:
+        held = list(kowalski.queues)
+        assert len(held) >= 2  # a set: one queue per filter pass
+        pipeline.sink.close()  # the names and the pages: on the summary thread
+        (plan_json,) = [p for p in (tmp_path / "outbox").glob("mushrooms-*.json") if p.stem.count("-") == 1]
+        txt = plan_json.with_suffix(".txt").read_text()
+        queue_lines = [line for line in txt.splitlines() if line.startswith("Queue")]
+        assert queue_lines, txt
+        shown = _shown_names("\n".join(queue_lines))
+        assert shown[0] == held[0] and shown[-1] == held[-1], (queue_lines, held)
+        assert set(shown) <= set(held)
+        assert f"{len(held)} queues" in queue_lines[0]
+        assert "submitted to kowalski" in queue_lines[0]  # written again when the submission document came
+        page = plan_json.with_suffix(".html").read_text()
+        assert _shown_names(page) == held, (_shown_names(page), held)
+    finally:
+        close()
+    capsys.readouterr()
+    status.main(["--state", str(tmp_path / "state.sqlite"), "--config", str(cfg)])
+    said = capsys.readouterr().out
+    lines = [line for line in said.splitlines() if line.strip().startswith("Queue")]
+    assert lines and _shown_names(lines[0])[0] == held[0] and _shown_names(lines[0])[-1] == held[-1], said
+    assert "submitted" in lines[0]
+
+
+def test_without_a_target_the_summary_names_the_queues_it_would_submit(tmp_path, kowalski) -> None:
+    cfg = _config(tmp_path, kowalski.url, target="none")
+    config, pipeline, close = _run(cfg, kowalski.url, target="none")
+    close()
+    assert not kowalski.queues
+    (plan_json,) = [p for p in (tmp_path / "outbox").glob("mushrooms-*.json") if p.stem.count("-") == 1]
+    doc = json.loads(plan_json.read_text())
+    line = next(x for x in plan_json.with_suffix(".txt").read_text().splitlines() if x.startswith("Queue"))
+    assert "not submitted" in line and "[submit] target" in line, line
+    from mushrooms.scheduler_core import Plan
+    from mushrooms.scheduler_core.plan.exports import queue_name_base, to_trigger_queues
+
+    base = queue_name_base(config.export.subprogram_name, doc["plan_id"], SID)
+    names = [q["queue_name"] for q in to_trigger_queues(Plan.from_document(doc), config.export, base)]
+    assert _shown_names(line)[0] == names[0] and _shown_names(line)[-1] == names[-1]
