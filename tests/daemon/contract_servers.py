@@ -47,6 +47,7 @@ server while the client dies).  Every request is appended to :attr:`log`.
 
 from __future__ import annotations
 
+import fnmatch
 import json
 import threading
 import time
@@ -122,8 +123,9 @@ class _Contract:
 
     def _next_fault(self, method: str, body: Any) -> Any:
         name = (body.get("queue_name") or body.get("plan_name")) if isinstance(body, dict) else None
-        with self._lock:
-            queue = self.faults_by_name.get((method, name)) if name else None
+        with self._lock:  # a name, or a pattern of names (fnmatch: a plan's queue is named after its plan id)
+            queue = next((q for (m, pattern), q in self.faults_by_name.items()
+                          if m == method and name and fnmatch.fnmatchcase(name, pattern)), None)
             if not queue:
                 queue = self.faults.get(method)
             return queue.pop(0) if queue else None

@@ -45,7 +45,7 @@ def late(sets, tmp_path, kowalski):
     """A world whose first PUT (queue 1 of revision 1) is applied by Kowalski only after the client gave up."""
     w = World(tmp_path / "state.sqlite", _config(kowalski.url, timeout_s=1.0))
     kowalski.hang_s = 60.0
-    kowalski.faults_by_name["PUT", names(1)[0]] = ["late"]
+    kowalski.faults_by_name["PUT", f"ToO_GW_{SID}_*_1"] = ["late"]  # queue 1 of the first plan (named by its id)
     try:
         w.notice("MS181101ab-preliminary.json")
         assert w.submitter.step() == 1  # no answer within the deadline: waits for a retry
@@ -57,10 +57,10 @@ def late(sets, tmp_path, kowalski):
         w.store.close()
 
 
-def _land(kowalski) -> None:
+def _land(kowalski, w: World) -> None:
     kowalski.land.set()
     assert kowalski.landed.wait(10)
-    assert names(1)[0] in kowalski.queues
+    assert names(w, 1)[0] in kowalski.queues
 
 
 def test_a_put_that_lands_after_the_deadline_is_deleted_when_it_appears_after_an_update(sets, late, kowalski):
@@ -68,10 +68,10 @@ def test_a_put_that_lands_after_the_deadline_is_deleted_when_it_appears_after_an
     late.submitter.step()  # revision 2 accepted; revision 1's queue is not listed (yet)
     before_landing = _states(late)
     waiting = oldest_pending_submission(late.store.connection())
-    _land(kowalski)  # the slow mountain link applies revision 1's PUT now
+    _land(kowalski, late)  # the slow mountain link applies revision 1's PUT now
     late.submitter.step()
     print("\n".join(kowalski.lines()))
-    assert sorted(kowalski.queues) == names(2), "revision 1's late queue is left live beside revision 2"
+    assert sorted(kowalski.queues) == names(late, 2), "revision 1's late queue is left live beside revision 2"
     assert before_landing == [(1, "pending"), (2, "submitted")], "said replaced while its queue could still land"
     assert waiting is None, "a superseded queue watched for is not a submission waiting (readiness)"
     assert _states(late) == [(1, "replaced"), (2, "submitted")]
@@ -84,11 +84,11 @@ def test_a_late_queue_is_deleted_while_a_newer_revision_is_still_being_retried(s
     kowalski.faults["PUT"] = [503] * 50  # revision 3's PUTs fail for now
     late.notice("MS181101ab-ext-update.json", SID, time_created="2024-01-01T00:00:00Z")
     assert late.submitter.step() == 1
-    _land(kowalski)
+    _land(kowalski, late)
     assert late.submitter.step() == 1  # revision 3 still waits for a retry ...
     print("\n".join(kowalski.lines()))
-    assert names(1)[0] not in kowalski.queues, "the late queue waited for revision 3"  # ... revision 1's is gone
-    assert sorted(kowalski.queues) == names(2)
+    assert names(late, 1)[0] not in kowalski.queues, "the late queue waited for revision 3"  # ... revision 1's is gone
+    assert sorted(kowalski.queues) == names(late, 2)
     assert _states(late) == [(1, "replaced"), (2, "submitted"), (3, "pending")]
 
 
@@ -97,7 +97,7 @@ def test_a_put_that_lands_after_the_deadline_of_a_retracted_event_is_deleted_aft
     late.submitter.step()  # the retraction settles revision 1: its queue is not listed (yet)
     before_landing = _states(late)
     late.restart()  # what is watched for is in the state file
-    _land(kowalski)
+    _land(kowalski, late)
     late.submitter.step()
     print("\n".join(kowalski.lines()))
     assert kowalski.queues == {}, "a queue is left live for a retracted event"
@@ -118,7 +118,7 @@ def test_a_put_that_never_lands_is_settled_once_its_queue_window_ended(sets, lat
     assert watched == [(1, "pending"), (2, "submitted")]
     (r1, r2) = submissions(late.store)
     assert (r1.state, r2.state) == ("replaced", "submitted") and "window ended" in r1.reason
-    assert _deletes(kowalski) == [names(1)[0]]  # asked once; then only the list was read
+    assert _deletes(kowalski) == [names(late, 1)[0]]  # asked once; then only the list was read
     assert late.submitter.step() == 0 and late.submitter.watching == 0
 
 
@@ -127,7 +127,7 @@ def test_a_refused_queue_of_a_set_deletes_only_the_queues_that_were_put(sets, wo
     world.notice("MS181101ab-preliminary.json")
     world.submitter.step()
     print("\n".join(kowalski.lines()))
-    assert _deletes(kowalski) == [names(1)[0]]
+    assert _deletes(kowalski) == [names(world, 1)[0]]
     assert _states(world) == [(1, "rejected")] and kowalski.queues == {}
 
 
@@ -138,8 +138,8 @@ def test_settling_an_older_set_deletes_what_was_put_or_may_be_live_never_what_wa
     world.notice(*UPDATE)
     world.submitter.step()
     print("\n".join(kowalski.lines()))
-    assert _deletes(kowalski) == names(1)[:2]
-    assert sorted(kowalski.queues) == names(2)
+    assert _deletes(kowalski) == names(world, 1)[:2]
+    assert sorted(kowalski.queues) == names(world, 2)
 
 
 @pytest.fixture
@@ -150,32 +150,32 @@ def killed_after_put_3(sets, world, kowalski):
     with pytest.raises(Killed):
         world.submitter.step()
     (row,) = submissions(world.store)
-    assert row.state == "pending" and row.progress["put"] == names(1)[:2]
-    assert sorted(kowalski.queues) == names(1)
+    assert row.state == "pending" and row.progress["put"] == names(world, 1)[:2]
+    assert sorted(kowalski.queues) == names(world, 1)
     return world
 
 
 def test_a_409_on_our_queue_whose_target_was_observed_keeps_the_revision(killed_after_put_3, kowalski):
-    third = names(1)[2]
+    third = names(killed_after_put_3, 1)[2]
     listed = kowalski.queues[third]
     kowalski.queues[third] = {**listed, "targets": listed["targets"][1:]}  # the telescope took its first target
     killed_after_put_3.restart()
     killed_after_put_3.submitter.step()
     print("\n".join(kowalski.lines()))
-    assert sorted(kowalski.queues) == names(1), "the accepted queues of the revision were deleted"
+    assert sorted(kowalski.queues) == names(killed_after_put_3, 1), "the accepted queues of the revision were deleted"
     assert _deletes(kowalski) == []
     (row,) = submissions(killed_after_put_3.store)
-    assert row.state == "submitted" and "409" in row.reason and row.progress["put"] == names(1)
+    assert row.state == "submitted" and "409" in row.reason and row.progress["put"] == names(killed_after_put_3, 1)
 
 
 def test_a_409_on_a_name_this_revision_sent_is_ours_when_the_list_no_longer_shows_it(killed_after_put_3, kowalski):
-    third = names(1)[2]
+    third = names(killed_after_put_3, 1)[2]
     del kowalski.queues[third]  # all its targets observed: the mountain dropped the empty queue ...
     kowalski.faults_by_name["PUT", third] = [409]  # ... after it answered the restart's PUT with 409
     killed_after_put_3.restart()
     killed_after_put_3.submitter.step()
     print("\n".join(kowalski.lines()))
-    assert sorted(kowalski.queues) == names(1)[:2], "the accepted queues of the revision were deleted"
+    assert sorted(kowalski.queues) == names(killed_after_put_3, 1)[:2], "the accepted queues of the revision were deleted"
     assert _deletes(kowalski) == []
     assert _states(killed_after_put_3) == [(1, "submitted")]
 
@@ -183,14 +183,15 @@ def test_a_409_on_a_name_this_revision_sent_is_ours_when_the_list_no_longer_show
 def test_a_row_from_before_tried_was_kept_counts_its_first_queue_not_accepted_as_sent():
     from mushrooms.daemon.submission.rows import Submission
 
-    set_ = [{"queue_name": n, "targets": [], "validity_window_mjd": [1.0, 2.0]} for n in names(1)]
+    named = [f"ToO_GW_{SID}_0123abcd_{k}" for k in (1, 2, 3)]
+    set_ = [{"queue_name": n, "targets": [], "validity_window_mjd": [1.0, 2.0]} for n in named]
     row = Submission("p", SID, "kowalski", 1, "ToO_GW_r1", "pending", None, set_, None, None, None, 1,
-                     "2026-01-01T00:00:00Z", None, None, None, {"put": names(1)[:1]})
-    assert row.maybe_sent() == set(names(1)[:2])  # a set is PUT in order: the pass stopped at queue 2
-    assert row.to_settle() == names(1)[:2]  # queue 3 was never sent: never DELETEd
-    refused = Submission(**{**row.__dict__, "progress": {"put": names(1)[:1], "tried": names(1)[:2],
-                                                         "refused": names(1)[1:2]}})
-    assert refused.to_settle() == names(1)[:1]
+                     "2026-01-01T00:00:00Z", None, None, None, {"put": named[:1]})
+    assert row.maybe_sent() == set(named[:2])  # a set is PUT in order: the pass stopped at queue 2
+    assert row.to_settle() == named[:2]  # queue 3 was never sent: never DELETEd
+    refused = Submission(**{**row.__dict__, "progress": {"put": named[:1], "tried": named[:2],
+                                                         "refused": named[1:2]}})
+    assert refused.to_settle() == named[:1]
 
 
 def test_the_submitter_thread_passes_again_while_a_queue_is_watched_for():

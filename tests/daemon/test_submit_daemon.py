@@ -234,20 +234,23 @@ def test_kill9_after_put_3_of_a_set_while_a_target_of_it_was_observed(broker, da
     assert sorted(kowalski.queues) == sorted(set_names), "the accepted queues of the revision were deleted"
     assert not [e for e in kowalski.log if e["method"] == "DELETE"]
     assert f"PUT /api/triggers/ztf {set_names[2]} -> 409" in kowalski.lines()
-    assert s.states() == [(_name(SID, 1), "submitted")]
+    assert s.states() == [(s.name(SID, 1), "submitted")]
     _no_duplicates(kowalski)
     assert d2.stop() == 0
 
 
 def _late_then_settled(s: Setup, d: Daemon, kowalski, sid: str, settle: tuple[str, str, str | None],
-                       end_states: list[tuple[str, str]]) -> list[tuple]:
+                       end_states: list[str]) -> list[tuple]:
     """``sid``'s first PUT is applied by Kowalski only after the daemon's deadline (its retries answered 503);
     ``settle`` (a notice) settles that revision; then the late PUT lands.  The states seen before it landed."""
-    first = _name(sid, 1)
+    pattern = f"ToO_GW_{sid}_*_1"  # queue 1 of sid's first plan (named after its plan id: not known yet)
     kowalski.land.clear(), kowalski.late_held.clear(), kowalski.landed.clear()
-    kowalski.faults_by_name["PUT", first] = ["late"] + [503] * 5000
+    kowalski.faults_by_name["PUT", pattern] = ["late"] + [503] * 5000
     s.send("MS181101ab-preliminary.json", sid)
     assert kowalski.late_held.wait(180), d.text()[-3000:]
+    first = s.name(sid, 1)
+    with kowalski._lock:  # from now on that queue only (the next plan's queue 1 matches the pattern too)
+        kowalski.faults_by_name["PUT", first] = kowalski.faults_by_name.pop(("PUT", pattern))
     s.send(*settle)
     _wait(lambda: f"DELETE /api/triggers/ztf {first} -> 400" in kowalski.lines(), 180, d, "the settling DELETE")
     before = s.states(sid)
@@ -255,7 +258,7 @@ def _late_then_settled(s: Setup, d: Daemon, kowalski, sid: str, settle: tuple[st
     kowalski.land.set()
     assert kowalski.landed.wait(30) and first in kowalski.queues
     _wait(lambda: first not in kowalski.queues, 60, d, f"the late queue {first} to be deleted once it appeared")
-    _wait(lambda: s.states(sid) == end_states, 30, d, "the final states")
+    _wait(lambda: [st for _, st in s.states(sid)] == end_states, 30, d, "the final states")
     return before
 
 
@@ -271,14 +274,14 @@ def test_a_put_applied_after_the_deadline_is_deleted_after_an_update_and_after_a
     d = s.daemon(daemons)
     d.wait_log("event=service_ready", 120)
     other = "MS190425x"
-    r1, r2, o1 = _name(SID, 1), _name(SID, 2), _name(other, 1)
     before_update = _late_then_settled(s, d, kowalski, SID, ("MS230425l-preliminary.json", SID, None),
-                                       [(r1, "replaced"), (r2, "submitted")])
+                                       ["replaced", "submitted"])
     before_retraction = _late_then_settled(s, d, kowalski, other, ("MS181101ab-retraction.json", other, LATER),
-                                           [(o1, "deleted")])
+                                           ["deleted"])
+    r1, r2, o1 = s.name(SID, 1), s.name(SID, 2), s.name(other, 1)
     assert d.stop() == 0
     print("\n".join(kowalski.lines()))
-    assert _revisions(kowalski, SID) == [2] and _revisions(kowalski, other) == []
+    assert s.revisions(kowalski, SID) == [2] and s.revisions(kowalski, other) == []
     assert before_update == [(r1, "pending"), (r2, "submitted")] and before_retraction == [(o1, "pending")]
     assert "event=submission_watch" in d.text()
     _no_duplicates(kowalski)
