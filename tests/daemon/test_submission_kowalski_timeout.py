@@ -24,13 +24,13 @@ from test_submissions import kowalski, server, world  # noqa: F401 (fixtures)
 
 
 def _first_put_times_out(world, kowalski) -> None:
-    kowalski.faults_by_name["PUT", names(1)[0]] = ["mountain-timeout"]
+    kowalski.faults_by_name["PUT", "ToO_GW_MS181101ab_*_1"] = ["mountain-timeout"]  # queue 1 of the first plan
     world.notice("MS181101ab-preliminary.json")
     waiting = world.submitter.step()
     print("\n".join(kowalski.lines()))
     (row,) = submissions(world.store)
     assert (row.state, waiting) == ("pending", 1), f"Kowalski's TimeoutError taken as a refusal: {row.reason}"
-    assert names(1)[0] in row.maybe_live() and kowalski.queues == {}
+    assert names(world, 1)[0] in row.maybe_live() and kowalski.queues == {}
 
 
 def _land(kowalski) -> None:
@@ -43,12 +43,12 @@ def test_a_put_kowalski_timed_out_is_retried_and_found_applied(sets, world, kowa
     _land(kowalski)  # the mountain applied it after Kowalski gave up
     assert world.submitter.step() == 0
     print("\n".join(kowalski.lines()))
-    assert sorted(kowalski.queues) == names(1) and _deletes(kowalski) == []
+    assert sorted(kowalski.queues) == names(world, 1) and _deletes(kowalski) == []
     (row,) = submissions(world.store)
-    assert row.state == "submitted" and row.progress["put"] == names(1)
-    assert kowalski.lines()[:3] == [f"PUT /api/triggers/ztf {names(1)[0]} -> 400",  # Kowalski's TimeoutError
-                                    f"PUT /api/triggers/ztf {names(1)[0]} -> 200 (applied after the client's deadline)",
-                                    f"PUT /api/triggers/ztf {names(1)[0]} -> 409"]  # the retry: ours, accepted
+    assert row.state == "submitted" and row.progress["put"] == names(world, 1)
+    assert kowalski.lines()[:3] == [f"PUT /api/triggers/ztf {names(world, 1)[0]} -> 400",  # Kowalski's TimeoutError
+                                    f"PUT /api/triggers/ztf {names(world, 1)[0]} -> 200 (applied after the client's deadline)",
+                                    f"PUT /api/triggers/ztf {names(world, 1)[0]} -> 409"]  # the retry: ours, accepted
 
 
 def test_a_put_kowalski_timed_out_that_lands_after_an_update_is_deleted(sets, world, kowalski):
@@ -58,7 +58,7 @@ def test_a_put_kowalski_timed_out_that_lands_after_an_update_is_deleted(sets, wo
     _land(kowalski)
     world.submitter.step()
     print("\n".join(kowalski.lines()))
-    assert sorted(kowalski.queues) == names(2), "revision 1's late queue is left live beside revision 2"
+    assert sorted(kowalski.queues) == names(world, 2), "revision 1's late queue is left live beside revision 2"
     assert _states(world) == [(1, "replaced"), (2, "submitted")]
 
 
@@ -76,11 +76,11 @@ def test_a_put_kowalski_timed_out_that_lands_after_a_retraction_is_deleted(sets,
 def test_a_delete_kowalski_timed_out_is_retried_not_failed(sets, world, kowalski):
     world.notice("MS181101ab-preliminary.json")
     assert world.submitter.step() == 0
-    kowalski.faults_by_name["DELETE", names(1)[0]] = ["mountain-timeout"]
+    kowalski.faults_by_name["DELETE", names(world, 1)[0]] = ["mountain-timeout"]
     world.notice(*UPDATE)
     assert world.submitter.step() == 1  # revision 2 in; revision 1's DELETE has no answer yet
     _land(kowalski)  # the mountain removed it after Kowalski gave up
     assert world.submitter.step() == 0
     print("\n".join(kowalski.lines()))
-    assert sorted(kowalski.queues) == names(2)
+    assert sorted(kowalski.queues) == names(world, 2)
     assert _states(world) == [(1, "replaced"), (2, "submitted")]
