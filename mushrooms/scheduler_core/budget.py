@@ -55,12 +55,12 @@ HIGHS_CHECK_MIN_S = 0.001
 HIGHS_ITERS_PER_CHECK = 100
 
 #: (A3) Nominal work seconds of the Python steps the stages' budgets see: ``(per call, per item)``, the item named
-#: in the comment.  Least squares of their CPU seconds on ten shared maps (``benchmarks/deterministic_budget_calibrate.py``).
+#: in the comment.  Least squares of their CPU seconds on 16 shared maps (``benchmarks/deterministic_budget_calibrate.py``).
 STEP_COSTS: dict[str, tuple[float, float]] = {
     "greedy": (0.005, 0.00013),      # per candidate field
     "execute": (0.004, 0.00104),     # the telescope's executor on a plan's queues: per exposure
     "score": (0.008, 0.00011),       # expected detections (X1) of a plan: per exposure
-    "timing": (0.003, 0.00005),      # a slot solution timed with the real overheads: per exposure
+    "timing": (0.002, 0.0001),       # a slot solution timed with the real overheads: per exposure
     "grid": (0.0005, 0.0),           # a slot grid's instance and model
     "reach": (0.015, 0.000002),      # the detection model's reaches and levels: per eligible (field, slot) pair
     "slice": (0.005, 0.0000026),     # an LNS slice's model, its times and rule check: per nonzero
