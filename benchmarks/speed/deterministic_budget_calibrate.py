@@ -5,8 +5,8 @@ Per map, the default optimisation (``planner.optimise``) runs once on the work c
 model's reaches, an LNS slice's model) is timed in CPU seconds of this thread (``time.thread_time``: what the step
 takes on a quiet machine, about the same under load) beside what the clock charged for it.  Printed per step: how
 many, the CPU seconds and the work seconds charged (sums, and their ratio), and a least-squares fit of CPU seconds
-on (1, items) per Python step and on (1, nnz, nnz x checks) for HiGHS; per map the optimisation's whole CPU time
-against the work spent.
+on (1, items) per Python step and on (1, nnz, LP iterations x (rows + columns), checks) for HiGHS; the HiGHS solves'
+iterations per limit check; per map the optimisation's whole CPU time against the work spent.
 
     python benchmarks/speed/deterministic_budget_calibrate.py [MAP ...]   (default: six shared maps)
 """
@@ -51,7 +51,7 @@ def nominal(name: str, size) -> float | None:
     if size is None:
         return None
     if name == "solve":
-        return budget.highs_work(*size) / budget.TICKS_PER_S
+        return budget.highs_work(*size) / budget.TICKS_PER_S  # (nnz, rows + columns, checks, iterations)
     base, per_item = budget.STEP_COSTS[name]
     return base + per_item * size
 
@@ -68,9 +68,9 @@ def instrument(rows: list) -> None:
     solves: list = []
     original_solve_charge = budget.SolveWork.charge
 
-    def solve_charge(self):
-        solves.append((self.nonzeros, self.checks))
-        original_solve_charge(self)
+    def solve_charge(self, gurobi_work=None, iterations=0):
+        original_solve_charge(self, gurobi_work, iterations)
+        solves.append((self.nonzeros, self.size, self.checks, self.iterations))
 
     budget.SolveWork.charge = solve_charge
     for name, (module, attr, items) in WRAPPED.items():
@@ -101,8 +101,8 @@ def fit(rows: list, name: str) -> str:
     if len(sel) < 3:
         return "too few to fit"
     y = np.array([r[1] for r in sel])
-    if name == "solve":
-        X = np.array([[1.0, r[3][0], r[3][0] * r[3][1]] for r in sel])
+    if name == "solve":  # (nnz, rows + columns, checks, iterations)
+        X = np.array([[1.0, r[3][0], r[3][3] * r[3][1], r[3][2]] for r in sel])
     else:
         X = np.array([[1.0, float(r[3])] for r in sel])
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
@@ -129,13 +129,18 @@ def main(paths: list[Path]) -> None:
                         result.details["budget"]["spent"], os.getloadavg()[0]))
         print(f"{path.name}: cpu {per_map[-1][1]:.2f} s, wall {per_map[-1][2]:.2f} s, work {per_map[-1][3]:.2f} "
               f"work_s (load {per_map[-1][4]:.1f})", flush=True)
-    print("\nstep      n   cpu_s   work_s  work/cpu  per-call fit (cpu s = a + b items; solve: a + b nnz + c nnz checks)")
+    print("\nstep      n   cpu_s   work_s  work/cpu  per-call fit (cpu s = a + b items; solve: a + b nnz + c iterations "
+          "(rows + columns) + d checks)")
     by = collections.defaultdict(list)
     for r in rows:
         by[r[0]].append(r)
     for name, rs in by.items():
         cpu, work = sum(r[1] for r in rs), sum(r[2] or 0.0 for r in rs)
         print(f"{name:8s} {len(rs):4d} {cpu:7.2f} {work:8.2f} {work / max(cpu, 1e-9):8.2f}  {fit(rows, name)}")
+    per_check = [r[3][3] / r[3][2] for r in rows if r[0] == "solve" and r[3] and r[3][2] >= 10]
+    if per_check:
+        print(f"HiGHS LP iterations per limit check (the {len(per_check)} solves with 10 checks or more): "
+              f"percentiles 10/50/90 " + "/".join(f"{q:.0f}" for q in np.percentile(per_check, [10, 50, 90])))
     cpu, work = sum(m[1] for m in per_map), sum(m[3] for m in per_map)
     print(f"\nwhole optimisation, {len(per_map)} maps: cpu {cpu:.2f} s, work {work:.2f} work_s, work/cpu {work / cpu:.2f}; "
           f"per map work/cpu: " + ", ".join(f"{m[3] / m[1]:.2f}" for m in per_map))

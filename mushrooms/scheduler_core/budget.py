@@ -13,9 +13,10 @@ clock (``docs/design/milp.md`` section 7, A1-A5):
   (the limit checks it makes, on a model of so many nonzeros), each Python
   step by a fixed nominal cost.  A stage's budget is then a count of work, and
   a plan depends only on its inputs and the configuration.  The rates below
-  make a work second about a second of this machine's time, quiet
-  (``benchmarks/results/quality/deterministic_budget/``): ``time_limit_s`` keeps its
-  meaning there, on a loaded machine the same work takes longer.
+  make a work second about a CPU second of the reference machine (2 cores,
+  HiGHS 1.16; ``benchmarks/results/quality/deterministic_budget/calibration.txt``):
+  ``time_limit_s`` keeps about its meaning there when it is quiet; on a loaded
+  machine the same work, and the same plan, takes longer.
 
 Work is counted in integer ticks (microseconds of nominal time): a stage's
 ``since(mark)`` is then exact, whatever the clock counted before.
@@ -30,32 +31,36 @@ from typing import Iterator
 __all__ = ["Clock", "WallClock", "WorkClock", "SolveWork", "new_clock", "solve_work", "wall_stop", "highs_work",
            "STEP_COSTS",
            "TICKS_PER_S", "WALL_GUARD_FACTOR", "WALL_GUARD_MIN_S", "HIGHS_CHECK_MIN_S",
-           "HIGHS_SOLVE_S", "HIGHS_NONZERO_S", "HIGHS_CHECK_S", "WORK_UNIT"]
+           "HIGHS_SOLVE_S", "HIGHS_NONZERO_S", "HIGHS_ITERATION_S", "HIGHS_ITERS_PER_CHECK", "WORK_UNIT"]
 
 #: Ticks per work second (a tick is a microsecond of nominal time).
 TICKS_PER_S = 1_000_000
 #: The unit plan documents name (``metrics.budget.unit``).
 WORK_UNIT = "work_s"
 
-#: (A2) A HiGHS solve costs ``HIGHS_SOLVE_S + HIGHS_NONZERO_S * nnz + checks * max(HIGHS_CHECK_MIN_S,
-#: HIGHS_CHECK_S * nnz)`` work seconds: a fixed cost, its setup and presolve in proportion to the model's nonzeros,
-#: and its search: HiGHS checks its limits (the interrupt callback, with one thread) at every node and every round
-#: of the root's cuts and heuristics, each check's work again in proportion to the model's size (at least
-#: ``HIGHS_CHECK_MIN_S``).  Fitted to the CPU seconds of 350 solves of the default plan on ten shared maps (slot
-#: and detection grids, LNS slices, interval bound; ``benchmarks/speed/deterministic_budget_calibrate.py``): the sum
-#: within 1 %, a map's solves within a factor 0.25-2.
-HIGHS_SOLVE_S = 0.005
-HIGHS_NONZERO_S = 1.15e-5
-HIGHS_CHECK_S = 4.5e-7
+#: (A2) A HiGHS solve costs ``HIGHS_SOLVE_S + HIGHS_NONZERO_S * nnz + max(HIGHS_CHECK_MIN_S * checks,
+#: HIGHS_ITERATION_S * (rows + cols) * iterations)`` work seconds: a fixed cost, its setup in proportion to the
+#: model's nonzeros, and its search, the simplex iterations of its LPs, each in proportion to the LP's size, and at
+#: least ``HIGHS_CHECK_MIN_S`` for each of its limit checks (HiGHS checks its limits, the interrupt callback, at
+#: every node and every round of the root's cuts and heuristics).  The callback does not report the LP iterations
+#: (``simplex_iteration_count`` is -1 there in HiGHS 1.16): while a solve runs they are counted as
+#: ``HIGHS_ITERS_PER_CHECK`` per check (about the median of the solves that make many checks, 46, and their 90th
+#: percentile, 148), and once it ends as HiGHS's own count.  Least squares of the CPU seconds of 472 solves of the
+#: default plan on 16 shared maps (slot and detection grids, LNS slices, interval bound;
+#: ``benchmarks/speed/deterministic_budget_calibrate.py``): the sum within 1 %, a map's within a factor 0.4-1.8.
+HIGHS_SOLVE_S = 0.02
+HIGHS_NONZERO_S = 1e-6
+HIGHS_ITERATION_S = 5e-8
 HIGHS_CHECK_MIN_S = 0.001
+HIGHS_ITERS_PER_CHECK = 100
 
 #: (A3) Nominal work seconds of the Python steps the stages' budgets see: ``(per call, per item)``, the item named
-#: in the comment.  Least squares of their CPU seconds on ten shared maps (``benchmarks/speed/deterministic_budget_calibrate.py``).
+#: in the comment.  Least squares of their CPU seconds on 16 shared maps (``benchmarks/speed/deterministic_budget_calibrate.py``).
 STEP_COSTS: dict[str, tuple[float, float]] = {
     "greedy": (0.005, 0.00013),      # per candidate field
     "execute": (0.004, 0.00104),     # the telescope's executor on a plan's queues: per exposure
     "score": (0.008, 0.00011),       # expected detections (X1) of a plan: per exposure
-    "timing": (0.003, 0.00005),      # a slot solution timed with the real overheads: per exposure
+    "timing": (0.002, 0.0001),       # a slot solution timed with the real overheads: per exposure
     "grid": (0.0005, 0.0),           # a slot grid's instance and model
     "reach": (0.015, 0.000002),      # the detection model's reaches and levels: per eligible (field, slot) pair
     "slice": (0.005, 0.0000026),     # an LNS slice's model, its times and rule check: per nonzero
@@ -63,9 +68,12 @@ STEP_COSTS: dict[str, tuple[float, float]] = {
 }
 
 
-def highs_work(nonzeros: int, checks: int) -> int:
-    """(A2) Ticks of a HiGHS solve of a model with ``nonzeros`` that made ``checks`` limit checks so far."""
-    work = HIGHS_SOLVE_S + HIGHS_NONZERO_S * nonzeros + checks * max(HIGHS_CHECK_MIN_S, HIGHS_CHECK_S * nonzeros)
+def highs_work(nonzeros: int, size: int, checks: int, iterations: int | None = None) -> int:
+    """(A2) Ticks of a HiGHS solve of a model with ``nonzeros`` and ``size`` rows and columns that made ``checks``
+    limit checks and ``iterations`` LP iterations so far (None: while it runs, ``HIGHS_ITERS_PER_CHECK`` a check)."""
+    iterations = HIGHS_ITERS_PER_CHECK * checks if iterations is None else iterations
+    work = HIGHS_SOLVE_S + HIGHS_NONZERO_S * nonzeros + max(HIGHS_CHECK_MIN_S * checks,
+                                                            HIGHS_ITERATION_S * size * iterations)
     return int(round(work * TICKS_PER_S))
 
 
@@ -157,8 +165,9 @@ class WorkClock(Clock):
         self.ticks += int(ticks)
 
     def ticks_for(self, seconds: float) -> int:
-        """A solve's limit of ``seconds`` work seconds, in ticks."""
-        return int(round(max(float(seconds), 0.0) * TICKS_PER_S))
+        """A solve's limit of ``seconds`` work seconds, in ticks (an infinite one: more than any solve does)."""
+        seconds = max(float(seconds), 0.0)
+        return int(round(seconds * TICKS_PER_S)) if seconds < 1e12 else 10**18
 
 
 def new_clock(deterministic: bool) -> Clock:
@@ -180,10 +189,10 @@ class SolveWork:
     callback); ``charge()`` charges the clock the solve's work once it ends.
     """
 
-    def __init__(self, clock: WorkClock, nonzeros: int, limit_s: float) -> None:
-        self.clock, self.nonzeros = clock, int(nonzeros)
+    def __init__(self, clock: WorkClock, nonzeros: int, size: int, limit_s: float) -> None:
+        self.clock, self.nonzeros, self.size = clock, int(nonzeros), int(size)
         self.limit = clock.ticks_for(limit_s)
-        self.checks = 0
+        self.checks = self.iterations = 0
         self.stopped = False
 
     @property
@@ -194,15 +203,17 @@ class SolveWork:
     def reached(self) -> bool:
         """Count one limit check; True (and remembered) once the solve's work reaches its limit."""
         self.checks += 1
-        self.stopped = self.stopped or highs_work(self.nonzeros, self.checks) >= self.limit
+        self.stopped = self.stopped or highs_work(self.nonzeros, self.size, self.checks) >= self.limit
         return self.stopped
 
-    def charge(self, gurobi_work: float | None = None) -> None:
-        """Charge the clock the solve's work (A2): HiGHS's checks, or Gurobi's own work units (its ``Work``)."""
+    def charge(self, gurobi_work: float | None = None, iterations: int = 0) -> None:
+        """Charge the clock the solve's work (A2): HiGHS's checks and LP ``iterations``, or Gurobi's own work
+        units (its ``Work``)."""
+        self.iterations = int(iterations)
         if gurobi_work is not None:
             self.clock.charge_ticks(self.clock.ticks_for(gurobi_work))
         else:
-            self.clock.charge_ticks(highs_work(self.nonzeros, self.checks))
+            self.clock.charge_ticks(highs_work(self.nonzeros, self.size, self.checks, self.iterations))
 
 
 def wall_stop(clock: Clock | None) -> str:
@@ -213,6 +224,7 @@ def wall_stop(clock: Clock | None) -> str:
     return "time_limit"
 
 
-def solve_work(clock: Clock | None, nonzeros: int, limit_s: float) -> SolveWork | None:
-    """The :class:`SolveWork` of a solve on ``clock``; None on the wall clock (or no clock): a time limit."""
-    return SolveWork(clock, nonzeros, limit_s) if isinstance(clock, WorkClock) else None
+def solve_work(clock: Clock | None, nonzeros: int, size: int, limit_s: float) -> SolveWork | None:
+    """The :class:`SolveWork` of a solve on ``clock`` (a model of ``nonzeros`` and ``size`` rows and columns); None
+    on the wall clock (or no clock): a time limit."""
+    return SolveWork(clock, nonzeros, size, limit_s) if isinstance(clock, WorkClock) else None

@@ -19,7 +19,7 @@ from .schedulers.gain import drop_low_gain
 from .schedulers.portfolio.portfolio import MIN_BLOCKS_S  # noqa: F401  (the hybrid's; re-exported)
 from .plan.localization import with_map_details
 from .plan.document import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
-from .budget import new_clock
+from .budget import Clock, new_clock
 from .clock import on_merger_clock
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
@@ -122,7 +122,7 @@ def optimise(problem: PlanningProblem, skymap: SkyMap, solver: str, should_stop:
     return dataclasses.replace(result, details=dict(result.details, budget=budget))
 
 
-def _recorded_stop(clock, should_stop: StopCheck | None) -> StopCheck | None:
+def _recorded_stop(clock: Clock, should_stop: StopCheck | None) -> StopCheck | None:
     """``should_stop``, which also marks ``clock.interrupted`` when it says stop (A5)."""
     if should_stop is None:
         return None

@@ -163,7 +163,7 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
     import highspy
 
     t0 = time.perf_counter()
-    work = solve_work(clock, model.A.nnz, time_limit_s)
+    work = solve_work(clock, model.A.nnz, model.n_rows + model.n_vars, time_limit_s)
     if work is not None:  # (A4) one thread: HiGHS's search, and where it checks its limits, depend on the count
         threads, time_limit_s = 1, work.wall_guard_s
     with _highs_pool_lock:
@@ -209,11 +209,10 @@ def _solve_highs(model: MilpModel, time_limit_s: float, mip_gap: float, threads:
     h.cbMipInterrupt += on_interrupt
     h.run()
     runtime = time.perf_counter() - t0
-    if work is not None:
-        work.charge()
-
     ms = h.getModelStatus()
     info = h.getInfo()
+    if work is not None:  # (A2) its checks and, now known, its LP iterations
+        work.charge(iterations=max(int(info.simplex_iteration_count), 0))
     sol = h.getSolution()
     MS = highspy.HighsModelStatus
     has_x = info.primal_solution_status == highspy.SolutionStatus.kSolutionStatusFeasible
@@ -347,7 +346,7 @@ def _solve_gurobi(model: MilpModel, time_limit_s: float, mip_gap: float, threads
     gp, env = _gurobi_env()
     GRB = gp.GRB
     t0 = time.perf_counter()
-    work = solve_work(clock, model.A.nnz, time_limit_s)
+    work = solve_work(clock, model.A.nnz, model.n_rows + model.n_vars, time_limit_s)
     progress = _Progress(t0)
     interrupted = [False]
     stop_now, cut = _stop_check(progress, should_stop, cutoff)
