@@ -10,7 +10,7 @@
    URL and the broker's address point at loopback.  Good secret, bad secret, a token the endpoint
    never issued.
 
-    python benchmarks/attacks/preflight_loopback.py > benchmarks/results/trusted_round5/operator/preflight_loopback.txt
+    python benchmarks/attacks/preflight_loopback.py > benchmarks/results/attacks/trusted_round5/operator/preflight_loopback.txt
 """
 
 from __future__ import annotations

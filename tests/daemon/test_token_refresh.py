@@ -35,7 +35,7 @@ def test_a_consumer_session_outlives_token_refreshes_and_an_idle_spell(loopback)
     """Polled, then not polled for three token lifetimes, then polled again: every message arrives.
 
     gcn-kafka 0.3.3 on confluent-kafka 2.10.1 (Python ``oauth_cb``, served only from ``poll``) got 1 of 29
-    messages in this scenario (benchmarks/results/trusted_round5/alerts/15_token_refresh_idle_old_clients.txt);
+    messages in this scenario (benchmarks/results/attacks/trusted_round5/alerts/15_token_refresh_idle_old_clients.txt);
     the required versions refresh in librdkafka's own thread and get them all.
     """
     tokens = TokenEndpoint(loopback, "mushrooms-test", "s3cret", lifetime_s=LIFETIME_S)
