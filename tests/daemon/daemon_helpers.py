@@ -238,6 +238,31 @@ retry_max_s = 5
 TEST_CONFIG += BROKER_SECTIONS
 
 
+def directory_outbox_config(tmp_path: Path) -> str:
+    """A small in-process service config: greedy at nside 64, mock notices planned, the state file and a
+    directory outbox in ``tmp_path`` (the text of ``config.toml``; a caller appends its own sections)."""
+    return f"""
+[scheduler]
+solver = "greedy"
+nside = 64
+time_step_s = 600.0
+min_gain = 0.0
+min_coverage = 0.0
+
+[policy]
+allow_mock = true
+max_notice_age_s = 0
+max_event_age_s = 0
+
+[daemon]
+state_path = "{tmp_path / 'state.sqlite'}"
+
+[outbound]
+sink = "directory"
+directory = "{tmp_path / 'outbox'}"
+"""
+
+
 def write_config(path: Path, topic: str, out_topic: str, group: str, extra: str = "") -> Path:
     path.write_text(TEST_CONFIG.format(topic=topic, out_topic=out_topic, group=group) + extra)
     return path

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 
-from daemon_helpers import notice_bytes
+from daemon_helpers import directory_outbox_config, notice_bytes
 from mushrooms.daemon.settings import resolve_paths
 from mushrooms.daemon.wiring import open_pipeline
 from mushrooms.handlers.text import storable
@@ -39,25 +39,7 @@ def test_storable_escapes_c1_controls_bidi_controls_and_line_separators():
 
 def test_hostile_classification_keys_are_escaped_and_bounded_in_the_summaries_and_status(tmp_path, capsys):
     cfg = tmp_path / "config.toml"
-    cfg.write_text(f"""
-[scheduler]
-solver = "greedy"
-nside = 64
-time_step_s = 600.0
-min_gain = 0.0
-min_coverage = 0.0
-
-[policy]
-allow_mock = true
-max_notice_age_s = 0
-max_event_age_s = 0
-
-[daemon]
-state_path = "{tmp_path / 'state.sqlite'}"
-
-[outbound]
-sink = "directory"
-directory = "{tmp_path / 'outbox'}"
+    cfg.write_text(directory_outbox_config(tmp_path) + f"""
 """)
     doc = json.loads(notice_bytes(f"{SID}-preliminary.json"))
     doc["event"]["classification"] = {"BNS": 0.9, HOSTILE: 0.05, HUGE: 0.05}

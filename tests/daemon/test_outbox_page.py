@@ -16,7 +16,7 @@ import re
 import struct
 from pathlib import Path
 
-from daemon_helpers import notice_bytes
+from daemon_helpers import directory_outbox_config, notice_bytes
 from mushrooms.daemon.settings import resolve_paths
 from mushrooms.daemon.sinks import DirectorySink
 from mushrooms.daemon.wiring import open_pipeline
@@ -37,25 +37,7 @@ def _png_size(page: str) -> tuple[int, int]:
 
 def _outbox(tmp_path: Path) -> Path:
     cfg = tmp_path / "config.toml"
-    cfg.write_text(f"""
-[scheduler]
-solver = "greedy"
-nside = 64
-time_step_s = 600.0
-min_gain = 0.0
-min_coverage = 0.0
-
-[policy]
-allow_mock = true
-max_notice_age_s = 0
-max_event_age_s = 0
-
-[daemon]
-state_path = "{tmp_path / 'state.sqlite'}"
-
-[outbound]
-sink = "directory"
-directory = "{tmp_path / 'outbox'}"
+    cfg.write_text(directory_outbox_config(tmp_path) + f"""
 """)
     config = load_config(str(cfg))
     pipeline, close = open_pipeline(config, resolve_paths(config.daemon))

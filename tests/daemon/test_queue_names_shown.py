@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from contract_servers import KowalskiContract
-from daemon_helpers import notice_bytes
+from daemon_helpers import directory_outbox_config, notice_bytes
 from mushrooms.daemon.settings import resolve_paths
 from mushrooms.daemon.submission.remote import make_client
 from mushrooms.daemon.submission.submitter import Submitter
@@ -32,25 +32,7 @@ SID = "MS181101ab"
 
 def _config(tmp_path: Path, url: str, target: str = "kowalski") -> Path:
     path = tmp_path / "config.toml"
-    path.write_text(f"""
-[scheduler]
-solver = "greedy"
-nside = 64
-time_step_s = 600.0
-min_gain = 0.0
-min_coverage = 0.0
-
-[policy]
-allow_mock = true
-max_notice_age_s = 0
-max_event_age_s = 0
-
-[daemon]
-state_path = "{tmp_path / 'state.sqlite'}"
-
-[outbound]
-sink = "directory"
-directory = "{tmp_path / 'outbox'}"
+    path.write_text(directory_outbox_config(tmp_path) + f"""
 
 [submit]
 target = "{target}"
