@@ -14,7 +14,7 @@ clock (``docs/design/milp.md`` section 7, A1-A5):
   step by a fixed nominal cost.  A stage's budget is then a count of work, and
   a plan depends only on its inputs and the configuration.  The rates below
   make a work second about a CPU second of the reference machine (2 cores,
-  HiGHS 1.16; ``benchmarks/results/deterministic_budget/calibration.txt``):
+  HiGHS 1.16; ``benchmarks/results/quality/deterministic_budget/calibration.txt``):
   ``time_limit_s`` keeps about its meaning there when it is quiet; on a loaded
   machine the same work, and the same plan, takes longer.
 
