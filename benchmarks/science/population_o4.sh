@@ -5,6 +5,7 @@
 #
 #   nice -n 19 benchmarks/science/population_o4.sh     # per stage K: greedy on the first K events, then all rows
 #   STAGES="20 50" SOLVERS_FULL=greedy,hybrid benchmarks/science/population_o4.sh
+#   POPULATION=o4-real ROOT=/work/population_o4_real benchmarks/science/population_o4.sh   # O4 as it was (issue 55)
 #
 # The configuration is the worktree's config.toml with [bench] gwemopt_cache_dir under $ROOT (written once to
 # $ROOT/config.toml: gwemopt runs once per event for both of its rows). Keep that file: it is part of every
@@ -17,6 +18,7 @@
 # simulated; the sky maps are localised again (bayestar-localize-coincs is deterministic given the chunk).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+POPULATION=${POPULATION:-o4}      # a recipe of mushrooms/evaluation/study/recipes.py: o4 or o4-real
 ROOT=${ROOT:-/work/population_o4}
 PY=$(realpath -s "${PY:-.venv/bin/python}")
 INJECTIONS=${INJECTIONS:-15000}    # bayestar-inject --nsamples (~4 % are detected at network SNR 8: ~600 events)
@@ -25,7 +27,8 @@ WORKERS=${WORKERS:-1}
 STAGES=${STAGES:-"10 25 50 100 250 600"}
 SOLVERS_FULL=${SOLVERS_FULL:-service,service-grg,greedy,gwemopt-o4,gwemopt-skyportal,gwemopt-repaired}
 GREEDY_FIRST=${GREEDY_FIRST:-0}   # 1: per stage, greedy's rows for every event before the other rows
-SEED_FROM=${SEED_FROM-benchmarks/results/science/population_o4/population}
+if [ "$POPULATION" = o4 ]; then _seed=population_o4; else _seed=population_${POPULATION//-/_}; fi
+SEED_FROM=${SEED_FROM-benchmarks/results/science/$_seed/population}
 CONFIG=${CONFIG:-$ROOT/config.toml}
 export PATH="$(dirname "$PY"):$PATH"  # (absolute: the tools run in their own directories)
 export OMP_NUM_THREADS=1
@@ -35,7 +38,7 @@ if [ ! -e "$CONFIG" ]; then
 fi
 if [ -n "$SEED_FROM" ] && [ -d "$SEED_FROM/chunks" ]; then
   KEY=$("$PY" -c "from mushrooms.evaluation.study.recipes import recipe_population as r; \
-print(r('o4', $INJECTIONS, seed=$SEED)[0].key())")
+print(r('$POPULATION', $INJECTIONS, seed=$SEED)[0].key())")
   POP="$ROOT/cache/populations/$KEY"
   if [ "$(cat "$SEED_FROM/population.key" 2>/dev/null)" = "$KEY" ]; then
     mkdir -p "$POP/realized-50"
@@ -50,7 +53,7 @@ print(r('o4', $INJECTIONS, seed=$SEED)[0].key())")
   fi
 fi
 study() {
-  "$PY" -m mushrooms.cli study --simulate "$INJECTIONS" --population o4 --seed "$SEED" --chunk 50 \
+  "$PY" -m mushrooms.cli study --simulate "$INJECTIONS" --population "$POPULATION" --seed "$SEED" --chunk 50 \
     --workers "$WORKERS" --out "$ROOT/study" --cache "$ROOT/cache" --config "$CONFIG" "$@"
 }
 for k in $STAGES; do
