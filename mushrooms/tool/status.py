@@ -90,11 +90,12 @@ def _schema_problem(conn: sqlite3.Connection) -> str | None:
 
 def _submission_attention(conn: sqlite3.Connection, max_pending_s: float) -> list[str]:
     from ..daemon.state.views import oldest_pending_submission
+    from ..daemon.submission.names import pending_queue_names, queues_phrase
 
     oldest = oldest_pending_submission(conn)
     if oldest is None or oldest["age_s"] <= max_pending_s:
         return []
-    return [f"submission {oldest['queue_name']} of {oldest['superevent_id']} pending for "
+    return [f"submission of {oldest['superevent_id']} ({queues_phrase(pending_queue_names(oldest))}) pending for "
             f"{oldest['age_s'] / 60:.1f} min after {oldest['attempts']} attempt(s) (the plan did not reach the "
             f"telescope; [submit] max_pending_s = {max_pending_s:g} s): {oldest['answer'] or '-'}"]
 
