@@ -149,7 +149,7 @@ def test_the_daemon_tells_the_webhook_of_a_plan_and_of_kowalski_down(broker, dae
     assert plan["superevent_id"] == "MS181101ab" and plan["revision"] == 1
     assert plan["text"].startswith("MS181101ab: new ZTF plan, revision 1: ") and "exposures from" in plan["text"]
     failing = said["submission_failing"]["text"]
-    base = f"ToO_GW_MS181101ab_{plan['plan_id'].removeprefix('mushrooms-')[:8]}"  # the one naming rule
+    base = f"ToO_GW_MS181101ab_{plan['plan_id'].removeprefix('mushrooms-')[:12]}"  # the one naming rule
     from mushrooms.daemon.state.store import Store
     from mushrooms.daemon.submission.rows import submissions
 
