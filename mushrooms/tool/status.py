@@ -69,6 +69,14 @@ def _state_path(args: argparse.Namespace) -> Any:
     return resolve_paths(_config(args).daemon).state
 
 
+def _no_state_file(path: Any, given: bool) -> str:
+    """The one line for a state file that is not there: which file, and how to name the right one."""
+    where = "" if given else " (the config's [daemon] state_path: no service has run with it here)"
+    return (f"{path}: no such state file{where}; give --state FILE: the service's, e.g. "
+            "/var/lib/mushrooms/mushrooms-state.sqlite under the shipped systemd unit, or "
+            "mushrooms-demo/state.sqlite after mushrooms demo")
+
+
 def _config(args: argparse.Namespace) -> Any:
     from .config import load_config
 
@@ -252,7 +260,7 @@ def run(args: argparse.Namespace) -> int:
     path = _state_path(args)
     problem = state_file_problem(path)  # a directory, FIFO or device is named for what it is
     if problem is not None or not path.is_file():
-        print(f"mushrooms status: error: {problem or f'{path}: no such state file'}", file=sys.stderr)
+        print(f"mushrooms status: error: {problem or _no_state_file(path, bool(args.state))}", file=sys.stderr)
         return EXIT_INPUT
     from ..daemon.state.views import connect_readonly
 
