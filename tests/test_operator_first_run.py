@@ -9,6 +9,9 @@ suggests:
   nothing said so, nor that ``--state`` picks a file;
 * ``demo --help`` did not say where ``--out`` goes by default, and the demo
   did not say how to look at its result with ``status``;
+* ``trigger <superevent id>`` with the default state path (not the demo's)
+  created an empty state file, an outbox folder and a "rejected" notice
+  there, which ``status`` then showed as an event: now one line, nothing made;
 * ``rehearse``'s verdict on a submission named the queues' name base
   (``ToO_GW_<event>_<tag>``), which is no queue's name: Kowalski holds
   ``<base>_1`` ... ``<base>_K`` (the daemon's log line now carries them).
@@ -94,3 +97,12 @@ def test_rehearse_names_the_queues_of_a_submission_not_their_name_base(tmp_path,
         raise AssertionError("a submission that did not reach the queue passed the rehearsal")
     assert f"submission of {sub.plan_id} ({few}) did not reach the queue" in said, said
     assert f"{sub.queue_name} " not in said  # the base alone is no queue
+
+
+def test_trigger_of_a_superevent_without_a_state_file_creates_nothing_and_says_why(tmp_path) -> None:
+    r = mushrooms("trigger", "MS260605l", cwd=tmp_path)
+    assert r.returncode == 2, r.stdout + r.stderr
+    made = sorted(p.name for p in tmp_path.iterdir())
+    lines = [x for x in r.stderr.splitlines() if x.startswith("mushrooms trigger:")]
+    assert len(lines) == 1 and "no such state file" in lines[0] and "--state FILE" in lines[0], (r.stderr, made)
+    assert made == [], made  # no state file, no outbox
