@@ -49,9 +49,8 @@ from mushrooms.tool.live_notice import live_copy  # noqa: E402
 sys.path.insert(0, str(REPO / "benchmarks" / "speed"))
 sys.path.insert(0, str(REPO / "benchmarks" / "common"))  # benchmarks/common: the shared helpers
 from latency_summary import latency_line, write_summary  # noqa: E402
-from submit_latency import CONFIG  # noqa: E402  (policy, loopback input, directory outbox, then {submit})
+from submit_latency import CONFIG, NOTICES  # noqa: E402  (policy, loopback input, directory outbox, then {submit})
 
-NOTICES = ["MS181101ab-preliminary.json", "MS230425l-preliminary.json", "MS260605l-preliminary.json"]
 HOOK_PATH = "/hook/s3cr3t"
 
 #: The daemon's sections after submit_latency.py's (mock broker input, directory outbox): the webhook, and
