@@ -152,7 +152,7 @@ class Service:
         if opened is not None:
             self.submitter, self.submit_drain = opened
             self.submitter.on_trouble = lambda sub, error, action: submission_trouble(  # [notify]
-                self.pipeline.sink, sub.superevent_id, sub.queue_name, sub.attempts, error, action)
+                self.pipeline.sink, sub.superevent_id, sub.queue_names(), sub.attempts, error, action)
             self.submit_drain.kick()  # reconcile what a crash left half done
         self.phase = "warming"
         log.info("event=warm_up_starting solver=%s nside=%d", self.config.scheduler.solver, self.config.scheduler.nside)
