@@ -12,13 +12,13 @@ from mushrooms.scheduler_core import PlanningConfig, read_skymap
 from mushrooms.scheduler_core.instruments import load_description
 from mushrooms.scheduler_core.prepare import prepare_problem
 
-SOUTH = Path("/work/shared/data/skymaps/simulated/bns_o3/13.fits")
+SOUTH = Path("/work/shared/data/skymaps/public/obs-scenarios_sim6_HKL.multiorder.fits")
 
 
 def test_the_default_configuration_records_no_telescope():
     cfg = PlanningConfig()
     assert cfg.telescopes == ("ztf",) and "telescopes" not in cfg.record()
-    assert PlanningConfig(telescopes=("ls4",), filters=("i",)).record()["telescopes"] == ["ls4"]
+    assert list(PlanningConfig(telescopes=("ls4",), filters=("i",)).record()["telescopes"]) == ["ls4"]
 
 
 def test_a_telescopes_defaults_and_a_set_key_wins():
@@ -51,7 +51,7 @@ def test_prepare_problem_for_ls4_uses_its_grid_and_carries_its_name():
     ls4 = load_description("ls4")
     cfg = PlanningConfig.for_telescope(ls4, {"nside": 64, "solver": "greedy"})
     skymap = read_skymap(SOUTH, nside=64)
-    problem = prepare_problem(skymap, cfg, Time("2012-01-12T12:00:00", scale="utc"), telescope=ls4)
+    problem = prepare_problem(skymap, cfg, skymap.event_time, telescope=ls4)
     assert problem.telescope == "ls4" and problem.field_ids.size > 0
     assert np.isin(problem.field_ids, ls4.grid.ids).all()
     with pytest.raises(ValueError, match="telescope"):

@@ -111,7 +111,7 @@ def sky_reasons(skymap: SkyMap, config: PlanningConfig, start: Time) -> SkyReaso
     masks = constraint_masks(ra, dec, times, config)  # the schedulers' own constraints, one by one
     night, away = masks.night, masks.moon_clear
     reach = masks.reachable & ((dec >= config.dec_min_deg) & (dec <= config.dec_max_deg))[:, None]
-    sun = get_body("sun", times[:1], site())
+    sun = get_body("sun", times[:1], site(config.telescope))
 
     any_time = reach.any(axis=1)
     at_night = (reach & night[None, :]).any(axis=1)
