@@ -21,7 +21,7 @@ from .plan.localization import with_map_details
 from .plan.document import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 from .budget import Clock, new_clock
 from .clock import on_merger_clock
-from .instruments.active import depth_model
+from .source.depth import depth_model
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .sky.skymap import SkyMap

@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Any, Mapping
 
 import numpy as np
 from astropy import units as u
@@ -80,6 +80,7 @@ __all__ = [
     "SkyConditions",
     "DepthModel",
     "ZTF_DEPTH",
+    "depth_model",
     "sky_conditions",
     "dark_zenith",
     "sky_brightness",
@@ -354,3 +355,30 @@ def limiting_magnitude(bands: np.ndarray, exposure_s: np.ndarray, cond: SkyCondi
     with np.errstate(over="ignore"):
         m5 = -1.25 * np.log10(10.0 ** (-0.8 * m_sci_d) + 10.0 ** (-0.8 * m_ref_d))
     return np.where(np.isfinite(m_sci), m5, -np.inf)
+
+
+def depth_model(config: Any) -> "DepthModel":
+    """(D1)-(D2) for a telescope: ``C_b = zenith_depth - 1.25 log10(reference_exposure_s / 30 s)`` (section 1).
+
+    A filter without ``reference_depth`` gets a reference far deeper than any
+    exposure (99 mag at its zenith seeing): D2 then adds nothing.
+    """
+    from ..instruments.active import description_of, site_tuple
+
+    if config.telescope == "ztf":  # the calibrated model; ztf.toml's terms equal it (tested)
+        return ZTF_DEPTH
+    telescope = description_of(config)
+    shift = 1.25 * float(np.log10(telescope.depth.reference_exposure_s / 30.0))
+    f = telescope.filters
+    return DepthModel(
+        dark_zenith_depth_30s={b: t.zenith_depth - shift for b, t in f.items()},
+        dark_sky_zenith={b: t.sky_zenith for b, t in f.items()},
+        extinction={b: t.extinction for b, t in f.items()},
+        seeing_airmass_exponent=telescope.depth.seeing_airmass_exponent,
+        twilight_slope_mag_per_deg=telescope.depth.twilight_slope_mag_per_deg,
+        zenith_fwhm_arcsec={b: t.zenith_fwhm_arcsec for b, t in f.items()},
+        reference_depth={b: 99.0 if t.reference_depth is None else t.reference_depth for b, t in f.items()},
+        reference_fwhm_arcsec={b: t.zenith_fwhm_arcsec if t.reference_fwhm_arcsec is None
+                               else t.reference_fwhm_arcsec for b, t in f.items()},
+        sun_minus_v={b: t.sun_minus_v for b, t in f.items()},
+        location=site_tuple(telescope))
