@@ -77,6 +77,10 @@ def test_an_ls4_plan_of_a_southern_map_keeps_to_ls4(ls4_plan):
         ha = (t.sidereal_time("apparent", longitude=where.lon).deg - np.array([o["ra"] for o in obs]) + 180) % 360 - 180
         assert np.abs(ha).max() <= 15 * ls4.limits.ha_max_h + 0.5
     assert doc["metrics"]["coverage"] > 0.05  # a southern map ZTF barely sees
+    from mushrooms.scheduler_core.plan.schema import validate_document
+
+    validate_document(doc)  # the published format holds another telescope's filters and its name
+    assert doc["metrics"].get("coverage_as_executed") is None  # the executor model is ZTF's queue
 
 
 def test_the_ls4_plan_passes_the_checker(ls4_plan):
