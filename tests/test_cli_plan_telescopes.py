@@ -158,10 +158,44 @@ def test_several_telescopes_plan_each_alone(tmp_path):
     config = tmp_path / "config.toml"
     config.write_text('[scheduler]\nnside = 64\n')
     r = mushrooms("plan", str(SOUTH), "--telescopes", "ztf,ls4", "--solver", "greedy", "--config", str(config),
-                  "-o", str(tmp_path / "plan.json"))
+                  "-o", str(tmp_path / "plan.json"), "--targets", str(tmp_path / "targets.json"))
     assert r.returncode == 0, r.stderr
     ztf = json.loads((tmp_path / "plan.json").read_text())
     ls4 = json.loads((tmp_path / "plan.ls4.json").read_text())
     assert "telescopes" not in ztf.get("config", {"telescopes": 0}) or ztf.get("type") == "not_observable"
     assert ls4["config"]["telescopes"] == ["ls4"] and ls4["plan_id"] != ztf.get("plan_id")
+    # the target list of each: JSON and CSV, one row per planned exposure, in plan order
+    targets = json.loads((tmp_path / "targets.ls4.json").read_text())
+    assert targets["telescope"] == "ls4" and targets["plan_id"] == ls4["plan_id"]
+    want = [{k: o[k] for k in ("field_id", "ra", "dec", "filter", "exposure_s", "start")} for o in ls4["observations"]]
+    assert targets["targets"] == want and want
+    lines = (tmp_path / "targets.ls4.csv").read_text().splitlines()
+    assert lines[0] == "field_id,ra,dec,filter,exposure_s,start" and len(lines) == len(want) + 1
+    first = lines[1].split(",")
+    assert int(first[0]) == want[0]["field_id"] and first[3] == "i" and first[5] == want[0]["start"]
     shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+def test_the_configured_telescopes_are_planned_with_the_shipped_config_beside(tmp_path):
+    # the shipped config.toml writes ZTF's defaults out (filters g, r; 300 s): LS4's own stay
+    shipped = Path(__file__).resolve().parents[1] / "config.toml"
+    text = shipped.read_text().replace('telescopes = ["ztf"]', 'telescopes = ["ls4"]').replace("nside = 256", "nside = 64")
+    assert 'telescopes = ["ls4"]' in text
+    (tmp_path / "config.toml").write_text(text)
+    r = mushrooms("plan", str(SOUTH), "--solver", "greedy", "--config", str(tmp_path / "config.toml"),
+                  "-o", str(tmp_path / "plan.json"))
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((tmp_path / "plan.json").read_text())
+    assert doc["config"]["telescopes"] == ["ls4"] and doc["config"]["filters"] == ["i"]
+    assert {o["exposure_s"] for o in doc["observations"]} == {45.0}
+
+
+def test_the_service_refuses_another_telescope_in_one_line(capsys):
+    from mushrooms.daemon.service import main
+    from mushrooms.tool.config import Config
+    from mushrooms.scheduler_core import PlanningConfig
+
+    config = Config(scheduler=PlanningConfig.from_mapping({"telescopes": ["ztf", "ls4"]}))
+    assert main(lambda: config) == 2
+    err = capsys.readouterr().err
+    assert "telescopes = ['ztf', 'ls4']" in err and "plans ZTF alone" in err

@@ -76,6 +76,13 @@ RECORDED_WHEN_CLEARED = ("hybrid_lns",)
 ONE_NIGHT_PAIR_S = 43200.0
 
 
+def _names_only(names: Any) -> Any:
+    """An object with ``telescopes`` (what :func:`~.config_checks.telescope_problems` reads)."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(telescopes=names)
+
+
 def _ztf_default(key: str, value: Any, cls: type | None = None) -> bool:
     """``value`` is ZTF's default of ``key`` (a ``PlanningConfig`` field, or ``cls``'s)."""
     fields = {f.name: f for f in dataclasses.fields(cls or PlanningConfig)}
@@ -428,7 +435,7 @@ class PlanningConfig:
             table["slew"] = {**own["slew"], **{k: v for k, v in values["slew"].items()
                                                if ztf or k not in own["slew"] or not _ztf_default(k, v, SlewModel)}}
         table["telescopes"] = [telescope_entry(telescope)]
-        return cls.from_mapping(table)
+        return cls._from_table(table)
 
     @property
     def pair_separation_s(self) -> float:
@@ -444,11 +451,28 @@ class PlanningConfig:
     def from_mapping(cls, values: Mapping[str, Any]) -> "PlanningConfig":
         """Build from a ``[scheduler]`` table; unknown keys are an error.
 
+        A table whose first telescope is not ZTF is that telescope's
+        configuration (:meth:`for_telescope`), keeping every name of
+        ``telescopes``: what a plan is made for, and what a plan made for it
+        records (the same configuration again).
+
         Parameters
         ----------
         values : mapping
             Keys are attribute names; ``slew`` may be a nested table.
         """
+        names = values.get("telescopes")
+        if (isinstance(names, (list, tuple)) and names and isinstance(names[0], str) and names[0] != "ztf"
+                and not telescope_problems(_names_only(names))):
+            from .instruments.loader import load_description
+
+            first = cls.for_telescope(load_description(names[0]), values)
+            return dataclasses.replace(first, telescopes=tuple(names))
+        return cls._from_table(values)
+
+    @classmethod
+    def _from_table(cls, values: Mapping[str, Any]) -> "PlanningConfig":
+        """:meth:`from_mapping` without a telescope's defaults."""
         kwargs = dict(values)
         if isinstance(kwargs.get("slew"), Mapping):
             kwargs["slew"] = dataclass_from_table(SlewModel, kwargs["slew"], "scheduler.slew")

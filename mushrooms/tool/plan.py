@@ -90,6 +90,9 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
                    help="also write the SkyPortal observation plans as the daemon POSTs them to "
                         "/api/observation_plan/manual (revision 1; [export] skyportal_plans): one plan object, or a "
                         "JSON list of them in submission order")
+    p.add_argument("--targets", metavar="FILE",
+                   help="also write the plan as a target list (field id, RA, Dec, filter, exposure, start): JSON "
+                        "into FILE and CSV beside it (FILE.csv), for a telescope without a queue API")
     p.add_argument("--plot", metavar="FILE", help="also draw the plan on the sky map (PNG)")
     p.add_argument("--executed", metavar="FILE",
                    help="what the telescope did: a JSON-lines file of executed exposures (field_id, filter, start, "
@@ -174,6 +177,9 @@ def _plan(args: argparse.Namespace, config: Any, t0: float, t_imports: float) ->
         _write_not_observable(args, answer, plan, skymap, cfg, outputs, t0)
         return 0
     write_json_atomic(args.output, doc)
+    from .plan_telescopes import write_targets
+
+    write_targets(getattr(args, "targets", None), plan)
     queues = _write_submissions(args.queue, getattr(args, "skyportal", None), plan, config, doc)
     picture = _write_summary(args, doc, plan, skymap, queues=queues)
     progress.done()
@@ -194,7 +200,11 @@ def _checked_arguments(args: argparse.Namespace, config: Any) -> tuple[dict[str,
     if not args.skymap:
         raise InputError("no sky map given: name a FITS sky map (`mushrooms demo` plans the bundled demo map)")
     outputs = {"-o/--output": args.output, "--queue": args.queue, "--skyportal": getattr(args, "skyportal", None),
-               "--plot": args.plot}
+               "--plot": args.plot, "--targets": getattr(args, "targets", None)}
+    if outputs["--targets"]:
+        from pathlib import Path
+
+        outputs["--targets (CSV)"] = str(Path(outputs["--targets"]).with_suffix(".csv"))
     check_outputs(outputs, inputs=[args.skymap, args.config])  # before any work; never onto an input
     if getattr(args, "skyportal", None) and config.export.skyportal_allocation_id is None:
         raise InputError("--skyportal needs [export] skyportal_allocation_id in the config "

@@ -22,7 +22,7 @@ import dataclasses
 from pathlib import Path
 from typing import Any, Callable
 
-__all__ = ["wanted_telescopes", "telescope_configs", "telescope_path", "plan_each"]
+__all__ = ["wanted_telescopes", "telescope_configs", "telescope_path", "plan_each", "write_targets"]
 
 
 def wanted_telescopes(args: argparse.Namespace, config: Any) -> tuple[str, ...] | None:
@@ -121,6 +121,19 @@ def plan_each(args: argparse.Namespace, config: Any, names: tuple[str, ...],
     status = 0
     for k, (telescope, each) in enumerate(runs):
         files = {key: telescope_path(getattr(args, key, None), k == 0, telescope.name)
-                 for key in ("output", "queue", "skyportal", "plot")}
+                 for key in ("output", "queue", "skyportal", "plot", "targets")}
         status = max(status, plan_one(argparse.Namespace(**{**vars(args), **files}), each))
     return status
+
+
+def write_targets(path: str | None, plan: Any) -> None:
+    """``--targets FILE``: the target list as JSON into FILE, as CSV into FILE's ``.csv`` beside it."""
+    if not path:
+        return
+    from pathlib import Path
+
+    from ..outputs import write_bytes_atomic, write_json_atomic
+    from ..scheduler_core.plan.target_list import target_list_csv, target_list_document
+
+    write_json_atomic(path, target_list_document(plan, plan.config.get("telescopes", ["ztf"])[0]))
+    write_bytes_atomic(str(Path(path).with_suffix(".csv")), target_list_csv(plan).encode())
