@@ -65,6 +65,7 @@ def test_an_ls4_plan_of_a_southern_map_keeps_to_ls4(ls4_plan):
         assert o["field_id"] in grid and o["exposure_s"] == ls4.planning.exposure_s == 45.0
         assert o["filter"] in ls4.filters and o["filter"] == "i"
         assert np.allclose((o["ra"], o["dec"]), grid[o["field_id"]], atol=1e-6)
+        assert ls4.limits.dec_min_deg <= o["dec"] <= ls4.limits.dec_max_deg
     site = ls4.site
     where = EarthLocation.from_geodetic(site.longitude_deg * u.deg, site.latitude_deg * u.deg, site.height_m * u.m)
     starts = Time([o["start"].rstrip("Z") for o in obs], scale="utc")

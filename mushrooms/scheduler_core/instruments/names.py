@@ -48,7 +48,7 @@ def telescope_problem(entry: object) -> str | None:
         return f"telescopes must be names of telescopes or description files, got {entry!r}"
     shown = entry if len(entry) <= 60 else entry[:57] + "..."
     if is_path(entry):
-        return None if Path(entry).expanduser().is_file() else f"telescope description {shown!r}: no such file"
+        return None if Path(entry).expanduser().is_file() else f"telescope description {shown!r}: no such regular file"
     known = shipped_telescopes()
     if entry in known:
         return None
