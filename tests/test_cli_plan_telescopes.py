@@ -59,7 +59,7 @@ def test_an_ls4_plan_of_a_southern_map_keeps_to_ls4(ls4_plan):
     out, doc = ls4_plan
     ls4 = load_description("ls4")
     obs = doc["observations"]
-    assert doc["config"]["telescopes"] == ["ls4"] and len(obs) >= 10
+    assert doc["config"]["telescopes"] == ["ls4"] and doc["telescope"] == "LS4" and len(obs) >= 10
     grid = dict(zip(ls4.grid.ids.tolist(), zip(ls4.grid.ra.tolist(), ls4.grid.dec.tolist())))
     for o in obs:  # LS4's grid, its exposure, its planning filter
         assert o["field_id"] in grid and o["exposure_s"] == ls4.planning.exposure_s == 45.0

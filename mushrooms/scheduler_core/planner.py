@@ -391,6 +391,7 @@ def build_plan(
         event=event,
         supersedes=supersedes,
         config=json.loads(json.dumps(config.record())),  # JSON types (tuples become lists)
+        telescope=telescope_label(config),
     )
     # the executor model (docs/design/executed.md) is ZTF's ToO queue: no executed coverage for another telescope
     modelled = observations and config.telescope == "ztf"
@@ -399,6 +400,13 @@ def build_plan(
         metrics, expected_detections=_expected_detections(plan, problem, skymap, result),
         coverage_as_executed=None if executed is None else round(executed, 6),
         sequence_coverage_as_executed=None if whole is None else round(whole, 6)))
+
+
+def telescope_label(config: PlanningConfig) -> str:
+    """The document's ``telescope``: ``ZTF`` as always, another telescope's name in capitals (``LS4``)."""
+    from .instruments.active import telescope_name
+
+    return "ZTF" if config.telescope == "ztf" else telescope_name(config.telescope).upper()
 
 
 def _coverage_as_executed(plan: Plan, problem: PlanningProblem, result: ScheduleResult) -> tuple[float, float]:
