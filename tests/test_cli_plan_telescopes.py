@@ -200,3 +200,20 @@ def test_the_service_refuses_another_telescope_in_one_line(capsys):
     assert main(lambda: config) == 2
     err = capsys.readouterr().err
     assert "telescopes = ['ztf', 'ls4']" in err and "plans ZTF alone" in err
+
+
+def test_a_reload_to_another_telescope_keeps_the_running_configuration():
+    from types import SimpleNamespace
+
+    from mushrooms.daemon.reload import reload_service
+    from mushrooms.scheduler_core import PlanningConfig
+    from mushrooms.tool.config import Config
+
+    said = []
+    running = Config()
+    service = SimpleNamespace(
+        notifier=SimpleNamespace(reloading=lambda: said.append("reloading"), ready=lambda text: said.append(text)),
+        pipeline=SimpleNamespace(sink=object()), config=running,
+        reload_config=lambda: Config(scheduler=PlanningConfig.from_mapping({"telescopes": ["ztf", "ls4"]})))
+    reload_service(service)
+    assert service.config is running and said == ["reloading", "reload failed; old configuration kept"]
