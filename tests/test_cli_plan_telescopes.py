@@ -211,9 +211,9 @@ def test_a_reload_to_another_telescope_keeps_the_running_configuration():
 
     said = []
     running = Config()
+    both = Config(scheduler=PlanningConfig.from_mapping({"telescopes": ["ztf", "ls4"]}))  # a valid configuration
     service = SimpleNamespace(
         notifier=SimpleNamespace(reloading=lambda: said.append("reloading"), ready=lambda text: said.append(text)),
-        pipeline=SimpleNamespace(sink=object()), config=running,
-        reload_config=lambda: Config(scheduler=PlanningConfig.from_mapping({"telescopes": ["ztf", "ls4"]})))
+        pipeline=SimpleNamespace(sink=object()), config=running, reload_config=lambda: both)
     reload_service(service)
     assert service.config is running and said == ["reloading", "reload failed; old configuration kept"]

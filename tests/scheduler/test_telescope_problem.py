@@ -6,7 +6,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from astropy.time import Time
 
 from mushrooms.scheduler_core import PlanningConfig, read_skymap
 from mushrooms.scheduler_core.instruments import load_description
