@@ -20,6 +20,7 @@ the log format (:mod:`~mushrooms.daemon.ops.journal`).
 from __future__ import annotations
 
 import logging
+import sys
 import os
 import threading
 import time
@@ -476,4 +477,8 @@ def main(load: Callable[[], ServiceConfig]) -> int:
     level = logging.getLogger().level or logging.INFO
     setup_logging(level)
     config = load()
+    if tuple(config.scheduler.telescopes) != ("ztf",):  # (issue 53) the service plans ZTF; other telescopes: phase 4
+        print(f"mushrooms run: error: [scheduler] telescopes = {list(config.scheduler.telescopes)!r}: the service "
+              f"plans ZTF alone in this version (`mushrooms plan --telescopes` plans the others)", file=sys.stderr)
+        return 2
     return Service(config, resolve_paths(config.daemon), reload=load).run()
