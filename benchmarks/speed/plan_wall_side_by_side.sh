@@ -11,7 +11,8 @@
 #
 # A base tree: git -C /work/wt/speed worktree add --detach /work/wt/speed-base 0f793b0
 # Each tree runs as `PYTHONPATH=TREE $PYTHON -m mushrooms.cli plan ...` (PYTHON default /work/main/.venv/bin/python).
-# Row: tree map arm wall rc solver coverage bound bound_method runtime_s expected_detections coverage_as_executed;
+# Row: tree map arm wall rc solver coverage bound bound_method runtime_s expected_detections coverage_as_executed
+# budget_spent budget_kind budget_interrupted (metrics.budget: work seconds under [scheduler] deterministic = true);
 # each run's stage-times log line (`times: ...`) follows its row.  Run it with the machine quiet; the load is
 # printed every map.
 set -u
@@ -52,7 +53,8 @@ except (OSError, ValueError):
     d, m = {}, {}
 print(tag, name, arm, f"{wall:.2f}", f"rc={rc}", m.get("solver", d.get("type", "-")), m.get("coverage", 0.0),
       m.get("upper_bound"), m.get("upper_bound_method"), m.get("runtime_s"), m.get("expected_detections"),
-      m.get("coverage_as_executed"))
+      m.get("coverage_as_executed"), (m.get("budget") or {}).get("spent"),
+      (m.get("budget") or {}).get("kind", "-"), (m.get("budget") or {}).get("interrupted", "-"))
 EOF
   grep -o 'times: .*' "$tmp/log" | sed 's/^/    /' | tee -a "$out"
   rm -f "$tmp/p.json"

@@ -32,8 +32,10 @@ def trees_summary(path):
         tree, name, arm, wall, rc, solver, cov, bound, method, rt, det, exe = f[:12]
         if tree not in order:
             order.append(tree)
+        work = num(f[12]) if len(f) > 12 else None  # metrics.budget.spent (work s), rows written since issue 55
         rows.setdefault(tree, {}).setdefault(name, {}).setdefault(arm, []).append(dict(
-            wall=float(wall), rc=rc, solver=solver, cov=float(cov), bound=num(bound), det=num(det), exe=num(exe)))
+            wall=float(wall), rc=rc, solver=solver, cov=float(cov), bound=num(bound), det=num(det), exe=num(exe),
+            work=work, runtime=num(rt)))
     maps = sorted(set.intersection(*(set(rows[t]) for t in order)))
     maps = [m for m in maps if all("greedy" in rows[t][m] and "default" in rows[t][m] for t in order)]
     print(f"maps {len(maps)}; trees {', '.join(order)}")
@@ -60,6 +62,15 @@ def trees_summary(path):
     print("(greedy: each map's median over its repeats; ratio: default / greedy wall per map; cov d/g: sum of the "
           "default's coverage over greedy's; cov d/bound: mean over maps with a bound; det: mean expected "
           "detections over maps with distance layers; exec: mean coverage_as_executed of the default)")
+    for t in order:  # the load-free measure: the default plan's work seconds (deterministic budget)
+        work = [rows[t][m]["default"][0]["work"] for m in maps if rows[t][m]["default"][0]["work"] is not None]
+        rt = [rows[t][m]["default"][0]["runtime"] for m in maps if rows[t][m]["default"][0]["runtime"] is not None]
+        both = [(r["runtime"], r["work"]) for m in maps for r in rows[t][m]["default"][:1]
+                if r["runtime"] is not None and r["work"]]
+        if work and rt and both:
+            print(f"{t}: default work seconds (metrics.budget.spent) p50 {st.median(work):.2f} p95 {pct(work, 95):.2f} "
+                  f"max {max(work):.2f} over {len(work)} maps; its metrics.runtime_s p50 {st.median(rt):.2f} "
+                  f"p95 {pct(rt, 95):.2f}; median runtime / work {st.median(r / w for r, w in both):.2f}")
     if len(order) == 2:
         a, b = order
         diff = sorted(((rows[b][m]["default"][0]["cov"] - rows[a][m]["default"][0]["cov"], m) for m in maps))
