@@ -140,3 +140,22 @@ def test_real_gwemopt_runs_offline_and_converts(data_dir) -> None:
     plan = gwemopt_plan(run, sm.event_time, cfg, sm.sha256, 0.0)
     report = check_plan(plan, sm, cfg)
     assert report.coverage >= 0.0
+
+
+def test_the_detection_stage_line_tells_decisions_from_an_exhausted_budget() -> None:
+    """A detection stage that kept the coverage plan by decision (no distance layers, at the detection ceiling)
+    is not a stage the budget starved; only one that tried grids and solved none is (paired_table's line)."""
+    from mushrooms.evaluation.bench.summary import paired_table
+
+    def row(m: str, s: str, stage: str) -> dict:
+        paired = {"expected_optimistic_diff": 0.0, "efficiency_optimistic_diff": 0.0} if stage else {}
+        return {**_r(m, s, 0.5, 0.1), "detection_stage": stage, "exposure_mix": "300:10",
+                "expected_optimistic": 0.1, **paired}
+
+    tail = "; budget 4.0 s, took 0.001 s; 0 grid(s) solved, 0 below the floor"
+    rows = [row("a", "greedy", ""), row("a", "hybrid", "coverage (no distance layers)" + tail),
+            row("b", "greedy", ""), row("b", "hybrid", "coverage (at the detection ceiling)" + tail),
+            row("c", "greedy", ""), row("c", "hybrid", "coverage" + tail.replace("took 0.001", "took 4.2"))]
+    line = next(x for x in paired_table(rows, ["greedy", "hybrid"], ("optimistic",)) if "detection stage" in x)
+    assert "solved no grid: A 0, B 1 maps" in line
+    assert "kept by decision: A 0, B 2 maps (at the detection ceiling 1, no distance layers 1)" in line

@@ -260,9 +260,13 @@ def paired_table(rows: Rows, solvers: Sequence[str], eff_keys: Sequence[str]) ->
                      f"B {np.median(em) if em else float('nan'):.0f} s; solve time median A "
                      f"{np.median(_values([a for a, _ in pairs], 'solve_s') or [np.nan]):.2f} s, B "
                      f"{np.median(_values([b for _, b in pairs], 'solve_s') or [np.nan]):.2f} s")
-        starved = [sum(_no_grid(r) for r in side) for side in ([a for a, _ in pairs], [b for _, b in pairs])]
-        lines.append(f"    {'clock':<13} detection stage solved no grid in its time (kept the coverage plan): "
-                     f"A {starved[0]}, B {starved[1]} maps (a clock-limited stage depends on the machine's load)")
+        sides = ([a for a, _ in pairs], [b for _, b in pairs])
+        starved = [sum(_no_grid(r) and not _kept_reason(r) for r in side) for side in sides]
+        decided = [[_kept_reason(r) for r in side if _kept_reason(r)] for side in sides]
+        reasons = ", ".join(f"{k} {decided[1].count(k)}" for k in sorted(set(decided[1])))
+        lines.append(f"    {'detection':<13} detection stage tried grids and solved no grid: A {starved[0]}, "
+                     f"B {starved[1]} maps; kept by decision: A {len(decided[0])}, B {len(decided[1])} maps"
+                     + (f" ({reasons})" if reasons else ""))
     return lines
 
 
@@ -273,6 +277,14 @@ def _ok(row: Mapping[str, Any]) -> bool:
 def _lengths(row: Mapping[str, Any]) -> set[str]:
     """The exposure lengths of a row's plan (from ``exposure_mix``)."""
     return {p.split(":")[0] for p in str(row.get("exposure_mix") or "").split()}
+
+
+def _kept_reason(row: Mapping[str, Any]) -> str:
+    """Why the detection stage kept the coverage plan without trying a grid (``coverage (<reason>); ...``), or ''."""
+    stage = str(row.get("detection_stage") or "")
+    if not stage.startswith("coverage (") or ")" not in stage:
+        return ""
+    return stage[len("coverage ("):stage.index(")")]
 
 
 def _no_grid(row: Mapping[str, Any]) -> bool:
