@@ -1,0 +1,148 @@
+"""One coordinated plan for several telescopes on one map (issue 53 item 2; telescopes.md section 5, J1-J8).
+
+Until the planner reads telescope descriptions, two ZTF problems on different
+field grids stand in for two telescopes: the primary grid (ids below 1000)
+and the secondary grid (ids 1000 and up), which overlap on the sky, with
+different filters and cadences; the same grid twice; and a grid the night
+cannot reach (a telescope with no window).  Real HiGHS, the packaged map.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from importlib.resources import files
+
+import numpy as np
+import pytest
+from astropy.time import Time
+
+from mushrooms.scheduler_core import PlanningConfig, read_skymap
+from mushrooms.scheduler_core.budget import new_clock
+from mushrooms.scheduler_core.plan.checker import check_plan
+from mushrooms.scheduler_core.planner import build_plan
+from mushrooms.scheduler_core.prepare import prepare_problem
+from mushrooms.scheduler_core.schedulers.bounds.coverage_bound import coverage_upper_bound
+from mushrooms.scheduler_core.schedulers.portfolio.portfolio import slots_from_greedy
+from mushrooms.scheduler_core.sky.fields import FieldGrid, load_ztf_fields
+
+NIGHT = Time("2019-05-01T03:00:00", scale="utc")
+DEMO = files("mushrooms.scheduler_core") / "data" / "MS181101ab_bayestar.multiorder.fits"
+
+
+def _config(**kw) -> PlanningConfig:
+    return PlanningConfig(solver="slots", nside=64, horizon_h=12.0, time_limit_s=1.0, detection_time_limit_s=0.5, bound_time_limit_s=1.0,
+                          deterministic=True, **kw)
+
+
+def _sub_grid(keep) -> FieldGrid:
+    grid = load_ztf_fields()
+    sel = keep(grid)
+    return FieldGrid(grid.ids[sel], grid.ra[sel], grid.dec[sel])
+
+
+PRIMARY = (lambda g: g.ids < 1000)
+SECONDARY = (lambda g: g.ids >= 1000)
+UNREACHABLE = (lambda g: (g.ids < 1000) & (g.dec < -28.0))  # below the band once dec_min is -20
+
+
+@pytest.fixture(scope="module")
+def skymap():
+    return read_skymap(DEMO, nside=64)
+
+
+@pytest.fixture(scope="module")
+def two_telescopes(skymap):
+    """Primary grid in g-r at 30 min; secondary grid in r-i at 40 min, 240 s exposures."""
+    a = prepare_problem(skymap, _config(), NIGHT, grid=_sub_grid(PRIMARY))
+    b = prepare_problem(skymap, _config(filters=("r", "i"), cadence_s=2400.0, exposure_s=240.0), NIGHT,
+                        grid=_sub_grid(SECONDARY))
+    return [a, b]
+
+
+@pytest.fixture(scope="module")
+def joint_two(two_telescopes):
+    from mushrooms.scheduler_core.schedulers.joint import joint_schedule
+
+    return joint_schedule(two_telescopes)
+
+
+def _lone(problem):
+    """The telescope planned alone, with its own budget (the single-telescope slot scheduler from greedy)."""
+    return slots_from_greedy(dataclasses.replace(problem, clock=new_clock(problem.config.deterministic)))
+
+
+def _fields(result) -> set[int]:
+    return {o.field_id for o in result.observations}
+
+
+def test_the_joint_objective_counts_a_pixel_once(skymap):
+    """(J1, J2) Two telescopes with the same grid observing the same field: its probability counts once."""
+    from mushrooms.scheduler_core.schedulers.joint.model import build_joint_model, joint_instance
+
+    same = [prepare_problem(skymap, _config(), NIGHT, grid=_sub_grid(PRIMARY)) for _ in range(2)]
+    inst = joint_instance(same)
+    model = build_joint_model(inst)
+    # one eligible pair of the same field for each telescope
+    common = set(inst.parts[0].rows[inst.parts[0].pair_field]) & set(inst.parts[1].rows[inst.parts[1].pair_field])
+    row = min(common)
+    pairs = [int(np.flatnonzero(part.rows[part.pair_field] == row)[0]) for part in inst.parts]
+    x = model.start_vector([[pairs[0]], [pairs[1]]])
+    once = same[0].footprints.coverage([same[0].field_ids[row]], same[0].prob)
+    assert model.milp.c @ x == pytest.approx(once, abs=1e-9)
+    assert np.all(model.milp.A @ x <= model.milp.row_hi + 1e-9) and np.all(model.milp.A @ x >= model.milp.row_lo - 1e-9)
+    # and the whole joint plan of the twins: the union counts each pixel once
+    from mushrooms.scheduler_core.schedulers.joint import joint_schedule
+
+    res = joint_schedule(same)
+    both = _fields(res.schedules[0]) | _fields(res.schedules[1])
+    assert res.metrics.union == pytest.approx(same[0].footprints.coverage(both, same[0].prob), abs=1e-9)
+    assert res.metrics.union <= sum(res.metrics.share) + 1e-12
+    assert res.metrics.more_than_once == pytest.approx(sum(res.metrics.share) - res.metrics.union, abs=1e-9)
+
+
+def test_joint_coverage_is_at_least_the_best_telescope_alone(two_telescopes, joint_two):
+    """(J6) The coordinated plan covers at least what the better telescope covers alone on its own budget."""
+    alone = [_lone(p) for p in two_telescopes]
+    covs = [p.footprints.coverage(_fields(r), p.prob) for p, r in zip(two_telescopes, alone)]
+    assert min(covs) > 0  # both telescopes can observe the map that night
+    assert joint_two.metrics.union >= max(covs) - 1e-12
+    assert joint_two.metrics.union > max(covs)  # the second telescope adds something
+
+
+def test_joint_bound_holds_and_is_below_the_sum_of_the_telescopes_bounds(two_telescopes, joint_two):
+    """(J7, J8) union <= published joint bound <= min(sum of U4, total probability)."""
+    bound = joint_two.bound
+    u4 = sum(coverage_upper_bound(p).value for p in two_telescopes)
+    assert joint_two.metrics.union <= bound.value
+    assert bound.value <= u4 + 1e-12
+    assert bound.value <= float(two_telescopes[0].prob.sum()) + 1e-12
+    assert bound.value == pytest.approx(min(bound.joint, bound.sum_of_telescopes, bound.total), abs=1e-12)
+
+
+def test_a_telescope_with_no_window_gets_an_empty_schedule_and_the_other_plans_alone(skymap):
+    """(J6) One telescope sees nothing: its schedule is empty, the other's is its plan alone."""
+    from mushrooms.scheduler_core.schedulers.joint import joint_schedule
+
+    a = prepare_problem(skymap, _config(), NIGHT, grid=_sub_grid(PRIMARY))
+    blind = prepare_problem(skymap, _config(dec_min_deg=-20.0), NIGHT, grid=_sub_grid(UNREACHABLE))
+    assert blind.field_ids.size == 0
+    res = joint_schedule([a, blind])
+    assert res.schedules[1].observations == ()
+    alone = _lone(a)
+    assert [(o.field_id, o.filter, o.start) for o in res.schedules[0].observations] == \
+        [(o.field_id, o.filter, o.start) for o in alone.observations]
+    assert res.metrics.share[1] == 0.0 and res.metrics.more_than_once == 0.0
+    assert res.metrics.union <= res.bound.value
+
+
+def test_each_telescopes_part_passes_the_single_telescope_plan_checks(two_telescopes, joint_two, skymap):
+    """(J4) Each telescope's schedule obeys its own windows, overheads, filters and cadence (the plan checker)."""
+    for problem, part in zip(two_telescopes, joint_two.schedules):
+        assert part.observations
+        plan = build_plan(problem, part, skymap, "slots")
+        report = check_plan(plan, skymap, problem.config)
+        assert report.ok, report.problems
+        assert {o.filter for o in plan.observations} == set(problem.config.filters)
+    # the metrics add up: each telescope's share, its own share, the part covered by both
+    m = joint_two.metrics
+    assert m.union == pytest.approx(sum(m.own) + m.more_than_once, abs=1e-9)
