@@ -90,10 +90,19 @@ def test_the_joint_objective_counts_a_pixel_once(skymap):
     once = same[0].footprints.coverage([same[0].field_ids[row]], same[0].prob)
     assert model.milp.c @ x == pytest.approx(once, abs=1e-9)
     assert np.all(model.milp.A @ x <= model.milp.row_hi + 1e-9) and np.all(model.milp.A @ x >= model.milp.row_lo - 1e-9)
+    # (J4) each telescope's rows and columns carry its name: an LP file names every row and column once
+    from mushrooms.scheduler_core.schedulers.milp.rows import column_names, row_names
+
+    names = row_names(model.milp.row_blocks)
+    assert len(set(names)) == model.milp.n_rows and len(set(column_names(model.milp.col_families))) == model.milp.n_vars
+    assert {b.name for b in model.milp.row_blocks} == {"t0: S1 one field per position", "t0: S2 each field at most once",
+                                                       "t1: S1 one field per position", "t1: S2 each field at most once",
+                                                       "J2 coverage through any telescope"}
     # and the whole joint plan of the twins: the union counts each pixel once
     from mushrooms.scheduler_core.schedulers.joint import joint_schedule
 
     res = joint_schedule(same)
+    assert res.metrics.union <= res.bound.value
     both = _fields(res.schedules[0]) | _fields(res.schedules[1])
     assert res.metrics.union == pytest.approx(same[0].footprints.coverage(both, same[0].prob), abs=1e-9)
     assert res.metrics.union <= sum(res.metrics.share) + 1e-12
@@ -146,3 +155,27 @@ def test_each_telescopes_part_passes_the_single_telescope_plan_checks(two_telesc
     # the metrics add up: each telescope's share, its own share, the part covered by both
     m = joint_two.metrics
     assert m.union == pytest.approx(sum(m.own) + m.more_than_once, abs=1e-9)
+
+
+def test_problems_on_different_maps_or_resolutions_are_refused(two_telescopes, skymap):
+    """A joint plan is of one map at one resolution: anything else is a clear ValueError, not a wrong plan."""
+    from mushrooms.scheduler_core.schedulers.joint import joint_schedule
+
+    other = dataclasses.replace(two_telescopes[1], prob=np.roll(two_telescopes[1].prob, 7))
+    with pytest.raises(ValueError, match="same sky map"):
+        joint_schedule([two_telescopes[0], other])
+    with pytest.raises(ValueError, match="at least one"):
+        joint_schedule([])
+
+
+def test_a_one_visit_telescope_joins_the_plan_and_the_bound_still_holds(skymap):
+    """(J3, J8) A telescope whose rule is one visit (one filter) is planned by greedy; the bound stays above the union."""
+    from mushrooms.scheduler_core.schedulers.joint import joint_schedule
+
+    a = prepare_problem(skymap, _config(), NIGHT, grid=_sub_grid(PRIMARY))
+    one = prepare_problem(skymap, _config(filters=("r",)), NIGHT, grid=_sub_grid(SECONDARY))
+    res = joint_schedule([a, one])
+    assert res.schedules[1].observations and {o.filter for o in res.schedules[1].observations} == {"r"}
+    assert res.metrics.union <= res.bound.value <= res.bound.sum_of_telescopes + 1e-12
+    plan = build_plan(one, res.schedules[1], skymap, "greedy")
+    assert check_plan(plan, skymap, one.config).ok

@@ -1,7 +1,8 @@
 """Each telescope alone, and the coordinate ascent of the joint plan (``docs/design/telescopes.md``, J5, J6).
 
 A *step* is one of today's single-telescope plans (greedy, then the slot
-portfolio started from it: :func:`~..portfolio.portfolio.slots_from_greedy`)
+portfolio started from it: :func:`~..portfolio.portfolio.slots_from_greedy`;
+greedy alone for a one-filter, one-visit rule)
 of one telescope on re-weighted pixels, on a fresh clock of its own with at
 most its own ``time_limit_s``: on the work clock (``[scheduler]
 deterministic``) a step, and so the whole ascent, depends only on its
@@ -26,6 +27,7 @@ import numpy as np
 
 from ...budget import new_clock
 from ...problem import PlanningProblem, ScheduleResult, StopCheck
+from ..greedy.schedule import greedy_schedule
 from ..portfolio.portfolio import slots_from_greedy
 from .cells import covered_pixels
 
@@ -65,7 +67,8 @@ def plan_alone(problem: PlanningProblem, weight: np.ndarray | None = None, time_
         cfg = dataclasses.replace(cfg, time_limit_s=float(time_limit_s))
     step = dataclasses.replace(problem, config=cfg, prob=w, clock=new_clock(cfg.deterministic))
     mark = step.clock.mark()
-    result = slots_from_greedy(step, should_stop)
+    # (J3) a one-visit rule (one filter) is greedy's alone: the slot model plans sequences of two visits or more
+    result = slots_from_greedy(step, should_stop) if len(cfg.filters) >= 2 else greedy_schedule(step, should_stop)
     return result, step.clock.since(mark)
 
 

@@ -32,7 +32,7 @@ from ...budget import new_clock
 from ...problem import PlanningProblem, UpperBound
 from ..blocks.schedule import shortlist_footprints
 from ..bounds.coverage_bound import BOUND_MIP_GAP, ROUNDING_MARGIN, coverage_upper_bound, max_fields, \
-    pairable_rows, solver_margin
+    pairable_rows, solver_margin, widened_windows
 from ..bounds.interval_bound import PROVEN, ROWS_PER_ROUND, MAX_ROUNDS, bound_windows, interval_rows
 from ..milp.rows import Columns, RowBuilder
 from ..milp.solvers import MilpModel, solve_milp
@@ -59,7 +59,7 @@ class JointBound:
         ``interval`` (J7 solved with no row violated), ``interval_dual_bound``
         (budget or rounds ran out) or ``not_solved``.
     per_telescope : tuple of UpperBound
-        Each telescope's U4.
+        Each telescope's U4 (a one-visit rule: its observable fields' probability).
     margin : float
         What ``joint`` carries above the solver's bound (B1).
     """
@@ -81,16 +81,39 @@ class JointBound:
 
 
 class _Part:
-    """One telescope in the relaxation: its pairable rows, K (U2) and interval rows (V1-V2)."""
+    """One telescope in the relaxation: its pairable rows, K (U2) and interval rows (V1-V2).
+
+    A one-visit rule (one filter) has no pair: its rows are the fields whose
+    widened windows hold one exposure, K the exposures its observable time
+    holds (at most ``2 max_fields + 1``), and no V2 row.
+    """
 
     def __init__(self, problem: PlanningProblem) -> None:
-        windows = bound_windows(problem) if problem.field_ids.size else None
-        self.rows = pairable_rows(problem, windows) if problem.field_ids.size else np.zeros(0, np.int64)
-        self.K = max_fields(problem, self.rows, windows) if self.rows.size else 0
-        if self.K == 0:
-            self.rows = np.zeros(0, np.int64)
-        self.intervals = interval_rows(problem, self.rows, windows) if self.rows.size else None
+        self.one_visit = len(problem.config.filters) < 2
+        self.rows, self.K, self.intervals = np.zeros(0, np.int64), 0, None
         self.cuts: list[tuple[np.ndarray, float]] = []
+        if problem.field_ids.size == 0:
+            return
+        windows = bound_windows(problem)
+        if self.one_visit:
+            fid, a, b = widened_windows(problem) if windows is None else windows
+            rows = np.flatnonzero(np.isin(problem.field_ids, fid[b - a >= problem.config.exposure_s]))
+            K = 2 * max_fields(problem, rows, windows) + 1 if rows.size else 0
+        else:
+            rows = pairable_rows(problem, windows)
+            K = max_fields(problem, rows, windows) if rows.size else 0
+        if K > 0 and rows.size:
+            self.rows, self.K = rows, K
+            self.intervals = None if self.one_visit else interval_rows(problem, rows, windows)
+
+    def own_bound(self, problem: PlanningProblem) -> UpperBound:
+        """τ's bound on its share: U4, or for a one-visit rule all its observable fields' probability."""
+        if problem.field_ids.size == 0 or self.rows.size == 0:
+            return UpperBound(0.0, "empty", 0, 0, 0.0)
+        if not self.one_visit:
+            return coverage_upper_bound(problem)
+        every = problem.footprints.coverage(problem.field_ids[self.rows], problem.prob) + ROUNDING_MARGIN
+        return UpperBound(every, "all_fields", int(self.rows.size), self.K, 0.0, margin=ROUNDING_MARGIN)
 
 
 def _model(parts: list[_Part], cells, names: Sequence[str]) -> tuple[MilpModel, list]:
@@ -156,10 +179,9 @@ def joint_upper_bound(problems: Sequence[PlanningProblem], weight: np.ndarray | 
     """
     w = problems[0].prob if weight is None else np.asarray(weight, float)
     names = list(names) if names is not None else [f"t{i}" for i in range(len(problems))]
-    u4 = tuple(coverage_upper_bound(p) if p.field_ids.size else UpperBound(0.0, "empty", 0, 0, 0.0)
-               for p in problems)
-    total_u4 = float(sum(b.value for b in u4))
     parts = [_Part(p) for p in problems]
+    u4 = tuple(part.own_bound(p) for p, part in zip(problems, parts))
+    total_u4 = float(sum(b.value for b in u4))
     prints = [shortlist_footprints(p.footprints, part.rows) for p, part in zip(problems, parts)]
     cells = joint_cells(prints, w, problems[0].footprints.nside).cells
     total = float(cells.weight.sum()) + ROUNDING_MARGIN  # (B2)

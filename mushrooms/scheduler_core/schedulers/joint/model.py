@@ -55,7 +55,8 @@ class JointInstance:
     parts : tuple of SlotInstance or None
         Each telescope's instance on its first portfolio grid
         (:func:`~..slots.schedule.slot_portfolio`); None for a telescope with
-        no eligible pair (no window long enough: it takes no part).
+        no eligible pair (no window long enough) or a one-visit rule (one
+        filter): it takes no part in the model (the ascent plans it).
     joint : JointCells
         Cells over the parts' shortlists stacked in telescope order.
     """
@@ -73,7 +74,7 @@ class JointInstance:
 
 def _part(problem: PlanningProblem) -> SlotInstance | None:
     """One telescope's slot instance on its first grid (n*, phase start), or None."""
-    if problem.field_ids.size == 0:
+    if problem.field_ids.size == 0 or len(problem.config.filters) < 2:  # the slot model plans 2 visits or more
         return None
     rows = slot_rows(problem)
     if rows.size == 0:
