@@ -17,7 +17,7 @@ For each map (its merger time as the start, 24 h horizon, work budget):
 
 Union coverage, the probability covered by both telescopes, the bound.
 
-    nice PYTHONPATH=. .venv/bin/python benchmarks/science/joint_plan.py [--limit 2] [OUTDIR]
+    nice PYTHONPATH=. .venv/bin/python benchmarks/science/joint_plan.py [--limit 2] [--wide] [OUTDIR]
 """
 
 from __future__ import annotations
@@ -47,6 +47,14 @@ MAPS = [
     SHARED / "simulated/bns_o3/2.fits",
     SHARED / "simulated/bns_o3/11.fits",
 ]
+#: Wide maps (hundreds to thousands of deg²): two telescopes' nights are too short for them, coordination counts.
+WIDE = [
+    ROOT / "tests/data/skymaps/S200129m_cWB_RING.fits.gz",
+    SHARED / "public/S200219ac_LALInference.fits.gz",
+    SHARED / "public/GW170104_G268556_LALInference.fits",
+    SHARED / "public/sim2015_coinc288830_bayestar_HV.fits.gz",
+    SHARED / "public/S230627c_Bilby.multiorder.fits",
+]
 OUT = ROOT / "benchmarks/results/science/joint_plan"
 
 
@@ -69,10 +77,12 @@ def _row(name: str, problems, results) -> dict:
             "both": round(m.more_than_once, 4), "fields": [len({o.field_id for o in r.observations}) for r in results]}
 
 
-def one_map(path: Path, nside: int, limit: float) -> dict:
+def one_map(path: Path, nside: int, limit: float) -> dict | None:
     """Every plan of one map, as one JSON record."""
     skymap = read_skymap(path, nside=nside)
     start = skymap.event_time
+    if start is None:
+        return None
     ca, cb = _configs(nside, limit)
     problems = [prepare_problem(skymap, ca, start, grid=_grid(True)),
                 prepare_problem(skymap, cb, start, grid=_grid(False))]
@@ -124,14 +134,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--nside", type=int, default=128)
     ap.add_argument("--limit", type=float, default=2.0, help="each telescope's time_limit_s (work s)")
     ap.add_argument("--maps", type=int, default=len(MAPS))
+    ap.add_argument("--wide", action="store_true", help="the wide maps instead (results in OUTDIR/wide)")
     args = ap.parse_args(argv)
-    out = Path(args.out)
+    out = Path(args.out) / ("wide" if args.wide else "")
+    maps = WIDE if args.wide else MAPS
     out.mkdir(parents=True, exist_ok=True)
     load0 = os.getloadavg()
     records = []
     with open(out / "joint_plan.jsonl", "w") as f:
-        for path in MAPS[:args.maps]:
+        for path in maps[:args.maps]:
             rec = one_map(path, args.nside, args.limit)
+            if rec is None:
+                print(path.name, "skipped: no event time in the map", flush=True)
+                continue
             records.append(rec)
             f.write(json.dumps(rec) + "\n")
             f.flush()

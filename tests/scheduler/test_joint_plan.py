@@ -179,3 +179,15 @@ def test_a_one_visit_telescope_joins_the_plan_and_the_bound_still_holds(skymap):
     assert res.metrics.union <= res.bound.value <= res.bound.sum_of_telescopes + 1e-12
     plan = build_plan(one, res.schedules[1], skymap, "greedy")
     assert check_plan(plan, skymap, one.config).ok
+
+
+def test_make_joint_plans_gives_one_checked_plan_per_telescope(two_telescopes, skymap):
+    """The planning layer: one plan per telescope, each through the checker, each under its own bound."""
+    from mushrooms.scheduler_core.joint_plans import make_joint_plans
+
+    plans, result = make_joint_plans(skymap, two_telescopes, names=("a", "b"))
+    assert len(plans) == 2 and plans[0].plan_id != plans[1].plan_id
+    for plan, share, problem in zip(plans, result.metrics.share, two_telescopes):
+        assert plan.observations and plan.metrics.coverage <= share + 1e-6
+        assert plan.metrics.coverage <= plan.metrics.upper_bound
+        assert check_plan(plan, skymap, problem.config).ok
