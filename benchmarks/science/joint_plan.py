@@ -64,11 +64,12 @@ def _grid(primary: bool) -> FieldGrid:
     return FieldGrid(g.ids[sel], g.ra[sel], g.dec[sel])
 
 
-def _configs(nside: int, limit: float) -> tuple[PlanningConfig, PlanningConfig]:
+def _configs(nside: int, limit: float, exposures: tuple[float, float] = (300.0, 240.0)
+             ) -> tuple[PlanningConfig, PlanningConfig]:
     common = dict(solver="slots", nside=nside, time_limit_s=limit, detection_time_limit_s=min(0.5, limit / 2),
                   bound_time_limit_s=2.0, deterministic=True)
-    return (PlanningConfig(**common),
-            PlanningConfig(filters=("r", "i"), cadence_s=2400.0, exposure_s=240.0, **common))
+    return (PlanningConfig(exposure_s=exposures[0], **common),
+            PlanningConfig(filters=("r", "i"), cadence_s=2400.0, exposure_s=exposures[1], **common))
 
 
 def _row(name: str, problems, results) -> dict:
@@ -77,13 +78,13 @@ def _row(name: str, problems, results) -> dict:
             "both": round(m.more_than_once, 4), "fields": [len({o.field_id for o in r.observations}) for r in results]}
 
 
-def one_map(path: Path, nside: int, limit: float) -> dict | None:
+def one_map(path: Path, nside: int, limit: float, exposures: tuple[float, float] = (300.0, 240.0)) -> dict | None:
     """Every plan of one map, as one JSON record."""
     skymap = read_skymap(path, nside=nside)
     start = skymap.event_time
     if start is None:
         return None
-    ca, cb = _configs(nside, limit)
+    ca, cb = _configs(nside, limit, exposures)
     problems = [prepare_problem(skymap, ca, start, grid=_grid(True)),
                 prepare_problem(skymap, cb, start, grid=_grid(False))]
     t0 = time.perf_counter()
@@ -97,9 +98,9 @@ def one_map(path: Path, nside: int, limit: float) -> dict | None:
     b = joint.bound
     return {"map": path.name if path.parent.name in ("public", "skymaps") else f"{path.parent.name}/{path.name}",
             "start": start.isot, "candidates": [int(p.field_ids.size) for p in problems], "rows": rows,
-            "method": joint.method, "bound": round(b.value, 4), "bound_joint": round(b.joint, 4),
+            "method": joint.method, "bound": round(b.value, 4), "bound_joint": round(b.joint, 4) if np.isfinite(b.joint) else None,
             "bound_sum_u4": round(b.sum_of_telescopes, 4), "bound_total": round(b.total, 4),
-            "bound_status": b.status, "budget_work_s": joint.details["budget_s"],
+            "bound_status": b.status, "exposures_s": list(exposures), "budget_work_s": joint.details["budget_s"],
             "spent_work_s": joint.details["spent_s"], "wall_joint_s": round(wall_joint, 1),
             "joint_model": joint.details.get("joint_model"), "ascent": joint.details.get("ascent")}
 
@@ -111,7 +112,8 @@ def table(records: list[dict]) -> str:
         for row in r["rows"]:
             lines.append(f"| {r['map']} | {row['plan']} | {row['union']:.4f} | {row['share_A']:.4f} | "
                          f"{row['share_B']:.4f} | {row['both']:.4f} | {row['fields'][0]}, {row['fields'][1]} |")
-        lines.append(f"| {r['map']} | bound (J8) | {r['bound']:.4f} | B_joint {r['bound_joint']:.4f} | "
+        bj = "not solved" if r["bound_joint"] is None else f"{r['bound_joint']:.4f}"
+        lines.append(f"| {r['map']} | bound (J8) | {r['bound']:.4f} | B_joint {bj} | "
                      f"ΣU4 {r['bound_sum_u4']:.4f} | total {r['bound_total']:.4f} | {r['method']} |")
     plans = [row["plan"] for row in records[0]["rows"]] if records else []
     lines += ["", f"Means over {len(records)} maps, and the coordinated plan's paired difference (mean ± std. error):", "",
@@ -135,15 +137,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--limit", type=float, default=2.0, help="each telescope's time_limit_s (work s)")
     ap.add_argument("--maps", type=int, default=len(MAPS))
     ap.add_argument("--wide", action="store_true", help="the wide maps instead (results in OUTDIR/wide)")
+    ap.add_argument("--exposures", default="300,240", help="A's and B's exposure (s); other than the default: "
+                    "results in OUTDIR/exposures_A_B")
     args = ap.parse_args(argv)
-    out = Path(args.out) / ("wide" if args.wide else "")
+    exposures = tuple(float(x) for x in args.exposures.split(","))
+    sub = "" if exposures == (300.0, 240.0) else f"exposures_{exposures[0]:g}_{exposures[1]:g}"
+    out = Path(args.out) / ("wide" if args.wide else "") / sub
     maps = WIDE if args.wide else MAPS
     out.mkdir(parents=True, exist_ok=True)
     load0 = os.getloadavg()
     records = []
     with open(out / "joint_plan.jsonl", "w") as f:
         for path in maps[:args.maps]:
-            rec = one_map(path, args.nside, args.limit)
+            rec = one_map(path, args.nside, args.limit, exposures)
             if rec is None:
                 print(path.name, "skipped: no event time in the map", flush=True)
                 continue
@@ -153,7 +159,8 @@ def main(argv: list[str] | None = None) -> int:
             print(rec["map"], [(r["plan"], r["union"], r["both"]) for r in rec["rows"]], "bound", rec["bound"],
                   rec["method"], f"{rec['wall_joint_s']} s", flush=True)
     load1 = os.getloadavg()
-    head = (f"nside {args.nside}, time_limit_s {args.limit} work s per telescope (joint budget 3 x the sum), "
+    head = (f"nside {args.nside}, exposures A {exposures[0]:g} s, B {exposures[1]:g} s, "
+            f"time_limit_s {args.limit} work s per telescope (joint budget 3 x the sum), "
             f"deterministic budget; load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end\n\n")
     (out / "joint_plan.md").write_text(head + table(records))
     print(head + table(records))

@@ -118,6 +118,16 @@ def test_joint_coverage_is_at_least_the_best_telescope_alone(two_telescopes, joi
     assert joint_two.metrics.union > max(covs)  # the second telescope adds something
 
 
+def test_joint_coverage_is_at_least_the_iterative_tiling_in_either_order(two_telescopes, joint_two):
+    """(J6) gwemopt's iterative tiling, A then B or B then A, is a first sweep of the ascent: never above it."""
+    from mushrooms.scheduler_core.schedulers.joint.ascent import iterative_tiling, union_of
+
+    prob = two_telescopes[0].prob
+    for order in ([0, 1], [1, 0]):
+        tiled = iterative_tiling([two_telescopes[i] for i in order], prob)
+        assert joint_two.metrics.union >= union_of([two_telescopes[i] for i in order], tiled, prob) - 1e-12
+
+
 def test_joint_bound_holds_and_is_below_the_sum_of_the_telescopes_bounds(two_telescopes, joint_two):
     """(J7, J8) union <= published joint bound <= min(sum of U4, total probability)."""
     bound = joint_two.bound

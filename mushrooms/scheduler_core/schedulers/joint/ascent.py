@@ -8,13 +8,15 @@ most its own ``time_limit_s``: on the work clock (``[scheduler]
 deterministic``) a step, and so the whole ascent, depends only on its
 inputs, never on the machine's load.
 
-(J6) The ascent starts from the best telescope's plan alone, then solves
-every other telescope on the pixels the plans fixed so far leave uncovered
-(the first sweep: gwemopt's iterative tiling, in the order of the
-telescopes' coverage alone), then re-solves each telescope with the others
-fixed, keeping a step only when the union rises, until a sweep brings
-nothing or the budget is spent.  The union never falls, so the plan covers
-at least what the best telescope covers alone.
+(J6) The ascent's first sweep starts from one telescope's plan alone and
+solves every other telescope on the pixels the plans fixed so far leave
+uncovered (gwemopt's iterative tiling); it is run from each telescope in
+turn, the best alone first, and the best of them is kept.  The later sweeps
+re-solve each telescope with the others fixed, keeping a step only when the
+union rises, until a sweep brings nothing or the budget is spent.  The
+union never falls, so the plan covers at least what the best telescope
+covers alone, and at least each first sweep (the tiling starting from any
+telescope) that the budget allowed.
 """
 
 from __future__ import annotations
@@ -104,9 +106,32 @@ class Ascent:
     steps: list[dict] = field(default_factory=list)
 
 
+def _step(problems: Sequence[PlanningProblem], run: Ascent, i: int, weight: np.ndarray, budget_s: float,
+          should_stop: StopCheck | None, sweep: int) -> bool | None:
+    """Re-solve telescope ``i`` with the others fixed; True when the union rose (kept), None when out of budget."""
+    left = budget_s - run.spent
+    if left < STEP_MIN_S or (should_stop is not None and should_stop()):
+        return None
+    w = masked(weight, problems, run.results, i)
+    result, cost = plan_alone(problems[i], w, min(problems[i].config.time_limit_s, left), should_stop)
+    run.spent += cost
+    trial = run.results[:i] + [result] + run.results[i + 1:]
+    value = union_of(problems, trial, weight)
+    run.steps.append({"sweep": sweep, "telescope": i, "union": round(value, 6), "spent": round(cost, 3)})
+    if value > run.union + 1e-12:  # a step is kept only when the union rises
+        run.results, run.union = trial, value
+        return True
+    return False
+
+
 def coordinate_ascent(problems: Sequence[PlanningProblem], alone: Sequence[ScheduleResult], weight: np.ndarray,
                       budget_s: float, should_stop: StopCheck | None = None) -> Ascent:
-    """(J6) The coordinate ascent from the best telescope's plan alone, within ``budget_s``.
+    """(J6) The coordinate ascent from the telescopes' plans alone, within ``budget_s``.
+
+    The first sweep is run from each telescope's plan alone in turn, the
+    best alone first (the iterative tiling with that telescope first, the
+    others in the order of their plans alone); the later sweeps continue
+    from the best first sweep, while a sweep raises the union.
 
     Parameters
     ----------
@@ -121,29 +146,24 @@ def coordinate_ascent(problems: Sequence[PlanningProblem], alone: Sequence[Sched
     """
     T = len(problems)
     alone_union = [union_of([p], [r], weight) for p, r in zip(problems, alone)]
-    order = sorted(range(T), key=lambda i: (-alone_union[i], i))
-    current = [nothing(status="not_yet") for _ in range(T)]
-    current[order[0]] = alone[order[0]]
-    run = Ascent(current, alone_union[order[0]])
-    for sweep in range(MAX_SWEEPS):
-        improved = False
-        for i in order:
-            if (sweep == 0 and i == order[0]) or problems[i].field_ids.size == 0:
-                continue
-            left = budget_s - run.spent
-            if left < STEP_MIN_S or (should_stop is not None and should_stop()):
-                return run
-            w = masked(weight, problems, run.results, i)
-            result, cost = plan_alone(problems[i], w, min(problems[i].config.time_limit_s, left), should_stop)
-            run.spent += cost
-            trial = run.results[:i] + [result] + run.results[i + 1:]
-            value = union_of(problems, trial, weight)
-            run.steps.append({"sweep": sweep, "telescope": i, "union": round(value, 6), "spent": round(cost, 3)})
-            if value > run.union + 1e-12:  # a step is kept only when the union rises
-                run.results, run.union, improved = trial, value, True
-        if sweep > 0 and not improved:
+    order = [i for i in sorted(range(T), key=lambda i: (-alone_union[i], i)) if problems[i].field_ids.size]
+    empty = [nothing(status="not_yet") for _ in range(T)]
+    best: Ascent | None = None
+    spent, steps = 0.0, []
+    for first in order or [0]:
+        run = Ascent([alone[first] if i == first else empty[i] for i in range(T)], alone_union[first], spent)
+        out = [_step(problems, run, i, weight, budget_s, should_stop, 0) for i in order if i != first]
+        spent, steps = run.spent, steps + run.steps
+        if best is None or run.union > best.union + 1e-12:
+            best = run
+        if None in out:
             break
-    return run
+    best.spent, best.steps = spent, steps
+    for sweep in range(1, MAX_SWEEPS):
+        out = [_step(problems, best, i, weight, budget_s, should_stop, sweep) for i in order]
+        if None in out or not any(out):
+            break
+    return best
 
 
 def iterative_tiling(problems: Sequence[PlanningProblem], weight: np.ndarray,

@@ -170,7 +170,10 @@ def joint_schedule(problems: Sequence[PlanningProblem], should_stop: StopCheck |
         details["ascent"] = run.steps
         plans, cost = _joint_model_stage(problems, names, w, results, budget - spent, should_stop, details)
         spent += cost
-        if plans is not None and union_of(problems, plans, w) > run.union + 1e-12:
+        model_union = None if plans is None else union_of(problems, plans, w)
+        if isinstance(details.get("joint_model"), dict):
+            details["joint_model"]["union"] = model_union  # its plan timed with the real overheads
+        if model_union is not None and model_union > run.union + 1e-12:
             results, method = plans, "joint_model"
     results = [r if p.field_ids.size else nothing() for p, r in zip(problems, results)]
     bound = joint_upper_bound(problems, w, bound_time_limit_s, names)
