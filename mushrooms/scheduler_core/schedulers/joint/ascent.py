@@ -10,10 +10,11 @@ inputs, never on the machine's load.
 
 (J6) The ascent's first sweep starts from one telescope's plan alone and
 solves every other telescope on the pixels the plans fixed so far leave
-uncovered (gwemopt's iterative tiling); it is run from each telescope in
-turn, the best alone first, and the best of them is kept.  The later sweeps
-re-solve each telescope with the others fixed, keeping a step only when the
-union rises, until a sweep brings nothing or the budget is spent.  The
+uncovered (gwemopt's iterative tiling); the later sweeps re-solve each
+telescope with the others fixed, keeping a step only when the union rises,
+until a sweep brings nothing.  The ascent is run from each telescope in
+turn, the best alone first, until the budget is spent, and the best end is
+kept.  The
 union never falls, so the plan covers at least what the best telescope
 covers alone, and at least each first sweep (the tiling starting from any
 telescope) that the budget allowed.
@@ -128,10 +129,11 @@ def coordinate_ascent(problems: Sequence[PlanningProblem], alone: Sequence[Sched
                       budget_s: float, should_stop: StopCheck | None = None) -> Ascent:
     """(J6) The coordinate ascent from the telescopes' plans alone, within ``budget_s``.
 
-    The first sweep is run from each telescope's plan alone in turn, the
-    best alone first (the iterative tiling with that telescope first, the
-    others in the order of their plans alone); the later sweeps continue
-    from the best first sweep, while a sweep raises the union.
+    The ascent is run from each telescope's plan alone in turn, the best
+    alone first, within one budget, and the best end kept: its first sweep
+    is the iterative tiling with that telescope first (the others in the
+    order of their plans alone), the later sweeps go on while one raises
+    the union.
 
     Parameters
     ----------
@@ -147,23 +149,32 @@ def coordinate_ascent(problems: Sequence[PlanningProblem], alone: Sequence[Sched
     T = len(problems)
     alone_union = [union_of([p], [r], weight) for p, r in zip(problems, alone)]
     order = [i for i in sorted(range(T), key=lambda i: (-alone_union[i], i)) if problems[i].field_ids.size]
-    empty = [nothing(status="not_yet") for _ in range(T)]
     best: Ascent | None = None
     spent, steps = 0.0, []
     for first in order or [0]:
-        run = Ascent([alone[first] if i == first else empty[i] for i in range(T)], alone_union[first], spent)
-        out = [_step(problems, run, i, weight, budget_s, should_stop, 0) for i in order if i != first]
+        run = Ascent([alone[i] if i == first else nothing(status="not_yet") for i in range(T)], alone_union[first],
+                     spent)
+        finished = _ascend(problems, run, order, first, weight, budget_s, should_stop)
         spent, steps = run.spent, steps + run.steps
         if best is None or run.union > best.union + 1e-12:
             best = run
-        if None in out:
+        if not finished:
             break
     best.spent, best.steps = spent, steps
-    for sweep in range(1, MAX_SWEEPS):
-        out = [_step(problems, best, i, weight, budget_s, should_stop, sweep) for i in order]
-        if None in out or not any(out):
-            break
     return best
+
+
+def _ascend(problems: Sequence[PlanningProblem], run: Ascent, order: list[int], first: int, weight: np.ndarray,
+            budget_s: float, should_stop: StopCheck | None) -> bool:
+    """Sweeps from ``first``'s plan alone (the first one the iterative tiling); False when the budget ran out."""
+    for sweep in range(MAX_SWEEPS):
+        out = [_step(problems, run, i, weight, budget_s, should_stop, sweep)
+               for i in order if not (sweep == 0 and i == first)]
+        if None in out:
+            return False
+        if sweep > 0 and not any(out):
+            break
+    return True
 
 
 def iterative_tiling(problems: Sequence[PlanningProblem], weight: np.ndarray,
