@@ -176,6 +176,9 @@ def test_problems_on_different_maps_or_resolutions_are_refused(two_telescopes, s
         joint_schedule([two_telescopes[0], other])
     with pytest.raises(ValueError, match="at least one"):
         joint_schedule([])
+    for bad in (np.ones(5), np.full(two_telescopes[0].prob.size, np.nan), -two_telescopes[0].prob):
+        with pytest.raises(ValueError, match="weight"):
+            joint_schedule(two_telescopes, weight=bad)
 
 
 def test_a_one_visit_telescope_joins_the_plan_and_the_bound_still_holds(skymap):
@@ -201,3 +204,13 @@ def test_make_joint_plans_gives_one_checked_plan_per_telescope(two_telescopes, s
         assert plan.observations and plan.metrics.coverage <= share + 1e-6
         assert plan.metrics.coverage <= plan.metrics.upper_bound
         assert check_plan(plan, skymap, problem.config).ok
+
+
+def test_the_joint_plan_is_the_same_plan_run_again_on_the_work_budget(two_telescopes, joint_two):
+    """(J6) Every stage on a work clock: the same inputs give the same plan (the load does not enter)."""
+    from mushrooms.scheduler_core.schedulers.joint import joint_schedule
+
+    again = joint_schedule(two_telescopes)
+    key = (lambda res: [[(o.field_id, o.filter, o.start) for o in s.observations] for s in res.schedules])
+    assert key(again) == key(joint_two) and again.metrics == joint_two.metrics
+    assert again.bound.value == joint_two.bound.value and again.details["spent_s"] == joint_two.details["spent_s"]

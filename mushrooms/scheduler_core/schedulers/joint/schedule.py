@@ -153,6 +153,8 @@ def joint_schedule(problems: Sequence[PlanningProblem], should_stop: StopCheck |
     _check_same_map(problems)
     names = tuple(names) if names is not None else tuple(f"t{i}" for i in range(len(problems)))
     w = problems[0].prob if weight is None else np.asarray(weight, float)
+    if w.shape != problems[0].prob.shape or not np.all(np.isfinite(w)) or np.any(w < 0):
+        raise ValueError("weight must be one finite, non-negative number per pixel of the map")
     budget = JOINT_BUDGET_FACTOR * sum(p.config.time_limit_s for p in problems) if time_limit_s is None \
         else float(time_limit_s)
     alone, spent = [], 0.0
