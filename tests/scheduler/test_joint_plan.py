@@ -10,6 +10,7 @@ cannot reach (a telescope with no window).  Real HiGHS, the packaged map.
 from __future__ import annotations
 
 import dataclasses
+import json
 from importlib.resources import files
 
 import numpy as np
@@ -204,6 +205,22 @@ def test_make_joint_plans_gives_one_checked_plan_per_telescope(two_telescopes, s
         assert plan.observations and plan.metrics.coverage <= share + 1e-6
         assert plan.metrics.coverage <= plan.metrics.upper_bound
         assert check_plan(plan, skymap, problem.config).ok
+    # the joint_plan document: each part as it is alone, the observations naming their telescope, the bound
+    from mushrooms.scheduler_core.joint_plans import joint_document
+    from mushrooms.scheduler_core.plan import strict_json
+    from mushrooms.scheduler_core.plan.document import Plan
+
+    doc = json.loads(strict_json.dumps(joint_document(plans, result)))
+    assert doc["type"] == "joint_plan" and doc["telescopes"] == ["a", "b"]
+    assert [part["plan_id"] for part in doc["plans"]] == [p.plan_id for p in plans]
+    assert len(doc["observations"]) == sum(len(p.observations) for p in plans)
+    assert [o["start"] for o in doc["observations"]] == sorted(o["start"] for o in doc["observations"])
+    assert {o["telescope"] for o in doc["observations"]} == {"a", "b"}
+    assert doc["metrics"]["union"] <= doc["metrics"]["upper_bound"]
+    for part, problem in zip(doc["plans"], two_telescopes):
+        again = Plan.from_document(part)
+        assert "telescope" not in part["observations"][0]  # a part is the telescope's own plan document
+        assert check_plan(again, skymap, problem.config).ok
 
 
 def test_the_joint_plan_is_the_same_plan_run_again_on_the_work_budget(two_telescopes, joint_two):
