@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from importlib.resources import files
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -231,3 +232,19 @@ def test_the_joint_plan_is_the_same_plan_run_again_on_the_work_budget(two_telesc
     key = (lambda res: [[(o.field_id, o.filter, o.start) for o in s.observations] for s in res.schedules])
     assert key(again) == key(joint_two) and again.metrics == joint_two.metrics
     assert again.bound.value == joint_two.bound.value and again.details["spent_s"] == joint_two.details["spent_s"]
+
+
+def test_the_joint_bound_holds_on_a_second_map_with_the_telescopes_competing_for_time():
+    """(J7, J8) MS220722v from its merger time, 600 s and 480 s exposures (time binds): union <= bound <= sums."""
+    from mushrooms.scheduler_core.schedulers.joint import joint_schedule
+
+    skymap = read_skymap(Path(__file__).resolve().parents[1] / "data" / "skymaps" / "MS220722v_bayestar.multiorder.fits",
+                         nside=64)
+    a = prepare_problem(skymap, _config(exposure_s=600.0), skymap.event_time, grid=_sub_grid(PRIMARY))
+    b = prepare_problem(skymap, _config(filters=("r", "i"), cadence_s=2400.0, exposure_s=480.0), skymap.event_time,
+                        grid=_sub_grid(SECONDARY))
+    res = joint_schedule([a, b])
+    assert res.metrics.union > 0
+    assert res.metrics.union <= res.bound.value <= min(res.bound.sum_of_telescopes, res.bound.total) + 1e-12
+    assert res.metrics.union >= max(union for union in (
+        a.footprints.coverage(_fields(res.alone[0]), a.prob), b.footprints.coverage(_fields(res.alone[1]), b.prob)))
