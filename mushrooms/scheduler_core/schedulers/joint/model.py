@@ -36,7 +36,8 @@ from ..slots.model import SlotInstance, SlotModel, slot_instance, slot_model_row
 from ..slots.schedule import map_start, slot_portfolio, slot_rows, time_slot_plan
 from .cells import JointCells, joint_cells
 
-__all__ = ["JointInstance", "JointModel", "joint_instance", "build_joint_model", "decode_joint", "joint_start", "NO_CELLS"]
+__all__ = ["JointInstance", "JointModel", "joint_instance", "build_joint_model", "decode_joint", "joint_start", "reweighted",
+           "NO_CELLS"]
 
 #: The empty cells a telescope's own slot instance carries in the joint model (J2 replaces its S3).
 NO_CELLS = Cells(np.zeros(0), np.zeros(1, np.int64), np.zeros(0, np.int64), 0)
@@ -103,10 +104,16 @@ def joint_instance(problems: Sequence[PlanningProblem], weight: np.ndarray | Non
     problems = tuple(problems)
     names = tuple(names) if names is not None else tuple(f"t{i}" for i in range(len(problems)))
     parts = tuple(_part(p) for p in problems)
-    prints = [shortlist_footprints(p.footprints, part.rows) if part is not None
-              else shortlist_footprints(p.footprints, np.zeros(0, np.int64)) for p, part in zip(problems, parts)]
-    w = problems[0].prob if weight is None else np.asarray(weight, float)
-    return JointInstance(problems, names, parts, joint_cells(prints, w, problems[0].footprints.nside))
+    inst = JointInstance(problems, names, parts, joint_cells([], np.zeros(0), problems[0].footprints.nside))
+    return reweighted(inst, problems[0].prob if weight is None else weight)
+
+
+def reweighted(instance: JointInstance, weight: np.ndarray) -> JointInstance:
+    """The instance with its cells weighted by ``weight`` (per pixel; J5, or 0 where fixed plans cover)."""
+    prints = [shortlist_footprints(p.footprints, part.rows if part is not None else np.zeros(0, np.int64))
+              for p, part in zip(instance.problems, instance.parts)]
+    cells = joint_cells(prints, np.asarray(weight, float), instance.problems[0].footprints.nside)
+    return JointInstance(instance.problems, instance.names, instance.parts, cells)
 
 
 @dataclass(frozen=True)

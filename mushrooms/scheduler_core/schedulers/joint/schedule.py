@@ -29,10 +29,10 @@ import numpy as np
 from ...budget import new_clock
 from ...problem import PlanningProblem, ScheduleResult, StopCheck
 from ..milp.solvers import resolve_backend, solve_milp
-from .ascent import coordinate_ascent, nothing, plan_alone, union_of
+from .ascent import coordinate_ascent, masked, nothing, plan_alone, union_of
 from .bound import JointBound, joint_upper_bound
 from .cells import JointMetrics, joint_metrics
-from .model import build_joint_model, decode_joint, joint_instance, joint_start
+from .model import build_joint_model, decode_joint, joint_instance, joint_start, reweighted
 
 __all__ = ["JointResult", "joint_schedule", "JOINT_BUDGET_FACTOR", "JOINT_MAX_PAIRS", "MIN_JOINT_S",
            "JOINT_SHARE"]
@@ -100,6 +100,10 @@ def _joint_model_stage(problems, names, weight, start_plans, left: float, should
     if sum(p is not None for p in inst.parts) < 2 or inst.n_pairs > JOINT_MAX_PAIRS:
         details["joint_model"] = f"skipped: {inst.n_pairs} pairs"
         return None, 0.0
+    # a telescope outside the model (a one-visit rule, no pair on its grid) keeps the ascent's plan, fixed
+    fixed = [r if part is None else nothing() for r, part in zip(start_plans, inst.parts)]
+    if any(f.observations for f in fixed):
+        inst = reweighted(inst, masked(weight, problems, fixed, -1))
     model = build_joint_model(inst)
     x0 = joint_start(model, [r.observations for r in start_plans])
     cfg = problems[0].config
@@ -113,8 +117,8 @@ def _joint_model_stage(problems, names, weight, start_plans, left: float, should
     if not res.has_solution:
         return None, spent
     plans = []
-    for part, (obs, dropped) in zip(inst.parts, decode_joint(model, res.x)):
-        plans.append(nothing() if part is None else ScheduleResult(
+    for part, kept, (obs, dropped) in zip(inst.parts, fixed, decode_joint(model, res.x)):
+        plans.append(kept if part is None else ScheduleResult(
             tuple(obs), f"joint:{res.backend}", res.status, res.gap, mip_bound=res.bound,
             dropped_by_slews=tuple(dropped)))
     return plans, spent
