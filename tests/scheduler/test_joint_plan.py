@@ -248,3 +248,15 @@ def test_the_joint_bound_holds_on_a_second_map_with_the_telescopes_competing_for
     assert res.metrics.union <= res.bound.value <= min(res.bound.sum_of_telescopes, res.bound.total) + 1e-12
     assert res.metrics.union >= max(union for union in (
         a.footprints.coverage(_fields(res.alone[0]), a.prob), b.footprints.coverage(_fields(res.alone[1]), b.prob)))
+
+
+def test_what_is_done_weighs_nothing(two_telescopes):
+    """(J5) Pixels an executed record covers weigh 0: a telescope whose every field is done plans nothing."""
+    from mushrooms.scheduler_core.schedulers.joint import joint_schedule
+
+    a, b = two_telescopes
+    weight = a.prob.copy()
+    weight[b.footprints.union(b.field_ids)] = 0.0  # everything B could observe is done
+    res = joint_schedule([a, b], weight=weight)
+    assert res.schedules[1].observations == ()
+    assert res.schedules[0].observations and res.bound.value <= float(weight.sum()) + 1e-9
