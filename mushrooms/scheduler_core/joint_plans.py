@@ -44,7 +44,7 @@ def make_joint_plans(skymap: SkyMap, problems: Sequence[PlanningProblem], names:
     problems : sequence of PlanningProblem
         One per telescope (:func:`~.prepare.prepare_problem` for each).
     names : sequence of str, optional
-        Telescope names (default ``t0``, ``t1``, ...).
+        Telescope names (default: each problem's ``telescope``, ``scheduler_core/schedulers/joint/cells.py``).
     event : EventInfo, optional
         The alert answered.
     should_stop : callable, optional

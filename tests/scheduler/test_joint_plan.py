@@ -260,3 +260,16 @@ def test_what_is_done_weighs_nothing(two_telescopes):
     res = joint_schedule([a, b], weight=weight)
     assert res.schedules[1].observations == ()
     assert res.schedules[0].observations and res.bound.value <= float(weight.sum()) + 1e-9
+
+
+def test_telescope_names_are_distinct():
+    """Row and column names carry the telescope: two problems of one telescope are numbered, a repeat refused."""
+    from types import SimpleNamespace
+
+    from mushrooms.scheduler_core.schedulers.joint.cells import telescope_names
+
+    assert telescope_names([SimpleNamespace(telescope="ztf"), SimpleNamespace(telescope="ls4")]) == ("ztf", "ls4")
+    assert telescope_names([SimpleNamespace(telescope="ztf"), SimpleNamespace(telescope="ztf")]) == ("ztf0", "ztf1")
+    assert telescope_names([SimpleNamespace(), SimpleNamespace()]) == ("t0", "t1")
+    with pytest.raises(ValueError, match="distinct"):
+        telescope_names([SimpleNamespace(), SimpleNamespace()], ["a", "a"])

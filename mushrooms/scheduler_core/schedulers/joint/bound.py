@@ -36,7 +36,7 @@ from ..bounds.coverage_bound import BOUND_MIP_GAP, ROUNDING_MARGIN, coverage_upp
 from ..bounds.interval_bound import PROVEN, ROWS_PER_ROUND, MAX_ROUNDS, bound_windows, interval_rows
 from ..milp.rows import Columns, RowBuilder
 from ..milp.solvers import MilpModel, solve_milp
-from .cells import joint_cells
+from .cells import joint_cells, telescope_names
 
 __all__ = ["JointBound", "joint_upper_bound"]
 
@@ -178,7 +178,7 @@ def joint_upper_bound(problems: Sequence[PlanningProblem], weight: np.ndarray | 
         Telescope names (the model's row and column prefixes).
     """
     w = problems[0].prob if weight is None else np.asarray(weight, float)
-    names = list(names) if names is not None else [f"t{i}" for i in range(len(problems))]
+    names = list(telescope_names(problems, names))
     parts = [_Part(p) for p in problems]
     u4 = tuple(part.own_bound(p) for p, part in zip(problems, parts))
     total_u4 = float(sum(b.value for b in u4))

@@ -25,7 +25,27 @@ from ...problem import PlanningProblem
 from ...sky.cells import Cells, merge_cells
 from ...sky.footprints import Footprints
 
-__all__ = ["JointCells", "stack_footprints", "joint_cells", "JointMetrics", "joint_metrics", "covered_pixels"]
+__all__ = ["telescope_names", "JointCells", "stack_footprints", "joint_cells", "JointMetrics", "joint_metrics", "covered_pixels"]
+
+
+def telescope_names(problems: Sequence[PlanningProblem], names: Sequence[str] | None = None) -> tuple[str, ...]:
+    """The telescopes' names: ``names`` when given, else each problem's ``telescope`` (``t<i>`` without one),
+    numbered when two are the same (``ztf0``, ``ztf1``).
+
+    Raises
+    ------
+    ValueError
+        ``names`` of another length than ``problems``, or repeating a name.
+    """
+    if names is not None:
+        names = tuple(str(n) for n in names)
+        if len(names) != len(problems) or len(set(names)) != len(names):
+            raise ValueError("one distinct name per telescope's problem")
+        return names
+    found = [getattr(p, "telescope", None) or f"t{i}" for i, p in enumerate(problems)]
+    if len(set(found)) == len(found):
+        return tuple(found)
+    return tuple(f"{n}{i}" for i, n in enumerate(found))
 
 
 def stack_footprints(parts: Sequence[Footprints], nside: int) -> tuple[Footprints, np.ndarray]:

@@ -34,7 +34,7 @@ from ..milp.rows import Columns, Family, RowBuilder
 from ..milp.solvers import MilpModel
 from ..slots.model import SlotInstance, SlotModel, slot_instance, slot_model_rows
 from ..slots.schedule import map_start, slot_portfolio, slot_rows, time_slot_plan
-from .cells import JointCells, joint_cells
+from .cells import JointCells, joint_cells, telescope_names
 
 __all__ = ["JointInstance", "JointModel", "joint_instance", "build_joint_model", "decode_joint", "joint_start", "reweighted",
            "NO_CELLS"]
@@ -99,10 +99,10 @@ def joint_instance(problems: Sequence[PlanningProblem], weight: np.ndarray | Non
         Objective weight per pixel (J5: 0 where an executed record covers);
         default the map's probability.
     names : sequence of str, optional
-        Telescope names (default ``t0``, ``t1``, ...).
+        Telescope names (default: :func:`~.cells.telescope_names`, each problem's ``telescope``).
     """
     problems = tuple(problems)
-    names = tuple(names) if names is not None else tuple(f"t{i}" for i in range(len(problems)))
+    names = telescope_names(problems, names)
     parts = tuple(_part(p) for p in problems)
     inst = JointInstance(problems, names, parts, joint_cells([], np.zeros(0), problems[0].footprints.nside))
     return reweighted(inst, problems[0].prob if weight is None else weight)

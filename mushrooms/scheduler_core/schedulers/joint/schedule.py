@@ -31,7 +31,7 @@ from ...problem import PlanningProblem, ScheduleResult, StopCheck
 from ..milp.solvers import resolve_backend, solve_milp
 from .ascent import coordinate_ascent, masked, nothing, plan_alone, union_of
 from .bound import JointBound, joint_upper_bound
-from .cells import JointMetrics, joint_metrics
+from .cells import JointMetrics, joint_metrics, telescope_names
 from .model import build_joint_model, decode_joint, joint_instance, joint_start, reweighted
 
 __all__ = ["JointResult", "joint_schedule", "JOINT_BUDGET_FACTOR", "JOINT_MAX_PAIRS", "MIN_JOINT_S",
@@ -141,7 +141,7 @@ def joint_schedule(problems: Sequence[PlanningProblem], should_stop: StopCheck |
         configs are ``deterministic``); default :data:`JOINT_BUDGET_FACTOR`
         times the sum of their ``time_limit_s``.  The bound comes on top.
     names : sequence of str, optional
-        The telescopes' names (default ``t0``, ``t1``, ...).
+        The telescopes' names (default: :func:`~.cells.telescope_names`, each problem's ``telescope``).
     weight : numpy.ndarray, optional
         (J5) Objective weight per pixel: the map's probability (default)
         with 0 where a telescope's executed record already covers.
@@ -155,7 +155,7 @@ def joint_schedule(problems: Sequence[PlanningProblem], should_stop: StopCheck |
     t0 = time.perf_counter()
     problems = tuple(problems)
     _check_same_map(problems)
-    names = tuple(names) if names is not None else tuple(f"t{i}" for i in range(len(problems)))
+    names = telescope_names(problems, names)
     w = problems[0].prob if weight is None else np.asarray(weight, float)
     if w.shape != problems[0].prob.shape or not np.all(np.isfinite(w)) or np.any(w < 0):
         raise ValueError("weight must be one finite, non-negative number per pixel of the map")
