@@ -97,8 +97,10 @@ def test_the_joint_objective_counts_a_pixel_once(skymap):
 
     names = row_names(model.milp.row_blocks)
     assert len(set(names)) == model.milp.n_rows and len(set(column_names(model.milp.col_families))) == model.milp.n_vars
-    assert {b.name for b in model.milp.row_blocks} == {"t0: S1 one field per position", "t0: S2 each field at most once",
-                                                       "t1: S1 one field per position", "t1: S2 each field at most once",
+    t0, t1 = inst.names
+    assert t0 != t1
+    assert {b.name for b in model.milp.row_blocks} == {f"{t0}: S1 one field per position", f"{t0}: S2 each field at most once",
+                                                       f"{t1}: S1 one field per position", f"{t1}: S2 each field at most once",
                                                        "J2 coverage through any telescope"}
     # and the whole joint plan of the twins: the union counts each pixel once
     from mushrooms.scheduler_core.schedulers.joint import joint_schedule
