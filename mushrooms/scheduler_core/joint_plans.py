@@ -34,7 +34,7 @@ JOINT_SOLVER = "joint"
 
 def make_joint_plans(skymap: SkyMap, problems: Sequence[PlanningProblem], names: Sequence[str] | None = None,
                      event: EventInfo | None = None, should_stop: StopCheck | None = None,
-                     time_limit_s: float | None = None) -> tuple[list[Plan], JointResult]:
+                     time_limit_s: float | None = None, greedy: bool = False) -> tuple[list[Plan], JointResult]:
     """Plan several telescopes together and build one checked plan per telescope.
 
     Parameters
@@ -51,6 +51,8 @@ def make_joint_plans(skymap: SkyMap, problems: Sequence[PlanningProblem], names:
         Polled by every solve.
     time_limit_s : float, optional
         The joint budget (default: :func:`~.schedulers.joint.schedule.joint_schedule`'s).
+    greedy : bool
+        Greedy's steps only (``solver = "greedy"``).
 
     Returns
     -------
@@ -65,10 +67,10 @@ def make_joint_plans(skymap: SkyMap, problems: Sequence[PlanningProblem], names:
     PlanCheckError
         A telescope's part failed the plan checker (named in the message).
     """
-    result = joint_schedule(problems, should_stop, time_limit_s=time_limit_s, names=names)
+    result = joint_schedule(problems, should_stop, time_limit_s=time_limit_s, names=names, greedy=greedy)
     plans = []
     for name, problem, part in zip(result.names, problems, result.schedules):
-        plan = build_plan(problem, part, skymap, JOINT_SOLVER, event=event)
+        plan = build_plan(problem, part, skymap, JOINT_SOLVER + ("-greedy" if greedy else ""), event=event)
         report = check_plan(plan, skymap, problem.config)
         if not report.ok:
             raise PlanCheckError([f"{name}: {line}" for line in report.problems])

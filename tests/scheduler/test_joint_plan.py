@@ -275,3 +275,14 @@ def test_telescope_names_are_distinct():
     assert telescope_names([SimpleNamespace(), SimpleNamespace()]) == ("t0", "t1")
     with pytest.raises(ValueError, match="distinct"):
         telescope_names([SimpleNamespace(), SimpleNamespace()], ["a", "a"])
+
+
+def test_a_greedy_joint_plan_uses_no_milp_but_the_bound(two_telescopes):
+    """``solver = "greedy"``: every step greedy's, no joint model; the plan still covers the best greedy plan alone."""
+    from mushrooms.scheduler_core.schedulers.greedy.schedule import greedy_schedule
+    from mushrooms.scheduler_core.schedulers.joint import joint_schedule
+
+    res = joint_schedule(two_telescopes, greedy=True)
+    assert {s.solver for s in res.schedules} == {"greedy"} and "joint_model" not in res.details
+    best = max(p.footprints.coverage(_fields(greedy_schedule(p)), p.prob) for p in two_telescopes)
+    assert best <= res.metrics.union <= res.bound.value

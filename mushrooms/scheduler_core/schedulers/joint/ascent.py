@@ -49,8 +49,10 @@ def nothing(solver: str = "joint:none", status: str = "no_window") -> ScheduleRe
 
 
 def plan_alone(problem: PlanningProblem, weight: np.ndarray | None = None, time_limit_s: float | None = None,
-               should_stop: StopCheck | None = None) -> tuple[ScheduleResult, float]:
+               should_stop: StopCheck | None = None, greedy: bool = False) -> tuple[ScheduleResult, float]:
     """One telescope's single-telescope plan on pixel weights ``weight`` (default the map), on a fresh clock.
+
+    ``greedy``: greedy's plan alone (``solver = "greedy"``: no MILP).
 
     Returns
     -------
@@ -71,7 +73,8 @@ def plan_alone(problem: PlanningProblem, weight: np.ndarray | None = None, time_
     step = dataclasses.replace(problem, config=cfg, prob=w, clock=new_clock(cfg.deterministic))
     mark = step.clock.mark()
     # (J3) a one-visit rule (one filter) is greedy's alone: the slot model plans sequences of two visits or more
-    result = slots_from_greedy(step, should_stop) if len(cfg.filters) >= 2 else greedy_schedule(step, should_stop)
+    result = slots_from_greedy(step, should_stop) if len(cfg.filters) >= 2 and not greedy \
+        else greedy_schedule(step, should_stop)
     return result, step.clock.since(mark)
 
 
@@ -108,13 +111,13 @@ class Ascent:
 
 
 def _step(problems: Sequence[PlanningProblem], run: Ascent, i: int, weight: np.ndarray, budget_s: float,
-          should_stop: StopCheck | None, sweep: int) -> bool | None:
+          should_stop: StopCheck | None, sweep: int, greedy: bool = False) -> bool | None:
     """Re-solve telescope ``i`` with the others fixed; True when the union rose (kept), None when out of budget."""
     left = budget_s - run.spent
     if left < STEP_MIN_S or (should_stop is not None and should_stop()):
         return None
     w = masked(weight, problems, run.results, i)
-    result, cost = plan_alone(problems[i], w, min(problems[i].config.time_limit_s, left), should_stop)
+    result, cost = plan_alone(problems[i], w, min(problems[i].config.time_limit_s, left), should_stop, greedy)
     run.spent += cost
     trial = run.results[:i] + [result] + run.results[i + 1:]
     value = union_of(problems, trial, weight)
@@ -126,7 +129,7 @@ def _step(problems: Sequence[PlanningProblem], run: Ascent, i: int, weight: np.n
 
 
 def coordinate_ascent(problems: Sequence[PlanningProblem], alone: Sequence[ScheduleResult], weight: np.ndarray,
-                      budget_s: float, should_stop: StopCheck | None = None) -> Ascent:
+                      budget_s: float, should_stop: StopCheck | None = None, greedy: bool = False) -> Ascent:
     """(J6) The coordinate ascent from the telescopes' plans alone, within ``budget_s``.
 
     The ascent is run from each telescope's plan alone in turn, the best
@@ -145,6 +148,8 @@ def coordinate_ascent(problems: Sequence[PlanningProblem], alone: Sequence[Sched
     budget_s : float
         Budget (s) of all the steps; each step gets at most its telescope's
         ``time_limit_s``.
+    greedy : bool
+        Every step greedy's plan (``solver = "greedy"``).
     """
     T = len(problems)
     alone_union = [union_of([p], [r], weight) for p, r in zip(problems, alone)]
@@ -154,7 +159,7 @@ def coordinate_ascent(problems: Sequence[PlanningProblem], alone: Sequence[Sched
     for first in order or [0]:
         run = Ascent([alone[i] if i == first else nothing(status="not_yet") for i in range(T)], alone_union[first],
                      spent)
-        finished = _ascend(problems, run, order, first, weight, budget_s, should_stop)
+        finished = _ascend(problems, run, order, first, weight, budget_s, should_stop, greedy)
         spent, steps = run.spent, steps + run.steps
         if best is None or run.union > best.union + 1e-12:
             best = run
@@ -165,10 +170,10 @@ def coordinate_ascent(problems: Sequence[PlanningProblem], alone: Sequence[Sched
 
 
 def _ascend(problems: Sequence[PlanningProblem], run: Ascent, order: list[int], first: int, weight: np.ndarray,
-            budget_s: float, should_stop: StopCheck | None) -> bool:
+            budget_s: float, should_stop: StopCheck | None, greedy: bool = False) -> bool:
     """Sweeps from ``first``'s plan alone (the first one the iterative tiling); False when the budget ran out."""
     for sweep in range(MAX_SWEEPS):
-        out = [_step(problems, run, i, weight, budget_s, should_stop, sweep)
+        out = [_step(problems, run, i, weight, budget_s, should_stop, sweep, greedy)
                for i in order if not (sweep == 0 and i == first)]
         if None in out:
             return False

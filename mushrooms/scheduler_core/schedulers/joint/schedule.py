@@ -126,7 +126,8 @@ def _joint_model_stage(problems, names, weight, start_plans, left: float, should
 
 def joint_schedule(problems: Sequence[PlanningProblem], should_stop: StopCheck | None = None,
                    time_limit_s: float | None = None, names: Sequence[str] | None = None,
-                   weight: np.ndarray | None = None, bound_time_limit_s: float | None = None) -> JointResult:
+                   weight: np.ndarray | None = None, bound_time_limit_s: float | None = None,
+                   greedy: bool = False) -> JointResult:
     """Plan several telescopes together on one map (J6), with the joint metrics and bound (J8).
 
     Parameters
@@ -147,6 +148,8 @@ def joint_schedule(problems: Sequence[PlanningProblem], should_stop: StopCheck |
         with 0 where a telescope's executed record already covers.
     bound_time_limit_s : float, optional
         Budget (s) of the joint relaxation (J7); default the telescopes' largest.
+    greedy : bool
+        Every step greedy's plan and no joint model (``solver = "greedy"``: no MILP but the bound's).
 
     Returns
     -------
@@ -163,18 +166,19 @@ def joint_schedule(problems: Sequence[PlanningProblem], should_stop: StopCheck |
         else float(time_limit_s)
     alone, spent = [], 0.0
     for p in problems:
-        result, cost = plan_alone(p, w, None, should_stop)
+        result, cost = plan_alone(p, w, None, should_stop, greedy)
         alone.append(result)
         spent += cost
     details: dict = {"alone_spent_s": round(spent, 3)}
     results, method = list(alone), "alone"
     if sum(p.field_ids.size > 0 for p in problems) >= 2:
         left = budget - spent
-        run = coordinate_ascent(problems, alone, w, left * (1.0 - JOINT_SHARE), should_stop)
+        run = coordinate_ascent(problems, alone, w, left * (1.0 - JOINT_SHARE), should_stop, greedy)
         spent += run.spent
         results, method = run.results, "ascent"
         details["ascent"] = run.steps
-        plans, cost = _joint_model_stage(problems, names, w, results, budget - spent, should_stop, details)
+        plans, cost = (None, 0.0) if greedy else _joint_model_stage(problems, names, w, results, budget - spent,
+                                                                     should_stop, details)
         spent += cost
         model_union = None if plans is None else union_of(problems, plans, w)
         if isinstance(details.get("joint_model"), dict):
