@@ -16,6 +16,7 @@ telescope, the joint metrics and the bound.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Sequence
 
 from .errors import PlanCheckError
@@ -23,6 +24,7 @@ from .plan.checker import check_plan
 from .plan.document import EventInfo, Plan, iso_utc, make_plan_id
 from .planner import build_plan
 from .problem import PlanningProblem, StopCheck
+from .schedulers.joint.cells import joint_metrics
 from .schedulers.joint.schedule import JointResult, joint_schedule
 from .sky.skymap import SkyMap
 
@@ -60,7 +62,8 @@ def make_joint_plans(skymap: SkyMap, problems: Sequence[PlanningProblem], names:
         One per telescope, in order (a telescope with no window: a plan with
         no observation).
     result : JointResult
-        The schedules, the joint metrics and the bound.
+        The schedules, the bound, and the joint metrics of the plans as
+        published (each part after its telescope's least-gain rule).
 
     Raises
     ------
@@ -75,7 +78,9 @@ def make_joint_plans(skymap: SkyMap, problems: Sequence[PlanningProblem], names:
         if not report.ok:
             raise PlanCheckError([f"{name}: {line}" for line in report.problems])
         plans.append(plan)
-    return plans, result
+    # the metrics of the plans as published: each part after its telescope's least-gain rule (build_plan)
+    fields = [{o.field_id for o in plan.observations} for plan in plans]
+    return plans, dataclasses.replace(result, metrics=joint_metrics(problems, fields, problems[0].prob))
 
 
 def joint_document(plans: Sequence[Plan], result: JointResult) -> dict:
