@@ -36,7 +36,7 @@ def test_plan_writes_a_checked_plan_queue_and_picture(planned):
     queue = json.loads((out / "queue.json").read_text())  # the set the daemon submits: a list, in order
     queues = queue if isinstance(queue, list) else [queue]
     assert sum(len(q["targets"]) for q in queues) <= len(doc["observations"])
-    tag = doc["plan_id"].removeprefix("mushrooms-")[:8]  # a bare sky map: ToO_<subprogram>_<plan tag>_<k>
+    tag = doc["plan_id"].removeprefix("mushrooms-")[:12]  # a bare sky map: ToO_<subprogram>_<plan tag>_<k>
     assert [q["queue_name"] for q in queues] == [f"ToO_GW_{tag}_{k}" for k in range(1, len(queues) + 1)]
     windows = [q["validity_window_mjd"] for q in queues]
     assert all(lo < hi for lo, hi in windows) and [w[0] for w in windows] == sorted(w[0] for w in windows)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import socket
 import subprocess
 import sys
 import tempfile
@@ -21,20 +20,11 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
-CONFIG = """
-[scheduler]
-solver = "greedy"
-nside = 64
+sys.path.insert(0, str(REPO / "tests" / "daemon"))
 
-[daemon]
-heartbeat_s = 1
+from broker_down_setup import BROKER_DOWN_CONFIG, closed_port, run_status  # noqa: E402
 
-[kafka]
-topics = ["igwn.gwalert"]
-group_id = "status-broker-down"
-assignment = "group"
-poll_timeout_s = 0.5
-"""
+CONFIG = BROKER_DOWN_CONFIG.format(group="status-broker-down")
 
 
 def wait_for(log: Path, needle: str, count: int = 1, timeout_s: float = 180.0) -> None:
@@ -55,9 +45,7 @@ def daemon(tmp: Path, code: str, bootstrap: str, name: str) -> tuple[subprocess.
 
 
 def status(tmp: Path, code: str) -> None:
-    out = subprocess.run([sys.executable, "-m", "mushrooms.cli", "status", "--config", str(tmp / "config.toml"),
-                          "--state", str(tmp / "state.sqlite")], capture_output=True, text=True, cwd=tmp,
-                         env={**os.environ, "PYTHONPATH": code}, timeout=120)
+    out = run_status(tmp / "config.toml", tmp / "state.sqlite", tmp, code)
     print("$ mushrooms status --state state.sqlite")
     print(out.stdout.rstrip())
     print(f"[exit {out.returncode}]\n")
@@ -74,10 +62,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         (tmp / "config.toml").write_text(CONFIG)
-        s = socket.socket()
-        s.bind(("127.0.0.1", 0))
-        dead = f"127.0.0.1:{s.getsockname()[1]}"
-        s.close()
+        dead = f"127.0.0.1:{closed_port()}"
         print(f"## the daemon against {dead} (nothing listens), no metrics listener\n")
         proc, log = daemon(tmp, code, dead, "down")
         wait_for(log, "event=broker_unreachable")

@@ -47,9 +47,10 @@ from daemon_helpers import Broker, Daemon, notice_path  # noqa: E402
 from mushrooms.tool.live_notice import live_copy  # noqa: E402
 
 sys.path.insert(0, str(REPO / "benchmarks" / "speed"))
-from submit_latency import CONFIG  # noqa: E402  (policy, loopback input, directory outbox, then {submit})
+sys.path.insert(0, str(REPO / "benchmarks" / "common"))  # benchmarks/common: the shared helpers
+from latency_summary import latency_line, write_summary  # noqa: E402
+from submit_latency import CONFIG, NOTICES  # noqa: E402  (policy, loopback input, directory outbox, then {submit})
 
-NOTICES = ["MS181101ab-preliminary.json", "MS230425l-preliminary.json", "MS260605l-preliminary.json"]
 HOOK_PATH = "/hook/s3cr3t"
 
 #: The daemon's sections after submit_latency.py's (mock broker input, directory outbox): the webhook, and
@@ -171,9 +172,8 @@ def main() -> int:
                 arm.daemon.stop()
     for arm in arms:
         text = texts[arm.label]
-        lines.append(f"{arm.label:8s} first-plan latency_s: {' '.join(f'{x:.3f}' for x in arm.latencies)}  "
-                     f"median {statistics.median(arm.latencies):.3f}  (load at each send: "
-                     f"{' '.join(f'{x:.1f}' for x in arm.loads)})")
+        lines.append(latency_line(arm.label, arm.latencies, 3,
+                                  f"(load at each send: {' '.join(f'{x:.1f}' for x in arm.loads)})"))
         lines.append(f"         log: notify_sent {text.count('event=notify_sent')}, notify_failed "
                      f"{text.count('event=notify_failed')}, notify_dropped {text.count('event=notify_dropped')}, "
                      f"the webhook's secret path in the log: {'YES' if 's3cr3t' in text else 'no'}")
@@ -191,10 +191,7 @@ def main() -> int:
         lines.append(f"- [{body.get('event')}] {body.get('text')}")
     silent.close()
     server.stop()
-    text = "\n".join(lines)
-    print(text)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "notify_latency.txt").write_text(text + "\n")
+    write_summary(lines, args.out, "notify_latency.txt")
     return 0
 
 

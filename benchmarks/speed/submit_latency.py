@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import os
 import re
-import statistics
 import sys
 import tempfile
 import time
@@ -32,9 +31,11 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "tests" / "daemon"))
+sys.path.insert(0, str(REPO / "benchmarks" / "common"))  # benchmarks/common: the shared helpers
 
 from contract_servers import KowalskiContract, loopback_server  # noqa: E402
 from daemon_helpers import Broker, Daemon, notice_bytes  # noqa: E402
+from latency_summary import latency_line, write_summary  # noqa: E402
 
 NOTICES = ["MS181101ab-preliminary.json", "MS230425l-preliminary.json", "MS260605l-preliminary.json"]
 TOKEN = "bench-token"
@@ -102,16 +103,12 @@ def main() -> int:
             ("hanging", f'[submit]\ntarget = "kowalski"\nurl = "{kowalski.url}"\ntimeout_s = 10.0\n'),
         ]:
             results[label] = run(broker, work, label, submit, args.events)
-            lines.append(f"{label:8s} first-plan latency_s: {' '.join(f'{x:.2f}' for x in results[label])}  "
-                         f"median {statistics.median(results[label]):.2f}  load {os.getloadavg()}")
+            lines.append(latency_line(label, results[label], 2, f"load {os.getloadavg()}"))
     held = kowalski.hanging
     kowalski.release.set()
     lines.append(f"PUT requests the server held unanswered at the end: {held}")
     server.stop()
-    text = "\n".join(lines)
-    print(text)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "submit_latency.txt").write_text(text + "\n")
+    write_summary(lines, args.out, "submit_latency.txt")
     return 0
 
 

@@ -34,6 +34,9 @@ def reload_service(service: Any) -> None:
     old_sink = service.pipeline.sink
     try:
         new = service.reload_config() if service.reload_config is not None else service.config
+        if tuple(new.scheduler.telescopes) != ("ztf",):  # (issue 53) the service plans ZTF alone in this version
+            raise ValueError(f"[scheduler] telescopes = {list(new.scheduler.telescopes)!r}: the service plans ZTF "
+                             f"alone in this version")
         sink = old_sink if new.outbound == service.config.outbound else _new_sink(service, new)
     except Exception as exc:  # a bad file, bad sink settings, a missing password: keep running as before
         log.error("event=reload_failed error=%r (keeping the running configuration)", str(exc))

@@ -20,6 +20,7 @@ the log format (:mod:`~mushrooms.daemon.ops.journal`).
 from __future__ import annotations
 
 import logging
+import sys
 import os
 import threading
 import time
@@ -152,7 +153,7 @@ class Service:
         if opened is not None:
             self.submitter, self.submit_drain = opened
             self.submitter.on_trouble = lambda sub, error, action: submission_trouble(  # [notify]
-                self.pipeline.sink, sub.superevent_id, sub.queue_name, sub.attempts, error, action)
+                self.pipeline.sink, sub.superevent_id, sub.queue_names(), sub.attempts, error, action)
             self.submit_drain.kick()  # reconcile what a crash left half done
         self.phase = "warming"
         log.info("event=warm_up_starting solver=%s nside=%d", self.config.scheduler.solver, self.config.scheduler.nside)
@@ -476,4 +477,8 @@ def main(load: Callable[[], ServiceConfig]) -> int:
     level = logging.getLogger().level or logging.INFO
     setup_logging(level)
     config = load()
+    if tuple(config.scheduler.telescopes) != ("ztf",):  # (issue 53) the service plans ZTF; other telescopes: phase 4
+        print(f"mushrooms run: error: [scheduler] telescopes = {list(config.scheduler.telescopes)!r}: the service "
+              f"plans ZTF alone in this version (`mushrooms plan --telescopes` plans the others)", file=sys.stderr)
+        return 2
     return Service(config, resolve_paths(config.daemon), reload=load).run()

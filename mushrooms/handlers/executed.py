@@ -45,7 +45,7 @@ from astropy.time import Time
 
 from ..scheduler_core.errors import InputError
 from ..scheduler_core.executed import (
-    N_QUADRANTS, ExecutedExposure, from_record, to_record, unique_exposures,
+    N_QUADRANTS, ExecutedExposure, checked_values, from_record, to_record, unique_exposures,
 )
 from ..scheduler_core.times import parse_time
 from .executed_source import SOURCE_KINDS, ExecutedSource, parse_executed_source
@@ -261,11 +261,12 @@ def read_depot(source: bytes | str | os.PathLike, what: str = "depot file",
             quadrants = ({r.get("rcid") for r in ok} if all("rcid" in r for r in ok) else range(len(ok)))
             fraction = min(1.0, len(quadrants) / N_QUADRANTS)
             jd = float(np.median([float(r["obsjd"]) for _, r in members]))
+            values = (fields.pop(), DEPOT_FILTERS.get(filters.pop()),
+                      float(np.median([float(r["exposure_time"]) for _, r in members])), fraction, _status(fraction))
+            checked_values(*values)  # the cheap checks before the time is built
             out.append(ExecutedExposure(
-                field_id=fields.pop(), filter=DEPOT_FILTERS[filters.pop()],
-                start=parse_time(Time(jd, format="jd", scale="utc"), "obsjd"),
-                exposure_s=float(np.median([float(r["exposure_time"]) for _, r in members])),
-                processed_fraction=fraction, status=_status(fraction),
+                field_id=values[0], filter=values[1], start=parse_time(Time(jd, format="jd", scale="utc"), "obsjd"),
+                exposure_s=values[2], processed_fraction=fraction, status=values[4],
             ))
         except InputError as exc:
             skipped(f"exposure_id {expid} (first row {first})", exc)
@@ -328,11 +329,12 @@ def read_skyportal(source: bytes | str | os.PathLike, what: str = "SkyPortal ans
             if not isinstance(obs.get("obstime"), str):
                 raise InputError(f"obstime {obs.get('obstime')!r}: not an ISO-8601 string")
             fraction = _finite(obs.get("processed_fraction"), "processed_fraction")
+            field_id = _integer(field["field_id"], "field.field_id")
+            exposure = _finite(obs.get("exposure_time"), "exposure_time")
+            checked_values(field_id, SKYPORTAL_FILTERS[filt], exposure, fraction, _status(fraction))  # before the time
             out.append(ExecutedExposure(
-                field_id=_integer(field["field_id"], "field.field_id"), filter=SKYPORTAL_FILTERS[filt],
-                start=parse_time(obs["obstime"], "obstime"),
-                exposure_s=_finite(obs.get("exposure_time"), "exposure_time"),
-                processed_fraction=fraction, status=_status(fraction),
+                field_id=field_id, filter=SKYPORTAL_FILTERS[filt], start=parse_time(obs["obstime"], "obstime"),
+                exposure_s=exposure, processed_fraction=fraction, status=_status(fraction),
             ))
         except InputError as exc:
             skipped(f"observation {i}", exc)

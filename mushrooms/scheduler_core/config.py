@@ -14,7 +14,8 @@ from typing import Any, Mapping
 
 from .config_checks import MAX_TIME_STEPS  # noqa: F401  (the checks' limit, still config's name)
 from .config_checks import (MAX_SEQUENCE, ZTF_FILTERS, filter_sequence_problems, grid_problems, scheduler_problems,
-                            stage_problems)
+                            stage_problems, telescope_problems)
+from .instruments.names import DEFAULT_TELESCOPES
 from .ranges import require_finite, setting
 from .solvers_registry import SOLVER_NAMES  # scheduler names (``milp`` = ``blocks``): the registry's
 from .tables import dataclass_from_table
@@ -73,6 +74,23 @@ RECORDED_WHEN_CLEARED = ("hybrid_lns",)
 #: (P10) A pair's largest separation when ``pair_max_s = 0``: one night (12 h: longer than any night at
 #: Palomar, shorter than the day to the next one).
 ONE_NIGHT_PAIR_S = 43200.0
+
+
+def _names_only(names: Any) -> Any:
+    """An object with ``telescopes`` (what :func:`~.config_checks.telescope_problems` reads)."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(telescopes=names)
+
+
+def _ztf_default(key: str, value: Any, cls: type | None = None) -> bool:
+    """``value`` is ZTF's default of ``key`` (a ``PlanningConfig`` field, or ``cls``'s)."""
+    fields = {f.name: f for f in dataclasses.fields(cls or PlanningConfig)}
+    if key not in fields or fields[key].default is dataclasses.MISSING:
+        return False
+    default = fields[key].default
+    return (tuple(value) == tuple(default)) if isinstance(default, tuple) and isinstance(value, (list, tuple)) \
+        else value == default
 
 
 @dataclass(frozen=True)
@@ -275,6 +293,13 @@ class PlanningConfig:
         work second is about a second of the reference machine, quiet).
         Default true; a caller's wall-clock stop (the daemon's
         ``job_deadline_s``, ``mushrooms plan --deadline``) still ends it.
+    telescopes : tuple of str
+        The telescopes planned: shipped names (``ztf``, ``ls4``, ``winter``,
+        ``decam``; ``mushrooms telescopes`` lists them) or paths of
+        description files (``docs/design/telescopes.md``).  A plan is made
+        for the first; ``mushrooms plan`` plans each alone (phase 2), each
+        with :meth:`for_telescope`'s defaults.  Default ``("ztf",)``,
+        recorded by a plan only when it differs, so ZTF plan ids are as before.
 
     Examples
     --------
@@ -344,12 +369,14 @@ class PlanningConfig:
     hybrid_paced_slots: bool = True
     hybrid_lns: bool = True
     deterministic: bool = True
+    telescopes: tuple[str, ...] = DEFAULT_TELESCOPES
 
     def __post_init__(self) -> None:
         require_finite(self, "scheduler")
         problems = []
         if not isinstance(self.slew, SlewModel):  # a hand-built config; a file's is refused as "expected a table"
             problems.append(f"slew must be a SlewModel (the [scheduler.slew] table), got {self.slew!r}")
+        problems += telescope_problems(self)
         problems += grid_problems(self) + scheduler_problems(self) + stage_problems(self)  # config_checks
         if problems:
             raise ValueError("[scheduler] " + "; ".join(problems))
@@ -360,7 +387,8 @@ class PlanningConfig:
         ``exposure_menu_s`` appears only when set, ``revisit``,
         ``bound_refine_ends``, ``hybrid_blocks``, ``hybrid_paced_slots`` and
         ``deterministic`` only when true,
-        ``hybrid_lns`` only when false, so a plan without them has the
+        ``hybrid_lns`` only when false, ``telescopes`` only when not
+        ``["ztf"]``, so a plan without them has the
         same document and the same plan id as before they existed.
         """
         out = dataclasses.asdict(self)
@@ -370,7 +398,44 @@ class PlanningConfig:
         for key in RECORDED_WHEN_CLEARED:
             if out[key]:
                 del out[key]
+        if tuple(out["telescopes"]) == DEFAULT_TELESCOPES:
+            del out["telescopes"]
         return out
+
+    @property
+    def telescope(self) -> str:
+        """The telescope this configuration plans: the first of ``telescopes`` (a name or a description file)."""
+        return self.telescopes[0]
+
+    @classmethod
+    def for_telescope(cls, telescope: Any, values: Mapping[str, Any] = {}) -> "PlanningConfig":
+        """The configuration planning ``telescope`` (a :class:`~.instruments.TelescopeDescription`).
+
+        Starts from the description's defaults (``[limits]``, ``[planning]``,
+        ``[overheads]``: :func:`~.instruments.defaults.planning_defaults`); a
+        key ``values`` (a ``[scheduler]`` table) sets wins, ``slew`` key by
+        key; ``telescopes`` becomes this one alone.  For ZTF: the defaults.
+        One exception: a key the description sets, given in ``values`` with
+        ZTF's default value, is the shipped ``config.toml`` writing out ZTF's
+        defaults, not a choice for another telescope: the description's
+        value stays (give another value to override it).
+
+        Raises
+        ------
+        ValueError
+            One line naming every bad key, as :meth:`from_mapping`.
+        """
+        from .instruments.defaults import planning_defaults, telescope_entry
+
+        own = planning_defaults(telescope)
+        ztf = telescope.name == "ztf"
+        table = {**own, **{k: v for k, v in values.items()
+                           if k != "telescopes" and (ztf or k not in own or not _ztf_default(k, v))}}
+        if isinstance(values.get("slew"), Mapping):
+            table["slew"] = {**own["slew"], **{k: v for k, v in values["slew"].items()
+                                               if ztf or k not in own["slew"] or not _ztf_default(k, v, SlewModel)}}
+        table["telescopes"] = [telescope_entry(telescope)]
+        return cls._from_table(table)
 
     @property
     def pair_separation_s(self) -> float:
@@ -386,11 +451,28 @@ class PlanningConfig:
     def from_mapping(cls, values: Mapping[str, Any]) -> "PlanningConfig":
         """Build from a ``[scheduler]`` table; unknown keys are an error.
 
+        A table whose first telescope is not ZTF is that telescope's
+        configuration (:meth:`for_telescope`), keeping every name of
+        ``telescopes``: what a plan is made for, and what a plan made for it
+        records (the same configuration again).
+
         Parameters
         ----------
         values : mapping
             Keys are attribute names; ``slew`` may be a nested table.
         """
+        names = values.get("telescopes")
+        if (isinstance(names, (list, tuple)) and names and isinstance(names[0], str) and names[0] != "ztf"
+                and not telescope_problems(_names_only(names))):
+            from .instruments.loader import load_description
+
+            first = cls.for_telescope(load_description(names[0]), values)
+            return dataclasses.replace(first, telescopes=tuple(names))
+        return cls._from_table(values)
+
+    @classmethod
+    def _from_table(cls, values: Mapping[str, Any]) -> "PlanningConfig":
+        """:meth:`from_mapping` without a telescope's defaults."""
         kwargs = dict(values)
         if isinstance(kwargs.get("slew"), Mapping):
             kwargs["slew"] = dataclass_from_table(SlewModel, kwargs["slew"], "scheduler.slew")

@@ -10,10 +10,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from .instruments.names import filter_names, telescope_problem
 from .lightcurve_names import PAPER_LIGHTCURVES
 from .solvers_registry import SOLVER_NAMES
 
-__all__ = ["filter_sequence_problems", "grid_problems", "scheduler_problems", "stage_problems", "ZTF_FILTERS",
+__all__ = ["filter_sequence_problems", "grid_problems", "scheduler_problems", "stage_problems", "telescope_problems",
+           "ZTF_FILTERS",
            "MAX_TIME_STEPS", "MAX_SEQUENCE"]
 
 #: The filters of the ZTF camera (its filter exchanger holds g, r and i).
@@ -30,16 +32,22 @@ MAX_SEQUENCE = 8
 
 
 
-def filter_sequence_problems(filters: object) -> list[str]:
-    """(F0) What is wrong with a ``filters`` setting (empty: nothing), one line each."""
+def filter_sequence_problems(filters: object, telescope: str = "ztf") -> list[str]:
+    """(F0) What is wrong with a ``filters`` setting (empty: nothing), one line each.
+
+    The filters are checked against ``telescope``'s (ZTF's g, r, i by
+    default; another telescope's from its description's ``[filters]``).
+    """
     if isinstance(filters, str) or not isinstance(filters, (tuple, list)):
         return [f"filters must be a list of ZTF filters such as [\"g\", \"r\", \"g\"], got {filters!r}"]
     seq = tuple(filters)
     problems = []
     if not 1 <= len(seq) <= MAX_SEQUENCE:
         problems.append(f"filters must hold 1 to {MAX_SEQUENCE} visits, got {len(seq)}")
-    if any(f not in ZTF_FILTERS for f in seq):
-        problems.append(f"filters must be ZTF filters ({', '.join(ZTF_FILTERS)}), got {list(seq)!r}")
+    allowed = ZTF_FILTERS if telescope == "ztf" else filter_names(telescope)
+    which = "ZTF" if telescope == "ztf" else telescope
+    if allowed is not None and any(f not in allowed for f in seq):
+        problems.append(f"filters must be {which} filters ({', '.join(allowed)}), got {list(seq)!r}")
     repeats = [i + 1 for i in range(1, len(seq)) if seq[i] == seq[i - 1]]
     if repeats:
         problems.append(f"filters must change filter at every visit (visit {repeats[0]} repeats the one "
@@ -71,7 +79,7 @@ def grid_problems(cfg: Any) -> list[str]:
             problems.append(f"{name} must be > 0, got {getattr(cfg, name)}")
     if cfg.airmass_max < 1:
         problems.append(f"airmass_max must be >= 1, got {cfg.airmass_max}")
-    problems += filter_sequence_problems(cfg.filters)
+    problems += filter_sequence_problems(cfg.filters, _first_telescope(cfg))
     if (isinstance(cfg.filters, (tuple, list)) and len(cfg.filters) > 2
             and (len(cfg.filters) - 1) * cfg.cadence_s > cfg.pair_separation_s):
         problems.append(f"filters {list(cfg.filters)!r} need {len(cfg.filters) - 1} cadences of "
@@ -80,6 +88,25 @@ def grid_problems(cfg: Any) -> list[str]:
     if cfg.exposure_menu_s and isinstance(cfg.filters, (tuple, list)) and len(cfg.filters) != 2:
         problems.append(f"exposure_menu_s needs a pair of filters (the detection stage plans pairs), got the "
                         f"sequence {list(cfg.filters)!r}")
+    return problems
+
+
+def _first_telescope(cfg: Any) -> str:
+    """The telescope a configuration plans (the first of ``telescopes``; ZTF when the entry is unusable)."""
+    names = cfg.telescopes
+    if isinstance(names, (tuple, list)) and names and isinstance(names[0], str) and not telescope_problem(names[0]):
+        return names[0]
+    return "ztf"
+
+
+def telescope_problems(cfg: Any) -> list[str]:
+    """What is wrong with ``telescopes``: a list of known names or description files, at least one, no repeats."""
+    names = cfg.telescopes
+    if isinstance(names, str) or not isinstance(names, (tuple, list)) or not names:
+        return [f"telescopes must be a list of telescope names such as [\"ztf\"], got {names!r}"]
+    problems = [p for p in (telescope_problem(n) for n in names) if p]
+    if len(set(names)) != len(names):
+        problems.append(f"telescopes must not repeat a telescope, got {list(names)!r}")
     return problems
 
 

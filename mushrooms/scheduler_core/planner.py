@@ -21,6 +21,7 @@ from .plan.localization import with_map_details
 from .plan.document import EventInfo, Observation, Plan, PlanMetrics, iso_utc, make_plan_id, sorted_observations
 from .budget import Clock, new_clock
 from .clock import on_merger_clock
+from .source.depth import depth_model
 from .prepare import prepare_problem
 from .problem import PlanningProblem, ScheduleResult, StopCheck
 from .sky.skymap import SkyMap
@@ -161,6 +162,7 @@ def _optimised(problem: PlanningProblem, skymap: SkyMap, solver: str, should_sto
         result = dataclasses.replace(result, upper_bound=_menu_upper_bound(problem))
     t_detection = time.perf_counter()
     result = detection_stage(problem, skymap, result, should_stop, time_limit_s=max(left, 0.0),
+                             depth=depth_model(cfg),
                              baseline_coverage=greedy_coverage(result),
                              baseline_executed=result.details.get("coverage_as_executed", {}).get("greedy"))
     times = dict(result.details.get("stage_times_s", {}), detection=round(time.perf_counter() - t_detection, 3))
@@ -389,12 +391,22 @@ def build_plan(
         event=event,
         supersedes=supersedes,
         config=json.loads(json.dumps(config.record())),  # JSON types (tuples become lists)
+        telescope=telescope_label(config),
     )
-    executed, whole = _coverage_as_executed(plan, problem, result) if observations else (None, None)
+    # the executor model (docs/design/executed.md) is ZTF's ToO queue: no executed coverage for another telescope
+    modelled = observations and config.telescope == "ztf"
+    executed, whole = _coverage_as_executed(plan, problem, result) if modelled else (None, None)
     return plan.with_(metrics=dataclasses.replace(
         metrics, expected_detections=_expected_detections(plan, problem, skymap, result),
         coverage_as_executed=None if executed is None else round(executed, 6),
         sequence_coverage_as_executed=None if whole is None else round(whole, 6)))
+
+
+def telescope_label(config: PlanningConfig) -> str:
+    """The document's ``telescope``: ``ZTF`` as always, another telescope's name in capitals (``LS4``)."""
+    from .instruments.active import telescope_name
+
+    return "ZTF" if config.telescope == "ztf" else telescope_name(config.telescope).upper()
 
 
 def _coverage_as_executed(plan: Plan, problem: PlanningProblem, result: ScheduleResult) -> tuple[float, float]:
@@ -424,7 +436,7 @@ def _with_airmass_and_probability(observations: tuple[Observation, ...],
 
     mid = problem.start + TimeDelta([o.start + o.exposure_s / 2 for o in observations], format="sec")
     coords = SkyCoord([o.ra for o in observations] * u.deg, [o.dec for o in observations] * u.deg)
-    alt = coords.transform_to(AltAz(obstime=mid, location=site())).alt.deg
+    alt = coords.transform_to(AltAz(obstime=mid, location=site(problem.config.telescope))).alt.deg
     airmass = 1.0 / np.sin(np.radians(np.maximum(alt, 1e-3)))
     from .plan.shares import coverage_after_each, field_shares
 
@@ -435,7 +447,7 @@ def _with_airmass_and_probability(observations: tuple[Observation, ...],
     after = coverage_after_each(problem.footprints, visits, problem.prob)
     from .source.detection import exposure_depths
 
-    depth = exposure_depths(observations, problem.start)
+    depth = exposure_depths(observations, problem.start, depth_model(problem.config))
     return tuple(dataclasses.replace(o, airmass=float(x), probability=field_prob.get(o.field_id),
                                      probability_share=shares[o.field_id], coverage_after=float(c),
                                      limiting_mag=float(m) if np.isfinite(m) else None)
@@ -458,5 +470,6 @@ def _expected_detections(plan: Plan, problem: PlanningProblem, skymap: SkyMap,
     if (result is not None and result.expected_detections is not None
             and result.expected_detections_lightcurve == problem.config.detection_lightcurve):
         return round(float(result.expected_detections), 6)
-    e = expected_detections(plan, skymap, problem.footprints, load_kilonova(problem.config.detection_lightcurve))
+    e = expected_detections(plan, skymap, problem.footprints, load_kilonova(problem.config.detection_lightcurve),
+                            depth=depth_model(problem.config))
     return None if e is None else round(e, 6)

@@ -6,7 +6,10 @@ import numpy as np
 from astropy.time import Time
 
 from .config import PlanningConfig
-from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
+from .instruments.active import covering_polygons, description_of
+from .instruments.defaults import telescope_entry
+from .instruments.description import TelescopeDescription
+from .sky.fields import Camera, FieldGrid, field_footprints, load_ztf_fields, telescope_grid
 from .schedulers.gain import worth_a_visit
 from .sky.footprints import Footprints
 from .problem import PlanningProblem
@@ -18,8 +21,18 @@ __all__ = ["prepare_problem"]
 
 
 def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGrid | None = None,
-                    footprints: Footprints | None = None, windows: Windows | None = None) -> PlanningProblem:
-    """Candidate fields, footprints and windows for a sky map.
+                    footprints: Footprints | None = None, windows: Windows | None = None,
+                    telescope: TelescopeDescription | None = None) -> PlanningProblem:
+    """Candidate fields, footprints and windows of one telescope for a sky map.
+
+    The telescope is the one ``config`` plans (``config.telescope``, ZTF by
+    default); a caller planning a described telescope passes its
+    description and a configuration made for it,
+    ``PlanningConfig.for_telescope(telescope, table)``, so that one
+    :class:`~.problem.PlanningProblem` per telescope can be built for any
+    telescope of ``[scheduler] telescopes`` (``problem.telescope`` names it).
+    Its grid, the detectors behind its covering filters, its site, mount and
+    limits come from the description (``docs/design/telescopes.md``, section 4).
 
     Candidates are the grid fields inside the declination band that hold
     some probability, at least ``config.min_gain`` (see :mod:`.gain`), and
@@ -41,12 +54,22 @@ def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time, grid: F
     start : astropy.time.Time
         Horizon start (UTC).
     grid : FieldGrid, optional
-        The ZTF field grid (default :func:`~.fields.load_ztf_fields`).
+        The telescope's field grid (default: ZTF's :func:`~.fields.load_ztf_fields`, or the
+        description's).
     footprints : Footprints, optional
         Footprints of every grid field (default :func:`~.fields.field_footprints`).
     windows : Windows, optional
         Precomputed windows over the horizon; rows of fields that are not
         candidates are ignored.
+    telescope : TelescopeDescription, optional
+        The telescope planned; it must be the one ``config`` names
+        (default: ``config.telescope``'s description, or ZTF's constants).
+
+    Raises
+    ------
+    ValueError
+        ``config`` made for another telescope, footprints not of the grid,
+        or covering filters with no detector in common.
 
     Returns
     -------
@@ -69,8 +92,8 @@ def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time, grid: F
     """
     if skymap.nside != config.nside:
         raise ValueError(f"sky map nside {skymap.nside} differs from config nside {config.nside}")
-    grid = grid if grid is not None else load_ztf_fields()
-    footprints = footprints if footprints is not None else field_footprints(grid, config.nside)
+    grid, camera = _grid_and_camera(config, telescope, grid)
+    footprints = footprints if footprints is not None else field_footprints(grid, config.nside, camera)
     if footprints.nside != config.nside or not np.array_equal(footprints.field_ids, grid.ids):
         raise ValueError("footprints must cover the whole grid, in grid order, at config.nside")
     in_band = (grid.dec >= config.dec_min_deg) & (grid.dec <= config.dec_max_deg)
@@ -93,3 +116,16 @@ def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time, grid: F
         footprints=footprints.subset(ids),
         windows=windows,
     )
+
+
+def _grid_and_camera(config: PlanningConfig, telescope: TelescopeDescription | None,
+                     grid: FieldGrid | None) -> tuple[FieldGrid, Camera | None]:
+    """The field grid (``grid`` when given) and the covering detectors (None: ZTF's 16 CCDs) of the telescope."""
+    if telescope is not None and telescope_entry(telescope) != config.telescope:
+        raise ValueError(f"config plans telescope {config.telescope!r}, not {telescope_entry(telescope)!r}: "
+                         f"build it with PlanningConfig.for_telescope(telescope, table)")
+    if config.telescope == "ztf":
+        return (grid if grid is not None else load_ztf_fields()), None
+    telescope = telescope if telescope is not None else description_of(config)
+    camera = Camera(covering_polygons(telescope, tuple(config.filters)), telescope.footprint.radius_deg)
+    return (grid if grid is not None else telescope_grid(telescope)), camera

@@ -73,6 +73,13 @@ class PlanningProblem:
         """Horizon length (s)."""
         return self.config.horizon_s
 
+    @property
+    def telescope(self) -> str:
+        """Name of the telescope planned (``ztf``, ``ls4`` ...): ``config.telescope``'s, a file's stem."""
+        from .instruments.active import telescope_name
+
+        return telescope_name(self.config.telescope)
+
     def centre(self, field_id: int) -> tuple[float, float]:
         """(ra, dec) in deg of a candidate field."""
         k = self.footprints.row(field_id)

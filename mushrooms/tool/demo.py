@@ -17,7 +17,8 @@ HELP = "plan the bundled mock BNS notice end to end (no credentials, no network)
 def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     """The options of ``mushrooms demo`` (added to ``p``, or to a new parser)."""
     p = p if p is not None else tool_parser("demo", HELP)
-    p.add_argument("--out", metavar="DIR", default="mushrooms-demo", help="where the plan, its picture and the state go")
+    p.add_argument("--out", metavar="DIR", default="mushrooms-demo",
+                   help="where the plan, its picture and the state go (default mushrooms-demo)")
     p.add_argument("--solver", choices=SOLVER_CHOICES, metavar=SOLVER_METAVAR, help=SOLVER_HELP)
     add_common_options(p)
     return p
@@ -73,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
     print(summary_text(doc, rows=False))
     print(f"demo: {plan.event.superevent_id}: {answer_line(doc)}")
     print(f"demo: plan in {out / 'outbox'}, picture {picture}, summary {txt} (one row per exposure), page {page}")
+    print(f"demo: look at it as the service's operator would: mushrooms status --state {out / 'state.sqlite'}")
     return 0
 
 

@@ -72,6 +72,10 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
                    help="horizon start: now, ISO-8601 (Z or +hh:mm offset; no offset means UTC) or MJD "
                         "(default: the sky map's event time)")
     p.add_argument("--solver", choices=SOLVER_CHOICES, metavar=SOLVER_METAVAR, help=SOLVER_HELP)
+    p.add_argument("--telescopes", metavar="NAMES",
+                   help="telescopes to plan, comma-separated: shipped names (`mushrooms telescopes`) or description "
+                        "files (default [scheduler] telescopes, ztf); each is planned alone, the first into -o FILE, "
+                        "each other into FILE.<name>.json")
     p.add_argument("-o", "--output", metavar="FILE", default="plan.json",
                    help="plan document to write (default plan.json); its summary goes beside it as FILE.txt and "
                         "FILE.html (the page; the picture in it with --plot)")
@@ -86,6 +90,9 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
                    help="also write the SkyPortal observation plans as the daemon POSTs them to "
                         "/api/observation_plan/manual (revision 1; [export] skyportal_plans): one plan object, or a "
                         "JSON list of them in submission order")
+    p.add_argument("--targets", metavar="FILE",
+                   help="also write the plan as a target list (field id, RA, Dec, filter, exposure, start): JSON "
+                        "into FILE and CSV beside it (FILE.csv), for a telescope without a queue API")
     p.add_argument("--plot", metavar="FILE", help="also draw the plan on the sky map (PNG)")
     p.add_argument("--executed", metavar="FILE",
                    help="what the telescope did: a JSON-lines file of executed exposures (field_id, filter, start, "
@@ -113,16 +120,28 @@ def run(args: argparse.Namespace) -> int:
     """
     t_imports = time.perf_counter()
     from .config import load_config
-    from ..handlers.text import storable
-    from ..inputs import regular_file
     from ..offline import configure_astropy_offline
-    from ..outputs import write_json_atomic
-    from ..scheduler_core import make_plan, not_observable, read_skymap
+    from ..scheduler_core import make_plan  # noqa: F401  (the scheduler's modules, timed as imports)
 
     configure_astropy_offline()
     t0 = time.perf_counter()
     t_imports = t0 - t_imports  # the scheduler's modules (numpy, astropy, healpy, scipy, the checker)
     config = load_config(args.config, getattr(args, "set", None) or ())
+    from .plan_telescopes import plan_each, wanted_telescopes
+
+    names = wanted_telescopes(args, config)
+    if names is not None:  # (issue 53, phase 2) each telescope alone, one document each
+        return plan_each(args, config, names, lambda a, c: _plan(a, c, t0, t_imports))
+    return _plan(args, config, t0, t_imports)
+
+
+def _plan(args: argparse.Namespace, config: Any, t0: float, t_imports: float) -> int:
+    """Plan with ``config`` (one telescope's), check, write; :func:`run` after the configuration."""
+    from ..handlers.text import storable
+    from ..inputs import regular_file
+    from ..outputs import write_json_atomic
+    from ..scheduler_core import make_plan, not_observable, read_skymap
+
     cfg = config.scheduler
     outputs, start = _checked_arguments(args, config)
     deadline = getattr(args, "deadline", None)
@@ -158,6 +177,9 @@ def run(args: argparse.Namespace) -> int:
         _write_not_observable(args, answer, plan, skymap, cfg, outputs, t0)
         return 0
     write_json_atomic(args.output, doc)
+    from .plan_telescopes import write_targets
+
+    write_targets(getattr(args, "targets", None), plan)
     queues = _write_submissions(args.queue, getattr(args, "skyportal", None), plan, config, doc)
     picture = _write_summary(args, doc, plan, skymap, queues=queues)
     progress.done()
@@ -178,7 +200,11 @@ def _checked_arguments(args: argparse.Namespace, config: Any) -> tuple[dict[str,
     if not args.skymap:
         raise InputError("no sky map given: name a FITS sky map (`mushrooms demo` plans the bundled demo map)")
     outputs = {"-o/--output": args.output, "--queue": args.queue, "--skyportal": getattr(args, "skyportal", None),
-               "--plot": args.plot}
+               "--plot": args.plot, "--targets": getattr(args, "targets", None)}
+    if outputs["--targets"]:
+        from pathlib import Path
+
+        outputs["--targets (CSV)"] = str(Path(outputs["--targets"]).with_suffix(".csv"))
     check_outputs(outputs, inputs=[args.skymap, args.config])  # before any work; never onto an input
     if getattr(args, "skyportal", None) and config.export.skyportal_allocation_id is None:
         raise InputError("--skyportal needs [export] skyportal_allocation_id in the config "

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import sys
 from typing import Any, Sequence
 
@@ -79,10 +78,6 @@ def run(args: argparse.Namespace) -> int:
     return 1
 
 
-#: The daemon's queue names: ``ToO_<subprogram>_<superevent>_<plan tag>_<k>`` (a bare sky map: no superevent).
-_OURS = re.compile(r"^ToO_[^_]+_(?:(?P<event>.+)_)?(?P<tag>[0-9a-f]{8})_(?P<k>\d+)$")
-
-
 def _line(text: str, limit: int = 300) -> str:
     flat = " ".join(str(text).split())
     return flat if len(flat) <= limit else flat[:limit] + "..."
@@ -119,10 +114,12 @@ def _opens(members: list[tuple[int, dict[str, Any]]]) -> float:
 
 def render(queues: list[dict[str, Any]]) -> str:
     """The queue list grouped by event and plan (the daemon's names), then the other queues."""
+    from ..scheduler_core.plan.exports import QUEUE_NAME  # the daemon's names, and those of the versions before
+
     groups: dict[tuple[str, str], list[tuple[int, dict[str, Any]]]] = {}
     other = []
     for q in queues:
-        m = _OURS.match(str(q.get("queue_name") or ""))
+        m = QUEUE_NAME.match(str(q.get("queue_name") or ""))
         if m:
             groups.setdefault((m["event"] or "sky map", m["tag"]), []).append((int(m["k"]), q))
         else:

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-from .rehearse_watch import LogTail, OutboxWatch, document_words, is_final, log_words, parse_log_line
+from .rehearse_watch import LogTail, OutboxWatch, document_words, is_final, log_words, parse_log_line, queues_of
 
 __all__ = ["Rehearsal", "RehearsalFailed", "say"]
 
@@ -205,7 +205,7 @@ class Rehearsal:
                 why = e.fields.get("error") or e.fields.get("reason") or e.fields.get("state", "")
                 what = {"submission_retry": "did not reach the queue (the service retries)",
                         "submission_failed": "FAILED", "submission_rejected": "was REJECTED"}[e.event]
-                problems.append(f"submission of {e.fields.get('plan_id', '-')} as {e.fields.get('queue_name', '-')} "
+                problems.append(f"submission of {e.fields.get('plan_id', '-')} ({queues_of(e.fields)}) "
                                 f"{what}: {why[:200]}")
             if e.event in ("notify_failed", "notify_dropped") and not any(p.startswith("webhook") for p in problems):
                 detail = e.message.split("error=", 1)[1] if "error=" in e.message else e.message

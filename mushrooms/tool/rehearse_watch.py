@@ -16,7 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-__all__ = ["LogLine", "parse_log_line", "log_words", "LogTail", "OutboxWatch", "document_words", "is_final"]
+__all__ = ["LogLine", "parse_log_line", "log_words", "queues_of", "LogTail", "OutboxWatch", "document_words",
+           "is_final"]
 
 _LINE = re.compile(r"^(?:\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d+ )?(?P<level>[A-Z]+) (?P<name>[\w.]+): (?P<message>.*)$")
 _PAIR = re.compile(r"""(\w+)=('(?:[^'\\]|\\.)*'|"(?:[^"\\]|\\.)*"|\S+)""")
@@ -54,8 +55,15 @@ def _submission(f: Mapping[str, str], state: str) -> str:
             "deleted": "was deleted", "rejected": "was REJECTED", "failed": "FAILED",
             "expired": "expired (its window is over)"}.get(state, state)
     reason = f": {f['reason']}" if f.get("reason") else ""
-    return (f"submission of {f.get('plan_id', '-')} as {f.get('queue_name', '-')} to {f.get('target', '-')} "
-            f"{what}{reason}")
+    return f"submission of {f.get('plan_id', '-')} ({queues_of(f)}) to {f.get('target', '-')} {what}{reason}"
+
+
+def queues_of(f: Mapping[str, str]) -> str:
+    """The queues a submission line names: ``queue A`` or ``queues A, B, C +N more`` (the service's ``queues``
+    field), else the name base of an older service's line (``queues <base>_<k>``)."""
+    if f.get("queues"):
+        return ("queue " if f.get("queue_count") == "1" else "queues ") + f["queues"]
+    return f"queues {f.get('queue_name', '-')}_<k>"
 
 
 #: event -> its sentence (from the line's fields).
@@ -78,7 +86,7 @@ _WORDS: dict[str, Callable[[Mapping[str, str]], str]] = {
                              f"{f.get('error', '')}"),
     "job_deadline": lambda f: f"planning {f.get('superevent_id', '-')} hit its deadline ({f.get('deadline_s')} s)",
     "submission_dry_run": lambda f: f"submission (dry run) of {f.get('plan_id', '-')} as {f.get('queue_name', '-')}: "
-                                    "the request is logged, not sent",
+                                    "the request is logged, not sent",  # queue_name: this line's one queue
     "submission_skipped": lambda f: f"submission of {f.get('plan_id', '-')} skipped: {f.get('reason', '')}",
     "submission_retry": lambda f: (f"submission of {f.get('plan_id', '-')} to be retried (attempt "
                                    f"{f.get('attempts', '?')}): "

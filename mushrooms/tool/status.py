@@ -69,6 +69,14 @@ def _state_path(args: argparse.Namespace) -> Any:
     return resolve_paths(_config(args).daemon).state
 
 
+def _no_state_file(path: Any, given: bool) -> str:
+    """The one line for a state file that is not there: which file, and how to name the right one."""
+    where = "" if given else " (the config's [daemon] state_path: no service has run with it here)"
+    return (f"{path}: no such state file{where}; give --state FILE: the service's, e.g. "
+            "/var/lib/mushrooms/mushrooms-state.sqlite under the shipped systemd unit, or "
+            "mushrooms-demo/state.sqlite after mushrooms demo")
+
+
 def _config(args: argparse.Namespace) -> Any:
     from .config import load_config
 
@@ -90,11 +98,12 @@ def _schema_problem(conn: sqlite3.Connection) -> str | None:
 
 def _submission_attention(conn: sqlite3.Connection, max_pending_s: float) -> list[str]:
     from ..daemon.state.views import oldest_pending_submission
+    from ..daemon.submission.names import pending_queue_names, queues_phrase
 
     oldest = oldest_pending_submission(conn)
     if oldest is None or oldest["age_s"] <= max_pending_s:
         return []
-    return [f"submission {oldest['queue_name']} of {oldest['superevent_id']} pending for "
+    return [f"submission of {oldest['superevent_id']} ({queues_phrase(pending_queue_names(oldest))}) pending for "
             f"{oldest['age_s'] / 60:.1f} min after {oldest['attempts']} attempt(s) (the plan did not reach the "
             f"telescope; [submit] max_pending_s = {max_pending_s:g} s): {oldest['answer'] or '-'}"]
 
@@ -251,7 +260,7 @@ def run(args: argparse.Namespace) -> int:
     path = _state_path(args)
     problem = state_file_problem(path)  # a directory, FIFO or device is named for what it is
     if problem is not None or not path.is_file():
-        print(f"mushrooms status: error: {problem or f'{path}: no such state file'}", file=sys.stderr)
+        print(f"mushrooms status: error: {problem or _no_state_file(path, bool(args.state))}", file=sys.stderr)
         return EXIT_INPUT
     from ..daemon.state.views import connect_readonly
 

@@ -31,7 +31,7 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--url", help="base URL of the target (default [submit] url)")
     p.add_argument("--queue-name", metavar="NAME",
                    help="name base of the queues (default the one rule of the service and `plan --queue`: "
-                        "ToO_<subprogram>_<superevent>_<8 hex of the plan id>; the queues end _1, _2, ...)")
+                        "ToO_<subprogram>_<superevent>_<12 hex of the plan id>; the queues end _1, _2, ...)")
     p.add_argument("--dry-run", action="store_true", help="print the request (token redacted) and send nothing")
     p.add_argument("--force", action="store_true", help="submit even when a [submit] gate would not")
     add_common_options(p)

@@ -75,6 +75,9 @@ def run(args: argparse.Namespace) -> int:
 
     if (problem := state_file_problem(paths.state)) is not None:  # before anything is created beside it
         raise InputError(problem)
+    if kind in ("superevent", "closure") and not paths.state.exists():  # nothing stored to plan from: create nothing
+        raise InputError(f"{paths.state}: no such state file: a superevent id is planned again from the notices "
+                         "the service stored; give --state FILE (the service's), or a notice or sky map file")
     if daemon_pid(paths.pid_file) is None:  # planned here, published by this process's own sink
         require_sink_broker(config)
     from .state_plans import documents_since, last_seq, read_state

@@ -149,8 +149,17 @@ def test_the_daemon_tells_the_webhook_of_a_plan_and_of_kowalski_down(broker, dae
     assert plan["superevent_id"] == "MS181101ab" and plan["revision"] == 1
     assert plan["text"].startswith("MS181101ab: new ZTF plan, revision 1: ") and "exposures from" in plan["text"]
     failing = said["submission_failing"]["text"]
-    base = f"ToO_GW_MS181101ab_{plan['plan_id'].removeprefix('mushrooms-')[:8]}"  # the one naming rule
-    assert failing.startswith(f"MS181101ab: queue {base} could not be submitted (attempt 1:"), failing
+    base = f"ToO_GW_MS181101ab_{plan['plan_id'].removeprefix('mushrooms-')[:12]}"  # the one naming rule
+    from mushrooms.daemon.state.store import Store
+    from mushrooms.daemon.submission.rows import submissions
+
+    store = Store(tmp_path / "s.sqlite")
+    (names,) = [s.queue_names() for s in submissions(store) if s.state == "pending"]  # the set it PUTs
+    store.close()
+    assert len(names) > 3 and all(n.startswith(f"{base}_") for n in names), names
+    few = f"{names[0]}, {names[1]}, {names[2]} +{len(names) - 3} more"  # a few names, then how many more
+    assert failing.startswith(f"MS181101ab: queues {few} could not be submitted (attempt 1:"), failing
+    assert said["submission_failing"]["queue_names"] == names
     assert failing.endswith("retrying")
     assert [e for e in events() if e == "submission_failing"] == ["submission_failing"]  # said once, not per retry
     assert SECRET_PATH not in d.text() and "s3cr3t" not in d.text()

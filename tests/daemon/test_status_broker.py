@@ -8,55 +8,24 @@ it knows of its brokers in the state file, and ``status`` reads it.
 
 from __future__ import annotations
 
-import socket
-import subprocess
-import sys
-from pathlib import Path
-
+from broker_down_setup import BROKER_DOWN_CONFIG, closed_port, run_status
 from daemon_helpers import REPO, Daemon
 
-CONFIG = """
-[scheduler]
-solver = "greedy"
-nside = 64
-
-[daemon]
-heartbeat_s = 1
-
-[kafka]
-topics = ["igwn.gwalert"]
-group_id = "mushrooms-status-broker"
-assignment = "group"
-poll_timeout_s = 0.5
-"""
-
-
-def _closed_port() -> int:
-    """A loopback port nothing listens on (bound, never listening: connections are refused)."""
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
-def _status(cfg: Path, state: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "mushrooms.cli", "status", "--config", str(cfg), "--state",
-                           str(state)], capture_output=True, text=True, timeout=120, cwd=REPO)
+CONFIG = BROKER_DOWN_CONFIG.format(group="mushrooms-status-broker")
 
 
 def test_status_says_the_input_broker_is_unreachable_without_the_metrics_listener(daemons, tmp_path) -> None:
     cfg = tmp_path / "config.toml"
     cfg.write_text(CONFIG)
     state = tmp_path / "state.sqlite"
-    d = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", f"127.0.0.1:{_closed_port()}", "--state",
+    d = Daemon(tmp_path, ["--config", str(cfg), "--bootstrap", f"127.0.0.1:{closed_port()}", "--state",
                           str(state), "--outbox", str(tmp_path / "outbox")])
     daemons.append(d)
     text = d.wait_log("event=broker_unreachable", timeout_s=180)
     assert "metrics_listening" not in text  # the listener is off ([daemon] metrics_address = "")
     beats = text.count("event=heartbeat")
     d.wait_log("event=heartbeat", timeout_s=60, count=beats + 2)  # the daemon has had time to say it
-    out = _status(cfg, state)
+    out = run_status(cfg, state, REPO)
     assert out.returncode == 1, out.stdout + out.stderr
     assert "input broker (consumer): UNREACHABLE since" in out.stdout, out.stdout
     assert "NEEDS ATTENTION" in out.stdout and "input Kafka broker is unreachable" in out.stdout, out.stdout

@@ -206,7 +206,7 @@ def test_queue_list_groups_the_queues_by_event_and_revision_with_utc_windows(set
     assert main(["queue", "list", "--url", kowalski.url]) == 0
     out = capsys.readouterr().out
     (row,) = submissions(world.store)
-    assert f"{SID} plan {row.plan_id.removeprefix('mushrooms-')[:8]}: {K} queue(s)" in out
+    assert f"{SID} plan {row.plan_id.removeprefix('mushrooms-')[:12]}: {K} queue(s)" in out
     assert "2023-02-25T02:57" in out and "60000.123456789012" not in out
     for n in names(world, 1):
         assert n in out

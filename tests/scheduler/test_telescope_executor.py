@@ -14,34 +14,13 @@ from astropy import units as u
 from astropy.coordinates import AltAz, SkyCoord, get_body
 from astropy.time import Time, TimeDelta
 
-from mushrooms.offline import configure_astropy_offline
 from mushrooms.scheduler_core.executed import done_pairs
 from mushrooms.scheduler_core.sky.visibility import site
 from mushrooms.scheduler_core.telescope import TelescopeTiming, execute_queues, queue_set_from_payloads
 from mushrooms.scheduler_core.telescope.executor import executed_exposures
 from mushrooms.scheduler_core.telescope.rules import FIRST_WINS_RULES
+from palomar_queues import EPOCH, LST, NIGHT_S, TIMING, UP_A, UP_B, queue, run, target
 
-configure_astropy_offline()
-EPOCH = Time("2026-03-20T06:00:00", scale="utc")
-LST = float(EPOCH.sidereal_time("apparent", longitude=site().lon).deg)
-NIGHT_S = 4 * 3600.0
-TIMING = TelescopeTiming()
-
-
-def target(field_id, ra, dec, filter_id=1, exposure=30.0):
-    return {"field_id": field_id, "ra": float(ra % 360.0), "dec": float(dec), "filter_id": filter_id,
-            "exposure_time": exposure, "program_id": 2, "subprogram_name": "ToO_GW", "program_pi": "Kulkarni/x"}
-
-
-def queue(name, targets, opens_s=0.0, closes_s=NIGHT_S):
-    mjd = (EPOCH + TimeDelta([opens_s, closes_s], format="sec")).mjd
-    return {"queue_name": name, "queue_type": "list", "validity_window_mjd": [float(mjd[0]), float(mjd[1])],
-            "user": "x", "targets": targets}
-
-
-def run(queues, start_s=0.0, end_s=NIGHT_S, timing=TIMING):
-    qs = queue_set_from_payloads(queues, EPOCH)
-    return qs, execute_queues(qs, EPOCH, start_s, end_s, timing)
 
 
 def rise_s(ra, dec, max_airmass=2.5):
@@ -52,7 +31,6 @@ def rise_s(ra, dec, max_airmass=2.5):
     return float(up[0] * 10.0)
 
 
-UP_A, UP_B = target(101, LST, 33.0), target(102, LST + 3.0, 33.0)
 RISING = target(103, LST + 66.0, 0.0)
 
 

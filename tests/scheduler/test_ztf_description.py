@@ -123,7 +123,10 @@ def test_the_filters_and_the_depth_model(ztf):
     assert d.twilight_slope_mag_per_deg == ZTF_DEPTH.twilight_slope_mag_per_deg
     assert {f.name for f in dataclasses.fields(ZTF_DEPTH)} == {  # a new term would need a key
         "dark_zenith_depth_30s", "dark_sky_zenith", "extinction", "seeing_airmass_exponent",
-        "twilight_slope_mag_per_deg", "zenith_fwhm_arcsec", "reference_depth", "reference_fwhm_arcsec"}
+        "twilight_slope_mag_per_deg", "zenith_fwhm_arcsec", "reference_depth", "reference_fwhm_arcsec",
+        "sun_minus_v", "location"}  # (phase 2) the Sun's colour per filter and the site: keys of the description
+    assert dict(ZTF_DEPTH.sun_minus_v) == {b: f.sun_minus_v for b, f in ztf.filters.items()}
+    assert ZTF_DEPTH.location is None  # the P48's: site(), compared with [site] above
 
 
 def test_the_planning_defaults_and_the_queue(ztf):

@@ -12,7 +12,7 @@ queues (:meth:`~mushrooms.daemon.ops.webhook.Webhook.post`): nothing here waits 
 from __future__ import annotations
 
 import logging
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 from .webhook import Webhook
 
@@ -55,9 +55,16 @@ def announcement(message: Mapping[str, Any]) -> tuple[str, str] | None:
                 "deleted": "was deleted from the queue", "rejected": "was REJECTED",
                 "failed": "FAILED to reach the queue"}.get(str(state), f"is {state}")
         reason = f": {message['reason']}" if message.get("reason") else ""
-        return f"submission_{state}", (f"{sid}: queue {message.get('queue_name') or '-'} "
+        return f"submission_{state}", (f"{sid}: {_queues(message.get('queue_names') or message.get('queue_name'))} "
                                        f"({message.get('target', '')}) {what}{reason}.")
     return None
+
+
+def _queues(names: Any) -> str:
+    """``queue A`` or ``queues A, B, C +N more``: the names submitted (:func:`~..submission.names.queues_phrase`)."""
+    from ..submission.names import queues_phrase
+
+    return queues_phrase(names if isinstance(names, (list, tuple, str)) else None)
 
 
 class NotifyingSink:
@@ -105,8 +112,15 @@ def _details(message: Mapping[str, Any]) -> dict[str, Any]:
     out = {"type": message.get("type"), "superevent_id": message.get("superevent_id") or event.get("superevent_id"),
            "plan_id": message.get("plan_id"), "revision": message.get("revision"),
            "coverage": metrics.get("coverage"), "state": message.get("state"),
-           "queue_name": message.get("queue_name")}
+           "queue_name": message.get("queue_name"), "queue_names": _listed(message.get("queue_names"))}
     return {k: v for k, v in out.items() if v is not None}
+
+
+def _listed(names: Any) -> list[str] | None:
+    """The JSON webhook's ``queue_names`` (the webhook keeps the first 50: a bounded message), None without any."""
+    if not isinstance(names, (list, tuple)) or not names:
+        return None
+    return [str(n) for n in names]
 
 
 def open_webhook(notify: Any, environ: Mapping[str, str] | None = None) -> Webhook | None:
@@ -165,12 +179,18 @@ def job_failed(sink: Any, superevent_id: str | None, reason: str) -> None:
                   {"superevent_id": superevent_id})
 
 
-def submission_trouble(sink: Any, superevent_id: str | None, queue_name: str | None, attempts: int,
-                       error: str, action: str = "submitted") -> None:
-    """Hook: a submission's first failure to be ``submitted`` (a PUT) or ``removed`` (a DELETE): retried, said once."""
+def submission_trouble(sink: Any, superevent_id: str | None, queue_names: Sequence[str] | str | None,
+                       attempts: int, error: str, action: str = "submitted") -> None:
+    """Hook: a submission's first failure to be ``submitted`` (a PUT) or ``removed`` (a DELETE): retried, said once.
+
+    ``queue_names``: the names of the row's queues (:meth:`~..submission.rows.Submission.queue_names`), a few
+    of them in the text, the first 50 in the JSON webhook's ``queue_names``.
+    """
     hook = webhook_of(sink)
     if hook is not None:
+        names = [queue_names] if isinstance(queue_names, str) else list(queue_names or ())
         why = f"attempt {attempts}: {error}" if action == "submitted" else error
-        hook.post("submission_failing", f"{superevent_id or '-'}: queue {queue_name or '-'} could not be "
-                  f"{action} ({why}); retrying", {"superevent_id": superevent_id, "queue_name": queue_name,
-                                                  "action": action})
+        hook.post("submission_failing", f"{superevent_id or '-'}: {_queues(names)} could not be "
+                  f"{action} ({why}); retrying", {"superevent_id": superevent_id,
+                                                  "queue_name": names[0] if len(names) == 1 else None,
+                                                  "queue_names": _listed(names), "action": action})

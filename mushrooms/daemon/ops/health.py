@@ -248,6 +248,7 @@ def service_checks(service: Any) -> dict[str, Check]:
 def submission_check(state: Path, drain: Any, max_pending_s: float) -> Check:
     """The plans reach the telescope: no submission failing (back-off), none pending longer than ``max_pending_s``."""
     from ..state.views import oldest_pending_submission
+    from ..submission.names import pending_queue_names, queues_phrase
 
     def check() -> tuple[bool, str]:
         conn = connect_readonly(state, timeout_s=2.0)
@@ -255,8 +256,9 @@ def submission_check(state: Path, drain: Any, max_pending_s: float) -> Check:
             oldest = oldest_pending_submission(conn)
         finally:
             conn.close()
-        where = "no submission pending" if oldest is None else \
-            f"{oldest['queue_name']} pending for {oldest['age_s']:.0f} s: {oldest['answer'] or '-'}"
+        where = "no submission pending" if oldest is None else (
+            f"{queues_phrase(pending_queue_names(oldest))} pending for {oldest['age_s']:.0f} s: "
+            f"{oldest['answer'] or '-'}")
         if drain.retry_scheduled:
             return False, f"submissions failing, retrying with back-off; {where}"
         if oldest is not None and oldest["age_s"] > max_pending_s:

@@ -43,10 +43,17 @@ log = logging.getLogger("mushrooms.daemon.webhook")
 DETAIL_LIMIT = 200
 
 
+#: The most items of a list said in a JSON body's extra keys (``queue_names``).
+DETAIL_ITEMS = 50
+
+
 def _detail(value: Any) -> Any:
-    """A JSON body's extra value: numbers and booleans as they are, anything else as neutralised text."""
+    """A JSON body's extra value: numbers and booleans as they are, a list as a list of at most
+    :data:`DETAIL_ITEMS` neutralised texts, anything else as neutralised text."""
     if value is None or isinstance(value, (bool, int, float)):
         return value
+    if isinstance(value, (list, tuple)):
+        return [chat_safe(v, DETAIL_LIMIT) for v in value[:DETAIL_ITEMS]]
     return chat_safe(value, DETAIL_LIMIT)
 
 

@@ -217,7 +217,9 @@ def attention(conn: sqlite3.Connection, now: datetime | None = None, outbox_max_
 
 
 def oldest_pending_submission(conn: sqlite3.Connection, now: datetime | None = None) -> dict[str, Any] | None:
-    """The submission pending longest: ``{queue_name, superevent_id, age_s, attempts, answer}``, None when none.
+    """The submission pending longest: ``{queue_name, target, body, superevent_id, age_s, attempts, answer}``,
+    None when none (``queue_name``: the name base; ``body``: the stored request text, whose queues are named
+    by :func:`~mushrooms.daemon.submission.names.row_queues`).
 
     A file without a ``submissions`` table has none.  A superseded or withdrawn row that only watches for
     a queue it sent without an answer (``progress.watch``: it is not waiting to be submitted) is not one.
@@ -236,6 +238,7 @@ def oldest_pending_submission(conn: sqlite3.Connection, now: datetime | None = N
         return None
     got = dict(zip(row.keys(), tuple(row))) if hasattr(row, "keys") else {}
     age = _age_s(got.get("created_at"), now)
-    return {"queue_name": got.get("queue_name"), "superevent_id": got.get("superevent_id"),
+    return {"queue_name": got.get("queue_name"), "target": got.get("target"), "body": got.get("body"),
+            "superevent_id": got.get("superevent_id"),
             "age_s": max(0.0, age or 0.0), "attempts": got.get("attempts", 0),
             "answer": (got.get("answer") or "")[:200] or None}

@@ -6,13 +6,14 @@ document, ``_<k>`` for the k-th queue of its set.  :func:`queue_names`
 gives the names :func:`~.rules.build_body` sends (or would send) for a
 document, :func:`publish_queues` what the outbox's summary says beside a
 plan when it is published (the names, and whether they are to be sent),
-:func:`row_queues` what a ``submissions`` row holds.
+:func:`row_queues` what a ``submissions`` row holds, :func:`few_names` those
+names in a one-line message (the webhook's, ``status``'s attention lines).
 """
 
 from __future__ import annotations
 
 import json
-from typing import TYPE_CHECKING, Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 from .rules import gate, name_of, set_of
 
@@ -20,7 +21,10 @@ if TYPE_CHECKING:
     from ...scheduler_core.plan.exports import ExportConfig
     from .settings import SubmitConfig
 
-__all__ = ["queue_names", "publish_queues", "row_queues"]
+__all__ = ["queue_names", "publish_queues", "row_queues", "few_names", "FEW_NAMES", "queues_phrase", "pending_queue_names"]
+
+#: How many queue names a one-line message spells out before ``+N more``.
+FEW_NAMES = 3
 
 
 def queue_names(document: Mapping[str, Any], export: ExportConfig, target: str = "kowalski",
@@ -87,3 +91,37 @@ def row_queues(target: str, state: str, body: Any, base: str | None) -> tuple[tu
     from ...report.files import submission_words
 
     return tuple(names), submission_words(state, target)
+
+
+def few_names(names: Sequence[str] | str | None, most: int = FEW_NAMES) -> str:
+    """Queue names for a one-line message: ``A, B, C +2 more`` (the first ``most``), ``-`` for none.
+
+    Parameters
+    ----------
+    names : sequence of str, str or None
+        The names in submission order (one name alone: itself).
+    most : int
+        Names spelled out before ``+N more`` (at least 1).
+    """
+    if isinstance(names, str):
+        names = [names]
+    names = [str(n) for n in names or () if n]
+    if not names:
+        return "-"
+    most = max(1, int(most))
+    rest = len(names) - most
+    return ", ".join(names[:most]) + (f" +{rest} more" if rest > 0 else "")
+
+
+def queues_phrase(names: Sequence[str] | str | None) -> str:
+    """``queue A``, or ``queues A, B, C +N more`` (:func:`few_names`): the queues a message is about."""
+    if isinstance(names, str):
+        names = [names]
+    many = len([n for n in names or () if n]) > 1
+    return ("queues " if many else "queue ") + few_names(names)
+
+
+def pending_queue_names(oldest: Mapping[str, Any]) -> tuple[str, ...]:
+    """The queue names of :func:`~mushrooms.daemon.state.views.oldest_pending_submission`'s row (its stored body;
+    the name base when it has none)."""
+    return row_queues(str(oldest.get("target") or ""), "pending", oldest.get("body"), oldest.get("queue_name"))[0]

@@ -64,6 +64,7 @@ from .removal import DONE, RETRY, WATCH, Removal
 from .remote import Answer, KowalskiQueue, SkyPortalPlans, Unreachable
 from .rows import OPEN, PUBLISHED, STATES, Submission, status_document, submission_from_row, submissions
 from .rows import SubmissionState as State
+from .names import few_names
 from .rules import Verdict, build_body, gate, name_of, queue_name_base, same_content, send_queue, set_of
 from .rules import unix as _unix
 
@@ -198,8 +199,8 @@ class Submitter(Removal):
                     self._queue_document(c, sub)
         for sub in created:
             if sub.state == State.PENDING:
-                log.info("event=submission_pending superevent_id=%s plan_id=%s queue_name=%s target=%s",
-                         sub.superevent_id, sub.plan_id, sub.queue_name, sub.target)
+                log.info("event=submission_pending superevent_id=%s plan_id=%s queue_name=%s %s target=%s",
+                         sub.superevent_id, sub.plan_id, sub.queue_name, _queues_field(sub), sub.target)
             elif sub.state == State.SKIPPED:
                 log.info("event=submission_skipped superevent_id=%s plan_id=%s reason=%r", sub.superevent_id,
                          sub.plan_id, sub.reason)
@@ -396,9 +397,9 @@ class Submitter(Removal):
                 progress["told"] = sorted({*progress.get("told", ()), action})
             c.execute("UPDATE submissions SET http_status=?, answer=?, progress=? WHERE plan_id=?",
                       (status, error[:2000], json.dumps(progress), sub.plan_id))
-        log.warning("event=submission_retry superevent_id=%s plan_id=%s queue_name=%s state=%s attempts=%d "
-                    "http_status=%s error=%r", sub.superevent_id, sub.plan_id, sub.queue_name, sub.state,
-                    sub.attempts, status if status is not None else "-", error)
+        log.warning("event=submission_retry superevent_id=%s plan_id=%s queue_name=%s %s state=%s attempts=%d "
+                    "http_status=%s error=%r", sub.superevent_id, sub.plan_id, sub.queue_name, _queues_field(sub),
+                    sub.state, sub.attempts, status if status is not None else "-", error)
         if self.on_trouble is not None and first:  # [notify]: each trouble said once
             self.on_trouble(sub, error, action)
         return None
@@ -424,6 +425,7 @@ class Submitter(Removal):
             if state in PUBLISHED:
                 self._queue_document(c, new)
         fields = (f"superevent_id={new.superevent_id} plan_id={new.plan_id} queue_name={new.queue_name} "
+                  f"{_queues_field(new)} "
                   f"target={new.target} state={state} http_status={new.http_status if answer else '-'} "
                   f"attempts={new.attempts}")
         if state in (State.REJECTED, State.FAILED):
@@ -446,6 +448,12 @@ class Submitter(Removal):
                 self._on_result(state, self.target)
             except Exception:
                 log.exception("event=submission_callback_failed")
+
+
+def _queues_field(sub: Submission) -> str:
+    """A log line's ``queue_count=K queues='A, B, C +N more'``: the queues themselves (``queue_name`` is their base)."""
+    names = sub.queue_names()
+    return f"queue_count={len(names)} queues={few_names(names)!r}"
 
 
 def _row(c: Any, plan_id: str) -> Submission:

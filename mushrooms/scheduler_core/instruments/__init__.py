@@ -10,7 +10,10 @@ Modules: :mod:`.description` (the dataclasses), :mod:`.schema` (every key's
 type, unit and range), :mod:`.validate` (one line per problem),
 :mod:`.loader` (files to dataclasses), :mod:`.tessellation` (field grids,
 I1-I2), :mod:`.footprint` (detector polygons, I3), :mod:`.limits` (mount
-limits, I4).  Pure functions; nothing here is used by the planner yet.
+limits, I4); phase 2, the planner reading them: :mod:`.names` (a
+``telescopes`` entry, no numpy), :mod:`.defaults` (a plan's defaults),
+:mod:`.active` (the description a configuration plans, its covering
+detectors and site).  Pure functions.
 """
 
 from __future__ import annotations

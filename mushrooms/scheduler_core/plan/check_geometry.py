@@ -46,6 +46,7 @@ from astropy.coordinates import AltAz, EarthLocation, SkyCoord, get_body
 from astropy.time import Time, TimeDelta
 
 from ..config import SlewModel
+from .check_telescope import CheckScope
 from ..sky.healpix import hp
 
 __all__ = ["P48_SITE", "GRID_STEP_S", "Conditions", "conditions", "field_positions", "polygon_coverage",
@@ -96,7 +97,7 @@ def _unit(ra_deg: np.ndarray, dec_deg: np.ndarray) -> np.ndarray:
     return np.stack([np.cos(dec) * np.cos(ra), np.cos(dec) * np.sin(ra), np.sin(dec)], axis=-1)
 
 
-def _ccd_vertices(ra0_deg: float, dec0_deg: float) -> np.ndarray:
+def _ccd_vertices(ra0_deg: float, dec0_deg: float, offsets: np.ndarray | None = None) -> np.ndarray:
     """(16, 4, 3) unit vectors of the CCD corners of a field centred at (ra0, dec0).
 
     The layout's offsets (x, y) are orthographic plane coordinates: x grows
@@ -108,27 +109,33 @@ def _ccd_vertices(ra0_deg: float, dec0_deg: float) -> np.ndarray:
     west = np.array([np.sin(ra0), -np.cos(ra0), 0.0])
     north = np.cross(centre, -west)
     basis = np.stack([west, north, centre])  # rows: the local axes
-    xy = np.radians(_ccd_offsets())
+    xy = np.radians(_ccd_offsets() if offsets is None else offsets)
     local = np.concatenate([xy, np.sqrt(1.0 - (xy ** 2).sum(-1, keepdims=True))], axis=-1)
     return local @ basis
 
 
-def _covered_pixels(ra0_deg: float, dec0_deg: float, nside: int) -> np.ndarray:
-    """NESTED pixels whose centres lie inside one of the field's 16 CCDs."""
-    verts = _ccd_vertices(ra0_deg, dec0_deg)
+def _covered_pixels(ra0_deg: float, dec0_deg: float, nside: int, offsets: np.ndarray | None = None) -> np.ndarray:
+    """NESTED pixels whose centres lie inside one of the field's 16 CCDs (or quadrilaterals ``offsets``)."""
+    verts = _ccd_vertices(ra0_deg, dec0_deg, offsets)
+    if not len(verts):
+        return np.zeros(0, np.int64)
     centre = _unit(ra0_deg, dec0_deg)
     reach = float(np.arccos(np.clip(verts @ centre, -1, 1)).max()) + 1e-9
     cand = hp.query_disc(nside, centre, reach, inclusive=False, nest=True)
     pix = np.stack(hp.pix2vec(nside, cand, nest=True), axis=-1)  # (m, 3)
     normals = np.cross(verts, np.roll(verts, -1, axis=1))  # (16, 4, 3) edge planes
     inward = np.sign(np.einsum("ckj,cj->ck", normals, verts.mean(axis=1)))
-    inner = (pix @ (normals * inward[..., None]).reshape(-1, 3).T) >= 0  # (m, 64): 16 CCDs x 4 edges
+    # a described camera's detectors may share edges (LS4's gapless mosaic): a pixel centre on one is on both,
+    # whatever the rounding (ZTF's CCDs have gaps and keep the exact test)
+    edge = 0.0 if offsets is None else -1e-12
+    inner = (pix @ (normals * inward[..., None]).reshape(-1, 3).T) >= edge  # (m, 4 n): n CCDs x 4 edges
     # inside a CCD = its four edge bytes all 1: read each CCD's four bools as one uint32
-    on_ccd = inner.reshape(-1, 16, 4).view(np.uint32)[..., 0] == 0x01010101
+    on_ccd = inner.reshape(-1, len(verts), 4).view(np.uint32)[..., 0] == 0x01010101
     return cand[on_ccd.any(axis=1)]
 
 
-def polygon_coverage(field_ids: Iterable[int], prob: np.ndarray, without: Iterable[int] = ()) -> float:
+def polygon_coverage(field_ids: Iterable[int], prob: np.ndarray, without: Iterable[int] = (),
+                     scope: CheckScope | None = None) -> float:
     """Probability whose pixel centres fall inside the fields' CCD outlines.
 
     Parameters
@@ -139,22 +146,25 @@ def polygon_coverage(field_ids: Iterable[int], prob: np.ndarray, without: Iterab
         NESTED probability map.
     without : iterable of int
         Fields whose pixels do not count (a re-plan's executed pairs, P8).
+    scope : CheckScope, optional
+        Another telescope's fields and detectors (:mod:`.check_telescope`); default ZTF's.
 
     Returns
     -------
     float
     """
     nside = hp.npix2nside(prob.size)
-    hit = _polygon_mask(field_ids, nside) & ~_polygon_mask(without, nside)
+    hit = _polygon_mask(field_ids, nside, scope) & ~_polygon_mask(without, nside, scope)
     return float(prob[hit].sum())
 
 
-def _polygon_mask(field_ids: Iterable[int], nside: int) -> np.ndarray:
+def _polygon_mask(field_ids: Iterable[int], nside: int, scope: CheckScope | None = None) -> np.ndarray:
     """(npix,) True on the pixels whose centres lie inside one of the fields' CCDs."""
-    grid = field_positions()
+    grid = field_positions() if scope is None else scope.positions
+    offsets = None if scope is None else scope.offsets
     hit = np.zeros(hp.nside2npix(nside), bool)
     for fid in {int(f) for f in field_ids} & grid.keys():
-        hit[_covered_pixels(*grid[fid], nside)] = True
+        hit[_covered_pixels(*grid[fid], nside, offsets)] = True
     return hit
 
 
@@ -223,9 +233,10 @@ def slew_seconds(ra1_deg: np.ndarray, dec1_deg: np.ndarray, ra2_deg: np.ndarray,
     return np.where(t > 0, t + model.settle_s, 0.0)
 
 
-@functools.lru_cache(maxsize=1)
-def p48_site() -> EarthLocation:
-    lat, lon, height = P48_SITE
+@functools.lru_cache(maxsize=8)
+def p48_site(where: tuple[float, float, float] = P48_SITE) -> EarthLocation:
+    """The P48's location (or another site's: latitude deg, longitude deg, height m)."""
+    lat, lon, height = where
     return EarthLocation.from_geodetic(lon=lon * u.deg, lat=lat * u.deg, height=height * u.m)
 
 
@@ -239,7 +250,8 @@ class Conditions:
     moon_sep: np.ndarray  # deg
 
 
-def conditions(start: Time, t_rel: np.ndarray, ra_deg: np.ndarray, dec_deg: np.ndarray) -> Conditions:
+def conditions(start: Time, t_rel: np.ndarray, ra_deg: np.ndarray, dec_deg: np.ndarray,
+               where: tuple[float, float, float] = P48_SITE) -> Conditions:
     """Sun altitude, airmass, hour angle and Moon separation of fields at times.
 
     Parameters
@@ -250,12 +262,14 @@ def conditions(start: Time, t_rel: np.ndarray, ra_deg: np.ndarray, dec_deg: np.n
         (n,) times (s since ``start``).
     ra_deg, dec_deg : numpy.ndarray
         (n,) ICRS position looked at, at each time.
+    where : tuple of float
+        The site (latitude deg, longitude deg, height m); default the P48's.
 
     Returns
     -------
     Conditions
     """
-    loc = p48_site()
+    loc = p48_site(where)
     lo, hi = float(t_rel.min()), float(t_rel.max())
     n_grid = max(5, int(np.ceil((hi - lo) / GRID_STEP_S)) + 1)
     grid_s = np.linspace(lo, hi + 1.0, n_grid)  # +1 s: never a zero-length grid
@@ -282,7 +296,7 @@ def conditions(start: Time, t_rel: np.ndarray, ra_deg: np.ndarray, dec_deg: np.n
     which = which.ravel()
     coords = SkyCoord(ra=fields[:, 0] * u.deg, dec=fields[:, 1] * u.deg)[:, None]
     altaz = coords.transform_to(frame)  # (fields, grid)
-    alt, az, lat = altaz.alt.rad, altaz.az.rad, np.radians(P48_SITE[0])
+    alt, az, lat = altaz.alt.rad, altaz.az.rad, np.radians(where[0])
     sin_alt_grid = np.sin(alt)
     # hour angle from the same alt-az (azimuth from North through East):
     # cos(dec) sin(HA) = -cos(alt) sin(az), cos(dec) cos(HA) = cos(lat) sin(alt) - sin(lat) cos(alt) cos(az)

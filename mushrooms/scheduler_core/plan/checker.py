@@ -19,6 +19,7 @@ from astropy.time import Time
 from ..config import PlanningConfig
 from ..executed import MIN_PROCESSED_FRACTION, ExecutedExposure, done_pairs, is_done
 from .check_geometry import P48_SITE, conditions, field_positions, mount_reachable, polygon_coverage, slew_seconds
+from .check_telescope import check_scope
 from .document import Plan
 from .sequence_check import check_sequences, covered_by_record
 from ..sky.skymap import SkyMap
@@ -179,7 +180,8 @@ def _check_coverage(p: _Problems, plan: Plan, skymap: SkyMap, config: PlanningCo
     Returns (recomputed coverage, reported coverage or None).
     """
     obs = plan.observations
-    coverage = polygon_coverage((o.field_id for o in obs), skymap.prob, without=covered)
+    scope = check_scope(config)
+    coverage = polygon_coverage((o.field_id for o in obs), skymap.prob, without=covered, scope=scope)
     reported = plan.metrics.coverage if plan.metrics is not None else None
     if reported is not None and abs(float(reported) - coverage) > coverage_tolerance:
         p.add("coverage", f"reported {reported:.5f} but the footprints hold {coverage:.5f}")
@@ -189,7 +191,7 @@ def _check_coverage(p: _Problems, plan: Plan, skymap: SkyMap, config: PlanningCo
         p.add("bound", f"reported coverage {reported:.7f} above the certified upper bound {bound:.7f}")
     reported_executed = None if plan.metrics is None else plan.metrics.coverage_executed
     if reported_executed is not None:
-        held = polygon_coverage(covered, skymap.prob)
+        held = polygon_coverage(covered, skymap.prob, scope=scope)
         if abs(float(reported_executed) - held) > coverage_tolerance:
             p.add("coverage", f"reported {reported_executed:.5f} executed but the executed pairs hold {held:.5f}")
     # (P9) with an executed record: no exposure of a field done in both filters (a sequence: F7, F8)
@@ -223,7 +225,8 @@ class _Exposures:
 
 def _check_fields(p: _Problems, x: _Exposures, config: PlanningConfig) -> None:
     """Known fields where the grid puts them, allowed filters, positive exposures."""
-    grid = field_positions()
+    scope = check_scope(config)
+    grid = field_positions() if scope is None else scope.positions
     ids, ra, dec, flt, exp = x.ids, x.ra, x.dec, x.flt, x.exp
     known = np.array([int(f) in grid for f in ids])
     for i in np.flatnonzero(~known):
@@ -282,11 +285,14 @@ def _windows(x: _Exposures, t0: Time, config: PlanningConfig) -> _Windows:
     """The window rules (Sun, airmass, mount, Moon) at start, middle and end of every exposure."""
     ra, dec, start, exp = x.ra, x.dec, x.start, x.exp
     n = len(ra)
-    c = conditions(t0, np.concatenate([start, start + exp / 2, x.end]), np.tile(ra, 3), np.tile(dec, 3))
+    scope = check_scope(config)
+    c = conditions(t0, np.concatenate([start, start + exp / 2, x.end]), np.tile(ra, 3), np.tile(dec, 3),
+                   P48_SITE if scope is None else scope.site)
     sun_alt, airmass, ha, moon_sep = (a.reshape(3, n) for a in (c.sun_alt, c.airmass, c.ha, c.moon_sep))
     slack = TOL_HA_H * 15.0  # each HA limit may be missed by this much (deg)
-    mount_ok = (mount_reachable(ha, dec[None, :], config.ha_max_h) | mount_reachable(ha - slack, dec[None, :], config.ha_max_h)
-                | mount_reachable(ha + slack, dec[None, :], config.ha_max_h))
+    reach = mount_reachable if scope is None else scope.reachable
+    mount_ok = (reach(ha, dec[None, :], config.ha_max_h) | reach(ha - slack, dec[None, :], config.ha_max_h)
+                | reach(ha + slack, dec[None, :], config.ha_max_h))
     return _Windows(sun_alt, airmass, ha, moon_sep,
                     sun_bad=(sun_alt > config.sun_alt_max_deg + TOL_SUN_DEG).any(axis=0),
                     airmass_bad=(airmass > config.airmass_max + TOL_AIRMASS).any(axis=0),

@@ -37,7 +37,7 @@ from ..tables import dataclass_from_table
 if TYPE_CHECKING:  # an annotation only: reading [export] imports no numpy/astropy (the document does)
     from .document import Plan
 
-__all__ = ["ExportConfig", "queue_name_base", "plan_tag", "to_trigger_queue", "to_trigger_queues", "timed_queue_set", "timed_passes", "TimedPasses", "filter_passes", "to_skyportal", "to_skyportal_plans", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
+__all__ = ["ExportConfig", "queue_name_base", "plan_tag", "PLAN_TAG_DIGITS", "OLD_PLAN_TAG_DIGITS", "QUEUE_NAME", "to_trigger_queue", "to_trigger_queues", "timed_queue_set", "timed_passes", "TimedPasses", "filter_passes", "to_skyportal", "to_skyportal_plans", "FILTER_IDS", "PROGRAM_IDS", "SKYPORTAL_FILTERS"]
 
 #: ZTF queue filter ids.
 FILTER_IDS = {"g": 1, "r": 2, "i": 3}
@@ -100,12 +100,23 @@ class ExportConfig:
 
 #: A plan id of :func:`~.document.make_plan_id`: ``mushrooms-`` and 16 hex digits.
 _PLAN_ID = re.compile(r"mushrooms-([0-9a-f]{16})")
+#: Hex digits of the plan tag (48 bits: two of 100 plans of an event share a tag with probability
+#: ~1.8e-11, against ~1.2e-6 with the 8 digits of the versions before; docs/design/submission.md).
+PLAN_TAG_DIGITS = 12
+#: The plan tag's digits in the names of queues sent by the versions before (still recognised: :data:`QUEUE_NAME`).
+OLD_PLAN_TAG_DIGITS = 8
+#: A queue named by :func:`queue_name_base`, ``_<k>``: groups ``event`` (absent for a bare sky map), ``tag``
+#: (12 hex digits, or the 8 of a queue sent before the upgrade) and ``k``.
+QUEUE_NAME = re.compile(rf"^ToO_[^_]+_(?:(?P<event>.+)_)?(?P<tag>[0-9a-f]{{{PLAN_TAG_DIGITS}}}|"
+                        rf"[0-9a-f]{{{OLD_PLAN_TAG_DIGITS}}})_(?P<k>\d+)$")
 
 
 def plan_tag(plan_id: str) -> str:
-    """Eight hex digits naming a plan: the first 8 of its id's hash (any other id: of the id's SHA-256)."""
+    """The hex digits naming a plan (:data:`PLAN_TAG_DIGITS`): the first of its id's hash (any other id: of the
+    id's SHA-256)."""
     found = _PLAN_ID.fullmatch(plan_id)
-    return found.group(1)[:8] if found else hashlib.sha256(plan_id.encode()).hexdigest()[:8]
+    digest = found.group(1) if found else hashlib.sha256(plan_id.encode()).hexdigest()
+    return digest[:PLAN_TAG_DIGITS]
 
 
 def queue_name_base(subprogram_name: str, plan_id: str, superevent_id: str | None = None) -> str:
@@ -115,7 +126,8 @@ def queue_name_base(subprogram_name: str, plan_id: str, superevent_id: str | Non
     tag>`` for a sky map without a superevent), the plan tag being
     :func:`plan_tag` of the plan id; the set's queues are ``<base>_<k>``, k =
     1..K in submission order (:func:`to_trigger_queues`), SkyPortal's plans
-    the same names without ``ToO_`` (:func:`to_skyportal_plans`).  The name
+    the same names without ``ToO_`` (:func:`to_skyportal_plans`); :data:`QUEUE_NAME`
+    recognises them, and the names of the versions before (8-digit tags).  The name
     depends on the plan document alone, so the daemon, ``mushrooms plan
     --queue``, ``mushrooms submit`` and every summary (``.txt``, ``.html``,
     ``mushrooms status``) give one plan the same names, known before it is

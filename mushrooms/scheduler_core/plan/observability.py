@@ -77,7 +77,8 @@ class SkyReasons:
                             f"{config.airmass_max:g} only while the Sun is above {config.sun_alt_max_deg:g} deg "
                             f"(median {self.sun_separation_deg:.0f} deg from the Sun)"),
             (self.outside_limits, f"{self.outside_limits:.1%} is outside the declination "
-                                  f"[{config.dec_min_deg:g}, {config.dec_max_deg:g}] deg or P48 mount/airmass limits"),
+                                  f"[{config.dec_min_deg:g}, {config.dec_max_deg:g}] deg or "
+                                  f"{_mount(config)} mount/airmass limits"),
             (self.moon, f"{self.moon:.1%} is observable at night only within {config.moon_sep_min_deg:g} deg "
                         f"of the Moon"),
         ]
@@ -111,7 +112,7 @@ def sky_reasons(skymap: SkyMap, config: PlanningConfig, start: Time) -> SkyReaso
     masks = constraint_masks(ra, dec, times, config)  # the schedulers' own constraints, one by one
     night, away = masks.night, masks.moon_clear
     reach = masks.reachable & ((dec >= config.dec_min_deg) & (dec <= config.dec_max_deg))[:, None]
-    sun = get_body("sun", times[:1], site())
+    sun = get_body("sun", times[:1], site(config.telescope))
 
     any_time = reach.any(axis=1)
     at_night = (reach & night[None, :]).any(axis=1)
@@ -216,3 +217,9 @@ def not_observable(plan: Plan, skymap: SkyMap, config: PlanningConfig) -> NotObs
     reasons = sky_reasons(skymap, config, plan.start)
     return NotObservable(plan, reasons, config.min_coverage, tuple(reasons.sentences(config)))
 
+
+def _mount(config: PlanningConfig) -> str:
+    """Whose mount a reason names: the P48 (ZTF), else the telescope's name."""
+    from ..instruments.active import telescope_name
+
+    return "P48" if config.telescope == "ztf" else telescope_name(config.telescope).upper()

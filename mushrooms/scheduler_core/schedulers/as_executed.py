@@ -176,6 +176,8 @@ def keyed_coverage_as_executed(problem: Any, result: Any, memo: dict[tuple, floa
     known = {**(result.details or {}).get(AS_EXECUTED_MEMO, {}), **(memo or {})}.get(key)
     if known is not None:
         return key, float(known)
+    if config.telescope != "ztf":  # the executor model is ZTF's queue (ztf_too): another telescope's plan as planned
+        return key, problem.footprints.coverage({o.field_id for o in observations}, problem.prob)
     clock = getattr(problem, "clock", None)
     if clock is not None:
         clock.step("execute", len(observations))  # (A3) the executor's run, on the budget of the stage asking

@@ -30,7 +30,7 @@ from .ephemeris import ephemeris
 
 __all__ = [
     "ObservingGeometry", "observing_geometry", "Constraint", "AllOf", "SunBelow", "AirmassBelow",
-    "MountLimits", "MoonSeparation", "mount_limits_ok",
+    "MountLimits", "MoonSeparation", "mount_limits_ok", "pointing_ok",
 ]
 
 
@@ -165,12 +165,23 @@ class AirmassBelow(Constraint):
 
 @dataclass(frozen=True)
 class MountLimits(Constraint):
-    """The P48 mount can point there: |hour angle| at most ``ha_max_h`` and the keep-out zones (:func:`mount_limits_ok`)."""
+    """The mount can point there: |hour angle| at most ``ha_max_h`` and the keep-out zones.
+
+    ``keep_out`` None: the P48's (:func:`mount_limits_ok`); else a telescope's
+    open (HA, Dec) boxes ``(ha_min, ha_max, dec_min, dec_max)`` (deg, I4).
+    """
 
     ha_max_h: float
+    keep_out: tuple[tuple[float, float, float, float], ...] | None = None
 
     def __call__(self, geometry: ObservingGeometry) -> np.ndarray:
-        return mount_limits_ok(geometry.ha_deg, geometry.dec_deg[:, None], self.ha_max_h)
+        return self.allows(geometry.ha_deg, geometry.dec_deg[:, None])
+
+    def allows(self, ha_deg: np.ndarray, dec_deg: np.ndarray) -> np.ndarray:
+        """The mount reaches (HA, Dec) (deg; broadcast)."""
+        if self.keep_out is None:
+            return mount_limits_ok(ha_deg, dec_deg, self.ha_max_h)
+        return pointing_ok(ha_deg, dec_deg, self.ha_max_h, self.keep_out)
 
 
 @dataclass(frozen=True)
@@ -181,6 +192,17 @@ class MoonSeparation(Constraint):
 
     def __call__(self, geometry: ObservingGeometry) -> np.ndarray:
         return geometry.moon_sep_deg >= self.min_deg
+
+
+def pointing_ok(ha_deg: np.ndarray, dec_deg: np.ndarray, ha_max_h: float,
+                keep_out: tuple[tuple[float, float, float, float], ...]) -> np.ndarray:
+    """(I4) |HA| at most ``ha_max_h`` (h) and outside every open box ``(ha_min, ha_max, dec_min, dec_max)`` (deg)."""
+    ha = np.asarray(ha_deg, float)
+    dec = np.asarray(dec_deg, float)
+    ok = np.abs(ha) <= ha_max_h * 15.0
+    for ha_lo, ha_hi, dec_lo, dec_hi in keep_out:
+        ok = ok & ~((ha > ha_lo) & (ha < ha_hi) & (dec > dec_lo) & (dec < dec_hi))
+    return ok
 
 
 def mount_limits_ok(ha_deg: np.ndarray, dec_deg: np.ndarray, ha_max_h: float) -> np.ndarray:

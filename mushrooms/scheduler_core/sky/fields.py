@@ -33,6 +33,8 @@ __all__ = [
     "project",
     "deproject",
     "FOOTPRINT_RADIUS_DEG",
+    "Camera",
+    "telescope_grid",
 ]
 
 log = logging.getLogger(__name__)
@@ -90,6 +92,12 @@ def load_ztf_fields() -> FieldGrid:
     rows = np.loadtxt(text.splitlines(), comments="%", usecols=(0, 1, 2))
     ids = rows[:, 0].astype(np.int64)
     return FieldGrid(ids=ids, ra=rows[:, 1].copy(), dec=rows[:, 2].copy())
+
+
+def telescope_grid(telescope: object) -> FieldGrid:
+    """The field grid of a :class:`~..instruments.TelescopeDescription` (``[grid]``: a file or built, I1-I2)."""
+    centres = telescope.grid  # type: ignore[attr-defined]
+    return FieldGrid(ids=centres.ids, ra=centres.ra, dec=centres.dec)
 
 
 @functools.lru_cache(maxsize=1)
@@ -153,34 +161,63 @@ def _inside_any_ccd(x: np.ndarray, y: np.ndarray, corners: np.ndarray) -> np.nda
     return np.all(cross * orient >= 0, axis=1)
 
 
-def _compute_footprints(grid: FieldGrid, nside: int) -> Footprints:
-    corners = ccd_corners()
+def _compute_footprints(grid: FieldGrid, nside: int, camera: "Camera | None" = None) -> Footprints:
+    if camera is None:  # ZTF: the 16 equal CCDs, each point tested against its nearest CCD only
+        corners = ccd_corners()
+        radius = np.radians(FOOTPRINT_RADIUS_DEG)
+        inside = lambda x, y: _inside_any_ccd(x, y, corners)  # noqa: E731
+    else:  # any camera: every detector polygon, even-odd rule (I3), its edges included
+        from ..instruments.footprint import inside_polygons
+
+        radius = np.radians(camera.radius_deg)
+        # a pixel centre on an edge two detectors share (a gapless mosaic's, often on a field's meridian) is on
+        # both: each polygon grown about its centroid by 1e-9 of its size, as the checker's closed edges
+        grown = tuple(p.mean(axis=0) + (p - p.mean(axis=0)) * (1.0 + 1e-9) for p in camera.polygons)
+        inside = lambda x, y: inside_polygons(x, y, grown)  # noqa: E731
     rows: list[np.ndarray] = []
-    radius = np.radians(FOOTPRINT_RADIUS_DEG)
     vecs = hp.ang2vec(grid.ra, grid.dec, lonlat=True)
     for k in range(len(grid)):  # one vectorised step per field, never per pixel
         cand = hp.query_disc(nside, vecs[k], radius, inclusive=False, nest=True)
         pra, pdec = hp.pix2ang(nside, cand, nest=True, lonlat=True)
         x, y = project(pra, pdec, grid.ra[k], grid.dec[k])
-        rows.append(np.sort(cand[_inside_any_ccd(x, y, corners)]).astype(np.int64))
+        rows.append(np.sort(cand[inside(x, y)]).astype(np.int64))
     lengths = np.fromiter((r.size for r in rows), dtype=np.int64, count=len(rows))
     indptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
     indices = np.concatenate(rows) if rows else np.zeros(0, np.int64)
     return Footprints(nside=nside, field_ids=grid.ids.copy(), indptr=indptr, indices=indices)
 
 
-def _grid_key(grid: FieldGrid, nside: int) -> str:
+@dataclass(frozen=True, eq=False)
+class Camera:
+    """A camera's detectors about the pointing (deg, the layout's plane) for :func:`field_footprints`.
+
+    Attributes
+    ----------
+    polygons : tuple of numpy.ndarray
+        The detectors that make a field covered, (k, 2) corners each
+        (:func:`~..instruments.active.covering_polygons`).
+    radius_deg : float
+        A circle about the pointing holding every detector (deg).
+    """
+
+    polygons: tuple[np.ndarray, ...]
+    radius_deg: float
+
+
+def _grid_key(grid: FieldGrid, nside: int, camera: Camera | None = None) -> str:
     h = hashlib.sha256()
-    for arr in (grid.ids, grid.ra, grid.dec, ccd_corners()):
+    shape = (ccd_corners(),) if camera is None else camera.polygons
+    for arr in (grid.ids, grid.ra, grid.dec, *shape):
         h.update(np.ascontiguousarray(arr).tobytes())
-    h.update(f"{nside}-{_CACHE_VERSION}-{FOOTPRINT_RADIUS_DEG}".encode())
+    radius = FOOTPRINT_RADIUS_DEG if camera is None else f"{camera.radius_deg!r}-{len(camera.polygons)}-closed-polygons"
+    h.update(f"{nside}-{_CACHE_VERSION}-{radius}".encode())
     return h.hexdigest()[:16]
 
 
 _memory_cache: dict[str, Footprints] = {}
 
 
-def field_footprints(grid: FieldGrid | None = None, nside: int = 256) -> Footprints:
+def field_footprints(grid: FieldGrid | None = None, nside: int = 256, camera: Camera | None = None) -> Footprints:
     """Pixels (NESTED) whose centres fall on a CCD of each field.
 
     Computed once per grid and resolution, then kept in memory and in a
@@ -193,6 +230,8 @@ def field_footprints(grid: FieldGrid | None = None, nside: int = 256) -> Footpri
         Fields (default: the whole ZTF grid).
     nside : int
         HEALPix resolution.
+    camera : Camera, optional
+        Another telescope's detectors (default: ZTF's 16 CCDs).
 
     Returns
     -------
@@ -200,7 +239,7 @@ def field_footprints(grid: FieldGrid | None = None, nside: int = 256) -> Footpri
         Rows in the order of ``grid.ids``.
     """
     grid = grid if grid is not None else load_ztf_fields()
-    key = _grid_key(grid, nside)
+    key = _grid_key(grid, nside, camera)
     if key in _memory_cache:
         return _memory_cache[key]
     path = cache_dir() / f"footprints-{key}.npz"
@@ -212,7 +251,7 @@ def field_footprints(grid: FieldGrid | None = None, nside: int = 256) -> Footpri
         except Exception as exc:  # a damaged cache is rebuilt
             log.warning("ignoring unreadable footprint cache %s: %s", path, exc)
     if fp is None:
-        fp = _compute_footprints(grid, nside)
+        fp = _compute_footprints(grid, nside, camera)
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")

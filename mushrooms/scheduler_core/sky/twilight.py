@@ -63,7 +63,7 @@ def night_windows(start: Time, config: PlanningConfig, nights: int) -> tuple[tup
         if offsets.size == 0:
             continue
         times = GRID_ANCHOR + TimeDelta(offsets, format="sec")
-        dark = np.flatnonzero(ephemeris(times, site()).sun_alt_deg <= config.sun_alt_max_deg)
+        dark = np.flatnonzero(ephemeris(times, site(config.telescope)).sun_alt_deg <= config.sun_alt_max_deg)
         if dark.size == 0:
             continue
         # (N1) the night: first to last grid time with the Sun below the limit, never before the start

@@ -39,7 +39,7 @@ from .constraints import (AirmassBelow, Constraint, MoonSeparation, MountLimits,
 from .ephemeris import GRID_ANCHOR
 from .windows import Windows
 
-__all__ = ["site", "observability_windows", "observing_conditions", "windows_from_mask", "ztf_constraints", "PALOMAR",
+__all__ = ["site", "observability_windows", "observing_conditions", "windows_from_mask", "ztf_constraints", "keep_out_boxes", "PALOMAR",
            "GRID_ANCHOR", "NIGHT_S", "ConstraintMasks", "constraint_masks", "night_steps", "night_epoch", "grid_times", "windows_on_grid"]
 
 # GRID_ANCHOR (re-exported from .ephemeris): local mean noon at Palomar (lon -116.86 deg) on 2000-01-01; grid
@@ -52,10 +52,16 @@ NIGHT_S = 86400.0
 PALOMAR = (33.35728, -116.85986, 1707.0)
 
 
-@functools.lru_cache(maxsize=1)
-def site() -> EarthLocation:
-    """The P48 telescope's location."""
-    lat, lon, height = PALOMAR
+@functools.lru_cache(maxsize=8)
+def site(telescope: str = "ztf") -> EarthLocation:
+    """The location of the P48 (``"ztf"``, the default) or of the telescope a ``telescopes`` entry names."""
+    if telescope == "ztf":
+        lat, lon, height = PALOMAR
+    else:
+        from ..instruments.active import site_tuple
+        from ..instruments.loader import load_description
+
+        lat, lon, height = site_tuple(load_description(telescope))
     return EarthLocation.from_geodetic(lon=lon * u.deg, lat=lat * u.deg, height=height * u.m)
 
 
@@ -119,7 +125,7 @@ def constraint_masks(
     -------
     ConstraintMasks
     """
-    geometry = observing_geometry(ra_deg, dec_deg, times, site(), apparent_epoch)
+    geometry = observing_geometry(ra_deg, dec_deg, times, site(config.telescope), apparent_epoch)
     night, reachable, moon_clear = ztf_constraints(config)
     return ConstraintMasks(night=night(geometry)[0], reachable=reachable(geometry), moon_clear=moon_clear(geometry))
 
@@ -132,8 +138,18 @@ def ztf_constraints(config: PlanningConfig) -> tuple[Constraint, Constraint, Con
     keep-out zones); Moon clear: at least ``moon_sep_min_deg`` from the Moon.
     """
     return (SunBelow(config.sun_alt_max_deg),
-            AirmassBelow(config.airmass_max) & MountLimits(config.ha_max_h),
+            AirmassBelow(config.airmass_max) & MountLimits(config.ha_max_h, keep_out_boxes(config)),
             MoonSeparation(config.moon_sep_min_deg))
+
+
+def keep_out_boxes(config: PlanningConfig) -> tuple[tuple[float, float, float, float], ...] | None:
+    """The mount's keep-out boxes (I4) of the telescope ``config`` plans; None for the P48 (its own rules)."""
+    if config.telescope == "ztf":
+        return None
+    from ..instruments.loader import load_description
+
+    return tuple((b.ha_min_deg, b.ha_max_deg, b.dec_min_deg, b.dec_max_deg)
+                 for b in load_description(config.telescope).limits.keep_out)
 
 
 def observing_conditions(

@@ -63,12 +63,13 @@ against every published figure, the GW campaigns included;
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Any, Mapping
 
 import numpy as np
 from astropy import units as u
-from astropy.coordinates import TETE, SkyCoord
+from astropy.coordinates import TETE, EarthLocation, SkyCoord
 from astropy.time import Time
 
 from ..sky.ephemeris import ephemeris
@@ -79,6 +80,7 @@ __all__ = [
     "SkyConditions",
     "DepthModel",
     "ZTF_DEPTH",
+    "depth_model",
     "sky_conditions",
     "dark_zenith",
     "sky_brightness",
@@ -129,8 +131,9 @@ def dark_zenith(shape: tuple[int, ...] = ()) -> SkyConditions:
     )
 
 
-def sky_conditions(ra_deg: np.ndarray, dec_deg: np.ndarray, times: Time) -> SkyConditions:
-    """Airmass, Moon and Sun for pointings seen from Palomar.
+def sky_conditions(ra_deg: np.ndarray, dec_deg: np.ndarray, times: Time,
+                   location: tuple[float, float, float] | None = None) -> SkyConditions:
+    """Airmass, Moon and Sun for pointings seen from Palomar (or ``location``).
 
     Parameters
     ----------
@@ -139,6 +142,9 @@ def sky_conditions(ra_deg: np.ndarray, dec_deg: np.ndarray, times: Time) -> SkyC
     times : astropy.time.Time
         Times of the exposures; broadcasts against ``ra_deg`` (e.g. fields
         ``(n, 1)`` against slot times ``(m,)`` gives ``(n, m)`` conditions).
+    location : tuple of float, optional
+        (latitude deg, longitude deg, height m) of another site (a
+        :class:`DepthModel`'s ``location``); default the P48's.
 
     Returns
     -------
@@ -152,7 +158,7 @@ def sky_conditions(ra_deg: np.ndarray, dec_deg: np.ndarray, times: Time) -> SkyC
     """
     ra = np.asarray(ra_deg, float)
     dec = np.asarray(dec_deg, float)
-    loc = site()
+    loc = site() if location is None else _location(location)
     sky = ephemeris(times, loc)  # (E1-E3): the Sun, the Moon and the sidereal time, as the constraints read them
     jd = np.asarray(times.utc.jd, float)
     mid = Time(0.5 * (float(jd.min()) + float(jd.max())), format="jd", scale="utc")
@@ -173,6 +179,12 @@ def sky_conditions(ra_deg: np.ndarray, dec_deg: np.ndarray, times: Time) -> SkyC
                          moon_sep_deg=np.broadcast_to(sep, shape),
                          moon_phase_deg=np.broadcast_to(sky.moon_phase_deg, shape),
                          sun_alt_deg=np.broadcast_to(sky.sun_alt_deg, shape))
+
+
+@functools.lru_cache(maxsize=8)
+def _location(where: tuple[float, float, float]) -> EarthLocation:
+    lat, lon, height = where
+    return EarthLocation.from_geodetic(lon=lon * u.deg, lat=lat * u.deg, height=height * u.m)
 
 
 @dataclass(frozen=True)
@@ -197,6 +209,11 @@ class DepthModel:
         ``m_ref,b``: 5-sigma depth (AB) of ZTF's reference images, (D2).
     reference_fwhm_arcsec : mapping
         ``FWHM_ref,b``: seeing of the reference images (arcsec), (D2).
+    sun_minus_v : mapping
+        Colour of sunlight, band minus V (mag): the colour of moonlight.
+    location : tuple of float or None
+        (latitude deg, longitude deg, height m) of the telescope whose depth
+        this is (:func:`sky_conditions`); None: the P48's.
     """
 
     dark_zenith_depth_30s: Mapping[str, float] = field(default_factory=lambda: {"g": 21.52, "r": 21.25, "i": 20.43})
@@ -207,6 +224,8 @@ class DepthModel:
     zenith_fwhm_arcsec: Mapping[str, float] = field(default_factory=lambda: {"g": 1.77, "r": 1.67, "i": 1.61})
     reference_depth: Mapping[str, float] = field(default_factory=lambda: {"g": 22.82, "r": 22.69, "i": 22.20})
     reference_fwhm_arcsec: Mapping[str, float] = field(default_factory=lambda: {"g": 2.39, "r": 2.27, "i": 2.23})
+    sun_minus_v: Mapping[str, float] = field(default_factory=lambda: dict(_SUN_MINUS_V))
+    location: tuple[float, float, float] | None = None
 
     def _per_band(self, table: Mapping[str, float], bands: np.ndarray) -> np.ndarray:
         missing = sorted(set(bands.ravel().tolist()) - set(table))
@@ -267,7 +286,7 @@ def sky_brightness(bands: np.ndarray, cond: SkyConditions, model: DepthModel = Z
     bands = np.asarray(bands, dtype=str)
     k = model._per_band(model.extinction, bands)
     mu_dark = model._per_band(model.dark_sky_zenith, bands)
-    colour = model._per_band(_SUN_MINUS_V, bands)
+    colour = model._per_band(model.sun_minus_v, bands)
     x = np.asarray(cond.airmass, float)
     xks = _ks_airmass(x)
     dark = 10.0 ** (-0.4 * mu_dark) * 10.0 ** (-0.4 * k * (xks - 1.0)) * xks
@@ -336,3 +355,30 @@ def limiting_magnitude(bands: np.ndarray, exposure_s: np.ndarray, cond: SkyCondi
     with np.errstate(over="ignore"):
         m5 = -1.25 * np.log10(10.0 ** (-0.8 * m_sci_d) + 10.0 ** (-0.8 * m_ref_d))
     return np.where(np.isfinite(m_sci), m5, -np.inf)
+
+
+def depth_model(config: Any) -> "DepthModel":
+    """(D1)-(D2) for a telescope: ``C_b = zenith_depth - 1.25 log10(reference_exposure_s / 30 s)`` (section 1).
+
+    A filter without ``reference_depth`` gets a reference far deeper than any
+    exposure (99 mag at its zenith seeing): D2 then adds nothing.
+    """
+    from ..instruments.active import description_of, site_tuple
+
+    if config.telescope == "ztf":  # the calibrated model; ztf.toml's terms equal it (tested)
+        return ZTF_DEPTH
+    telescope = description_of(config)
+    shift = 1.25 * float(np.log10(telescope.depth.reference_exposure_s / 30.0))
+    f = telescope.filters
+    return DepthModel(
+        dark_zenith_depth_30s={b: t.zenith_depth - shift for b, t in f.items()},
+        dark_sky_zenith={b: t.sky_zenith for b, t in f.items()},
+        extinction={b: t.extinction for b, t in f.items()},
+        seeing_airmass_exponent=telescope.depth.seeing_airmass_exponent,
+        twilight_slope_mag_per_deg=telescope.depth.twilight_slope_mag_per_deg,
+        zenith_fwhm_arcsec={b: t.zenith_fwhm_arcsec for b, t in f.items()},
+        reference_depth={b: 99.0 if t.reference_depth is None else t.reference_depth for b, t in f.items()},
+        reference_fwhm_arcsec={b: t.zenith_fwhm_arcsec if t.reference_fwhm_arcsec is None
+                               else t.reference_fwhm_arcsec for b, t in f.items()},
+        sun_minus_v={b: t.sun_minus_v for b, t in f.items()},
+        location=site_tuple(telescope))

@@ -99,7 +99,8 @@ def _mid_exposures(observations: Sequence[Observation], start: Time) -> tuple[np
 def _depths(observations: Sequence[Observation], expo: np.ndarray, filters: np.ndarray, times: Time,
             depth: DepthModel) -> np.ndarray:
     """(D2) limiting magnitudes at the given mid-exposure times."""
-    cond = sky_conditions(np.array([o.ra for o in observations]), np.array([o.dec for o in observations]), times)
+    cond = sky_conditions(np.array([o.ra for o in observations]), np.array([o.dec for o in observations]), times,
+                          depth.location)
     return limiting_magnitude(filters, expo, cond, depth)
 
 

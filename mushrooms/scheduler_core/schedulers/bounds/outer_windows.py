@@ -34,8 +34,8 @@ from astropy.time import TimeDelta
 
 from ...plan.checker import TOL_AIRMASS, TOL_HA_H, TOL_MOON_DEG, TOL_SUN_DEG
 from ...problem import PlanningProblem
-from ...sky.constraints import mount_limits_ok, observing_geometry
-from ...sky.visibility import site
+from ...sky.constraints import MountLimits, observing_geometry
+from ...sky.visibility import keep_out_boxes, site
 from ...sky.windows import Windows
 
 __all__ = ["refined_windows", "refined_problem", "N_SUB", "LOOSEN"]
@@ -51,12 +51,13 @@ def _ok(problem: PlanningProblem, rows: np.ndarray, offsets: np.ndarray, loosen:
     """(n_rows, n_times) bool: every constraint holds, each loosened by ``loosen`` checker tolerances."""
     cfg = problem.config
     times = problem.start + TimeDelta(offsets, format="sec")
-    g = observing_geometry(problem.ra[rows], problem.dec[rows], times, site())
+    g = observing_geometry(problem.ra[rows], problem.dec[rows], times, site(cfg.telescope))
     slack = loosen * TOL_HA_H * 15.0
     dec = g.dec_deg[:, None]
-    mount = mount_limits_ok(g.ha_deg, dec, cfg.ha_max_h)
+    limits = MountLimits(cfg.ha_max_h, keep_out_boxes(cfg))
+    mount = limits.allows(g.ha_deg, dec)
     if slack > 0:
-        mount = mount | mount_limits_ok(g.ha_deg - slack, dec, cfg.ha_max_h) | mount_limits_ok(g.ha_deg + slack, dec, cfg.ha_max_h)
+        mount = mount | limits.allows(g.ha_deg - slack, dec) | limits.allows(g.ha_deg + slack, dec)
     return ((g.sun_alt_deg <= cfg.sun_alt_max_deg + loosen * TOL_SUN_DEG)[None, :]
             & (g.airmass <= cfg.airmass_max + loosen * TOL_AIRMASS)
             & mount & (g.moon_sep_deg >= cfg.moon_sep_min_deg - loosen * TOL_MOON_DEG))

@@ -65,7 +65,7 @@ def pair_reach(problem: PlanningProblem, inst: SlotInstance, kilonova: Kilonova,
     best = np.zeros(inst.n_pairs)
     for band, t in zip(cfg.filters, (inst.grid.t1, inst.grid.t2)):
         mid = t[inst.pair_slot] + 0.5 * e
-        cond = sky_conditions(ra, dec, problem.start + TimeDelta(mid, format="sec"))
+        cond = sky_conditions(ra, dec, problem.start + TimeDelta(mid, format="sec"), depth.location)
         m5 = limiting_magnitude(np.full(inst.n_pairs, band), e, cond, depth)
         absmag = kilonova.absolute_mag(band, offset_d + mid / 86400.0)
         best = np.maximum(best, reach_mpc(m5, absmag))
