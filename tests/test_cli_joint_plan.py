@@ -62,7 +62,12 @@ def test_a_joint_document_claiming_more_than_its_parts_fails_the_check(tmp_path)
     assert "observations: not the parts' observations" in r.stdout
 
 
-def test_a_joint_plan_refuses_what_it_does_not_take_in_one_line(tmp_path):
-    r = mushrooms("plan", str(NORTH), "--telescopes", "ztf,ls4", "--deadline", "30", "-o", str(tmp_path / "p.json"))
-    assert r.returncode == 2 and "--deadline" in r.stderr and "Traceback" not in r.stderr
+def test_a_joint_plan_of_several_nights_is_refused_in_one_line(tmp_path):
+    """A joint plan plans one night: ``[scheduler] nights = 2`` is one line and exit 2, before any work."""
+    config = tmp_path / "config.toml"
+    config.write_text('[scheduler]\nnside = 64\nnights = 2\nsolver = "greedy"\n')
+    r = mushrooms("plan", str(NORTH), "--telescopes", "ztf,ls4", "--config", str(config), "-o", str(tmp_path / "p.json"))
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    lines = [line for line in r.stderr.splitlines() if line.strip() and " INFO " not in line]  # the log aside
+    assert len(lines) == 1 and "nights" in lines[0] and "Traceback" not in r.stderr
     assert not (tmp_path / "p.json").exists()
