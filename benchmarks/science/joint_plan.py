@@ -56,6 +56,8 @@ WIDE = [
     SHARED / "public/S230627c_Bilby.multiorder.fits",
 ]
 OUT = ROOT / "benchmarks/results/science/joint_plan"
+#: A southern map (ZTF reaches 20 % of its probability, LS4 55 %): with described telescopes.
+SOUTH = SHARED / "simulated/bns_o3/18.fits"
 
 
 def _grid(primary: bool) -> FieldGrid:
@@ -78,15 +80,32 @@ def _row(name: str, problems, results) -> dict:
             "both": round(m.more_than_once, 4), "fields": [len({o.field_id for o in r.observations}) for r in results]}
 
 
-def one_map(path: Path, nside: int, limit: float, exposures: tuple[float, float] = (300.0, 240.0)) -> dict | None:
-    """Every plan of one map, as one JSON record."""
+def _described(skymap, start, nside: int, limit: float, names: tuple[str, str]) -> list:
+    """The problems of two described telescopes (``--telescopes ztf,ls4``), each with its description's defaults."""
+    from mushrooms.scheduler_core.instruments import load_description
+
+    table = {"nside": nside, "time_limit_s": limit, "detection_time_limit_s": min(0.5, limit / 2),
+             "bound_time_limit_s": 2.0, "deterministic": True}
+    out = []
+    for name in names:
+        telescope = load_description(name)
+        out.append(prepare_problem(skymap, PlanningConfig.for_telescope(telescope, table), start, telescope=telescope))
+    return out
+
+
+def one_map(path: Path, nside: int, limit: float, exposures: tuple[float, float] = (300.0, 240.0),
+            telescopes: tuple[str, str] | None = None) -> dict | None:
+    """Every plan of one map, as one JSON record (``telescopes``: two described telescopes instead of the grids)."""
     skymap = read_skymap(path, nside=nside)
     start = skymap.event_time
     if start is None:
         return None
-    ca, cb = _configs(nside, limit, exposures)
-    problems = [prepare_problem(skymap, ca, start, grid=_grid(True)),
-                prepare_problem(skymap, cb, start, grid=_grid(False))]
+    if telescopes is not None:
+        problems = _described(skymap, start, nside, limit, telescopes)
+    else:
+        ca, cb = _configs(nside, limit, exposures)
+        problems = [prepare_problem(skymap, ca, start, grid=_grid(True)),
+                    prepare_problem(skymap, cb, start, grid=_grid(False))]
     t0 = time.perf_counter()
     joint = joint_schedule(problems, names=("A", "B"))
     wall_joint = time.perf_counter() - t0
@@ -135,21 +154,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("out", nargs="?", default=str(OUT))
     ap.add_argument("--nside", type=int, default=128)
     ap.add_argument("--limit", type=float, default=2.0, help="each telescope's time_limit_s (work s)")
-    ap.add_argument("--maps", type=int, default=len(MAPS))
+    ap.add_argument("--maps", type=int, default=None, help="the first N maps only")
     ap.add_argument("--wide", action="store_true", help="the wide maps instead (results in OUTDIR/wide)")
+    ap.add_argument("--telescopes", default=None, help="two described telescopes, e.g. ztf,ls4 (results in "
+                    "OUTDIR/<a>_<b>): A and B are those, each with its description's defaults")
     ap.add_argument("--exposures", default="300,240", help="A's and B's exposure (s); other than the default: "
                     "results in OUTDIR/exposures_A_B")
     args = ap.parse_args(argv)
     exposures = tuple(float(x) for x in args.exposures.split(","))
     sub = "" if exposures == (300.0, 240.0) else f"exposures_{exposures[0]:g}_{exposures[1]:g}"
+    telescopes = tuple(args.telescopes.split(",")) if args.telescopes else None
+    if telescopes:
+        sub = "_".join(telescopes)
     out = Path(args.out) / ("wide" if args.wide else "") / sub
-    maps = WIDE if args.wide else MAPS
+    maps = (WIDE if args.wide else MAPS) + ([SOUTH] if telescopes and not args.wide else [])
     out.mkdir(parents=True, exist_ok=True)
     load0 = os.getloadavg()
     records = []
     with open(out / "joint_plan.jsonl", "w") as f:
-        for path in maps[:args.maps]:
-            rec = one_map(path, args.nside, args.limit, exposures)
+        for path in maps[:args.maps] if args.maps else maps:
+            rec = one_map(path, args.nside, args.limit, exposures, telescopes)
             if rec is None:
                 print(path.name, "skipped: no event time in the map", flush=True)
                 continue
@@ -159,7 +183,9 @@ def main(argv: list[str] | None = None) -> int:
             print(rec["map"], [(r["plan"], r["union"], r["both"]) for r in rec["rows"]], "bound", rec["bound"],
                   rec["method"], f"{rec['wall_joint_s']} s", flush=True)
     load1 = os.getloadavg()
-    head = (f"nside {args.nside}, exposures A {exposures[0]:g} s, B {exposures[1]:g} s, "
+    what = (f"A = {telescopes[0]}, B = {telescopes[1]} (their descriptions' defaults)" if telescopes
+            else f"exposures A {exposures[0]:g} s, B {exposures[1]:g} s")
+    head = (f"nside {args.nside}, {what}, "
             f"time_limit_s {args.limit} work s per telescope (joint budget 3 x the sum), "
             f"deterministic budget; load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end\n\n")
     (out / "joint_plan.md").write_text(head + table(records))
