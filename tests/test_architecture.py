@@ -334,7 +334,7 @@ LIBRARY_GROUPS = {
     # the planning problem, a scheduler's result, and which of two results is preferred
     **dict.fromkeys(("problem", "preference"), "problem"),
     # sky map in, checked plan out: prepare, run the schedulers, re-plan, the nights, the anytime revisions
-    **dict.fromkeys(("planner", "prepare", "replan", "nights", "anytime", "clock"), "planning"),
+    **dict.fromkeys(("planner", "prepare", "replan", "nights", "anytime", "clock", "joint_plans"), "planning"),
 }
 SCHEDULERS = "mushrooms.scheduler_core.schedulers"
 #: The top-level modules of ``schedulers``: what every method or the planner shares.
@@ -361,10 +361,12 @@ def test_the_librarys_rooms_form_a_stack(graph):
 
 def test_the_schedulers_methods_form_a_stack(graph):
     # one room per method of docs/design/milp.md, the MILP adapter at the bottom, the portfolio on top
+    # (and the joint plan of several telescopes, docs/design/telescopes.md section 5, above it)
     rooms = room_graph(graph, SCHEDULERS, SCHEDULER_GROUPS)
-    assert {"milp", "greedy", "blocks", "slots", "bounds", "detection", "portfolio", "shared"} == set(rooms)
+    assert {"milp", "greedy", "blocks", "slots", "bounds", "detection", "portfolio", "shared", "joint"} == set(rooms)
     assert import_cycles(rooms) == []
     assert rooms["milp"] == set()  # the adapter knows no method
+    assert all("joint" not in used for used in rooms.values())  # no single-telescope method uses the joint plan
 
 
 def test_room_scan_groups_top_level_modules_into_rooms():

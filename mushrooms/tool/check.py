@@ -43,26 +43,36 @@ def run(args: argparse.Namespace) -> int:
     from .config import load_config
     from ..inputs import regular_file
     from ..offline import configure_astropy_offline
-    from ..scheduler_core import Plan, PlanningConfig, check_plan, read_skymap
-    from ..scheduler_core.errors import InputError
 
     configure_astropy_offline()
     config = load_config(args.config)
     doc = read_json_object(args.plan)
     map_path = regular_file(args.skymap, "sky map")  # checked before any work
+    if doc.get("type") == "joint_plan":  # (issue 53 item 2) every telescope's part, then the joint metrics
+        from .check_joint import check_joint
+
+        return check_joint(args, doc, map_path, lambda part, label: _check_one(args, config, part, map_path, label))
+    return _check_one(args, config, doc, map_path, args.plan)
+
+
+def _check_one(args: argparse.Namespace, config, doc: dict, map_path, label: str) -> int:
+    """Check one plan document (``label`` names it in the lines printed); 0 when it passes, else 1."""
+    from ..scheduler_core import Plan, PlanningConfig, check_plan, read_skymap
+    from ..scheduler_core.errors import InputError
+
     if doc.get("type") == "not_observable":
-        print(f"{args.plan}: a not_observable answer, no plan to check: {'; '.join(doc.get('reasons', []))}")
+        print(f"{label}: a not_observable answer, no plan to check: {'; '.join(doc.get('reasons', []))}")
         return 0
     try:
         plan = Plan.from_document(doc)
     except ValueError as exc:
-        raise InputError(f"{args.plan}: {exc}") from None
+        raise InputError(f"{label}: {exc}") from None
     planning = config.scheduler
     if isinstance(doc.get("config"), dict) and not getattr(args, "config_explicit", False):
         try:
             planning = PlanningConfig.from_mapping(doc["config"])
         except (TypeError, ValueError) as exc:
-            raise InputError(f"{args.plan}: embedded config: {exc}") from None
+            raise InputError(f"{label}: embedded config: {exc}") from None
         log.info("checking with the plan's embedded configuration (give --config to override)")
     elif isinstance(doc.get("config"), dict):
         log.info("checking with %s, not the plan's embedded configuration", args.config)
@@ -73,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
 
         executed = read_executed(args.executed, plan.start)
     if plan.metrics.coverage_executed and not executed:
-        log.warning("%s is a re-plan (metrics.coverage_executed is set): give its --executed record", args.plan)
+        log.warning("%s is a re-plan (metrics.coverage_executed is set): give its --executed record", label)
     report = check_plan(plan, skymap, planning, executed=executed,
                         min_processed_fraction=getattr(args, "min_processed_fraction", 0.5))
     recorded = plan.event.skymap_sha256
@@ -81,11 +91,11 @@ def run(args: argparse.Namespace) -> int:
         f"the plan was made for another sky map: sha256 {recorded[:16]}... recorded, {args.skymap} is "
         f"{skymap.sha256[:16]}...; its coverage is not this map's"]
     if report.ok and not other_map:
-        print(f"{args.plan}: OK: {len(plan.observations)} exposures, coverage {report.coverage:.4f} "
+        print(f"{label}: OK: {len(plan.observations)} exposures, coverage {report.coverage:.4f} "
               f"(reported {report.reported_coverage})")
         return 0
     problems = other_map + list(report.problems)
-    print(f"{args.plan}: FAILED with {len(other_map) + sum(report.counts.values())} problem(s):")
+    print(f"{label}: FAILED with {len(other_map) + sum(report.counts.values())} problem(s):")
     for line in problems:
         print(f"  {line}")
     return 1

@@ -74,8 +74,9 @@ def parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     p.add_argument("--solver", choices=SOLVER_CHOICES, metavar=SOLVER_METAVAR, help=SOLVER_HELP)
     p.add_argument("--telescopes", metavar="NAMES",
                    help="telescopes to plan, comma-separated: shipped names (`mushrooms telescopes`) or description "
-                        "files (default [scheduler] telescopes, ztf); each is planned alone, the first into -o FILE, "
-                        "each other into FILE.<name>.json")
+                        "files (default [scheduler] telescopes, ztf); two or more are planned together: each "
+                        "one's part as if alone, the first into -o FILE, each other into FILE.<name>.json, and the "
+                        "joint plan (union, shares, certified bound) into FILE.joint.json")
     p.add_argument("-o", "--output", metavar="FILE", default="plan.json",
                    help="plan document to write (default plan.json); its summary goes beside it as FILE.txt and "
                         "FILE.html (the page; the picture in it with --plot)")
@@ -130,13 +131,21 @@ def run(args: argparse.Namespace) -> int:
     from .plan_telescopes import plan_each, wanted_telescopes
 
     names = wanted_telescopes(args, config)
-    if names is not None:  # (issue 53, phase 2) each telescope alone, one document each
+    if names is not None and len(names) > 1:  # (issue 53 item 2) planned together: each one's document and the joint
+        from .plan_joint import plan_joint
+
+        start = parse_start(args.start) if args.start is not None else None
+        return plan_joint(args, config, names, start, lambda a, c, made: _plan(a, c, t0, t_imports, made))
+    if names is not None:  # (issue 53, phase 2) one telescope, by name or description
         return plan_each(args, config, names, lambda a, c: _plan(a, c, t0, t_imports))
     return _plan(args, config, t0, t_imports)
 
 
-def _plan(args: argparse.Namespace, config: Any, t0: float, t_imports: float) -> int:
-    """Plan with ``config`` (one telescope's), check, write; :func:`run` after the configuration."""
+def _plan(args: argparse.Namespace, config: Any, t0: float, t_imports: float, made: Any = None) -> int:
+    """Plan with ``config`` (one telescope's), check, write; :func:`run` after the configuration.
+
+    ``made``: the telescope's part of a joint plan, already made and checked (written, not planned).
+    """
     from ..handlers.text import storable
     from ..inputs import regular_file
     from ..outputs import write_json_atomic
@@ -166,7 +175,8 @@ def _plan(args: argparse.Namespace, config: Any, t0: float, t_imports: float) ->
     if deadline is None:
         from ..scheduler_core.plan.messages import revision_document
 
-        plan = make_plan(skymap, cfg, start=start, solver=args.solver, times_before={"imports": t_imports, "load": t_load})
+        plan = made if made is not None else make_plan(skymap, cfg, start=start, solver=args.solver,
+                                                       times_before={"imports": t_imports, "load": t_load})
         doc = revision_document(plan, 1, True)
     else:
         plan, doc = _plan_by_deadline(skymap, cfg, start, args.solver or cfg.solver, float(deadline), t0)

@@ -4,8 +4,9 @@
 (``mushrooms telescopes`` lists them) or description files.  Phase 2 plans
 each telescope alone, one document each: the first telescope's plan goes to
 ``-o FILE`` (``plan.json``), each other's beside it as ``plan.<name>.json``
-(and its summaries, picture and queue the same way); phase 3 plans them
-together (``docs/design/telescopes.md``).  Each telescope's configuration
+(and its summaries, picture and queue the same way); two or more are now
+planned together (:mod:`.plan_joint`, ``docs/design/telescopes.md``
+section 5), each part written the same way.  Each telescope's configuration
 starts from its description's defaults and every key the ``[scheduler]``
 table (or ``--set``) sets wins (``PlanningConfig.for_telescope``).
 

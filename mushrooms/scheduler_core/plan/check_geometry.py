@@ -49,7 +49,7 @@ from ..config import SlewModel
 from .check_telescope import CheckScope
 from ..sky.healpix import hp
 
-__all__ = ["P48_SITE", "GRID_STEP_S", "Conditions", "conditions", "field_positions", "polygon_coverage",
+__all__ = ["P48_SITE", "GRID_STEP_S", "Conditions", "conditions", "field_positions", "polygon_coverage", "polygon_mask",
            "mount_reachable", "slew_seconds"]
 
 #: P48 at Palomar: geodetic latitude, longitude (deg) and height (m), the GPS
@@ -156,6 +156,11 @@ def polygon_coverage(field_ids: Iterable[int], prob: np.ndarray, without: Iterab
     nside = hp.npix2nside(prob.size)
     hit = _polygon_mask(field_ids, nside, scope) & ~_polygon_mask(without, nside, scope)
     return float(prob[hit].sum())
+
+
+def polygon_mask(field_ids: Iterable[int], nside: int, scope: CheckScope | None = None) -> np.ndarray:
+    """(npix,) True on the pixels whose centres lie inside one of the fields' detectors (a joint plan's union)."""
+    return _polygon_mask(field_ids, nside, scope)
 
 
 def _polygon_mask(field_ids: Iterable[int], nside: int, scope: CheckScope | None = None) -> np.ndarray:

@@ -36,7 +36,7 @@ from ...problem import PlanningProblem, UpperBound
 from .coverage_bound import BOUND_MIP_GAP, widened_windows, coverage_upper_bound, max_fields, pairable_rows, solver_margin
 from ..milp.solvers import MilpModel, solve_milp
 
-__all__ = ["field_spans", "interval_violation", "interval_upper_bound"]
+__all__ = ["field_spans", "interval_rows", "interval_violation", "interval_upper_bound"]
 
 #: Solver statuses whose dual bound is proven (an ``error: ...`` status carries none).
 PROVEN = ("optimal", "time_limit", "work_limit", "interrupted")
@@ -76,6 +76,17 @@ def _intervals(problem: PlanningProblem, rows: np.ndarray, windows: tuple | None
     cfg = problem.config
     lo, end = field_spans(problem, rows, windows)
     return _Intervals(lo, end, cfg.exposure_s, cfg.cadence_s, cfg.slew.readout_s, cfg.filter_change_s)
+
+
+def interval_rows(problem: PlanningProblem, rows: np.ndarray, windows: tuple | None = None) -> "_Intervals":
+    """(V1, V2) The interval rows of the fields ``rows`` (``windows``: V7), for a caller separating them itself.
+
+    The answer's ``violation(z)`` gives every row's load minus capacity (s)
+    at a point ``z`` over ``rows``, ``row(i, j)`` one row's coefficients and
+    right-hand side (the joint bound of several telescopes,
+    ``docs/design/telescopes.md`` J7, separates each telescope's rows).
+    """
+    return _intervals(problem, rows, windows)
 
 
 class _Intervals:

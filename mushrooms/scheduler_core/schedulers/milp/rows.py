@@ -109,9 +109,15 @@ class Columns:
 
 
 class RowBuilder:
-    """Sparse rows ``lo <= A x <= hi``, appended one named block (equation) at a time."""
+    """Sparse rows ``lo <= A x <= hi``, appended one named block (equation) at a time.
 
-    def __init__(self) -> None:
+    ``prefix`` (default empty) is put before the name of every block appended
+    while it is set: a model holding several telescopes' rows
+    (``docs/design/telescopes.md``, J4) names each telescope's ``ztf: S1 ...``.
+    """
+
+    def __init__(self, prefix: str = "") -> None:
+        self.prefix = prefix
         self._r: list[np.ndarray] = []
         self._c: list[np.ndarray] = []
         self._v: list[np.ndarray] = []
@@ -121,6 +127,7 @@ class RowBuilder:
         self.n_rows = 0
 
     def _open(self, name: str, n_rows: int) -> None:
+        name = self.prefix + name
         last = self._blocks[-1] if self._blocks else None
         if last is not None and last[0] == name and last[2] == self.n_rows:
             last[2] += n_rows  # the same equation again: one block

@@ -277,8 +277,14 @@ def build_slot_model(instance: SlotInstance, penalty: float = 0.0,
     return SlotModel(milp, instance)
 
 
-def slot_model_rows(rows: RowBuilder, instance: SlotInstance, x: Family, z: Family, y: Family) -> None:
-    """Append the slot model's rows (S1 or X7, S2, S3) on the columns of pairs ``x``, fields ``z``, cells ``y``."""
+def slot_model_rows(rows: RowBuilder, instance: SlotInstance, x: Family, z: Family, y: Family | None,
+                    cover: bool = True) -> None:
+    """Append the slot model's rows (S1 or X7, S2, S3) on the columns of pairs ``x``, fields ``z``, cells ``y``.
+
+    ``cover = False`` leaves S3 out (``y`` unused): a joint model of several
+    telescopes couples their fields through its own cell rows
+    (``docs/design/telescopes.md``, J2).
+    """
     K, F, C = instance.n_pairs, instance.n_fields, instance.cells.n_cells
     S = instance.grid.n_slots
     k = np.arange(K)
@@ -295,6 +301,8 @@ def slot_model_rows(rows: RowBuilder, instance: SlotInstance, x: Family, z: Fami
     # (S2) each field at most once: z_f - Σ_{k ∋ f} x_k = 0  (z_f <= 1 is its bound)
     rows.block("S2 each field at most once", F,
                [(np.arange(F), z[np.arange(F)], 1.0), (instance.pair_field, x[k], -1.0)], 0.0, 0.0)
+    if not cover:
+        return
     # (S3) cell coverage: y_c - Σ_{f ∋ c} z_f <= 0
     cells = instance.cells
     cell_of = np.repeat(np.arange(C), np.diff(cells.indptr))

@@ -1,0 +1,197 @@
+"""Coordinated plan of two telescopes vs each alone, the uncoordinated union and the iterative tiling (issue 53 item 2).
+
+Until the planner reads telescope descriptions (branch ``tel2``), two
+telescopes are stood in for by ZTF problems on two field grids: ``A`` the
+primary grid (ids < 1000) in g-r, 300 s, 30 min cadence; ``B`` the secondary
+grid (ids >= 1000) in r-i, 240 s, 40 min cadence.  Both at Palomar, so they
+compete for the same night's hours of the same sky: what coordination buys
+is not covering the same probability twice.
+
+For each map (its merger time as the start, 24 h horizon, work budget):
+
+* ``alone A``, ``alone B``: each telescope's single-telescope plan (greedy, then the
+  slot portfolio from it, ``time_limit_s`` work seconds);
+* ``uncoordinated``: both plans alone, together (what two teams sharing a map do);
+* ``tiling``: gwemopt's iterative tiling, A then B on what A left (``iterative_tiling``);
+* ``coordinated``: ``joint_schedule`` (J6), with its certified bound (J8).
+
+Union coverage, the probability covered by both telescopes, the bound.
+
+    nice PYTHONPATH=. .venv/bin/python benchmarks/science/joint_plan.py [--limit 2] [--wide] [OUTDIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from mushrooms.scheduler_core import PlanningConfig, read_skymap
+from mushrooms.scheduler_core.prepare import prepare_problem
+from mushrooms.scheduler_core.schedulers.joint import joint_metrics, joint_schedule
+from mushrooms.scheduler_core.schedulers.joint.ascent import iterative_tiling
+from mushrooms.scheduler_core.sky.fields import FieldGrid, load_ztf_fields
+
+ROOT = Path(__file__).resolve().parents[2]
+SHARED = Path("/work/shared/data/skymaps")
+MAPS = [
+    ROOT / "tests/data/skymaps/MS220722v_bayestar.multiorder.fits",
+    SHARED / "public/G483432_bayestar.multiorder.fits",
+    SHARED / "public/S191216ap_bayestar.multiorder.fits",
+    SHARED / "public/M403698_bayestar.multiorder.fits",
+    SHARED / "simulated/bns_o3/2.fits",
+    SHARED / "simulated/bns_o3/11.fits",
+]
+#: Wide maps (hundreds to thousands of deg²): two telescopes' nights are too short for them, coordination counts.
+WIDE = [
+    ROOT / "tests/data/skymaps/S200129m_cWB_RING.fits.gz",
+    SHARED / "public/S200219ac_LALInference.fits.gz",
+    SHARED / "public/GW170104_G268556_LALInference.fits",
+    SHARED / "public/sim2015_coinc288830_bayestar_HV.fits.gz",
+    SHARED / "public/S230627c_Bilby.multiorder.fits",
+]
+OUT = ROOT / "benchmarks/results/science/joint_plan"
+#: A southern map (ZTF reaches 20 % of its probability, LS4 55 %): with described telescopes.
+SOUTH = SHARED / "simulated/bns_o3/18.fits"
+
+
+def _grid(primary: bool) -> FieldGrid:
+    g = load_ztf_fields()
+    sel = (g.ids < 1000) if primary else (g.ids >= 1000)
+    return FieldGrid(g.ids[sel], g.ra[sel], g.dec[sel])
+
+
+def _configs(nside: int, limit: float, exposures: tuple[float, float] = (300.0, 240.0)
+             ) -> tuple[PlanningConfig, PlanningConfig]:
+    common = dict(solver="slots", nside=nside, time_limit_s=limit, detection_time_limit_s=min(0.5, limit / 2),
+                  bound_time_limit_s=2.0, deterministic=True)
+    return (PlanningConfig(exposure_s=exposures[0], **common),
+            PlanningConfig(filters=("r", "i"), cadence_s=2400.0, exposure_s=exposures[1], **common))
+
+
+def _row(name: str, problems, results) -> dict:
+    m = joint_metrics(problems, [{o.field_id for o in r.observations} for r in results], problems[0].prob)
+    return {"plan": name, "union": round(m.union, 4), "share_A": round(m.share[0], 4), "share_B": round(m.share[1], 4),
+            "both": round(m.more_than_once, 4), "fields": [len({o.field_id for o in r.observations}) for r in results]}
+
+
+def _described(skymap, start, nside: int, limit: float, names: tuple[str, str]) -> list:
+    """The problems of two described telescopes (``--telescopes ztf,ls4``), each with its description's defaults."""
+    from mushrooms.scheduler_core.instruments import load_description
+
+    table = {"nside": nside, "time_limit_s": limit, "detection_time_limit_s": min(0.5, limit / 2),
+             "bound_time_limit_s": 2.0, "deterministic": True}
+    out = []
+    for name in names:
+        telescope = load_description(name)
+        out.append(prepare_problem(skymap, PlanningConfig.for_telescope(telescope, table), start, telescope=telescope))
+    return out
+
+
+def one_map(path: Path, nside: int, limit: float, exposures: tuple[float, float] = (300.0, 240.0),
+            telescopes: tuple[str, str] | None = None) -> dict | None:
+    """Every plan of one map, as one JSON record (``telescopes``: two described telescopes instead of the grids)."""
+    skymap = read_skymap(path, nside=nside)
+    start = skymap.event_time
+    if start is None:
+        return None
+    if telescopes is not None:
+        problems = _described(skymap, start, nside, limit, telescopes)
+    else:
+        ca, cb = _configs(nside, limit, exposures)
+        problems = [prepare_problem(skymap, ca, start, grid=_grid(True)),
+                    prepare_problem(skymap, cb, start, grid=_grid(False))]
+    t0 = time.perf_counter()
+    joint = joint_schedule(problems, names=("A", "B"))
+    wall_joint = time.perf_counter() - t0
+    tiling = iterative_tiling(problems, problems[0].prob)
+    empty = type(joint.alone[0])((), "none", "none")
+    rows = [_row("alone A", problems, [joint.alone[0], empty]), _row("alone B", problems, [empty, joint.alone[1]]),
+            _row("uncoordinated", problems, list(joint.alone)), _row("tiling A>B", problems, tiling),
+            _row("coordinated", problems, list(joint.schedules))]
+    b = joint.bound
+    return {"map": path.name if path.parent.name in ("public", "skymaps") else f"{path.parent.name}/{path.name}",
+            "start": start.isot, "candidates": [int(p.field_ids.size) for p in problems], "rows": rows,
+            "method": joint.method, "bound": round(b.value, 4), "bound_joint": round(b.joint, 4) if np.isfinite(b.joint) else None,
+            "bound_sum_u4": round(b.sum_of_telescopes, 4), "bound_total": round(b.total, 4),
+            "bound_status": b.status, "exposures_s": list(exposures), "budget_work_s": joint.details["budget_s"],
+            "spent_work_s": joint.details["spent_s"], "wall_joint_s": round(wall_joint, 1),
+            "joint_model": joint.details.get("joint_model"), "ascent": joint.details.get("ascent")}
+
+
+def table(records: list[dict]) -> str:
+    """The markdown table: one line per map and plan, then the means and paired differences."""
+    lines = ["| map | plan | union | A's share | B's share | covered by both | fields A, B |", "|---|---|---|---|---|---|---|"]
+    for r in records:
+        for row in r["rows"]:
+            lines.append(f"| {r['map']} | {row['plan']} | {row['union']:.4f} | {row['share_A']:.4f} | "
+                         f"{row['share_B']:.4f} | {row['both']:.4f} | {row['fields'][0]}, {row['fields'][1]} |")
+        bj = "not solved" if r["bound_joint"] is None else f"{r['bound_joint']:.4f}"
+        lines.append(f"| {r['map']} | bound (J8) | {r['bound']:.4f} | B_joint {bj} | "
+                     f"ΣU4 {r['bound_sum_u4']:.4f} | total {r['bound_total']:.4f} | {r['method']} |")
+    plans = [row["plan"] for row in records[0]["rows"]] if records else []
+    lines += ["", f"Means over {len(records)} maps, and the coordinated plan's paired difference (mean ± std. error):", "",
+              "| plan | union | covered by both | coordinated − plan (union) |", "|---|---|---|---|"]
+    coord = np.array([[row["union"] for row in r["rows"] if row["plan"] == "coordinated"][0] for r in records])
+    for name in plans:
+        u = np.array([[row["union"] for row in r["rows"] if row["plan"] == name][0] for r in records])
+        both = np.array([[row["both"] for row in r["rows"] if row["plan"] == name][0] for r in records])
+        d = coord - u
+        se = d.std(ddof=1) / np.sqrt(d.size) if d.size > 1 else 0.0
+        lines.append(f"| {name} | {u.mean():.4f} | {both.mean():.4f} | {d.mean():+.4f} ± {se:.4f} |")
+    bound = np.array([r["bound"] for r in records])
+    lines.append(f"| bound (J8) | {bound.mean():.4f} | | gap to coordinated {np.mean(bound - coord):.4f} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("out", nargs="?", default=str(OUT))
+    ap.add_argument("--nside", type=int, default=128)
+    ap.add_argument("--limit", type=float, default=2.0, help="each telescope's time_limit_s (work s)")
+    ap.add_argument("--maps", type=int, default=None, help="the first N maps only")
+    ap.add_argument("--wide", action="store_true", help="the wide maps instead (results in OUTDIR/wide)")
+    ap.add_argument("--telescopes", default=None, help="two described telescopes, e.g. ztf,ls4 (results in "
+                    "OUTDIR/<a>_<b>): A and B are those, each with its description's defaults")
+    ap.add_argument("--exposures", default="300,240", help="A's and B's exposure (s); other than the default: "
+                    "results in OUTDIR/exposures_A_B")
+    args = ap.parse_args(argv)
+    exposures = tuple(float(x) for x in args.exposures.split(","))
+    sub = "" if exposures == (300.0, 240.0) else f"exposures_{exposures[0]:g}_{exposures[1]:g}"
+    telescopes = tuple(args.telescopes.split(",")) if args.telescopes else None
+    if telescopes:
+        sub = "_".join(telescopes)
+    out = Path(args.out) / ("wide" if args.wide else "") / sub
+    maps = (WIDE if args.wide else MAPS) + ([SOUTH] if telescopes and not args.wide else [])
+    out.mkdir(parents=True, exist_ok=True)
+    load0 = os.getloadavg()
+    records = []
+    with open(out / "joint_plan.jsonl", "w") as f:
+        for path in maps[:args.maps] if args.maps else maps:
+            rec = one_map(path, args.nside, args.limit, exposures, telescopes)
+            if rec is None:
+                print(path.name, "skipped: no event time in the map", flush=True)
+                continue
+            records.append(rec)
+            f.write(json.dumps(rec) + "\n")
+            f.flush()
+            print(rec["map"], [(r["plan"], r["union"], r["both"]) for r in rec["rows"]], "bound", rec["bound"],
+                  rec["method"], f"{rec['wall_joint_s']} s", flush=True)
+    load1 = os.getloadavg()
+    what = (f"A = {telescopes[0]}, B = {telescopes[1]} (their descriptions' defaults)" if telescopes
+            else f"exposures A {exposures[0]:g} s, B {exposures[1]:g} s")
+    head = (f"nside {args.nside}, {what}, "
+            f"time_limit_s {args.limit} work s per telescope (joint budget 3 x the sum), "
+            f"deterministic budget; load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end\n\n")
+    (out / "joint_plan.md").write_text(head + table(records))
+    print(head + table(records))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
