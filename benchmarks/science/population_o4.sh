@@ -26,7 +26,9 @@
 #   git worktree add --detach /work/population_o4_real/code af0ff7d
 #   CODE=/work/population_o4_real/code POPULATION=o4-real ROOT=/work/population_o4_real WORKERS=2 \
 #     PY=/path/to/venv/bin/python nice -n 19 benchmarks/science/population_o4.sh
-# (CODE: the study runs from there, so every row records that commit; this checkout only seeds ROOT.)
+# (CODE: the study runs from there, so every row records that commit; this checkout only seeds ROOT. Export
+# MUSHROOMS_GWEMOPT_PYTHON, the interpreter with gwemopt, as /work/population_o4_real/run.sh does: without it the
+# gwemopt rows still to plan are recorded as failures, "unavailable", and retried by the next run.)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 POPULATION=${POPULATION:-o4}      # a recipe of mushrooms/evaluation/study/recipes.py: o4 or o4-real

@@ -23,8 +23,12 @@ Rows = Sequence[Mapping[str, Any]]
 MARKERS = {"BNS": "o", "NSBH": "^"}
 
 
-def population_figures(rows: Rows, directory: str | Path, ours: str = "service") -> list[Path]:
-    """Write the population's figures (events with every solver's row); the files written."""
+def population_figures(rows: Rows, directory: str | Path, ours: str = "service",
+                       baselines: Sequence[str] = BASELINES) -> list[Path]:
+    """Write the population's figures (events with every solver's row); the files written.
+
+    ``baselines``: the rows ``ours`` is paired with, in order (those present).
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -35,8 +39,8 @@ def population_figures(rows: Rows, directory: str | Path, ours: str = "service")
     directory.mkdir(parents=True, exist_ok=True)
     out = [_population(rows, directory / "population.png")]
     solvers = {str(r["solver"]) for r in rows}
-    if ours in solvers and any(b in solvers for b in BASELINES):
-        out.append(_paired(rows, ours, [b for b in BASELINES if b in solvers and b != ours],
+    if ours in solvers and any(b in solvers and b != ours for b in baselines):
+        out.append(_paired(rows, ours, [b for b in baselines if b in solvers and b != ours],
                            directory / "paired_by_distance_area.png"))
     return out
 
