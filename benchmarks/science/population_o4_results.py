@@ -267,12 +267,17 @@ def release_code(records: list[dict]) -> list[str]:
         for name, v in (rec.get("versions") or {}).items():
             versions.setdefault(name, set()).add(str(v))
     commits = commits_of([{"commit": rec.get("commit") or (rec.get("row") or {}).get("commit")} for rec in records])
+    configs = commits_of([{"commit": rec.get("config_hash")} for rec in records])
     head = (f"**WARNING: the rows come from {len(commits)} commits; this is not one frozen release.** "
             if len(commits) > 1 else "")
+    head += (f"**WARNING: the rows come from {len(configs)} configurations.** " if len(configs) > 1 else "")
     return [head + "Code: (map, row) results by the commit that planned them (`commit` of each record, "
             "`mushrooms.evaluation.commit.code_commit`): " + "; ".join(f"`{c}` {n}" for c, n in sorted(commits.items()))
-            + ". Package versions on the workers: "
-            + ", ".join(f"{k} {'/'.join(sorted(v))}" for k, v in sorted(versions.items())) + "."]
+            + "; by the hash of their configuration (`study/config.toml`, part of every key): "
+            + "; ".join(f"`{c}` {n}" for c, n in sorted(configs.items())) + ". Package versions on the workers: "
+            + ", ".join(f"{k} {'/'.join(sorted(v))}" for k, v in sorted(versions.items()))
+            + " (gwemopt runs in its own interpreter, `MUSHROOMS_GWEMOPT_PYTHON`, whose version the workers do not "
+            "see: `-` here)."]
 
 
 def detect_recipe(root: Path, injections: int, seed: int) -> str:

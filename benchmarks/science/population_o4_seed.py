@@ -100,8 +100,13 @@ def main() -> int:
     if args.population not in RECIPES:
         print(f"--population: no recipe {args.population!r} (one of {', '.join(RECIPES)})", file=sys.stderr)
         return 2
-    notes = [seed_population(args.population, args.injections, args.seed, args.source, args.root)]
-    notes += seed_study(args.source.parent / "study", args.root, args.config)
+    try:
+        notes = [seed_population(args.population, args.injections, args.seed, args.source, args.root)]
+        notes += seed_study(args.source.parent / "study", args.root, args.config)
+    except (OSError, EOFError, UnicodeDecodeError) as exc:  # a truncated or unreadable committed file
+        print(f"population_o4_seed.py: cannot seed {args.root} from {args.source}: {type(exc).__name__}: {exc}",
+              file=sys.stderr)
+        return 2
     for line in notes:
         print(f"== {line}", file=sys.stderr)
     return 0

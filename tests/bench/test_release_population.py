@@ -157,6 +157,11 @@ def _partial_rows(second_commit: str) -> list[dict]:
                              open_shutter_s=3600.0, valid=True, event_class="BNS" if k % 2 else "NSBH",
                              distance_mpc=100.0 * (k + 1), area90_deg2=50.0 * (k + 1), status="ok",
                              commit=second_commit if (k, solver) == (3, "greedy") else "af0ff7d"))
+    for j, solver in enumerate(SIX):  # all six ran, one failed (no plan scored): not comparable either
+        failed = solver == "gwemopt-o4"
+        rows.append(dict(event="e6", solver=solver, coverage=None if failed else 0.3, coverage_executed=None
+                         if failed else 0.3, status="error: RuntimeError: gwemopt died" if failed else "ok",
+                         event_class="BNS", distance_mpc=300.0, area90_deg2=90.0, commit="af0ff7d"))
     return rows
 
 
@@ -171,11 +176,11 @@ def test_release_tables_of_a_partial_run_list_the_unfinished_events_and_warn_of_
     mixed = second_commit != "af0ff7d"
     assert text.startswith("**WARNING: NOT ONE FROZEN RELEASE. These rows come from 2 commit(s) `0123abc`, "
                            "`af0ff7d`") == mixed
-    assert "4 events with a row of every row name (of 6); 24 (event, row) rows" in text
-    assert ("2 event(s) of 6 lack a row (of service, service-grg, greedy, gwemopt-o4, gwemopt-skyportal, "
+    assert "4 events with a row of every row name (of 7); 24 (event, row) rows" in text
+    assert ("3 event(s) of 7 lack a row (of service, service-grg, greedy, gwemopt-o4, gwemopt-skyportal, "
             "gwemopt-repaired) and are left out of every table below, paired differences included") in text
     assert ("e4 (no gwemopt-skyportal, gwemopt-repaired); e5 (no service-grg, greedy, gwemopt-o4, "
-            "gwemopt-skyportal, gwemopt-repaired)") in text
+            "gwemopt-skyportal, gwemopt-repaired); e6 (no gwemopt-o4 (failed))") in text
     lines = text.splitlines()
     paired = lines[lines.index(next(ln for ln in lines if ln.startswith("## Per-event paired"))) + 4:][:5]
     assert [ln.split(" | ")[0] for ln in paired] == ["| " + s for s in SIX[1:]]

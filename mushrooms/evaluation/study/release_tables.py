@@ -115,18 +115,25 @@ def _expected(rows: Sequence[Record], expected: Sequence[str] | None) -> set[str
     return set(_solvers(rows)) | set(expected or ())
 
 
+def _done(sol: Mapping[str, Record]) -> set[str]:
+    """The row names of one event with a scored plan (a coverage; a failed task's row has none)."""
+    return {s for s, r in sol.items() if num(r.get("coverage")) is not None}
+
+
 def release_events(rows: Sequence[Record], expected: Sequence[str] | None = None) -> list[Record]:
-    """The rows of the events that have a row of every row name present (and of every name of ``expected``)."""
+    """The rows of the events that have a scored row of every row name present (and of every name of
+    ``expected``)."""
     solvers = _expected(rows, expected)
-    return [r for sol in _by_event(rows).values() if set(sol) >= solvers for r in sol.values()]
+    return [r for sol in _by_event(rows).values() if _done(sol) >= solvers for r in sol.values()]
 
 
 def incomplete_events(rows: Sequence[Record], expected: Sequence[str] | None = None) -> dict[str, list[str]]:
-    """Event -> the row names it still lacks, for the events :func:`release_events` leaves out (a partial run's
-    events whose rows are not all done), in event order."""
+    """Event -> the row names it lacks a scored row of ("failed" after one whose task failed), for the events
+    :func:`release_events` leaves out (a partial run's events whose rows are not all done), in event order."""
     solvers = _expected(rows, expected)
     order = [s for s in RELEASE_ROWS if s in solvers] + sorted(solvers - set(RELEASE_ROWS))
-    return {e: [s for s in order if s not in sol] for e, sol in _by_event(rows).items() if not set(sol) >= solvers}
+    return {e: [s + (" (failed)" if s in sol else "") for s in order if s not in _done(sol)]
+            for e, sol in _by_event(rows).items() if not _done(sol) >= solvers}
 
 
 def metric_values(rows: Sequence[Record], solver: str, column: str, scale: float = 1.0) -> dict[str, float]:
