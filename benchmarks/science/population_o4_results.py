@@ -355,7 +355,7 @@ def main() -> int:
     release = recipe == "o4-real"
     (out / "tables.md").write_text((LEGACY_NOTE if release else "") + population_tables(rows) + "\n")
     (out / "release_tables.md").write_text(release_tables(rows, expected=RELEASE_ROWS if release else None))
-    figures = population_figures(rows, out / "figures", **({"baselines": RELEASE_ROWS[1:]} if release else {}))
+    figures = population_figures(rows, out / "figures", **({"baselines": RELEASE_ROWS[1:], "planned": "coverage_pairs"} if release else {}))
     print(f"{len(rows)} rows -> {out}; figures: {', '.join(str(f) for f in figures)}")
     return 0
 
