@@ -3,7 +3,7 @@
 sim_inspiral rows with the same slice of the new injections.xml (masses, spins, distance, sky position, time).
 
     python benchmarks/science/population_o4_compare_injections.py ROOT/cache/populations/<key>/injections.xml \
-        benchmarks/results/science/population_o4/population/chunks      # chunks of 50 injections
+        benchmarks/results/science/population_o4/previous_2026-12-06_o4_recipe/population/chunks   # recipe o4; o4-real: population_o4/population/chunks
 
 A chunk's events file keeps the injections it detected; each must be in its chunk's slice of the new file.
 """

@@ -7,9 +7,11 @@ Reads one row per (event, row) in the population layout
 ``mushrooms.evaluation.study.release_tables.release_tables``: per row the mean and median of planned coverage
 (pair rule), executed coverage through the queue set and as submitted today, detection efficiencies and open-shutter
 hours, each with a bootstrap 95 % interval; per-event paired differences against the service; the events each row
-executes nothing on; the same by class, distance and area.
+executes nothing on; the same by class, distance and area. An event without a row of every name of ``--rows``
+(default: the six) is listed in the header and left out (a partial run); rows from more than one commit put a
+warning at the top.
 
-    .venv/bin/python benchmarks/science/release_tables.py CSV [-o TABLES.md] [--draws 2000] [--seed 0]
+    .venv/bin/python benchmarks/science/release_tables.py CSV [-o TABLES.md] [--draws 2000] [--seed 0] [--rows A,B]
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import sys
 from pathlib import Path
 
 from mushrooms.evaluation.study.population_rows import read_population_csv
-from mushrooms.evaluation.study.release_tables import release_tables
+from mushrooms.evaluation.study.release_tables import RELEASE_ROWS, release_tables
 
 
 def main() -> int:
@@ -28,11 +30,14 @@ def main() -> int:
     ap.add_argument("-o", "--out", type=Path, help="write here (default: stdout)")
     ap.add_argument("--draws", type=int, default=2000)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--rows", default=",".join(RELEASE_ROWS),
+                    help="row names every tabulated event must have (default %(default)s; '' : those in the CSV)")
     args = ap.parse_args()
     if not args.csv.is_file():
         print(f"{args.csv}: no such file", file=sys.stderr)
         return 2
-    text = release_tables(read_population_csv(args.csv), draws=args.draws, seed=args.seed)
+    expected = tuple(r for r in args.rows.split(",") if r)
+    text = release_tables(read_population_csv(args.csv), draws=args.draws, seed=args.seed, expected=expected)
     if args.out:
         args.out.write_text(text)
     else:

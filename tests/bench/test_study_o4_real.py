@@ -1,7 +1,7 @@
 """The ``o4-real`` recipe (issue 55 item 5): O4's real ranges, epochs, duty cycles and a FAR-like threshold.
 
 The rewrite of a realised chunk runs on one of the committed chunks of the O4
-population (``benchmarks/results/science/population_o4/population/chunks``),
+population (``benchmarks/results/science/population_o4/previous_2026-12-06_o4_recipe/population/chunks``),
 realised by ``bayestar-realize-coincs`` with H1, L1 and V1.
 """
 
@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-CHUNKS = (Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "science" / "population_o4" / "population"
-          / "chunks")
+CHUNKS = (Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "science" / "population_o4"
+          / "previous_2026-12-06_o4_recipe" / "population" / "chunks")
 
 
 def test_the_far_like_threshold_asks_more_of_a_single_detector():

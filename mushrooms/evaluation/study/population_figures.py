@@ -23,8 +23,14 @@ Rows = Sequence[Mapping[str, Any]]
 MARKERS = {"BNS": "o", "NSBH": "^"}
 
 
-def population_figures(rows: Rows, directory: str | Path, ours: str = "service") -> list[Path]:
-    """Write the population's figures (events with every solver's row); the files written."""
+def population_figures(rows: Rows, directory: str | Path, ours: str = "service",
+                       baselines: Sequence[str] = BASELINES, planned: str = "coverage") -> list[Path]:
+    """Write the population's figures (events with every solver's row); the files written.
+
+    ``baselines``: the rows ``ours`` is paired with, in order (those present);
+    ``planned``: the column of planned coverage (the release: ``coverage_pairs``,
+    every row counted by the pair rule).
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -33,11 +39,12 @@ def population_figures(rows: Rows, directory: str | Path, ours: str = "service")
         return []
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    out = [_population(rows, directory / "population.png")]
-    solvers = {str(r["solver"]) for r in rows}
-    if ours in solvers and any(b in solvers for b in BASELINES):
-        out.append(_paired(rows, ours, [b for b in BASELINES if b in solvers and b != ours],
-                           directory / "paired_by_distance_area.png"))
+    present = list(dict.fromkeys(str(r["solver"]) for r in rows))
+    order = [s for s in (ours, *baselines) if s in present] + [s for s in present if s not in (ours, *baselines)]
+    out = [_population(rows, directory / "population.png", order, planned)]
+    if ours in present and any(b in present and b != ours for b in baselines):
+        out.append(_paired(rows, ours, [b for b in baselines if b in present and b != ours],
+                           directory / "paired_by_distance_area.png", planned))
     return out
 
 
@@ -54,13 +61,13 @@ def _differences(rows: Rows, a: str, b: str, key: str) -> list[tuple[float, floa
     return out
 
 
-def _paired(rows: Rows, ours: str, baselines: Sequence[str], path: Path) -> Path:
+def _paired(rows: Rows, ours: str, baselines: Sequence[str], path: Path, planned: str = "coverage") -> Path:
     """Rows: baselines; columns: against distance, against area; filled = planned, open = as executed."""
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(len(baselines), 2, figsize=(10, 3.0 * len(baselines)), squeeze=False)
     for i, b in enumerate(baselines):
-        for key, filled in (("coverage", True), ("coverage_executed", False)):
+        for key, filled in ((planned, True), ("coverage_executed", False)):
             d = _differences(rows, ours, b, key)
             for cls, marker in MARKERS.items():
                 pts = [p for p in d if p[3] == cls]
@@ -84,7 +91,7 @@ def _paired(rows: Rows, ours: str, baselines: Sequence[str], path: Path) -> Path
     return path
 
 
-def _population(rows: Rows, path: Path) -> Path:
+def _population(rows: Rows, path: Path, solvers: Sequence[str], planned: str = "coverage") -> Path:
     """Left: true distance against 90 % area by class; right: each solver's coverage, planned and executed."""
     import matplotlib.pyplot as plt
     import numpy as np
@@ -100,16 +107,15 @@ def _population(rows: Rows, path: Path) -> Path:
     ax0.set_xlabel("true distance (Mpc)")
     ax0.set_ylabel("90% credible area (deg$^2$)")
     ax0.legend(fontsize=8)
-    solvers = list(dict.fromkeys(str(r["solver"]) for r in rows))
     for i, s in enumerate(solvers):
-        for key, dx, face in (("coverage", -0.15, f"C{i}"), ("coverage_executed", 0.15, "none")):
+        for key, dx, face in ((planned, -0.15, f"C{i}"), ("coverage_executed", 0.15, "none")):
             ys = [x for x in (num(r.get(key)) for r in rows if r["solver"] == s and scored(r)) if x is not None]
             if ys:
                 ax1.scatter(i + dx + np.zeros(len(ys)), ys, s=14, facecolors=face, edgecolors=f"C{i}", alpha=0.7)
                 ax1.plot([i + dx - 0.1, i + dx + 0.1], [np.mean(ys)] * 2, color="k", lw=2)
-    ax1.set_xticks(range(len(solvers)), solvers)
+    ax1.set_xticks(range(len(solvers)), solvers, rotation=20, ha="right")
     ax1.set_ylabel("coverage per event")
-    ax1.set_title("filled: planned, open: as ZTF would execute it; bar: mean", fontsize=9)
+    ax1.set_title(f"filled: planned ({planned}), open: as ZTF would execute it; bar: mean", fontsize=9)
     fig.suptitle(f"the population: {len(events)} events")
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -2,8 +2,10 @@
 
 Input: :data:`~.population_rows.POPULATION_COLUMNS` rows, one per (event,
 row), the rows named :data:`RELEASE_ROWS`.  Only the events with a row of
-every row name present are tabulated (a partial run's comparable set).
-Output (Markdown):
+every row name present (or asked for: ``expected``) are tabulated (a
+partial run's comparable set); the others are listed in the header with the
+rows they lack.  Rows from more than one commit (or from a dirty tree, or
+without a commit) put a warning at the top.  Output (Markdown):
 
 * the headline table: per row and metric (:data:`METRICS`: planned
   coverage by the pair rule, executed through the queue set, executed as
@@ -32,8 +34,8 @@ import numpy as np
 from ..bench.rows import num
 
 __all__ = ["RELEASE_ROWS", "REFERENCE", "METRICS", "TIE", "bootstrap_interval", "summary", "release_events",
-           "metric_values", "paired_differences", "zero_counts", "metric_table", "paired_table", "zero_table",
-           "breakdown_table", "release_tables"]
+           "incomplete_events", "commits_of", "metric_values", "paired_differences", "zero_counts", "metric_table",
+           "paired_table", "zero_table", "breakdown_table", "release_tables"]
 
 Record = Mapping[str, Any]
 
@@ -108,10 +110,30 @@ def _solvers(rows: Sequence[Record]) -> list[str]:
     return [s for s in RELEASE_ROWS if s in present] + [s for s in present if s not in RELEASE_ROWS]
 
 
-def release_events(rows: Sequence[Record]) -> list[Record]:
-    """The rows of the events that have a row of every row name present."""
-    solvers = set(_solvers(rows))
-    return [r for sol in _by_event(rows).values() if set(sol) == solvers for r in sol.values()]
+def _expected(rows: Sequence[Record], expected: Sequence[str] | None) -> set[str]:
+    """The row names an event needs to be compared: ``expected`` and every row name present (None: those present)."""
+    return set(_solvers(rows)) | set(expected or ())
+
+
+def _done(sol: Mapping[str, Record]) -> set[str]:
+    """The row names of one event with a scored plan (a coverage; a failed task's row has none)."""
+    return {s for s, r in sol.items() if num(r.get("coverage")) is not None}
+
+
+def release_events(rows: Sequence[Record], expected: Sequence[str] | None = None) -> list[Record]:
+    """The rows of the events that have a scored row of every row name present (and of every name of
+    ``expected``)."""
+    solvers = _expected(rows, expected)
+    return [r for sol in _by_event(rows).values() if _done(sol) >= solvers for r in sol.values()]
+
+
+def incomplete_events(rows: Sequence[Record], expected: Sequence[str] | None = None) -> dict[str, list[str]]:
+    """Event -> the row names it lacks a scored row of ("failed" after one whose task failed), for the events
+    :func:`release_events` leaves out (a partial run's events whose rows are not all done), in event order."""
+    solvers = _expected(rows, expected)
+    order = [s for s in RELEASE_ROWS if s in solvers] + sorted(solvers - set(RELEASE_ROWS))
+    return {e: [s + (" (failed)" if s in sol else "") for s in order if s not in _done(sol)]
+            for e, sol in _by_event(rows).items() if not _done(sol) >= solvers}
 
 
 def metric_values(rows: Sequence[Record], solver: str, column: str, scale: float = 1.0) -> dict[str, float]:
@@ -242,22 +264,49 @@ def breakdown_table(rows: Sequence[Record], column: str, quartiles: bool) -> lis
     return lines
 
 
-def _provenance(rows: Sequence[Record], n_all: int) -> list[str]:
-    """The header: events tabulated of all, the commits that planned the rows."""
+def commits_of(rows: Sequence[Record]) -> dict[str, int]:
+    """Commit -> rows it planned (``(not recorded)`` for a row without one)."""
     commits: dict[str, int] = {}
     for r in rows:
         c = str(r.get("commit") or "") or "(not recorded)"
         commits[c] = commits.get(c, 0) + 1
+    return commits
+
+
+def _provenance(rows: Sequence[Record], n_all: int, missing: Mapping[str, list[str]], expected: set[str],
+                every: Sequence[Record]) -> list[str]:
+    """The header: a warning when the rows (``every``) are not from one commit, events tabulated of all, the
+    commits, the events left out and the rows they lack."""
+    commits = commits_of(every)
+    out = []
+    if len(commits) > 1 or any(c == "(not recorded)" or c.endswith("-dirty") for c in commits):
+        out += [f"**WARNING: NOT ONE FROZEN RELEASE. These rows come from {len(commits)} commit(s) "
+                + ", ".join(f"`{c}`" for c in sorted(commits)) + " (or from code with uncommitted changes, or from "
+                "rows that do not record their commit); the tables mix the code of every one of them.**", ""]
     n = len({str(r["event"]) for r in rows})
-    return [f"{n} events with a row of every row name (of {n_all}); {len(rows)} (event, row) rows; planned by "
-            + ", ".join(f"`{c}` ({k} rows)" for c, k in sorted(commits.items())) + "."]
+    out.append(f"{n} events with a row of every row name (of {n_all}); {len(rows)} (event, row) rows; planned by "
+               + (", ".join(f"`{c}` ({k} rows)" for c, k in sorted(commits_of(rows).items())) or "(none)") + ".")
+    if missing:
+        names = [s for s in RELEASE_ROWS if s in expected] + sorted(expected - set(RELEASE_ROWS))
+        out += ["", f"{len(missing)} event(s) of {n_all} lack a row (of {', '.join(names)}) and are left "
+                "out of every table below, paired differences included (a partial run: their rows are not all "
+                "done): " + "; ".join(f"{e} (no {', '.join(m)})" for e, m in missing.items()) + "."]
+    return out
 
 
-def release_tables(rows: Sequence[Record], draws: int = 2000, seed: int = 0) -> str:
-    """Every table of the release (Markdown) from population rows (module notes)."""
+def release_tables(rows: Sequence[Record], draws: int = 2000, seed: int = 0,
+                   expected: Sequence[str] | None = None) -> str:
+    """Every table of the release (Markdown) from population rows (module notes).
+
+    ``expected``: the row names every tabulated event must have (default: those present in ``rows``; the
+    release passes :data:`RELEASE_ROWS`); the events lacking one are listed in the header and left out.
+    """
+    every = list(rows)
     n_all = len({str(r["event"]) for r in rows})
-    rows = release_events(rows)
-    out = _provenance(rows, n_all) + [
+    missing = incomplete_events(rows, expected)
+    names = _expected(rows, expected)
+    rows = release_events(rows, expected)
+    out = _provenance(rows, n_all, missing, names, every) + [
         "", f"Intervals: bootstrap over events, {draws} resamples, seed {seed}, 2.5th-97.5th percentiles. "
         "\"As submitted today\": the plan as one list queue valid over its horizon, its exposures in plan order "
         "(what SkyPortal's ZTF API sends for an observation plan).", "",
