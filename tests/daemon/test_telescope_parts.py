@@ -176,3 +176,40 @@ def test_ztf_alone_writes_no_part(tmp_path, telescopes):
     (out,) = _run(tmp_path, telescopes, [notice_bytes(f"{SID}-preliminary.json")])
     assert out.decision == "plan" and not (tmp_path / "outbox" / "telescopes").exists()
     assert part_rows(tmp_path / "state.sqlite") == []
+
+
+@pytest.mark.slow
+def test_a_kill_between_two_parts_loses_none_and_duplicates_none(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    from mushrooms.daemon.state.store import Store
+
+    repo = Path(__file__).resolve().parents[2]
+    cfg = parts_config(tmp_path, ["ztf", "ls4", "decam"])
+    env = {**os.environ, "PYTHONPATH": f"{repo}{os.pathsep}{repo / 'tests' / 'daemon'}"}
+    run = subprocess.run([sys.executable, str(Path(__file__).with_name("telescope_parts_kill.py")), str(cfg)],
+                         cwd=repo, env=env, capture_output=True, text=True, timeout=600)
+    assert run.returncode == -9, run.stderr[-2000:]
+    state, outbox = tmp_path / "state.sqlite", tmp_path / "outbox"
+    (ls4_row,) = part_rows(state)  # ls4's part recorded, decam's not yet, ZTF's revision not yet
+    assert ls4_row[1:3] == ("ls4", "exported") and not _ztf_plans(outbox)
+    ls4 = part_folders(outbox)[("00001-PRELIMINARY", "ls4")]
+    before = {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in ls4.iterdir()}
+    pipeline, close = open_parts_pipeline(cfg)  # the restart: the killed job is run again
+    try:
+        (out,) = pipeline.resume()
+    finally:
+        close()
+    assert out.decision == "plan"
+    assert [(r[1], r[2]) for r in part_rows(state)] == [("decam", "exported"), ("ls4", "exported")]
+    assert part_rows(state)[1] == ls4_row  # not planned again
+    assert {p.name: (p.stat().st_mtime_ns, p.read_bytes()) for p in ls4.iterdir()} == before  # not rewritten
+    assert [d["plan_id"] for d in _ztf_plans(outbox)] == [out.plan_id]  # ZTF's revision once
+    assert sorted(t for _, t in part_folders(outbox)) == ["decam", "ls4"]
+    store = Store(state)
+    try:
+        assert store.job_status(1) == "done"
+    finally:
+        store.close()
