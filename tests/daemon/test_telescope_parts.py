@@ -213,3 +213,31 @@ def test_a_kill_between_two_parts_loses_none_and_duplicates_none(tmp_path):
         assert store.job_status(1) == "done"
     finally:
         store.close()
+
+
+def test_the_summary_page_and_webhook_name_every_telescopes_part(tmp_path, httpserver, monkeypatch):
+    import time
+
+    httpserver.expect_request("/hook", method="POST").respond_with_data("ok")
+    monkeypatch.setenv("MUSHROOMS_NOTIFY_URL", httpserver.url_for("/hook"))
+    cfg = parts_config(tmp_path, ["ztf", "ls4"])
+    cfg.write_text(cfg.read_text() + '\n[notify]\ntarget = "json"\n')
+    pipeline, close = open_parts_pipeline(cfg)
+    try:
+        plan = pipeline.handle(notice_bytes(f"{SID}-preliminary.json"), "test:parts")
+        pipeline.handle(notice_bytes(f"{SID}-retraction.json"), "test:parts")
+    finally:
+        close()
+    outbox = tmp_path / "outbox"
+    text = (outbox / f"{plan.plan_id}.txt").read_text()
+    assert "Telescopes ztf (ztf_too): this plan" in text  # drawn again after the retraction: withdrawn by then
+    assert "ls4 (target_list): exported" in text or "ls4 (target_list): withdrawn" in text
+    assert '<pre class="telescopes">' in (outbox / f"{plan.plan_id}.html").read_text()
+    end = time.monotonic() + 30
+    while len(httpserver.log) < 2 and time.monotonic() < end:
+        time.sleep(0.1)
+    bodies = [json.loads(req.get_data()) for req, _ in httpserver.log]
+    said = json.dumps(bodies)
+    assert "ZTF: this plan; other telescopes: ls4 target_list exported" in said
+    assert any(b.get("telescope_parts") == ["ls4 target_list exported"] for b in bodies)
+    assert "Every telescope's part withdrawn too (ls4)" in said

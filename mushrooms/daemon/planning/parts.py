@@ -36,7 +36,7 @@ from typing import Any, Callable, Sequence
 from ...handlers.text import storable
 from ..state.parts import event_parts, parts_of_job, record_part
 
-__all__ = ["TelescopeParts", "part_folder", "safe_name"]
+__all__ = ["TelescopeParts", "part_folder", "safe_name", "plan_parts", "parts_lines", "parts_words"]
 
 log = logging.getLogger("mushrooms.daemon.parts")
 
@@ -236,3 +236,29 @@ def _write_bytes(path: Path, data: bytes) -> None:
 
     path.parent.mkdir(parents=True, exist_ok=True)
     write_bytes_atomic(path, data)
+
+
+def plan_parts(store: Any, plan_id: str | None) -> list[dict[str, Any]]:
+    """The other telescopes' parts of the job whose ZTF revision is ``plan_id`` ([] for none, or no table)."""
+    try:
+        row = store.connection().execute("SELECT job_id FROM plans WHERE plan_id=?", (plan_id,)).fetchone()
+        return [] if row is None or row[0] is None else list(parts_of_job(store, row[0]).values())
+    except Exception as exc:  # the words about other telescopes never stop ZTF's message
+        log.error("event=telescope_parts_unread plan_id=%s error=%r", plan_id, str(exc))
+        return []
+
+
+def parts_lines(parts: list[dict[str, Any]]) -> list[str]:
+    """Every telescope's part of a revision in words, for its summary and page (none without parts)."""
+    from ..state.parts import part_line
+
+    if not parts:
+        return []
+    return (["Telescopes ztf (ztf_too): this plan"]
+            + [f"           {part_line(p)}" for p in sorted(parts, key=lambda p: p["telescope"])])
+
+
+def parts_words(parts: list[dict[str, Any]]) -> str:
+    """The webhook's few words: ``other telescopes: ls4 target_list exported, decam not_observable``."""
+    return ("other telescopes: " + ", ".join(f"{p['telescope']} {p['queue']} {p['state']}"
+                                             for p in sorted(parts, key=lambda p: p["telescope"]))) if parts else ""
