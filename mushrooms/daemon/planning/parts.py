@@ -114,7 +114,9 @@ class TelescopeParts:
                 if cancelled():
                     break
                 done[telescope.name] = {"state": self._export(store, job, telescope, plans[telescope.name])}
-        if not cancelled() and all(t.name in done for t, _ in self.runs):
+        if cancelled():  # a retraction meanwhile: what this job wrote after its withdrawal is withdrawn too
+            self.sync(store)
+        elif all(t.name in done for t, _ in self.runs):
             self.retire(store, job.superevent_id, "superseded", before_job=job.job_id)
         return {name: row["state"] for name, row in done.items()}
 
