@@ -196,10 +196,10 @@ def test_the_service_refuses_another_telescope_in_one_line(capsys):
     from mushrooms.tool.config import Config
     from mushrooms.scheduler_core import PlanningConfig
 
-    config = Config(scheduler=PlanningConfig.from_mapping({"telescopes": ["ztf", "ls4"]}))
+    config = Config(scheduler=PlanningConfig.from_mapping({"telescopes": ["ls4", "ztf"]}))  # (phase 4) ztf first
     assert main(lambda: config) == 2
     err = capsys.readouterr().err
-    assert "telescopes = ['ztf', 'ls4']" in err and "plans ZTF alone" in err
+    assert "telescopes = ['ls4', 'ztf']" in err and "plans ZTF first" in err and len(err.splitlines()) == 1
 
 
 def test_a_reload_to_another_telescope_keeps_the_running_configuration():

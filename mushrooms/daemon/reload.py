@@ -34,9 +34,9 @@ def reload_service(service: Any) -> None:
     old_sink = service.pipeline.sink
     try:
         new = service.reload_config() if service.reload_config is not None else service.config
-        if tuple(new.scheduler.telescopes) != ("ztf",):  # (issue 53) the service plans ZTF alone in this version
-            raise ValueError(f"[scheduler] telescopes = {list(new.scheduler.telescopes)!r}: the service plans ZTF "
-                             f"alone in this version")
+        if tuple(new.scheduler.telescopes) != tuple(service.config.scheduler.telescopes):  # (issue 53)
+            raise ValueError(f"[scheduler] telescopes = {list(new.scheduler.telescopes)!r}: the telescopes "
+                             f"change at a restart only (running: {list(service.config.scheduler.telescopes)!r})")
         sink = old_sink if new.outbound == service.config.outbound else _new_sink(service, new)
     except Exception as exc:  # a bad file, bad sink settings, a missing password: keep running as before
         log.error("event=reload_failed error=%r (keeping the running configuration)", str(exc))
@@ -47,9 +47,11 @@ def reload_service(service: Any) -> None:
         new = dataclasses.replace(new, daemon=dataclasses.replace(new.daemon, state_path=str(service.paths.state)))
     from .intake.pipeline import NoticePipeline
 
-    service.pipeline = NoticePipeline(new.policy, new.scheduler, service.pipeline.store, sink, daemon=new.daemon,
+    parts = getattr(service.pipeline, "parts", None)  # the same telescopes (above): the same parts
+    scheduler = dataclasses.replace(new.scheduler, telescopes=("ztf",)) if parts is not None else new.scheduler
+    service.pipeline = NoticePipeline(new.policy, scheduler, service.pipeline.store, sink, daemon=new.daemon,
                                       sky_cache=service.sky_cache, on_outbox=service.queued,
-                                      loop=getattr(new, "loop", None))
+                                      loop=getattr(new, "loop", None), parts=parts)
     if getattr(new, "loop", None) != getattr(service.config, "loop", None):
         log.warning("event=reload_partial reason='[loop] source and poll interval change at the next start'")
     if new.submit != service.config.submit:

@@ -45,7 +45,7 @@ from .sections import ServiceConfig
 from .settings import RuntimePaths, resolve_paths
 from .signals import Signals
 from .timers import Timers
-from .wiring import EXIT_STATE, StateOpened, open_state, private_dir
+from .wiring import EXIT_STATE, StateOpened, open_state, private_dir, service_telescopes_problem
 
 __all__ = ["main", "Service", "setup_logging", "EXIT_STATE"]
 
@@ -477,8 +477,8 @@ def main(load: Callable[[], ServiceConfig]) -> int:
     level = logging.getLogger().level or logging.INFO
     setup_logging(level)
     config = load()
-    if tuple(config.scheduler.telescopes) != ("ztf",):  # (issue 53) the service plans ZTF; other telescopes: phase 4
-        print(f"mushrooms run: error: [scheduler] telescopes = {list(config.scheduler.telescopes)!r}: the service "
-              f"plans ZTF alone in this version (`mushrooms plan --telescopes` plans the others)", file=sys.stderr)
+    problem = service_telescopes_problem(config)
+    if problem:  # (issue 53) ZTF first (its revisions), then every other telescope's part
+        print(f"mushrooms run: error: {problem}", file=sys.stderr)
         return 2
     return Service(config, resolve_paths(config.daemon), reload=load).run()

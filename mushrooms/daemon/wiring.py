@@ -73,6 +73,34 @@ def open_store(path: Path, group_readable: bool = False) -> Any:
     return Store(path, group_readable=group_readable)
 
 
+def service_telescopes_problem(config: ServiceConfig) -> str:
+    """Why the service cannot plan ``[scheduler] telescopes`` (one line), or ``""``.
+
+    ZTF comes first (its plan is every revision, its queue Kowalski's, as for a
+    ZTF-only service); every other telescope must load (its part:
+    :mod:`~mushrooms.daemon.planning.parts`).
+    """
+    names = list(config.scheduler.telescopes)
+    if not names or names[0] != "ztf":
+        return (f"[scheduler] telescopes = {names!r}: the service plans ZTF first (its revisions and queue), then "
+                f"every other telescope's part: write [\"ztf\", ...] (`mushrooms plan --telescopes` plans any alone)")
+    if len(names) > 1:
+        from .planning.parts import TelescopeParts
+
+        try:
+            TelescopeParts.from_config(config)
+        except Exception as exc:  # DescriptionError, a key out of the telescope's range
+            return f"[scheduler] telescopes = {names!r}: {str(exc)[:400]}"
+    return ""
+
+
+def _parts_note(store: Any) -> tuple[Callable[[Any], list[dict[str, Any]]], Callable[[list[dict[str, Any]]], list[str]]]:
+    """(plan_id -> its revision's other telescopes' parts, parts -> lines of words) on ``store``."""
+    from .planning.parts import parts_lines, plan_parts
+
+    return (lambda plan_id: plan_parts(store, plan_id)), parts_lines
+
+
 def open_pipeline(config: ServiceConfig, paths: RuntimePaths, sink: Any = None, **pipeline_kw: Any
                   ) -> tuple[Any, Callable[[], None]]:
     """Store + sink + pipeline; returns the pipeline and a closer.
@@ -85,16 +113,25 @@ def open_pipeline(config: ServiceConfig, paths: RuntimePaths, sink: Any = None, 
     """
     from .intake.pipeline import NoticePipeline
 
+    scheduler = config.scheduler
+    if "parts" not in pipeline_kw and tuple(scheduler.telescopes)[1:]:  # ztf first, then the others' parts
+        from .planning.parts import TelescopeParts
+
+        pipeline_kw["parts"] = TelescopeParts.from_config(config)
+        scheduler = dataclasses.replace(scheduler, telescopes=("ztf",))  # ZTF's revisions: a ZTF-only plan
     store = open_store(paths.state, config.daemon.group_readable)
     own_sink = sink is None
     sink = make_sink(config.outbound, config, store) if own_sink else sink
     from .ops.announce import NotifyingSink, open_webhook
 
+    note = _parts_note(store) if pipeline_kw.get("parts") is not None else None
+    if note is not None and hasattr(sink, "parts_note"):  # the summary and page name every telescope's part
+        sink.parts_note = lambda doc: note[1](note[0](doc.get("plan_id")))
     hook = open_webhook(getattr(config, "notify", None))  # [notify]: off by default
     if hook is not None:
-        sink = NotifyingSink(sink, hook)
+        sink = NotifyingSink(sink, hook, note[0] if note is not None else None)
     pipeline_kw.setdefault("loop", getattr(config, "loop", None))
-    pipeline = NoticePipeline(config.policy, config.scheduler, store, sink, daemon=config.daemon, **pipeline_kw)
+    pipeline = NoticePipeline(config.policy, scheduler, store, sink, daemon=config.daemon, **pipeline_kw)
 
     def close() -> None:
         for obj in ((sink,) if own_sink else (hook,) if hook is not None else ()) + (store,):

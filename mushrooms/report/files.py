@@ -133,6 +133,8 @@ class SummarisingSink:
         self.directory = getattr(sink, "directory", None)
         self.queues = queues
         self.skymap_for = skymap_for
+        #: ``doc -> lines``: every other telescope's part of the plan's revision (issue 53), after the summary
+        self.parts_note: Callable[[Mapping[str, Any]], list[str]] | None = None
         self._pictures: OrderedDict[str, bytes | None] = OrderedDict()
         self._pending: queue.Queue[tuple[dict[str, Any], Path] | None] = queue.Queue(max_pending)
         self._thread = threading.Thread(target=self._draw_pages, name="mushrooms-summary", daemon=True)
@@ -176,11 +178,24 @@ class SummarisingSink:
 
         doc = self._current(doc, target)
         names, words = self._submitted(target) or ((), "")
-        write_bytes_atomic(summary_paths(target)[0], summary_text(doc, queues=names, queue_note=words).encode())
+        text = summary_text(doc, queues=names, queue_note=words)
+        write_bytes_atomic(summary_paths(target)[0], self._with_parts(doc, text).encode())
         try:
             self._pending.put_nowait((doc, target))
         except queue.Full:
             log.warning("event=summary_page_skipped plan_id=%s reason=queue_full", doc.get("plan_id"))
+
+    def _with_parts(self, doc: Mapping[str, Any], text: str, html: bool = False) -> str:
+        """``text`` (the summary or the page) with the other telescopes' parts after it; as it was without."""
+        lines = self.parts_note(doc) if self.parts_note is not None else []
+        if not lines:
+            return text
+        if not html:
+            return text.rstrip("\n") + "\n" + "\n".join(lines) + "\n"
+        import html as html_text
+
+        block = "<pre class=\"telescopes\">" + html_text.escape("\n".join(lines)) + "</pre>\n"
+        return text.replace("</body>", block + "</body>", 1) if "</body>" in text else text + block
 
     def _refresh(self, plan_id: str) -> None:
         """Write a published plan's summaries again: final when its ``plan_final`` is out, with the queues and
@@ -240,9 +255,10 @@ class SummarisingSink:
                 doc = self._current(doc, target)
                 names, words = self._submitted(target) or self._names(doc)
                 txt, html_path = summary_paths(target)
-                write_bytes_atomic(txt, summary_text(doc, queues=names, queue_note=words).encode())
+                text = summary_text(doc, queues=names, queue_note=words)
+                write_bytes_atomic(txt, self._with_parts(doc, text).encode())
                 page = summary_html(doc, self._page_picture(doc), queues=names, queue_note=words)
-                write_bytes_atomic(html_path, page.encode())
+                write_bytes_atomic(html_path, self._with_parts(doc, page, html=True).encode())
             except Exception:
                 log.exception("event=summary_page_failed plan_id=%s", doc.get("plan_id"))
 

@@ -234,6 +234,21 @@ class Rehearsal:
         stem = self.out / "outbox" / str(doc.get("plan_id"))
         if not self.temporary:
             self.say(f"the plan: {stem}.json, its summary {stem}.txt (one row per exposure) and page {stem}.html")
+        self._parts(sid)
+
+    def _parts(self, sid: str) -> None:
+        """Every other telescope's part of the event (issue 53: ``[scheduler] telescopes`` after ztf), one line each."""
+        import json
+
+        from ..daemon.state.parts import part_line
+
+        for path in sorted((self.out / "outbox" / "telescopes").glob("*/*/*/part.json")):
+            try:
+                doc = json.loads(path.read_text())
+            except (OSError, ValueError):
+                continue
+            if doc.get("superevent_id") == sid:
+                self.say("telescope part: " + part_line({**doc, "folder": str(path.parent)}))
 
     # ------------------------------------------------------------ stopping
     def _stop(self, ok: bool = True) -> int:

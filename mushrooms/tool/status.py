@@ -194,6 +194,7 @@ def _with_current_plans(conn: sqlite3.Connection, events: list[dict[str, Any]], 
     from .state_plans import current_document
 
     for k, ev in enumerate(events):
+        ev["parts"] = _parts(conn, ev["superevent_id"])
         doc = None if ev.get("retracted") else current_document(conn, ev["superevent_id"])
         if doc is None:
             continue
@@ -202,6 +203,29 @@ def _with_current_plans(conn: sqlite3.Connection, events: list[dict[str, Any]], 
             names, words = _queues(conn, doc, config)
             ev["current"]["summary"] = summary_text(doc, now=now, rows=False, queues=names, queue_note=words)
     return events
+
+
+def _parts(conn: sqlite3.Connection, superevent_id: str) -> list[dict[str, Any]]:
+    """The event's other telescopes' parts (issue 53; ``telescope_parts``), newest job first; [] without any."""
+    from ..daemon.state.views import has_table
+
+    if not has_table(conn, "telescope_parts"):
+        return []
+    cur = conn.execute("SELECT job_id, telescope, queue, state, plan_id, folder, detail FROM telescope_parts"
+                       " WHERE superevent_id = ? ORDER BY job_id DESC, telescope", (superevent_id,))
+    names = [c[0] for c in cur.description]
+    return [dict(zip(names, r)) for r in cur.fetchall()]
+
+
+def _part_lines(parts: list[dict[str, Any]]) -> list[str]:
+    """ZTF's part (the revisions) and each other telescope's part of the newest job, one line each."""
+    from ..daemon.state.parts import part_line
+
+    if not parts:
+        return []
+    newest = parts[0]["job_id"]
+    return (["  telescope ztf (ztf_too): the revisions above"]
+            + [f"  telescope {part_line(p)} (job {p['job_id']})" for p in parts if p["job_id"] == newest])
 
 
 def _num(x: Any, fmt: str = ".4f") -> str:
@@ -239,6 +263,7 @@ def render(doc: dict[str, Any]) -> str:
                        f"{_num(p['expected_detections'])}, {'published' if p['published'] else 'PENDING'}"
                        + (", withdrawn" if p["withdrawn"] else "")
                        + (f", submission {sub.get('state') or '?'}" if sub else ""))
+        out.extend(_part_lines(ev.get("parts") or []))
         current = ev.get("current")
         if current:
             out.append(f"  in force: {current['plan_id']}: {current['answer']}")

@@ -124,6 +124,9 @@ class NoticePipeline:
     replanner : callable, optional
         What plans the rest of a re-plan job (default
         :func:`mushrooms.scheduler_core.replan.plan_remaining`).
+    parts : TelescopeParts, optional
+        The other configured telescopes' parts of every job
+        (:mod:`~mushrooms.daemon.planning.parts`); None (default): ZTF alone.
 
     See Also
     --------
@@ -133,7 +136,7 @@ class NoticePipeline:
     def __init__(self, policy: PolicyConfig, planning: Any, store: Store, sink: Sink, *,
                  daemon: DaemonConfig | None = None, planner: Planner | None = None,
                  sky_cache: Any = None, on_outbox: Callable[[], None] | None = None, loop: Any = None,
-                 replanner: Callable[..., Any] | None = None):
+                 replanner: Callable[..., Any] | None = None, parts: Any = None):
         from ..loop_settings import LoopConfig
         from ..planning.revisions import JobPlanner
 
@@ -149,7 +152,8 @@ class NoticePipeline:
         self._flush_lock = getattr(store, "publish_lock", None) or threading.Lock()
         self.intake = Intake(policy, store)
         self.planner = JobPlanner(policy, planning, self.daemon.supersede_min_gain, store, planner, sky_cache,
-                                  self._hand_over, self.loop, replanner)
+                                  self._hand_over, self.loop, replanner, parts)
+        self.parts = parts  # [scheduler] telescopes after ztf (:mod:`~mushrooms.daemon.planning.parts`), else None
 
     @classmethod
     def from_config(cls, config: Any, store: Store, sink: Sink, **kw: Any) -> "NoticePipeline":
@@ -293,6 +297,8 @@ class NoticePipeline:
                 log.info("publish key=%s kind=%s superevent_id=%s ok queued_s=%s", message_key(msg.message), msg.kind,
                          msg.message.get("superevent_id") or (msg.message.get("event") or {}).get("superevent_id"),
                          _age_s(msg.created_at))
+            if self.parts is not None:  # a retraction's withdrawal went out: the other telescopes' parts too
+                self.parts.sync(self.store)
             return 0
 
     # ------------------------------------------------------------ helpers

@@ -12,7 +12,7 @@ queues (:meth:`~mushrooms.daemon.ops.webhook.Webhook.post`): nothing here waits 
 from __future__ import annotations
 
 import logging
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from .webhook import Webhook
 
@@ -77,9 +77,10 @@ class NotifyingSink:
     webhook : Webhook
     """
 
-    def __init__(self, sink: Any, webhook: Webhook):
+    def __init__(self, sink: Any, webhook: Webhook, parts: Callable[[str | None], list[dict[str, Any]]] | None = None):
         self.sink = sink
         self.webhook = webhook
+        self.parts = parts  # plan_id -> the other telescopes' parts of its revision (issue 53), or None
 
     def __getattr__(self, name: str) -> Any:  # path_for, directory, ... of the wrapped sink
         return getattr(self.sink, name)
@@ -93,7 +94,28 @@ class NotifyingSink:
             return
         if said is not None:
             kind, text = said
-            self.webhook.post(kind, text, _details(message))
+            details = _details(message)
+            if self.parts is not None:
+                text, details = self._with_parts(message, text, details)
+            self.webhook.post(kind, text, details)
+
+    def _with_parts(self, message: Mapping[str, Any], text: str, details: dict[str, Any]
+                    ) -> tuple[str, dict[str, Any]]:
+        """The announcement naming every other telescope's part of the revision (or withdrawn with the event)."""
+        from ..planning.parts import parts_words
+
+        kind = message.get("type")
+        if kind == "withdrawal":
+            ids = [i for i in (message.get("plan_ids") or []) if isinstance(i, str)]
+            names = sorted({p["telescope"] for i in ids for p in self.parts(i)})
+            return (text + f" Every telescope's part withdrawn too ({', '.join(names)})." if names else text), details
+        if kind not in ("plan", "not_observable"):
+            return text, details
+        parts = self.parts(message.get("plan_id"))
+        if not parts:
+            return text, details
+        listed = [f"{p['telescope']} {p['queue']} {p['state']}" for p in sorted(parts, key=lambda p: p["telescope"])]
+        return f"{text} ZTF: this plan; {parts_words(parts)}.", {**details, "telescope_parts": listed}
 
     def close(self) -> None:
         self.webhook.close()

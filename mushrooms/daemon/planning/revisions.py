@@ -122,9 +122,10 @@ class JobPlanner:
 
     def __init__(self, policy: PolicyConfig, planning: Any, supersede_min_gain: float, store: Store,
                  scheduler: Callable[..., Any], sky_cache: Any, hand_over: Callable[[int], bool],
-                 loop: Any = None, replanner: Callable[..., Any] | None = None):
+                 loop: Any = None, replanner: Callable[..., Any] | None = None, parts: Any = None):
         from ..loop_settings import LoopConfig
 
+        self.parts = parts  # the other telescopes' parts (:mod:`.parts`); None: ZTF alone
         self.loop = loop if loop is not None else LoopConfig()
         self._replanner = replanner
         self.policy = policy
@@ -252,6 +253,9 @@ class JobPlanner:
             # hold three distance layers (3 x 6 MB at nside 256) each; the detection objective needs them
             skymap = dataclasses.replace(skymap, distmu=None, distsigma=None, distnorm=None)
         work = _Work(job, skymap, problem, event, plan)
+        if self.parts is not None:  # every other telescope's part, before ZTF's revision 1 (a restart redoes the rest)
+            stage("the other telescopes' parts")
+            self.parts.export_job(self.store, job, skymap, event, start, lambda: self.was_cancelled(job, should_stop))
         if job.fallback and any(r["plan_id"] == plan.plan_id and not r["final"]
                                 for r in self.store.job_plans(job.job_id)):
             # revision 1 went out (final: false) before the optimiser died: it stands, and plan_final says so

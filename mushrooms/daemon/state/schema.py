@@ -11,6 +11,7 @@ from __future__ import annotations
 import sqlite3
 
 from .executed import EXECUTED_TABLE
+from .parts import PARTS_TABLE
 
 __all__ = ["SCHEMA_VERSION", "SCHEMA", "UPGRADES", "missing_steps"]
 
@@ -135,6 +136,8 @@ UPGRADES: tuple[tuple[int, str | tuple[str, str, str]], ...] = (
     (5, EXECUTED_TABLE),  # exposures the telescope took ([loop], :mod:`~mushrooms.daemon.state.executed`)
     # which queues of a revision's queue set were accepted / removed (:mod:`~mushrooms.daemon.submission.submitter`)
     (6, ("submissions", "progress", "TEXT")),
+    # each configured telescope's part of a job after ZTF's (issue 53; :mod:`~mushrooms.daemon.state.parts`)
+    (6, PARTS_TABLE),  # version kept: a table only, which an older program ignores (and reads the file)
 )
 
 

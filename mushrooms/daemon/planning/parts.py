@@ -1,0 +1,266 @@
+"""Each configured telescope's part of a revision, in the outbox (issue 53, phase 4: through the service).
+
+With ``[scheduler] telescopes = ["ztf", "ls4", ...]`` a job (one sky map of an
+event) is planned for every telescope: ZTF's plan is the job's revisions, as
+for a ZTF-only service (its queue to Kowalski, its SkyPortal plan, its
+documents unchanged); every other telescope is planned in the job's first
+stage, before ZTF's revision 1 is stored (:func:`~mushrooms.handlers.telescope_plans.plan_telescopes`,
+the one call to switch to the joint plan), and its part goes where its
+description's ``queue`` says, into one folder of the outbox directory::
+
+    <[outbound] directory>/telescopes/<superevent>/<job:05d>-<alert type>/<telescope>/
+        part.json                    the part: telescope, queue, state, plan id, files, why
+        targets.json, targets.csv    queue = "target_list": the target list
+        skyportal_request.json       queue = "skyportal": the observation plan request (not sent: see below)
+        plan.json                    the telescope's plan document (mushrooms check plan.json MAP)
+        WITHDRAWN / SUPERSEDED       the event was retracted / a newer map's parts replace these
+
+Every file is written atomically (a reader sees the old file or the new one);
+names from notices and descriptions are reduced to ``[A-Za-z0-9._-]`` and 64
+characters.  A part is recorded in the state file (``telescope_parts``) after
+its files: a kill between two telescopes' parts leaves the job running, its
+restart plans the parts not recorded (the same plans: the fast scheduler is
+deterministic) and rewrites no recorded one.  A telescope that cannot observe
+the map gets ``state: not_observable`` and no export; one that fails gets
+``failed`` with the reason; neither stops the others.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import re
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+from ...handlers.text import storable
+from ..state.parts import event_parts, parts_of_job, record_part
+
+__all__ = ["TelescopeParts", "part_folder", "safe_name", "plan_parts", "parts_lines", "parts_words"]
+
+log = logging.getLogger("mushrooms.daemon.parts")
+
+_UNSAFE = re.compile(r"[^A-Za-z0-9._-]")
+
+#: marker file of a part that no longer stands, by its state
+MARKERS = {"superseded": "SUPERSEDED", "withdrawn": "WITHDRAWN"}
+
+
+def safe_name(text: Any, limit: int = 64) -> str:
+    """``text`` as one path component: ``[A-Za-z0-9._-]``, at most ``limit`` characters, never ``.``/``..``/empty.
+
+    A name that had to change ends with 8 hex digits of its SHA-256: two names never meet in one folder.
+    """
+    text = str(text)
+    name = _UNSAFE.sub("_", text)[:limit].strip(".")
+    if name == text and name:
+        return name
+    import hashlib
+
+    return f"{name[:max(limit - 9, 1)] or '_'}-{hashlib.sha256(text.encode('utf-8', 'replace')).hexdigest()[:8]}"
+
+
+def part_folder(root: Path, superevent_id: str, job_id: int, alert_type: str, telescope: str) -> Path:
+    """The outbox folder of one telescope's part of one job."""
+    return root / safe_name(superevent_id) / f"{int(job_id):05d}-{safe_name(alert_type, 24)}" / safe_name(telescope)
+
+
+class TelescopeParts:
+    """The other telescopes' parts of every job, written into ``<directory>/telescopes``.
+
+    Parameters
+    ----------
+    directory : str or Path
+        ``[outbound] directory`` (whatever the sink: a Kafka sink's service writes the parts there too).
+    runs : sequence of (TelescopeDescription, PlanningConfig)
+        Every configured telescope after ZTF, each with its own configuration.
+    """
+
+    def __init__(self, directory: str | Path, runs: Sequence[tuple[Any, Any]]):
+        self.root = Path(directory) / "telescopes"
+        self.runs = list(runs)
+
+    @classmethod
+    def from_config(cls, config: Any) -> "TelescopeParts | None":
+        """The parts of ``config`` (``[scheduler] telescopes`` after ``ztf``); None for ZTF alone."""
+        names = tuple(config.scheduler.telescopes)
+        if names[1:] == ():
+            return None
+        from ...scheduler_core.config import PlanningConfig
+        from ...scheduler_core.instruments import load_description
+
+        table = _scheduler_table(config.scheduler)
+        runs = []
+        for name in names[1:]:
+            telescope = load_description(name)
+            runs.append((telescope, PlanningConfig.for_telescope(telescope, table)))
+        return cls(config.outbound.directory, runs)
+
+    @property
+    def names(self) -> list[str]:
+        """The telescopes with a part here (ZTF's is the revision)."""
+        return [t.name for t, _ in self.runs]
+
+    def export_job(self, store: Any, job: Any, skymap: Any, event: Any, start: Any,
+                   cancelled: Callable[[], bool] = lambda: False) -> dict[str, str]:
+        """Plan and export the job's parts not yet recorded; supersede the event's older parts. State by telescope."""
+        from ...handlers.telescope_plans import plan_telescopes
+
+        done = parts_of_job(store, job.job_id)
+        todo = [(t, c) for t, c in self.runs if t.name not in done]
+        if todo and not cancelled():
+            plans = plan_telescopes(skymap, todo, start, event, should_stop=cancelled)
+            for telescope, _ in todo:
+                if cancelled():
+                    break
+                done[telescope.name] = {"state": self._export(store, job, telescope, plans[telescope.name])}
+        if cancelled():  # a retraction meanwhile: what this job wrote after its withdrawal is withdrawn too
+            self.sync(store)
+        elif all(t.name in done for t, _ in self.runs):
+            self.retire(store, job.superevent_id, "superseded", before_job=job.job_id)
+        return {name: row["state"] for name, row in done.items()}
+
+    def _export(self, store: Any, job: Any, telescope: Any, plan: Any) -> str:
+        """Write one part's files, then record it; its state."""
+        folder = part_folder(self.root, job.superevent_id, job.job_id, job.alert_type, telescope.name)
+        state, files, detail = _part_files(folder, telescope, plan)
+        part = {"type": "telescope_part", "superevent_id": storable(job.superevent_id, 200), "job_id": job.job_id,
+                "alert_type": storable(job.alert_type, 40), "skymap_sha256": job.skymap_sha256,
+                "telescope": telescope.name, "title": storable(telescope.title, 200), "queue": telescope.queue,
+                "state": state, "plan_id": getattr(plan, "plan_id", None), "files": files, "detail": detail}
+        _write_json(folder / "part.json", part)
+        record_part(store, job.job_id, telescope.name, job.superevent_id, telescope.queue, state,
+                    part["plan_id"], str(folder), detail)
+        log.info("event=telescope_part superevent_id=%s job=%s telescope=%s queue=%s state=%s plan_id=%s folder=%s",
+                 job.superevent_id, job.job_id, telescope.name, telescope.queue, state, part["plan_id"] or "-",
+                 folder)
+        return state
+
+    def retire(self, store: Any, superevent_id: str, state: str, before_job: int | None = None) -> int:
+        """Mark the event's standing parts ``superseded``/``withdrawn``: the marker file first, then the row."""
+        from ..state.parts import mark_parts
+
+        rows = [r for r in event_parts(store, superevent_id) if r["state"] in ("exported", "not_observable", "failed")
+                and (before_job is None or r["job_id"] < before_job)]
+        for row in rows:
+            _mark_folder(row, state)
+        if rows:
+            mark_parts(store, superevent_id, state, before_job)
+            log.info("event=telescope_parts_%s superevent_id=%s parts=%d", state, superevent_id, len(rows))
+        return len(rows)
+
+    def sync(self, store: Any) -> int:
+        """Withdraw the parts of retracted events (after a retraction's outbox message; again after a restart)."""
+        try:
+            sids = [r[0] for r in store.connection().execute(
+                "SELECT DISTINCT p.superevent_id FROM telescope_parts p JOIN events e USING (superevent_id)"
+                " WHERE e.retracted=1 AND p.state IN ('exported', 'not_observable', 'failed')")]
+        except Exception as exc:  # never stops the outbox
+            log.error("event=telescope_parts_sync_failed error=%r", str(exc))
+            return 0
+        return sum(self.retire(store, sid, "withdrawn") for sid in sids)
+
+
+def _scheduler_table(planning: Any) -> dict[str, Any]:
+    """The service's ``[scheduler]`` as a table: keys it sets to other than ZTF's defaults win for every telescope."""
+    table = {f.name: getattr(planning, f.name) for f in dataclasses.fields(planning) if f.name != "telescopes"}
+    slew = table.get("slew")
+    if dataclasses.is_dataclass(slew):
+        table["slew"] = dataclasses.asdict(slew)
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in table.items()}
+
+
+def _part_files(folder: Path, telescope: Any, plan: Any) -> tuple[str, list[str], str]:
+    """Write the part's export; (state, files written, why) by what ``plan`` is."""
+    from ...scheduler_core.plan.observability import NotObservable
+
+    if isinstance(plan, BaseException):
+        return "failed", [], storable(f"{type(plan).__name__}: {plan}", 400)
+    if isinstance(plan, NotObservable):
+        return "not_observable", [], storable("; ".join(plan.sentences) or "below min_coverage", 400)
+    files = {"plan.json": plan.to_document()}
+    if telescope.queue == "target_list":
+        from ...scheduler_core.plan.target_list import target_list_csv, target_list_document
+
+        files["targets.json"] = target_list_document(plan, telescope.name)
+        _write_bytes(folder / "targets.csv", target_list_csv(plan).encode())
+    elif telescope.queue == "skyportal":
+        files["skyportal_request.json"] = _skyportal_request(plan, telescope)
+    for name, doc in files.items():
+        _write_json(folder / name, doc)
+    written = sorted([*files, *(["targets.csv"] if telescope.queue == "target_list" else [])])
+    return "exported", written, ""
+
+
+def _skyportal_request(plan: Any, telescope: Any) -> dict[str, Any]:
+    """SkyPortal's observation plan request for the telescope's instrument (written, not sent)."""
+    from ...scheduler_core.plan.target_list import target_rows
+
+    names = {f: (t.skyportal_name or f) for f, t in telescope.filters.items()}
+    rows = target_rows(plan)
+    return {"type": "skyportal_observation_plan_request", "sent": False,
+            "why_not_sent": "the service's SkyPortal submitter sends ZTF's plans ([submit]); submit this one with "
+                            "the instrument's allocation (POST /api/observation_plan/manual)",
+            "instrument": storable(telescope.execution.skyportal_instrument or telescope.name, 100),
+            "plan_id": plan.plan_id, "dateobs": (plan.event.event_time or "").rstrip("Z"),
+            "localization_name": storable(plan.event.skymap_name or "healpix", 200),
+            "planned_observations": [{"planned_observation_id": i, "dateobs": r["start"], "field_id": r["field_id"],
+                                      "ra": r["ra"], "dec": r["dec"], "exposure_time": r["exposure_s"],
+                                      "filt": storable(names.get(r["filter"], r["filter"]), 32)}
+                                     for i, r in enumerate(rows)]}
+
+
+def _mark_folder(row: dict[str, Any], state: str) -> None:
+    """The ``SUPERSEDED``/``WITHDRAWN`` marker and ``part.json``'s state, in a part's folder (atomically)."""
+    import json
+
+    if not row.get("folder"):
+        return
+    folder = Path(row["folder"])
+    try:
+        part = json.loads((folder / "part.json").read_text())
+    except (OSError, ValueError):
+        part = {"type": "telescope_part", "telescope": row["telescope"], "superevent_id": row["superevent_id"]}
+    part["state"] = state
+    _write_bytes(folder / MARKERS[state], f"{state}: {row['telescope']} part of job {row['job_id']}\n".encode())
+    _write_json(folder / "part.json", part)
+
+
+def _write_json(path: Path, doc: Any) -> None:
+    from ...outputs import write_json_atomic
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(path, doc)
+
+
+def _write_bytes(path: Path, data: bytes) -> None:
+    from ...outputs import write_bytes_atomic
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_bytes_atomic(path, data)
+
+
+def plan_parts(store: Any, plan_id: str | None) -> list[dict[str, Any]]:
+    """The other telescopes' parts of the job whose ZTF revision is ``plan_id`` ([] for none, or no table)."""
+    try:
+        row = store.connection().execute("SELECT job_id FROM plans WHERE plan_id=?", (plan_id,)).fetchone()
+        return [] if row is None or row[0] is None else list(parts_of_job(store, row[0]).values())
+    except Exception as exc:  # the words about other telescopes never stop ZTF's message
+        log.error("event=telescope_parts_unread plan_id=%s error=%r", plan_id, str(exc))
+        return []
+
+
+def parts_lines(parts: list[dict[str, Any]]) -> list[str]:
+    """Every telescope's part of a revision in words, for its summary and page (none without parts)."""
+    from ..state.parts import part_line
+
+    if not parts:
+        return []
+    return (["Telescopes ztf (ztf_too): this plan"]
+            + [f"           {part_line(p)}" for p in sorted(parts, key=lambda p: p["telescope"])])
+
+
+def parts_words(parts: list[dict[str, Any]]) -> str:
+    """The webhook's few words: ``other telescopes: ls4 target_list exported, decam not_observable``."""
+    return ("other telescopes: " + ", ".join(f"{p['telescope']} {p['queue']} {p['state']}"
+                                             for p in sorted(parts, key=lambda p: p["telescope"]))) if parts else ""
