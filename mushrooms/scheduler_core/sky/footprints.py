@@ -63,7 +63,10 @@ class Footprints:
 
     def field_probability(self, prob: np.ndarray) -> np.ndarray:
         """(n,) probability inside each field on its own."""
-        sums = np.add.reduceat(prob[self.indices], self.indptr[:-1]) if self.indices.size else np.zeros(len(self.field_ids))
+        # a trailing 0 keeps every row start a valid index when the last rows are empty (a field smaller than a
+        # pixel holds none); adding 0.0 leaves the last row's sum bit for bit as it was
+        values = np.append(prob[self.indices], 0.0)
+        sums = np.add.reduceat(values, self.indptr[:-1]) if self.indices.size else np.zeros(len(self.field_ids))
         empty = self.indptr[1:] == self.indptr[:-1]
         sums = np.asarray(sums, float)
         sums[empty] = 0.0

@@ -19,6 +19,7 @@ import numpy as np
 
 from ...plan.document import Observation
 from ...problem import PlanningProblem, StopCheck
+from ...sky.footprints import Footprints
 from ...sky.windows import Windows
 from ...telescope.slew import overhead_time
 from ..blocks.schedule import shortlist_footprints
@@ -125,6 +126,26 @@ def _slice_fields(pairs: dict[int, list[Observation]], intervals: tuple[tuple[fl
     return free_ids, fixed_ids, sorted(near)
 
 
+def probability_in_rows(fp: Footprints, prob: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Probability ``prob`` inside each of the footprint rows ``rows`` (each row on its own; any order).
+
+    Parameters
+    ----------
+    fp : Footprints
+        Fields' pixel lists.
+    prob : numpy.ndarray
+        Weight per pixel (NESTED, ``fp.nside``).
+    rows : numpy.ndarray
+        Row numbers of ``fp`` (int).
+
+    Returns
+    -------
+    numpy.ndarray
+        (len(rows),) summed weight.
+    """
+    return fp.field_probability(prob)[np.asarray(rows, np.int64)]
+
+
 def _slice_candidates(problem: PlanningProblem, pairs: dict[int, list[Observation]],
                       intervals: tuple[tuple[float, float], ...], fixed_ids: list[int], row_of: dict[int, int],
                       pool: np.ndarray, pool_ok: np.ndarray, n_new: int) -> tuple[np.ndarray, np.ndarray]:
@@ -155,8 +176,7 @@ def _slice_candidates(problem: PlanningProblem, pairs: dict[int, list[Observatio
     planned = np.isin(problem.field_ids[pool], np.fromiter(pairs, np.int64, len(pairs)))
     cand = pool[pool_ok & ~planned & fits[pool]]
     if cand.size and n_new > 0:
-        gain = np.add.reduceat(prob[fp.indices], fp.indptr[cand]) if fp.indices.size else np.zeros(cand.size)
-        gain = np.where(fp.indptr[cand + 1] > fp.indptr[cand], gain, 0.0)
+        gain = probability_in_rows(fp, prob, cand)
         keep = np.argsort(-gain, kind="stable")[:n_new]
         cand = cand[keep][gain[keep] > 0.0]
     else:
