@@ -75,11 +75,16 @@ def read_schedule(path: Path, start: Time) -> list[dict]:
     return out
 
 
-def pair_times(rows: list[dict]) -> dict[int, float]:
-    """Field -> the end of the exposure that completes its pair (two filters >= CADENCE_S apart)."""
+def pair_times(rows: list[dict], rule: str = "pair") -> dict[int, float]:
+    """Field -> the end of the exposure that completes its pair (two filters >= CADENCE_S apart).
+
+    ``rule = "once"``: the end of its first exposure (observed at least once, no pair asked).
+    """
     by: dict[int, list[dict]] = {}
     for r in sorted(rows, key=lambda r: r["t"]):
         by.setdefault(r["field"], []).append(r)
+    if rule == "once":
+        return {f: exps[0]["t"] + exps[0]["texp"] for f, exps in by.items()}
     done = {}
     for f, exps in by.items():
         for k, late in enumerate(exps):
@@ -101,18 +106,21 @@ def footprints_of(telescope: str, rows: list[dict]):
     return field_footprints(grid, NSIDE, camera)
 
 
-def score(name: str, path: Path) -> dict | None:
-    """Union within 24 h, each telescope's share, covered more than once, time to 50 % of gwemopt's plan."""
+def score(name: str, path: Path, base: Path = OUT, rule: str = "pair") -> dict | None:
+    """Union within 24 h, each telescope's share, covered more than once, time to 50 % of gwemopt's plan.
+
+    ``base / name / out`` holds gwemopt's schedules; ``rule``: ``pair`` (the joint plan's) or ``once``.
+    """
     skymap = read_skymap(path, nside=NSIDE)
     start, prob = skymap.event_time, skymap.prob
     events, count, share, exposures = [], np.zeros(prob.size, np.int32), {}, {}
     for tel in ("ZTF", "DECam"):
-        f = OUT / name / "out" / f"schedule_{tel}.dat"
+        f = base / name / "out" / f"schedule_{tel}.dat"
         if not f.is_file():
             return None
         rows = read_schedule(f, start)
         exposures[tel] = len(rows)
-        done = {k: t for k, t in pair_times(rows).items() if t <= 86400.0}
+        done = {k: t for k, t in pair_times(rows, rule).items() if t <= 86400.0}
         fp = footprints_of(tel, rows) if done else None
         pix = fp.union(list(done)) if done else np.zeros(0, int)
         count[pix] += 1
@@ -126,7 +134,19 @@ def score(name: str, path: Path) -> dict | None:
             t50 = round(t / 3600.0, 3)
     return {"map": JOINT_NAMES[name], "union": round(float(prob[count > 0].sum()), 4), "share": share,
             "more_than_once": round(float(prob[count > 1].sum()), 4), "t50_h": t50, "exposures": exposures,
-            "pairs": int(len(events))}
+            "covered_fields": int(len(events)), "rule": rule, "variant": base.name}
+
+
+def _ours(rows: dict, name: str) -> list[str]:
+    """The joint plan benchmark's rows of one map (pair rule)."""
+    out = []
+    for plan in ("uncoordinated", "tiling A>B", "coordinated"):
+        row = rows.get(plan)
+        if row:
+            t = "never" if row.get("t50_h") is None else f"{row['t50_h']:.2f} h"
+            out.append(f"| {name} | mushrooms {plan} (pair rule) | {row['union']:.4f} | {row['share_A']:.4f} | "
+                       f"{row['share_B']:.4f} | {row['both']:.4f} | {t} |")
+    return out
 
 
 def main() -> int:
@@ -140,20 +160,17 @@ def main() -> int:
              "|---|---|---|---|---|---|---|"]
     records = []
     for name, path in RUNS.items():
-        rec = score(name, path)
-        if rec is None:
-            print(name, "no gwemopt schedule (see its log.txt)")
-            continue
-        records.append(rec)
-        t = "never" if rec["t50_h"] is None else f"{rec['t50_h']:.2f} h"
-        lines.append(f"| {rec['map']} | gwemopt ZTF,DECam (no iterative tiling) | {rec['union']:.4f} | "
-                     f"{rec['share']['ZTF']:.4f} | {rec['share']['DECam']:.4f} | {rec['more_than_once']:.4f} | {t} |")
-        for plan in ("uncoordinated", "tiling A>B", "coordinated"):
-            row = joint.get(rec["map"], {}).get(plan)
-            if row:
-                t = "never" if row.get("t50_h") is None else f"{row['t50_h']:.2f} h"
-                lines.append(f"| {rec['map']} | mushrooms {plan} | {row['union']:.4f} | {row['share_A']:.4f} | "
-                             f"{row['share_B']:.4f} | {row['both']:.4f} | {t} |")
+        for base, label in ((OUT, "greedy, g,r"), (OUT / "skyportal_form", "SkyPortal form")):
+            for rule in ("pair", "once"):
+                rec = score(name, path, base, rule)
+                if rec is None:
+                    continue
+                records.append(rec)
+                t = "never" if rec["t50_h"] is None else f"{rec['t50_h']:.2f} h"
+                lines.append(f"| {rec['map']} | gwemopt ZTF,DECam ({label}; {rule} rule) | {rec['union']:.4f} | "
+                             f"{rec['share']['ZTF']:.4f} | {rec['share']['DECam']:.4f} | {rec['more_than_once']:.4f} "
+                             f"| {t} |")
+        lines += _ours(joint.get(JOINT_NAMES[name], {}), JOINT_NAMES[name])
     (OUT / "gwemopt_scored.jsonl").write_text("".join(json.dumps(r) + "\n" for r in records))
     (OUT / "gwemopt_scored.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
