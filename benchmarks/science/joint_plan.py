@@ -18,7 +18,12 @@ For each map (its merger time as the start, 24 h horizon, work budget):
 Union coverage (within the 24 h from the merger), the probability covered by both telescopes
 (observed more than once), the time to 50 % of the probability (:func:`time_to_half`), the bound.
 
+With ``--telescopes ztf,ls4`` (any two described telescopes) A and B are those; ``--all-shared`` runs
+the 13 maps of :func:`shared_maps` (results in ``OUTDIR/all_shared/<a>_<b>`` when OUTDIR is given so).
+
     nice PYTHONPATH=. .venv/bin/python benchmarks/science/joint_plan.py [--limit 2] [--wide] [OUTDIR]
+    nice PYTHONPATH=. .venv/bin/python benchmarks/science/joint_plan.py benchmarks/results/science/joint_plan/all_shared \
+        --telescopes ztf,ls4 --all-shared
 """
 
 from __future__ import annotations

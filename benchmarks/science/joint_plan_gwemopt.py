@@ -23,7 +23,10 @@ tessellations ``ZTF.tess``, ``DECam.tess``; gwemopt ships no LS4), ``--doTiles
 (109, 116: one filter list for every telescope, ``params.py:104-105``),
 ``--doSingleExposure --doAlternatingFilters`` (as the project's ZTF baseline,
 ``mushrooms/evaluation/gwemopt_options.py``), ``--nside 128 --airmass 2.5``,
-``--gpstime`` the merger, ``--Tobs 0,1`` (24 h).
+``--gpstime`` the merger, ``--Tobs 0,1`` (24 h); in ``skyportal_form/`` SkyPortal's plan-form options
+instead (``gwemopt-skyportal`` of ``gwemopt_options.py``: ``--filters g,r,g --exposuretimes 300,300,300
+--doBalanceExposure --doUsePrimary --airmass 2.0``).  The runs are shell lines (``args.txt`` beside each
+result); this module scores what they wrote.
 
 Scoring (the same pair rule and union as ``joint_plan.py``): a field of a
 telescope is covered when two of its exposures in different filters start at
@@ -31,7 +34,8 @@ least ``cadence_s`` (1800 s, both descriptions) apart, at the end of the later;
 ZTF's fields are ZTF grid ids (our footprints, 16 CCDs); DECam's pointings are
 gwemopt's ``DECam.tess`` centres, footprinted with our DECam description's
 detectors.  gwemopt's exposures are not checked against our windows (twilight,
-airmass, Moon): the score is what gwemopt plans, not what our checker accepts.
+airmass, Moon): the score is what gwemopt plans, not what our checker accepts.  Rule ``once``
+as well: a field covered at the end of its first exposure (the probability observed at least once).
 
     nice PYTHONPATH=. .venv/bin/python benchmarks/science/joint_plan_gwemopt.py
 """
