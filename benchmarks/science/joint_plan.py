@@ -15,9 +15,15 @@ For each map (its merger time as the start, 24 h horizon, work budget):
 * ``tiling``: gwemopt's iterative tiling, A then B on what A left (``iterative_tiling``);
 * ``coordinated``: ``joint_schedule`` (J6), with its certified bound (J8).
 
-Union coverage, the probability covered by both telescopes, the bound.
+Union coverage (within the 24 h from the merger), the probability covered by both telescopes
+(observed more than once), the time to 50 % of the probability (:func:`time_to_half`), the bound.
+
+With ``--telescopes ztf,ls4`` (any two described telescopes) A and B are those; ``--all-shared`` runs
+the 13 maps of :func:`shared_maps` (results in ``OUTDIR/all_shared/<a>_<b>`` when OUTDIR is given so).
 
     nice PYTHONPATH=. .venv/bin/python benchmarks/science/joint_plan.py [--limit 2] [--wide] [OUTDIR]
+    nice PYTHONPATH=. .venv/bin/python benchmarks/science/joint_plan.py benchmarks/results/science/joint_plan/all_shared \
+        --telescopes ztf,ls4 --all-shared
 """
 
 from __future__ import annotations
@@ -60,6 +66,14 @@ OUT = ROOT / "benchmarks/results/science/joint_plan"
 SOUTH = SHARED / "simulated/bns_o3/18.fits"
 
 
+def shared_maps() -> list[Path]:
+    """Shared maps: the six of MAPS, the southern one, three public O4 maps and three more of bns_o3."""
+    extra = [SHARED / "public/S230518h_Bilby.offline0.multiorder.fits", SHARED / "public/S230731an_bayestar.multiorder.fits",
+             SHARED / "public/S231113bw_Bilby.multiorder.fits", SHARED / "simulated/bns_o3/5.fits",
+             SHARED / "simulated/bns_o3/7.fits", SHARED / "simulated/bns_o3/14.fits"]
+    return MAPS + [SOUTH] + [p for p in extra if p.is_file()]
+
+
 def _grid(primary: bool) -> FieldGrid:
     g = load_ztf_fields()
     sel = (g.ids < 1000) if primary else (g.ids >= 1000)
@@ -74,10 +88,49 @@ def _configs(nside: int, limit: float, exposures: tuple[float, float] = (300.0, 
             PlanningConfig(filters=("r", "i"), cadence_s=2400.0, exposure_s=exposures[1], **common))
 
 
+def covered_times(problem, result) -> list[tuple[float, int]]:
+    """(time s since the start, field id) at which each observed field becomes covered by its telescope's rule.
+
+    The end of the field's ``k``-th exposure, ``k`` the number of filters of the
+    planned sequence (ZTF's g-r pair: its second exposure; LS4's one ``i`` visit:
+    that visit), or of its last exposure when it has fewer (not seen in these plans).
+    """
+    k = len(problem.config.filters)
+    by_field: dict[int, list[float]] = {}
+    for o in result.observations:
+        by_field.setdefault(int(o.field_id), []).append(float(o.end))
+    return [(sorted(ends)[min(k, len(ends)) - 1], f) for f, ends in by_field.items()]
+
+
+def time_to_half(problems, results, prob: np.ndarray, fraction: float = 0.5) -> float | None:
+    """Hours from the start (the merger) until the union of covered fields holds ``fraction`` of the map's probability.
+
+    The fields of every telescope's plan in the order they become covered
+    (:func:`covered_times`); the first time the probability inside the union of
+    their footprints reaches ``fraction`` of the map's total (its sum, 1 for a
+    normalised map, whatever the telescopes can see); None when it never does
+    within the plans (24 h).
+    """
+    from mushrooms.scheduler_core.schedulers.joint.cells import covered_pixels
+
+    events = sorted((t, i, f) for i, (p, r) in enumerate(zip(problems, results)) for t, f in covered_times(p, r))
+    mask = np.zeros(prob.size, bool)
+    total, target = 0.0, fraction * float(prob.sum())
+    for t, i, f in events:
+        pix = covered_pixels(problems[i], {f})
+        total += float(prob[pix[~mask[pix]]].sum())
+        mask[pix] = True
+        if total >= target:
+            return t / 3600.0
+    return None
+
+
 def _row(name: str, problems, results) -> dict:
     m = joint_metrics(problems, [{o.field_id for o in r.observations} for r in results], problems[0].prob)
+    t50 = time_to_half(problems, results, problems[0].prob)
     return {"plan": name, "union": round(m.union, 4), "share_A": round(m.share[0], 4), "share_B": round(m.share[1], 4),
-            "both": round(m.more_than_once, 4), "fields": [len({o.field_id for o in r.observations}) for r in results]}
+            "both": round(m.more_than_once, 4), "fields": [len({o.field_id for o in r.observations}) for r in results],
+            "t50_h": None if t50 is None else round(t50, 3)}
 
 
 def _described(skymap, start, nside: int, limit: float, names: tuple[str, str]) -> list:
@@ -110,10 +163,11 @@ def one_map(path: Path, nside: int, limit: float, exposures: tuple[float, float]
     joint = joint_schedule(problems, names=("A", "B"))
     wall_joint = time.perf_counter() - t0
     tiling = iterative_tiling(problems, problems[0].prob)
+    tiling_ba = iterative_tiling(problems[::-1], problems[0].prob)[::-1]
     empty = type(joint.alone[0])((), "none", "none")
     rows = [_row("alone A", problems, [joint.alone[0], empty]), _row("alone B", problems, [empty, joint.alone[1]]),
             _row("uncoordinated", problems, list(joint.alone)), _row("tiling A>B", problems, tiling),
-            _row("coordinated", problems, list(joint.schedules))]
+            _row("tiling B>A", problems, tiling_ba), _row("coordinated", problems, list(joint.schedules))]
     b = joint.bound
     return {"map": path.name if path.parent.name in ("public", "skymaps") else f"{path.parent.name}/{path.name}",
             "start": start.isot, "candidates": [int(p.field_ids.size) for p in problems], "rows": rows,
@@ -124,29 +178,57 @@ def one_map(path: Path, nside: int, limit: float, exposures: tuple[float, float]
             "joint_model": joint.details.get("joint_model"), "ascent": joint.details.get("ascent")}
 
 
+def _t50(v) -> str:
+    return "never" if v is None else f"{v:.2f} h"
+
+
+def _col(records: list[dict], name: str, key: str) -> list:
+    return [[row.get(key) for row in r["rows"] if row["plan"] == name][0] for r in records]
+
+
 def table(records: list[dict]) -> str:
     """The markdown table: one line per map and plan, then the means and paired differences."""
-    lines = ["| map | plan | union | A's share | B's share | covered by both | fields A, B |", "|---|---|---|---|---|---|---|"]
+    lines = ["| map | plan | union | A's share | B's share | covered by both | time to 50 % | fields A, B |",
+             "|---|---|---|---|---|---|---|---|"]
     for r in records:
         for row in r["rows"]:
             lines.append(f"| {r['map']} | {row['plan']} | {row['union']:.4f} | {row['share_A']:.4f} | "
-                         f"{row['share_B']:.4f} | {row['both']:.4f} | {row['fields'][0]}, {row['fields'][1]} |")
+                         f"{row['share_B']:.4f} | {row['both']:.4f} | {_t50(row.get('t50_h'))} | "
+                         f"{row['fields'][0]}, {row['fields'][1]} |")
         bj = "not solved" if r["bound_joint"] is None else f"{r['bound_joint']:.4f}"
         lines.append(f"| {r['map']} | bound (J8) | {r['bound']:.4f} | B_joint {bj} | "
-                     f"ΣU4 {r['bound_sum_u4']:.4f} | total {r['bound_total']:.4f} | {r['method']} |")
+                     f"ΣU4 {r['bound_sum_u4']:.4f} | total {r['bound_total']:.4f} | | {r['method']} |")
+    return "\n".join(lines + [""] + summary(records)) + "\n"
+
+
+def summary(records: list[dict]) -> list[str]:
+    """Means, medians and the coordinated plan's paired differences over the maps."""
     plans = [row["plan"] for row in records[0]["rows"]] if records else []
-    lines += ["", f"Means over {len(records)} maps, and the coordinated plan's paired difference (mean ± std. error):", "",
-              "| plan | union | covered by both | coordinated − plan (union) |", "|---|---|---|---|"]
-    coord = np.array([[row["union"] for row in r["rows"] if row["plan"] == "coordinated"][0] for r in records])
+    n = len(records)
+    lines = [f"Over {n} maps: means (medians), and the coordinated plan's paired difference (mean ± std. error; "
+             "time to 50 %: median over the maps, never = after the 24 h; its paired difference over the maps "
+             "where both reach 50 %):", "",
+             "| plan | union mean (median) | covered by both mean (median) | reach 50 % | time to 50 % median | "
+             "coordinated − plan (union) | coordinated − plan (time to 50 %, h) |", "|---|---|---|---|---|---|---|"]
+    coord = np.array(_col(records, "coordinated", "union"))
+    coord_t = _col(records, "coordinated", "t50_h")
     for name in plans:
-        u = np.array([[row["union"] for row in r["rows"] if row["plan"] == name][0] for r in records])
-        both = np.array([[row["both"] for row in r["rows"] if row["plan"] == name][0] for r in records])
+        u, both = np.array(_col(records, name, "union")), np.array(_col(records, name, "both"))
+        t = _col(records, name, "t50_h")
         d = coord - u
         se = d.std(ddof=1) / np.sqrt(d.size) if d.size > 1 else 0.0
-        lines.append(f"| {name} | {u.mean():.4f} | {both.mean():.4f} | {d.mean():+.4f} ± {se:.4f} |")
+        reach = [x for x in t if x is not None]
+        med = np.median([np.inf if x is None else x for x in t]) if t else np.inf
+        dt = np.array([a - b for a, b in zip(coord_t, t) if a is not None and b is not None])
+        dts = (f"{dt.mean():+.2f} ± {dt.std(ddof=1) / np.sqrt(dt.size) if dt.size > 1 else 0.0:.2f} "
+               f"(n {dt.size})") if dt.size else "no pair"
+        lines.append(f"| {name} | {u.mean():.4f} ({np.median(u):.4f}) | {both.mean():.4f} ({np.median(both):.4f}) | "
+                     f"{len(reach)} of {n} | {'never' if not np.isfinite(med) else f'{med:.2f} h'} | "
+                     f"{d.mean():+.4f} ± {se:.4f} | {dts} |")
     bound = np.array([r["bound"] for r in records])
-    lines.append(f"| bound (J8) | {bound.mean():.4f} | | gap to coordinated {np.mean(bound - coord):.4f} |")
-    return "\n".join(lines) + "\n"
+    lines.append(f"| bound (J8) | {bound.mean():.4f} ({np.median(bound):.4f}) | | | | "
+                 f"gap to coordinated {np.mean(bound - coord):.4f} | |")
+    return lines
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -160,6 +242,7 @@ def main(argv: list[str] | None = None) -> int:
                     "OUTDIR/<a>_<b>): A and B are those, each with its description's defaults")
     ap.add_argument("--exposures", default="300,240", help="A's and B's exposure (s); other than the default: "
                     "results in OUTDIR/exposures_A_B")
+    ap.add_argument("--all-shared", action="store_true", help="every map of the shared set (shared_maps)")
     args = ap.parse_args(argv)
     exposures = tuple(float(x) for x in args.exposures.split(","))
     sub = "" if exposures == (300.0, 240.0) else f"exposures_{exposures[0]:g}_{exposures[1]:g}"
@@ -168,6 +251,8 @@ def main(argv: list[str] | None = None) -> int:
         sub = "_".join(telescopes)
     out = Path(args.out) / ("wide" if args.wide else "") / sub
     maps = (WIDE if args.wide else MAPS) + ([SOUTH] if telescopes and not args.wide else [])
+    if args.all_shared:
+        maps = shared_maps()
     out.mkdir(parents=True, exist_ok=True)
     load0 = os.getloadavg()
     records = []

@@ -17,7 +17,7 @@ from .sky.windows import Windows
 from .sky.skymap import SkyMap
 from .sky.visibility import observability_windows
 
-__all__ = ["prepare_problem"]
+__all__ = ["prepare_problem", "telescope_grid_and_camera"]
 
 
 def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGrid | None = None,
@@ -92,7 +92,7 @@ def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time, grid: F
     """
     if skymap.nside != config.nside:
         raise ValueError(f"sky map nside {skymap.nside} differs from config nside {config.nside}")
-    grid, camera = _grid_and_camera(config, telescope, grid)
+    grid, camera = telescope_grid_and_camera(config, telescope, grid)
     footprints = footprints if footprints is not None else field_footprints(grid, config.nside, camera)
     if footprints.nside != config.nside or not np.array_equal(footprints.field_ids, grid.ids):
         raise ValueError("footprints must cover the whole grid, in grid order, at config.nside")
@@ -118,9 +118,14 @@ def prepare_problem(skymap: SkyMap, config: PlanningConfig, start: Time, grid: F
     )
 
 
-def _grid_and_camera(config: PlanningConfig, telescope: TelescopeDescription | None,
-                     grid: FieldGrid | None) -> tuple[FieldGrid, Camera | None]:
-    """The field grid (``grid`` when given) and the covering detectors (None: ZTF's 16 CCDs) of the telescope."""
+def telescope_grid_and_camera(config: PlanningConfig, telescope: TelescopeDescription | None = None,
+                              grid: FieldGrid | None = None) -> tuple[FieldGrid, Camera | None]:
+    """The field grid (``grid`` when given) and the covering detectors (None: ZTF's 16 CCDs) of the telescope.
+
+    The telescope is ``config.telescope`` (its description when ``telescope`` is not given);
+    :func:`~.fields.field_footprints` with the pair returned gives the footprints every part of
+    the planner uses for it (the first plan, the re-plans and the following nights).
+    """
     if telescope is not None and telescope_entry(telescope) != config.telescope:
         raise ValueError(f"config plans telescope {config.telescope!r}, not {telescope_entry(telescope)!r}: "
                          f"build it with PlanningConfig.for_telescope(telescope, table)")

@@ -52,10 +52,11 @@ from .schedulers.completions import (
 from .schedulers.gain import worth_a_visit
 from .telescope.slew import overhead_time
 from .sequences import done_covering, is_pair, sequence_progress
-from .sky.fields import FieldGrid, field_footprints, load_ztf_fields
+from .sky.fields import FieldGrid, field_footprints
 from .sky.footprints import Footprints
 from .sky.skymap import SkyMap
 from .plan.localization import with_map_details
+from .prepare import telescope_grid_and_camera
 from .sky.visibility import observability_windows
 from .sky.windows import Windows
 
@@ -125,7 +126,8 @@ def executed_state(skymap: SkyMap, config: PlanningConfig, start: Time,
     known = set(grid.ids[rows[rows >= 0]].tolist())
     unknown = tuple(sorted((set(pairs.both) | set(pairs.one)) - known))
     if unknown:
-        log.warning("executed record: field(s) %s are not on the ZTF grid; ignored", ", ".join(map(str, unknown)))
+        log.warning("executed record: field(s) %s are not on the %s grid; ignored", ", ".join(map(str, unknown)),
+                    config.telescope)
     covered = np.array(sorted(set(pairs.both) & known), dtype=int)
     # (P1) the executed pairs' pixels are covered: their probability is not counted again
     uncovered = skymap.prob.copy()
@@ -216,7 +218,7 @@ def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
     should_stop : callable, optional
         Polled by the scheduler.
     grid : FieldGrid, optional
-        The field grid (default all ZTF fields).
+        The field grid (default the telescope's: all ZTF fields for ZTF).
     supersedes : str, optional
         plan_id of the plan this one replaces.
 
@@ -247,8 +249,9 @@ def plan_remaining(skymap: SkyMap, config: PlanningConfig, start: Time,
         raise InputError(f"sky map nside {skymap.nside} differs from config nside {config.nside}")
     start = Time(start, scale="utc")
     skymap, event = on_merger_clock(skymap, event)
-    grid = grid if grid is not None else load_ztf_fields()
-    footprints = field_footprints(grid, config.nside)
+    # the telescope's own grid and detectors (ZTF: its grid and 16 CCDs), as its first plan's
+    grid, camera = telescope_grid_and_camera(config, None, grid)
+    footprints = field_footprints(grid, config.nside, camera)
     state = executed_state(skymap, config, start, executed, footprints, grid, min_processed_fraction)
     sel, windows = _candidates(state, config, start, grid, footprints)
     observations, result = _schedule(skymap, config, start, grid, footprints, state, sel, windows, solver,

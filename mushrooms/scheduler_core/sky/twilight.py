@@ -1,7 +1,9 @@
-"""The nights ahead at Palomar: each night's validity window, twilight to twilight (N1).
+"""The nights ahead at a telescope's site: each night's validity window, twilight to twilight (N1).
 
 A night is the dark part of one block from local noon to local noon
-(:data:`~.visibility.GRID_ANCHOR`, :data:`~.visibility.NIGHT_S`): the Sun at
+(:func:`night_anchor`: :data:`~.visibility.GRID_ANCHOR`, Palomar's local
+mean noon, moved by the site's longitude in whole minutes;
+:data:`~.visibility.NIGHT_S`): the Sun at
 most ``sun_alt_max_deg`` high.  Its window runs from the first to the last
 time of a one-minute grid at which the Sun is that low, so it lies inside
 the true dark interval (the Sun's altitude is monotonic across a twilight),
@@ -19,12 +21,33 @@ from astropy.time import Time, TimeDelta
 
 from ..config import PlanningConfig
 from .ephemeris import ephemeris
-from .visibility import GRID_ANCHOR, NIGHT_S, site
+from .visibility import GRID_ANCHOR, NIGHT_S, PALOMAR, site
 
-__all__ = ["night_windows", "night_evening", "NIGHT_GRID_S"]
+__all__ = ["night_windows", "night_evening", "night_anchor", "NIGHT_GRID_S"]
 
 #: Step (s) of the grid on which twilights are found.
 NIGHT_GRID_S = 60.0
+
+
+def night_anchor(telescope: str = "ztf") -> Time:
+    """Local mean noon at the telescope's site on 2000-01-01, in whole minutes from :data:`GRID_ANCHOR` (UTC).
+
+    Nights are split at the site's noon, so a site's night is found whole
+    wherever it lies (a site far east of Palomar has its night across
+    Palomar's noon).  For ZTF (Palomar) it is :data:`GRID_ANCHOR` itself.
+
+    Parameters
+    ----------
+    telescope : str
+        A ``telescopes`` entry (``"ztf"``, a shipped name or a description path).
+    """
+    if telescope == "ztf":
+        return GRID_ANCHOR
+    east_deg = float(site(telescope).lon.deg) - PALOMAR[1]
+    east_deg = (east_deg + 180.0) % 360.0 - 180.0
+    # 4 minutes of time per degree east, earlier noon; on the minute grid of the twilights
+    shift_s = np.round(-east_deg * 240.0 / NIGHT_GRID_S) * NIGHT_GRID_S
+    return GRID_ANCHOR + TimeDelta(shift_s, format="sec")
 
 
 def night_windows(start: Time, config: PlanningConfig, nights: int) -> tuple[tuple[Time, Time], ...]:
@@ -54,7 +77,8 @@ def night_windows(start: Time, config: PlanningConfig, nights: int) -> tuple[tup
     if nights < 1:
         raise ValueError(f"nights must be >= 1, got {nights}")
     start = Time(start, scale="utc")
-    t0 = float((start - GRID_ANCHOR).to_value("s"))
+    anchor = night_anchor(config.telescope)
+    t0 = float((start - anchor).to_value("s"))
     block = int(np.floor(t0 / NIGHT_S))
     out: list[tuple[Time, Time]] = []
     for b in range(block, block + nights + 2):
@@ -62,7 +86,7 @@ def night_windows(start: Time, config: PlanningConfig, nights: int) -> tuple[tup
         offsets = offsets[offsets >= t0 - 1e-6]
         if offsets.size == 0:
             continue
-        times = GRID_ANCHOR + TimeDelta(offsets, format="sec")
+        times = anchor + TimeDelta(offsets, format="sec")
         dark = np.flatnonzero(ephemeris(times, site(config.telescope)).sun_alt_deg <= config.sun_alt_max_deg)
         if dark.size == 0:
             continue
@@ -84,8 +108,9 @@ def night_evening(start: Time, config: PlanningConfig) -> Time:
     """
     start = Time(start, scale="utc")
     (evening, morning), = night_windows(start, config, 1)
-    block = np.floor(float((start - GRID_ANCHOR).to_value("s")) / NIGHT_S) * NIGHT_S
-    noon = GRID_ANCHOR + TimeDelta(block, format="sec")
+    anchor = night_anchor(config.telescope)
+    block = np.floor(float((start - anchor).to_value("s")) / NIGHT_S) * NIGHT_S
+    noon = anchor + TimeDelta(block, format="sec")
     if noon < start:
         (real, end), = night_windows(noon, config, 1)
         if abs(float((end - morning).to_value("s"))) < NIGHT_GRID_S:  # the same night

@@ -69,7 +69,10 @@ def plan_alone(problem: PlanningProblem, weight: np.ndarray | None = None, time_
         return nothing(status="nothing_left"), 0.0
     cfg = problem.config
     if time_limit_s is not None and float(time_limit_s) != cfg.time_limit_s:
-        cfg = dataclasses.replace(cfg, time_limit_s=float(time_limit_s))
+        t, detection = float(time_limit_s), cfg.detection_time_limit_s
+        if detection >= t:  # the detection stage's limit must stay below time_limit_s: its share of the budget
+            detection = detection / cfg.time_limit_s * t
+        cfg = dataclasses.replace(cfg, time_limit_s=t, detection_time_limit_s=detection)
     step = dataclasses.replace(problem, config=cfg, prob=w, clock=new_clock(cfg.deterministic))
     mark = step.clock.mark()
     # (J3) a one-visit rule (one filter) is greedy's alone: the slot model plans sequences of two visits or more
