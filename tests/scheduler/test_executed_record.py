@@ -102,10 +102,15 @@ def test_done_pairs():
     assert sorted(done_pairs(records, filters=("g", "i")).one) == [600, 601, 604, 605]
 
 
-@pytest.mark.parametrize("filters", [("g", "g"), ("g", "z")])
+@pytest.mark.parametrize("filters", [("g", "g"), ("g", None)])
 def test_done_pairs_needs_two_filters(filters):
     with pytest.raises(ValueError):
         done_pairs([], filters=filters)
+
+
+def test_done_pairs_takes_another_telescopes_two_filters():
+    """Any telescope's pair (DECam's i-z, issue 53): a ZTF g-r record holds none of it."""
+    assert done_pairs([], filters=("i", "z")).both == {}
 
 
 def test_record_form_round_trip():

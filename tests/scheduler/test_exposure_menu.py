@@ -108,6 +108,8 @@ def test_menu_off_gives_the_plans_and_plan_ids_of_before(data_dir) -> None:
     for key in RECORDED_WHEN_CLEARED:  # recorded only when cleared
         if before[key]:
             del before[key]
+    if tuple(before["telescopes"]) == ("ztf",):  # recorded only when not ZTF alone (issue 53)
+        del before["telescopes"]
     assert "exposure_menu_s" not in plan.config
     assert plan.plan_id == make_plan_id(sm.sha256, iso_utc(problem.start), before, "greedy", plan.event.superevent_id)
     assert {o.exposure_s for o in plan.observations} == {cfg.exposure_s}
