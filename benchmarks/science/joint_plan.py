@@ -24,6 +24,8 @@ the 13 maps of :func:`shared_maps` (results in ``OUTDIR/all_shared/<a>_<b>`` whe
     nice PYTHONPATH=. .venv/bin/python benchmarks/science/joint_plan.py [--limit 2] [--wide] [OUTDIR]
     nice PYTHONPATH=. .venv/bin/python benchmarks/science/joint_plan.py benchmarks/results/science/joint_plan/all_shared \
         --telescopes ztf,ls4 --all-shared
+    nice PYTHONPATH=. .venv/bin/python benchmarks/science/joint_plan.py benchmarks/results/science/joint_plan/o4_real \
+        --telescopes ztf,ls4 --localisations /work/population_o4_real/study/localisations.jsonl --prefix o4real
 """
 
 from __future__ import annotations
@@ -72,6 +74,21 @@ def shared_maps() -> list[Path]:
              SHARED / "public/S231113bw_Bilby.multiorder.fits", SHARED / "simulated/bns_o3/5.fits",
              SHARED / "simulated/bns_o3/7.fits", SHARED / "simulated/bns_o3/14.fits"]
     return MAPS + [SOUTH] + [p for p in extra if p.is_file()]
+
+
+def population_maps(localisations: Path, prefix: str = "event") -> list[tuple[Path, str]]:
+    """The sky maps a study localised (its ``localisations.jsonl``), named as its results name events
+    (``PREFIX-CHUNK-COINC``: ``o4real`` for the ``o4-real`` recipe), in the order they were made."""
+    out = []
+    for line in localisations.read_text().splitlines():
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if rec.get("kind") == "result" and rec.get("ok") and Path(rec.get("path", "")).is_file():
+            chunk = Path(rec["events"]).name.split(".")[0].split("-")[-1]
+            out.append((Path(rec["path"]), f"{prefix}-{chunk}-{rec['coinc_id']}"))
+    return out
 
 
 def _grid(primary: bool) -> FieldGrid:
@@ -147,7 +164,7 @@ def _described(skymap, start, nside: int, limit: float, names: tuple[str, str]) 
 
 
 def one_map(path: Path, nside: int, limit: float, exposures: tuple[float, float] = (300.0, 240.0),
-            telescopes: tuple[str, str] | None = None) -> dict | None:
+            telescopes: tuple[str, str] | None = None, name: str | None = None) -> dict | None:
     """Every plan of one map, as one JSON record (``telescopes``: two described telescopes instead of the grids)."""
     skymap = read_skymap(path, nside=nside)
     start = skymap.event_time
@@ -169,7 +186,9 @@ def one_map(path: Path, nside: int, limit: float, exposures: tuple[float, float]
             _row("uncoordinated", problems, list(joint.alone)), _row("tiling A>B", problems, tiling),
             _row("tiling B>A", problems, tiling_ba), _row("coordinated", problems, list(joint.schedules))]
     b = joint.bound
-    return {"map": path.name if path.parent.name in ("public", "skymaps") else f"{path.parent.name}/{path.name}",
+    if name is None:
+        name = path.name if path.parent.name in ("public", "skymaps") else f"{path.parent.name}/{path.name}"
+    return {"map": name,
             "start": start.isot, "candidates": [int(p.field_ids.size) for p in problems], "rows": rows,
             "method": joint.method, "bound": round(b.value, 4), "bound_joint": round(b.joint, 4) if np.isfinite(b.joint) else None,
             "bound_sum_u4": round(b.sum_of_telescopes, 4), "bound_total": round(b.total, 4),
@@ -243,6 +262,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--exposures", default="300,240", help="A's and B's exposure (s); other than the default: "
                     "results in OUTDIR/exposures_A_B")
     ap.add_argument("--all-shared", action="store_true", help="every map of the shared set (shared_maps)")
+    ap.add_argument("--localisations", type=Path, default=None,
+                    help="a study's localisations.jsonl: its sky maps instead (a simulated population's events)")
+    ap.add_argument("--prefix", default="event", help="event names PREFIX-CHUNK-COINC (the o4-real study's: o4real)")
     args = ap.parse_args(argv)
     exposures = tuple(float(x) for x in args.exposures.split(","))
     sub = "" if exposures == (300.0, 240.0) else f"exposures_{exposures[0]:g}_{exposures[1]:g}"
@@ -253,12 +275,16 @@ def main(argv: list[str] | None = None) -> int:
     maps = (WIDE if args.wide else MAPS) + ([SOUTH] if telescopes and not args.wide else [])
     if args.all_shared:
         maps = shared_maps()
+    names = {}
+    if args.localisations is not None:
+        named = population_maps(args.localisations, args.prefix)
+        maps, names = [p for p, _ in named], {p: n for p, n in named}
     out.mkdir(parents=True, exist_ok=True)
     load0 = os.getloadavg()
     records = []
     with open(out / "joint_plan.jsonl", "w") as f:
         for path in maps[:args.maps] if args.maps else maps:
-            rec = one_map(path, args.nside, args.limit, exposures, telescopes)
+            rec = one_map(path, args.nside, args.limit, exposures, telescopes, names.get(path))
             if rec is None:
                 print(path.name, "skipped: no event time in the map", flush=True)
                 continue
