@@ -180,7 +180,6 @@ class _Greedy:
         self.fp = problem.footprints
         self.w_rows = _window_rows(problem)
         self.w_start, self.w_end = problem.windows.start, problem.windows.end
-        self.empty_row = self.fp.indptr[1:] == self.fp.indptr[:-1]
         self.uncovered = problem.prob.copy()
         self.used = np.zeros(self.n, dtype=bool)
         self.observations: list[Observation] = []
@@ -192,12 +191,7 @@ class _Greedy:
 
     def gains(self) -> np.ndarray:
         """Uncovered probability in each field's footprint."""
-        fp = self.fp
-        if fp.indices.size == 0:
-            return np.zeros(self.n)
-        g = np.add.reduceat(self.uncovered[fp.indices], fp.indptr[:-1])
-        g[self.empty_row] = 0.0
-        return g
+        return self.fp.field_probability(self.uncovered)
 
     def _cover(self, k: int) -> None:
         fp = self.fp
