@@ -187,6 +187,25 @@ def test_a_delete_skyportal_refuses_is_failed_with_remove_by_hand(tmp_path, skyp
     assert "remove it by hand" in row["reason"] and list(skyportal.plans) == [1]
 
 
+def test_a_delete_that_keeps_failing_waits_then_fails_at_the_window_end(tmp_path, skyportal):
+    import datetime as dt
+    import sqlite3
+
+    state = parts_state(tmp_path, [(1, "PRELIMINARY", "exported")])
+    assert _step(state, skyportal.url) == 0
+    with sqlite3.connect(state) as c:
+        c.execute("UPDATE events SET retracted=1")
+    skyportal.faults["DELETE"] = ["500", "500"]
+    assert _step(state, skyportal.url) == 1 and rows(state)[0]["state"] == "sent"  # retried while the window lasts
+    s, store = sender(state, skyportal.url)
+    try:
+        assert s.step(now=plan_start() + dt.timedelta(days=2)) == 0
+    finally:
+        store.close()
+    (row,) = rows(state)
+    assert row["state"] == "failed" and "before its window ended" in row["reason"] and "by hand" in row["reason"]
+
+
 @pytest.mark.parametrize("case", ["no allocation", "earlywarning", "window ended", "dry run"])
 def test_what_is_not_sent_says_why_and_sends_nothing(tmp_path, skyportal, case):
     import datetime as dt

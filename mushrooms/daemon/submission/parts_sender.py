@@ -85,7 +85,7 @@ class PartSender:
                     if stage == "pending":
                         self._pending(row, part, now)
                     elif part.get("state") in ("withdrawn", "superseded") and not _newer_pending(row, rows, part):
-                        self._settle(row, "deleted" if part["state"] == "withdrawn" else "replaced")
+                        self._settle(row, "deleted" if part["state"] == "withdrawn" else "replaced", now)
                 except (_Wait, Unreachable, RuntimeError) as exc:
                     waiting += 1
                     log.warning("event=part_request_waiting superevent_id=%s telescope=%s job=%s plan_name=%s "
@@ -146,7 +146,7 @@ class PartSender:
                                    remote_id=str(found))
             if found is not None:  # it did reach SkyPortal: take it back like a sent one
                 update_request(self.store, row["job_id"], row["telescope"], state="sent", remote_id=str(found))
-                return self._settle({**row, "remote_id": str(found)}, _closing_state(part))
+                return self._settle({**row, "remote_id": str(found)}, _closing_state(part), now)
             why = ("its validity window ended before it was sent" if part.get("state") == "exported"
                    else f"{part.get('state', 'gone')} before it was sent")
             return self._close(row, "failed" if part.get("state") == "exported" else "skipped", why)
@@ -180,16 +180,25 @@ class PartSender:
         return f"; SkyPortal kept request {found} of that name and refused to delete it: remove it by hand"
 
     # ------------------------------------------------------------ taking back
-    def _settle(self, row: dict[str, Any], final: str) -> None:
-        """DELETE a sent request whose part no longer stands; ``final`` once it is gone."""
+    def _settle(self, row: dict[str, Any], final: str, now: dt.datetime) -> None:
+        """DELETE a sent request whose part no longer stands; ``final`` once it is gone.
+
+        A DELETE that keeps failing (5xx, no answer: e.g. an instrument without an
+        observation plan API, whose ``api_class_obsplan`` SkyPortal cannot resolve)
+        is retried until the request's window ends, then ``failed``: remove it by hand.
+        """
         if not row.get("remote_id"):
             return self._close(row, "failed", "sent, but its SkyPortal id is unknown: remove it by hand")
         answer = self.client.delete(row["remote_id"])
         if answer.ok and not answer.problem:
             return self._close(row, final, f"request {row['remote_id']} deleted")
-        if not answer.refused:
-            raise _Wait(f"DELETE answered {answer.status}: {answer.message()}"[:500])
         body = json.loads(row["body"])
+        if not answer.refused and _window_end(body) > now:
+            raise _Wait(f"DELETE answered {answer.status}: {answer.message()}"[:500])
+        if not answer.refused:
+            return self._close(row, "failed", f"SkyPortal did not delete request {row['remote_id']} before its window "
+                               f"ended ({answer.status}: {answer.message()}); remove it by hand",
+                               http_status=answer.status, answer=answer.text)
         if self.client.find(row["plan_name"], body["dateobs"]) is None:
             return self._close(row, final, f"request {row['remote_id']} no longer in SkyPortal")
         self._close(row, "failed", f"SkyPortal refused to delete request {row['remote_id']} ({answer.status}): "

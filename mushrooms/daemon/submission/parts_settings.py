@@ -85,6 +85,10 @@ class PartSubmitConfig:
         table = dict(table) if isinstance(table, Mapping) else table
         allocations = table.pop("allocations", {}) if isinstance(table, dict) else {}
         if not isinstance(allocations, Mapping):
-            raise ValueError(f"[submit_parts] allocations must be a table ({{ winter = 7 }}), got {allocations!r}"[:200])
+            from ...scheduler_core.tables import TableError, shown_value, toml_type
+
+            raise TableError(f"[submit_parts] allocations = {shown_value(allocations)}: expected a table "
+                             f"({{ winter = 7 }}), got {toml_type(allocations)}", section="submit_parts",
+                             key="allocations", value=allocations, expected="a table")
         config = dataclass_from_table(cls, table, "submit_parts")
         return cls(**{**{f: getattr(config, f) for f in cls.__dataclass_fields__}, "allocations": dict(allocations)})
