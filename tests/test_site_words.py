@@ -89,3 +89,19 @@ def test_a_description_names_its_site_and_a_bad_zone_is_refused(tmp_path):
     (tmp_path / "bad.toml").write_text(text.replace('name = "ls4"', 'name = "bad"'))
     with pytest.raises(ValueError, match="timezone"):
         load_description(tmp_path / "bad.toml")
+
+
+def test_the_parts_lines_and_webhook_words_name_each_telescopes_site():
+    from mushrooms.daemon.planning.parts import parts_lines, parts_words
+
+    parts = [{"telescope": "ls4", "queue": "target_list", "state": "exported", "plan_id": "mushrooms-1", "folder": "/o"},
+             {"telescope": "decam", "queue": "target_list", "state": "not_observable", "detail": "south"},
+             {"telescope": "winter", "queue": "skyportal", "state": "exported", "plan_id": "mushrooms-2"},
+             {"telescope": "w", "queue": "skyportal", "state": "failed", "detail": "a description file"}]
+    lines = parts_lines(parts)
+    assert lines[0] == "Telescopes ztf (ztf_too): this plan at Palomar"
+    assert "ls4 (target_list): exported at La Silla mushrooms-1 in /o" in "\n".join(lines)
+    assert "decam (target_list): not_observable at Cerro Tololo: south" in "\n".join(lines)
+    assert "w (skyportal): failed: a description file" in "\n".join(lines)  # no site known: none said
+    assert parts_words(parts) == ("other telescopes: decam target_list not_observable at Cerro Tololo, ls4 target_list "
+                                  "exported at La Silla, w skyportal failed, winter skyportal exported at Palomar")

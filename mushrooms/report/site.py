@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, Mapping
 
-__all__ = ["PlanSite", "plan_site", "local_time", "at_site"]
+__all__ = ["PlanSite", "plan_site", "local_time", "at_site", "site_words"]
 
 
 @dataclass(frozen=True)
@@ -72,6 +72,15 @@ def plan_site(doc: Mapping[str, Any]) -> PlanSite:
     if found is None:
         return PlanSite(telescope, shown(entry, 200), "", "", None)
     return PlanSite(telescope, entry, found[0], found[1], found[2])
+
+
+def site_words(telescope: str) -> str:
+    """`` at La Silla`` for a shipped telescope's name (its description's ``[site] name``); empty otherwise."""
+    try:
+        found = _shipped(str(telescope))
+    except Exception:  # a damaged install: no site words, never a failed message
+        return ""
+    return f" at {found[0]}" if found and found[0] else ""
 
 
 def local_time(t: dt.datetime, site: PlanSite) -> str | None:

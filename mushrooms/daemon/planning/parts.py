@@ -241,15 +241,18 @@ def plan_parts(store: Any, plan_id: str | None) -> list[dict[str, Any]]:
 
 def parts_lines(parts: list[dict[str, Any]]) -> list[str]:
     """Every telescope's part of a revision in words, for its summary and page (none without parts)."""
+    from ...report.site import site_words
     from ..state.parts import part_line
 
     if not parts:
         return []
-    return (["Telescopes ztf (ztf_too): this plan"]
+    return ([f"Telescopes ztf (ztf_too): this plan{site_words('ztf')}"]
             + [f"           {part_line(p)}" for p in sorted(parts, key=lambda p: p["telescope"])])
 
 
 def parts_words(parts: list[dict[str, Any]]) -> str:
-    """The webhook's few words: ``other telescopes: ls4 target_list exported, decam not_observable``."""
-    return ("other telescopes: " + ", ".join(f"{p['telescope']} {p['queue']} {p['state']}"
+    """The webhook's few words: ``other telescopes: ls4 target_list exported at La Silla, ...``."""
+    from ...report.site import site_words
+
+    return ("other telescopes: " + ", ".join(f"{p['telescope']} {p['queue']} {p['state']}{site_words(p['telescope'])}"
                                              for p in sorted(parts, key=lambda p: p["telescope"]))) if parts else ""
