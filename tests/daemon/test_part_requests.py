@@ -271,3 +271,30 @@ def test_the_service_plans_a_winter_part_and_it_is_sent(tmp_path, skyportal):
     request = json.loads(next((tmp_path / "outbox").rglob("skyportal_request.json")).read_text())
     assert body["plan_name"] == request["plan_name"] and body["allocation_id"] == 7
     assert len(body["observation_plans"][0]["planned_observations"]) == len(request["planned_observations"]) > 0
+
+
+def test_the_daemons_thread_sends_after_a_kick_and_retries_with_back_off(tmp_path, skyportal):
+    """``open_part_sender`` (the service's wiring): a kick sends; a 503 is retried by the drain itself."""
+    import time
+
+    from mushrooms.daemon.state.store import Store
+    from mushrooms.daemon.submission.parts_settings import PartSubmitConfig
+    from mushrooms.daemon.submission.parts_thread import open_part_sender
+
+    state = parts_state(tmp_path, [(1, "PRELIMINARY", "exported")])
+    config = type("C", (), {"submit_parts": PartSubmitConfig.from_mapping({
+        "enabled": True, "url": skyportal.url, "allocations": {"winter": 7}, "timeout_s": 2.0,
+        "retry_initial_s": 0.05, "retry_max_s": 0.2})})()
+    skyportal.faults["POST"] = ["503"]
+    store = Store(state)
+    sender_, drain = open_part_sender(config, store, TOKEN, clock=plan_start)
+    try:
+        drain.kick()
+        end = time.monotonic() + 60  # a hang guard only
+        while not (rows(state) and rows(state)[0]["state"] == "sent") and time.monotonic() < end:
+            time.sleep(0.05)
+    finally:
+        drain.close(timeout_s=5.0)
+        store.close()
+    (row,) = rows(state)
+    assert row["state"] == "sent" and row["attempts"] == 2 and drain.failures >= 1 and len(skyportal.plans) == 1

@@ -64,16 +64,20 @@ class PartSender:
         The HTTP client (its token in the header only).
     on_result : callable, optional
         ``on_result(state, telescope)`` after every transition (metrics).
+    clock : callable, optional
+        The time (UTC ``datetime``) of a pass without ``now``; default the system clock.
     """
 
     def __init__(self, store: Any, settings: Any, client: Any,
-                 on_result: Callable[[str, str], None] | None = None) -> None:
+                 on_result: Callable[[str, str], None] | None = None,
+                 clock: Callable[[], dt.datetime] | None = None) -> None:
         self.store, self.settings, self.client = store, settings, client
         self.on_result = on_result
+        self.clock = clock or (lambda: dt.datetime.now(dt.timezone.utc))
 
     def step(self, now: dt.datetime | None = None) -> int:
         """One pass: adopt, send, settle.  The number of requests still waiting on SkyPortal."""
-        now = now or dt.datetime.now(dt.timezone.utc)
+        now = now or self.clock()
         self._adopt(now)
         parts = {(p["job_id"], p["telescope"]): p for p in _parts(self.store)}
         waiting = 0

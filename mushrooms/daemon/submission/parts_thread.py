@@ -36,8 +36,9 @@ def parts_token(config: Any) -> str | None:
 
 
 def open_part_sender(config: Any, store: Any, token: str | None, closing: Callable[[], bool] | None = None,
-                     on_result: Callable[[str, str], None] | None = None) -> tuple[Any, Any] | None:
-    """(sender, drain) of ``[submit_parts]``; None when it is off."""
+                     on_result: Callable[[str, str], None] | None = None,
+                     clock: Callable[[], Any] | None = None) -> tuple[Any, Any] | None:
+    """(sender, drain) of ``[submit_parts]``; None when it is off (``clock``: the passes' time, for tests)."""
     settings = getattr(config, "submit_parts", None)
     if settings is None or not settings.enabled:
         return None
@@ -45,7 +46,7 @@ def open_part_sender(config: Any, store: Any, token: str | None, closing: Callab
     from .parts_sender import PartSender
     from .remote import SkyPortalPlans
 
-    sender = PartSender(store, settings, SkyPortalPlans(settings.url, token, settings.timeout_s), on_result)
+    sender = PartSender(store, settings, SkyPortalPlans(settings.url, token, settings.timeout_s), on_result, clock)
 
     def one_pass() -> int:
         return 0 if closing is not None and closing() else sender.step()
