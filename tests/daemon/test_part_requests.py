@@ -298,3 +298,20 @@ def test_the_daemons_thread_sends_after_a_kick_and_retries_with_back_off(tmp_pat
         store.close()
     (row,) = rows(state)
     assert row["state"] == "sent" and row["attempts"] == 2 and drain.failures >= 1 and len(skyportal.plans) == 1
+
+
+def test_a_tried_request_whose_fate_stays_unknown_past_its_window_fails_not_forever(tmp_path, skyportal):
+    import datetime as dt
+
+    state = parts_state(tmp_path, [(1, "PRELIMINARY", "exported")])
+    skyportal.faults["POST"] = ["503"]
+    assert _step(state, skyportal.url) == 1  # tried, unanswered
+    skyportal.faults["GET"] = ["500", "500"]  # the list unanswered: whether it landed is unknown
+    assert _step(state, skyportal.url) == 1 and rows(state)[0]["state"] == "pending"
+    s, store = sender(state, skyportal.url)
+    try:
+        assert s.step(now=plan_start() + dt.timedelta(days=2)) == 0
+    finally:
+        store.close()
+    (row,) = rows(state)
+    assert row["state"] == "failed" and "unknown at the end of its window" in row["reason"]

@@ -52,6 +52,10 @@ class _Wait(Exception):
     """The far end did not answer usably: the row stays as it is, the pass counts it waiting."""
 
 
+class _Closed(Exception):
+    """The row was closed on the way (nothing more to do in this pass)."""
+
+
 class PartSender:
     """Sends, finds again and deletes the SkyPortal requests of the other telescopes' parts.
 
@@ -90,6 +94,8 @@ class PartSender:
                         self._pending(row, part, now)
                     elif part.get("state") in ("withdrawn", "superseded") and not _newer_pending(row, rows, part):
                         self._settle(row, "deleted" if part["state"] == "withdrawn" else "replaced", now)
+                except _Closed:
+                    continue
                 except (_Wait, Unreachable, RuntimeError) as exc:
                     waiting += 1
                     log.warning("event=part_request_waiting superevent_id=%s telescope=%s job=%s plan_name=%s "
@@ -144,7 +150,7 @@ class PartSender:
         """Send a pending request, find one that may have been sent, or close it."""
         body = json.loads(row["body"])
         if part.get("state") != "exported" or _window_end(body) <= now:
-            found = self.client.find(row["plan_name"], body["dateobs"]) if row["tried"] else None
+            found = self._found_at_the_end(row, body, now) if row["tried"] else None
             if found is not None and part.get("state") == "exported":  # it did reach SkyPortal (its window is over)
                 return self._close(row, "sent", f"found in SkyPortal after an unanswered POST (request {found})",
                                    remote_id=str(found))
@@ -169,6 +175,17 @@ class PartSender:
                                + self._kept(row, body), http_status=answer.status, answer=answer.text)
         update_request(self.store, row["job_id"], row["telescope"], http_status=answer.status, answer=answer.text)
         raise _Wait(f"POST answered {answer.status}: {answer.message()}"[:500])
+
+    def _found_at_the_end(self, row: dict[str, Any], body: dict[str, Any], now: dt.datetime) -> int | None:
+        """The id of a tried request whose part is over; unknown past its window: ``failed``, remove by hand."""
+        try:
+            return self.client.find(row["plan_name"], body["dateobs"])
+        except (Unreachable, RuntimeError) as exc:
+            if _window_end(body) > now:
+                raise
+            self._close(row, "failed", f"whether SkyPortal holds {row['plan_name']} is unknown at the end of its "
+                        f"window ({exc}); remove it by hand if it is there")
+            raise _Closed() from None
 
     def _kept(self, row: dict[str, Any], body: dict[str, Any]) -> str:
         """After a refusal: DELETE a request of that name SkyPortal stored anyway; a few words on it."""
