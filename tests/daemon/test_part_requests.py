@@ -315,3 +315,14 @@ def test_a_tried_request_whose_fate_stays_unknown_past_its_window_fails_not_fore
         store.close()
     (row,) = rows(state)
     assert row["state"] == "failed" and "unknown at the end of its window" in row["reason"]
+
+
+def test_status_says_what_became_of_the_request(tmp_path, skyportal, capsys):
+    from mushrooms.tool.status import main
+
+    state = parts_state(tmp_path, [(1, "PRELIMINARY", "exported")])
+    assert _step(state, skyportal.url) == 0
+    main(["--state", str(state)])
+    out = capsys.readouterr().out
+    assert "telescope winter (skyportal): exported at Palomar" in out and "SkyPortal request sent (id 1)" in out
+    assert TOKEN not in out
