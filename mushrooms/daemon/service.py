@@ -159,7 +159,8 @@ class Service:
             self.submitter.on_trouble = lambda sub, error, action: submission_trouble(  # [notify]
                 self.pipeline.sink, sub.superevent_id, sub.queue_names(), sub.attempts, error, action)
             self.submit_drain.kick()  # reconcile what a crash left half done
-        opened = open_part_sender(self.config, self.pipeline.store, self._parts_token, self.closing.is_set)
+        opened = open_part_sender(self.config, self.pipeline.store, getattr(self, "_parts_token", None),
+                                  self.closing.is_set)
         if opened is not None:
             self.parts_drain = opened[1]
             self.parts_drain.kick()
