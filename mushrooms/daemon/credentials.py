@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 __all__ = ["Credentials", "CredentialsError", "load_credentials", "load_outbound_password", "load_submit_token", "load_notify_url",
-           "load_executed_token", "service_tokens"]
+           "load_executed_token", "load_parts_token", "service_tokens"]
 
 #: the service's log (where each token came from)
 log = logging.getLogger("mushrooms.daemon")
@@ -161,6 +161,16 @@ def load_submit_token(environ: Mapping[str, str] | None = None) -> tuple[str, st
     """
     return _token("submit_token", "MUSHROOMS_SUBMIT_TOKEN", "submission token",
                   "or set [submit] target = \"none\" or dry_run = true", environ)
+
+
+def load_parts_token(environ: Mapping[str, str] | None = None) -> tuple[str, str]:
+    """Find the SkyPortal token of ``[submit_parts]`` (the other telescopes' observation plans).
+
+    The systemd credential ``skyportal_token`` first, else ``$MUSHROOMS_SKYPORTAL_TOKEN``
+    (:func:`_token`: never from ``config.toml``, never logged nor stored).
+    """
+    return _token("skyportal_token", "MUSHROOMS_SKYPORTAL_TOKEN", "SkyPortal token of [submit_parts]",
+                  "or set [submit_parts] enabled = false or dry_run = true", environ)
 
 
 def load_executed_token(environ: Mapping[str, str] | None = None) -> tuple[str, str]:

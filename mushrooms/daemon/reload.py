@@ -58,6 +58,8 @@ def reload_service(service: Any) -> None:
         log.warning("event=reload_partial reason='[submit] changes apply at the next start'")
     if getattr(new, "notify", None) != getattr(service.config, "notify", None):
         log.warning("event=reload_partial reason='[notify] changes apply at the next start'")
+    if getattr(new, "submit_parts", None) != getattr(service.config, "submit_parts", None):
+        log.warning("event=reload_partial reason='[submit_parts] changes apply at the next start'")
     service.observe()
     if new.kafka != service.config.kafka:
         from .kafka.consumer import NoticeConsumer

@@ -30,6 +30,7 @@ from typing import Any, Callable
 from apscheduler.schedulers.background import BackgroundScheduler
 
 from .credentials import service_tokens
+from .submission.parts_thread import parts_token
 from .drain import OutboxDrain
 from .outcomes import log_fields
 from .intake.trigger import DaemonRunning, PidLock, dispatch, outcome_result, pending_triggers, read_trigger
@@ -93,6 +94,7 @@ class Service:
         self.closing = threading.Event()  # set once the store is being closed: no more retries touch it
         self.submitter: Any = None
         self.submit_drain: Any = None  # [submit]: the submitter's thread (None when off)
+        self.parts_drain: Any = None  # [submit_parts]: the other telescopes' SkyPortal parts (None when off)
         #: starting -> warming -> running -> stopping (``/healthz``, ``/readyz``)
         self.phase = "starting"
         from .. import __version__
@@ -107,6 +109,7 @@ class Service:
     def run(self) -> int:
         """Run until SIGTERM/SIGINT; returns the exit status."""
         submit_token, executed_token = service_tokens(self.config)  # fail fast, with one line, before touching any state
+        self._parts_token = parts_token(self.config)  # [submit_parts]: the same
         notify_url_usable(getattr(self.config, "notify", None))  # [notify]: a missing or unusable URL, the same
         lock = PidLock(self.paths.pid_file)
         try:
@@ -145,6 +148,7 @@ class Service:
         """Metrics, the submitter, the warm-up, the job runner, what a crash left; False: stopped in the warm-up."""
         self.observe()
         self.timers.prune_raw()
+        from .submission.parts_thread import open_part_sender
         from .submission.thread import open_submitter
 
         opened = open_submitter(self.config.submit, self.config.export, self.pipeline.store, submit_token,
@@ -155,6 +159,11 @@ class Service:
             self.submitter.on_trouble = lambda sub, error, action: submission_trouble(  # [notify]
                 self.pipeline.sink, sub.superevent_id, sub.queue_names(), sub.attempts, error, action)
             self.submit_drain.kick()  # reconcile what a crash left half done
+        opened = open_part_sender(self.config, self.pipeline.store, getattr(self, "_parts_token", None),
+                                  self.closing.is_set)
+        if opened is not None:
+            self.parts_drain = opened[1]
+            self.parts_drain.kick()
         self.phase = "warming"
         log.info("event=warm_up_starting solver=%s nside=%d", self.config.scheduler.solver, self.config.scheduler.nside)
         self._warm_up(self.sky_cache)  # only once the state file is ours: a refused start is quick
@@ -203,6 +212,8 @@ class Service:
         scheduler.shutdown(wait=False)
         if self.submit_drain is not None:
             self._closing_submit()
+        if self.parts_drain is not None:
+            self.parts_drain.close(timeout_s=self.config.submit_parts.timeout_s + 1.0)
         if hasattr(self, "outbox"):
             self.outbox.close()
         unfinished = hasattr(self, "jobs") and self.jobs.busy()
@@ -338,12 +349,16 @@ class Service:
             self.outbox.kick(now=True)
             if self.submit_drain is not None:
                 self.submit_drain.kick(now=True)
+            if self.parts_drain is not None:
+                self.parts_drain.kick(now=True)
 
     def queued(self) -> None:
         """A plan (or another message) was stored: publish it, and submit it when [submit] is on."""
         self.outbox.kick()
         if self.submit_drain is not None:
             self.submit_drain.kick()
+        if self.parts_drain is not None:
+            self.parts_drain.kick()
 
     def _submission_result(self, state: str, target: str) -> None:
         """Hook for metrics: one call per submission transition (counts by result)."""

@@ -38,14 +38,14 @@ import logging
 import math
 import os
 from pathlib import Path
-from typing import Any, BinaryIO, Iterable, Iterator, Mapping
+from typing import Any, BinaryIO, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 from astropy.time import Time
 
 from ..scheduler_core.errors import InputError
 from ..scheduler_core.executed import (
-    N_QUADRANTS, ExecutedExposure, checked_values, from_record, to_record, unique_exposures,
+    FILTERS, N_QUADRANTS, ExecutedExposure, checked_values, from_record, to_record, unique_exposures,
 )
 from ..scheduler_core.times import parse_time
 from .executed_source import SOURCE_KINDS, ExecutedSource, parse_executed_source
@@ -398,7 +398,7 @@ def _record(line: bytes, n: int, what: str) -> Any:
 
 
 def read_jsonl(source: bytes | str | os.PathLike | BinaryIO,
-               what: str = "executed file") -> tuple[ExecutedExposure, ...]:
+               what: str = "executed file", filters: Sequence[str] = FILTERS) -> tuple[ExecutedExposure, ...]:
     """Exposures of a JSON-lines file: one record per line, exactly the record's keys.
 
     ``{"field_id": 600, "filter": "g", "start": "2026-05-01T04:00:00.000Z",
@@ -412,6 +412,8 @@ def read_jsonl(source: bytes | str | os.PathLike | BinaryIO,
         The content, the file, or the file opened (``rb``; streamed, not closed).
     what : str
         Name of the source in messages.
+    filters : sequence of str
+        The telescope's filters (default ZTF's g, r, i); a line of another filter is skipped.
 
     Returns
     -------
@@ -444,7 +446,7 @@ def read_jsonl(source: bytes | str | os.PathLike | BinaryIO,
             continue
         json_lines += 1
         try:
-            out.append(from_record(record))
+            out.append(from_record(record, filters))
         except InputError as exc:
             skipped(f"line {n}", exc)
     if lines and not json_lines:

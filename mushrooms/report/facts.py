@@ -91,6 +91,8 @@ class PlanFacts:
     after_merger_s: float | None = None
     after_alert_s: float | None = None
     nside: int | None = None
+    #: the plan's telescope and site (:func:`.site.plan_site`; ZTF at Palomar when the document names none)
+    site: Any = None
 
 
 def _filters(doc: Mapping[str, Any], rows: Sequence[ExposureRow]) -> tuple[str, ...]:
@@ -99,6 +101,12 @@ def _filters(doc: Mapping[str, Any], rows: Sequence[ExposureRow]) -> tuple[str, 
     if isinstance(sequence, (list, tuple)) and len(sequence) > 2 and rows:
         return ("-".join(str(f) for f in sequence),)
     return tuple(dict.fromkeys(r.filter for r in rows))
+
+
+def _site(doc: Mapping[str, Any]) -> Any:
+    from .site import plan_site
+
+    return plan_site(doc)
 
 
 def _utc(text: str | None) -> dt.datetime | None:
@@ -223,4 +231,4 @@ def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None, queu
         solver=str(metrics.get("solver", "")), status=str(metrics.get("status", "")), rows=rows, reasons=reasons,
         after_merger_s=_since(rows[0].start if rows else None, event.get("event_time")),
         after_alert_s=_since(rows[0].start if rows else None, event.get("time_created")),
-        nside=(doc.get("config") or {}).get("nside"))
+        nside=(doc.get("config") or {}).get("nside"), site=_site(doc))

@@ -1,7 +1,7 @@
 """The HTML summary of a plan revision: one self-contained page (the picture embedded as a base64 PNG).
 
 The same facts as the text summary (:mod:`.summary`): a statistics table
-(event, queue, first and last exposure in UTC and Palomar time, open-shutter
+(event, queue, first and last exposure in UTC and the site's time, open-shutter
 time and overheads, coverage, expected detections, the certified bound), the
 picture, and one row per exposure.
 """
@@ -13,7 +13,8 @@ import datetime as dt
 import html
 from typing import Any, Mapping, Sequence
 
-from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts, shown
+from .facts import PlanFacts, depth_words, duration_words, percent, plan_facts, shown
+from .site import at_site
 from .summary import answer_line, bound_sentence, covered, delay_words, event_lines, queue_words, starts_in, status_words
 
 __all__ = ["summary_html"]
@@ -38,11 +39,12 @@ def _stats(facts: PlanFacts, now: dt.datetime) -> list[tuple[str, str]]:
     if queue:
         rows.append(("Queue", queue))
     if facts.first is not None and facts.last_end is not None:
-        rows += [("First exposure", f"{facts.first:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.first)} at Palomar), "
+        rows += [("First exposure", f"{facts.first:%Y-%m-%d %H:%M} UTC{at_site(facts.first, facts.site)}, "
                                     f"{starts_in(facts.first, now)}")]
         delay = delay_words(facts)
         rows += [("Delay", delay)] if delay else []
-        rows += [("Last exposure ends", f"{facts.last_end:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.last_end)})"),
+        rows += [("Last exposure ends", f"{facts.last_end:%Y-%m-%d %H:%M} UTC"
+                                        f"{at_site(facts.last_end, facts.site, named=False)}"),
                  ("Exposures", f"{facts.n_exposures} exposures of {facts.n_fields} fields in "
                                f"{' and '.join(facts.filters)}"),
                  ("Open shutter", duration_words(facts.open_shutter_s)),
@@ -65,16 +67,22 @@ def _stats(facts: PlanFacts, now: dt.datetime) -> list[tuple[str, str]]:
     return rows
 
 
+def _where(facts: PlanFacts) -> str:
+    """The site the Moon's distances are seen from (``Palomar``; geocentric when the site is unknown)."""
+    return facts.site.name or ("the site" if facts.site.known else "site unknown: not shown")
+
+
 def _exposure_table(facts: PlanFacts) -> str:
     from .sky import moon_distances
 
     head = ("<tr><th>#</th><th>field</th><th>filter</th><th>start (UTC)</th><th>RA (deg)</th><th>Dec (deg)</th>"
-            "<th>exposure (s)</th><th title=\"distance from the Moon at the start (Palomar)\">Moon (deg)</th>"
+            f"<th>exposure (s)</th><th title=\"distance from the Moon at the start ({_cell(_where(facts))})\">"
+            "Moon (deg)</th>"
             "<th>airmass</th>"
             "<th title=\"5-sigma limiting magnitude (AB) of the difference image\">depth (mag)</th>"
             "<th>own probability</th><th>coverage after</th></tr>")
     body = []
-    for k, (r, moon) in enumerate(zip(facts.rows, moon_distances(facts.rows)), 1):
+    for k, (r, moon) in enumerate(zip(facts.rows, moon_distances(facts.rows, facts.site)), 1):
         body.append(
             f"<tr><td>{k}</td><td>{r.field_id}</td><td>{_cell(r.filter)}</td><td>{r.start:%Y-%m-%d %H:%M:%S}</td>"
             f"<td>{'' if r.ra is None else f'{r.ra:.2f}'}</td><td>{'' if r.dec is None else f'{r.dec:+.2f}'}</td>"
@@ -108,7 +116,7 @@ def summary_html(doc: Mapping[str, Any], picture_png: bytes | None = None, now: 
     revision = "" if facts.revision is None else f", revision {facts.revision}" + (" (final)" if facts.final else "")
     parts = [f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{_cell(facts.title)} plan"
              f"</title><style>{_STYLE}</style></head><body>",
-             f"<h1>{_cell(facts.title)}: ZTF plan{_cell(revision)}</h1>"]
+             f"<h1>{_cell(facts.title)}: {_cell(facts.site.telescope)} plan{_cell(revision)}</h1>"]
     if facts.kind == "not_observable":
         parts.append(f"<p class=\"warn\">{_cell(answer_line(doc))}</p><ul>"
                      + "".join(f"<li>{_cell(r)}</li>" for r in facts.reasons) + "</ul>")

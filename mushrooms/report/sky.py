@@ -2,7 +2,7 @@
 
 Both come from the plan document and the scheduler's own models (its
 ephemeris, :func:`~mushrooms.scheduler_core.sky.ephemeris.ephemeris`, the
-Moon as seen from Palomar; its field footprints at the plan's HEALPix
+Moon as seen from the plan's site; its field footprints at the plan's HEALPix
 resolution), so the summary says what the scheduler saw.  A summary is
 never refused for them: what cannot be computed is left out (None).
 """
@@ -10,7 +10,7 @@ never refused for them: what cannot be computed is left out (None).
 from __future__ import annotations
 
 import logging
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -21,11 +21,15 @@ __all__ = ["moon_distances", "covered_area_deg2"]
 log = logging.getLogger("mushrooms.report")
 
 
-def moon_distances(rows: Sequence[ExposureRow]) -> list[float | None]:
-    """Each exposure's distance from the Moon at its start (deg; topocentric, Palomar), None when unknown."""
+def moon_distances(rows: Sequence[ExposureRow], where: Any = None) -> list[float | None]:
+    """Each exposure's distance from the Moon at its start (deg), None when unknown.
+
+    Topocentric from the plan's site (``where``: a :class:`~.site.PlanSite`; default and for
+    ZTF Palomar); None for a telescope whose site is not known (a description file).
+    """
     known = [i for i, r in enumerate(rows) if r.ra is not None and r.dec is not None]
     out: list[float | None] = [None] * len(rows)
-    if not known:
+    if not known or (where is not None and not where.known):
         return out
     try:
         from astropy.time import Time
@@ -33,7 +37,8 @@ def moon_distances(rows: Sequence[ExposureRow]) -> list[float | None]:
         from ..scheduler_core.sky.ephemeris import ephemeris
         from ..scheduler_core.sky.visibility import site
 
-        sky = ephemeris(Time([rows[i].start.replace(tzinfo=None) for i in known], scale="utc"), site())
+        location = site("ztf" if where is None else where.entry)
+        sky = ephemeris(Time([rows[i].start.replace(tzinfo=None) for i in known], scale="utc"), location)
         moon_ra, moon_dec = np.radians(sky.moon_ra_deg), np.radians(sky.moon_dec_deg)
         ra = np.radians([float(rows[i].ra) for i in known])
         dec = np.radians([float(rows[i].dec) for i in known])

@@ -11,7 +11,8 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any, Mapping, Sequence
 
-from .facts import PlanFacts, depth_words, duration_words, palomar_time, percent, plan_facts, shown
+from .facts import PlanFacts, depth_words, duration_words, percent, plan_facts, shown
+from .site import at_site
 
 __all__ = ["summary_text", "answer_line", "event_lines", "bound_sentence", "status_words", "starts_in",
            "queue_words", "delay_words", "covered"]
@@ -66,7 +67,9 @@ def covered(facts: PlanFacts) -> float | None:
     """The sky area (deg²) the plan's fields cover (:func:`.sky.covered_area_deg2`), None without fields."""
     from .sky import covered_area_deg2
 
-    return covered_area_deg2([r.field_id for r in facts.rows], facts.nside or 0) if facts.rows else None
+    if not facts.rows or facts.site.entry != "ztf":  # another telescope's field ids are not ZTF's: no area
+        return None
+    return covered_area_deg2([r.field_id for r in facts.rows], facts.nside or 0)
 
 
 def starts_in(first: dt.datetime, now: dt.datetime) -> str:
@@ -136,9 +139,9 @@ def _timing_lines(facts: PlanFacts, now: dt.datetime) -> list[str]:
     if facts.first is None or facts.last_end is None:
         return []
     delay = delay_words(facts)
-    lines = [f"First      {facts.first:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.first)} at Palomar), "
+    lines = [f"First      {facts.first:%Y-%m-%d %H:%M} UTC{at_site(facts.first, facts.site)}, "
              f"{starts_in(facts.first, now)}"] + ([f"Delay      {delay}"] if delay else []) + [
-             f"Last ends  {facts.last_end:%Y-%m-%d %H:%M} UTC ({palomar_time(facts.last_end)} at Palomar)",
+             f"Last ends  {facts.last_end:%Y-%m-%d %H:%M} UTC{at_site(facts.last_end, facts.site)}",
              f"Shutter    {duration_words(facts.open_shutter_s)} open, {duration_words(facts.overhead_s)} of "
              "slews, readouts, filter changes and cadence waits"
              + (f", {duration_words(facts.waiting_s)} waiting between blocks" if facts.waiting_s >= 60 else "")]
@@ -153,7 +156,7 @@ def _rows(facts: PlanFacts) -> list[str]:
     head = (f"{'field':>6} {'filter':>6}  {'start (UTC)':<16} {'RA':>6} {'Dec':>6} {'exp':>5} {'Moon':>4}"
             f" {'airmass':>7} {'depth':>5} {'own prob':>8} {'coverage':>8}")
     out = [head]
-    for r, moon in zip(facts.rows, moon_distances(facts.rows)):
+    for r, moon in zip(facts.rows, moon_distances(facts.rows, facts.site)):
         airmass = "" if r.airmass is None else f"{r.airmass:.2f}"
         depth = "" if r.limiting_mag is None else f"{r.limiting_mag:.1f}"
         share = "" if r.share is None else percent(r.share, 2)
@@ -189,7 +192,8 @@ def summary_text(doc: Mapping[str, Any], now: dt.datetime | None = None, queues:
     area = covered(facts) if facts.kind != "not_observable" else None
     lines = [f"Revision   {shown(doc.get('plan_id', ''))}{revision}"] + event_lines(facts.event, area)
     if facts.kind == "not_observable":
-        lines.append("Answer     NOT OBSERVABLE by ZTF: " + (facts.reasons[0] if facts.reasons else "no field in reach"))
+        lines.append(f"Answer     NOT OBSERVABLE by {facts.site.telescope}: "
+                     + (facts.reasons[0] if facts.reasons else "no field in reach"))
         lines += [f"           {r}" for r in facts.reasons[1:]]
         return "\n".join(lines) + "\n"
     lines.append(f"Planned    {answer_line(doc)}")
@@ -207,7 +211,8 @@ def answer_line(doc: Mapping[str, Any]) -> str:
     """What was planned, in one line (``24 fields in g and r, 48 exposures from 03:57 to 06:31 UTC, ...``)."""
     facts = plan_facts(doc)
     if facts.kind == "not_observable":
-        return f"{facts.title} is not observable by ZTF: " + (facts.reasons[0] if facts.reasons else "nothing in reach")
+        return (f"{facts.title} is not observable by {facts.site.telescope}: "
+                + (facts.reasons[0] if facts.reasons else "nothing in reach"))
     if not facts.rows:
         return f"{facts.title}: nothing to observe"
     filters = " and ".join(facts.filters)

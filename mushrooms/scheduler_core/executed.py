@@ -22,6 +22,7 @@ MIT licence).
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping, Sequence
 
@@ -33,11 +34,13 @@ from .errors import InputError
 __all__ = [
     "ExecutedExposure", "FieldVisits", "DonePairs", "FILTERS", "STATUSES", "RECORD_KEYS",
     "N_QUADRANTS", "MIN_PROCESSED_FRACTION", "SAME_START_S", "FIELD_ID_MAX",
-    "checked_values", "is_done", "counted_for_night", "same_exposure", "unique_exposures", "done_pairs", "to_record", "from_record",
+    "checked_values", "TelescopeExposure", "FILTER_NAME", "is_done", "counted_for_night", "same_exposure", "unique_exposures", "done_pairs", "to_record", "from_record",
 ]
 
 #: The ZTF filters a record may name.
 FILTERS = ("g", "r", "i")
+#: What another telescope's filter name may be (:class:`TelescopeExposure`).
+FILTER_NAME = re.compile(r"[A-Za-z0-9_.+-]{1,16}")
 #: ``processed``: the exposure was taken and some of it reduced (how much: ``processed_fraction``);
 #: ``failed``: taken, nothing reduced; ``aborted``: cut short (a weather closure in the simulator).
 STATUSES = ("processed", "failed", "aborted")
@@ -90,8 +93,11 @@ class ExecutedExposure:
     status: str
 
     def __post_init__(self) -> None:
+        self._normalise(FILTERS)
+
+    def _normalise(self, filters: Sequence[str]) -> None:
         field_id, exposure, fraction = checked_values(self.field_id, self.filter, self.exposure_s,
-                                                      self.processed_fraction, self.status)
+                                                      self.processed_fraction, self.status, filters)
         if not isinstance(self.start, Time) or not self.start.isscalar:
             raise InputError(f"start {self.start!r}: not a scalar astropy Time")
         object.__setattr__(self, "field_id", field_id)
@@ -105,8 +111,22 @@ class ExecutedExposure:
         return self.start + TimeDelta(self.exposure_s, format="sec")
 
 
+@dataclass(frozen=True)
+class TelescopeExposure(ExecutedExposure):
+    """An exposure of another telescope than ZTF (issue 53): its filter any name of :data:`FILTER_NAME`.
+
+    The reader checks it against the telescope's own filters
+    (:func:`from_record` ``filters``); everything else as :class:`ExecutedExposure`.
+    """
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.filter, str) or not FILTER_NAME.fullmatch(self.filter):
+            raise InputError(f"filter {str(self.filter)[:40]!r}: not a filter name (1-16 of A-Z a-z 0-9 _ . + -)")
+        self._normalise((self.filter,))
+
+
 def checked_values(field_id: Any, filter: Any, exposure_s: Any, processed_fraction: Any,
-                   status: Any) -> tuple[int, float, float]:
+                   status: Any, filters: Sequence[str] = FILTERS) -> tuple[int, float, float]:
     """The checks of a record's values but its start: cheap, so a reader runs them before it parses the time.
 
     A record of the wrong type is refused here without the astropy time parse (a few hundred
@@ -126,8 +146,8 @@ def checked_values(field_id: Any, filter: Any, exposure_s: Any, processed_fracti
         raise InputError(f"field_id {field_id!r}: not a positive integer")
     if field_id > FIELD_ID_MAX:
         raise InputError(f"field_id {str(field_id)[:24]}: not a ZTF field (at most {FIELD_ID_MAX})")
-    if not isinstance(filter, str) or filter not in FILTERS:
-        raise InputError(f"filter {filter!r}: not one of {', '.join(FILTERS)}")
+    if not isinstance(filter, str) or filter not in filters:
+        raise InputError(f"filter {filter!r}: not one of {', '.join(filters)}")
     exposure = _number(exposure_s, "exposure_s")
     if not 0.0 < exposure <= _MAX_EXPOSURE_S:
         raise InputError(f"exposure_s {exposure_s!r}: not in (0, {_MAX_EXPOSURE_S:g}] s")
@@ -349,8 +369,11 @@ def to_record(exposure: ExecutedExposure) -> dict[str, Any]:
     }
 
 
-def from_record(record: Mapping[str, Any]) -> ExecutedExposure:
+def from_record(record: Mapping[str, Any], filters: Sequence[str] = FILTERS) -> ExecutedExposure:
     """A record from its JSON form (exactly :data:`RECORD_KEYS`).
+
+    ``filters``: the telescope's (default ZTF's g, r, i); a record of a filter
+    outside ZTF's is a :class:`TelescopeExposure`.
 
     Raises
     ------
@@ -371,8 +394,8 @@ def from_record(record: Mapping[str, Any]) -> ExecutedExposure:
         raise InputError(f"start {record['start']!r}: not an ISO-8601 string")
     # the cheap checks first: a record of the wrong type costs no time parse
     checked_values(record["field_id"], record["filter"], record["exposure_s"], record["processed_fraction"],
-                   record["status"])
-    return ExecutedExposure(
+                   record["status"], filters)
+    return (ExecutedExposure if record["filter"] in FILTERS else TelescopeExposure)(
         field_id=record["field_id"],
         filter=record["filter"],
         start=parse_time(record["start"], "start"),

@@ -81,7 +81,9 @@ def _check_one(args: argparse.Namespace, config, doc: dict, map_path, label: str
     if getattr(args, "executed", None):
         from .plan import read_executed
 
-        executed = read_executed(args.executed, plan.start)
+        from ..scheduler_core.instruments.active import description_of
+
+        executed = read_executed(args.executed, plan.start, tuple(description_of(planning).filters))
     if plan.metrics.coverage_executed and not executed:
         log.warning("%s is a re-plan (metrics.coverage_executed is set): give its --executed record", label)
     report = check_plan(plan, skymap, planning, executed=executed,

@@ -28,6 +28,7 @@ from typing import Any, Mapping
 from ..daemon.settings import DaemonConfig, KafkaConfig, OutboundConfig
 from ..daemon.loop_settings import LoopConfig
 from ..daemon.submission.settings import SubmitConfig
+from ..daemon.submission.parts_settings import PartSubmitConfig
 from ..daemon.ops.webhook_settings import NotifyConfig
 from ..evaluation.bench.settings import BenchConfig
 from ..handlers.policy import PolicyConfig
@@ -62,6 +63,7 @@ class Config:
     bench: BenchConfig = field(default_factory=BenchConfig)
     loop: LoopConfig = field(default_factory=LoopConfig)
     notify: NotifyConfig = field(default_factory=NotifyConfig)
+    submit_parts: PartSubmitConfig = field(default_factory=PartSubmitConfig)
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], source: str = "<mapping>") -> "Config":
@@ -77,6 +79,7 @@ class Config:
             "bench": BenchConfig,
             "loop": LoopConfig,
             "notify": NotifyConfig,
+            "submit_parts": PartSubmitConfig,
         }
         from ..scheduler_core.tables import TableError, shown_value, toml_type, unknown_names
 

@@ -320,8 +320,10 @@ def _plan_by_deadline(skymap: Any, cfg: Any, start: Any, solver: str, deadline_s
     return best, revision_document(best, revision, True)
 
 
-def read_executed(spec: str, around: Any | None) -> tuple[Any, ...]:
+def read_executed(spec: str, around: Any | None, filters: Sequence[str] | None = None) -> tuple[Any, ...]:
     """The exposures ``--executed`` names: a JSON-lines file, ``file:PATH`` or ``depot:DIR``.
+
+    ``filters``: the telescope's (default ZTF's); ``depot:`` is ZTF's processing record only.
 
     ``depot:DIR`` reads the depot files (``<YYYYMMDD>/ztf_recentproc_<YYYYMMDD>.json``)
     of the two days before ``around`` (the start, or the merger) that exist.
@@ -351,7 +353,10 @@ def read_executed(spec: str, around: Any | None) -> tuple[Any, ...]:
         raise InputError(f"--executed {spec}: the plan tool reads files only; the service polls "
                          f"{kind} ([loop] executed_source)")
     if kind == "file":
-        return read_jsonl(regular_file(location, "executed file"))
+        return read_jsonl(regular_file(location, "executed file"), **({} if filters is None else {"filters": filters}))
+    if filters is not None and tuple(filters) != ("g", "r", "i"):
+        raise InputError(f"--executed {spec}: depot: is ZTF's processing record; give another telescope's "
+                         "exposures as a JSON-lines file")
     from pathlib import Path
 
     folder = Path(location)

@@ -15,6 +15,8 @@ One line per check, ``ok``, ``FAIL`` or ``skip`` and why (never a secret):
 ``submission``   the ``[submit]`` target takes the token: a read-only GET (Kowalski: the queue list, ``GET
                  /api/triggers/ztf``; SkyPortal: the token's user, ``GET /api/internal/profile``, with the
                  permission to manage observation plans);
+``submission_parts`` the ``[submit_parts]`` SkyPortal (issue 53: the other telescopes' parts) takes its token
+                 (``skyportal_token``): the same read-only profile GET and permission, and the allocations named;
 ``webhook``      the ``[notify]`` URL is found and usable as the service checks it at start
                  (:mod:`~mushrooms.daemon.ops.webhook_url`); a test message only with ``--notify-test``;
 ``state``        (these three: :mod:`.preflight_paths`) the state file (``[daemon] state_path`` resolved as the service does) is a SQLite file of a
@@ -100,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
         ("credentials", _credentials_check),
         ("kafka", lambda c: kafka_check(c.kafka, args.timeout)),
         ("submission", lambda c: _submission_check(c.submit, args.timeout)),
+        ("submission_parts", lambda c: _parts_check(c.submit_parts, args.timeout)),
         ("webhook", lambda c: _webhook_check(c.notify, args.notify_test)),
         ("state", state_check),
         ("directories", directories_check),
@@ -304,7 +307,23 @@ def _redact(text: str, secret: str | None) -> str:
 
 
 # ---------------------------------------------------------------- submission and webhook
-def _submission_check(submit: Any, timeout_s: float) -> Result:
+def _parts_check(parts: Any, timeout_s: float) -> Result:
+    """``[submit_parts]``: its SkyPortal takes its token, whose user may manage observation plans."""
+    from types import SimpleNamespace
+
+    from ..daemon.credentials import load_parts_token
+
+    if not parts.enabled:
+        return "skip", "submission_parts", "[submit_parts] enabled = false: the SkyPortal parts are written, not sent"
+    if parts.dry_run:
+        return "skip", "submission_parts", "[submit_parts] dry_run = true: the requests are logged, not sent"
+    shim = SimpleNamespace(enabled=True, dry_run=False, target="skyportal", url=parts.url, timeout_s=parts.timeout_s)
+    status, _, reason = _submission_check(shim, timeout_s, load_parts_token)
+    listed = ", ".join(f"{k} {v}" for k, v in sorted(parts.allocations.items())) or "none: nothing will be sent"
+    return status, "submission_parts", f"{reason}; allocations: {listed}"
+
+
+def _submission_check(submit: Any, timeout_s: float, load: Any = None) -> Result:
     from ..daemon.credentials import CredentialsError, load_submit_token
     from ..daemon.submission.remote import KOWALSKI_PATH, Request, Unreachable, make_client
 
@@ -313,7 +332,7 @@ def _submission_check(submit: Any, timeout_s: float) -> Result:
     if submit.dry_run:
         return "skip", "submission", f"[submit] dry_run = true: requests to {submit.target} are logged, not sent"
     try:
-        token, source = load_submit_token()
+        token, source = (load or load_submit_token)()
     except CredentialsError as exc:
         return "FAIL", "submission", str(exc)
     client = make_client(submit.target, submit.url, token, min(timeout_s, submit.timeout_s * 3))

@@ -214,7 +214,27 @@ def _parts(conn: sqlite3.Connection, superevent_id: str) -> list[dict[str, Any]]
     cur = conn.execute("SELECT job_id, telescope, queue, state, plan_id, folder, detail FROM telescope_parts"
                        " WHERE superevent_id = ? ORDER BY job_id DESC, telescope", (superevent_id,))
     names = [c[0] for c in cur.description]
-    return [dict(zip(names, r)) for r in cur.fetchall()]
+    parts = [dict(zip(names, r)) for r in cur.fetchall()]
+    if parts and has_table(conn, "part_requests"):  # [submit_parts]: what became of each SkyPortal request
+        sent = {(r[0], r[1]): {"state": r[2], "remote_id": r[3], "reason": r[4]} for r in conn.execute(
+            "SELECT job_id, telescope, state, remote_id, reason FROM part_requests WHERE superevent_id = ?",
+            (superevent_id,))}
+        for p in parts:
+            if (p["job_id"], p["telescope"]) in sent:
+                p["request"] = sent[(p["job_id"], p["telescope"])]
+    return parts
+
+
+def _request_words(part: dict[str, Any]) -> str:
+    """``; SkyPortal request sent (id 12)``: the part's ``[submit_parts]`` row in words; empty without one."""
+    from ..handlers.text import storable
+
+    req = part.get("request")
+    if not req:
+        return ""
+    ident = f" (id {storable(req['remote_id'], 40)})" if req.get("remote_id") else ""
+    why = f": {storable(req['reason'], 160)}" if req.get("reason") and req.get("state") != "sent" else ""
+    return f"; SkyPortal request {req.get('state')}{ident}{why}"
 
 
 def _part_lines(parts: list[dict[str, Any]]) -> list[str]:
@@ -225,7 +245,8 @@ def _part_lines(parts: list[dict[str, Any]]) -> list[str]:
         return []
     newest = parts[0]["job_id"]
     return (["  telescope ztf (ztf_too): the revisions above"]
-            + [f"  telescope {part_line(p)} (job {p['job_id']})" for p in parts if p["job_id"] == newest])
+            + [f"  telescope {part_line(p)} (job {p['job_id']}){_request_words(p)}" for p in parts
+               if p["job_id"] == newest])
 
 
 def _num(x: Any, fmt: str = ".4f") -> str:

@@ -93,8 +93,8 @@ def test_all_ok_against_a_local_broker_and_kowalski_with_a_good_token(broker, to
                   f'[submit]\ntarget = "kowalski"\nurl = "{loopback.url_for("/").rstrip("/")}"\n')
     code, lines, text = _preflight(capsys, "--config", str(cfg), "--timeout", "10")
     assert code == 0, text
-    assert set(lines) == {"config", "credentials", "kafka", "submission", "webhook", "state", "directories",
-                          "outbox"}, text
+    assert set(lines) == {"config", "credentials", "kafka", "submission", "submission_parts", "webhook", "state",
+                          "directories", "outbox"}, text
     assert all(status in ("ok", "skip") for status, _ in lines.values()), text
     assert f"{topic}: 4 partition(s)" in lines["kafka"][1]
     assert "group mushrooms-ztf: committed offsets on 0 of 4 partition(s)" in lines["kafka"][1]
@@ -261,7 +261,7 @@ def test_preflight_runs_as_a_command(broker, topic, tmp_path) -> None:
                          env={**os.environ, "PYTHONPATH": str(REPO)})
     assert out.returncode == 0, out.stdout + out.stderr
     assert "%3|" not in out.stderr and "Traceback" not in out.stderr  # librdkafka's own lines stay out
-    assert out.stdout.rstrip().splitlines()[-1] == "preflight: all 8 checks ok or skipped"
+    assert out.stdout.rstrip().splitlines()[-1] == "preflight: all 9 checks ok or skipped"
 
 
 def _old_kafka_clients(monkeypatch) -> None:
@@ -314,3 +314,32 @@ def test_the_webhook_url_is_checked_as_the_service_checks_it_before_any_test_mes
         assert lines["webhook"][1].startswith("the webhook URL from env:MUSHROOMS_NOTIFY_URL"), text
         assert HOOK_SECRET not in text and "ops:pw" not in text
     assert not [r for r, _ in loopback.log if r.path.startswith("/services/")]  # no test message was sent
+
+
+def test_the_skyportal_of_submit_parts_takes_its_own_token(broker, topic, loopback, tmp_path, monkeypatch,
+                                                           capsys) -> None:
+    """``[submit_parts]`` (issue 53): skipped when off; its token (``MUSHROOMS_SKYPORTAL_TOKEN``) checked when on."""
+    def profile(request: Request) -> Response:
+        if request.headers.get("Authorization") != "token parts-tok-1":
+            return Response(json.dumps({"status": "error", "message": "Unauthorized"}), 401,
+                            content_type="application/json")
+        return Response(json.dumps({"status": "success", "data": {"username": "winter-bot",
+                                                                  "permissions": ["Manage observation plans"]}}),
+                        200, content_type="application/json")
+
+    loopback.expect_request("/api/internal/profile", method="GET").respond_with_handler(profile)
+    cfg = _config(tmp_path, broker.bootstrap, topic, "")
+    code, lines, text = _preflight(capsys, "--config", str(cfg))
+    assert lines["submission_parts"][0] == "skip" and "enabled = false" in lines["submission_parts"][1], text
+    cfg = _config(tmp_path, broker.bootstrap, topic, f'[submit_parts]\nenabled = true\nurl = '
+                  f'"{loopback.url_for("/").rstrip("/")}"\nallocations = {{ winter = 7 }}\n')
+    monkeypatch.delenv("MUSHROOMS_SKYPORTAL_TOKEN", raising=False)
+    code, lines, text = _preflight(capsys, "--config", str(cfg))
+    assert code == 1 and "MUSHROOMS_SKYPORTAL_TOKEN" in lines["submission_parts"][1], text
+    monkeypatch.setenv("MUSHROOMS_SKYPORTAL_TOKEN", "parts-tok-1")
+    code, lines, text = _preflight(capsys, "--config", str(cfg))
+    assert code == 0 and lines["submission_parts"][0] == "ok", text
+    assert "user winter-bot, may manage observation plans); allocations: winter 7" in lines["submission_parts"][1]
+    monkeypatch.setenv("MUSHROOMS_SKYPORTAL_TOKEN", "parts-tok-2")
+    code, lines, text = _preflight(capsys, "--config", str(cfg))
+    assert code == 1 and "token refused" in lines["submission_parts"][1] and "parts-tok-2" not in text

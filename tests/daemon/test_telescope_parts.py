@@ -238,6 +238,6 @@ def test_the_summary_page_and_webhook_name_every_telescopes_part(tmp_path, https
         time.sleep(0.1)
     bodies = [json.loads(req.get_data()) for req, _ in httpserver.log]
     said = json.dumps(bodies)
-    assert "ZTF: this plan; other telescopes: ls4 target_list exported" in said
+    assert "ZTF at Palomar: this plan; other telescopes: ls4 target_list exported at La Silla" in said
     assert any(b.get("telescope_parts") == ["ls4 target_list exported"] for b in bodies)
     assert "Every telescope's part withdrawn too (ls4)" in said

@@ -115,7 +115,9 @@ class NotifyingSink:
         if not parts:
             return text, details
         listed = [f"{p['telescope']} {p['queue']} {p['state']}" for p in sorted(parts, key=lambda p: p["telescope"])]
-        return f"{text} ZTF: this plan; {parts_words(parts)}.", {**details, "telescope_parts": listed}
+        from ...report.site import site_words
+
+        return f"{text} ZTF{site_words('ztf')}: this plan; {parts_words(parts)}.", {**details, "telescope_parts": listed}
 
     def close(self) -> None:
         self.webhook.close()

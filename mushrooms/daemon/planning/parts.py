@@ -11,7 +11,7 @@ description's ``queue`` says, into one folder of the outbox directory::
     <[outbound] directory>/telescopes/<superevent>/<job:05d>-<alert type>/<telescope>/
         part.json                    the part: telescope, queue, state, plan id, files, why
         targets.json, targets.csv    queue = "target_list": the target list
-        skyportal_request.json       queue = "skyportal": the observation plan request (not sent: see below)
+        skyportal_request.json       queue = "skyportal": the observation plan request ([submit_parts] sends it)
         plan.json                    the telescope's plan document (mushrooms check plan.json MAP)
         WITHDRAWN / SUPERSEDED       the event was retracted / a newer map's parts replace these
 
@@ -193,21 +193,10 @@ def _part_files(folder: Path, telescope: Any, plan: Any) -> tuple[str, list[str]
 
 
 def _skyportal_request(plan: Any, telescope: Any) -> dict[str, Any]:
-    """SkyPortal's observation plan request for the telescope's instrument (written, not sent)."""
-    from ...scheduler_core.plan.target_list import target_rows
+    """SkyPortal's observation plan request for the telescope's instrument ([submit_parts] sends it)."""
+    from ..submission.part_request import part_request
 
-    names = {f: (t.skyportal_name or f) for f, t in telescope.filters.items()}
-    rows = target_rows(plan)
-    return {"type": "skyportal_observation_plan_request", "sent": False,
-            "why_not_sent": "the service's SkyPortal submitter sends ZTF's plans ([submit]); submit this one with "
-                            "the instrument's allocation (POST /api/observation_plan/manual)",
-            "instrument": storable(telescope.execution.skyportal_instrument or telescope.name, 100),
-            "plan_id": plan.plan_id, "dateobs": (plan.event.event_time or "").rstrip("Z"),
-            "localization_name": storable(plan.event.skymap_name or "healpix", 200),
-            "planned_observations": [{"planned_observation_id": i, "dateobs": r["start"], "field_id": r["field_id"],
-                                      "ra": r["ra"], "dec": r["dec"], "exposure_time": r["exposure_s"],
-                                      "filt": storable(names.get(r["filter"], r["filter"]), 32)}
-                                     for i, r in enumerate(rows)]}
+    return part_request(plan, telescope)
 
 
 def _mark_folder(row: dict[str, Any], state: str) -> None:
@@ -252,15 +241,18 @@ def plan_parts(store: Any, plan_id: str | None) -> list[dict[str, Any]]:
 
 def parts_lines(parts: list[dict[str, Any]]) -> list[str]:
     """Every telescope's part of a revision in words, for its summary and page (none without parts)."""
+    from ...report.site import site_words
     from ..state.parts import part_line
 
     if not parts:
         return []
-    return (["Telescopes ztf (ztf_too): this plan"]
+    return ([f"Telescopes ztf (ztf_too): this plan{site_words('ztf')}"]
             + [f"           {part_line(p)}" for p in sorted(parts, key=lambda p: p["telescope"])])
 
 
 def parts_words(parts: list[dict[str, Any]]) -> str:
-    """The webhook's few words: ``other telescopes: ls4 target_list exported, decam not_observable``."""
-    return ("other telescopes: " + ", ".join(f"{p['telescope']} {p['queue']} {p['state']}"
+    """The webhook's few words: ``other telescopes: ls4 target_list exported at La Silla, ...``."""
+    from ...report.site import site_words
+
+    return ("other telescopes: " + ", ".join(f"{p['telescope']} {p['queue']} {p['state']}{site_words(p['telescope'])}"
                                              for p in sorted(parts, key=lambda p: p["telescope"]))) if parts else ""

@@ -91,8 +91,10 @@ def mark_parts(store: Any, superevent_id: str, state: str, before_job: int | Non
 def part_line(row: dict[str, Any]) -> str:
     """One part in words: ``ls4 (target_list): exported mushrooms-... in <folder>`` (status, rehearse)."""
     from ...handlers.text import storable
+    from ...report.site import site_words
 
     plan = f" {row['plan_id']}" if row.get("plan_id") and row.get("state") != "not_observable" else ""
     why = f": {storable(row['detail'], 160)}" if row.get("detail") else ""
     where = f" in {row['folder']}" if row.get("folder") and row.get("state") != "not_observable" else ""
-    return f"{row.get('telescope')} ({row.get('queue')}): {row.get('state')}{plan}{why}{where}"
+    return (f"{row.get('telescope')} ({row.get('queue')}): {row.get('state')}{site_words(str(row.get('telescope')))}"
+            f"{plan}{why}{where}")

@@ -11,6 +11,7 @@ from __future__ import annotations
 import sqlite3
 
 from .executed import EXECUTED_TABLE
+from .part_requests import PART_REQUESTS_TABLE
 from .parts import PARTS_TABLE
 
 __all__ = ["SCHEMA_VERSION", "SCHEMA", "UPGRADES", "missing_steps"]
@@ -138,6 +139,8 @@ UPGRADES: tuple[tuple[int, str | tuple[str, str, str]], ...] = (
     (6, ("submissions", "progress", "TEXT")),
     # each configured telescope's part of a job after ZTF's (issue 53; :mod:`~mushrooms.daemon.state.parts`)
     (6, PARTS_TABLE),  # version kept: a table only, which an older program ignores (and reads the file)
+    # the parts sent to SkyPortal ([submit_parts]; :mod:`~mushrooms.daemon.state.part_requests`), version kept likewise
+    (6, PART_REQUESTS_TABLE),
 )
 
 

@@ -302,6 +302,37 @@ class SkyPortalPlans(_Client):
             raise RuntimeError(_line(f"GET plan_names answered {answer.status}: {answer.message()}"))
         return bool(data.get("exists"))
 
+    def find(self, plan_name: str, dateobs: str, pages: int = 20) -> int | None:
+        """The id of the event's request named ``plan_name`` (``payload.queue_name``), None when there is none.
+
+        ``GET /api/observation_plan?dateobs=...`` lists the event's requests
+        with their ``payload`` (``ObservationPlanRequestHandler.get``,
+        observation_plan.py lines 1246-1304), 100 a page; at most ``pages`` pages.
+
+        Raises
+        ------
+        Unreachable, RuntimeError
+            No answer, or not SkyPortal's list (then whether it exists is unknown).
+        """
+        for page in range(1, pages + 1):
+            answer = self.send(Request("GET", f"{self.base}/api/observation_plan?dateobs={quote(dateobs)}"
+                                       f"&numPerPage=100&pageNumber={page}", None, self.auth_scheme))
+            data = answer.data.get("data") if isinstance(answer.data, dict) else None
+            listed = data.get("requests") if isinstance(data, dict) else None
+            if not answer.ok or answer.problem or not isinstance(listed, list):
+                raise RuntimeError(_line(f"GET observation_plan answered {answer.status}: {answer.message()}"))
+            for row in listed:
+                payload = row.get("payload") if isinstance(row, dict) else None
+                if isinstance(payload, dict) and payload.get("queue_name") == plan_name:
+                    found = row.get("id")
+                    if isinstance(found, int) and not isinstance(found, bool):
+                        return found
+                    raise RuntimeError(_line(f"request {plan_name} listed with id {found!r}"))
+            total = data.get("totalMatches")
+            if not listed or not isinstance(total, int) or page * 100 >= total:
+                return None
+        raise RuntimeError(f"more than {pages * 100} requests listed for the event: {plan_name} not found in them")
+
 
 def make_client(target: str, url: str, token: str | None, timeout_s: float) -> KowalskiQueue | SkyPortalPlans:
     """The client of a ``[submit] target``."""

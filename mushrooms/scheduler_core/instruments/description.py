@@ -50,6 +50,11 @@ class Site:
         (:func:`local_mean_noon`).
     source : str
         Where the numbers come from.
+    name : str
+        The site's name as a summary says it (``Palomar``; empty: unnamed).
+    timezone : str
+        IANA time zone of the site's clocks (``America/Los_Angeles``; empty:
+        local mean time from the longitude).
     """
 
     latitude_deg: float
@@ -57,6 +62,8 @@ class Site:
     height_m: float
     night_anchor_utc: str
     source: str
+    name: str = ""
+    timezone: str = ""
 
     @property
     def location(self) -> "EarthLocation":

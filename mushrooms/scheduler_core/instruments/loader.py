@@ -154,7 +154,27 @@ def _site(r: _Reader, v: dict[str, Any]) -> Site:
     if not _ISO_UTC.match(anchor):
         r.problem("site", f"night_anchor_utc = {shown(anchor)}: not an ISO UTC time (2000-01-01T19:47:26.4)")
         raise _Refused
-    return Site(float(v["latitude_deg"]), float(v["longitude_deg"]), float(v["height_m"]), anchor, v["source"])
+    zone = str(v.get("timezone") or "")
+    if zone and not _known_zone(zone):
+        r.problem("site", f"timezone = {shown(zone)}: not a time zone of the IANA database (America/Santiago)")
+        raise _Refused
+    return Site(float(v["latitude_deg"]), float(v["longitude_deg"]), float(v["height_m"]), anchor, v["source"],
+                str(v.get("name") or ""), str(v.get("timezone") or ""))
+
+
+def _known_zone(zone: str) -> bool:
+    """Whether the IANA database (``zoneinfo``) knows ``zone``; True when there is no database to ask."""
+    try:
+        from zoneinfo import ZoneInfo, ZoneInfoNotFoundError, available_timezones
+    except ImportError:  # pragma: no cover
+        return True
+    if not available_timezones():
+        return True
+    try:
+        ZoneInfo(zone)
+        return True
+    except (ZoneInfoNotFoundError, ValueError, OSError):
+        return False
 
 
 def _grid(r: _Reader, v: dict[str, Any]) -> FieldCentres:

@@ -96,6 +96,9 @@ SITE: Mapping[str, Key] = {
     "height_m": Key("number", "height above the WGS84 ellipsoid", "m", -500, 9000),
     "night_anchor_utc": Key("string", "ISO UTC time of a local noon, the planning grid's anchor "
                             "(default: local mean noon of 2000-01-01)", required=False),
+    "name": Key("string", "the site's name, as summaries say it ('at Palomar')", required=False),
+    "timezone": Key("string", "the site's IANA time zone, for local clock times in summaries "
+                    "(default: local mean time from the longitude)", required=False),
     "source": _source(),
 }
 
