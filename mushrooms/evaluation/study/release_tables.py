@@ -15,6 +15,9 @@ without a commit) put a warning at the top.  Output (Markdown):
 * per-event paired differences against the service (row minus service over
   the events both have): mean and median with bootstrap 95 % intervals,
   events better / worse / tied;
+* with our rows' executed curves, the same at matched telescope time: each
+  of our rows at gwemopt's open-shutter time on the event
+  (:mod:`.matched_tables`);
 * events where each row executes nothing (through the queue set and as
   submitted today) or pairs nothing as planned, and the plans the checker
   passed;
@@ -295,11 +298,15 @@ def _provenance(rows: Sequence[Record], n_all: int, missing: Mapping[str, list[s
 
 
 def release_tables(rows: Sequence[Record], draws: int = 2000, seed: int = 0,
-                   expected: Sequence[str] | None = None) -> str:
+                   expected: Sequence[str] | None = None, curves: Mapping[tuple[str, str], Any] | None = None,
+                   failed: Sequence[tuple[str, str]] = ()) -> str:
     """Every table of the release (Markdown) from population rows (module notes).
 
     ``expected``: the row names every tabulated event must have (default: those present in ``rows``; the
     release passes :data:`RELEASE_ROWS`); the events lacking one are listed in the header and left out.
+    ``curves``, ``failed``: our rows' executed curves and the plans not reproduced
+    (:func:`~.matched_tables.read_curves`); given, the matched-time section follows the paired differences
+    (:func:`~.matched_tables.matched_tables`).
     """
     every = list(rows)
     n_all = len({str(r["event"]) for r in rows})
@@ -315,6 +322,10 @@ def release_tables(rows: Sequence[Record], draws: int = 2000, seed: int = 0,
     out += ["", f"## Per-event paired differences against {REFERENCE}: mean [95 %] / median [95 %] "
                 f"(better/worse/tied beyond {TIE:g} of n events)", ""]
     out += paired_table(rows, REFERENCE, draws, seed)
+    if curves is not None:
+        from .matched_tables import matched_tables
+
+        out += [""] + matched_tables(rows, curves, failed, draws, seed)
     out += ["", "## Events where a row executes nothing", ""]
     out += zero_table(rows)
     for column, quartiles in (("event_class", False), ("distance_mpc", True), ("area90_deg2", True)):
