@@ -93,6 +93,7 @@ def main() -> int:
     ap.add_argument("--gwemopt-cache", type=Path, required=True, help="a COPY of the run's gwemopt cache")
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--rows", default=",".join(ROWS))
+    ap.add_argument("--reverse", action="store_true", help="the records in reverse order (a second process)")
     ap.add_argument("--maps-root", type=Path, help="replace the records' map directory prefix "
                     "/work/population_o4_real by this one")
     args = ap.parse_args()
@@ -110,6 +111,7 @@ def main() -> int:
     per_map.score_plan = light_scorer(captured)
     skip_scoring_inputs()
     todo = [r for r in records if r["solver"] in rows and (r["map"], r["solver"]) not in done]
+    todo = todo[::-1] if args.reverse else todo
     print(f"{len(todo)} (map, row) to plan again ({len(done)} done)", file=sys.stderr)
     for k, rec in enumerate(todo):
         path = rec["skymap"]

@@ -101,6 +101,8 @@ def test_the_release_tables_carry_the_matched_time_table_built_from_the_committe
     text = release_tables(rows, expected=RELEASE_ROWS, curves=curves, failed=failed)
     assert text == (RELEASE / "release_tables.md").read_text(), "release_tables.md is not rebuilt from the snapshot"
     lines = text.splitlines()
+    columns = next(ln for ln in lines if ln.startswith("| row | events | planned (pair rule)"))
+    assert "| open shutter planned (h) | open shutter executed via queue set (h) |" in columns
     head = next(k for k, ln in enumerate(lines) if ln.startswith("## At matched telescope time"))
     assert head < next(k for k, ln in enumerate(lines) if ln.startswith("## Events where a row executes nothing"))
     section = "\n".join(lines[head:])

@@ -10,7 +10,7 @@ without a commit) put a warning at the top.  Output (Markdown):
 * the headline table: per row and metric (:data:`METRICS`: planned
   coverage by the pair rule, executed through the queue set, executed as
   submitted today, detection by the two-detection rule and by one
-  detection, open-shutter hours), the mean with its bootstrap 95 %
+  detection, open-shutter hours planned and executed via the queue set), the mean with its bootstrap 95 %
   interval and the median with its own;
 * per-event paired differences against the service (row minus service over
   the events both have): mean and median with bootstrap 95 % intervals,
@@ -53,7 +53,8 @@ METRICS = (
     ("coverage_executed_single_queue", "executed as submitted today", 1.0),
     ("efficiency_two_detections", "detection (two detections ≥ 15 min)", 1.0),
     ("efficiency_optimistic", "detection (one detection, optimistic)", 1.0),
-    ("open_shutter_s", "open shutter (h)", 1.0 / 3600.0),
+    ("open_shutter_s", "open shutter planned (h)", 1.0 / 3600.0),
+    ("open_shutter_executed_s", "open shutter executed via queue set (h)", 1.0 / 3600.0),
 )
 #: Per-event differences within this are ties (coverage and efficiency alike).
 TIE = 1e-4
