@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from astropy.time import Time, TimeDelta
 
-from mushrooms.evaluation.matched_time import coverage_at, executed_curve
+from mushrooms.evaluation.matched_time import coverage_at, executed_curve, subset_curve
 from mushrooms.evaluation.study.matched_tables import matched_differences, matched_tables, read_curves
 from mushrooms.evaluation.study.population_rows import read_population_csv
 from mushrooms.evaluation.study.release_tables import RELEASE_ROWS, release_tables
@@ -63,6 +63,16 @@ def test_coverage_at_a_budget_is_the_longest_prefix_within_it():
         coverage_at(curve, -1.0)
 
 
+def test_the_covered_fields_best_first_skip_unpaired_visits_and_charge_every_visit_of_a_field():
+    curve = subset_curve(RECORDS, FOOTPRINTS, PROB, ("g", "r"), cadence_s=1800.0)
+    # covered: f1 (0.5, 600 s), f2 (0.3, 600 s); f3 never (its visits add no field): f1 then f2
+    assert np.allclose(curve, [[0, 0], [600, 0.5], [1200, 0.8]])
+    assert np.isclose(coverage_at(curve, 700.0), 0.5)
+    assert coverage_at(executed_curve(RECORDS, FOOTPRINTS, PROB, ("g", "r"), 1800.0), 700.0) == 0.0  # the prefix: none
+    third = RECORDS + [_exposure(1, "g", 3600), _exposure(1, "g", 4000)]  # f1 now costs 1200 s: 0.5/1200 < 0.3/600
+    assert np.allclose(subset_curve(third, FOOTPRINTS, PROB, ("g", "r"), 1800.0), [[0, 0], [600, 0.3], [1800, 0.8]])
+
+
 #: Per event: the service's curve, gwemopt-o4's open shutter executed (s) and executed coverage.
 HAND = {"e1": ([[0, 0], [300, 0.1], [600, 0.4], [900, 0.6]], 600.0, 0.3),   # service 0.4 at 600 s: +0.1
         "e2": ([[0, 0], [300, 0.2], [600, 0.2]], 100.0, 0.05),             # nothing fits in 100 s: -0.05
@@ -80,9 +90,14 @@ def _hand_rows():
 
 
 def test_paired_differences_at_gwemopt_s_open_shutter_time_by_hand():
-    curves = {(e, "service"): np.array(c, dtype=float) for e, (c, _, _) in HAND.items()}
+    best = {"e1": [[0, 0], [300, 0.4], [900, 0.6]], "e2": [[0, 0], [600, 0.2]], "e3": [[0, 0], [300, 0.3]]}
+    curves = {(e, "service"): {"prefix": np.array(c, dtype=float), "subset": np.array(best[e], dtype=float)}
+              for e, (c, _, _) in HAND.items()}
     d = matched_differences(_hand_rows(), curves, "service", "gwemopt-o4")
     assert d == pytest.approx({"e1": 0.1, "e2": -0.05, "e3": 0.0})
+    # best first: e1 0.4 at 300 s fits 600 s (+0.1), e2 nothing in 100 s (-0.05), e3 whole (0)
+    assert matched_differences(_hand_rows(), curves, "service", "gwemopt-o4", "subset") == pytest.approx(
+        {"e1": 0.1, "e2": -0.05, "e3": 0.0})
     text = "\n".join(matched_tables(_hand_rows(), curves, failed=[("e3", "greedy")], draws=200))
     # mean (0.1 - 0.05 + 0) / 3 = +0.017, median 0; one better, one worse, one tied
     row = next(ln for ln in text.splitlines() if ln.startswith("| service − gwemopt-o4 | "))
@@ -109,7 +124,10 @@ def test_the_release_tables_carry_the_matched_time_table_built_from_the_committe
     assert "| service − gwemopt-o4 | " in section and "| service at gwemopt-o4's | " in section
     # every curve of the service ends where the frozen row's executed columns are (same executor, same rule)
     frozen = {(r["event"], r["solver"]): r for r in rows}
-    for (event, solver), curve in curves.items():
+    assert curves, "no reproduced plan in the snapshot's curves"
+    for (event, solver), c in curves.items():
         r = frozen[(event, solver)]
-        assert curve[-1, 0] == pytest.approx(r["open_shutter_executed_s"], abs=0.05), (event, solver)
-        assert curve[-1, 1] == pytest.approx(r["coverage_executed"], abs=1e-6), (event, solver)
+        assert c["prefix"][-1, 0] == pytest.approx(r["open_shutter_executed_s"], abs=0.05), (event, solver)
+        assert c["prefix"][-1, 1] == pytest.approx(r["coverage_executed"], abs=1e-6), (event, solver)
+        assert c["subset"][-1, 1] == pytest.approx(r["coverage_executed"], abs=1e-6), (event, solver)
+        assert c["subset"][-1, 0] <= c["prefix"][-1, 0] + 0.05  # unpaired visits left out
