@@ -169,7 +169,10 @@ MATCHED_NOTE = (
     "filter changes as a 300 s one, so at equal open-shutter time gwemopt used more of the telescope. The "
     "like-for-like row against gwemopt-o4 is service-grg (the same g-r-g sequence at 180 s: the third visit costs "
     "both the same shutter time and counts in neither's pair-rule coverage); the service (g-r at 300 s) spends no "
-    "time on a third visit.")
+    "time on a third visit. For the next run: each record should keep its executed curve (or its plan), so that "
+    "no plan has to be made again, and a row planned under the budget itself (the service with an open-shutter "
+    "cap equal to gwemopt's on the event, a constraint the planner does not have today) would replace both "
+    "stand-ins by the planner.")
 
 #: The reverse caveat: what gwemopt's own command lines leave unused (``mushrooms.evaluation.gwemopt_options``).
 GWEMOPT_CAVEAT = (
