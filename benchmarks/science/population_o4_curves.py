@@ -60,7 +60,7 @@ def main() -> int:
     ap.add_argument("--resume", action="store_true", help="keep the curves the output already has")
     args = ap.parse_args()
     from mushrooms.evaluation.matched_time import plan_curve
-    from mushrooms.evaluation.study.matched_tables import write_curves
+    from mushrooms.evaluation.study.matched_tables import MATCHED_ROWS, write_curves
     from mushrooms.evaluation.study.population_rows import population_events
     from mushrooms.scheduler_core.plan.document import Plan
     from mushrooms.scheduler_core.sky.fields import field_footprints, load_ztf_fields
@@ -75,8 +75,9 @@ def main() -> int:
     kept = {}
     if args.resume and target.exists():  # the curves already made from the same plans are not made again
         with gzip.open(target, "rt") as fh:
-            kept = {(d["map"], d["solver"]): d for d in map(json.loads, fh) if "subset" in d}
-    entries = sorted(_entries(args.plans), key=lambda e: e["map"])
+            kept = {(d["map"], d["solver"]): d for d in map(json.loads, fh)
+                    if "subset" in d and d["solver"] in MATCHED_ROWS}
+    entries = sorted((e for e in _entries(args.plans) if e["solver"] in MATCHED_ROWS), key=lambda e: e["map"])
     out, maps = [kept[k] for k in kept if k not in {(e["map"], e["solver"]) for e in entries}], {}
     for e in entries:
         if (e["map"], e["solver"]) in kept:
