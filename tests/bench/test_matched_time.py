@@ -123,7 +123,9 @@ def test_the_release_tables_carry_the_matched_time_table_built_from_the_committe
     head = next(k for k, ln in enumerate(lines) if ln.startswith("## At matched telescope time"))
     assert head < next(k for k, ln in enumerate(lines) if ln.startswith("## Events where a row executes nothing"))
     section = "\n".join(lines[head:])
-    assert "**PARTIAL: 50 of the release's >= 250 events; quote none of these numbers as a result.**" in section
+    n = len({r["event"] for r in rows})  # the snapshot's events (all complete: 50 when this was written)
+    if n < 250:
+        assert f"**PARTIAL: {n} of the release's >= 250 events; quote none of these numbers as a result.**" in section
     assert "| service − gwemopt-o4 | " in section and "| service at gwemopt-o4's | " in section
     # every curve of the service ends where the frozen row's executed columns are (same executor, same rule)
     frozen = {(r["event"], r["solver"]): r for r in rows}

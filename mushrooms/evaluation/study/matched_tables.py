@@ -26,7 +26,7 @@ import numpy as np
 
 from ..bench.rows import num
 from ..matched_time import coverage_at
-from .release_tables import TIE, _cell, metric_values, summary
+from .release_stats import TIE, cell, metric_values, summary
 
 __all__ = ["MATCHED_ROWS", "BASELINES", "read_curves", "write_curves", "matched_coverages", "matched_differences",
            "matched_tables"]
@@ -117,12 +117,12 @@ def matched_table(rows: Sequence[Record], curves: Curves, draws: int = 2000, see
                 continue
             ev = sorted(m)
             best = matched_coverages(rows, curves, s, base, "subset")
-            cells = [_cell(summary([m[e][2] / 3600.0 for e in ev], draws, seed), 2),
-                     _cell(summary([m[e][0] for e in ev], draws, seed)),
-                     _cell(summary([best[e][0] for e in ev], draws, seed)),
-                     _cell(summary([m[e][1] for e in ev], draws, seed)),
-                     _cell(summary(_full(rows, s, "coverage_executed", ev), draws, seed)),
-                     _cell(summary(_full(rows, s, "open_shutter_executed_s", ev, 1 / 3600.0), draws, seed), 2)]
+            cells = [cell(summary([m[e][2] / 3600.0 for e in ev], draws, seed), 2),
+                     cell(summary([m[e][0] for e in ev], draws, seed)),
+                     cell(summary([best[e][0] for e in ev], draws, seed)),
+                     cell(summary([m[e][1] for e in ev], draws, seed)),
+                     cell(summary(_full(rows, s, "coverage_executed", ev), draws, seed)),
+                     cell(summary(_full(rows, s, "open_shutter_executed_s", ev, 1 / 3600.0), draws, seed), 2)]
             lines.append(f"| {s} at {base}'s | {len(ev)} | " + " | ".join(cells) + " |")
     return lines
 
@@ -142,9 +142,9 @@ def matched_paired_table(rows: Sequence[Record], curves: Curves, draws: int = 20
             theirs = metric_values(rows, base, "coverage_executed")
             full = [ours[e] - theirs[e] for e in sorted(d) if e in ours and e in theirs]
             best = list(matched_differences(rows, curves, s, base, "subset").values())
-            cells = [_cell(summary(list(d.values()), draws, seed), sign=True) + _tally(list(d.values())),
-                     _cell(summary(best, draws, seed), sign=True) + _tally(best),
-                     _cell(summary(full, draws, seed), sign=True) + _tally(full)]
+            cells = [cell(summary(list(d.values()), draws, seed), sign=True) + _tally(list(d.values())),
+                     cell(summary(best, draws, seed), sign=True) + _tally(best),
+                     cell(summary(full, draws, seed), sign=True) + _tally(full)]
             lines.append(f"| {s} − {base} | " + " | ".join(cells) + " |")
     return lines
 
