@@ -12,7 +12,9 @@ population_o4/previous_2026-12-06_o4_recipe/ for ``o4``):
 * ``tables.md`` and ``figures/``: every table and figure, rebuilt from ``results.csv`` alone (``--tables-only``
   does just that); ``release_tables.md``: the release's tables (issue 55: medians and bootstrap intervals beside
   means, paired differences against the service, zero-execution events, the events not all of whose six rows
-  are done, a warning when the rows come from more than one commit; ``benchmarks/science/release_tables.py``);
+  are done, a warning when the rows come from more than one commit; ``benchmarks/science/release_tables.py``;
+  with ``study/executed_curves.jsonl.gz``, our rows at gwemopt's open-shutter time: ``population_o4_replan.py``,
+  ``population_o4_curves.py``);
 * ``provenance.md`` and ``population/``: the recipe, commands, seeds, PSDs, counts per class, the CPU cost
   per event and stage (for ``o4-real`` also its sources, ranges, epochs, FAR-like threshold and the
   coincidences each chunk kept, and the commits that planned the rows); the small files
@@ -42,6 +44,7 @@ from mushrooms.evaluation.study.population_figures import population_figures
 from mushrooms.evaluation.study.population_tables import population_tables
 from mushrooms.evaluation.study.recipes import (O4_DEVIATIONS, O4_RANGES_MPC, O4_REAL_RANGES_MPC, O4_REAL_SOURCES,
                                                 RECIPES, recipe_population)
+from mushrooms.evaluation.study.matched_tables import read_curves
 from mushrooms.evaluation.study.release_tables import RELEASE_ROWS, commits_of, release_tables
 from mushrooms.evaluation.study.store import ResultStore, export_records
 
@@ -317,6 +320,10 @@ def commit_study(root: Path, study: Path) -> None:
             shutil.copy2(root / "study" / name, study / name)
 
 
+#: Our rows' executed curves (``population_o4_replan.py`` then ``population_o4_curves.py``), under OUT/study/: with
+#: them release_tables.md has the matched-time section.
+CURVES = "executed_curves.jsonl.gz"
+
 #: At the top of the release's tables.md: which file holds the release's tables.
 LEGACY_NOTE = ("The release's tables (issue 55) are in `release_tables.md`. This file is the earlier studies' layout, "
                "kept for continuity: its baselines are greedy, gwemopt and gwemopt-repaired, so the gwemopt-o4, "
@@ -354,7 +361,9 @@ def main() -> int:
     rows = read_population_csv(out / "results.csv")
     release = recipe == "o4-real"
     (out / "tables.md").write_text((LEGACY_NOTE if release else "") + population_tables(rows) + "\n")
-    (out / "release_tables.md").write_text(release_tables(rows, expected=RELEASE_ROWS if release else None))
+    curves, failed = read_curves(out / "study" / CURVES) if (out / "study" / CURVES).exists() else (None, ())
+    (out / "release_tables.md").write_text(release_tables(rows, expected=RELEASE_ROWS if release else None,
+                                                          curves=curves, failed=failed))
     figures = population_figures(rows, out / "figures", **({"baselines": RELEASE_ROWS[1:], "planned": "coverage_pairs"} if release else {}))
     print(f"{len(rows)} rows -> {out}; figures: {', '.join(str(f) for f in figures)}")
     return 0

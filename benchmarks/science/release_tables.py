@@ -11,7 +11,11 @@ executes nothing on; the same by class, distance and area. An event without a ro
 (default: the six) is listed in the header and left out (a partial run); rows from more than one commit put a
 warning at the top.
 
+With ``--curves`` (``study/executed_curves.jsonl.gz``) the matched-time section too: our rows at gwemopt's
+open-shutter time, per event.
+
     .venv/bin/python benchmarks/science/release_tables.py CSV [-o TABLES.md] [--draws 2000] [--seed 0] [--rows A,B]
+        [--curves CURVES.jsonl.gz]
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from mushrooms.evaluation.study.matched_tables import read_curves
 from mushrooms.evaluation.study.population_rows import read_population_csv
 from mushrooms.evaluation.study.release_tables import RELEASE_ROWS, release_tables
 
@@ -30,6 +35,8 @@ def main() -> int:
     ap.add_argument("-o", "--out", type=Path, help="write here (default: stdout)")
     ap.add_argument("--draws", type=int, default=2000)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--curves", type=Path, help="our rows' executed curves (study/executed_curves.jsonl.gz): "
+                    "adds the matched-time section")
     ap.add_argument("--rows", default=",".join(RELEASE_ROWS),
                     help="row names every tabulated event must have (default %(default)s; '' : those in the CSV)")
     args = ap.parse_args()
@@ -37,7 +44,9 @@ def main() -> int:
         print(f"{args.csv}: no such file", file=sys.stderr)
         return 2
     expected = tuple(r for r in args.rows.split(",") if r)
-    text = release_tables(read_population_csv(args.csv), draws=args.draws, seed=args.seed, expected=expected)
+    curves, failed = read_curves(args.curves) if args.curves else (None, ())
+    text = release_tables(read_population_csv(args.csv), draws=args.draws, seed=args.seed, expected=expected,
+                          curves=curves, failed=failed)
     if args.out:
         args.out.write_text(text)
     else:

@@ -10,28 +10,32 @@ without a commit) put a warning at the top.  Output (Markdown):
 * the headline table: per row and metric (:data:`METRICS`: planned
   coverage by the pair rule, executed through the queue set, executed as
   submitted today, detection by the two-detection rule and by one
-  detection, open-shutter hours), the mean with its bootstrap 95 %
+  detection, open-shutter hours planned and executed via the queue set), the mean with its bootstrap 95 %
   interval and the median with its own;
 * per-event paired differences against the service (row minus service over
   the events both have): mean and median with bootstrap 95 % intervals,
   events better / worse / tied;
+* with our rows' executed curves, the same at matched telescope time: each
+  of our rows at gwemopt's open-shutter time on the event
+  (:mod:`.matched_tables`);
 * events where each row executes nothing (through the queue set and as
   submitted today) or pairs nothing as planned, and the plans the checker
   passed;
 * the same medians by event class, distance quartile and 90 % area quartile.
 
-The bootstrap resamples events with replacement (``draws`` times, one
+The bootstrap (:mod:`.release_stats`) resamples events with replacement (``draws`` times, one
 seeded generator per statistic, so a table is the same on every run) and
 takes the 2.5th and 97.5th percentiles of the statistic.
 """
 
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ..bench.rows import num
+from .release_stats import TIE, bootstrap_interval, cell, metric_values, summary
 
 __all__ = ["RELEASE_ROWS", "REFERENCE", "METRICS", "TIE", "bootstrap_interval", "summary", "release_events",
            "incomplete_events", "commits_of", "metric_values", "paired_differences", "zero_counts", "metric_table",
@@ -50,52 +54,11 @@ METRICS = (
     ("coverage_executed_single_queue", "executed as submitted today", 1.0),
     ("efficiency_two_detections", "detection (two detections ≥ 15 min)", 1.0),
     ("efficiency_optimistic", "detection (one detection, optimistic)", 1.0),
-    ("open_shutter_s", "open shutter (h)", 1.0 / 3600.0),
+    ("open_shutter_s", "open shutter planned (h)", 1.0 / 3600.0),
+    ("open_shutter_executed_s", "open shutter executed via queue set (h)", 1.0 / 3600.0),
 )
-#: Per-event differences within this are ties (coverage and efficiency alike).
-TIE = 1e-4
 #: A coverage at or below this is "nothing executed".
 ZERO = 1e-9
-
-
-def bootstrap_interval(values: Sequence[float], statistic: Callable[..., Any] = np.mean, draws: int = 2000,
-                       seed: int = 0, level: float = 0.95) -> tuple[float, float] | None:
-    """Percentile bootstrap interval of ``statistic`` over ``values`` resampled with replacement.
-
-    Parameters
-    ----------
-    values : sequence of float
-        One value per event.
-    statistic : callable
-        ``statistic(array, axis=1)`` of a (draws, n) array (``np.mean``, ``np.median``).
-    draws : int
-        Resamples.
-    seed : int
-        Seed of the generator (same seed, same interval).
-    level : float
-        Central probability of the interval.
-
-    Returns
-    -------
-    (float, float) or None
-        The interval; None with fewer than two values.
-    """
-    x = np.asarray(values, dtype=float)
-    if x.size < 2:
-        return None
-    pick = np.random.default_rng(seed).integers(0, x.size, size=(draws, x.size))
-    stats = statistic(x[pick], axis=1)
-    lo, hi = np.percentile(stats, [50.0 * (1.0 - level), 100.0 - 50.0 * (1.0 - level)])
-    return float(lo), float(hi)
-
-
-def summary(values: Sequence[float], draws: int = 2000, seed: int = 0) -> dict[str, Any]:
-    """``n``, ``mean``, ``median`` and their bootstrap 95 % intervals (``mean_ci``, ``median_ci``; None below two)."""
-    x = np.asarray(values, dtype=float)
-    if not x.size:
-        return dict(n=0, mean=None, median=None, mean_ci=None, median_ci=None)
-    return dict(n=int(x.size), mean=float(x.mean()), median=float(np.median(x)),
-                mean_ci=bootstrap_interval(x, np.mean, draws, seed), median_ci=bootstrap_interval(x, np.median, draws, seed))
 
 
 def _by_event(rows: Sequence[Record]) -> dict[str, dict[str, Record]]:
@@ -136,15 +99,6 @@ def incomplete_events(rows: Sequence[Record], expected: Sequence[str] | None = N
             for e, sol in _by_event(rows).items() if not _done(sol) >= solvers}
 
 
-def metric_values(rows: Sequence[Record], solver: str, column: str, scale: float = 1.0) -> dict[str, float]:
-    """Event -> ``column`` of ``solver`` (times ``scale``), for the events where it has a number."""
-    out = {}
-    for r in rows:
-        if str(r["solver"]) == solver and (v := num(r.get(column))) is not None:
-            out[str(r["event"])] = v * scale
-    return out
-
-
 def paired_differences(rows: Sequence[Record], solver: str, column: str, reference: str = REFERENCE,
                        scale: float = 1.0) -> dict[str, float]:
     """Event -> ``solver`` minus ``reference`` in ``column`` over the events both have a number for."""
@@ -170,21 +124,6 @@ def _fmt(x: float | None, digits: int = 3) -> str:
     return "-" if x is None else f"{x:.{digits}f}"
 
 
-def _ci(ci: tuple[float, float] | None, digits: int = 3, sign: bool = False) -> str:
-    if ci is None:
-        return ""
-    f = "+.{}f".format(digits) if sign else ".{}f".format(digits)
-    return f" [{format(ci[0], f)}, {format(ci[1], f)}]"
-
-
-def _cell(s: dict[str, Any], digits: int = 3, sign: bool = False) -> str:
-    if not s["n"]:
-        return "-"
-    f = "+.{}f".format(digits) if sign else ".{}f".format(digits)
-    return (f"{format(s['mean'], f)}{_ci(s['mean_ci'], digits, sign)} / "
-            f"{format(s['median'], f)}{_ci(s['median_ci'], digits, sign)}")
-
-
 def metric_table(rows: Sequence[Record], draws: int = 2000, seed: int = 0) -> list[str]:
     """Markdown: per row, each metric's mean [95 %] / median [95 %] over the events (n per row)."""
     solvers = _solvers(rows)
@@ -192,7 +131,7 @@ def metric_table(rows: Sequence[Record], draws: int = 2000, seed: int = 0) -> li
              "|" + "---|" * (2 + len(METRICS))]
     for s in solvers:
         n = len({str(r["event"]) for r in rows if str(r["solver"]) == s})
-        cells = [_cell(summary(list(metric_values(rows, s, c, k).values()), draws, seed), 2 if k != 1.0 else 3)
+        cells = [cell(summary(list(metric_values(rows, s, c, k).values()), draws, seed), 2 if k != 1.0 else 3)
                  for c, _, k in METRICS]
         lines.append(f"| {s} | {n} | " + " | ".join(cells) + " |")
     return lines
@@ -211,7 +150,7 @@ def paired_table(rows: Sequence[Record], reference: str = REFERENCE, draws: int 
             summ = summary(d, draws, seed)
             tally = (f" ({sum(x > TIE for x in d)}/{sum(x < -TIE for x in d)}/{sum(abs(x) <= TIE for x in d)}"
                      f" of {len(d)})") if d else ""
-            cells.append(_cell(summ, 2 if k != 1.0 else 3, sign=True) + tally)
+            cells.append(cell(summ, 2 if k != 1.0 else 3, sign=True) + tally)
         lines.append(f"| {s} | " + " | ".join(cells) + " |")
     return lines
 
@@ -295,11 +234,15 @@ def _provenance(rows: Sequence[Record], n_all: int, missing: Mapping[str, list[s
 
 
 def release_tables(rows: Sequence[Record], draws: int = 2000, seed: int = 0,
-                   expected: Sequence[str] | None = None) -> str:
+                   expected: Sequence[str] | None = None, curves: Mapping[tuple[str, str], Any] | None = None,
+                   failed: Sequence[tuple[str, str]] = ()) -> str:
     """Every table of the release (Markdown) from population rows (module notes).
 
     ``expected``: the row names every tabulated event must have (default: those present in ``rows``; the
     release passes :data:`RELEASE_ROWS`); the events lacking one are listed in the header and left out.
+    ``curves``, ``failed``: our rows' executed curves and the plans not reproduced
+    (:func:`~.matched_tables.read_curves`); given, the matched-time section follows the paired differences
+    (:func:`~.matched_tables.matched_tables`).
     """
     every = list(rows)
     n_all = len({str(r["event"]) for r in rows})
@@ -315,6 +258,10 @@ def release_tables(rows: Sequence[Record], draws: int = 2000, seed: int = 0,
     out += ["", f"## Per-event paired differences against {REFERENCE}: mean [95 %] / median [95 %] "
                 f"(better/worse/tied beyond {TIE:g} of n events)", ""]
     out += paired_table(rows, REFERENCE, draws, seed)
+    if curves is not None:
+        from .matched_tables import matched_tables
+
+        out += [""] + matched_tables(rows, curves, failed, draws, seed)
     out += ["", "## Events where a row executes nothing", ""]
     out += zero_table(rows)
     for column, quartiles in (("event_class", False), ("distance_mpc", True), ("area90_deg2", True)):
