@@ -127,7 +127,7 @@ def test_winter_plans_in_j(tmp_path):
 
 
 def test_winter_plans_fields_with_its_own_default_thresholds(tmp_path):
-    """(T1) No min_gain/min_coverage in the configuration: WINTER's scaled thresholds plan fields (ZTF's planned none)."""
+    """(I5) No min_gain/min_coverage in the configuration: WINTER's scaled thresholds plan fields (ZTF's planned none)."""
     config = tmp_path / "config.toml"
     config.write_text('[scheduler]\nnside = 128\n')
     r = mushrooms("plan", str(NORTH), "--telescopes", "winter", "--solver", "greedy", "--config", str(config),

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 53 (T1): `mushrooms plan MAP --telescopes NAME` with the default thresholds (no min_gain /
+# Issue 53 (I5): `mushrooms plan MAP --telescopes NAME` with the default thresholds (no min_gain /
 # min_coverage in the configuration), then `mushrooms check`, on one checkout.
 #   benchmarks/science/telescope_thresholds.sh TREE OUT_DIR [TELESCOPES] [MAPS...]
 # TELESCOPES: comma list (default winter,ls4,decam); MAPS default two shared public maps.

@@ -1,10 +1,10 @@
-"""Issue 53: ``min_gain`` and ``min_coverage`` scale with the area a telescope's field covers (T1).
+"""Issue 53: ``min_gain`` and ``min_coverage`` scale with the area a telescope's field covers (I5).
 
 ZTF's thresholds (0.001 and 0.01 of the probability) hold for a 47.7 deg2
 field; a 1 deg2 WINTER field holds about 1/48 of what a ZTF field holds of
 the same sky, so with ZTF's numbers it plans nothing on a broad map.  A
 description's defaults scale both by the covering detectors' area relative
-to ZTF's (``instruments/defaults.py``, ``docs/design/telescopes.md`` T1);
+to ZTF's (``instruments/defaults.py``, ``docs/design/telescopes.md`` I5);
 a value the ``[scheduler]`` table sets still wins.
 """
 

@@ -62,7 +62,7 @@ def covering_area_deg2(telescope: TelescopeDescription) -> float:
 
 
 def threshold_scale(telescope: TelescopeDescription) -> float:
-    """(T1) The telescope's covering area over ZTF's (47.7 deg²): 1.0 exactly for ZTF."""
+    """(I5) The telescope's covering area over ZTF's (47.7 deg²): 1.0 exactly for ZTF."""
     from .loader import load_description
 
     own, ztf = covering_area_deg2(telescope), covering_area_deg2(load_description("ztf"))
@@ -70,7 +70,7 @@ def threshold_scale(telescope: TelescopeDescription) -> float:
 
 
 def scaled_thresholds(telescope: TelescopeDescription) -> dict[str, float]:
-    """(T1) ``min_gain`` and ``min_coverage``: ZTF's defaults times :func:`threshold_scale`, to 3 significant digits.
+    """(I5) ``min_gain`` and ``min_coverage``: ZTF's defaults times :func:`threshold_scale`, to 3 significant digits.
 
     ZTF's 0.001 and 0.01 (the probability a field must add, and a plan must
     cover) are for a 47.7 deg² field; a field of area ``A`` holds about
@@ -89,7 +89,7 @@ def scaled_thresholds(telescope: TelescopeDescription) -> dict[str, float]:
 def planning_defaults(telescope: TelescopeDescription) -> dict[str, Any]:
     """``[scheduler]`` values from ``[limits]``, ``[planning]`` and ``[overheads]`` of a description.
 
-    And (T1) ``min_gain``, ``min_coverage`` scaled by the covering area (:func:`scaled_thresholds`).
+    And (I5) ``min_gain``, ``min_coverage`` scaled by the covering area (:func:`scaled_thresholds`).
 
     Examples
     --------
@@ -97,7 +97,7 @@ def planning_defaults(telescope: TelescopeDescription) -> dict[str, Any]:
     >>> d = planning_defaults(load_description("ls4"))
     >>> d["exposure_s"], d["filters"], d["dec_min_deg"], d["slew"]["readout_s"]
     (45.0, ['i'], -90.0, 10.0)
-    >>> d["min_gain"], d["min_coverage"]  # (T1) ZTF's, times 10.4 / 47.7 deg2
+    >>> d["min_gain"], d["min_coverage"]  # (I5) ZTF's, times 10.4 / 47.7 deg2
     (0.000217, 0.00217)
     """
     lim, plan, over = telescope.limits, telescope.planning, telescope.overheads
