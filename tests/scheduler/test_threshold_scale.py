@@ -64,3 +64,15 @@ def test_a_set_value_wins_and_the_shipped_ztf_value_does_not():
 def test_a_table_naming_winter_first_takes_its_thresholds():
     cfg = PlanningConfig.from_mapping({"telescopes": ["winter", "ztf"]})
     assert cfg.min_gain < 1e-4 and "min_gain" in cfg.record()
+
+
+def test_a_camera_larger_than_ztfs_keeps_ztfs_thresholds(tmp_path):
+    """(I5) The scale is at most 1: a huge (or hostile) footprint never makes min_coverage 1 or more."""
+    from mushrooms.scheduler_core.instruments.loader import DATA_DIR
+
+    text = (DATA_DIR / "ls4.toml").read_text().replace('name = "ls4"', 'name = "huge"')
+    text = text.replace("detector_width_deg = 0.56889", "detector_width_deg = 25.0")
+    text = text.replace("detector_height_deg = 1.13778", "detector_height_deg = 25.0")
+    (tmp_path / "huge.toml").write_text(text)
+    cfg = PlanningConfig.for_telescope(load_description(str(tmp_path / "huge.toml")), {"nside": 16})
+    assert cfg.min_gain == 0.001 and cfg.min_coverage == 0.01

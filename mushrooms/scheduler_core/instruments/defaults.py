@@ -62,11 +62,15 @@ def covering_area_deg2(telescope: TelescopeDescription) -> float:
 
 
 def threshold_scale(telescope: TelescopeDescription) -> float:
-    """(I5) The telescope's covering area over ZTF's (47.7 deg²): 1.0 exactly for ZTF."""
+    """(I5) The telescope's covering area over ZTF's (47.7 deg²), at most 1: 1.0 exactly for ZTF.
+
+    At most 1: a camera larger than ZTF's keeps ZTF's thresholds (a huge or
+    hostile footprint would otherwise push ``min_coverage`` to 1 or more).
+    """
     from .loader import load_description
 
     own, ztf = covering_area_deg2(telescope), covering_area_deg2(load_description("ztf"))
-    return own / ztf if own > 0 else 1.0
+    return min(own / ztf, 1.0) if own > 0 else 1.0
 
 
 def scaled_thresholds(telescope: TelescopeDescription) -> dict[str, float]:
