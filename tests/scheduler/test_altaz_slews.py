@@ -13,7 +13,7 @@ import dataclasses
 import numpy as np
 import pytest
 from astropy import units as u
-from astropy.coordinates import AltAz, EarthLocation, SkyCoord
+from astropy.coordinates import TETE, AltAz, EarthLocation, SkyCoord
 from astropy.time import Time, TimeDelta
 
 from tests_paths import MAP_220722V
@@ -30,10 +30,12 @@ def _site(telescope) -> EarthLocation:
 
 
 def _through_the_zenith(telescope, when: Time) -> tuple[tuple[float, float], tuple[float, float]]:
-    """Two positions 0.6 deg north and south of the zenith on the meridian at ``when`` (astropy's sidereal time)."""
+    """ICRS places of the points 0.6 deg north and south of the zenith on the meridian at ``when`` (astropy)."""
     lst = when.sidereal_time("apparent", longitude=telescope.site.longitude_deg * u.deg).deg
     lat = telescope.site.latitude_deg
-    return (lst, lat + 0.6), (lst, lat - 0.6)
+    of_date = SkyCoord([lst, lst] * u.deg, [lat + 0.6, lat - 0.6] * u.deg, frame=TETE(obstime=when))
+    icrs = of_date.transform_to("icrs")
+    return (float(icrs.ra.deg[0]), float(icrs.dec.deg[0])), (float(icrs.ra.deg[1]), float(icrs.dec.deg[1]))
 
 
 def test_only_winter_is_an_altaz_mount():
@@ -46,14 +48,6 @@ def test_only_winter_is_an_altaz_mount():
     assert mount is not None and mount.latitude_deg == pytest.approx(33.3571)
 
 
-def _model_alt_az(ra: float, dec: float, lst: float, lat: float) -> tuple[float, float]:
-    """(M1)'s geometry, here by rotating the unit vector about the east-west axis (J2000 places, the time's LST)."""
-    h, d, phi = np.radians(lst - ra), np.radians(dec), np.radians(lat)
-    x, y, z = np.cos(d) * np.cos(h), -np.cos(d) * np.sin(h), np.sin(d)  # (meridian, east, pole)
-    up, north = x * np.cos(phi) + z * np.sin(phi), -x * np.sin(phi) + z * np.cos(phi)
-    return float(np.degrees(np.arcsin(up))), float(np.degrees(np.arctan2(y, north)))
-
-
 def test_a_slew_through_the_zenith_is_a_half_turn_in_azimuth():
     from mushrooms.scheduler_core.telescope.mount import altaz_mount
     from mushrooms.scheduler_core.telescope.slew import slew_time
@@ -64,17 +58,14 @@ def test_a_slew_through_the_zenith_is_a_half_turn_in_azimuth():
     when = START + TimeDelta(t, format="sec")
     (ra1, dec1), (ra2, dec2) = _through_the_zenith(winter, when)
     frame = AltAz(obstime=when, location=_site(winter))
-    hor = SkyCoord([ra1, ra2] * u.deg, [dec1, dec2] * u.deg).transform_to(frame)  # astropy's own alt-az
-    assert abs((hor.az.deg[1] - hor.az.deg[0] + 180.0) % 360.0 - 180.0) > 120.0  # the premise, by astropy
-    lst = when.sidereal_time("apparent", longitude=winter.site.longitude_deg * u.deg).deg
-    (alt1, az1), (alt2, az2) = (_model_alt_az(r, d, lst, winter.site.latitude_deg) for r, d in
-                                ((ra1, dec1), (ra2, dec2)))
-    d_az = abs((az2 - az1 + 180.0) % 360.0 - 180.0)
-    assert d_az > 170.0 and abs(alt2 - alt1) < 1.0
+    hor = SkyCoord([ra1, ra2] * u.deg, [dec1, dec2] * u.deg).transform_to(frame)  # astropy's (aberration: 20")
+    d_az = abs((hor.az.deg[1] - hor.az.deg[0] + 180.0) % 360.0 - 180.0)
+    assert d_az > 170.0 and abs(hor.alt.deg[1] - hor.alt.deg[0]) < 1.0
     v, a = cfg.slew.ha_vmax_deg_s, cfg.slew.ha_accel_deg_s2  # the azimuth axis (3.3 deg/s, 1 deg/s2)
     want = d_az / v + v / a + cfg.slew.settle_s  # trapezoid, at top speed
     got = float(slew_time(ra1, dec1, ra2, dec2, cfg.slew, altaz_mount(cfg, START), t))
-    assert got == pytest.approx(want, abs=1e-3)  # (LST extrapolated at the sidereal rate from the start)
+    # the model and astropy's places differ by 0.006 deg (aberration): ~0.6 deg of azimuth 0.6 deg from the zenith
+    assert got == pytest.approx(want, abs=0.5)
     equatorial = float(slew_time(ra1, dec1, ra2, dec2, cfg.slew))
     assert equatorial < 5.0 < 50.0 < got  # 1.2 deg in declination: what it was timed as before
 

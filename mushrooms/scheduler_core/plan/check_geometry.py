@@ -40,6 +40,7 @@ from dataclasses import dataclass
 from importlib import resources
 from typing import Iterable
 
+import erfa
 import numpy as np
 from astropy import units as u
 from astropy.coordinates import AltAz, EarthLocation, SkyCoord, get_body
@@ -255,9 +256,14 @@ def altaz_slew_seconds(ra1_deg: np.ndarray, dec1_deg: np.ndarray, ra2_deg: np.nd
     lst = np.radians(lst0 + 360.98564736629 / 86400.0 * np.asarray(t_s, float))
     lat = np.radians(where[0])
     zenith, north = (np.cos(lat), 0.0, np.sin(lat)), (-np.sin(lat), 0.0, np.cos(lat))
+    to_date = erfa.pnm06a(start.tt.jd1, start.tt.jd2)  # precession-nutation to the true equator of the start
 
     def horizontal(ra: np.ndarray, dec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        h, d = lst - np.radians(np.asarray(ra, float)), np.radians(np.asarray(dec, float))
+        a, d = np.radians(np.asarray(ra, float)), np.radians(np.asarray(dec, float))
+        x, y, z = (to_date[i, 0] * np.cos(d) * np.cos(a) + to_date[i, 1] * np.cos(d) * np.sin(a)
+                   + to_date[i, 2] * np.sin(d) for i in range(3))  # the place of date, as a unit vector
+        h = lst - np.arctan2(y, x)  # hour angle of date
+        d = np.arcsin(np.clip(z, -1.0, 1.0))
         v = (np.cos(d) * np.cos(h), -np.cos(d) * np.sin(h), np.sin(d))
         up = sum(a * b for a, b in zip(v, zenith))
         toward_north = sum(a * b for a, b in zip(v, north))

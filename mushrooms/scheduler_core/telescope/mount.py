@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import erfa
 from astropy import units as u
 from astropy.time import Time
 
@@ -41,6 +42,7 @@ def altaz_mount(config: Any, start: Time) -> AltAzMount | None:
     telescope = description_of(config)
     if not is_altaz({a.coordinate for a in telescope.overheads.axes}):
         return None
-    site = telescope.site
-    lst0 = Time(start).sidereal_time("apparent", longitude=float(site.longitude_deg) * u.deg).deg
-    return AltAzMount(float(site.latitude_deg), float(lst0))
+    site, start = telescope.site, Time(start)
+    lst0 = start.sidereal_time("apparent", longitude=float(site.longitude_deg) * u.deg).deg
+    to_date = erfa.pnm06a(start.tt.jd1, start.tt.jd2)  # ICRS (GCRS axes) -> true equator and equinox of date
+    return AltAzMount(float(site.latitude_deg), float(lst0), tuple(tuple(float(x) for x in row) for row in to_date))

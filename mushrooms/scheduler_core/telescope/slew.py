@@ -40,15 +40,27 @@ class AltAzMount:
         Site latitude (deg).
     lst0_deg : float
         Local apparent sidereal time (deg) at ``t = 0``, the horizon's start.
+    to_date : tuple of tuple of float, optional
+        3 x 3 rotation from the fields' (ICRS) axes to the true equator and
+        equinox of the start (precession-nutation, ``erfa.pnm06a``); None:
+        the places are taken as of date.
     """
 
     latitude_deg: float
     lst0_deg: float
+    to_date: tuple[tuple[float, float, float], ...] | None = None
 
     def alt_az(self, ra_deg: ArrayLike, dec_deg: ArrayLike, t_s: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Altitude and azimuth (deg; azimuth from north through east) of the positions at ``t_s`` (s)."""
-        ha = np.radians(self.lst0_deg + SIDEREAL_DEG_PER_S * np.asarray(t_s, float) - np.asarray(ra_deg, float))
-        dec, lat = np.radians(np.asarray(dec_deg, float)), np.radians(self.latitude_deg)
+        ra_deg, dec_deg = np.asarray(ra_deg, float), np.asarray(dec_deg, float)
+        if self.to_date is not None:  # (M1) the places of date
+            r, d = np.radians(ra_deg), np.radians(dec_deg)
+            u = np.stack(np.broadcast_arrays(np.cos(d) * np.cos(r), np.cos(d) * np.sin(r), np.sin(d)), axis=-1)
+            w = u @ np.asarray(self.to_date, float).T
+            ra_deg = np.degrees(np.arctan2(w[..., 1], w[..., 0]))
+            dec_deg = np.degrees(np.arcsin(np.clip(w[..., 2], -1.0, 1.0)))
+        ha = np.radians(self.lst0_deg + SIDEREAL_DEG_PER_S * np.asarray(t_s, float) - ra_deg)
+        dec, lat = np.radians(dec_deg), np.radians(self.latitude_deg)
         sin_alt = np.sin(lat) * np.sin(dec) + np.cos(lat) * np.cos(dec) * np.cos(ha)
         az = np.arctan2(-np.cos(dec) * np.sin(ha), np.sin(dec) * np.cos(lat) - np.cos(dec) * np.cos(ha) * np.sin(lat))
         return np.degrees(np.arcsin(np.clip(sin_alt, -1.0, 1.0))), np.degrees(az) % 360.0
