@@ -126,6 +126,21 @@ def test_winter_plans_in_j(tmp_path):
     assert r.returncode == 0, (r.stdout, r.stderr)
 
 
+def test_winter_plans_fields_with_its_own_default_thresholds(tmp_path):
+    """(I5) No min_gain/min_coverage in the configuration: WINTER's scaled thresholds plan fields (ZTF's planned none)."""
+    config = tmp_path / "config.toml"
+    config.write_text('[scheduler]\nnside = 128\n')
+    r = mushrooms("plan", str(NORTH), "--telescopes", "winter", "--solver", "greedy", "--config", str(config),
+                  "--start", "2022-07-23T04:00:00Z", "-o", str(tmp_path / "plan.json"))
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((tmp_path / "plan.json").read_text())
+    assert doc.get("type") != "not_observable" and len(doc["observations"]) >= 5, doc.get("metrics")
+    assert 0.0 < doc["config"]["min_gain"] < 1e-4 and 0.0 < doc["config"]["min_coverage"] < 1e-3
+    assert doc["metrics"]["coverage"] >= doc["config"]["min_coverage"]
+    r = mushrooms("check", str(tmp_path / "plan.json"), str(NORTH))
+    assert r.returncode == 0, (r.stdout, r.stderr)
+
+
 def test_a_description_with_a_bad_key_is_one_line_and_exit_2(tmp_path):
     text = (TELESCOPES / "ls4.toml").read_text().replace("readout_s = 10.0", "readout = 10.0")
     text = text.replace('name = "ls4"', 'name = "mine"')

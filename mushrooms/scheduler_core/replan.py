@@ -50,6 +50,7 @@ from .schedulers.completions import (
     PendingVisit, completion_pass, drop_repeats, insert_completions, shift_in_completions, swap_in_completions,
 )
 from .schedulers.gain import worth_a_visit
+from .telescope.mount import altaz_mount
 from .telescope.slew import overhead_time
 from .sequences import done_covering, is_pair, sequence_progress
 from .sky.fields import FieldGrid, field_footprints
@@ -296,7 +297,7 @@ def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGr
                     if v.worth is not None or sel[int(grid.index_of(np.array([v.field_id]))[0])])
     front, later, uncovered = completion_pass(pending, footprints, state.uncovered, windows, config)
     # (P5) the reduced problem: after the pass and the worst first overhead, without covered fields
-    rest_start = _rest_start(front, grid, sel, config)
+    rest_start = _rest_start(front, grid, sel, config, start)
     observations: list[Observation] = list(front)
     result = ScheduleResult((), solver="completions", status="no_time_left")
     if rest_start + 2 * config.exposure_s + config.cadence_s <= config.horizon_s:
@@ -329,13 +330,15 @@ def _schedule(skymap: SkyMap, config: PlanningConfig, start: Time, grid: FieldGr
     return placed, result
 
 
-def _rest_start(front: Sequence[Observation], grid: FieldGrid, sel: np.ndarray, config: PlanningConfig) -> float:
+def _rest_start(front: Sequence[Observation], grid: FieldGrid, sel: np.ndarray, config: PlanningConfig,
+                start: Time) -> float:
     """When the reduced problem may start (s): after the pass, plus the longest overhead from its last exposure."""
     if not front:
         return 0.0
     last = front[-1]
     change = config.filter_change_s if last.filter != config.filters[0] else 0.0
-    oh = overhead_time(last.ra, last.dec, grid.ra[sel], grid.dec[sel], config.slew, change)
+    oh = overhead_time(last.ra, last.dec, grid.ra[sel], grid.dec[sel], config.slew, change,
+                       altaz_mount(config, start), last.end)  # (M1)
     worst = float(np.max(oh)) if np.size(oh) else config.slew.readout_s
     return float(np.ceil(last.end + worst))
 

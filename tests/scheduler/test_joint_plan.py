@@ -198,6 +198,20 @@ def test_a_one_visit_telescope_joins_the_plan_and_the_bound_still_holds(skymap):
     assert check_plan(plan, skymap, one.config).ok
 
 
+def test_a_one_visit_telescopes_part_carries_its_own_bound(skymap):
+    """(U5, U6 of milp.md) The one-visit part publishes U4 over one exposure a field (it published none before)."""
+    from mushrooms.scheduler_core.schedulers.joint import joint_schedule
+
+    a = prepare_problem(skymap, _config(), NIGHT, grid=_sub_grid(PRIMARY))
+    one = prepare_problem(skymap, _config(filters=("r",)), NIGHT, grid=_sub_grid(SECONDARY))
+    res = joint_schedule([a, one])
+    ub = res.schedules[1].upper_bound
+    assert ub is not None and ub.method == "online"
+    share = one.footprints.coverage({o.field_id for o in res.schedules[1].observations}, one.prob)
+    assert 0 < share <= ub.value <= one.footprints.coverage(one.field_ids, one.prob) + 1e-9
+    assert res.bound.per_telescope[1].value == ub.value
+
+
 def test_make_joint_plans_gives_one_checked_plan_per_telescope(two_telescopes, skymap):
     """The planning layer: one plan per telescope, each through the checker, each under its own bound."""
     from mushrooms.scheduler_core.joint_plans import make_joint_plans

@@ -191,11 +191,13 @@ def test_the_pair_schedulers_refuse_a_sequence_and_the_hybrid_skips_them(skymap_
         run_scheduler(problem, "blocks")
 
 
-def test_one_filter_plans_one_visit_per_field_and_publishes_no_bound(skymap_220722v):
+def test_one_filter_plans_one_visit_per_field_and_publishes_its_own_bound(skymap_220722v):
     plan = make_plan(skymap_220722v, PlanningConfig(filters=("r",), solver="hybrid", time_limit_s=4.0,
                                                     objective="coverage"))
     assert {o.filter for o in plan.observations} == {"r"}
-    assert len(plan.field_ids) == plan.metrics.n_exposures and plan.metrics.upper_bound is None
+    assert len(plan.field_ids) == plan.metrics.n_exposures
+    # (U5, U6, V8 of milp.md) one exposure a field: a bound of its own (there was none before)
+    assert plan.metrics.coverage <= plan.metrics.upper_bound <= 1.0
 
 
 # ----------------------------------------------------------------- F3: room for a next visit

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 from importlib import resources
 from typing import Iterable
 
+import erfa
 import numpy as np
 from astropy import units as u
 from astropy.coordinates import AltAz, EarthLocation, SkyCoord, get_body
@@ -50,7 +51,7 @@ from .check_telescope import CheckScope
 from ..sky.healpix import hp
 
 __all__ = ["P48_SITE", "GRID_STEP_S", "Conditions", "conditions", "field_positions", "polygon_coverage", "polygon_mask",
-           "mount_reachable", "slew_seconds"]
+           "mount_reachable", "slew_seconds", "altaz_slew_seconds"]
 
 #: P48 at Palomar: geodetic latitude, longitude (deg) and height (m), the GPS
 #: position used by ZTF's robotic observing software as given in ztf_sim's
@@ -227,14 +228,52 @@ def slew_seconds(ra1_deg: np.ndarray, dec1_deg: np.ndarray, ra2_deg: np.ndarray,
     -------
     numpy.ndarray
     """
-    def axis(d: np.ndarray, a: float, v: float) -> np.ndarray:
-        ramp_s, ramp_deg = 2.0 * v / a, v * v / a
-        return np.where(d > ramp_deg, ramp_s + (d - ramp_deg) / v, 2.0 * np.sqrt(d / a))
-
     d_ha = np.abs((np.asarray(ra2_deg, float) - ra1_deg + 540.0) % 360.0 - 180.0)
     d_dec = np.abs(np.asarray(dec2_deg, float) - dec1_deg)
-    t = np.maximum(axis(d_ha, model.ha_accel_deg_s2, model.ha_vmax_deg_s),
-                   axis(d_dec, model.dec_accel_deg_s2, model.dec_vmax_deg_s))
+    t = np.maximum(_axis(d_ha, model.ha_accel_deg_s2, model.ha_vmax_deg_s),
+                   _axis(d_dec, model.dec_accel_deg_s2, model.dec_vmax_deg_s))
+    return np.where(t > 0, t + model.settle_s, 0.0)
+
+
+def _axis(d: np.ndarray, a: float, v: float) -> np.ndarray:
+    """One axis's ramp up, cruise and ramp down over ``d`` deg (s)."""
+    ramp_s, ramp_deg = 2.0 * v / a, v * v / a
+    return np.where(d > ramp_deg, ramp_s + (d - ramp_deg) / v, 2.0 * np.sqrt(d / a))
+
+
+def altaz_slew_seconds(ra1_deg: np.ndarray, dec1_deg: np.ndarray, ra2_deg: np.ndarray, dec2_deg: np.ndarray,
+                       t_s: np.ndarray, start: Time, where: tuple[float, float, float], model: SlewModel) -> np.ndarray:
+    """(M1) An alt-azimuth mount's slew time (s), settle included, starting at ``t_s`` (s since ``start``).
+
+    Written out again from the definition: the local sidereal time is
+    astropy's apparent one at ``start`` plus the sidereal rate times ``t_s``;
+    a position's unit vector in the (meridian, east, pole) frame is projected
+    on the zenith, the north and the east point of the site; the azimuth
+    axis (``model.ha_*``) turns the shorter way, the altitude axis
+    (``model.dec_*``) by the altitude difference; the slower sets the time.
+    """
+    lst0 = start.sidereal_time("apparent", longitude=where[1] * u.deg).deg
+    lst = np.radians(lst0 + 360.98564736629 / 86400.0 * np.asarray(t_s, float))
+    lat = np.radians(where[0])
+    zenith, north = (np.cos(lat), 0.0, np.sin(lat)), (-np.sin(lat), 0.0, np.cos(lat))
+    to_date = erfa.pnm06a(start.tt.jd1, start.tt.jd2)  # precession-nutation to the true equator of the start
+
+    def horizontal(ra: np.ndarray, dec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        a, d = np.radians(np.asarray(ra, float)), np.radians(np.asarray(dec, float))
+        x, y, z = (to_date[i, 0] * np.cos(d) * np.cos(a) + to_date[i, 1] * np.cos(d) * np.sin(a)
+                   + to_date[i, 2] * np.sin(d) for i in range(3))  # the place of date, as a unit vector
+        h = lst - np.arctan2(y, x)  # hour angle of date
+        d = np.arcsin(np.clip(z, -1.0, 1.0))
+        v = (np.cos(d) * np.cos(h), -np.cos(d) * np.sin(h), np.sin(d))
+        up = sum(a * b for a, b in zip(v, zenith))
+        toward_north = sum(a * b for a, b in zip(v, north))
+        return np.degrees(np.arcsin(np.clip(up, -1, 1))), np.degrees(np.arctan2(v[1], toward_north))
+
+    alt1, az1 = horizontal(ra1_deg, dec1_deg)
+    alt2, az2 = horizontal(ra2_deg, dec2_deg)
+    d_az = np.abs((az2 - az1 + 540.0) % 360.0 - 180.0)
+    t = np.maximum(_axis(d_az, model.ha_accel_deg_s2, model.ha_vmax_deg_s),
+                   _axis(np.abs(alt2 - alt1), model.dec_accel_deg_s2, model.dec_vmax_deg_s))
     return np.where(t > 0, t + model.settle_s, 0.0)
 
 

@@ -42,6 +42,8 @@ class CheckScope:
         (latitude deg, longitude deg, height m).
     keep_out : tuple of tuple of float
         Open (HA, Dec) boxes ``(ha_min, ha_max, dec_min, dec_max)`` (deg).
+    altaz : bool
+        (M1) The mount's axes move in azimuth and altitude (none in hour angle or declination).
     """
 
     name: str
@@ -49,6 +51,7 @@ class CheckScope:
     offsets: np.ndarray
     site: tuple[float, float, float]
     keep_out: tuple[tuple[float, float, float, float], ...]
+    altaz: bool = False
 
     def reachable(self, ha_deg: np.ndarray, dec_deg: np.ndarray, ha_max_h: float) -> np.ndarray:
         """(I4) |HA| within ``ha_max_h`` (h) and in no keep-out box."""
@@ -159,5 +162,8 @@ def check_scope(config: Any) -> CheckScope | None:
     site = doc["site"]
     boxes = tuple((float(b["ha_min_deg"]), float(b["ha_max_deg"]), float(b["dec_min_deg"]), float(b["dec_max_deg"]))
                   for b in doc["limits"].get("keep_out", ()))
+    moved = {str(a["coordinate"]) for a in doc["overheads"]["axes"]}
+    altaz = bool(moved & {"azimuth", "altitude"}) and not moved & {"ha", "dec"}  # (M1)
     return CheckScope(doc["name"], read.positions, np.stack(chosen) if chosen else np.zeros((0, 4, 2)),
-                      (float(site["latitude_deg"]), float(site["longitude_deg"]), float(site["height_m"])), boxes)
+                      (float(site["latitude_deg"]), float(site["longitude_deg"]), float(site["height_m"])), boxes,
+                      altaz)

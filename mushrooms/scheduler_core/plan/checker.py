@@ -18,7 +18,8 @@ from astropy.time import Time
 
 from ..config import PlanningConfig
 from ..executed import MIN_PROCESSED_FRACTION, ExecutedExposure, done_pairs, is_done
-from .check_geometry import P48_SITE, conditions, field_positions, mount_reachable, polygon_coverage, slew_seconds
+from .check_geometry import P48_SITE, altaz_slew_seconds, conditions, field_positions, mount_reachable, \
+    polygon_coverage, slew_seconds
 from .check_telescope import check_scope
 from .document import Plan
 from .sequence_check import check_sequences, covered_by_record
@@ -162,7 +163,7 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
 
     x = _Exposures.of(obs)
     _check_fields(p, x, config)
-    _check_sequence(p, x, horizon, config)
+    _check_sequence(p, x, horizon, config, plan.start)
     _check_conditions(p, x, plan.start, config)
     if len(config.filters) == 2:
         _check_cadence(p, x, config, done)
@@ -242,14 +243,20 @@ def _check_fields(p: _Problems, x: _Exposures, config: PlanningConfig) -> None:
         p.add("exposure", f"field {ids[i]} has exposure {exp[i]} s")
 
 
-def _check_sequence(p: _Problems, x: _Exposures, horizon: float, config: PlanningConfig) -> None:
-    """Order, overlaps and overheads (readout, slew and filter change run in parallel); the horizon."""
+def _check_sequence(p: _Problems, x: _Exposures, horizon: float, config: PlanningConfig, t0: Time) -> None:
+    """Order, overlaps and overheads (readout, slew and filter change run in parallel); the horizon.
+
+    (M1) An alt-azimuth mount's slew is timed on its axes at the end of the exposure before it.
+    """
     ids, ra, dec, flt, start, end = x.ids, x.ra, x.dec, x.flt, x.start, x.end
     for i in np.flatnonzero(np.diff(start) < 0):
         p.add("order", f"exposure {i + 1} (field {ids[i + 1]}) starts before exposure {i}")
     gap = start[1:] - end[:-1]
+    scope = check_scope(config)
+    slews = (altaz_slew_seconds(ra[:-1], dec[:-1], ra[1:], dec[1:], end[:-1], t0, scope.site, config.slew)
+             if scope is not None and scope.altaz else slew_seconds(ra[:-1], dec[:-1], ra[1:], dec[1:], config.slew))
     need = np.maximum.reduce([
-        slew_seconds(ra[:-1], dec[:-1], ra[1:], dec[1:], config.slew),
+        slews,
         np.full(gap.size, config.slew.readout_s),
         np.where(flt[:-1] != flt[1:], config.filter_change_s, 0.0),
     ])

@@ -25,6 +25,10 @@ bound takes a fraction of a second and is within a few per cent of it
 (``method="milp"`` solves it, the solver's proven bound is used on a time
 limit).
 
+A sequence of one filter (LS4's ``i``, WINTER's ``J``) covers a field with
+one exposure: (U5) every field whose widened windows hold one exposure takes
+part, and (U6) ``K = Σ_s floor((T_s + r) / (t_exp + r))``, one exposure a field.
+
 The windows used are the problem's, widened by one time step at each end:
 visibility windows are found on a time grid and are conservative by less
 than one step (see :mod:`..visibility`), so the true windows lie inside the
@@ -46,7 +50,7 @@ from ...problem import PlanningProblem, UpperBound  # UpperBound is defined besi
 from ...sky.windows import union_intervals
 from ..milp.solvers import MilpModel, solve_milp
 
-__all__ = ["UpperBound", "pairable_rows", "max_fields", "coverage_upper_bound", "solver_margin", "BOUND_MIP_GAP",
+__all__ = ["UpperBound", "one_visit", "pairable_rows", "max_fields", "coverage_upper_bound", "solver_margin", "BOUND_MIP_GAP",
            "HIGHS_PRIMAL_TOL", "ROUNDING_MARGIN"]
 
 #: (B1) The relative MIP gap the bound's solves stop at (HiGHS ``mip_rel_gap``).
@@ -78,9 +82,15 @@ def widened_windows(problem: PlanningProblem) -> tuple[np.ndarray, np.ndarray, n
     return w.field_ids, a, b
 
 
+def one_visit(problem: PlanningProblem) -> bool:
+    """(U5) The sequence is one filter: one exposure covers a field (F1 with k = 1), no cadence to keep."""
+    return len(problem.config.filters) < 2
+
+
 def pairable_rows(problem: PlanningProblem, windows: tuple | None = None) -> np.ndarray:
     """(U1) Rows of fields whose (widened) windows can hold two exposures the cadence apart.
 
+    (U5) One visit (:func:`one_visit`): every field whose windows hold one exposure.
     ``windows``: ``(field_ids, start, end)`` widened otherwise (the outer windows, V7); default one step (U1).
     """
     cfg = problem.config
@@ -91,12 +101,18 @@ def pairable_rows(problem: PlanningProblem, windows: tuple | None = None) -> np.
     for f, s, e in zip(fid[ok].tolist(), a[ok].tolist(), b[ok].tolist()):
         earliest[f] = min(earliest.get(f, math.inf), s)
         latest[f] = max(latest.get(f, -math.inf), e - cfg.exposure_s)
-    good = [f for f in earliest if latest[f] - earliest[f] >= cfg.cadence_s - 1e-6]
+    if one_visit(problem):  # (U5) one exposure inside a window covers the field
+        good = list(earliest)
+    else:
+        good = [f for f in earliest if latest[f] - earliest[f] >= cfg.cadence_s - 1e-6]
     return np.flatnonzero(np.isin(problem.field_ids, good))
 
 
 def max_fields(problem: PlanningProblem, rows: np.ndarray, windows: tuple | None = None) -> int:
-    """(U2) K: most fields whose 2 K exposures fit the observable time of these rows (``windows`` as in pairable_rows)."""
+    """(U2) K: most fields whose 2 K exposures fit the observable time of these rows (``windows`` as in pairable_rows).
+
+    (U6) One visit: K exposures, one a field.
+    """
     cfg = problem.config
     fid, a, b = widened_windows(problem) if windows is None else windows
     sel = np.isin(fid, problem.field_ids[rows]) & (b - a >= cfg.exposure_s)
@@ -106,7 +122,7 @@ def max_fields(problem: PlanningProblem, rows: np.ndarray, windows: tuple | None
     seg = ends - starts
     r = cfg.slew.readout_s
     n_exp = np.floor((seg + r) / (cfg.exposure_s + r) + 1e-9).sum()
-    return int(n_exp // 2)
+    return int(n_exp) if one_visit(problem) else int(n_exp // 2)  # (U6) one exposure a field; (U2) two
 
 
 #: The online bound is evaluated at this many greedy prefixes (evenly spaced, plus the full one).

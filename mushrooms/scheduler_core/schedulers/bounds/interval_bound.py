@@ -21,6 +21,9 @@ not compete there.  This bound adds one capacity row per time interval
   weaker relaxation), and the least of them and of U4 is reported.
 
 A time limit only loosens the bound: it never makes it invalid.
+
+(V8) A sequence of one filter (U5, U6): a field's one exposure lies inside
+``[lo, end]``, one role, ``k_f(A, B) ∈ {0, 1}``, and no filter change.
 """
 
 from __future__ import annotations
@@ -33,7 +36,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ...problem import PlanningProblem, UpperBound
-from .coverage_bound import BOUND_MIP_GAP, widened_windows, coverage_upper_bound, max_fields, pairable_rows, solver_margin
+from .coverage_bound import BOUND_MIP_GAP, widened_windows, coverage_upper_bound, max_fields, one_visit, pairable_rows, \
+    solver_margin
 from ..milp.solvers import MilpModel, solve_milp
 
 __all__ = ["field_spans", "interval_rows", "interval_violation", "interval_upper_bound"]
@@ -75,7 +79,8 @@ def bound_windows(problem: PlanningProblem) -> tuple | None:
 def _intervals(problem: PlanningProblem, rows: np.ndarray, windows: tuple | None = None) -> "_Intervals":
     cfg = problem.config
     lo, end = field_spans(problem, rows, windows)
-    return _Intervals(lo, end, cfg.exposure_s, cfg.cadence_s, cfg.slew.readout_s, cfg.filter_change_s)
+    return _Intervals(lo, end, cfg.exposure_s, cfg.cadence_s, cfg.slew.readout_s, cfg.filter_change_s,
+                      one_visit(problem))
 
 
 def interval_rows(problem: PlanningProblem, rows: np.ndarray, windows: tuple | None = None) -> "_Intervals":
@@ -97,10 +102,12 @@ class _Intervals:
     from the far corner (suffix sums over A, prefix sums over B).
     """
 
-    def __init__(self, lo: np.ndarray, end: np.ndarray, exp: float, cad: float, r: float, fc: float) -> None:
-        self.roles = ((lo, end - cad), (lo + cad, end))  # the earlier and the later exposure's interval
-        self.A = np.unique(np.concatenate([lo, lo + cad]))
-        self.B = np.unique(np.concatenate([end - cad, end]))
+    def __init__(self, lo: np.ndarray, end: np.ndarray, exp: float, cad: float, r: float, fc: float,
+                 single: bool = False) -> None:
+        # (V1) the earlier and the later exposure's interval; (V8) one visit: its one exposure's
+        self.roles = ((lo, end),) if single else ((lo, end - cad), (lo + cad, end))
+        self.A = np.unique(np.concatenate([a for a, _ in self.roles]))
+        self.B = np.unique(np.concatenate([b for _, b in self.roles]))
         self.index = [(np.searchsorted(self.A, a), np.searchsorted(self.B, b)) for a, b in self.roles]
         self.whole_index = (np.searchsorted(self.A, lo), np.searchsorted(self.B, end))
         ones = np.ones(lo.size)
@@ -108,6 +115,8 @@ class _Intervals:
         whole = self._count(self.whole_index, ones)  # fields with both exposures inside
         length = self.B[None, :] - self.A[:, None]
         change = (whole > 0.5) & (np.abs(counted - 2 * whole) < 0.5) & (length + 2 * r >= max(fc, r))
+        if single:  # (V8) one filter: no filter change
+            change = np.zeros_like(change)
         self.cap = length + r - np.where(change, max(fc, r) - r, 0.0)
         self.unit = exp + r
         self.live = (length > 0) & (counted * self.unit > self.cap + 1e-9)  # rows not implied
@@ -118,6 +127,8 @@ class _Intervals:
         return np.cumsum(np.cumsum(grid[::-1], axis=0)[::-1], axis=1)
 
     def _load(self, z: np.ndarray) -> np.ndarray:
+        if len(self.index) == 1:  # (V8) one role
+            return self._count(self.index[0], z)
         return self._count(self.index[0], z) + self._count(self.index[1], z)
 
     def violation(self, z: np.ndarray) -> np.ndarray:

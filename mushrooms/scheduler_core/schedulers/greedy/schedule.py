@@ -24,7 +24,8 @@ import numpy as np
 from ...config import PlanningConfig
 from ...plan.document import Observation
 from ...problem import PlanningProblem, ScheduleResult, StopCheck
-from ...telescope.slew import overhead_time
+from ...telescope.mount import altaz_mount
+from ...telescope.slew import AltAzMount, overhead_time
 
 __all__ = ["greedy_schedule", "time_passes"]
 
@@ -54,6 +55,7 @@ def time_passes(
     rows: list[int],
     free_at: float,
     previous: tuple[float, float, str] | None,
+    mount: AltAzMount | None = None,
 ) -> np.ndarray:
     """Start times (s) of a block: ``rows`` in each filter of the sequence, pass after pass.
 
@@ -71,6 +73,8 @@ def time_passes(
         When the telescope is free (s).
     previous : tuple or None
         (ra, dec, filter) of the exposure before the block.
+    mount : AltAzMount, optional
+        (M1) An alt-azimuth mount: slews timed on its axes at their time.
 
     Returns
     -------
@@ -90,7 +94,7 @@ def time_passes(
                 starts[p, i] = t
             else:
                 oh = float(overhead_time(prev[0], prev[1], ra[i], dec[i], cfg.slew,
-                                         cfg.filter_change_s if prev[2] != band else 0.0))
+                                         cfg.filter_change_s if prev[2] != band else 0.0, mount, t))
                 starts[p, i] = t + oh if p == 0 else max(t + oh, starts[p - 1, i] + cfg.cadence_s)
             t = starts[p, i] + exp
             prev = (ra[i], dec[i], band)
@@ -175,6 +179,7 @@ class _Greedy:
     def __init__(self, problem: PlanningProblem) -> None:
         cfg = problem.config
         self.problem, self.cfg = problem, cfg
+        self.mount = altaz_mount(cfg, problem.start)  # (M1) None: equatorial (ZTF)
         self.exp = cfg.exposure_s
         self.n = len(problem.field_ids)
         self.fp = problem.footprints
@@ -210,7 +215,7 @@ class _Greedy:
                 oh = np.zeros(n)
             else:
                 oh = overhead_time(prev[0], prev[1], problem.ra, problem.dec, cfg.slew,
-                                   cfg.filter_change_s if prev[2] != f1 else 0.0)
+                                   cfg.filter_change_s if prev[2] != f1 else 0.0, self.mount, t)
             ts = t + oh
             cand = ~self.used & (g > 0) & (ts + exp <= cfg.horizon_s)
             cand &= _observable(self.w_rows, self.w_start, self.w_end, ts, exp, n)
@@ -244,7 +249,7 @@ class _Greedy:
         than the pair separation (re-timing the rest)."""
         starts = np.empty((len(self.cfg.filters), 0))
         while batch:
-            starts = time_passes(self.problem, batch, self.free_at, self.previous)
+            starts = time_passes(self.problem, batch, self.free_at, self.previous, self.mount)
             rows = np.asarray(batch)
             ok = starts[-1] + self.exp <= self.cfg.horizon_s
             for pass_starts in starts:

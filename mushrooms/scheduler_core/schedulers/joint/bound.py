@@ -32,7 +32,7 @@ from ...budget import new_clock
 from ...problem import PlanningProblem, UpperBound
 from ..blocks.schedule import shortlist_footprints
 from ..bounds.coverage_bound import BOUND_MIP_GAP, ROUNDING_MARGIN, coverage_upper_bound, max_fields, \
-    pairable_rows, solver_margin, widened_windows
+    one_visit, pairable_rows, solver_margin
 from ..bounds.interval_bound import PROVEN, ROWS_PER_ROUND, MAX_ROUNDS, bound_windows, interval_rows
 from ..milp.rows import Columns, RowBuilder
 from ..milp.solvers import MilpModel, solve_milp
@@ -59,7 +59,7 @@ class JointBound:
         ``interval`` (J7 solved with no row violated), ``interval_dual_bound``
         (budget or rounds ran out) or ``not_solved``.
     per_telescope : tuple of UpperBound
-        Each telescope's U4 (a one-visit rule: its observable fields' probability).
+        Each telescope's U4 (a one-visit rule: with U5-U6).
     margin : float
         What ``joint`` carries above the solver's bound (B1).
     """
@@ -84,36 +84,29 @@ class _Part:
     """One telescope in the relaxation: its pairable rows, K (U2) and interval rows (V1-V2).
 
     A one-visit rule (one filter) has no pair: its rows are the fields whose
-    widened windows hold one exposure, K the exposures its observable time
-    holds (at most ``2 max_fields + 1``), and no V2 row.
+    widened windows hold one exposure (U5), K the exposures its observable
+    time holds (U6) and its interval rows have one role a field (V8)
+    (``docs/design/milp.md``).
     """
 
     def __init__(self, problem: PlanningProblem) -> None:
-        self.one_visit = len(problem.config.filters) < 2
+        self.one_visit = one_visit(problem)
         self.rows, self.K, self.intervals = np.zeros(0, np.int64), 0, None
         self.cuts: list[tuple[np.ndarray, float]] = []
         if problem.field_ids.size == 0:
             return
         windows = bound_windows(problem)
-        if self.one_visit:
-            fid, a, b = widened_windows(problem) if windows is None else windows
-            rows = np.flatnonzero(np.isin(problem.field_ids, fid[b - a >= problem.config.exposure_s]))
-            K = 2 * max_fields(problem, rows, windows) + 1 if rows.size else 0
-        else:
-            rows = pairable_rows(problem, windows)
-            K = max_fields(problem, rows, windows) if rows.size else 0
+        rows = pairable_rows(problem, windows)  # (U1), or (U5) for one visit
+        K = max_fields(problem, rows, windows) if rows.size else 0  # (U2), or (U6)
         if K > 0 and rows.size:
             self.rows, self.K = rows, K
-            self.intervals = None if self.one_visit else interval_rows(problem, rows, windows)
+            self.intervals = interval_rows(problem, rows, windows)  # (V1-V2), or (V8)
 
     def own_bound(self, problem: PlanningProblem) -> UpperBound:
-        """τ's bound on its share: U4, or for a one-visit rule all its observable fields' probability."""
+        """τ's bound on its share: U4 (with U5-U6 for a one-visit rule)."""
         if problem.field_ids.size == 0 or self.rows.size == 0:
             return UpperBound(0.0, "empty", 0, 0, 0.0)
-        if not self.one_visit:
-            return coverage_upper_bound(problem)
-        every = problem.footprints.coverage(problem.field_ids[self.rows], problem.prob) + ROUNDING_MARGIN
-        return UpperBound(every, "all_fields", int(self.rows.size), self.K, 0.0, margin=ROUNDING_MARGIN)
+        return coverage_upper_bound(problem)
 
 
 def _model(parts: list[_Part], cells, names: Sequence[str]) -> tuple[MilpModel, list]:

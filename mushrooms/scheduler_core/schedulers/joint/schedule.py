@@ -187,7 +187,7 @@ def joint_schedule(problems: Sequence[PlanningProblem], should_stop: StopCheck |
             results, method = plans, "joint_model"
     results = [r if p.field_ids.size else nothing() for p, r in zip(problems, results)]
     bound = joint_upper_bound(problems, w, bound_time_limit_s, names)
-    results = [dataclasses.replace(r, upper_bound=b) if len(p.config.filters) >= 2 and p.field_ids.size else r
+    results = [dataclasses.replace(r, upper_bound=b) if p.field_ids.size else r  # (U5-U6) one visit too
                for p, r, b in zip(problems, results, bound.per_telescope)]
     fields = [{o.field_id for o in r.observations} for r in results]
     metrics = joint_metrics(problems, fields, problems[0].prob)

@@ -378,13 +378,11 @@ def published_bound(problem: PlanningProblem) -> UpperBound | None:
 
     (F5) A sequence of ``k >= 2`` filters keeps the pair's bound: its first
     two visits are a plan of the pair (the later ones only take time), so
-    the pair's relaxations hold.  A one-filter sequence has none (None): a
-    field there costs one exposure, which U4 and V do not model.
+    the pair's relaxations hold.  A one-filter sequence (a field costs one
+    exposure) has its own: U5, U6 and V8 (``docs/design/milp.md``).
     """
     from ..bounds.certified_bound import certified_upper_bound
 
-    if len(problem.config.filters) < 2:
-        return None
     with problem.clock.off_budget():  # (A1) on top of time_limit_s: no stage's budget pays for it
         return certified_upper_bound(problem)
 
