@@ -195,3 +195,25 @@ def test_the_webhook_says_ztfs_area_beside_the_other_telescopes(tmp_path):
     NotifyingSink(Sink(), hook, parts=lambda plan_id: parts).publish(doc)
     (text,) = hook.said
     assert "ZTF at Palomar: this plan (fields cover 1,999 deg²); other telescopes: ls4 target_list exported" in text
+
+
+def test_a_plan_of_every_winter_field_is_counted_coarser_never_hung(monkeypatch):
+    from mushrooms.scheduler_core.instruments import load_description
+    from mushrooms.scheduler_core.sky import covered_area
+    from mushrooms.scheduler_core.sky.fields import Camera, telescope_grid
+
+    telescope, polygons = _covering("winter", ("J", "J"))
+    grid, camera = telescope_grid(load_description("winter")), Camera(polygons, telescope.footprint.radius_deg)
+    calls = []
+    real = covered_area.hp.query_disc
+
+    def counted(nside, *args, **kwargs):
+        calls.append(nside)
+        return real(nside, *args, **kwargs)
+
+    monkeypatch.setattr(covered_area.hp, "query_disc", counted)
+    covered_area.covered_area_deg2(grid, grid.ids[:3000], camera, 64)
+    disc = 2 * np.pi * (1 - np.cos(np.radians(camera.radius_deg)))
+    assert len(calls) == 3000 and set(calls) == {1024}  # 2048 for a few fields, 1024 for 3000 (of 46 311)
+    assert 3000 * disc / covered_area.hp.nside2pixarea(1024) <= covered_area.MAX_POINTS
+    assert 3000 * disc / covered_area.hp.nside2pixarea(2048) > covered_area.MAX_POINTS

@@ -14,7 +14,9 @@ The resolution is fine enough for the camera: a pixel at most
 1/:data:`PIXELS_PER_FOOTPRINT` of the detectors' summed area and
 1/:data:`PIXELS_PER_DETECTOR` of the smallest detector, never coarser than
 the plan's (measured: within 0.5 % of n fields x the detectors' area for
-far-apart LS4, WINTER and DECam fields).
+far-apart LS4, WINTER and DECam fields), and never more than
+:data:`MAX_POINTS` points in all (a plan of very many fields is counted
+coarser, never slower).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import numpy as np
 from .fields import Camera, FieldGrid, project
 from .healpix import hp
 
-__all__ = ["PIXELS_PER_FOOTPRINT", "PIXELS_PER_DETECTOR", "MAX_NSIDE", "area_nside", "sample_points",
+__all__ = ["PIXELS_PER_FOOTPRINT", "PIXELS_PER_DETECTOR", "MAX_NSIDE", "MAX_POINTS", "area_nside", "sample_points",
            "covered_area_deg2"]
 
 #: a field's detectors hold at least this many pixels at the resolution :func:`area_nside` picks
@@ -35,6 +37,9 @@ PIXELS_PER_FOOTPRINT = 512
 PIXELS_PER_DETECTOR = 32
 #: the finest resolution used (pixel 0.0002 deg², 0.7 arcmin across)
 MAX_NSIDE = 4096
+#: at most this many points in all (fields x pixels of a field's disc): a finer resolution than the plan's
+#: is given up, halving, for plans of many fields (1000 DECam fields at nside 1024 rather than 2048)
+MAX_POINTS = 4_000_000
 #: the points stand at the centres of sub-pixels 2**SUB_LEVELS times finer than the pixel
 SUB_LEVELS = 12
 
@@ -99,6 +104,9 @@ def covered_area_deg2(grid: FieldGrid, field_ids: Sequence[int], camera: Camera,
     if np.any(rows < 0):
         raise KeyError(f"field {int(ids[np.flatnonzero(rows < 0)[0]])} is not on the telescope's grid")
     fine = area_nside(camera, int(nside))
+    disc = 2.0 * np.pi * (1.0 - np.cos(np.radians(camera.radius_deg)))  # sr
+    while fine > nside and ids.size * disc / hp.nside2pixarea(fine) > MAX_POINTS:
+        fine //= 2
     vecs = hp.ang2vec(grid.ra[rows], grid.dec[rows], lonlat=True)
     covered = []
     for k, row in enumerate(rows):  # one vectorised step per field, never per pixel
