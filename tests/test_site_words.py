@@ -37,7 +37,8 @@ def test_an_ls4_summary_says_la_silla_and_chilean_time_never_palomar():
     assert "Palomar" not in text and "PST" not in text and "PDT" not in text
     assert f"UTC ({chile} at La Silla)" in text
     assert text.count("at La Silla") == 2  # the first exposure and the last one's end
-    assert "the fields cover" not in text  # LS4's field ids are not ZTF's: no area from ZTF's grid
+    assert "the fields cover 11,249" not in text  # LS4's fields never read on ZTF's grid (its own area: see
+    # tests/test_covered_area_telescopes.py)
 
 
 def test_an_ls4_page_names_ls4_and_la_silla():

@@ -93,6 +93,8 @@ class PlanFacts:
     nside: int | None = None
     #: the plan's telescope and site (:func:`.site.plan_site`; ZTF at Palomar when the document names none)
     site: Any = None
+    #: the plan's ``config.filters`` as written (its covering visits: which detectors make a field covered)
+    sequence: tuple[str, ...] = ()
 
 
 def _filters(doc: Mapping[str, Any], rows: Sequence[ExposureRow]) -> tuple[str, ...]:
@@ -101,6 +103,12 @@ def _filters(doc: Mapping[str, Any], rows: Sequence[ExposureRow]) -> tuple[str, 
     if isinstance(sequence, (list, tuple)) and len(sequence) > 2 and rows:
         return ("-".join(str(f) for f in sequence),)
     return tuple(dict.fromkeys(r.filter for r in rows))
+
+
+def _sequence(doc: Mapping[str, Any]) -> tuple[str, ...]:
+    """``config.filters`` as a tuple of names (empty when absent or not a list)."""
+    sequence = (doc.get("config") or {}).get("filters") or ()
+    return tuple(str(f)[:40] for f in sequence) if isinstance(sequence, (list, tuple)) else ()
 
 
 def _site(doc: Mapping[str, Any]) -> Any:
@@ -231,4 +239,4 @@ def plan_facts(doc: Mapping[str, Any], queues: Sequence[str] | None = None, queu
         solver=str(metrics.get("solver", "")), status=str(metrics.get("status", "")), rows=rows, reasons=reasons,
         after_merger_s=_since(rows[0].start if rows else None, event.get("event_time")),
         after_alert_s=_since(rows[0].start if rows else None, event.get("time_created")),
-        nside=(doc.get("config") or {}).get("nside"), site=_site(doc))
+        nside=(doc.get("config") or {}).get("nside"), site=_site(doc), sequence=_sequence(doc))

@@ -60,7 +60,7 @@ def _shipped(entry: str) -> tuple[str, str, float] | None:
 
 def plan_site(doc: Mapping[str, Any]) -> PlanSite:
     """The telescope and site of a plan (or not_observable) document."""
-    from .facts import shown
+    from ..handlers.text import storable as shown  # facts.shown itself, without the facts <-> site cycle
 
     listed = (doc.get("config") or {}).get("telescopes") if isinstance(doc.get("config"), Mapping) else None
     entry = str(listed[0]) if isinstance(listed, (list, tuple)) and listed else "ztf"

@@ -64,12 +64,13 @@ def delay_words(facts: PlanFacts) -> str | None:
 
 
 def covered(facts: PlanFacts) -> float | None:
-    """The sky area (deg²) the plan's fields cover (:func:`.sky.covered_area_deg2`), None without fields."""
+    """The sky area (deg²) the plan's fields cover on its own telescope's grid and detectors
+    (:func:`.sky.covered_area_deg2`), None without fields or for a telescope not shipped."""
     from .sky import covered_area_deg2
 
-    if not facts.rows or facts.site.entry != "ztf":  # another telescope's field ids are not ZTF's: no area
+    if not facts.rows:
         return None
-    return covered_area_deg2([r.field_id for r in facts.rows], facts.nside or 0)
+    return covered_area_deg2([r.field_id for r in facts.rows], facts.nside or 0, facts.site.entry, facts.sequence)
 
 
 def starts_in(first: dt.datetime, now: dt.datetime) -> str:

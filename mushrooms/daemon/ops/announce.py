@@ -116,8 +116,10 @@ class NotifyingSink:
             return text, details
         listed = [f"{p['telescope']} {p['queue']} {p['state']}" for p in sorted(parts, key=lambda p: p["telescope"])]
         from ...report.site import site_words
+        from ...report.sky import area_words, plan_area_deg2
 
-        return f"{text} ZTF{site_words('ztf')}: this plan; {parts_words(parts)}.", {**details, "telescope_parts": listed}
+        said = f"{text} ZTF{site_words('ztf')}: this plan{area_words(plan_area_deg2(dict(message)))}"
+        return f"{said}; {parts_words(parts)}.", {**details, "telescope_parts": listed}
 
     def close(self) -> None:
         self.webhook.close()

@@ -242,17 +242,21 @@ def plan_parts(store: Any, plan_id: str | None) -> list[dict[str, Any]]:
 def parts_lines(parts: list[dict[str, Any]]) -> list[str]:
     """Every telescope's part of a revision in words, for its summary and page (none without parts)."""
     from ...report.site import site_words
+    from ...report.sky import area_words, part_area_deg2
     from ..state.parts import part_line
 
     if not parts:
         return []
     return ([f"Telescopes ztf (ztf_too): this plan{site_words('ztf')}"]
-            + [f"           {part_line(p)}" for p in sorted(parts, key=lambda p: p["telescope"])])
+            + [f"           {part_line(p)}{area_words(part_area_deg2(p))}"
+               for p in sorted(parts, key=lambda p: p["telescope"])])
 
 
 def parts_words(parts: list[dict[str, Any]]) -> str:
-    """The webhook's few words: ``other telescopes: ls4 target_list exported at La Silla, ...``."""
+    """The webhook's few words: ``other telescopes: ls4 target_list exported at La Silla (fields cover N deg²)``."""
     from ...report.site import site_words
+    from ...report.sky import area_words, part_area_deg2
 
     return ("other telescopes: " + ", ".join(f"{p['telescope']} {p['queue']} {p['state']}{site_words(p['telescope'])}"
+                                             f"{area_words(part_area_deg2(p))}"
                                              for p in sorted(parts, key=lambda p: p["telescope"]))) if parts else ""
