@@ -189,6 +189,7 @@ class _Greedy:
         self.fp = problem.footprints
         self.w_rows = _window_rows(problem)
         self.w_start, self.w_end = problem.windows.start, problem.windows.end
+        self.row_start, self.row_end = _windows_by_row(self.w_rows, self.w_start, self.w_end, self.n)
         self.uncovered = problem.prob.copy()
         self.used = np.zeros(self.n, dtype=bool)
         self.observations: list[Observation] = []
@@ -257,8 +258,11 @@ class _Greedy:
     def next_visit_fits(self, rows: np.ndarray, after: np.ndarray, until: np.ndarray) -> np.ndarray:
         """(F10) for each row: does a window of its field hold an exposure starting in ``[after, until]``
         (s, ending within the horizon)?"""
-        return _next_visit_fits(self.w_rows, self.w_start, self.w_end, np.asarray(rows), np.asarray(after, float),
-                                np.minimum(np.asarray(until, float), self.cfg.horizon_s - self.exp), self.exp)
+        rows = np.asarray(rows, dtype=np.int64)
+        after = np.asarray(after, float)[:, None]
+        until = np.minimum(np.asarray(until, float), self.cfg.horizon_s - self.exp)[:, None]
+        t = np.maximum(self.row_start[rows], after)  # the earliest start in each of the row's windows
+        return np.any((t <= until) & (t + self.exp <= self.row_end[rows]), axis=1)
 
     def next_opening(self, g: np.ndarray) -> float | None:
         """When to try again after an empty batch: the next window opening of a useful field (None: none)."""
@@ -345,11 +349,17 @@ def _observable_each(w_rows: np.ndarray, w_start: np.ndarray, w_end: np.ndarray,
     return np.any(match & inside, axis=1)
 
 
-def _next_visit_fits(w_rows: np.ndarray, w_start: np.ndarray, w_end: np.ndarray, rows: np.ndarray,
-                     after: np.ndarray, until: np.ndarray, exposure_s: float) -> np.ndarray:
-    """For each (row, after, until): a window of that row holds ``[t, t + exposure]`` for some ``t`` in
-    ``[after, until]`` (F10)."""
-    match = w_rows[None, :] == rows[:, None]
-    t = np.maximum(w_start[None, :], after[:, None])  # the earliest start in each window
-    fits = (t <= until[:, None]) & (t + exposure_s <= w_end[None, :])
-    return np.any(match & fits, axis=1)
+
+def _windows_by_row(w_rows: np.ndarray, w_start: np.ndarray, w_end: np.ndarray, n: int
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(n, most windows of a row) starts and ends (s) of each row's windows, padded with empty ones (inf, -inf)."""
+    valid = np.flatnonzero(w_rows >= 0)
+    rows = w_rows[valid]
+    order = np.argsort(rows, kind="stable")
+    rows, valid = rows[order], valid[order]
+    counts = np.bincount(rows, minlength=n)
+    pos = np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    width = max(int(counts.max()) if counts.size else 0, 1)
+    starts, ends = np.full((n, width), np.inf), np.full((n, width), -np.inf)
+    starts[rows, pos], ends[rows, pos] = w_start[valid], w_end[valid]
+    return starts, ends
