@@ -254,3 +254,23 @@ def test_the_config_file_takes_a_sequence_and_refuses_a_repeat(tmp_path):
     bad.write_text('[scheduler]\nfilters = ["g", "g", "r"]\n')
     with pytest.raises(Exception, match="visit 2 repeats the one before it"):
         load_config(str(bad))
+
+
+def test_a_cut_whose_next_visit_fits_only_within_the_checkers_tolerance_is_accepted(flat_map):
+    """(F10) the checker asks whether the next visit was clearly observable: by its tolerances, not within them.
+
+    Seen on o4real 93d1ca04c7f14645/0 (g-r-g, greedy): a field's window ended as the Moon came within 20 deg;
+    the planner cut its sequence there, and the checker, allowing 0.1 deg, found a next visit 'possible'
+    for 20 more minutes and refused the plan. Here with the airmass: the largest allowed sits 0.005 below
+    the airmass at the end of the earliest next visit (widened by a time step), inside the 0.01 tolerance.
+    """
+    from mushrooms.scheduler_core.plan.check_geometry import P48_SITE, conditions
+
+    cut = grg_control()[:4] + grg_control()[5:]  # F687 stops after g and r
+    end = T0 + 1860 + 1800 + 300 + GRG.time_step_s
+    airmass = float(conditions(NEW_MOON, np.array([end]), np.array([F687[1]]), np.array([F687[2]]), P48_SITE).airmass[0])
+    assert 1.0 < airmass < 1.5
+    edge = dataclasses.replace(GRG, airmass_max=airmass - 0.005)
+    assert check_plan(plan_of(cut), flat_map, edge).ok
+    clear = dataclasses.replace(GRG, airmass_max=airmass + 0.03)  # clearly observable: the cut is refused
+    assert any("(F10)" in p for p in check_plan(plan_of(cut), flat_map, clear).problems)
