@@ -144,7 +144,10 @@ def test_a_grg_replan_from_the_command_line_gives_each_field_done_in_g_and_r_its
     assert r.returncode == 0, r.stderr
     first = json.loads((tmp_path / "plan.json").read_text())
     block0 = [o for o in first["observations"] if o["block"] == 0]
-    assert [o["filter"] for o in block0].count("g") == 2 * [o["filter"] for o in block0].count("r")
+    visits = {f: [o["filter"] for o in block0 if o["field_id"] == f] for f in {o["field_id"] for o in block0}}
+    assert all(v in (["g", "r", "g"], ["g", "r"]) for v in visits.values())  # (F10) cut where no window holds a third
+    whole = {f for f, v in visits.items() if len(v) == 3}
+    assert whole
     first_r = min(Time(o["start"]).unix for o in block0 if o["filter"] == "r")
     done = [o for o in block0 if o["filter"] == "r" or Time(o["start"]).unix < first_r]
     (tmp_path / "executed.jsonl").write_text("".join(json.dumps(
@@ -155,10 +158,15 @@ def test_a_grg_replan_from_the_command_line_gives_each_field_done_in_g_and_r_its
                   "--start", start.isot + "Z", "-o", str(tmp_path / "replan.json"), "--queue", str(tmp_path / "q.json"))
     assert r.returncode == 0, r.stderr
     fields = {o["field_id"] for o in done}
-    assert f"{len(fields)} of {len(fields)} half-done fields completed" in r.stdout
     replan = json.loads((tmp_path / "replan.json").read_text())
     r_at = {o["field_id"]: Time(o["start"]) for o in done if o["filter"] == "r"}
-    for fid in fields:
+    assert not {o["field_id"] for o in replan["observations"]} & (fields - whole)  # no window for their third visit
+    kept = {o["field_id"] for o in replan["observations"]} & whole
+    # one whole field's third visit, due as its window closes, may find no time (the greedy block after the
+    # completion pass takes it: tests/scheduler/test_sequence_queues_replan.py allows the same)
+    assert len(kept) >= len(whole) - 1
+    assert f"{len(kept)} of {len(fields)} half-done fields completed" in r.stdout
+    for fid in kept:
         mine = [o for o in replan["observations"] if o["field_id"] == fid]
         assert [o["filter"] for o in mine] == ["g"]
         assert (Time(mine[0]["start"]) - r_at[fid]).to_value("s") >= 1800.0 - 1e-3

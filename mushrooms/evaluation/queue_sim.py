@@ -29,7 +29,8 @@ from ..scheduler_core.sky.skymap import SkyMap
 from ..scheduler_core.schedulers.as_executed import cadence_coverage, execute_plan_queues
 from ..scheduler_core.telescope.timing import TelescopeTiming
 
-__all__ = ["Closure", "random_closure", "execute_plan", "achieved_coverage", "execution_cells", "EXPORTS", "LATE_STARTS_S"]
+__all__ = ["Closure", "random_closure", "execute_plan", "achieved_coverage", "execution_cells", "submitted_today",
+           "EXPORTS", "LATE_STARTS_S"]
 
 #: How a plan goes to ZTF: ``queues`` (timed queues per filter pass) or ``single`` (one list queue).
 EXPORTS = ("queues", "single")
@@ -168,7 +169,8 @@ def achieved_coverage(executed: Iterable[ExecutedExposure], skymap: SkyMap, foot
 
 
 def execution_cells(plan: Plan, footprints: Footprints, prob: np.ndarray,
-                    late_starts_s: Iterable[float] = LATE_STARTS_S) -> dict[str, float | int | str]:
+                    late_starts_s: Iterable[float] = LATE_STARTS_S, skyportal_plans: str = "single"
+                    ) -> dict[str, float | int | str]:
     """What ZTF's scheduler would keep of a plan (Q14), for the benchmark's row.
 
     The plan's queue set (:func:`to_trigger_queues`, timed once) is executed
@@ -176,11 +178,16 @@ def execution_cells(plan: Plan, footprints: Footprints, prob: np.ndarray,
     time; each scored as cadence-valid coverage (the plan's filters and
     cadence, defaults g/r and 1800 s for a plan without its config).
 
-    The single list queue is what SkyPortal's ZTF API submits for one
-    observation plan today (:mod:`~mushrooms.evaluation.skyportal_queue`:
-    one ``list`` queue valid over the plan's start and end, its planned
-    observations in plan order), so for a gwemopt plan it is that plan "as
-    submitted today".
+    ``coverage_single_queue`` is the plan "as submitted today": what
+    SkyPortal's ZTF API queues for the observation plans that hold it
+    (:mod:`~mushrooms.evaluation.skyportal_queue`: one ``list`` queue per
+    plan, valid over its start and end, its planned observations in order).
+    ``skyportal_plans`` says how many: ``single``, one plan over the plan's
+    horizon (a plan made in SkyPortal, gwemopt's: one list queue, the
+    plan's times lost); ``per_pass``, one per filter pass with that pass's
+    queue window, as the service POSTs its plans (``[export]
+    skyportal_plans``, docs/design/submission.md T1: they execute as its
+    queue set).
 
     Returns
     -------
@@ -207,15 +214,41 @@ def execution_cells(plan: Plan, footprints: Footprints, prob: np.ndarray,
     shutter: dict[str, float] = {}
 
     def kept(payloads, late_s, name=None):
-        done = execute_plan_queues(plan, payloads, late_s)
+        done = execute_plan_queues(plan, payloads, late_s) if payloads else ()
         if name is not None:
             shutter[name] = round(sum(float(e.exposure_s) for e in done if is_done(e)), 1)
         return round(cadence_coverage(done, footprints, prob, filters, cadence_s), 6)  # type: ignore[arg-type]
 
     out: dict[str, float | int | str] = {
         "coverage_as_executed": kept(queues, 0.0, "open_shutter_executed_s"),
-        "coverage_single_queue": kept([to_trigger_queue(plan)], 0.0, "open_shutter_single_queue_s")}
+        "coverage_single_queue": kept(submitted_today(plan, skyportal_plans), 0.0, "open_shutter_single_queue_s")}
     out.update({key: kept(queues, x) for key, x in zip(keys[2:], lates)})
     out.update(shutter)
     out["n_queues"] = len(queues)
     return out
+
+
+def submitted_today(plan: Plan, skyportal_plans: str = "single") -> list[dict]:
+    """The list queues SkyPortal's ZTF API sends ZTF for a plan held in SkyPortal as ``skyportal_plans`` says.
+
+    ``single``: one observation plan over the plan's horizon, one list
+    queue of its observations in order (:func:`to_trigger_queue`, what
+    :func:`~mushrooms.evaluation.skyportal_queue.skyportal_queue` makes of
+    it).  ``per_pass``: the plans the service POSTs
+    (:func:`~mushrooms.scheduler_core.plan.exports.to_skyportal_plans`), each
+    queued by :func:`~mushrooms.evaluation.skyportal_queue.skyportal_queue`.
+    """
+    import dataclasses
+
+    from ..scheduler_core.plan.exports import ExportConfig, to_skyportal_plans
+    from .skyportal_queue import skyportal_queue
+
+    if skyportal_plans == "single":
+        return [to_trigger_queue(plan)]
+    if not plan.event.event_time:  # SkyPortal finds the event by it; the queue does not depend on it
+        plan = plan.with_(event=dataclasses.replace(plan.event, event_time=plan.start.utc.isot + "Z"))
+    try:
+        bodies = to_skyportal_plans(plan, ExportConfig(skyportal_allocation_id=1, skyportal_plans=skyportal_plans))
+    except ValueError:  # no filter pass opens before the plan's end: the service sends nothing
+        return []
+    return [skyportal_queue(b) for b in bodies]

@@ -138,10 +138,10 @@ def test_the_hybrid_grg_plan_passes_the_checker_and_covers_at_least_greedys(grg_
     by_field: dict[int, list] = {}
     for o in grg_hybrid.observations:
         by_field.setdefault(o.field_id, []).append(o)
-    assert grg_hybrid.metrics.n_exposures == 3 * len(by_field)
+    assert grg_hybrid.metrics.n_exposures == sum(len(v) for v in by_field.values())
     for visits in by_field.values():
         visits.sort(key=lambda o: o.start)
-        assert [o.filter for o in visits] == ["g", "r", "g"]
+        assert [o.filter for o in visits] in (["g", "r", "g"], ["g", "r"])  # (F10) cut only where the checker agrees
         assert all(b.start - a.start >= GRG.cadence_s - 1e-6 for a, b in zip(visits, visits[1:]))
 
 

@@ -21,7 +21,8 @@ exposures a plan took.  ``coverage_as_executed`` is the plan's coverage as
 ZTF's scheduler would execute its queues: the
 plan's queue set executed by the telescope model (the configuration's filters and
 cadence for a plan that names none: gwemopt's), with ``coverage_late_<min>``,
-``coverage_single_queue`` (the old one-list-queue export) and ``n_queues``
+``coverage_single_queue`` ("as submitted today": through SkyPortal's ZTF API, ours as the service POSTs it,
+one SkyPortal plan per filter pass; a baseline's as one plan, one list queue) and ``n_queues``
 beside it (:func:`~mushrooms.evaluation.queue_sim.execution_cells`), with the
 shutter-open seconds each run took.  ``coverage_pairs`` is the planned coverage
 counted by the pair rule the executed coverage uses (fields with the first two
@@ -120,6 +121,11 @@ def execution_cells_under(plan: Any, config: Any, footprints: Any, prob: np.ndar
     """What ZTF's scheduler keeps of the plan's queues (Q14): on time, late, and the old single queue.
 
     A plan that names no filters or cadence (a baseline's) is run under ``config``'s.
+    "As submitted today" (``coverage_single_queue``) is the plan through
+    SkyPortal's ZTF API as its planner hands it on: ours (a plan with its
+    config) as the service POSTs it, one SkyPortal plan per filter pass
+    (``[export] skyportal_plans`` default, docs/design/submission.md T1);
+    a baseline's as one SkyPortal plan (gwemopt's way today: one list queue).
 
     A plan without exposures (a not-observable answer) executes nothing: its
     ``coverage_as_executed`` and ``coverage_single_queue`` are 0 (nothing is
@@ -127,7 +133,10 @@ def execution_cells_under(plan: Any, config: Any, footprints: Any, prob: np.ndar
     """
     from ..queue_sim import execution_cells
 
-    cells = execution_cells(_under_config(plan, config), footprints, prob)
+    from ...scheduler_core.plan.exports import ExportConfig
+
+    today = ExportConfig().skyportal_plans if plan.config else "single"
+    cells = execution_cells(_under_config(plan, config), footprints, prob, skyportal_plans=today)
     if not plan.observations:
         cells.update(coverage_as_executed=0.0, coverage_single_queue=0.0, open_shutter_executed_s=0.0,
                      open_shutter_single_queue_s=0.0)

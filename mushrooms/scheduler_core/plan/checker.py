@@ -169,7 +169,7 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
         _check_cadence(p, x, config, done)
     else:  # (F6-F8) a sequence of another length: its own rules, sequence_check.py
         check_sequences(p.add, x.ids, x.flt, x.start, tuple(config.filters), config.cadence_s,
-                        config.pair_separation_s, done)
+                        config.pair_separation_s, done, _next_visit_clear(x, plan.start, config, horizon))
 
     return CheckReport(not p.lines, tuple(p.lines), coverage, reported, p.counts)
 
@@ -288,8 +288,13 @@ class _Windows:
         return ~(self.sun_bad | self.airmass_bad | self.mount_bad | self.moon_bad)
 
 
-def _windows(x: _Exposures, t0: Time, config: PlanningConfig) -> _Windows:
-    """The window rules (Sun, airmass, mount, Moon) at start, middle and end of every exposure."""
+def _windows(x: _Exposures, t0: Time, config: PlanningConfig, strict: bool = False) -> _Windows:
+    """The window rules (Sun, airmass, mount, Moon) at start, middle and end of every exposure.
+
+    Each rule may be missed by its tolerance (the planner's model of the sky
+    is not the checker's); ``strict``: each must hold by its tolerance
+    instead (an exposure the planner's model would also find inside).
+    """
     ra, dec, start, exp = x.ra, x.dec, x.start, x.exp
     n = len(ra)
     scope = check_scope(config)
@@ -298,13 +303,51 @@ def _windows(x: _Exposures, t0: Time, config: PlanningConfig) -> _Windows:
     sun_alt, airmass, ha, moon_sep = (a.reshape(3, n) for a in (c.sun_alt, c.airmass, c.ha, c.moon_sep))
     slack = TOL_HA_H * 15.0  # each HA limit may be missed by this much (deg)
     reach = mount_reachable if scope is None else scope.reachable
-    mount_ok = (reach(ha, dec[None, :], config.ha_max_h) | reach(ha - slack, dec[None, :], config.ha_max_h)
-                | reach(ha + slack, dec[None, :], config.ha_max_h))
+    both = np.logical_and if strict else np.logical_or
+    mount_ok = both(both(reach(ha, dec[None, :], config.ha_max_h), reach(ha - slack, dec[None, :], config.ha_max_h)),
+                    reach(ha + slack, dec[None, :], config.ha_max_h))
+    sign = -1.0 if strict else 1.0
     return _Windows(sun_alt, airmass, ha, moon_sep,
-                    sun_bad=(sun_alt > config.sun_alt_max_deg + TOL_SUN_DEG).any(axis=0),
-                    airmass_bad=(airmass > config.airmass_max + TOL_AIRMASS).any(axis=0),
+                    sun_bad=(sun_alt > config.sun_alt_max_deg + sign * TOL_SUN_DEG).any(axis=0),
+                    airmass_bad=(airmass > config.airmass_max + sign * TOL_AIRMASS).any(axis=0),
                     mount_bad=(~mount_ok).any(axis=0),
-                    moon_bad=(moon_sep < config.moon_sep_min_deg - TOL_MOON_DEG).any(axis=0))
+                    moon_bad=(moon_sep < config.moon_sep_min_deg - sign * TOL_MOON_DEG).any(axis=0))
+
+
+def _next_visit_clear(x: _Exposures, t0: Time, config: PlanningConfig, horizon: float):
+    """(F10) the checker's own answer to "could a cut sequence's next visit have been taken?".
+
+    For each cut sequence, candidate starts every ``time_step_s`` from
+    ``after`` to ``until`` (and the horizon less the exposure); a start is
+    *clear* when the window rules hold, each by its tolerance (``strict``),
+    over the exposure widened by one ``time_step_s`` on each side (start,
+    middle and end), so a window the planner found on its grid of that step,
+    to within a step and a tolerance of the checker's sky, would have held the
+    exposure.  Returns the first clear start (s), NaN where none.
+    """
+    step = float(config.time_step_s)
+    where = {int(f): i for i, f in enumerate(x.ids)}
+
+    def clear(fields: np.ndarray, bands: np.ndarray, after: np.ndarray, until: np.ndarray) -> np.ndarray:
+        idx, ts = [], []
+        for n, (f, a, b) in enumerate(zip(fields, after, until)):
+            i = where[int(f)]
+            t = np.arange(a, min(b, horizon - x.exp[i]) + 1e-9, step)
+            idx += [n] * t.size
+            ts.append(t)
+        out = np.full(len(fields), np.nan)
+        if not idx:
+            return out
+        n_of = np.asarray(idx)
+        rows = np.array([where[int(fields[n])] for n in n_of])
+        t = np.concatenate(ts)
+        trial = _Exposures(x.ids[rows], x.ra[rows], x.dec[rows], bands[n_of], t - step, x.exp[rows] + 2 * step)
+        ok = _windows(trial, t0, config, strict=True).ok
+        for n in np.unique(n_of[ok]):
+            out[n] = t[ok & (n_of == n)][0]
+        return out
+
+    return clear
 
 
 def exposures_in_windows(plan: Plan, config: PlanningConfig = PlanningConfig()) -> np.ndarray:

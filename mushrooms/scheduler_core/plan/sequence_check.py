@@ -5,10 +5,12 @@ planner's F1-F3): the checker reads the plan and the executed record on
 their own.
 
 * (F6) a field without covering executed exposures is planned in the whole
-  sequence, or (F9, a re-plan: with an executed record) in a prefix of it
-  holding its first two visits (the re-plan's shift may cut the rest): its
-  exposures, in time order, are ``filters`` or such a prefix, each at
-  least ``cadence_s`` after the one before, the last at most
+  sequence, or in a prefix of it holding its first two visits: (F10) in a
+  plan, only where no window holds its next visit (``clear`` finds none
+  from a cadence after its last visit to the separation after its first);
+  (F9) in a re-plan (with an executed record), as the re-plan's shift
+  left it: its exposures, in time order, are ``filters`` or such a prefix,
+  each at least ``cadence_s`` after the one before, the last at most
   ``pair_separation_s`` after the first;
 * (F7) a field the executed record covers (the pair rule on the first two
   filters, or one exposure for a one-filter sequence) is planned only in a
@@ -25,11 +27,15 @@ before it.
 
 from __future__ import annotations
 
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
-__all__ = ["check_sequences", "covered_by_record"]
+__all__ = ["check_sequences", "covered_by_record", "NextVisitClear"]
+
+#: ``clear(fields, filters, after, until) -> starts``: for each cut sequence, the first start (s) in
+#: ``[after, until]`` at which its field's next visit (in that filter) is clearly observable, NaN where none is.
+NextVisitClear = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 #: Slack (s) on every time comparison, as the checker's.
 TOL_S = 1e-3
@@ -63,8 +69,8 @@ def covered_by_record(done: Mapping[int, Mapping[str, np.ndarray]], filters: Seq
 
 def check_sequences(add: Callable[[str, str], None], ids: np.ndarray, flt: np.ndarray, start: np.ndarray,
                     filters: Sequence[str], cadence_s: float, separation_s: float,
-                    done: Mapping[int, Mapping[str, np.ndarray]]) -> None:
-    """F6-F8 for each planned field; ``add(kind, text)`` records a problem.
+                    done: Mapping[int, Mapping[str, np.ndarray]], clear: Optional[NextVisitClear] = None) -> None:
+    """F6-F8 (and F10) for each planned field; ``add(kind, text)`` records a problem.
 
     Parameters
     ----------
@@ -78,9 +84,13 @@ def check_sequences(add: Callable[[str, str], None], ids: np.ndarray, flt: np.nd
         Least time between consecutive visits, most from first to last (s).
     done : mapping
         Field -> filter -> done executed exposures' starts (s), empty without a record.
+    clear : callable, optional
+        (F10) where a cut sequence's next visit could have been taken (:data:`NextVisitClear`); None: cuts
+        are not checked against the sky.
     """
     seq = tuple(filters)
     covered = covered_by_record(done, seq, cadence_s, separation_s)
+    cut: list[tuple[int, str, float, float]] = []
     for fid in np.unique(ids):
         sel = np.flatnonzero(ids == fid)
         order = sel[np.argsort(start[sel], kind="stable")]
@@ -90,16 +100,32 @@ def check_sequences(add: Callable[[str, str], None], ids: np.ndarray, flt: np.nd
             i = int(short[0])
             add("cadence", f"field {fid}: {bands[i]} and {bands[i + 1]} only {times[i + 1] - times[i]:.0f} s apart "
                            f"(cadence {cadence_s:.0f} s)")
-        if int(fid) not in covered:  # (F6) the whole sequence; (F9) in a re-plan, its first two visits on
-            if bands != seq and not (done and bands == seq[:len(bands)] and len(bands) >= min(2, len(seq))):
+        if int(fid) not in covered:  # (F6) the whole sequence; (F10, F9) or its first two visits on
+            if bands != seq and not (bands == seq[:len(bands)] and len(bands) >= min(2, len(seq))):
                 add("cadence", f"field {fid} is observed in {'-'.join(bands)}, not the sequence {'-'.join(seq)}"
-                               + (" nor its first two visits or more" if done else ""))
+                               " nor its first two visits or more")
             elif times[-1] - times[0] > separation_s + TOL_S:
                 add("cadence", f"field {fid}: its sequence spans {times[-1] - times[0]:.0f} s, more than "
                                f"{separation_s:.0f} s")
+            elif bands != seq and not done:
+                cut.append((int(fid), seq[len(bands)], float(times[-1]) + cadence_s, float(times[0]) + separation_s))
             continue
         _check_continuation(add, int(fid), bands, times, seq, cadence_s, separation_s, done[int(fid)],
                             covered[int(fid)])
+    if cut and clear is not None:
+        _check_cuts(add, cut, seq, clear)
+
+
+def _check_cuts(add: Callable[[str, str], None], cut: list[tuple[int, str, float, float]], seq: tuple[str, ...],
+                clear: NextVisitClear) -> None:
+    """(F10) a sequence cut short in a plan: its next visit had no window from a cadence after its last visit to
+    the separation after its first."""
+    fields, bands, after, until = (np.array(c) for c in zip(*cut))
+    starts = clear(fields, bands, after.astype(float), until.astype(float))
+    for fid, band, t in zip(fields, bands, starts):
+        if np.isfinite(t):
+            add("cadence", f"field {fid} stops short of the sequence {'-'.join(seq)}, though its next visit "
+                           f"({band}) could start at {t:.0f} s (F10)")
 
 
 def _check_continuation(add: Callable[[str, str], None], fid: int, bands: tuple[str, ...], times: np.ndarray,

@@ -17,8 +17,9 @@ if TYPE_CHECKING:
     from ..plan.document import Plan
     from ..sky.footprints import Footprints
 
-__all__ = ["cadence_coverage", "sequence_coverage", "execute_plan_queues", "queue_coverage", "queue_coverages",
-           "keyed_coverage_as_executed", "execution_key", "AS_EXECUTED_MEMO"]
+__all__ = ["cadence_coverage", "sequence_coverage", "planned_sequence_coverage", "execute_plan_queues",
+           "queue_coverage", "queue_coverages", "keyed_coverage_as_executed", "keyed_coverages_as_executed",
+           "execution_key", "AS_EXECUTED_MEMO"]
 
 #: ``ScheduleResult.details`` key of the executed coverages already computed: :func:`execution_key` -> value.
 AS_EXECUTED_MEMO = "coverage_as_executed_memo"
@@ -61,6 +62,26 @@ def sequence_coverage(executed: Iterable[ExecutedExposure], footprints: "Footpri
     missing = sorted(set(ids) - {int(f) for f in footprints.field_ids})
     if missing:
         raise ValueError(f"field(s) {missing[:5]} not in the footprints")
+    return float(footprints.coverage(ids, prob)) if ids else 0.0
+
+
+def planned_sequence_coverage(executed: Iterable[ExecutedExposure], observations: Iterable[Any],
+                              footprints: "Footprints", prob: np.ndarray, filters: tuple[str, ...],
+                              cadence_s: float = 0.0, max_separation_s: float = math.inf,
+                              min_processed_fraction: float = MIN_PROCESSED_FRACTION) -> float:
+    """Probability inside the fields whose every planned visit is done (F2: ``n`` at least the visits the plan
+    gives the field, its whole sequence or its cut one, F10).
+
+    Q21 (:func:`sequence_coverage`) for a plan without cut sequences; a field
+    F10 cut to its g and r counts once they are done, as F1 credits it.
+    """
+    seq = tuple(filters)
+    planned: dict[int, int] = {}
+    for o in observations:
+        if o.filter in seq:
+            planned[int(o.field_id)] = planned.get(int(o.field_id), 0) + 1
+    progress = sequence_progress(executed, seq, min_processed_fraction, cadence_s, max_separation_s)
+    ids = sorted(f for f, p in progress.items() if p.done >= min(planned.get(f, len(seq)), len(seq)))
     return float(footprints.coverage(ids, prob)) if ids else 0.0
 
 
@@ -162,6 +183,23 @@ def keyed_coverage_as_executed(problem: Any, result: Any, memo: dict[tuple, floa
     (tuple or None, float)
         The plan's :func:`execution_key` (None for an empty plan) and its executed coverage.
     """
+    key, pair, _ = _keyed(problem, result, memo, sequence=False)
+    return key, pair
+
+
+def keyed_coverages_as_executed(problem: Any, result: Any, memo: dict[tuple, float] | None = None
+                                ) -> tuple[tuple | None, float, float]:
+    """:func:`keyed_coverage_as_executed` and, from the same run, :func:`planned_sequence_coverage` (Q15 of a
+    sequence of three or more: what the hybrid's choice weighs first); for a pair the second is the first.
+
+    The second is remembered in ``memo`` under the key with ``"sequence"`` appended.
+    """
+    return _keyed(problem, result, memo, sequence=len(tuple(problem.config.filters)) > 2)
+
+
+def _keyed(problem: Any, result: Any, memo: dict[tuple, float] | None, sequence: bool
+           ) -> tuple[tuple | None, float, float]:
+    """(key, pair coverage as executed, coverage of the sequences done as planned) of a candidate."""
     from astropy.time import TimeDelta
 
     from ..plan.document import EventInfo, Plan, PlanMetrics, sorted_observations
@@ -170,14 +208,16 @@ def keyed_coverage_as_executed(problem: Any, result: Any, memo: dict[tuple, floa
     config = problem.config
     kept = drop_low_gain(result, problem.footprints, problem.prob, config.min_gain)
     if not kept.observations:
-        return None, 0.0
+        return None, 0.0, 0.0
     observations = sorted_observations(kept.observations)
     key = execution_key(problem, observations)
-    known = {**(result.details or {}).get(AS_EXECUTED_MEMO, {}), **(memo or {})}.get(key)
-    if known is not None:
-        return key, float(known)
+    known = {**(result.details or {}).get(AS_EXECUTED_MEMO, {}), **(memo or {})}
+    if key in known and (not sequence or key + ("sequence",) in known):
+        pair = float(known[key])
+        return key, pair, float(known[key + ("sequence",)]) if sequence else pair
     if config.telescope != "ztf":  # the executor model is ZTF's queue (ztf_too): another telescope's plan as planned
-        return key, problem.footprints.coverage({o.field_id for o in observations}, problem.prob)
+        planned = problem.footprints.coverage({o.field_id for o in observations}, problem.prob)
+        return key, planned, planned
     clock = getattr(problem, "clock", None)
     if clock is not None:
         clock.step("execute", len(observations))  # (A3) the executor's run, on the budget of the stage asking
@@ -186,4 +226,14 @@ def keyed_coverage_as_executed(problem: Any, result: Any, memo: dict[tuple, floa
                 metrics=PlanMetrics(coverage=0.0, solver="", status="", mip_gap=None, runtime_s=0.0, n_fields=0,
                                     n_exposures=len(observations)),
                 event=EventInfo(), config={"cadence_s": config.cadence_s, "filters": list(config.filters)})
-    return key, queue_coverage(plan, problem.footprints, problem.prob)
+    if not sequence:
+        pair = queue_coverage(plan, problem.footprints, problem.prob)
+        return key, pair, pair
+    executed = execute_plan_queues(plan)
+    filters = tuple(config.filters)
+    pair = cadence_coverage(executed, problem.footprints, problem.prob, filters, config.cadence_s)
+    whole = planned_sequence_coverage(executed, observations, problem.footprints, problem.prob, filters,
+                                      config.cadence_s, config.pair_separation_s)
+    if memo is not None:
+        memo[key + ("sequence",)] = whole
+    return key, pair, whole

@@ -11,8 +11,12 @@ before for every field.  A field is only taken when it is observable now
 and (by estimate) when its later visits fall due; when the real times of a
 batch put an exposure outside a window, or (a sequence other than a pair,
 F6) spread a field's visits over more than the pair separation, that field
-is dropped and the batch re-timed.  When nothing is observable, the clock jumps to the next window
-opening.
+is dropped and the batch re-timed.  A sequence of three or more visits is cut
+instead (F10, ``docs/design/sequences.md``) when the visit that fails is its
+third or later and its windows hold that visit nowhere from a cadence after
+the visit before to the pair separation after the first: the field keeps its
+first visits (its first two cover it, F1).  When nothing is observable, the
+clock jumps to the next window opening.
 """
 
 from __future__ import annotations
@@ -56,12 +60,15 @@ def time_passes(
     free_at: float,
     previous: tuple[float, float, str] | None,
     mount: AltAzMount | None = None,
+    lengths: np.ndarray | None = None,
 ) -> np.ndarray:
     """Start times (s) of a block: ``rows`` in each filter of the sequence, pass after pass.
 
     Each exposure starts as soon as the overheads allow; an exposure of a
     later pass also waits until the cadence since the same field's exposure
-    in the pass before has passed.
+    in the pass before has passed.  ``lengths`` (default: every pass) gives
+    each row's visits, a sequence cut by its windows (F10): a row takes no
+    exposure in the passes after them (NaN).
 
     Parameters
     ----------
@@ -75,6 +82,8 @@ def time_passes(
         (ra, dec, filter) of the exposure before the block.
     mount : AltAzMount, optional
         (M1) An alt-azimuth mount: slews timed on its axes at their time.
+    lengths : numpy.ndarray of int, optional
+        (F10) Each row's visits (default: every pass).
 
     Returns
     -------
@@ -85,11 +94,13 @@ def time_passes(
     exp = cfg.exposure_s
     ra = problem.ra[rows]
     dec = problem.dec[rows]
-    starts = np.empty((len(cfg.filters), len(rows)))
+    starts = np.full((len(cfg.filters), len(rows)), np.nan)
     t = free_at
     prev = previous
     for p, band in enumerate(cfg.filters):
         for i in range(len(rows)):
+            if lengths is not None and p >= lengths[i]:
+                continue
             if prev is None:
                 starts[p, i] = t
             else:
@@ -155,11 +166,11 @@ def greedy_schedule(problem: PlanningProblem, should_stop: StopCheck | None = No
                 break
             state.free_at = opening
             continue
-        batch, starts = state.time_batch(batch, saved)
+        batch, starts, lengths = state.time_batch(batch, saved)
         if not batch:
             state.free_at += cfg.time_step_s
             continue
-        state.commit(batch, starts)
+        state.commit(batch, starts, lengths)
 
     observations = sorted(state.observations, key=lambda o: o.start)
     problem.clock.step("greedy", len(problem.field_ids))  # (A3) the budget of the stages after it
@@ -185,6 +196,7 @@ class _Greedy:
         self.fp = problem.footprints
         self.w_rows = _window_rows(problem)
         self.w_start, self.w_end = problem.windows.start, problem.windows.end
+        self.row_start, self.row_end = _windows_by_row(self.w_rows, self.w_start, self.w_end, self.n)
         self.uncovered = problem.prob.copy()
         self.used = np.zeros(self.n, dtype=bool)
         self.observations: list[Observation] = []
@@ -219,8 +231,7 @@ class _Greedy:
             ts = t + oh
             cand = ~self.used & (g > 0) & (ts + exp <= cfg.horizon_s)
             cand &= _observable(self.w_rows, self.w_start, self.w_end, ts, exp, n)
-            for p in range(1, len(cfg.filters)):  # each later visit, by estimate
-                cand &= _observable(self.w_rows, self.w_start, self.w_end, ts + p * self.second_delay, exp, n)
+            cand &= self._later_visits_fit(ts)
             if not cand.any():
                 break
             k = int(np.argmax(np.where(cand, g, -1.0)))
@@ -234,6 +245,32 @@ class _Greedy:
                 break
         return batch, g
 
+    def _later_visits_fit(self, ts: np.ndarray) -> np.ndarray:
+        """(n,) by estimate, each field's later visits from ``ts`` fit: the second in a window, each later one
+        in a window or (F10) the sequence is cut there, no window holding it."""
+        cfg, exp, n, delay = self.cfg, self.exp, self.n, self.second_delay
+        ok = np.ones(n, dtype=bool)
+        alive = np.ones(n, dtype=bool)  # still has this visit, by estimate
+        for p in range(1, len(cfg.filters)):
+            inside = _observable(self.w_rows, self.w_start, self.w_end, ts + p * delay, exp, n)
+            if p >= 2:
+                rows = np.arange(n)
+                cut = ~self.next_visit_fits(rows, ts + (p - 1) * delay + cfg.cadence_s, ts + cfg.pair_separation_s)
+                ok &= ~alive | inside | cut
+            else:
+                ok &= inside
+            alive &= inside
+        return ok
+
+    def next_visit_fits(self, rows: np.ndarray, after: np.ndarray, until: np.ndarray) -> np.ndarray:
+        """(F10) for each row: does a window of its field hold an exposure starting in ``[after, until]``
+        (s, ending within the horizon)?"""
+        rows = np.asarray(rows, dtype=np.int64)
+        after = np.asarray(after, float)[:, None]
+        until = np.minimum(np.asarray(until, float), self.cfg.horizon_s - self.exp)[:, None]
+        t = np.maximum(self.row_start[rows], after)  # the earliest start in each of the row's windows
+        return np.any((t <= until) & (t + self.exp <= self.row_end[rows]), axis=1)
+
     def next_opening(self, g: np.ndarray) -> float | None:
         """When to try again after an empty batch: the next window opening of a useful field (None: none)."""
         n = self.n
@@ -244,39 +281,70 @@ class _Greedy:
             return None
         return max(float(later.min()), self.free_at + self.cfg.time_step_s / 2)
 
-    def time_batch(self, batch: list[int], saved: np.ndarray) -> tuple[list[int], np.ndarray]:
+    def time_batch(self, batch: list[int], saved: np.ndarray) -> tuple[list[int], np.ndarray, np.ndarray]:
         """Time every pass; drop the fields whose real times leave their windows, or whose sequence spans more
-        than the pair separation (re-timing the rest)."""
-        starts = np.empty((len(self.cfg.filters), 0))
+        than the pair separation, or cut such a field's sequence where F10 allows (re-timing the rest).
+
+        Returns the rows kept, their starts (k, m; NaN after a cut sequence's last visit) and their visits (m,).
+        """
+        k = len(self.cfg.filters)
+        lengths = np.full(len(batch), k, dtype=np.int64)
+        starts = np.empty((k, 0))
         while batch:
-            starts = time_passes(self.problem, batch, self.free_at, self.previous, self.mount)
-            rows = np.asarray(batch)
-            ok = starts[-1] + self.exp <= self.cfg.horizon_s
-            for pass_starts in starts:
-                ok &= _observable_each(self.w_rows, self.w_start, self.w_end, rows, pass_starts, self.exp)
-            if len(self.cfg.filters) > 2:  # (F6) a sequence's last visit within the pair separation of its first
-                ok &= starts[-1] - starts[0] <= self.cfg.pair_separation_s + 1e-6
-            if ok.all():
+            starts = time_passes(self.problem, batch, self.free_at, self.previous, self.mount, lengths)
+            keep, lengths_new = self._fit_sequences(np.asarray(batch), starts, lengths)
+            if keep.all() and np.array_equal(lengths_new, lengths):
                 break
-            bad = [b for b, good in zip(batch, ok) if not good]
-            batch = [b for b, good in zip(batch, ok) if good]
+            bad = [b for b, good in zip(batch, keep) if not good]
+            batch = [b for b, good in zip(batch, keep) if good]
+            lengths = lengths_new[keep]
             self.used[bad] = False  # they may still fit a later batch
             self.uncovered = saved.copy()
-            for k in batch:
-                self._cover(k)
-        return batch, starts
+            for r in batch:
+                self._cover(r)
+        return batch, starts, lengths
 
-    def commit(self, batch: list[int], starts: np.ndarray) -> None:
-        """Add a timed batch's exposures (every filter of the sequence) as one block and move the clock past it."""
+    def _fit_sequences(self, rows: np.ndarray, starts: np.ndarray, lengths: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """(keep (m,), visits (m,)): each row's first failing visit (outside a window or the horizon, or past
+        the pair separation) cuts its sequence there when it is the third or later and no window holds it
+        (F10), else drops the row; a cut sequence whose next visit now fits is dropped."""
+        cfg, exp = self.cfg, self.exp
+        k, m = starts.shape
+        fails = np.zeros((k, m), dtype=bool)
+        for p in range(k):
+            has = p < lengths
+            t = np.where(has, starts[p], 0.0)
+            inside = _observable_each(self.w_rows, self.w_start, self.w_end, rows, t, exp)
+            inside &= t + exp <= cfg.horizon_s
+            if p >= 2:  # (F6) a sequence's visits within the pair separation of its first
+                inside &= t - starts[0] <= cfg.pair_separation_s + 1e-6
+            fails[p] = has & ~inside
+        first = np.where(fails.any(axis=0), fails.argmax(axis=0), lengths)
+        cut_to = np.minimum(first, lengths)
+        keep = cut_to >= min(2, k)
+        short = keep & (cut_to < k)
+        if short.any():  # (F10) only where no window holds the next visit
+            i = np.flatnonzero(short)
+            last = starts[cut_to[i] - 1, i]
+            fits = self.next_visit_fits(rows[i], last + cfg.cadence_s, starts[0, i] + cfg.pair_separation_s)
+            keep[i[fits]] = False
+        return keep, np.where(keep, cut_to, lengths)
+
+    def commit(self, batch: list[int], starts: np.ndarray, lengths: np.ndarray) -> None:
+        """Add a timed batch's exposures (each field's visits of the sequence) as one block and move the clock
+        past it."""
         problem, exp, filters = self.problem, self.exp, self.cfg.filters
+        last: tuple[float, int, str] = (-np.inf, -1, filters[0])
         for i, k in enumerate(batch):
             fid = int(problem.field_ids[k])
             ra, dec = float(problem.ra[k]), float(problem.dec[k])
-            for band, t in zip(filters, starts[:, i]):
+            for band, t in zip(filters[:int(lengths[i])], starts[:, i]):
                 self.observations.append(Observation(fid, ra, dec, band, float(t), exp, self.block))
-        last = batch[-1]
-        self.free_at = float(starts[-1, -1] + exp)
-        self.previous = (float(problem.ra[last]), float(problem.dec[last]), filters[-1])
+                if t > last[0]:
+                    last = (float(t), k, band)
+        self.free_at = last[0] + exp
+        self.previous = (float(problem.ra[last[1]]), float(problem.dec[last[1]]), last[2])
         self.block += 1
 
 
@@ -286,3 +354,19 @@ def _observable_each(w_rows: np.ndarray, w_start: np.ndarray, w_end: np.ndarray,
     match = w_rows[None, :] == rows[:, None]
     inside = (w_start[None, :] <= starts[:, None]) & (starts[:, None] + exposure_s <= w_end[None, :])
     return np.any(match & inside, axis=1)
+
+
+
+def _windows_by_row(w_rows: np.ndarray, w_start: np.ndarray, w_end: np.ndarray, n: int
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(n, most windows of a row) starts and ends (s) of each row's windows, padded with empty ones (inf, -inf)."""
+    valid = np.flatnonzero(w_rows >= 0)
+    rows = w_rows[valid]
+    order = np.argsort(rows, kind="stable")
+    rows, valid = rows[order], valid[order]
+    counts = np.bincount(rows, minlength=n)
+    pos = np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    width = max(int(counts.max()) if counts.size else 0, 1)
+    starts, ends = np.full((n, width), np.inf), np.full((n, width), -np.inf)
+    starts[rows, pos], ends[rows, pos] = w_start[valid], w_end[valid]
+    return starts, ends

@@ -306,34 +306,41 @@ def choose_as_executed(problem: PlanningProblem, ran: dict[str, ScheduleResult],
                        ) -> tuple[str, dict[str, float], dict[tuple, float]]:
     """(Q15) the candidate whose queues ZTF's scheduler executes best (cadence-valid coverage), ties to the planned.
 
-    Candidates are tried in order of planned coverage (then stage order); a
-    plan's executed coverage never exceeds its planned one, so the search
-    stops at the first candidate whose planned coverage is no better than
-    the best executed so far.
+    A sequence of three or more filters is judged first by the coverage its
+    sequences keep whole as executed (Q21, a sequence F10 cut counting
+    whole once its visits are done: :func:`~..as_executed.planned_sequence_coverage`),
+    then by the cadence-valid coverage (F1).  Candidates are tried in
+    order of planned coverage (then stage order); a plan's executed
+    coverage (and its whole sequences') never exceeds its planned one, so
+    the search stops at the first candidate whose planned coverage is no
+    better than the best value so far.
 
     Returns
     -------
     (str, dict of str to float, dict of tuple to float)
         The chosen stage, the executed coverage of each candidate tried, and
         the same by :func:`~..as_executed.execution_key` (the memo that
-        spares the published plan a second run of the executor).
+        spares the published plan a second run of the executor; with a
+        sequence, its whole sequences' value under the key with
+        ``"sequence"`` appended).
     """
-    from ..as_executed import AS_EXECUTED_MEMO, keyed_coverage_as_executed
+    from ..as_executed import AS_EXECUTED_MEMO, keyed_coverages_as_executed
 
     names = list(ran)
     order = sorted(names, key=lambda n: (-covs[n], names.index(n)))
     executed: dict[str, float] = {}
+    whole: dict[str, float] = {}  # the value judged first: the sequences' (Q21), or the pair's
     memo: dict[tuple, float] = {}
     for n in names:  # what a stage already knows (the LNS scores its seed and its plans as executed)
         memo.update((ran[n].details or {}).get(AS_EXECUTED_MEMO, {}))
     for n in order:
-        if executed and covs[n] <= max(executed.values()) + 1e-12:
+        if whole and covs[n] <= max(whole.values()) + 1e-12:
             break
-        key, value = keyed_coverage_as_executed(problem, ran[n], memo)  # an LNS that kept its seed: one run
-        executed[n] = round(value, 6)
+        key, value, kept = keyed_coverages_as_executed(problem, ran[n], memo)  # an LNS that kept its seed: one run
+        executed[n], whole[n] = round(value, 6), round(kept, 6)
         if key is not None:
             memo[key] = value
-    name = max(executed, key=lambda n: (executed[n], covs[n], -names.index(n)))
+    name = max(executed, key=lambda n: (whole[n], executed[n], covs[n], -names.index(n)))
     return name, executed, memo
 
 
