@@ -11,7 +11,7 @@ from __future__ import annotations
 import sqlite3
 
 from .executed import EXECUTED_TABLE
-from .parts import PARTS_TABLE
+from .parts import PARTS_TABLE, ROUND_COLUMNS
 
 __all__ = ["SCHEMA_VERSION", "SCHEMA", "UPGRADES", "missing_steps"]
 
@@ -138,6 +138,8 @@ UPGRADES: tuple[tuple[int, str | tuple[str, str, str]], ...] = (
     (6, ("submissions", "progress", "TEXT")),
     # each configured telescope's part of a job after ZTF's (issue 53; :mod:`~mushrooms.daemon.state.parts`)
     (6, PARTS_TABLE),  # version kept: a table only, which an older program ignores (and reads the file)
+    # a part's round (the job's ZTF revision it was planned around) and which revision (its key); issue 53 J9
+    (6, ROUND_COLUMNS[0]), (6, ROUND_COLUMNS[1]),  # columns with defaults: an older program's rows still insert
 )
 
 
