@@ -76,8 +76,9 @@ def left_weight(prob: np.ndarray, held: Sequence[Held]) -> np.ndarray:
 
     w = np.array(prob, float)
     for h in held:
-        if h.problem is not None and h.fields:
-            w[covered_pixels(h.problem, h.fields)] = 0.0
+        if h.problem is not None and h.fields:  # a field its problem does not know (a hand-edited part) is skipped
+            known = np.asarray(h.fields, np.int64)
+            w[covered_pixels(h.problem, known[np.isin(known, h.problem.field_ids)])] = 0.0
     return w
 
 
@@ -183,5 +184,6 @@ def fields_of(document: dict | None) -> tuple[int, ...]:
     """The fields a plan document observes, in first-visit order (none for no document)."""
     if not document:
         return ()
-    return tuple(dict.fromkeys(int(o["field_id"]) for o in document.get("observations", [])))
+    return tuple(dict.fromkeys(int(o["field_id"]) for o in document.get("observations", [])
+                               if isinstance(o, dict) and isinstance(o.get("field_id"), int)))
 

@@ -21,7 +21,7 @@ from typing import Sequence
 
 from .errors import PlanCheckError
 from .plan.checker import check_plan
-from .plan.document import EventInfo, Plan, iso_utc, make_plan_id
+from .plan.document import EventInfo, Plan, make_plan_id
 from .planner import build_plan
 from .problem import PlanningProblem, StopCheck
 from .schedulers.joint.bound import JointBound

@@ -1,28 +1,38 @@
-"""Each configured telescope's part of a revision, in the outbox (issue 53, phase 4: through the service).
+"""Each configured telescope's part of a revision, in the outbox (issue 53 items 2 and 4: through the service).
 
 With ``[scheduler] telescopes = ["ztf", "ls4", ...]`` a job (one sky map of an
 event) is planned for every telescope: ZTF's plan is the job's revisions, as
 for a ZTF-only service (its queue to Kowalski, its SkyPortal plan, its
-documents unchanged); every other telescope is planned in the job's first
-stage, before ZTF's revision 1 is stored (:func:`~mushrooms.handlers.telescope_plans.plan_telescopes`,
-the one call to switch to the joint plan), and its part goes where its
-description's ``queue`` says, into one folder of the outbox directory::
+documents unchanged); every other telescope is planned **around** ZTF's
+revision (``docs/design/telescopes.md`` J9,
+:func:`~mushrooms.handlers.telescope_plans.plan_telescopes`): in the
+configured order, each on the sky ZTF's revision and the parts before it
+leave.  Round 1 is planned around revision 1 before it is stored; when the
+job's final revision is a revision 2, round 2 is planned around it before it
+is stored, each new part marking its telescope's round-1 part ``SUPERSEDED``.
+A part goes where its description's ``queue`` says, into one folder of the
+outbox directory::
 
-    <[outbound] directory>/telescopes/<superevent>/<job:05d>-<alert type>/<telescope>/
-        part.json                    the part: telescope, queue, state, plan id, files, why
-        targets.json, targets.csv    queue = "target_list": the target list
-        skyportal_request.json       queue = "skyportal": the observation plan request (not sent: see below)
-        plan.json                    the telescope's plan document (mushrooms check plan.json MAP)
-        WITHDRAWN / SUPERSEDED       the event was retracted / a newer map's parts replace these
+    <[outbound] directory>/telescopes/<superevent>/<job:05d>-<alert type>[-round<n>]/
+        joint.json                   ZTF's revision and the parts: joint metrics and bound (mushrooms check)
+        <telescope>/
+            part.json                telescope, queue, state, plan id, files, why, round, coordinated_with, joint
+            targets.json, targets.csv    queue = "target_list": the target list
+            skyportal_request.json   queue = "skyportal": the observation plan request (not sent: see below)
+            plan.json                the telescope's plan document (mushrooms check plan.json MAP)
+            WITHDRAWN / SUPERSEDED   the event was retracted / a newer map's or ZTF revision's parts replace these
 
 Every file is written atomically (a reader sees the old file or the new one);
 names from notices and descriptions are reduced to ``[A-Za-z0-9._-]`` and 64
-characters.  A part is recorded in the state file (``telescope_parts``) after
-its files: a kill between two telescopes' parts leaves the job running, its
-restart plans the parts not recorded (the same plans: the fast scheduler is
-deterministic) and rewrites no recorded one.  A telescope that cannot observe
-the map gets ``state: not_observable`` and no export; one that fails gets
-``failed`` with the reason; neither stops the others.
+characters.  The round's ``joint.json`` is written before its parts are
+recorded; a part is recorded in the state file (``telescope_parts``: one row
+per job and telescope, its latest round) after its files: a kill between two
+telescopes' parts leaves the job running, its restart holds the recorded
+parts fixed with ZTF's revision and plans the others (the same plans: greedy's
+steps depend on their inputs only), and rewrites no recorded one.  A
+telescope that cannot observe the map gets ``state: not_observable`` and no
+export; one that fails gets ``failed`` with the reason; neither stops the
+others, and neither ever stops ZTF's revision.
 """
 
 from __future__ import annotations
