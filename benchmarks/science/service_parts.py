@@ -81,11 +81,12 @@ def main() -> None:
     ap.add_argument("--telescopes", default="ls4", help="the other telescopes, in order (comma-separated)")
     ap.add_argument("--nside", type=int, default=64)
     ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--maps", type=int, default=None, help="the first N maps only")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     names = args.telescopes.split(",")
     rows = []
-    for path in [p for p in MAPS + [SOUTH] if p.is_file()]:
+    for path in [p for p in MAPS + [SOUTH] if p.is_file()][:args.maps]:
         row = one_map(path, names, args.nside)
         rows.append(row)
         print(json.dumps(row), flush=True)

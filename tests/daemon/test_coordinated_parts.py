@@ -246,3 +246,47 @@ def test_the_default_configuration_publishes_mains_ztf_documents(tmp_path):
     assert da["observations"] == db["observations"] and da["config"] == db["config"]
     assert np.isclose(da["metrics"]["coverage"], db["metrics"]["coverage"])
     assert footprint(da).sum() > 0
+
+
+def test_a_kill_in_the_second_round_ends_with_every_part_around_revision_2_and_no_folder_written_twice(
+        tmp_path, monkeypatch):
+    from mushrooms.daemon.planning.parts import TelescopeParts
+    from mushrooms.scheduler_core.planner import run_scheduler
+
+    class Killed(BaseException):
+        """Stands for SIGKILL right after ls4's round-2 part is recorded, before ls4b's."""
+
+    real = TelescopeParts._export
+
+    def export(self, store, job, telescope, plan, round_=1, *args, **kw):
+        state = real(self, store, job, telescope, plan, round_, *args, **kw)
+        if telescope.name == "ls4" and round_ == 2:
+            raise Killed
+        return state
+
+    telescopes = ["ztf", "ls4", str(_second_ls4(tmp_path))]
+    kw = dict(solver="slots", planner=_halved_first_plan(run_scheduler))
+    monkeypatch.setattr(TelescopeParts, "_export", export)
+    with pytest.raises(Killed):
+        _run(tmp_path, telescopes, [notice_bytes(PRELIMINARY)], **kw)
+    monkeypatch.setattr(TelescopeParts, "_export", real)
+    outbox = tmp_path / "outbox"
+    ls4_round2 = part_folders(outbox)[("00001-PRELIMINARY-round2", "ls4")]
+    before = {p.name: p.read_bytes() for p in ls4_round2.iterdir()}
+    pipeline, close = _pipeline(tmp_path, telescopes, **kw)
+    try:
+        (out,) = pipeline.resume()
+    finally:
+        close()
+    assert out.revision == 2
+    assert {p.name: p.read_bytes() for p in ls4_round2.iterdir()} == before  # recorded: not rewritten
+    folders = part_folders(outbox)
+    for name in ("ls4", "ls4b"):
+        old, new = folders[("00001-PRELIMINARY", name)], folders[("00001-PRELIMINARY-round2", name)]
+        assert (old / "SUPERSEDED").is_file() and part(old)["state"] == "superseded"
+        assert not (new / "SUPERSEDED").exists() and part(new)["state"] == "exported"
+        assert part(new)["coordinated_with"]["ztf_plan_id"] == out.plan_id
+    assert {k[0] for k in folders} == {"00001-PRELIMINARY", "00001-PRELIMINARY-round2"}  # no third round
+    assert [(r[1], r[2]) for r in part_rows(tmp_path / "state.sqlite")] == [("ls4", "exported"), ("ls4b", "exported")]
+    joint = json.loads(joint_file(outbox, "00001-PRELIMINARY-round2").read_text())
+    assert joint["telescopes"] == ["ztf", "ls4", "ls4b"] and joint["plans"][0]["plan_id"] == out.plan_id

@@ -118,13 +118,16 @@ class TelescopeParts:
         return [t.name for t, _ in self.runs]
 
     def export_job(self, store: Any, job: Any, skymap: Any, event: Any, start: Any, ztf: tuple[Any, Any],
-                   cancelled: Callable[[], bool] = lambda: False) -> dict[str, str]:
+                   cancelled: Callable[[], bool] = lambda: False, final: bool = True) -> dict[str, str]:
         """Plan and export the parts of ZTF's revision ``ztf`` not yet recorded; supersede what they replace.
 
         ``ztf``: (ZTF's revision as published, a Plan or its ``NotObservable``
         answer; ZTF's problem).  The parts recorded for this very revision are
         held fixed with it; a part recorded for another revision (an earlier
-        round) is superseded by its telescope's new one.  State by telescope.
+        round) is superseded by its telescope's new one.  ``final``: the job's
+        last revision (its parts must be around it); a revision that is not
+        (revision 1 on a restart after a later round began) leaves the parts
+        to the final one.  State by telescope.
         """
         from ...handlers.telescope_plans import plan_telescopes, prepare_telescopes
 
@@ -132,6 +135,9 @@ class TelescopeParts:
         key = _key(held_ztf, ztf[0])
         rows = parts_of_job(store, job.job_id)
         round_ = _round(rows, key)
+        if round_ is None and not final:
+            return {name: row["state"] for name, row in rows.items()}
+        round_ = round_ or max(int(r.get("round") or 1) for r in rows.values()) + 1
         done = {n: r for n, r in rows.items() if r.get("held") == key}
         todo = [t.name for t, _ in self.runs if t.name not in done]
         if todo and not cancelled():
@@ -246,12 +252,19 @@ def _key(held_ztf: Any, plan: Any) -> str:
     return around_key([("ztf", getattr(plan, "plan_id", None), held_ztf.fields)])
 
 
-def _round(rows: dict[str, dict], key: str) -> int:
-    """The round of the parts planned around ``key``: its recorded round, else one after the job's last."""
-    for row in rows.values():
-        if row.get("held") == key:
-            return int(row.get("round") or 1)
-    return max((int(r.get("round") or 1) for r in rows.values()), default=0) + 1
+def _round(rows: dict[str, dict], key: str) -> int | None:
+    """The round of the parts planned around ``key``; None when a later round was begun meanwhile.
+
+    Rounds only move forward (no folder is written twice): the job's latest
+    round when it is ``key``'s, one after it when ``key`` has no part, and
+    None when ``key``'s parts belong to an earlier round than the latest
+    (the caller starts a new round only for the job's final revision).
+    """
+    latest = max((int(r.get("round") or 1) for r in rows.values()), default=0)
+    mine = [int(r.get("round") or 1) for r in rows.values() if r.get("held") == key]
+    if not mine:
+        return latest + 1
+    return latest if max(mine) == latest else None
 
 
 def _document(plan: Any) -> dict | None:

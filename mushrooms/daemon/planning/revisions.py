@@ -255,7 +255,7 @@ class JobPlanner:
         work = _Work(job, skymap, problem, event, plan)
         if self.parts is not None:  # every other telescope's part, before ZTF's revision 1 (a restart redoes the rest)
             stage("the other telescopes' parts")
-            self._export_parts(work, plan, should_stop)
+            self._export_parts(work, plan, should_stop, final)
         if job.fallback and any(r["plan_id"] == plan.plan_id and not r["final"]
                                 for r in self.store.job_plans(job.job_id)):
             # revision 1 went out (final: false) before the optimiser died: it stands, and plan_final says so
@@ -356,10 +356,11 @@ class JobPlanner:
                                     sched.detection_max_coverage_loss)
         return self._close_with_first(work, why)
 
-    def _export_parts(self, work: _Work, plan: Any, should_stop: StopCheck | None) -> None:
+    def _export_parts(self, work: _Work, plan: Any, should_stop: StopCheck | None, final: bool = True) -> None:
         """The other telescopes' parts planned around ZTF's revision ``plan`` (none for ZTF alone).
 
-        Their failure never costs ZTF's revision: logged, and the job goes on.
+        ``final``: ``plan`` is the job's last revision.  Their failure never
+        costs ZTF's revision: logged, and the job goes on.
         """
         if self.parts is None or work.problem is None:
             return
@@ -368,7 +369,7 @@ class JobPlanner:
         job = work.job
         try:
             self.parts.export_job(self.store, job, work.skymap, work.event, parse_time(job.start),
-                                  (plan, work.problem), lambda: self.was_cancelled(job, should_stop))
+                                  (plan, work.problem), lambda: self.was_cancelled(job, should_stop), final)
         except Exception:
             log.exception("job superevent_id=%s job=%s: the other telescopes' parts failed", job.superevent_id,
                           job.job_id)
