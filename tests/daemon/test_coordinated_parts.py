@@ -290,3 +290,33 @@ def test_a_kill_in_the_second_round_ends_with_every_part_around_revision_2_and_n
     assert [(r[1], r[2]) for r in part_rows(tmp_path / "state.sqlite")] == [("ls4", "exported"), ("ls4b", "exported")]
     joint = json.loads(joint_file(outbox, "00001-PRELIMINARY-round2").read_text())
     assert joint["telescopes"] == ["ztf", "ls4", "ls4b"] and joint["plans"][0]["plan_id"] == out.plan_id
+
+
+def test_a_state_file_with_the_parts_table_of_main_gets_the_round_columns(tmp_path):
+    """main's ``telescope_parts`` (no ``round``, ``held``): the next open adds them, its rows stay round 1."""
+    import sqlite3
+
+    from mushrooms.daemon.state.parts import parts_of_job, record_part
+    from mushrooms.daemon.state.store import Store
+
+    path = tmp_path / "state.sqlite"
+    Store(path).close()
+    conn = sqlite3.connect(path)
+    conn.executescript("DROP TABLE telescope_parts; CREATE TABLE telescope_parts (job_id INTEGER NOT NULL,"
+                       " telescope TEXT NOT NULL, superevent_id TEXT NOT NULL, queue TEXT NOT NULL,"
+                       " state TEXT NOT NULL, plan_id TEXT, folder TEXT, detail TEXT, created_at TEXT NOT NULL,"
+                       " updated_at TEXT NOT NULL, PRIMARY KEY (job_id, telescope));"
+                       " INSERT INTO telescope_parts VALUES (1, 'ls4', 'S1', 'target_list', 'exported', 'p1', 'f',"
+                       " '', 't', 't');")
+    conn.commit()
+    conn.close()
+    store = Store(path)
+    try:
+        (row,) = parts_of_job(store, 1).values()
+        assert row["round"] == 1 and row["held"] is None
+        assert record_part(store, 1, "ls4", "S1", "target_list", "exported", "p2", "g", "", 2, "k2")
+        assert not record_part(store, 1, "ls4", "S1", "target_list", "exported", "p3", "h", "", 2, "k2")
+        row = parts_of_job(store, 1)["ls4"]
+        assert (row["plan_id"], row["round"], row["held"], row["folder"]) == ("p2", 2, "k2", "g")
+    finally:
+        store.close()
