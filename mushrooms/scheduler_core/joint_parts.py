@@ -158,7 +158,8 @@ def around_document(entries: Sequence[tuple[str, PlanningProblem | None, dict | 
     prob : numpy.ndarray
         The map's probability per pixel (the problems' working resolution).
     bound_time_limit_s : float, optional
-        Budget of J7 (default the telescopes' largest ``bound_time_limit_s``).
+        Budget of J7 (default the telescopes' largest ``bound_time_limit_s``); 0: J8 without J7
+        (:func:`~.schedulers.joint.bound.quick_joint_bound`: no cells, no solve; the service's).
     details : dict, optional
         Added under ``coordination`` (round, what the parts were planned around).
 
@@ -169,7 +170,7 @@ def around_document(entries: Sequence[tuple[str, PlanningProblem | None, dict | 
         ``around`` and ``not_planned`` (telescopes without a plan: their state).
     """
     from .joint_plans import joint_metrics_document
-    from .schedulers.joint.bound import joint_upper_bound
+    from .schedulers.joint.bound import joint_upper_bound, quick_joint_bound
     from .schedulers.joint.cells import joint_metrics
 
     planned = [(n, p, d) for n, p, d, _ in entries if d is not None and p is not None]
@@ -178,7 +179,12 @@ def around_document(entries: Sequence[tuple[str, PlanningProblem | None, dict | 
     docs = [d for _, _, d in planned]
     fields = [{o["field_id"] for o in d.get("observations", [])} for d in docs]
     metrics = joint_metrics(problems, fields, prob) if problems else None
-    bound = joint_upper_bound(problems, prob, bound_time_limit_s, names) if problems else None
+    if not problems:
+        bound = None
+    elif bound_time_limit_s is not None and bound_time_limit_s <= 0:
+        bound = quick_joint_bound(problems, prob)
+    else:
+        bound = joint_upper_bound(problems, prob, bound_time_limit_s, names)
     doc = joint_metrics_document(names, docs, metrics, bound, AROUND_SOLVER)
     doc["not_planned"] = {n: s for n, p, d, s in entries if d is None or p is None}
     doc["coordination"] = dict(details or {})

@@ -179,7 +179,8 @@ class TelescopeParts:
         details = {"round": round_, "around": key, "ztf_plan_id": getattr(ztf[0], "plan_id", None),
                    "method": "each telescope in order on the sky ZTF's revision and the parts before it leave (J9)"}
         try:
-            doc = around_document(entries, ztf[1].prob, details=details)
+            # J8 without J7 (no cells, no solve): with DECam J7's cells alone took 8 s at nside 64 before ZTF's revision
+            doc = around_document(entries, ztf[1].prob, 0.0, details=details)
             _write_json(folder / "joint.json", doc)
         except Exception as exc:  # the joint document never costs a part
             log.error("event=joint_document_failed superevent_id=%s job=%s error=%r", job.superevent_id, job.job_id,
