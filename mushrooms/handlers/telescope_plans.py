@@ -1,11 +1,14 @@
-"""A revision's plans for the other configured telescopes (issue 53, phase 4: through the service).
+"""A revision's parts for the other configured telescopes, planned around ZTF's revision (issue 53 items 2, 4).
 
-:func:`plan_telescopes` is the one step the daemon takes per revision for every
-telescope of ``[scheduler] telescopes`` after the first (ZTF, whose plan is the
-revision itself).  Today each telescope is planned **alone** (phase 2's path:
-its own problem, the fast scheduler, the checker, the ``not_observable`` rule);
-the joint coordinated plan (``schedulers/joint/``, ``docs/design/telescopes.md``
-section 5) replaces the body of :func:`plan_telescopes` with one call.
+:func:`plan_telescopes` is the one step the daemon takes for the telescopes
+of ``[scheduler] telescopes`` after the first (ZTF, whose plan is the
+revision itself): each is prepared on the map (its own problem: grid,
+site, nights, limits, overheads, cadence) and planned **around** the plans
+held fixed, ZTF's published revision and the parts already recorded for it
+(:func:`~mushrooms.scheduler_core.joint_parts.plan_around`,
+``docs/design/telescopes.md`` J9): the same probability is not observed
+twice needlessly, and ZTF's revision is never changed.  :func:`plan_alone`
+is the part each telescope would get alone (the uncoordinated baseline).
 
 Never imports :mod:`mushrooms.daemon`.
 """
@@ -14,7 +17,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, Mapping, Sequence
 
-__all__ = ["plan_telescopes", "plan_alone"]
+__all__ = ["plan_telescopes", "plan_alone", "prepare_telescopes"]
 
 #: What a telescope's planning gives: its checked plan, its ``not_observable`` answer, or the exception.
 PartPlan = Any
@@ -45,22 +48,49 @@ def plan_alone(skymap: Any, telescope: Any, config: Any, start: Any, event: Any 
     return plan if answer is None else answer
 
 
-def plan_telescopes(skymap: Any, runs: Sequence[tuple[Any, Any]], start: Any, event: Any = None,
-                    should_stop: Callable[[], bool] | None = None) -> Mapping[str, PartPlan]:
-    """Every telescope's plan of one revision, by name; a telescope that failed gets its exception.
-
-    One telescope's failure never loses the others' plans.  To plan them
-    jointly, return the joint plan's per-telescope parts here instead (the
-    daemon's only call of it: :mod:`mushrooms.daemon.planning.parts`).
+def prepare_telescopes(skymap: Any, runs: Sequence[tuple[Any, Any]], start: Any) -> dict[str, Any]:
+    """Every telescope's problem on the map, by name; a telescope that failed gets its exception.
 
     Parameters
     ----------
     runs : sequence of (TelescopeDescription, PlanningConfig)
+    start : astropy.time.Time
+        Horizon start (ZTF's revision's).
     """
-    out: dict[str, PartPlan] = {}
+    from ..scheduler_core.prepare import prepare_problem
+
+    out: dict[str, Any] = {}
     for telescope, config in runs:
         try:
-            out[telescope.name] = plan_alone(skymap, telescope, config, start, event, should_stop)
+            out[telescope.name] = prepare_problem(skymap, config, start, telescope=telescope)
         except Exception as exc:  # this telescope's failure only
             out[telescope.name] = exc
+    return out
+
+
+def plan_telescopes(skymap: Any, problems: Mapping[str, Any], todo: Sequence[str], held: Sequence[Any], key: str,
+                    event: Any = None, should_stop: Callable[[], bool] | None = None) -> Mapping[str, PartPlan]:
+    """The parts of ``todo`` planned around ``held``, by name; a telescope that failed gets its exception.
+
+    One telescope's failure never loses the others' plans; it covers nothing for the next.
+
+    Parameters
+    ----------
+    problems : mapping
+        Name -> its problem, or the exception its preparation raised (:func:`prepare_telescopes`).
+    todo : sequence of str
+        The telescopes to plan, in the configured order.
+    held : sequence of Held
+        ZTF's revision and the parts recorded for it (:class:`~mushrooms.scheduler_core.joint_parts.Held`).
+    key : str
+        :func:`~mushrooms.scheduler_core.joint_parts.around_key` of ``held`` (it keys the parts' plan ids).
+    """
+    from ..scheduler_core.joint_parts import plan_around
+
+    ready = [(name, problems[name]) for name in todo if not isinstance(problems[name], BaseException)]
+    out: dict[str, PartPlan] = {name: problems[name] for name in todo if isinstance(problems[name], BaseException)}
+    try:
+        out.update(plan_around(skymap, held, ready, key, event, should_stop))
+    except Exception as exc:  # the held plans themselves could not be read: every part fails, ZTF's revision stands
+        out.update({name: exc for name, _ in ready})
     return out

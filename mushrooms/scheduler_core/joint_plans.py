@@ -21,14 +21,15 @@ from typing import Sequence
 
 from .errors import PlanCheckError
 from .plan.checker import check_plan
-from .plan.document import EventInfo, Plan, iso_utc, make_plan_id
+from .plan.document import EventInfo, Plan, make_plan_id
 from .planner import build_plan
 from .problem import PlanningProblem, StopCheck
-from .schedulers.joint.cells import joint_metrics
+from .schedulers.joint.bound import JointBound
+from .schedulers.joint.cells import JointMetrics, joint_metrics
 from .schedulers.joint.schedule import JointResult, joint_schedule
 from .sky.skymap import SkyMap
 
-__all__ = ["make_joint_plans", "joint_document", "JOINT_SOLVER"]
+__all__ = ["make_joint_plans", "joint_document", "joint_metrics_document", "JOINT_SOLVER"]
 
 #: The solver name a joint plan's parts record (their plan ids depend on it).
 JOINT_SOLVER = "joint"
@@ -102,20 +103,32 @@ def joint_document(plans: Sequence[Plan], result: JointResult) -> dict:
         more than once, the bound (J8) and its three terms; ``plans``: each
         telescope's own plan document, unchanged.
     """
-    names = list(result.names)
-    parts = [plan.to_document() for plan in plans]
+    return joint_metrics_document(list(result.names), [plan.to_document() for plan in plans], result.metrics,
+                                  result.bound, result.method)
+
+
+def joint_metrics_document(names: Sequence[str], parts: Sequence[dict], metrics: JointMetrics | None,
+                           bound: JointBound | None, method: str) -> dict:
+    """The ``joint_plan`` document of plan documents ``parts`` (one per name), their joint metrics and bound.
+
+    ``metrics``/``bound`` None (no telescope has a plan): a union of 0 under a bound of 0.
+    """
+    names = list(names)
     observations = sorted(({**o, "telescope": name} for name, part in zip(names, parts) for o in part["observations"]),
                           key=lambda o: (o["start"], names.index(o["telescope"])))
-    b = result.bound
     finite = (lambda v: round(float(v), 6) if v != float("inf") else None)
-    metrics = {**result.metrics.as_dict(names), "upper_bound": round(b.value, 6), "upper_bound_method": b.method,
-               "upper_bound_terms": {"joint": finite(b.joint), "sum_of_telescopes": finite(b.sum_of_telescopes),
-                                     "total": finite(b.total)},
-               "upper_bound_status": b.status, "method": result.method,
-               "n_exposures": {name: len(part["observations"]) for name, part in zip(names, parts)}}
+    out = dict(metrics.as_dict(names) if metrics is not None else {"union": 0.0, "more_than_once": 0.0, "share": {},
+                                                                    "own": {}})
+    if bound is not None:
+        out.update(upper_bound=round(bound.value, 6), upper_bound_method=bound.method,
+                   upper_bound_terms={"joint": finite(bound.joint), "sum_of_telescopes": finite(bound.sum_of_telescopes),
+                                      "total": finite(bound.total)}, upper_bound_status=bound.status)
+    else:
+        out.update(upper_bound=0.0, upper_bound_method="empty", upper_bound_terms={}, upper_bound_status="empty")
+    out.update(method=method, n_exposures={name: len(part["observations"]) for name, part in zip(names, parts)})
     return {"type": "joint_plan", "plan_id": make_plan_id("joint", [part["plan_id"] for part in parts]),
-            "created": iso_utc(plans[0].created) if plans else None,
+            "created": parts[0].get("created") if parts else None,
             "event": parts[0]["event"] if parts else None, "telescopes": names,
             "start": min(part["start"] for part in parts) if parts else None,
             "end": max(part["end"] for part in parts) if parts else None,
-            "observations": observations, "metrics": metrics, "plans": parts}
+            "observations": observations, "metrics": out, "plans": list(parts)}

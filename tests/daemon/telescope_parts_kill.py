@@ -25,8 +25,8 @@ def main(cfg: str) -> None:
 
     real = TelescopeParts._export
 
-    def export(self, store, job, telescope, plan):
-        state = real(self, store, job, telescope, plan)
+    def export(self, store, job, telescope, plan, *args, **kw):
+        state = real(self, store, job, telescope, plan, *args, **kw)
         if telescope.name == "ls4":
             os.kill(os.getpid(), signal.SIGKILL)
         return state

@@ -14,6 +14,8 @@ from typing import Any
 from daemon_helpers import directory_outbox_config, notice_bytes
 
 SID = "MS181101ab"
+#: The shipped telescope descriptions.
+SHIPPED = Path(__file__).resolve().parents[2] / "mushrooms" / "scheduler_core" / "data" / "telescopes"
 
 
 def parts_config(tmp_path: Path, telescopes: list[str]) -> Path:

@@ -110,16 +110,16 @@ def test_a_telescope_that_cannot_observe_gets_no_export_and_the_other_goes_on(tm
 
 
 def test_one_telescopes_failure_does_not_lose_the_others_parts(tmp_path, monkeypatch):
-    from mushrooms.handlers import telescope_plans
+    from mushrooms.scheduler_core import joint_parts
 
-    real = telescope_plans.plan_alone
+    real = joint_parts._part
 
-    def failing(skymap, telescope, *args, **kw):
-        if telescope.name == "ls4":
+    def failing(skymap, problem, *args, **kw):
+        if problem.telescope == "ls4":
             raise RuntimeError("ls4 planner broke (test)")
-        return real(skymap, telescope, *args, **kw)
+        return real(skymap, problem, *args, **kw)
 
-    monkeypatch.setattr(telescope_plans, "plan_alone", failing)
+    monkeypatch.setattr(joint_parts, "_part", failing)
     (out,) = _run(tmp_path, ["ztf", "ls4", "decam"], [notice_bytes(f"{SID}-preliminary.json")])
     assert out.decision == "plan" and _ztf_plans(tmp_path / "outbox")  # ZTF's part published
     folders = part_folders(tmp_path / "outbox")

@@ -255,7 +255,7 @@ class JobPlanner:
         work = _Work(job, skymap, problem, event, plan)
         if self.parts is not None:  # every other telescope's part, before ZTF's revision 1 (a restart redoes the rest)
             stage("the other telescopes' parts")
-            self.parts.export_job(self.store, job, skymap, event, start, lambda: self.was_cancelled(job, should_stop))
+            self._export_parts(work, plan, should_stop, final)
         if job.fallback and any(r["plan_id"] == plan.plan_id and not r["final"]
                                 for r in self.store.job_plans(job.job_id)):
             # revision 1 went out (final: false) before the optimiser died: it stands, and plan_final says so
@@ -342,7 +342,11 @@ class JobPlanner:
             better, why = None, f"the {solver} optimisation failed: {type(exc).__name__}: {exc}"
         decided = supersession(first, better, work.skymap, sched, self.gain)
         if decided.revision == 2:
+            # the other telescopes' parts around revision 2, before it closes the job (a restart redoes the rest)
+            self._export_parts(work, decided.plan, should_stop)
             return self._publish_revision(work, decided.plan, 2, True)
+        self._export_parts(work, first, should_stop)  # revision 1 stands: its parts (nothing to do unless a killed
+        # attempt planned parts around a revision 2 it never published)
         if decided.reason == "below_min_coverage":
             why = f"{solver} covered {better.metrics.coverage:.4f}: still below min_coverage {sched.min_coverage:g}"
         elif decided.reason == "not_better":
@@ -351,6 +355,24 @@ class JobPlanner:
             why = first_plan_stands(solver, better, first, self.gain, sched.objective,
                                     sched.detection_max_coverage_loss)
         return self._close_with_first(work, why)
+
+    def _export_parts(self, work: _Work, plan: Any, should_stop: StopCheck | None, final: bool = True) -> None:
+        """The other telescopes' parts planned around ZTF's revision ``plan`` (none for ZTF alone).
+
+        ``final``: ``plan`` is the job's last revision.  Their failure never
+        costs ZTF's revision: logged, and the job goes on.
+        """
+        if self.parts is None or work.problem is None:
+            return
+        from ...scheduler_core.plan.document import parse_time
+
+        job = work.job
+        try:
+            self.parts.export_job(self.store, job, work.skymap, work.event, parse_time(job.start),
+                                  (plan, work.problem), lambda: self.was_cancelled(job, should_stop), final)
+        except Exception:
+            log.exception("job superevent_id=%s job=%s: the other telescopes' parts failed", job.superevent_id,
+                          job.job_id)
 
     # ------------------------------------------------------------ store + outbox
     def publish_final(self, job: Job, skymap: Any, event: Any, plan: Any, revision: int) -> Outcome:

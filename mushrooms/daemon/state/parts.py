@@ -6,9 +6,12 @@ outbox folder ``folder``), ``not_observable`` (recorded, nothing exported) or
 ``failed`` (``detail`` says why); later ``superseded`` (a newer map's job
 exported its parts) or ``withdrawn`` (the event was retracted).  ZTF's part is
 the job's revisions (the ``plans`` table, the outbox, the submissions) as
-without this table.  A ZTF-only configuration never writes a row; a state file
-of an earlier version gets the (empty) table at its next open
-(:data:`~mushrooms.daemon.state.schema.UPGRADES`).
+without this table.  ``round`` is the job's n-th ZTF revision the part was
+planned around and ``held`` which (its key): a later revision's part of the
+same telescope replaces the row (the job keeps its latest part per telescope;
+the earlier one's folder is marked ``SUPERSEDED``).  A ZTF-only configuration
+never writes a row; a state file of an earlier version gets the (empty) table,
+or the two columns, at its next open (:data:`~mushrooms.daemon.state.schema.UPGRADES`).
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from typing import Any
 
 from .records import now_iso
 
-__all__ = ["PARTS_TABLE", "PART_STATES", "record_part", "parts_of_job", "event_parts", "mark_parts"]
+__all__ = ["PARTS_TABLE", "ROUND_COLUMNS", "PART_STATES", "record_part", "parts_of_job", "event_parts", "mark_parts"]
 
 PARTS_TABLE = """
 CREATE TABLE IF NOT EXISTS telescope_parts (
@@ -31,6 +34,8 @@ CREATE TABLE IF NOT EXISTS telescope_parts (
     detail        TEXT,
     created_at    TEXT NOT NULL,
     updated_at    TEXT NOT NULL,
+    round         INTEGER NOT NULL DEFAULT 1,
+    held          TEXT,
     PRIMARY KEY (job_id, telescope)
 );
 CREATE INDEX IF NOT EXISTS telescope_parts_event ON telescope_parts(superevent_id, state);
@@ -39,17 +44,29 @@ CREATE INDEX IF NOT EXISTS telescope_parts_event ON telescope_parts(superevent_i
 #: What a part can be.
 PART_STATES = ("exported", "not_observable", "failed", "superseded", "withdrawn")
 
-_COLUMNS = "job_id, telescope, superevent_id, queue, state, plan_id, folder, detail, created_at, updated_at"
+_COLUMNS = ("job_id, telescope, superevent_id, queue, state, plan_id, folder, detail, created_at, updated_at,"
+            " round, held")
+#: ``round``: the job's n-th ZTF revision the part was planned around; ``held``: which (its key).
+ROUND_COLUMNS = (("telescope_parts", "round", "INTEGER NOT NULL DEFAULT 1"), ("telescope_parts", "held", "TEXT"))
 
 
 def record_part(store: Any, job_id: int, telescope: str, superevent_id: str, queue: str, state: str,
-                plan_id: str | None, folder: str | None, detail: str = "") -> bool:
-    """Record a job's part once; False when the job already has that telescope's part (kept as it is)."""
+                plan_id: str | None, folder: str | None, detail: str = "", round_: int = 1,
+                held: str | None = None) -> bool:
+    """Record a job's part; False when the job already has that telescope's part of the same round (kept as it is).
+
+    A part of another round (planned around another ZTF revision: ``held``
+    differs) is replaced: the job keeps one row per telescope, its latest.
+    """
     now = now_iso()
     with store.transaction() as c:
-        cur = c.execute(f"INSERT INTO telescope_parts({_COLUMNS}) VALUES (?,?,?,?,?,?,?,?,?,?)"
-                        " ON CONFLICT(job_id, telescope) DO NOTHING",
-                        (int(job_id), telescope, superevent_id, queue, state, plan_id, folder, detail[:500], now, now))
+        cur = c.execute(f"INSERT INTO telescope_parts({_COLUMNS}) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)"
+                        " ON CONFLICT(job_id, telescope) DO UPDATE SET state=excluded.state, queue=excluded.queue,"
+                        " plan_id=excluded.plan_id, folder=excluded.folder, detail=excluded.detail,"
+                        " updated_at=excluded.updated_at, round=excluded.round, held=excluded.held"
+                        " WHERE telescope_parts.held IS NOT excluded.held",
+                        (int(job_id), telescope, superevent_id, queue, state, plan_id, folder, detail[:500], now, now,
+                         int(round_), held))
         return cur.rowcount == 1
 
 

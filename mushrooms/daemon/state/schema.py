@@ -12,7 +12,7 @@ import sqlite3
 
 from .executed import EXECUTED_TABLE
 from .part_requests import PART_REQUESTS_TABLE
-from .parts import PARTS_TABLE
+from .parts import PARTS_TABLE, ROUND_COLUMNS
 
 __all__ = ["SCHEMA_VERSION", "SCHEMA", "UPGRADES", "missing_steps"]
 
@@ -141,6 +141,8 @@ UPGRADES: tuple[tuple[int, str | tuple[str, str, str]], ...] = (
     (6, PARTS_TABLE),  # version kept: a table only, which an older program ignores (and reads the file)
     # the parts sent to SkyPortal ([submit_parts]; :mod:`~mushrooms.daemon.state.part_requests`), version kept likewise
     (6, PART_REQUESTS_TABLE),
+    # a part's round (the job's ZTF revision it was planned around) and which revision (its key); issue 53 J9
+    (6, ROUND_COLUMNS[0]), (6, ROUND_COLUMNS[1]),  # columns with defaults: an older program's rows still insert
 )
 
 

@@ -38,7 +38,7 @@ from ..milp.rows import Columns, RowBuilder
 from ..milp.solvers import MilpModel, solve_milp
 from .cells import joint_cells, telescope_names
 
-__all__ = ["JointBound", "joint_upper_bound"]
+__all__ = ["JointBound", "joint_upper_bound", "quick_joint_bound"]
 
 
 @dataclass(frozen=True)
@@ -202,3 +202,24 @@ def joint_upper_bound(problems: Sequence[PlanningProblem], weight: np.ndarray | 
     joint = best + margin
     value = min(joint, total_u4, total)  # (J8)
     return JointBound(value, joint, total_u4, total, status, u4, margin)
+
+
+def quick_joint_bound(problems: Sequence[PlanningProblem], weight: np.ndarray | None = None) -> JointBound:
+    """(J8) without J7: ``min(Σ_τ U4_τ, total)``, no cells, no solve (the service's parts, J9).
+
+    ``total`` is the weight of the pixels any telescope's pairable (one-visit:
+    observable) fields cover, plus the rounding margin: the same term as
+    :func:`joint_upper_bound`'s, from the footprints' union instead of the
+    cells.  Certified like it; looser only by B_joint.
+    """
+    from .cells import covered_pixels
+
+    w = problems[0].prob if weight is None else np.asarray(weight, float)
+    parts = [_Part(p) for p in problems]
+    u4 = tuple(part.own_bound(p) for p, part in zip(problems, parts))
+    mask = np.zeros(w.size, bool)
+    for p, part in zip(problems, parts):
+        mask[covered_pixels(p, p.field_ids[part.rows])] = True
+    total = float(w[mask].sum()) + ROUNDING_MARGIN
+    total_u4 = float(sum(b.value for b in u4))
+    return JointBound(min(total_u4, total), math.inf, total_u4, total, "not_solved", u4, 0.0)
