@@ -334,7 +334,8 @@ LIBRARY_GROUPS = {
     # the planning problem, a scheduler's result, and which of two results is preferred
     **dict.fromkeys(("problem", "preference"), "problem"),
     # sky map in, checked plan out: prepare, run the schedulers, re-plan, the nights, the anytime revisions
-    **dict.fromkeys(("planner", "prepare", "replan", "nights", "anytime", "clock", "joint_plans"), "planning"),
+    **dict.fromkeys(("planner", "prepare", "replan", "nights", "anytime", "clock", "joint_plans", "joint_parts"),
+                    "planning"),
 }
 SCHEDULERS = "mushrooms.scheduler_core.schedulers"
 #: The top-level modules of ``schedulers``: what every method or the planner shares.

@@ -16,6 +16,7 @@ from .config_checks import MAX_TIME_STEPS  # noqa: F401  (the checks' limit, sti
 from .config_checks import (MAX_SEQUENCE, ZTF_FILTERS, filter_sequence_problems, grid_problems, scheduler_problems,
                             stage_problems, telescope_problems)
 from .instruments.names import DEFAULT_TELESCOPES
+from .instruments.reference import ZTF_THRESHOLDS
 from .ranges import require_finite, setting
 from .solvers_registry import SOLVER_NAMES  # scheduler names (``milp`` = ``blocks``): the registry's
 from .tables import dataclass_from_table
@@ -352,8 +353,8 @@ class PlanningConfig:
     threads: int = setting(0, 0, 256, why="0: the solver decides")
     max_retries: int = setting(3, 0, 20)
     slew: SlewModel = field(default_factory=SlewModel)
-    min_gain: float = setting(0.001, 0, 1, hi_open=True, why="probability")
-    min_coverage: float = setting(0.01, 0, 1, hi_open=True, why="probability")
+    min_gain: float = setting(ZTF_THRESHOLDS["min_gain"], 0, 1, hi_open=True, why="probability")
+    min_coverage: float = setting(ZTF_THRESHOLDS["min_coverage"], 0, 1, hi_open=True, why="probability")
     slot_positions: tuple[int, ...] = setting((6, 7, 5, 8), 1, 50, why="each element")
     slot_margin_s: float = setting(30.0, 0, 600, "s")
     detection_lightcurve: str = "conservative"

@@ -9,13 +9,11 @@ See ``docs/design/submission.md``, "Telescope parts to SkyPortal".
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping
-from urllib.parse import urlsplit
 
-from ...handlers.secret_text import refuse_url_credentials
 from ...scheduler_core.tables import dataclass_from_table
+from .http_settings import check_base_url, check_seconds
 
 __all__ = ["PartSubmitConfig"]
 
@@ -58,19 +56,10 @@ class PartSubmitConfig:
 
     def __post_init__(self) -> None:
         if self.enabled:
-            parts = urlsplit(self.url)
-            if parts.scheme not in ("http", "https") or not parts.netloc:
-                raise ValueError(f"[submit_parts] url must be an http(s) URL when enabled, got {self.url!r}")
-            refuse_url_credentials(self.url, "[submit_parts] url", "the token comes from "
-                                   "MUSHROOMS_SKYPORTAL_TOKEN or the systemd credential skyportal_token")
-        for name, low, high in (("timeout_s", 0.1, 600.0), ("retry_initial_s", 0.01, 86400.0),
-                                ("retry_max_s", 0.01, 86400.0)):
-            value = float(getattr(self, name))
-            if not (math.isfinite(value) and low <= value <= high):
-                raise ValueError(f"[submit_parts] {name} must be a finite number in [{low:g}, {high:g}] s, "
-                                 f"got {value!r}")
-        if self.retry_max_s < self.retry_initial_s:
-            raise ValueError("[submit_parts] retry_max_s must be >= retry_initial_s")
+            check_base_url(self.url, "[submit_parts]", "when enabled",
+                           "MUSHROOMS_SKYPORTAL_TOKEN or the systemd credential skyportal_token")
+        check_seconds(self, "[submit_parts]", (("timeout_s", 0.1, 600.0), ("retry_initial_s", 0.01, 86400.0),
+                                              ("retry_max_s", 0.01, 86400.0)))
         bad = {k: v for k, v in dict(self.allocations).items()
                if not isinstance(k, str) or isinstance(v, bool) or not isinstance(v, int) or not 0 < v < 2**63}
         if bad:

@@ -11,10 +11,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from typing import Any, Mapping
-from urllib.parse import urlsplit
 
-from ...handlers.secret_text import refuse_url_credentials
 from ...scheduler_core.tables import dataclass_from_table
+from .http_settings import check_base_url, check_seconds
 
 __all__ = ["SubmitConfig", "SUBMIT_TARGETS"]
 
@@ -71,18 +70,10 @@ class SubmitConfig:
         if self.target not in SUBMIT_TARGETS:
             raise ValueError(f"[submit] target must be one of {', '.join(SUBMIT_TARGETS)}, got {self.target!r}")
         if self.target != "none":
-            parts = urlsplit(self.url)
-            if parts.scheme not in ("http", "https") or not parts.netloc:
-                raise ValueError(f"[submit] url must be an http(s) URL for target {self.target!r}, got {self.url!r}")
-            refuse_url_credentials(self.url, "[submit] url", "the token comes from "
-                                   "MUSHROOMS_SUBMIT_TOKEN or the systemd credential submit_token")
-        for name, low, high in (("timeout_s", 0.1, 600.0), ("retry_initial_s", 0.01, 86400.0),
-                                ("retry_max_s", 0.01, 86400.0), ("max_pending_s", 1.0, 86400.0)):
-            value = float(getattr(self, name))
-            if not (math.isfinite(value) and low <= value <= high):
-                raise ValueError(f"[submit] {name} must be a finite number in [{low:g}, {high:g}] s, got {value!r}")
-        if self.retry_max_s < self.retry_initial_s:
-            raise ValueError("[submit] retry_max_s must be >= retry_initial_s")
+            check_base_url(self.url, "[submit]", f"for target {self.target!r}",
+                           "MUSHROOMS_SUBMIT_TOKEN or the systemd credential submit_token")
+        check_seconds(self, "[submit]", (("timeout_s", 0.1, 600.0), ("retry_initial_s", 0.01, 86400.0),
+                                         ("retry_max_s", 0.01, 86400.0), ("max_pending_s", 1.0, 86400.0)))
         if not (math.isfinite(float(self.min_coverage)) and 0.0 <= self.min_coverage <= 1.0):
             raise ValueError(f"[submit] min_coverage must be in [0, 1], got {self.min_coverage!r}")
         if not 0 <= int(self.max_exposures) <= 100_000:

@@ -8,12 +8,12 @@ For ZTF they equal :class:`~..config.PlanningConfig`'s defaults
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 from typing import Any
 
 from .description import TelescopeDescription
 from .names import shipped_telescopes
+from .reference import ZTF_THRESHOLDS
 
 __all__ = ["planning_defaults", "planning_filters", "telescope_entry", "covering_area_deg2", "threshold_scale",
            "scaled_thresholds"]
@@ -83,11 +83,8 @@ def scaled_thresholds(telescope: TelescopeDescription) -> dict[str, float]:
     2.1e-05 and 0.00021).  For ZTF the ratio is 1.0 and the values are
     ``PlanningConfig``'s defaults exactly.
     """
-    from ..config import PlanningConfig
-
     scale = threshold_scale(telescope)
-    ztf = {f.name: f.default for f in dataclasses.fields(PlanningConfig) if f.name in ("min_gain", "min_coverage")}
-    return {key: float(f"{value * scale:.3g}") for key, value in ztf.items()}
+    return {key: float(f"{value * scale:.3g}") for key, value in ZTF_THRESHOLDS.items()}
 
 
 def planning_defaults(telescope: TelescopeDescription) -> dict[str, Any]:
