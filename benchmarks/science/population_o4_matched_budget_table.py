@@ -56,17 +56,42 @@ def table(records: list[dict], capped: list[dict], draws: int = 2000, seed: int 
     return lines
 
 
+#: What the section is, said above its table.
+NOTE = (
+    "The row the matched-time stand-ins above could not give: the service PLANNED under gwemopt-o4's budget, "
+    "`[scheduler] max_open_shutter_s` = gwemopt-o4's open-shutter seconds executed (queue set, the study's "
+    "executor) on each event; the planner then chooses its fields for that budget (greedy stops before the field "
+    "whose visits would pass it, the slot MILPs and the detection stage carry it as S4, docs/design/milp.md). "
+    "Planned by the CURRENT code ({commits}), not the frozen af0ff7d: the cap did not exist there; gwemopt-o4's "
+    "values are the frozen records'. Same study configuration, deterministic budget, same executor and pair rule "
+    "(the light scorer of population_o4_replan.py: no detection columns). An event where gwemopt-o4 executes "
+    "nothing gets no plan (0, a tie). PARTIAL: {n} events of the 50-event snapshot (the release needs >= 250); "
+    "quote none of these numbers as the release's. `benchmarks/science/population_o4_matched_budget.py`, "
+    "`results/science/population_o4/matched_budget/`.")
+
+
+def section(records_path: Path, rows_path: Path, draws: int = 2000, seed: int = 0) -> list[str]:
+    """The Markdown section (heading, note, table, cap check) from the two files."""
+    records = [json.loads(line) for line in gzip.open(records_path, "rt")]
+    capped = [json.loads(line) for line in gzip.open(rows_path, "rt")]
+    over = [c for c in capped if c["planned"] and num(c["cells"]["open_shutter_s"]) > c["cap_s"] + 1e-6]
+    commits = sorted({c.get("commit") or "" for c in capped if c["planned"]} - {""})
+    n = len({c["map"] for c in capped})
+    return (["## Under gwemopt-o4's budget, planned (PARTIAL)", "",
+             NOTE.format(commits=", ".join(f"`{c[:12]}`" for c in commits) or "-", n=n), ""]
+            + table(records, capped, draws, seed)
+            + ["", f"Plans over their cap: {len(over)} of {sum(c['planned'] for c in capped)} planned "
+                   f"({sum(not c['planned'] for c in capped)} (event, row) with no gwemopt-o4 open shutter: no plan, "
+                   "0). Intervals: bootstrap over events, {draws} resamples, seed {seed}; better/worse/tied beyond "
+                   f"{TIE:g}.".replace("{draws}", str(draws)).replace("{seed}", str(seed))])
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--records", type=Path, required=True)
     ap.add_argument("--rows", type=Path, required=True)
     args = ap.parse_args()
-    records = [json.loads(line) for line in gzip.open(args.records, "rt")]
-    capped = [json.loads(line) for line in gzip.open(args.rows, "rt")]
-    over = [c for c in capped if c["planned"] and num(c["cells"]["open_shutter_s"]) > c["cap_s"] + 1e-6]
-    print("\n".join(table(records, capped)))
-    print(f"\nPlans over their cap: {len(over)} of {sum(c['planned'] for c in capped)} planned "
-          f"({sum(not c['planned'] for c in capped)} events with no gwemopt-o4 open shutter: no plan, 0).")
+    print("\n".join(section(args.records, args.rows)))
     return 0
 
 
