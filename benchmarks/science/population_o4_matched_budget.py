@@ -68,7 +68,7 @@ def main() -> int:
     per_map.score_plan = light_scorer(captured)
     skip_scoring_inputs()
     rows = [r for r in args.rows.split(",") if r]
-    todo = [(m, row) for m in cap_of for row in rows if (m, row) not in done]
+    todo = [(m, row) for m in cap_of for row in rows if (m, f"{row}-capped") not in done]
     print(f"{len(todo)} (event, row) to plan ({len(done)} done); budget = gwemopt-o4's {args.budget} open shutter",
           file=sys.stderr)
     for k, (name, row) in enumerate(todo):
