@@ -40,7 +40,7 @@ def main() -> int:
                     "adds the matched-time section")
     ap.add_argument("--rows", default=",".join(RELEASE_ROWS),
                     help="row names every tabulated event must have (default %(default)s; '' : those in the CSV)")
-    ap.add_argument("--matched-budget", type=Path, help="rows planned under gwemopt-o4's budget "
+    ap.add_argument("--matched-budget", type=Path, nargs="+", help="rows planned under gwemopt-o4's budget "
                     "(matched_budget/service_capped.jsonl.gz): adds their section; needs --records")
     ap.add_argument("--records", type=Path, help="the study's records (study/results.jsonl.gz)")
     args = ap.parse_args()
@@ -55,7 +55,7 @@ def main() -> int:
     text = release_tables(read_population_csv(args.csv), draws=args.draws, seed=args.seed, expected=expected,
                           curves=curves, failed=failed)
     if args.matched_budget:
-        from population_o4_matched_budget_table import section
+        from mushrooms.evaluation.study.matched_budget import section
 
         text += "\n" + "\n".join(section(args.records, args.matched_budget, args.draws, args.seed)) + "\n"
     if args.out:
