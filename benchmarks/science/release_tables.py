@@ -12,10 +12,11 @@ executes nothing on; the same by class, distance and area. An event without a ro
 warning at the top.
 
 With ``--curves`` (``study/executed_curves.jsonl.gz``) the matched-time section too: our rows at gwemopt's
-open-shutter time, per event.
+open-shutter time, per event. With ``--matched-budget ROWS.jsonl.gz --records RESULTS.jsonl.gz`` the section of the
+rows planned under gwemopt-o4's budget (``population_o4_matched_budget.py``), appended at the end.
 
     .venv/bin/python benchmarks/science/release_tables.py CSV [-o TABLES.md] [--draws 2000] [--seed 0] [--rows A,B]
-        [--curves CURVES.jsonl.gz]
+        [--curves CURVES.jsonl.gz] [--matched-budget ROWS.jsonl.gz --records RESULTS.jsonl.gz]
 """
 
 from __future__ import annotations
@@ -39,7 +40,13 @@ def main() -> int:
                     "adds the matched-time section")
     ap.add_argument("--rows", default=",".join(RELEASE_ROWS),
                     help="row names every tabulated event must have (default %(default)s; '' : those in the CSV)")
+    ap.add_argument("--matched-budget", type=Path, nargs="+", help="rows planned under gwemopt-o4's budget "
+                    "(matched_budget/service_capped.jsonl.gz): adds their section; needs --records")
+    ap.add_argument("--records", type=Path, help="the study's records (study/results.jsonl.gz)")
     args = ap.parse_args()
+    if args.matched_budget and not args.records:
+        print("--matched-budget needs --records", file=sys.stderr)
+        return 2
     if not args.csv.is_file():
         print(f"{args.csv}: no such file", file=sys.stderr)
         return 2
@@ -47,6 +54,10 @@ def main() -> int:
     curves, failed = read_curves(args.curves) if args.curves else (None, ())
     text = release_tables(read_population_csv(args.csv), draws=args.draws, seed=args.seed, expected=expected,
                           curves=curves, failed=failed)
+    if args.matched_budget:
+        from mushrooms.evaluation.study.matched_budget import section
+
+        text += "\n" + "\n".join(section(args.records, args.matched_budget, args.draws, args.seed)) + "\n"
     if args.out:
         args.out.write_text(text)
     else:

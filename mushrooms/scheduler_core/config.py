@@ -69,7 +69,7 @@ class SlewModel:
 #: Keys a plan records only when set (non-empty, true): added after plan ids existed, they leave the
 #: document and the plan id of a configuration without them as they were (:meth:`PlanningConfig.record`).
 RECORDED_WHEN_SET = ("exposure_menu_s", "revisit", "bound_refine_ends", "pair_max_s", "hybrid_blocks",
-                     "hybrid_paced_slots", "deterministic")
+                     "hybrid_paced_slots", "deterministic", "max_open_shutter_s")
 #: Keys a plan records only when false (switches that are on by default and were always on before they existed).
 RECORDED_WHEN_CLEARED = ("hybrid_lns",)
 #: (P10) A pair's largest separation when ``pair_max_s = 0``: one night (12 h: longer than any night at
@@ -150,6 +150,11 @@ class PlanningConfig:
         real order is known.
     n_fields : int or None
         Shortlist size after pruning; None sizes it from the horizon.
+    max_open_shutter_s : float or None
+        Open-shutter (telescope-time) budget (s): the plan's exposures sum
+        to at most this (greedy stops before the field whose visits exceed
+        it; the slot MILPs carry equation S4 of ``docs/design/milp.md``);
+        None (default): no cap, the plans of before the key existed.
     n_blocks_max : int
         Most observing blocks in the MILP (b_max).
     min_block_size : int
@@ -370,6 +375,8 @@ class PlanningConfig:
     hybrid_paced_slots: bool = True
     hybrid_lns: bool = True
     deterministic: bool = True
+    max_open_shutter_s: float | None = setting(None, 1, 604800, "s",
+                                               why="unset: no cap; at least one exposure, at most a week of exposures")
     telescopes: tuple[str, ...] = DEFAULT_TELESCOPES
 
     def __post_init__(self) -> None:

@@ -127,6 +127,12 @@ def scheduler_problems(cfg: Any) -> list[str]:
         problems.append(f"min_block_size must be >= 0, got {cfg.min_block_size}")
     if cfg.n_blocks_max < 1:
         problems.append(f"n_blocks_max must be >= 1, got {cfg.n_blocks_max}")
+    cap = getattr(cfg, "max_open_shutter_s", None)
+    if cap is not None and not (isinstance(cap, (int, float)) and not isinstance(cap, bool) and 1.0 <= cap <= 604800.0):
+        problems.append(f"max_open_shutter_s must be in [1, 604800] s or unset, got {cap!r}")
+    elif cap is not None and cfg.solver in ("blocks", "milp"):
+        problems.append(f"max_open_shutter_s needs solver greedy, slots or hybrid (the block MILP holds no S4), "
+                        f"got solver = {cfg.solver!r}")
     for name in ("min_gain", "min_coverage"):
         if not 0.0 <= getattr(cfg, name) < 1.0:
             problems.append(f"{name} must be in [0, 1), got {getattr(cfg, name)}")

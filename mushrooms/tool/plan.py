@@ -227,6 +227,9 @@ def _checked_arguments(args: argparse.Namespace, config: Any) -> tuple[dict[str,
     fraction = getattr(args, "min_processed_fraction", None)
     if executed_spec is None and fraction is not None:
         raise InputError("--min-processed-fraction needs --executed")
+    if cfg.max_open_shutter_s is not None and args.solver in ("blocks", "milp"):
+        raise InputError(f"--solver {args.solver}: the block MILP holds no open-shutter cap (S4); "
+                         "[scheduler] max_open_shutter_s needs greedy, slots or hybrid")
     if deadline is not None and cfg.nights > 1:
         raise InputError(f"--deadline plans one night; [scheduler] nights is {cfg.nights}")
     if executed_spec is not None:

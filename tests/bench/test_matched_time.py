@@ -116,6 +116,11 @@ def test_the_release_tables_carry_the_matched_time_table_built_from_the_committe
     rows = read_population_csv(RELEASE / "results.csv")
     curves, failed = read_curves(curves_file)
     text = release_tables(rows, expected=RELEASE_ROWS, curves=curves, failed=failed)
+    budget = sorted((RELEASE / "matched_budget").glob("*_capped.jsonl.gz"))  # rows planned under gwemopt-o4's budget
+    if budget:
+        from mushrooms.evaluation.study.matched_budget import section
+
+        text += "\n" + "\n".join(section(RELEASE / "study" / "results.jsonl.gz", budget)) + "\n"
     assert text == (RELEASE / "release_tables.md").read_text(), "release_tables.md is not rebuilt from the snapshot"
     lines = text.splitlines()
     columns = next(ln for ln in lines if ln.startswith("| row | events | planned (pair rule)"))
@@ -136,3 +141,24 @@ def test_the_release_tables_carry_the_matched_time_table_built_from_the_committe
         assert c["prefix"][-1, 1] == pytest.approx(r["coverage_executed"], abs=1e-6), (event, solver)
         assert c["subset"][-1, 1] == pytest.approx(r["coverage_executed"], abs=1e-6), (event, solver)
         assert c["subset"][-1, 0] <= c["prefix"][-1, 0] + 0.05  # unpaired visits left out
+
+
+def test_the_row_planned_under_gwemopt_s_budget_is_tabulated_partial_and_within_its_caps():
+    """matched_budget/ (issue 55): the service planned with max_open_shutter_s = gwemopt-o4's executed open
+    shutter on each event: no plan over its cap, the section says PARTIAL and which code planned it."""
+    import gzip
+    import json
+
+    from mushrooms.evaluation.study.matched_budget import section
+
+    budget = sorted((RELEASE / "matched_budget").glob("*_capped.jsonl.gz"))
+    capped = [json.loads(line) for path in budget for line in gzip.open(path, "rt")]
+    records = [json.loads(line) for line in gzip.open(RELEASE / "study" / "results.jsonl.gz", "rt")]
+    gw = {r["map"]: float(r["row"]["open_shutter_executed_s"] or 0) for r in records if r["solver"] == "gwemopt-o4"}
+    assert capped and all(c["cap_s"] == gw[c["map"]] for c in capped)
+    for c in capped:
+        spent = sum(o["exposure_s"] for o in c["plan"]["observations"]) if c["planned"] else 0.0
+        assert spent <= c["cap_s"] + 1e-6 and float(c["cells"]["open_shutter_s"] or 0) <= c["cap_s"] + 1e-6
+    text = "\n".join(section(RELEASE / "study" / "results.jsonl.gz", budget))
+    assert "PARTIAL" in text and "CURRENT code" in text and "Plans over their cap: 0 of " in text
+    assert "| service-capped − gwemopt-o4 | " in text

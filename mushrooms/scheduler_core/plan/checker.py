@@ -161,6 +161,10 @@ def check_plan(plan: Plan, skymap: SkyMap, config: PlanningConfig = PlanningConf
     if not obs:
         return CheckReport(not p.lines, tuple(p.lines), coverage, reported, p.counts)
 
+    cap = config.max_open_shutter_s
+    open_s = sum(float(o.exposure_s) for o in obs)
+    if cap is not None and open_s > cap + 1e-6:  # (S4) the open-shutter budget
+        p.add("open shutter", f"{open_s:.0f} s of exposures pass max_open_shutter_s = {cap:g} s")
     x = _Exposures.of(obs)
     _check_fields(p, x, config)
     _check_sequence(p, x, horizon, config, plan.start)

@@ -157,6 +157,8 @@ def greedy_schedule(problem: PlanningProblem, should_stop: StopCheck | None = No
         if should_stop is not None and should_stop():
             status = "interrupted"
             break
+        if not state.affords(1):  # (S4) the next field's visits would pass the open-shutter cap
+            break
         saved = state.uncovered.copy()
         batch, g = state.fill_batch()
         if not batch:
@@ -205,6 +207,13 @@ class _Greedy:
         self.free_at = 0.0
         self.previous: tuple[float, float, str] | None = None
         self.block = 0
+        self.cap = cfg.max_open_shutter_s  # (S4) open-shutter budget (s); None: no cap
+        self.field_s = len(cfg.filters) * self.exp  # open shutter of one field's sequence (s)
+        self.spent_s = 0.0  # open shutter of the exposures committed (s)
+
+    def affords(self, n_fields: int) -> bool:
+        """(S4) Do ``n_fields`` more fields' sequences stay within the open-shutter cap?"""
+        return self.cap is None or self.spent_s + n_fields * self.field_s <= self.cap + 1e-6
 
     def gains(self) -> np.ndarray:
         """Uncovered probability in each field's footprint."""
@@ -222,7 +231,7 @@ class _Greedy:
         t = self.free_at
         prev = self.previous
         g = self.gains()
-        while True:
+        while self.affords(len(batch) + 1):
             if prev is None:
                 oh = np.zeros(n)
             else:
@@ -343,6 +352,7 @@ class _Greedy:
                 self.observations.append(Observation(fid, ra, dec, band, float(t), exp, self.block))
                 if t > last[0]:
                     last = (float(t), k, band)
+        self.spent_s += float(np.sum(lengths[:len(batch)])) * exp  # (S4) the visits taken (F10 may cut some)
         self.free_at = last[0] + exp
         self.previous = (float(problem.ra[last[1]]), float(problem.dec[last[1]]), last[2])
         self.block += 1

@@ -278,7 +278,7 @@ class Portfolio:
                 if left < stage.min_left_s or stopped:
                     continue
             t_stage = time.perf_counter()
-            ran[stage.name] = stage.run(problem, should_stop, ran, left)
+            ran[stage.name] = within_cap(problem, stage.run(problem, should_stop, ran, left))
             covs[stage.name] = published_coverage(problem, ran[stage.name])
             times[stage.name] = round(time.perf_counter() - t_stage, 3)
             if self.bound is not None and upper is None:
@@ -300,6 +300,21 @@ class Portfolio:
         return dataclasses.replace(best, solver=f"{self.label}({best.solver})", runtime_s=time.perf_counter() - t0,
                                    portfolio=entries, portfolio_choice=name, details=details,
                                    upper_bound=upper if upper is not None else best.upper_bound)
+
+
+def within_cap(problem: PlanningProblem, result: ScheduleResult) -> ScheduleResult:
+    """(S4) ``result``, or, when its exposures pass ``max_open_shutter_s``, no plan (status ``<status>_over_cap``).
+
+    A stage whose model holds no S4 row (the LNS's continuous model, the
+    block MILP) is kept only when its plan stays within the cap; the
+    greedy and slot stages never pass it.
+    """
+    cap = problem.config.max_open_shutter_s
+    if cap is None or sum(o.exposure_s for o in result.observations) <= cap + 1e-6:
+        return result
+    log.info("%s: its plan's %.0f s of open shutter pass the cap of %.0f s: not a candidate", result.solver,
+             sum(o.exposure_s for o in result.observations), cap)
+    return dataclasses.replace(result, observations=(), status=f"{result.status}_over_cap")
 
 
 def choose_as_executed(problem: PlanningProblem, ran: dict[str, ScheduleResult], covs: dict[str, float]

@@ -107,7 +107,8 @@ def menu_instance(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid, ce
         parts.append((f[ok], slot[ok], w1[ok], w2[ok], np.full(int(ok.sum()), float(e)), np.full(int(ok.sum()), n_m)))
     cols = [np.concatenate([p[i] for p in parts]) for i in range(6)]
     return SlotInstance(np.asarray(rows, np.int64), grid, cells, cols[0].astype(np.int64), cols[1].astype(np.int64),
-                        cols[2].astype(np.int64), cols[3].astype(np.int64), cols[4], cols[5].astype(np.int64))
+                        cols[2].astype(np.int64), cols[3].astype(np.int64), cols[4], cols[5].astype(np.int64),
+                        open_shutter_cap_s=cfg.max_open_shutter_s, exposure_s=cfg.exposure_s)
 
 
 def dominated_pairs(inst: SlotInstance, level: np.ndarray) -> np.ndarray:

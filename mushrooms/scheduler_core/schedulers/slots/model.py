@@ -144,6 +144,12 @@ class SlotInstance:
     pair_window_later : numpy.ndarray or None
         (K, k - 2) windows holding the exposures of the passes after the
         second (G1); None for the pair.
+    open_shutter_cap_s : float or None
+        (S4) most open-shutter time (s) of the chosen pairs' exposures
+        (``[scheduler] max_open_shutter_s``); None: no cap, no S4 row.
+    exposure_s : float
+        Exposure (s) of a pair without ``pair_exposure`` (the grid's own),
+        counted by S4.
     """
 
     rows: np.ndarray
@@ -156,6 +162,8 @@ class SlotInstance:
     pair_exposure: np.ndarray | None = None
     pair_span: np.ndarray | None = None
     pair_window_later: np.ndarray | None = None
+    open_shutter_cap_s: float | None = None
+    exposure_s: float = 0.0
 
     def windows(self) -> np.ndarray:
         """(K, k) the window (index into ``problem.windows``) holding each pass's exposure of every pair."""
@@ -173,7 +181,8 @@ class SlotInstance:
         pick = (lambda a: None if a is None else np.asarray(a)[keep])
         return SlotInstance(self.rows, self.grid, self.cells, self.pair_field[keep], self.pair_slot[keep],
                             self.pair_window1[keep], self.pair_window2[keep], pick(self.pair_exposure),
-                            pick(self.pair_span), pick(self.pair_window_later))
+                            pick(self.pair_span), pick(self.pair_window_later), self.open_shutter_cap_s,
+                            self.exposure_s)
 
     @property
     def n_fields(self) -> int:
@@ -215,7 +224,9 @@ def slot_instance(problem: PlanningProblem, rows: np.ndarray, grid: SlotGrid,
         cells = merge_cells(shortlist_footprints(problem.footprints, rows), weight)
     f, slot, win = eligible_visits(problem, rows, grid)
     later = win[:, 2:] if win.shape[1] > 2 else None
-    return SlotInstance(rows, grid, cells, f, slot, win[:, 0], win[:, 1], pair_window_later=later)
+    cfg = problem.config
+    return SlotInstance(rows, grid, cells, f, slot, win[:, 0], win[:, 1], pair_window_later=later,
+                        open_shutter_cap_s=cfg.max_open_shutter_s, exposure_s=cfg.exposure_s)
 
 
 @dataclass(frozen=True)
@@ -301,6 +312,11 @@ def slot_model_rows(rows: RowBuilder, instance: SlotInstance, x: Family, z: Fami
     # (S2) each field at most once: z_f - Σ_{k ∋ f} x_k = 0  (z_f <= 1 is its bound)
     rows.block("S2 each field at most once", F,
                [(np.arange(F), z[np.arange(F)], 1.0), (instance.pair_field, x[k], -1.0)], 0.0, 0.0)
+    if instance.open_shutter_cap_s is not None:
+        # (S4) open-shutter cap: Σ_k k_p e_k x_k <= T_open (every pass of a chosen pair exposes e_k)
+        seconds = len(instance.grid.pass_starts) * instance.exposures(instance.exposure_s)
+        rows.block("S4 open-shutter cap", 1, [(np.zeros(K, np.int64), x[k], seconds)], -np.inf,
+                   float(instance.open_shutter_cap_s))
     if not cover:
         return
     # (S3) cell coverage: y_c - Σ_{f ∋ c} z_f <= 0
