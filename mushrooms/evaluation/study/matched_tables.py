@@ -173,8 +173,8 @@ MATCHED_NOTE = (
     "both the same shutter time and counts in neither's pair-rule coverage); the service (g-r at 300 s) spends no "
     "time on a third visit. For the next run: each record should keep its executed curve (or its plan), so that "
     "no plan has to be made again, and a row planned under the budget itself (the service with an open-shutter "
-    "cap equal to gwemopt's on the event, a constraint the planner does not have today) would replace both "
-    "stand-ins by the planner.")
+    "cap equal to gwemopt's on the event, a constraint the frozen code does not have: see 'Under gwemopt-o4's "
+    "budget, planned' below) replaces both stand-ins by the planner.")
 
 #: The reverse caveat: what gwemopt's own command lines leave unused (``mushrooms.evaluation.gwemopt_options``).
 GWEMOPT_CAVEAT = (
