@@ -55,7 +55,7 @@ def _calls(skyportal) -> list[tuple[str, str, str]]:
             if e["method"] in ("POST", "DELETE") and e["status"] == 200]
 
 
-def test_round_two_is_posted_then_round_one_deleted(tmp_path, skyportal):
+def test_round_two_is_posted_then_round_one_deleted(tmp_path, skyportal, capsys):
     state = parts_state(tmp_path, [(1, "PRELIMINARY", "exported")])
     assert _step(state, skyportal.url) == 0
     (first,) = _names(skyportal)
@@ -72,6 +72,12 @@ def test_round_two_is_posted_then_round_one_deleted(tmp_path, skyportal):
     assert dict(_requests(state))[second_plan] == "sent" and sorted(s for _, s in _requests(state)) == [
         "replaced", "sent"]
     assert _step(state, skyportal.url) == 0 and _calls(skyportal) == calls  # nothing more
+    from mushrooms.tool.status import main
+
+    capsys.readouterr()
+    main(["--state", str(state)])  # the part standing is round 2's, and so is the request status names
+    out = capsys.readouterr().out
+    assert "SkyPortal request sent (id 2)" in out and "(id 1)" not in out, out
 
 
 def test_a_kill9_during_round_twos_post_keeps_round_one_until_round_two_is_found(tmp_path, skyportal):
