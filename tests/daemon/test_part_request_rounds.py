@@ -144,3 +144,48 @@ def test_a_state_file_with_mains_request_table_keeps_its_rows_and_sends_round_tw
     assert _step(state, skyportal.url) == 0
     (second,) = _names(skyportal)
     assert second == second_name and sorted(s for _, s in _requests(state)) == ["replaced", "sent"]
+
+
+@pytest.mark.slow
+def test_the_service_replans_winter_around_ztfs_revision_2_and_the_sender_follows(tmp_path, skyportal):
+    """End to end: the daemon's pipeline (ztf + winter) with ZTF's revision 2 forced as test_coordinated_parts forces
+    it; the sender runs between the two rounds (round 1 sent) and after (round 2 sent, round 1 DELETEd)."""
+    import datetime as dt
+    import json
+
+    from test_coordinated_parts import PRELIMINARY, _halved_first_plan, _run, notice_bytes
+
+    from mushrooms.scheduler_core.anytime import FIRST_SOLVER
+    from mushrooms.scheduler_core.planner import run_scheduler
+
+    state, outbox = tmp_path / "state.sqlite", tmp_path / "outbox"
+    halved, seen = _halved_first_plan(run_scheduler), []
+
+    def when(folder: str) -> dt.datetime:
+        (request,) = (outbox / "telescopes").glob(f"*/{folder}/winter/skyportal_request.json")
+        start = json.loads(request.read_text())["validity_window_start"]
+        return dt.datetime.fromisoformat(str(start).rstrip("Z")).replace(tzinfo=dt.timezone.utc)
+
+    def step(folder: str) -> int:
+        s, store = sender(state, skyportal.url)
+        try:
+            return s.step(now=when(folder))
+        finally:
+            store.close()
+
+    def scheduler(problem, solver, should_stop=None):
+        if solver != FIRST_SOLVER and not seen and list((outbox / "telescopes").glob("*/00001-PRELIMINARY/winter")):
+            seen.append(step("00001-PRELIMINARY"))  # round 1 recorded: the sender's thread sends it
+        return halved(problem, solver, should_stop)
+
+    (out,) = _run(tmp_path, ["ztf", "winter"], [notice_bytes(PRELIMINARY)], solver="slots", planner=scheduler)
+    assert out.revision == 2 and seen == [0] and len(skyportal.plans) == 1  # round 1's request was sent
+    (first,) = _names(skyportal)
+    assert step("00001-PRELIMINARY-round2") == 0
+    (second,) = _names(skyportal)
+    request = json.loads(next((outbox / "telescopes").glob("*/00001-PRELIMINARY-round2/winter/"
+                                                           "skyportal_request.json")).read_text())
+    assert second == request["plan_name"] != first
+    calls = _calls(skyportal)
+    assert [c[0] for c in calls] == ["POST", "POST", "DELETE"] and [c[2] for c in calls[:2]] == [first, second]
+    assert sorted(s for _, s in _requests(state)) == ["replaced", "sent"]
