@@ -211,18 +211,24 @@ def _parts(conn: sqlite3.Connection, superevent_id: str) -> list[dict[str, Any]]
 
     if not has_table(conn, "telescope_parts"):
         return []
-    cur = conn.execute("SELECT job_id, telescope, queue, state, plan_id, folder, detail FROM telescope_parts"
-                       " WHERE superevent_id = ? ORDER BY job_id DESC, telescope", (superevent_id,))
+    rounds = _round(conn, "telescope_parts")
+    cur = conn.execute(f"SELECT job_id, telescope, queue, state, plan_id, folder, detail, {rounds} AS round FROM"
+                       " telescope_parts WHERE superevent_id = ? ORDER BY job_id DESC, telescope", (superevent_id,))
     names = [c[0] for c in cur.description]
     parts = [dict(zip(names, r)) for r in cur.fetchall()]
     if parts and has_table(conn, "part_requests"):  # [submit_parts]: what became of each SkyPortal request
-        sent = {(r[0], r[1]): {"state": r[2], "remote_id": r[3], "reason": r[4]} for r in conn.execute(
-            "SELECT job_id, telescope, state, remote_id, reason FROM part_requests WHERE superevent_id = ?",
-            (superevent_id,))}
-        for p in parts:
-            if (p["job_id"], p["telescope"]) in sent:
-                p["request"] = sent[(p["job_id"], p["telescope"])]
+        sent = {(r[0], r[1], r[2]): {"state": r[3], "remote_id": r[4], "reason": r[5]} for r in conn.execute(
+            f"SELECT job_id, telescope, {_round(conn, 'part_requests')}, state, remote_id, reason FROM part_requests"
+            " WHERE superevent_id = ?", (superevent_id,))}
+        for p in parts:  # the request of the part's round (J9: a job's round 2 replaced its round 1)
+            if (p["job_id"], p["telescope"], p["round"]) in sent:
+                p["request"] = sent[(p["job_id"], p["telescope"], p["round"])]
     return parts
+
+
+def _round(conn: sqlite3.Connection, table: str) -> str:
+    """``round``, or ``1`` for a file (read as it is) whose ``table`` has no round yet (every part round 1)."""
+    return "round" if "round" in {r[1] for r in conn.execute(f"PRAGMA table_info({table})")} else "1"
 
 
 def _request_words(part: dict[str, Any]) -> str:

@@ -141,3 +141,35 @@ class PartsSkyPortal(SkyPortalContract):
 
     def posts(self) -> list[dict[str, Any]]:
         return [e for e in self.log if e["method"] == "POST"]
+
+
+def round_two(tmp_path: Path, state: Path, job_id: int = 1, alert_type: str = "PRELIMINARY") -> tuple[str, str]:
+    """Re-plan job ``job_id``'s WINTER part around ZTF's revision 2 as the service does (issue 53 J9).
+
+    :func:`~mushrooms.daemon.state.parts.record_part` with ``round_=2``: the
+    job's ``telescope_parts`` row is replaced (same job, telescope; new plan id,
+    folder ``<job>-<type>-round2/``) and round 1's folder marked ``SUPERSEDED``.
+    Round 2's (plan id, SkyPortal plan name).
+    """
+    from mushrooms.daemon.state.parts import record_part
+    from mushrooms.daemon.state.store import Store
+    from mushrooms.daemon.submission.part_request import part_request
+    from mushrooms.scheduler_core.instruments import load_description
+    from mushrooms.scheduler_core.plan.document import Plan
+
+    doc = winter_plan()
+    doc["plan_id"] = f"mushrooms-{job_id:04x}{'d' * 12}"  # round 2's own plan (and request name)
+    plan = Plan.from_document(doc)
+    job = tmp_path / "outbox" / "telescopes" / SID
+    folder = job / f"{job_id:05d}-{alert_type}-round2" / "winter"
+    folder.mkdir(parents=True)
+    request = part_request(plan, load_description("winter"))
+    (folder / "skyportal_request.json").write_text(json.dumps(request))
+    (job / f"{job_id:05d}-{alert_type}" / "winter" / "SUPERSEDED").write_text("round 2\n")
+    store = Store(state)
+    try:
+        assert record_part(store, job_id, "winter", SID, "skyportal", "exported", plan.plan_id, str(folder),
+                           round_=2, held="revision-2")
+    finally:
+        store.close()
+    return plan.plan_id, request["plan_name"]

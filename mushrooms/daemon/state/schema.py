@@ -11,7 +11,7 @@ from __future__ import annotations
 import sqlite3
 
 from .executed import EXECUTED_TABLE
-from .part_requests import PART_REQUESTS_TABLE
+from .part_requests import PART_REQUESTS_TABLE, ROUND_REBUILD, Rebuild
 from .parts import PARTS_TABLE, ROUND_COLUMNS
 
 __all__ = ["SCHEMA_VERSION", "SCHEMA", "UPGRADES", "missing_steps"]
@@ -119,12 +119,13 @@ CREATE INDEX IF NOT EXISTS outbox_pending ON outbox(published_at);
 """ + SUBMISSIONS
 
 #: How older state files are brought up to date: one list, in the order the schema grew.  Each step
-#: is a table created when missing or a column (table, name, declaration) added when missing; every
+#: is a table created when missing, a column (table, name, declaration) added when missing, or a table
+#: of an earlier form rebuilt (:class:`~.part_requests.Rebuild`, when it lacks a column of its key); every
 #: open applies what a file lacks, whatever its ``user_version`` says (a file of any earlier release,
 #: or one whose version and tables disagree, ends with the same tables).  ``user_version`` is then
 #: raised to :data:`SCHEMA_VERSION`; a file with a newer one is refused.  A new file gets
 #: :data:`SCHEMA` and then the same steps.
-UPGRADES: tuple[tuple[int, str | tuple[str, str, str]], ...] = (
+UPGRADES: tuple[tuple[int, str | tuple[str, str, str] | Rebuild], ...] = (
     (2, ("plans", "revision", "INTEGER NOT NULL DEFAULT 1")),  # a job's revisions (anytime plans)
     (2, ("plans", "final", "INTEGER NOT NULL DEFAULT 1")),
     (2, ("events", "localization", "TEXT")),  # gw | combined: which map was planned
@@ -143,6 +144,8 @@ UPGRADES: tuple[tuple[int, str | tuple[str, str, str]], ...] = (
     (6, PART_REQUESTS_TABLE),
     # a part's round (the job's ZTF revision it was planned around) and which revision (its key); issue 53 J9
     (6, ROUND_COLUMNS[0]), (6, ROUND_COLUMNS[1]),  # columns with defaults: an older program's rows still insert
+    # a request per part round (job, telescope, round): main b00c596's table, keyed by (job, telescope), rebuilt
+    (6, ROUND_REBUILD),
 )
 
 
@@ -159,6 +162,11 @@ def missing_steps(conn: sqlite3.Connection) -> list[str]:
             names = [w.split("(")[0] for w in step.split("CREATE TABLE IF NOT EXISTS ")[1:]]
             if not set(n.strip() for n in names) <= tables:
                 out.append(step)
+            continue
+        if isinstance(step, Rebuild):  # a table of an earlier form (its key changed): rebuilt, rows kept
+            have = {r[1] for r in conn.execute(f"PRAGMA table_info({step.table})")} if step.table in tables else None
+            if have is not None and step.column not in have:
+                out.append(step.sql)
             continue
         table, column, decl = step
         if table not in tables:

@@ -10,6 +10,10 @@ parts not yet seen, sends what is pending, and DELETEs (``DELETE
 /api/observation_plan/<id>``) the requests whose part no longer stands: a
 retraction's (``withdrawn``) at once, a superseded one once the telescope's
 newer part is not pending any more (sent, refused or never to be sent).
+A part is one round of a job (docs/design/telescopes.md J9): when ZTF's
+revision 2 re-plans the job's parts, ``telescope_parts`` keeps round 2's row
+only, and round 1's request counts as superseded by it (a request is keyed by
+(job, telescope, round), so round 2's is adopted and sent like a newer map's).
 
 Crash safety: a row is marked ``tried`` in its own transaction before its
 POST.  A tried row still ``pending`` (a kill -9 between the POST and its
@@ -83,12 +87,12 @@ class PartSender:
         """One pass: adopt, send, settle.  The number of requests still waiting on SkyPortal."""
         now = now or self.clock()
         self._adopt(now)
-        parts = {(p["job_id"], p["telescope"]): p for p in _parts(self.store)}
+        parts = {(p["job_id"], p["telescope"]): p for p in _parts(self.store)}  # each job's latest round
         waiting = 0
         for stage in ("pending", "sent"):  # send first: an old request goes once the newer one is in
             rows = requests(self.store)
             for row in [r for r in rows if r["state"] == stage]:
-                part = parts.get((row["job_id"], row["telescope"])) or {}
+                part = _part_of(row, parts)
                 try:
                     if stage == "pending":
                         self._pending(row, part, now)
@@ -107,12 +111,14 @@ class PartSender:
     def _adopt(self, now: dt.datetime) -> None:
         """A row for every exported ``skyportal`` part without one: pending, or why it is not sent."""
         cur = self.store.connection().execute(
-            "SELECT p.job_id, p.telescope, p.superevent_id, p.plan_id, p.folder, j.alert_type FROM telescope_parts p"
-            " LEFT JOIN jobs j USING (job_id) WHERE p.queue='skyportal' AND p.state='exported' AND NOT EXISTS"
-            " (SELECT 1 FROM part_requests r WHERE r.job_id=p.job_id AND r.telescope=p.telescope)")
+            "SELECT p.job_id, p.telescope, p.round, p.superevent_id, p.plan_id, p.folder, j.alert_type"
+            " FROM telescope_parts p LEFT JOIN jobs j USING (job_id) WHERE p.queue='skyportal' AND p.state='exported'"
+            " AND NOT EXISTS (SELECT 1 FROM part_requests r WHERE r.job_id=p.job_id AND r.telescope=p.telescope"
+            " AND r.round=p.round)")
         for part in [dict(r) for r in cur]:
             state, reason, body, name = self._first_state(part, now)
             if add_request(self.store, {"job_id": part["job_id"], "telescope": part["telescope"],
+                                        "round": int(part["round"] or 1),
                                         "superevent_id": part["superevent_id"], "plan_id": part["plan_id"],
                                         "plan_name": name, "state": state, "reason": reason,
                                         "body": None if body is None else json.dumps(body)}):
@@ -155,7 +161,7 @@ class PartSender:
                 return self._close(row, "sent", f"found in SkyPortal after an unanswered POST (request {found})",
                                    remote_id=str(found))
             if found is not None:  # it did reach SkyPortal: take it back like a sent one
-                update_request(self.store, row["job_id"], row["telescope"], state="sent", remote_id=str(found))
+                update_request(self.store, row, state="sent", remote_id=str(found))
                 return self._settle({**row, "remote_id": str(found)}, _closing_state(part), now)
             why = ("its validity window ended before it was sent" if part.get("state") == "exported"
                    else f"{part.get('state', 'gone')} before it was sent")
@@ -165,7 +171,7 @@ class PartSender:
             if found is not None:
                 return self._close(row, "sent", f"found in SkyPortal after an unanswered POST (request {found})",
                                    remote_id=str(found))
-        update_request(self.store, row["job_id"], row["telescope"], tried=1, attempts=row["attempts"] + 1)
+        update_request(self.store, row, tried=1, attempts=row["attempts"] + 1)
         answer = self.client.post(body)
         found = _request_id(answer)
         if found is not None:
@@ -173,7 +179,7 @@ class PartSender:
         if answer.refused:
             return self._close(row, "rejected", f"SkyPortal refused it ({answer.status}): {answer.message()}"
                                + self._kept(row, body), http_status=answer.status, answer=answer.text)
-        update_request(self.store, row["job_id"], row["telescope"], http_status=answer.status, answer=answer.text)
+        update_request(self.store, row, http_status=answer.status, answer=answer.text)
         raise _Wait(f"POST answered {answer.status}: {answer.message()}"[:500])
 
     def _found_at_the_end(self, row: dict[str, Any], body: dict[str, Any], now: dt.datetime) -> int | None:
@@ -226,7 +232,7 @@ class PartSender:
                     f"{answer.message()}; remove it by hand", http_status=answer.status, answer=answer.text)
 
     def _close(self, row: dict[str, Any], state: str, reason: str, **values: Any) -> None:
-        update_request(self.store, row["job_id"], row["telescope"], state=state, reason=reason[:1000], **values)
+        update_request(self.store, row, state=state, reason=reason[:1000], **values)
         self._result(state, row["telescope"], row["superevent_id"], row["job_id"], row["plan_name"], reason,
                      values.get("remote_id") or row.get("remote_id"))
 
@@ -242,16 +248,32 @@ class PartSender:
 def _parts(store: Any) -> list[dict[str, Any]]:
     """Every part; one of a retracted event counts as ``withdrawn`` (its request goes before the outbox is out)."""
     rows = store.connection().execute(
-        "SELECT p.job_id, p.telescope, p.superevent_id, CASE WHEN e.retracted=1 THEN 'withdrawn' ELSE p.state END"
-        " AS state FROM telescope_parts p LEFT JOIN events e USING (superevent_id)")
+        "SELECT p.job_id, p.telescope, p.round, p.superevent_id, CASE WHEN e.retracted=1 THEN 'withdrawn'"
+        " ELSE p.state END AS state FROM telescope_parts p LEFT JOIN events e USING (superevent_id)")
     return [dict(r) for r in rows]
 
 
+def _part_of(row: dict[str, Any], parts: dict[tuple[int, str], dict[str, Any]]) -> dict[str, Any]:
+    """The part a request was made for; ``superseded`` when its job's part is now of another round (J9).
+
+    ``telescope_parts`` keeps a job's latest round per telescope: a request of
+    an earlier round no longer stands (its folder is marked ``SUPERSEDED``), but
+    a retraction still withdraws it.
+    """
+    part = parts.get((row["job_id"], row["telescope"]))
+    if part is None:
+        return {}
+    if part["state"] != "withdrawn" and int(part.get("round") or 1) != int(row.get("round") or 1):
+        return {**part, "state": "superseded"}
+    return part
+
+
 def _newer_pending(row: dict[str, Any], rows: list[dict[str, Any]], part: dict[str, Any]) -> bool:
-    """A superseded part's request waits while the telescope's newer part of the event is still pending."""
+    """A superseded part's request waits while the telescope's newer part (job, round) of the event is pending."""
+    mine = (row["job_id"], int(row.get("round") or 1))
     return part.get("state") == "superseded" and any(
         r["state"] == "pending" and r["superevent_id"] == row["superevent_id"] and r["telescope"] == row["telescope"]
-        and r["job_id"] > row["job_id"] for r in rows)
+        and (r["job_id"], int(r.get("round") or 1)) > mine for r in rows)
 
 
 def _closing_state(part: dict[str, Any]) -> str:
