@@ -173,3 +173,26 @@ def round_two(tmp_path: Path, state: Path, job_id: int = 1, alert_type: str = "P
     finally:
         store.close()
     return plan.plan_id, request["plan_name"]
+
+
+def send_killed_at_the_post(state: Path, skyportal: Any) -> tuple[int, bytes, bytes]:
+    """One sender pass in a child process, killed with SIGKILL while SkyPortal answers its POST.
+
+    Returns the child's exit status, stdout and stderr; ``skyportal.on_post`` is cleared after.
+    """
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[2]
+    child: list[subprocess.Popen] = []
+    skyportal.on_post = lambda pid: (os.kill(child[0].pid, signal.SIGKILL), child[0].wait(30))
+    script = ("import sys; sys.path[:0] = [sys.argv[1], sys.argv[2]];"
+              "from part_requests_setup import sender, plan_start;"
+              "s, store = sender(sys.argv[3], sys.argv[4]); s.step(now=plan_start()); print('not killed')")
+    child.append(subprocess.Popen([sys.executable, "-c", script, str(root), str(Path(__file__).parent), str(state),
+                                   skyportal.url], stdout=subprocess.PIPE, stderr=subprocess.PIPE))
+    out, err = child[0].communicate(timeout=120)
+    skyportal.on_post = None
+    return child[0].returncode, out, err

@@ -10,18 +10,14 @@ server on loopback (pytest-httpserver), the service's own state functions.
 
 from __future__ import annotations
 
-import os
 import signal
 import sqlite3
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-from part_requests_setup import PartsSkyPortal, parts_state, plan_start, round_two, sender
+from part_requests_setup import send_killed_at_the_post, PartsSkyPortal, parts_state, plan_start, round_two, sender
 
-ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture
@@ -85,16 +81,8 @@ def test_a_kill9_during_round_twos_post_keeps_round_one_until_round_two_is_found
     assert _step(state, skyportal.url) == 0
     (first,) = _names(skyportal)
     second_plan, second_name = round_two(tmp_path, state)
-    child: list[subprocess.Popen] = []
-    skyportal.on_post = lambda pid: (os.kill(child[0].pid, signal.SIGKILL), child[0].wait(30))
-    script = ("import sys; sys.path[:0] = [sys.argv[1], sys.argv[2]];"
-              "from part_requests_setup import sender, plan_start;"
-              "s, store = sender(sys.argv[3], sys.argv[4]); s.step(now=plan_start()); print('not killed')")
-    child.append(subprocess.Popen([sys.executable, "-c", script, str(ROOT), str(Path(__file__).parent), str(state),
-                                   skyportal.url], stdout=subprocess.PIPE, stderr=subprocess.PIPE))
-    out, err = child[0].communicate(timeout=120)
-    assert child[0].returncode == -signal.SIGKILL and b"not killed" not in out, err[-2000:]
-    skyportal.on_post = None
+    code, out, err = send_killed_at_the_post(state, skyportal)
+    assert code == -signal.SIGKILL and b"not killed" not in out, err[-2000:]
     assert len(skyportal.plans) == 2 and first in _names(skyportal)  # round 2 stored, its answer never recorded
     assert not [e for e in skyportal.log if e["method"] == "DELETE"]  # round 1 kept while round 2's fate is unknown
     assert _step(state, skyportal.url) == 0  # the restart: round 2 found by its name, then round 1 DELETEd

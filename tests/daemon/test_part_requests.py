@@ -15,17 +15,13 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import signal
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-from part_requests_setup import SID, TOKEN, PartsSkyPortal, parts_state, plan_start, rows, sender
+from part_requests_setup import send_killed_at_the_post, SID, TOKEN, PartsSkyPortal, parts_state, plan_start, rows, sender
 
-ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture
@@ -81,18 +77,10 @@ def test_a_5xx_keeps_it_pending_and_a_restart_sends_it_once(tmp_path, skyportal)
 
 def test_a_kill9_between_post_and_record_is_recognised_not_sent_twice(tmp_path, skyportal):
     state = parts_state(tmp_path, [(1, "PRELIMINARY", "exported")])
-    child: list[subprocess.Popen] = []
-    skyportal.on_post = lambda pid: (os.kill(child[0].pid, signal.SIGKILL), child[0].wait(30))
-    script = ("import sys, datetime as dt; sys.path[:0] = [sys.argv[1], sys.argv[2]];"
-              "from part_requests_setup import sender, plan_start;"
-              "s, store = sender(sys.argv[3], sys.argv[4]); s.step(now=plan_start()); print('not killed')")
-    child.append(subprocess.Popen([sys.executable, "-c", script, str(ROOT), str(Path(__file__).parent), str(state),
-                                   skyportal.url], stdout=subprocess.PIPE, stderr=subprocess.PIPE))
-    out, err = child[0].communicate(timeout=120)
-    assert child[0].returncode == -signal.SIGKILL and b"not killed" not in out, err[-2000:]
+    code, out, err = send_killed_at_the_post(state, skyportal)
+    assert code == -signal.SIGKILL and b"not killed" not in out, err[-2000:]
     (row,) = rows(state)
     assert row["state"] == "pending" and row["tried"] == 1 and row["remote_id"] is None  # the answer never recorded
-    skyportal.on_post = None
     assert _step(state, skyportal.url) == 0
     (row,) = rows(state)
     assert row["state"] == "sent" and row["remote_id"] == "1" and "found in SkyPortal" in row["reason"]
