@@ -13,6 +13,7 @@ Against a SkyPortal contract server on loopback (pytest-httpserver).
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 import logging
 import signal
@@ -29,11 +30,11 @@ def skyportal(loopback):
     return PartsSkyPortal(loopback)
 
 
-def _step(state: Path, url: str, **settings) -> int:
-    """One pass of a freshly opened sender (a restart), at the plan's start."""
+def _step(state: Path, url: str, after: dt.timedelta = dt.timedelta(0), **settings) -> int:
+    """One pass of a freshly opened sender (a restart), at the plan's start (or ``after`` it)."""
     s, store = sender(state, url, **settings)
     try:
-        return s.step(now=plan_start())
+        return s.step(now=plan_start() + after)
     finally:
         store.close()
 
@@ -176,7 +177,6 @@ def test_a_delete_skyportal_refuses_is_failed_with_remove_by_hand(tmp_path, skyp
 
 
 def test_a_delete_that_keeps_failing_waits_then_fails_at_the_window_end(tmp_path, skyportal):
-    import datetime as dt
     import sqlite3
 
     state = parts_state(tmp_path, [(1, "PRELIMINARY", "exported")])
@@ -185,18 +185,13 @@ def test_a_delete_that_keeps_failing_waits_then_fails_at_the_window_end(tmp_path
         c.execute("UPDATE events SET retracted=1")
     skyportal.faults["DELETE"] = ["500", "500"]
     assert _step(state, skyportal.url) == 1 and rows(state)[0]["state"] == "sent"  # retried while the window lasts
-    s, store = sender(state, skyportal.url)
-    try:
-        assert s.step(now=plan_start() + dt.timedelta(days=2)) == 0
-    finally:
-        store.close()
+    assert _step(state, skyportal.url, after=dt.timedelta(days=2)) == 0
     (row,) = rows(state)
     assert row["state"] == "failed" and "before its window ended" in row["reason"] and "by hand" in row["reason"]
 
 
 @pytest.mark.parametrize("case", ["no allocation", "earlywarning", "window ended", "dry run"])
 def test_what_is_not_sent_says_why_and_sends_nothing(tmp_path, skyportal, case):
-    import datetime as dt
 
     alert = "EARLYWARNING" if case == "earlywarning" else "PRELIMINARY"
     state = parts_state(tmp_path, [(1, alert, "exported")])
@@ -236,7 +231,6 @@ def _no_token(tmp_path: Path, caplog) -> None:
 @pytest.mark.slow
 def test_the_service_plans_a_winter_part_and_it_is_sent(tmp_path, skyportal):
     """End to end: the daemon's pipeline (``telescopes = ["ztf", "winter"]``) writes the part, the sender sends it."""
-    import datetime as dt
 
     from daemon_helpers import notice_bytes
     from telescope_parts_setup import open_parts_pipeline, parts_config
@@ -289,18 +283,13 @@ def test_the_daemons_thread_sends_after_a_kick_and_retries_with_back_off(tmp_pat
 
 
 def test_a_tried_request_whose_fate_stays_unknown_past_its_window_fails_not_forever(tmp_path, skyportal):
-    import datetime as dt
 
     state = parts_state(tmp_path, [(1, "PRELIMINARY", "exported")])
     skyportal.faults["POST"] = ["503"]
     assert _step(state, skyportal.url) == 1  # tried, unanswered
     skyportal.faults["GET"] = ["500", "500"]  # the list unanswered: whether it landed is unknown
     assert _step(state, skyportal.url) == 1 and rows(state)[0]["state"] == "pending"
-    s, store = sender(state, skyportal.url)
-    try:
-        assert s.step(now=plan_start() + dt.timedelta(days=2)) == 0
-    finally:
-        store.close()
+    assert _step(state, skyportal.url, after=dt.timedelta(days=2)) == 0
     (row,) = rows(state)
     assert row["state"] == "failed" and "unknown at the end of its window" in row["reason"]
 
