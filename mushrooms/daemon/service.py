@@ -353,9 +353,15 @@ class Service:
                 self.parts_drain.kick(now=True)
 
     def queued(self) -> None:
-        """A plan (or another message) was stored: publish it, and submit it when [submit] is on."""
+        """A plan (or another message) was stored: publish it, and submit it when [submit] is on.
+
+        The submitter is kicked by the outbox pass once it has published (or failed to publish: see
+        :meth:`_flush_outbox`), so the observer on call hears of a plan before of its submission's
+        trouble; only while the outbox waits out a back-off (the outbound broker is down) is it kicked
+        here, at once: ZTF's queue does not wait for our own broker.
+        """
         self.outbox.kick()
-        if self.submit_drain is not None:
+        if self.submit_drain is not None and self.outbox.retry_scheduled:
             self.submit_drain.kick()
         if self.parts_drain is not None:
             self.parts_drain.kick()
@@ -433,7 +439,11 @@ class Service:
     def _flush_outbox(self) -> Any:
         if self.closing.is_set():  # a retry that fires during shutdown: the next start publishes it
             return 0
-        return self.pipeline.flush_outbox()
+        try:
+            return self.pipeline.flush_outbox()
+        finally:  # published (and announced) first, then submitted: see :meth:`queued`
+            if self.submit_drain is not None:
+                self.submit_drain.kick()
 
     def _close_store(self, close: Callable[[], None]) -> None:
         """Close sink and store once no publish is running; later retries do nothing."""

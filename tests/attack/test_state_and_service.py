@@ -230,6 +230,69 @@ def test_no_outbox_retry_touches_the_store_once_it_is_closed(tmp_path: Path, cap
     assert "publish_failed" not in caplog.text and "closed database" not in caplog.text
 
 
+# ---------------------------------------------------------------- 9. a plan is told before its submission's trouble
+class _SlowPublisher:
+    """The pipeline's outbox pass, as slow as a busy disk: what it published, and when, goes to ``told``."""
+
+    def __init__(self, told: list[str], fail_first: bool = False) -> None:
+        self.told, self.fail_first = told, fail_first
+
+    def flush_outbox(self) -> int:
+        if self.fail_first:  # the outbound broker is down: the pass fails, the drain backs off
+            self.fail_first = False
+            raise ConnectionError("broker down")
+        time.sleep(0.5)
+        self.told.append("plan_published")
+        return 0
+
+
+def _service_with(tmp_path: Path, told: list[str], fail_first: bool = False, retry_s: float = 0.1):
+    from mushrooms.daemon.drain import OutboxDrain
+    from mushrooms.daemon.service import Service
+
+    config = _service_config(None, outbox=str(tmp_path / "out"), state=str(tmp_path / "s.sqlite"))
+    svc = Service(config, resolve_paths(config.daemon))
+    svc.pipeline = _SlowPublisher(told, fail_first)
+    svc.outbox = OutboxDrain(svc._flush_outbox, retry_s, retry_s, name="outbox")
+    svc.submit_drain = OutboxDrain(lambda: told.append("submission_failing") or 0, 0.1, 1.0, name="submit")
+    return svc
+
+
+def _until(predicate, timeout_s: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not predicate() and time.monotonic() < deadline:
+        time.sleep(0.01)
+
+
+def test_a_plan_is_published_before_its_submission_is_tried(tmp_path: Path) -> None:
+    """The CI run of 2026-12-06 told the webhook "could not be submitted" before "new plan" (a fast submitter)."""
+    told: list[str] = []
+    svc = _service_with(tmp_path, told)
+    try:
+        svc.queued()  # a plan was stored: publish it, then submit it
+        _until(lambda: "submission_failing" in told and "plan_published" in told)
+    finally:
+        svc.outbox.close()
+        svc.submit_drain.close()
+    assert told[:2] == ["plan_published", "submission_failing"], told
+
+
+def test_a_submission_does_not_wait_for_an_outbound_broker_that_is_down(tmp_path: Path) -> None:
+    told: list[str] = []
+    svc = _service_with(tmp_path, told, fail_first=True, retry_s=60.0)
+    try:
+        svc.outbox.kick()  # an earlier message: the pass fails, the outbox backs off for 60 s
+        _until(lambda: svc.outbox.retry_scheduled)
+        assert svc.outbox.retry_scheduled
+        told.clear()
+        svc.queued()  # a plan is stored during the back-off: ZTF's queue does not wait 60 s for our broker
+        _until(lambda: "submission_failing" in told, 10.0)
+    finally:
+        svc.outbox.close()
+        svc.submit_drain.close()
+    assert told == ["submission_failing"], told
+
+
 # ---------------------------------------------------------------- the unit
 def test_the_unit_sets_limits_and_scores_at_most_1_5(tmp_path: Path) -> None:
     unit = (REPO / "systemd" / "mushrooms.service").read_text()
