@@ -100,7 +100,7 @@ def rows(state: Path) -> list[dict[str, Any]]:
 class PartsSkyPortal(SkyPortalContract):
     """SkyPortal with an instrument whose filters are ``filters``; lists an event's requests; keeps refused ones."""
 
-    def __init__(self, server: Any, token: str = TOKEN, filters: tuple[str, ...] = ("J",)) -> None:
+    def __init__(self, server: Any, token: str = TOKEN, filters: tuple[str, ...] = ("desy", "2massj", "2massh")) -> None:
         super().__init__(server, token)
         self.filters = set(filters)
         self.undeletable = False  # "Cannot delete observation plans on this instrument."
