@@ -282,8 +282,9 @@ def test_a_submission_does_not_wait_for_an_outbound_broker_that_is_down(tmp_path
     svc = _service_with(tmp_path, told, fail_first=True, retry_s=60.0)
     try:
         svc.outbox.kick()  # an earlier message: the pass fails, the outbox backs off for 60 s
-        _until(lambda: svc.outbox.retry_scheduled)
-        assert svc.outbox.retry_scheduled
+        # (the failed pass kicked the submitter too: wait for that pass before counting)
+        _until(lambda: svc.outbox.retry_scheduled and svc.submit_drain.attempts >= 1 and bool(told))
+        assert svc.outbox.retry_scheduled and told == ["submission_failing"]
         told.clear()
         svc.queued()  # a plan is stored during the back-off: ZTF's queue does not wait 60 s for our broker
         _until(lambda: "submission_failing" in told, 10.0)
