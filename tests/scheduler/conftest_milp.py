@@ -57,6 +57,26 @@ def tiny_problem(config: PlanningConfig | None = None, window_5: tuple[float, fl
                            np.array([0.0, 5.0, 10.0, 15.0, 20.0]), np.zeros(5), footprints, windows)
 
 
+def crowded_problem(window_end_s: float, **overrides) -> PlanningProblem:
+    """Three fields visible in [0, ``window_end_s``] s only, one in [1000, 1400] s: fields competing for minutes.
+
+    :func:`tiny_config` with nside 1, a 0.5 h horizon, a 60 s time step, no penalty, no field cap and no
+    least gain (``overrides`` on top).  Coverage: f1 = {0, 1} = .3, f2 = {2} = .22, f3 = {1, 3} = .22,
+    f4 = {4} = .1; the best two of fields 1-3 are {1, 2} = .52 (with f4: .62), all four .74.
+    """
+    cfg = tiny_config(**{**dict(nside=1, horizon_h=0.5, time_step_s=60.0, penalty=0.0, n_fields=None,
+                                min_gain=0.0), **overrides})
+    prob = np.array([0.2, 0.1, 0.22, 0.12, 0.1] + [0.26 / 7] * 7)
+    ids = np.arange(1, 5)
+    members = [[0, 1], [2], [1, 3], [4]]
+    indptr = np.concatenate([[0], np.cumsum([len(m) for m in members])])
+    fp = Footprints(1, ids, indptr, np.concatenate(members))
+    end = float(window_end_s)
+    windows = Windows(ids, np.array([0.0, 0.0, 0.0, 1000.0]), np.array([end, end, end, 1400.0]))
+    return PlanningProblem(cfg, Time("2026-01-01T00:00:00", scale="utc"), prob, ids,
+                           np.array([0.0, 5.0, 10.0, 15.0]), np.zeros(4), fp, windows)
+
+
 def slot_hand_problem(window_end: tuple[float, ...], **overrides) -> PlanningProblem:
     """The slot model's hand instance: fields 1-5 as :func:`tiny_problem`'s, windows ``[0, window_end]``.
 

@@ -2,19 +2,16 @@
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 from astropy.time import Time
 
-from conftest_milp import random_problem, tiny_config
+from conftest_milp import crowded_problem, random_problem, tiny_config
 from tests_paths import MAP_FLAT_RING
 from mushrooms.scheduler_core import PlanningConfig, prepare_problem, read_skymap
 from mushrooms.scheduler_core.planner import build_plan, run_scheduler
 from mushrooms.scheduler_core.problem import PlanningProblem
 from mushrooms.scheduler_core.schedulers.bounds.coverage_bound import coverage_upper_bound
 from mushrooms.scheduler_core.schedulers.bounds.interval_bound import interval_upper_bound, interval_violation
-from mushrooms.scheduler_core.sky.footprints import Footprints
-from mushrooms.scheduler_core.sky.windows import Windows
 
 
 def _coverage(problem, result) -> float:
@@ -42,15 +39,7 @@ def _crowded_problem() -> PlanningProblem:
     60 s time step.  Coverage: f1 = {0, 1} = .3, f2 = {2} = .22, f3 = {1, 3} = .22, f4 = {4} = .1; the best
     pair of fields 1-3 is {1, 2} = .52, so the optimum is .62 and all four fields cover .74.
     """
-    cfg = tiny_config(nside=1, horizon_h=0.5, time_step_s=60.0, penalty=0.0, n_fields=None, min_gain=0.0)
-    prob = np.array([0.2, 0.1, 0.22, 0.12, 0.1] + [0.26 / 7] * 7)
-    ids = np.arange(1, 5)
-    members = [[0, 1], [2], [1, 3], [4]]
-    indptr = np.concatenate([[0], np.cumsum([len(m) for m in members])])
-    fp = Footprints(1, ids, indptr, np.concatenate(members))
-    windows = Windows(ids, np.array([0.0, 0.0, 0.0, 1000.0]), np.array([600.0, 600.0, 600.0, 1400.0]))
-    return PlanningProblem(cfg, Time("2026-01-01T00:00:00", scale="utc"), prob, ids,
-                           np.array([0.0, 5.0, 10.0, 15.0]), np.zeros(4), fp, windows)
+    return crowded_problem(600.0)
 
 
 def test_fields_competing_for_the_same_minutes_tighten_the_bound():

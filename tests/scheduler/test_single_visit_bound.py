@@ -14,11 +14,10 @@ import dataclasses
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
 from astropy.time import Time
 
-from conftest_milp import random_problem, tiny_config
+from conftest_milp import crowded_problem, random_problem, tiny_config
 from tests_paths import MAP_220722V
 from mushrooms.scheduler_core import PlanningConfig, make_plan, read_skymap
 from mushrooms.scheduler_core.instruments import load_description
@@ -28,8 +27,6 @@ from mushrooms.scheduler_core.schedulers.bounds.certified_bound import certified
 from mushrooms.scheduler_core.schedulers.bounds.coverage_bound import coverage_upper_bound, max_fields, pairable_rows
 from mushrooms.scheduler_core.schedulers.bounds.interval_bound import interval_upper_bound, interval_violation
 from mushrooms.scheduler_core.schedulers.gain import published_coverage
-from mushrooms.scheduler_core.sky.footprints import Footprints
-from mushrooms.scheduler_core.sky.windows import Windows
 
 SHARED = Path("/work/shared/data/skymaps/public")
 MAPS = {  # two southern, two northern
@@ -47,16 +44,7 @@ def _one_visit_crowded() -> PlanningProblem:
     readout, 8 s): two of fields 1-3.  Coverage: f1 = {0, 1} = .3, f2 = {2} = .22, f3 = {1, 3} = .22,
     f4 = {4} = .1; the best two of fields 1-3 are {1, 2} = .52, so the optimum is .62, all four .74.
     """
-    cfg = tiny_config(nside=1, horizon_h=0.5, time_step_s=60.0, penalty=0.0, n_fields=None, min_gain=0.0,
-                      filters=("g",))
-    prob = np.array([0.2, 0.1, 0.22, 0.12, 0.1] + [0.26 / 7] * 7)
-    ids = np.arange(1, 5)
-    members = [[0, 1], [2], [1, 3], [4]]
-    indptr = np.concatenate([[0], np.cumsum([len(m) for m in members])])
-    fp = Footprints(1, ids, indptr, np.concatenate(members))
-    windows = Windows(ids, np.array([0.0, 0.0, 0.0, 1000.0]), np.array([200.0, 200.0, 200.0, 1400.0]))
-    return PlanningProblem(cfg, Time("2026-01-01T00:00:00", scale="utc"), prob, ids,
-                           np.array([0.0, 5.0, 10.0, 15.0]), np.zeros(4), fp, windows)
+    return crowded_problem(200.0, filters=("g",))
 
 
 def test_one_visit_counts_one_exposure_a_field_and_every_observable_field():
